@@ -1,0 +1,1 @@
+"""Dynamixel servos, power monitor, force sensor, bench sequencer, servo-bus emulator and physics simulators."""

@@ -1,0 +1,1 @@
+"""Gait patterns, supporting legs L(t), leg kinematics, tip trajectories, Buehler clock; gait node."""

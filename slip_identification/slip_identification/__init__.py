@@ -1,0 +1,1 @@
+"""Preprocessing, stance extraction, SLIP model and per-stance fits; SLIP node."""
