@@ -1,0 +1,192 @@
+"""Message <-> frozen dataclass conversions, one per message type.
+
+Only attribute access and ``np.asarray``, so each converter serves rclpy messages (live) and
+rosbags-decoded messages (offline) alike. Times are float seconds from ``header.stamp``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    'BatterySample',
+    'GaitPhaseSample',
+    'JointStateSample',
+    'PoseSample',
+    'ServoStatusSample',
+    'WrenchSample',
+    'PointSample',
+    'battery_from_msg',
+    'gait_phase_from_msg',
+    'joint_state_from_msg',
+    'point_from_msg',
+    'pose_from_msg',
+    'servo_status_from_msg',
+    'stamp_to_s',
+    's_to_stamp',
+    'wrench_from_msg',
+]
+
+
+def stamp_to_s(stamp: Any) -> float:
+    """``builtin_interfaces/Time`` -> seconds."""
+    return float(stamp.sec) + 1e-9 * float(stamp.nanosec)
+
+
+def s_to_stamp(t_s: float) -> tuple[int, int]:
+    """Seconds -> (sec, nanosec), rounded to the nanosecond."""
+    ns = int(round(t_s * 1e9))
+    return ns // 1_000_000_000, ns % 1_000_000_000
+
+
+@dataclass(frozen=True)
+class JointStateSample:
+    """``sensor_msgs/JointState``: positions [rad], velocities [rad/s], efforts [N m].
+
+    Arrays have one entry per name; a missing field (empty in the message) is an empty array.
+    """
+
+    t_s: float
+    names: tuple[str, ...]
+    position: np.ndarray
+    velocity: np.ndarray
+    effort: np.ndarray
+
+
+def joint_state_from_msg(msg: Any) -> JointStateSample:
+    """Convert a JointState; raises ValueError when array lengths disagree with the names."""
+    names = tuple(msg.name)
+    arrays = []
+    for field in ('position', 'velocity', 'effort'):
+        arr = np.asarray(getattr(msg, field), dtype=float)
+        if arr.size not in (0, len(names)):
+            raise ValueError(
+                f'JointState.{field} has {arr.size} values for {len(names)} names')
+        arrays.append(arr)
+    return JointStateSample(stamp_to_s(msg.header.stamp), names, *arrays)
+
+
+@dataclass(frozen=True)
+class BatterySample:
+    """``sensor_msgs/BatteryState`` as measured: voltage [V], current [A] in the message's sign."""
+
+    t_s: float
+    voltage_v: float
+    current_a: float
+    temperature_c: float
+
+
+def battery_from_msg(msg: Any) -> BatterySample:
+    """Convert a BatteryState; NaN voltage or current raise ValueError."""
+    v, i = float(msg.voltage), float(msg.current)
+    if not (math.isfinite(v) and math.isfinite(i)):
+        raise ValueError(f'BatteryState without voltage/current (voltage={v}, current={i})')
+    return BatterySample(stamp_to_s(msg.header.stamp), v, i, float(msg.temperature))
+
+
+@dataclass(frozen=True)
+class GaitPhaseSample:
+    """``hexapod_interfaces/GaitPhase``."""
+
+    t_s: float
+    gait: str
+    period_s: float
+    duty_factor: float
+    step_length_m: float
+    step_height_m: float
+    sweep_angle_rad: float
+    leg_offset_rad: float
+    cycle_phase: float
+    leg_names: tuple[str, ...]
+    phase_offsets: np.ndarray
+    in_stance: np.ndarray
+    supporting_legs: int
+
+    @property
+    def speed_mps(self) -> float:
+        """Nominal speed of the schedule, step_length / (beta T); 0 for a clock gait."""
+        if self.period_s <= 0 or self.duty_factor <= 0:
+            return 0.0
+        return self.step_length_m / (self.duty_factor * self.period_s)
+
+
+def gait_phase_from_msg(msg: Any) -> GaitPhaseSample:
+    """Convert a GaitPhase."""
+    return GaitPhaseSample(
+        stamp_to_s(msg.header.stamp), str(msg.gait), float(msg.period),
+        float(msg.duty_factor), float(msg.step_length), float(msg.step_height),
+        float(msg.sweep_angle), float(msg.leg_offset), float(msg.cycle_phase),
+        tuple(msg.leg_names), np.asarray(msg.phase_offsets, dtype=float),
+        np.asarray(msg.in_stance, dtype=bool), int(msg.supporting_legs))
+
+
+@dataclass(frozen=True)
+class ServoStatusSample:
+    """``hexapod_interfaces/ServoStatus``."""
+
+    t_s: float
+    names: tuple[str, ...]
+    temperature_c: np.ndarray
+    voltage_v: np.ndarray
+    load: np.ndarray
+    error: np.ndarray
+
+
+def servo_status_from_msg(msg: Any) -> ServoStatusSample:
+    """Convert a ServoStatus."""
+    return ServoStatusSample(
+        stamp_to_s(msg.header.stamp), tuple(msg.name),
+        np.asarray(msg.temperature, dtype=float), np.asarray(msg.voltage, dtype=float),
+        np.asarray(msg.load, dtype=float), np.asarray(msg.error, dtype=np.uint8))
+
+
+@dataclass(frozen=True)
+class PoseSample:
+    """``geometry_msgs/PoseStamped``: position [m], orientation quaternion (x, y, z, w)."""
+
+    t_s: float
+    frame_id: str
+    position_m: np.ndarray
+    orientation_xyzw: np.ndarray
+
+
+def pose_from_msg(msg: Any) -> PoseSample:
+    """Convert a PoseStamped."""
+    p, q = msg.pose.position, msg.pose.orientation
+    return PoseSample(stamp_to_s(msg.header.stamp), str(msg.header.frame_id),
+                      np.array([p.x, p.y, p.z], dtype=float),
+                      np.array([q.x, q.y, q.z, q.w], dtype=float))
+
+
+@dataclass(frozen=True)
+class WrenchSample:
+    """``geometry_msgs/WrenchStamped``: force [N], torque [N m]."""
+
+    t_s: float
+    force_n: np.ndarray
+    torque_nm: np.ndarray
+
+
+def wrench_from_msg(msg: Any) -> WrenchSample:
+    """Convert a WrenchStamped."""
+    f, m = msg.wrench.force, msg.wrench.torque
+    return WrenchSample(stamp_to_s(msg.header.stamp), np.array([f.x, f.y, f.z], dtype=float),
+                        np.array([m.x, m.y, m.z], dtype=float))
+
+
+@dataclass(frozen=True)
+class PointSample:
+    """``geometry_msgs/PointStamped``: point [m]."""
+
+    t_s: float
+    point_m: np.ndarray
+
+
+def point_from_msg(msg: Any) -> PointSample:
+    """Convert a PointStamped."""
+    p = msg.point
+    return PointSample(stamp_to_s(msg.header.stamp), np.array([p.x, p.y, p.z], dtype=float))

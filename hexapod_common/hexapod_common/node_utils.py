@@ -1,0 +1,179 @@
+"""Conventions shared by every node: parameter schema, QoS profiles, the Jazzy ``main()``.
+
+Parameters are declared from one frozen dataclass per node. Each field becomes a ROS parameter
+whose type is the field's type, whose description comes from ``field(metadata={'description':
+...})`` and whose optional validator (``metadata={'validate': callable}``) runs both at start-up
+and on run-time changes, so a bad value is refused with its reason.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+from collections.abc import Callable, Sequence
+from typing import Any, TypeVar
+
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+)
+
+from hexapod_common.errors import ParameterError
+
+__all__ = [
+    'LATCHED_QOS',
+    'RELIABLE_QOS',
+    'SENSOR_QOS',
+    'declare_params',
+    'param',
+    'params_from_overrides',
+    'run_node',
+    'validate_params',
+]
+
+T = TypeVar('T')
+
+#: Subscriptions to sensor streams: best effort matches both best-effort and reliable
+#: publishers (a reliable subscription would not connect to a best-effort driver); deep enough
+#: that a busy executor does not lose samples at 100-200 Hz.
+SENSOR_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=200,
+    reliability=ReliabilityPolicy.BEST_EFFORT,
+    durability=DurabilityPolicy.VOLATILE,
+)
+
+#: Publishers of this graph: reliable, which any subscriber (reliable or best effort) accepts.
+RELIABLE_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=200,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+
+#: Latched state such as ``/bench/session``: late joiners get the last message.
+LATCHED_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+
+
+def param(default: Any, description: str, *, validate: Callable[[Any], str | None] | None = None,
+          read_only: bool = False) -> Any:
+    """Declare one parameter field of a node's frozen dataclass.
+
+    ``validate`` returns None when the value is fine, else the reason it is refused.
+    """
+    meta = {'description': description, 'validate': validate, 'read_only': read_only}
+    if isinstance(default, (list, tuple)):
+        return dataclasses.field(default_factory=lambda: type(default)(default), metadata=meta)
+    return dataclasses.field(default=default, metadata=meta)
+
+
+def _default_of(fld: dataclasses.Field) -> Any:
+    if fld.default is not dataclasses.MISSING:
+        return fld.default
+    if fld.default_factory is not dataclasses.MISSING:
+        return fld.default_factory()
+    raise ParameterError(f'parameter {fld.name!r} has no default')
+
+
+def _coerce(name: str, value: Any, default: Any) -> Any:
+    """Accept ints for float parameters (YAML writes 1 for 1.0); refuse other type changes."""
+    if isinstance(default, bool):
+        if not isinstance(value, bool):
+            raise ParameterError(f'parameter {name!r}: expected a bool, got {value!r}')
+        return value
+    if isinstance(default, float) and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    if isinstance(default, (list, tuple)):
+        return type(default)(value)
+    if not isinstance(value, type(default)):
+        raise ParameterError(
+            f'parameter {name!r}: expected {type(default).__name__}, got {value!r}')
+    return value
+
+
+def validate_params(cls: type[T], values: dict[str, Any]) -> T:
+    """Build the frozen parameter dataclass from ``values``, running every validator."""
+    kwargs = {}
+    for fld in dataclasses.fields(cls):  # type: ignore[arg-type]
+        default = _default_of(fld)
+        value = _coerce(fld.name, values.get(fld.name, default), default)
+        check = fld.metadata.get('validate')
+        if check is not None and (reason := check(value)):
+            raise ParameterError(f'parameter {fld.name!r} = {value!r} refused: {reason}')
+        kwargs[fld.name] = value
+    return cls(**kwargs)
+
+
+def params_from_overrides(cls: type[T], overrides: Sequence[Any] | None) -> T:
+    """Parameter dataclass from rclpy ``Parameter`` overrides, without a node (for tests)."""
+    return validate_params(cls, {p.name: p.value for p in overrides or ()})
+
+
+def declare_params(node: Any, cls: type[T], *,
+                   on_change: Callable[[T], str | None] | None = None) -> T:
+    """Declare every field of ``cls`` on ``node`` and read the values back into ``cls``.
+
+    On a run-time change the new set is validated as a whole; ``on_change`` receives the new
+    dataclass and may refuse it by returning a reason. The accepted value is stored in
+    ``node.params``.
+    """
+    values = {}
+    for fld in dataclasses.fields(cls):  # type: ignore[arg-type]
+        default = _default_of(fld)
+        descriptor = ParameterDescriptor(
+            description=fld.metadata.get('description', ''),
+            read_only=bool(fld.metadata.get('read_only', False)),
+        )
+        declared = default if not isinstance(default, tuple) else list(default)
+        node.declare_parameter(fld.name, declared, descriptor)
+        values[fld.name] = node.get_parameter(fld.name).value
+    params = validate_params(cls, values)
+    node.params = params
+
+    def _on_set(parameters: list[Any]) -> SetParametersResult:
+        current = dataclasses.asdict(node.params)  # type: ignore[call-overload]
+        current.update({p.name: p.value for p in parameters if p.name in current})
+        try:
+            new = validate_params(cls, current)
+        except ParameterError as err:
+            return SetParametersResult(successful=False, reason=str(err))
+        if on_change is not None and (reason := on_change(new)):
+            return SetParametersResult(successful=False, reason=reason)
+        node.params = new
+        return SetParametersResult(successful=True)
+
+    node.add_on_set_parameters_callback(_on_set)
+    return params
+
+
+def run_node(node_factory: Callable[..., Any], args: Sequence[str] | None = None) -> int:
+    """The Jazzy ``main()``: init, spin, clean shutdown on Ctrl-C or external shutdown.
+
+    A parameter error at start-up is printed as one line and gives exit code 2.
+    """
+    import rclpy
+    from rclpy.executors import ExternalShutdownException
+
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = node_factory()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except ParameterError as err:
+        print(f'error: {err}', file=sys.stderr)
+        return 2
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
