@@ -1,0 +1,486 @@
+"""Single-leg method of Brodoline et al. 2024 (Methods, Fig. 6): phase split and surface fits.
+
+Pipeline, each step a plain function on arrays:
+
+1. :func:`align_offset_s` estimates the clock offset between the ground-force stream and the
+   motion-capture stream by cross-correlating the normal force with the negated tip height (the
+   tip is low exactly while the force is high).
+2. :func:`stance_mask` labels samples stance when the force is above a threshold *and* the tip is
+   near the ground; everything else is swing.
+3. :func:`phase_powers` averages the leg's input power over the stance and over the swing samples
+   of one walking session.  A 0 Hz session gives the basal power (leg standing, loaded).
+4. :class:`SingleLegModel` fits the surfaces ``P_stance(T_stance, load)`` and
+   ``P_swing(T_swing, load)`` on ``x = (1 / T_phase, load)``; candidates are a 2-D local-linear
+   LOWESS with tricube weights (:class:`Lowess2D`, spans 0.8 for stance and 0.9 for swing as in the
+   paper) and a least-squares polynomial in phase frequency and load (:class:`PolySurface`);
+   the one with the lower k-fold cross-validated RMSE is kept, per phase.
+
+0 Hz sessions enter both surfaces at ``1 / T_phase = 0`` with their mean power, so both surfaces
+tend to the basal power at infinitely slow phases.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import asdict, dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from hexapod_energy.errors import FitError, InvalidInputError, NotFittedError
+
+__all__ = [
+    'Lowess2D',
+    'PhaseSample',
+    'PhaseSamples',
+    'PolySurface',
+    'SingleLegModel',
+    'SurfaceModel',
+    'align_offset_s',
+    'cross_validated_rmse',
+    'phase_powers',
+    'samples_from_mapping',
+    'stance_mask',
+]
+
+
+# ----------------------------------------------------------------------------- phase split
+
+
+def align_offset_s(
+    t_force_s: ArrayLike,
+    force_z_n: ArrayLike,
+    t_tip_s: ArrayLike,
+    tip_z_m: ArrayLike,
+    *,
+    max_lag_s: float = 0.5,
+    dt_s: float = 0.002,
+) -> float:
+    """Offset to *add* to the force timestamps so that force and tip height line up [s].
+
+    Both streams are interpolated on a common grid of step ``dt_s``, standardised, and
+    cross-correlated (force against ``-tip_z``) over lags ``|lag| <= max_lag_s``; the peak is
+    refined by parabolic interpolation.
+
+    Parameters
+    ----------
+    t_force_s, force_z_n : array (n,)
+        Force stamps [s] and normal force [N].
+    t_tip_s, tip_z_m : array (m,)
+        Tip stamps [s] and tip height [m].
+    """
+    tf, fz = np.asarray(t_force_s, float), np.asarray(force_z_n, float)
+    tt, tz = np.asarray(t_tip_s, float), np.asarray(tip_z_m, float)
+    if len(tf) < 4 or len(tt) < 4:
+        raise InvalidInputError(
+            f'alignment needs at least 4 samples per stream, got {len(tf)} force, {len(tt)} tip'
+        )
+    t0, t1 = max(tf[0], tt[0]), min(tf[-1], tt[-1])
+    if t1 - t0 < 4 * max_lag_s:
+        raise InvalidInputError(
+            f'force and tip streams overlap for {t1 - t0:.3f} s, need >= {4 * max_lag_s:.3f} s'
+        )
+    grid = np.arange(t0, t1, dt_s)
+    a = np.interp(grid, tf, fz)
+    b = -np.interp(grid, tt, tz)
+    a = (a - a.mean()) / (a.std() or 1.0)
+    b = (b - b.mean()) / (b.std() or 1.0)
+    n = len(grid)
+    nfft = 1 << (2 * n - 1).bit_length()
+    # corr[k] = sum_i a[i + k] b[i]: force lags tip by k samples
+    corr_full = np.fft.irfft(np.fft.rfft(a, nfft) * np.conj(np.fft.rfft(b, nfft)), nfft)
+    max_k = int(round(max_lag_s / dt_s))
+    lags = np.arange(-max_k, max_k + 1)
+    corr = corr_full[lags % nfft]
+    i = int(np.argmax(corr))
+    frac = 0.0
+    if 0 < i < len(corr) - 1:
+        y0, y1, y2 = corr[i - 1], corr[i], corr[i + 1]
+        denom = y0 - 2 * y1 + y2
+        frac = 0.5 * (y0 - y2) / denom if denom != 0 else 0.0
+    lag_s = (lags[i] + frac) * dt_s
+    return float(-lag_s)
+
+
+def stance_mask(
+    force_z_n: ArrayLike,
+    tip_z_m: ArrayLike,
+    *,
+    force_threshold_n: float | None = None,
+    height_margin_m: float = 0.01,
+) -> np.ndarray:
+    """Stance labels (n,) bool: force above threshold and tip within ``height_margin_m`` of
+    the ground height (5th percentile of the tip height).
+
+    Parameters
+    ----------
+    force_z_n, tip_z_m : array (n,)
+        Normal force [N] and tip height [m] on the same (aligned) time base.
+    force_threshold_n : float, optional
+        Default: 20 % of the way from the 5th to the 95th force percentile.
+    height_margin_m : float
+        Tip height above ground still counted as contact [m].
+    """
+    fz = np.asarray(force_z_n, float)
+    z = np.asarray(tip_z_m, float)
+    if fz.shape != z.shape:
+        raise InvalidInputError(f'force and tip must have the same shape, got {fz.shape}, {z.shape}')
+    if force_threshold_n is None:
+        lo, hi = np.percentile(fz, [5, 95])
+        force_threshold_n = lo + 0.2 * (hi - lo)
+    ground = np.percentile(z, 5)
+    return (fz > force_threshold_n) & (z < ground + height_margin_m)
+
+
+@dataclass(frozen=True)
+class PhaseSample:
+    """Average input power of each phase for one bench session.
+
+    ``t_stance_s``/``t_swing_s`` are the commanded phase durations (``inf`` at 0 Hz).
+    """
+
+    session_id: str
+    load_kg: float
+    frequency_hz: float
+    duty_factor: float
+    t_stance_s: float
+    t_swing_s: float
+    p_stance_w: float
+    p_swing_w: float
+    p_mean_w: float
+    stance_fraction: float
+    samples: int
+
+
+def phase_powers(
+    t_power_s: ArrayLike,
+    power_w: ArrayLike,
+    t_label_s: ArrayLike,
+    stance: ArrayLike,
+    *,
+    session_id: str,
+    load_kg: float,
+    frequency_hz: float,
+    duty_factor: float,
+) -> PhaseSample:
+    """Average power over stance and swing samples of one session.
+
+    Each power sample takes the label of the latest label sample at or before it.  At 0 Hz (or
+    when one phase is absent) both phase powers are the session mean (basal power).
+
+    Parameters
+    ----------
+    t_power_s, power_w : array (n,)
+        Input power samples of the session [s], [W].
+    t_label_s, stance : array (m,)
+        Label stamps [s] (on the power clock) and stance labels.
+    """
+    tp, p = np.asarray(t_power_s, float), np.asarray(power_w, float)
+    tl, st = np.asarray(t_label_s, float), np.asarray(stance, bool)
+    if len(p) == 0:
+        raise InvalidInputError(f'session {session_id!r} has no power samples')
+    mean = float(p.mean())
+    if frequency_hz <= 0 or len(tl) == 0:
+        return PhaseSample(session_id, float(load_kg), 0.0, float(duty_factor), math.inf,
+                           math.inf, mean, mean, mean, float('nan'), len(p))
+    idx = np.clip(np.searchsorted(tl, tp, side='right') - 1, 0, len(tl) - 1)
+    lab = st[idx]
+    p_st = float(p[lab].mean()) if lab.any() else mean
+    p_sw = float(p[~lab].mean()) if (~lab).any() else mean
+    period = 1.0 / frequency_hz
+    return PhaseSample(session_id, float(load_kg), float(frequency_hz), float(duty_factor),
+                       duty_factor * period, (1.0 - duty_factor) * period, p_st, p_sw, mean,
+                       float(lab.mean()), len(p))
+
+
+@dataclass(frozen=True)
+class PhaseSamples:
+    """Column view of many :class:`PhaseSample` (arrays of shape (n,))."""
+
+    load_kg: np.ndarray
+    stance_rate_hz: np.ndarray  # 1 / T_stance, 0 at 0 Hz
+    swing_rate_hz: np.ndarray
+    p_stance_w: np.ndarray
+    p_swing_w: np.ndarray
+    frequency_hz: np.ndarray
+
+    @classmethod
+    def from_samples(cls, samples: Sequence[PhaseSample]) -> PhaseSamples:
+        def col(f: Callable[[PhaseSample], float]) -> np.ndarray:
+            return np.array([f(s) for s in samples], dtype=float)
+
+        return cls(
+            load_kg=col(lambda s: s.load_kg),
+            stance_rate_hz=col(lambda s: 1.0 / s.t_stance_s),
+            swing_rate_hz=col(lambda s: 1.0 / s.t_swing_s),
+            p_stance_w=col(lambda s: s.p_stance_w),
+            p_swing_w=col(lambda s: s.p_swing_w),
+            frequency_hz=col(lambda s: s.frequency_hz),
+        )
+
+
+# ----------------------------------------------------------------------------- surfaces
+
+
+class SurfaceModel(Protocol):
+    """A regression ``y = f(x)`` with ``x`` of shape (n, 2)."""
+
+    def fit(self, x: ArrayLike, y: ArrayLike) -> Any: ...
+
+    def predict(self, x: ArrayLike) -> np.ndarray: ...
+
+
+def _check_xy(x: ArrayLike, y: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+    xa = np.asarray(x, float)
+    if xa.ndim != 2 or xa.shape[1] != 2:
+        raise InvalidInputError(f'x must have shape (n, 2), got {xa.shape}')
+    if y is None:
+        return xa, None
+    ya = np.asarray(y, float)
+    if ya.shape != (len(xa),):
+        raise InvalidInputError(f'y must have shape ({len(xa)},), got {ya.shape}')
+    return xa, ya
+
+
+class Lowess2D:
+    """2-D local-linear LOWESS with tricube weights.
+
+    At each query point the ``ceil(span * n)`` nearest training points (Euclidean distance after
+    scaling each coordinate by its training range) get tricube weights
+    ``(1 - (d / h)^3)^3``, ``h`` = 1.0001 x the largest of those distances, and a weighted
+    least-squares plane ``y = b0 + b1 x0 + b2 x1`` gives the prediction ``b0 + b . x``.
+
+    Parameters
+    ----------
+    span : float in (0, 1]
+        Fraction of training points in each local fit.
+    """
+
+    def __init__(self, span: float = 0.8) -> None:
+        if not 0.0 < span <= 1.0:
+            raise InvalidInputError(f'span must be in (0, 1], got {span}')
+        self.span = span
+
+    def fit(self, x: ArrayLike, y: ArrayLike) -> Lowess2D:
+        xa, ya = _check_xy(x, y)
+        assert ya is not None
+        if len(xa) < 4:
+            raise FitError(f'LOWESS needs at least 4 points, got {len(xa)}')
+        self.scale_ = np.where(np.ptp(xa, axis=0) > 0, np.ptp(xa, axis=0), 1.0)
+        self.x_ = xa / self.scale_
+        self.y_ = ya
+        self.k_ = max(4, int(math.ceil(self.span * len(xa))))
+        return self
+
+    def predict(self, x: ArrayLike) -> np.ndarray:
+        if not hasattr(self, 'x_'):
+            raise NotFittedError('Lowess2D.predict called before fit')
+        xq, _ = _check_xy(x)
+        xq = xq / self.scale_
+        d = np.linalg.norm(xq[:, None, :] - self.x_[None, :, :], axis=2)  # (q, n)
+        h = np.sort(d, axis=1)[:, self.k_ - 1] * 1.0001 + 1e-12
+        w = np.clip(1.0 - (d / h[:, None]) ** 3, 0.0, None) ** 3  # (q, n)
+        design = np.concatenate([np.ones((len(self.x_), 1)), self.x_], axis=1)  # (n, 3)
+        a = np.einsum('qn,ni,nj->qij', w, design, design) + 1e-12 * np.eye(3)
+        b = np.einsum('qn,ni,n->qi', w, design, self.y_)
+        coef = np.linalg.solve(a, b[..., None])[..., 0]
+        return coef[:, 0] + np.sum(coef[:, 1:] * xq, axis=1)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {'kind': 'lowess', 'span': self.span}
+
+
+class PolySurface:
+    """Least-squares surface linear in its parameters, physically motivated:
+
+    ``P = c0 + c1 f + c2 f^2 + c3 m + c4 m f``, ``f`` = phase rate ``1 / T_phase`` [Hz], ``m``
+    the load [kg]: basal power rising with load, a speed-proportional (friction, electronics)
+    term, a speed-squared (Joule heating of the accelerating current) term and load-times-speed.
+    """
+
+    def fit(self, x: ArrayLike, y: ArrayLike) -> PolySurface:
+        xa, ya = _check_xy(x, y)
+        design = self._design(xa)
+        if len(xa) < design.shape[1]:
+            raise FitError(f'PolySurface needs >= {design.shape[1]} points, got {len(xa)}')
+        self.coef_, *_ = np.linalg.lstsq(design, ya, rcond=None)
+        return self
+
+    @staticmethod
+    def _design(x: np.ndarray) -> np.ndarray:
+        f, m = x[:, 0], x[:, 1]
+        return np.stack([np.ones_like(f), f, f * f, m, m * f], axis=1)
+
+    def predict(self, x: ArrayLike) -> np.ndarray:
+        if not hasattr(self, 'coef_'):
+            raise NotFittedError('PolySurface.predict called before fit')
+        xq, _ = _check_xy(x)
+        return self._design(xq) @ self.coef_
+
+    def to_dict(self) -> dict[str, Any]:
+        return {'kind': 'poly', 'coef': [float(c) for c in getattr(self, 'coef_', [])]}
+
+
+def cross_validated_rmse(
+    make_model: Callable[[], SurfaceModel],
+    x: ArrayLike,
+    y: ArrayLike,
+    *,
+    folds: int = 5,
+    seed: int = 0,
+) -> float:
+    """k-fold cross-validated RMSE of a surface model [units of y].
+
+    Folds are a seeded random partition; every point is predicted once by a model that did not
+    see it.
+    """
+    xa, ya = _check_xy(x, y)
+    assert ya is not None
+    n = len(xa)
+    folds = min(folds, n)
+    if folds < 2:
+        raise FitError(f'cross-validation needs >= 2 points, got {n}')
+    order = np.random.default_rng(seed).permutation(n)
+    pred = np.empty(n)
+    for k in range(folds):
+        test = order[k::folds]
+        train = np.setdiff1d(order, test)
+        pred[test] = make_model().fit(xa[train], ya[train]).predict(xa[test])
+    return float(np.sqrt(np.mean((pred - ya) ** 2)))
+
+
+# ----------------------------------------------------------------------------- the model
+
+
+@dataclass
+class _PhaseFit:
+    model: Any
+    chosen: str
+    cv_rmse_w: dict[str, float]
+    fit_rmse_w: float
+
+
+@dataclass
+class SingleLegModel:
+    """Surface fits ``P_stance(T_stance, load)``, ``P_swing(T_swing, load)`` from bench sessions.
+
+    Parameters
+    ----------
+    spans : (float, float)
+        LOWESS spans for stance and swing (paper: 0.8, 0.9).
+    candidates : sequence of str
+        Surface kinds compared by cross-validation: ``'lowess'``, ``'poly'``.
+    folds : int
+        k of the k-fold cross-validation.
+    seed : int
+        Seed of the fold partition.
+
+    Fitted attributes
+    -----------------
+    samples_ : list of PhaseSample
+    stance_, swing_ : fitted surface per phase (chosen candidate)
+    chosen_ : {'stance': kind, 'swing': kind}
+    cv_rmse_w_ : {'stance': {kind: rmse}, 'swing': {...}}  [W]
+    fit_rmse_w_ : {'stance': rmse, 'swing': rmse}  in-sample [W]
+    basal_power_w_ : {load_kg: mean power of its 0 Hz session}  [W]
+    """
+
+    spans: tuple[float, float] = (0.8, 0.9)
+    candidates: tuple[str, ...] = ('lowess', 'poly')
+    folds: int = 5
+    seed: int = 0
+    _fits: dict[str, _PhaseFit] = field(default_factory=dict, repr=False)
+
+    def _factory(self, kind: str, phase: str) -> Callable[[], SurfaceModel]:
+        span = self.spans[0] if phase == 'stance' else self.spans[1]
+        if kind == 'lowess':
+            return lambda: Lowess2D(span)
+        if kind == 'poly':
+            return PolySurface
+        raise InvalidInputError(f"surface candidate must be 'lowess' or 'poly', got {kind!r}")
+
+    def fit(self, samples: Sequence[PhaseSample]) -> SingleLegModel:
+        """Fit both surfaces from per-session phase powers."""
+        if len(samples) < 6:
+            raise FitError(f'single-leg fit needs >= 6 sessions, got {len(samples)}')
+        cols = PhaseSamples.from_samples(samples)
+        self.samples_ = list(samples)
+        self._fits = {}
+        for phase, rate, y in (
+            ('stance', cols.stance_rate_hz, cols.p_stance_w),
+            ('swing', cols.swing_rate_hz, cols.p_swing_w),
+        ):
+            x = np.stack([rate, cols.load_kg], axis=1)
+            cv = {
+                kind: cross_validated_rmse(
+                    self._factory(kind, phase), x, y, folds=self.folds, seed=self.seed
+                )
+                for kind in self.candidates
+            }
+            best = min(cv, key=cv.__getitem__)
+            model = self._factory(best, phase)().fit(x, y)
+            fit_rmse = float(np.sqrt(np.mean((model.predict(x) - y) ** 2)))
+            self._fits[phase] = _PhaseFit(model, best, cv, fit_rmse)
+        basal: dict[float, list[float]] = {}
+        for s in samples:
+            if s.frequency_hz <= 0:
+                basal.setdefault(s.load_kg, []).append(s.p_mean_w)
+        self.basal_power_w_ = {k: float(np.mean(v)) for k, v in sorted(basal.items())}
+        return self
+
+    def _fit(self, phase: str) -> _PhaseFit:
+        if phase not in self._fits:
+            raise NotFittedError('SingleLegModel used before fit')
+        return self._fits[phase]
+
+    @property
+    def chosen_(self) -> dict[str, str]:
+        return {p: self._fit(p).chosen for p in ('stance', 'swing')}
+
+    @property
+    def cv_rmse_w_(self) -> dict[str, dict[str, float]]:
+        return {p: dict(self._fit(p).cv_rmse_w) for p in ('stance', 'swing')}
+
+    @property
+    def fit_rmse_w_(self) -> dict[str, float]:
+        return {p: self._fit(p).fit_rmse_w for p in ('stance', 'swing')}
+
+    def _predict(self, phase: str, t_phase_s: ArrayLike, load_kg: ArrayLike) -> np.ndarray:
+        t, m = np.broadcast_arrays(np.asarray(t_phase_s, float), np.asarray(load_kg, float))
+        if np.any(t <= 0):
+            raise InvalidInputError(f'{phase} durations must be > 0 s, got min {t.min()}')
+        x = np.stack([1.0 / t.ravel(), m.ravel()], axis=1)
+        return self._fit(phase).model.predict(x).reshape(t.shape)
+
+    def p_stance_w(self, t_stance_s: ArrayLike, load_kg: ArrayLike) -> np.ndarray:
+        """Average stance power [W] for stance durations [s] and loads [kg] (broadcast)."""
+        return self._predict('stance', t_stance_s, load_kg)
+
+    def p_swing_w(self, t_swing_s: ArrayLike, load_kg: ArrayLike) -> np.ndarray:
+        """Average swing power [W] for swing durations [s] and loads [kg] (broadcast)."""
+        return self._predict('swing', t_swing_s, load_kg)
+
+    def basal_power_at_w(self, load_kg: float) -> float:
+        """Basal power interpolated over the 0 Hz sessions' loads [W] (nan without any)."""
+        if not self.basal_power_w_:
+            return float('nan')
+        loads = np.array(list(self.basal_power_w_))
+        return float(np.interp(load_kg, loads, np.array(list(self.basal_power_w_.values()))))
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready description of the fit."""
+        return {
+            'spans': list(self.spans),
+            'chosen': self.chosen_,
+            'cv_rmse_w': self.cv_rmse_w_,
+            'fit_rmse_w': self.fit_rmse_w_,
+            'basal_power_w': {f'{k:.3f}': v for k, v in self.basal_power_w_.items()},
+            'sessions': [asdict(s) for s in self.samples_],
+        }
+
+
+def samples_from_mapping(rows: Sequence[Mapping[str, Any]]) -> list[PhaseSample]:
+    """Rebuild :class:`PhaseSample` rows from their ``asdict`` form (e.g. read from JSON)."""
+    return [PhaseSample(**dict(r)) for r in rows]

@@ -1,0 +1,128 @@
+"""Single-leg method: stream alignment, phase split, phase powers, surface fits."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from hexapod_energy.errors import FitError, InvalidInputError, NotFittedError
+from hexapod_energy.single_leg import (
+    Lowess2D,
+    PhaseSample,
+    PolySurface,
+    SingleLegModel,
+    align_offset_s,
+    cross_validated_rmse,
+    phase_powers,
+    stance_mask,
+)
+
+
+def _walk(t: np.ndarray, freq_hz: float, beta: float = 0.5):
+    """Ideal bench signals: stance while cycle phase < beta; force 5 N, tip lifted 40 mm."""
+    phase = (t * freq_hz) % 1.0
+    stance = phase < beta
+    swing_phase = np.clip((phase - beta) / (1 - beta), 0, 1)
+    z = np.where(stance, 0.0, 0.04 * np.sin(np.pi * swing_phase))
+    force = np.where(stance, 5.0, 0.0)
+    return stance, force, z
+
+
+def test_align_recovers_known_offset() -> None:
+    rng = np.random.default_rng(1)
+    t_tip = np.arange(0, 20, 1 / 120)  # 120 Hz mocap
+    t_true = np.arange(0, 20, 1 / 500)  # 500 Hz force
+    _, force, _ = _walk(t_true, 1.3)
+    _, _, z = _walk(t_tip, 1.3)
+    offset = 0.037
+    t_force_stamped = t_true - offset  # force clock lags: stamps early by 37 ms
+    est = align_offset_s(t_force_stamped, force + rng.normal(0, 0.2, t_true.shape), t_tip, z)
+    assert abs(est - offset) < 0.003
+
+
+def test_align_rejects_short_streams() -> None:
+    with pytest.raises(InvalidInputError, match='overlap'):
+        align_offset_s([0, 0.1, 0.2, 0.3], [1, 2, 3, 4], [0, 0.1, 0.2, 0.3], [1, 2, 3, 4])
+
+
+def test_stance_mask_matches_truth() -> None:
+    t = np.arange(0, 10, 0.002)
+    truth, force, z = _walk(t, 2.0, 0.6)
+    mask = stance_mask(force, z)
+    assert np.mean(mask == truth) > 0.999
+
+
+def test_phase_powers_levels_and_basal() -> None:
+    t = np.arange(0, 10, 0.01)
+    stance, _, _ = _walk(t, 1.0)
+    power = np.where(stance, 7.0, 4.0)
+    s = phase_powers(t, power, t, stance, session_id='a', load_kg=0.1, frequency_hz=1.0,
+                     duty_factor=0.5)
+    assert_allclose([s.p_stance_w, s.p_swing_w, s.t_stance_s], [7.0, 4.0, 0.5])
+    b = phase_powers(t, np.full_like(t, 3.0), t, stance, session_id='b', load_kg=0.1,
+                     frequency_hz=0.0, duty_factor=0.5)
+    assert b.p_stance_w == b.p_swing_w == 3.0 and np.isinf(b.t_stance_s)
+
+
+def _truth(rate_hz, load_kg):
+    return 1.8 + 0.35 * rate_hz + 0.06 * rate_hz**2 + 2.5 * load_kg + 0.4 * load_kg * rate_hz
+
+
+def _plan(noise_w: float = 0.0, seed: int = 0) -> list[PhaseSample]:
+    rng = np.random.default_rng(seed)
+    out = []
+    for load in (0.0, 0.095, 0.141, 0.187, 0.515):
+        for f in (0.0, 0.4, 0.8, 1.2, 1.6, 2.0, 2.5, 3.0):
+            rate = 2 * f  # beta 0.5 -> 1 / T_phase = 2 f
+            p_st = _truth(rate, load) + rng.normal(0, noise_w)
+            p_sw = _truth(rate, 0.2 * load) + rng.normal(0, noise_w)
+            t_ph = np.inf if f == 0 else 0.5 / f
+            if f == 0:
+                p_sw = p_st
+            out.append(PhaseSample(f'{load}-{f}', load, f, 0.5, t_ph, t_ph, p_st, p_sw,
+                                   0.5 * (p_st + p_sw), 0.5, 100))
+    return out
+
+
+def test_surface_fit_recovers_truth_and_picks_by_cv() -> None:
+    model = SingleLegModel().fit(_plan())
+    # an exact polynomial surface: the polynomial has zero CV error and must be chosen
+    assert model.chosen_ == {'stance': 'poly', 'swing': 'poly'}
+    t_st = np.array([0.2, 0.35, 0.7])
+    load = np.array([0.05, 0.3, 0.4])
+    assert_allclose(model.p_stance_w(t_st, load), _truth(1 / t_st, load), rtol=1e-9)
+    assert model.basal_power_w_[0.515] == pytest.approx(_truth(0.0, 0.515))
+    assert model.cv_rmse_w_['stance']['poly'] < model.cv_rmse_w_['stance']['lowess']
+
+
+def test_lowess_wins_on_a_shape_the_polynomial_lacks() -> None:
+    rng = np.random.default_rng(3)
+    x = np.stack([rng.uniform(0, 6, 60), rng.uniform(0, 0.5, 60)], axis=1)
+    y = 3 + 4 * np.tanh(2 * (x[:, 0] - 3)) + 2 * x[:, 1]
+    cv_lo = cross_validated_rmse(lambda: Lowess2D(0.3), x, y)
+    cv_po = cross_validated_rmse(PolySurface, x, y)
+    assert cv_lo < cv_po
+
+
+def test_lowess_reproduces_a_plane_exactly() -> None:
+    rng = np.random.default_rng(2)
+    x = rng.uniform(0, 1, size=(30, 2))
+    y = 2.0 + 3.0 * x[:, 0] - 1.5 * x[:, 1]
+    pred = Lowess2D(0.8).fit(x, y).predict([[0.3, 0.7], [1.2, -0.1]])
+    assert_allclose(pred, [2.0 + 0.9 - 1.05, 2.0 + 3.6 + 0.15], rtol=1e-8)
+
+
+def test_noisy_fit_error_is_reported() -> None:
+    model = SingleLegModel().fit(_plan(noise_w=0.1, seed=5))
+    assert 0.03 < model.fit_rmse_w_['stance'] < 0.2
+    assert set(model.summary()) >= {'chosen', 'cv_rmse_w', 'fit_rmse_w', 'basal_power_w'}
+
+
+def test_errors() -> None:
+    with pytest.raises(NotFittedError):
+        SingleLegModel().p_stance_w(0.3, 0.1)
+    with pytest.raises(FitError, match='>= 6 sessions'):
+        SingleLegModel().fit(_plan()[:3])
+    with pytest.raises(InvalidInputError, match='span'):
+        Lowess2D(0.0)
