@@ -1,0 +1,149 @@
+"""``bag_recorder``: record topics into a rosbag2 bag (mcap default) from raw subscriptions.
+
+Usage: ``bag_recorder -o BAG [--topics T ...] [--storage mcap|sqlite3] [--flush-period S]``
+(or the same as ROS parameters ``output``, ``topics``, ``storage``, ``flush_period``).
+Storage files are closed every ``flush_period`` seconds, so a killed recorder loses at most
+that much. An existing bag is never overwritten.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from hexapod_common.bags import BagWriter
+from hexapod_common.errors import HexapodError, UnknownTypeError
+from hexapod_common.node_utils import declare_params, param
+from hexapod_common.ros_types import CONTRACT_TOPICS, ros_message_class
+
+__all__ = ['BagRecorderNode', 'RecorderParams', 'main']
+
+
+def _storage_ok(value: str) -> str | None:
+    return None if value in ('mcap', 'sqlite3') else 'expected mcap or sqlite3'
+
+
+def _positive(value: float) -> str | None:
+    return None if value > 0 else 'must be > 0'
+
+
+@dataclass(frozen=True)
+class RecorderParams:
+    output: str = param('', 'bag folder to create (refused if it exists)', read_only=True,
+                        validate=lambda v: None if v else 'an output path is required')
+    topics: list[str] = param(list(CONTRACT_TOPICS), 'topics to record', read_only=True)
+    storage: str = param('mcap', 'storage plugin: mcap or sqlite3', validate=_storage_ok,
+                         read_only=True)
+    flush_period: float = param(1.0, 'seconds between storage file closes (crash loss bound)',
+                                validate=_positive, read_only=True)
+    discovery_period: float = param(0.5, 'seconds between looks for new publishers',
+                                    validate=_positive, read_only=True)
+
+
+class BagRecorderNode(Node):
+    """Subscribes raw to each wanted topic once a publisher appears and writes to the bag."""
+
+    def __init__(self, *, context: Any = None, parameter_overrides: Any = None,
+                 namespace: str | None = None, node_name: str = 'bag_recorder') -> None:
+        super().__init__(node_name, context=context, namespace=namespace or '',
+                         parameter_overrides=parameter_overrides or [])
+        self.params = declare_params(self, RecorderParams)
+        self.writer = BagWriter(self.params.output, storage=self.params.storage,
+                                split_every_s=self.params.flush_period)
+        self.counts: dict[str, int] = {}
+        self._subs: dict[str, Any] = {}
+        self._warned: set[str] = set()
+        self._discover()
+        self.create_timer(self.params.discovery_period, self._discover)
+        self.create_timer(self.params.flush_period, self.writer.flush)
+
+    def _resolve(self, topic: str) -> str:
+        return self.resolve_topic_name(topic)
+
+    def _discover(self) -> None:
+        graph = dict(self.get_topic_names_and_types())
+        for topic in self.params.topics:
+            name = self._resolve(topic)
+            if name in self._subs or name not in graph:
+                continue
+            infos = self.get_publishers_info_by_topic(name)
+            if not infos:
+                continue
+            msgtype = graph[name][0]
+            try:
+                cls = ros_message_class(msgtype)
+                self.writer.add_topic(name, msgtype)
+            except UnknownTypeError as err:
+                if name not in self._warned:
+                    self._warned.add(name)
+                    self.get_logger().warning(f'not recording {name}: {err}')
+                continue
+            reliable = all(i.qos_profile.reliability == ReliabilityPolicy.RELIABLE
+                           for i in infos)
+            latched = all(i.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL
+                          for i in infos)
+            qos = QoSProfile(
+                history=HistoryPolicy.KEEP_ALL if reliable else HistoryPolicy.KEEP_LAST,
+                depth=1000,
+                reliability=ReliabilityPolicy.RELIABLE if reliable
+                else ReliabilityPolicy.BEST_EFFORT,
+                durability=DurabilityPolicy.TRANSIENT_LOCAL if latched
+                else DurabilityPolicy.VOLATILE)
+            self._subs[name] = self.create_subscription(
+                cls, name, lambda data, _t=name, _m=msgtype: self._on_message(_t, _m, data),
+                qos, raw=True)
+            self.counts[name] = 0
+
+    def _on_message(self, topic: str, msgtype: str, data: bytes) -> None:
+        self.writer.write(topic, msgtype, data, self.get_clock().now().nanoseconds)
+        self.counts[topic] += 1
+
+    def destroy_node(self) -> None:
+        self.writer.close()
+        super().destroy_node()
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    import rclpy
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.utilities import remove_ros_args
+
+    raw = list(sys.argv[1:] if argv is None else argv)
+    parser = argparse.ArgumentParser(prog='bag_recorder', description=__doc__.split('\n')[0])
+    parser.add_argument('-o', '--output', help='bag folder to create')
+    parser.add_argument('--topics', nargs='*', help='topics (default: every contract topic)')
+    parser.add_argument('--storage', choices=('mcap', 'sqlite3'))
+    parser.add_argument('--flush-period', type=float)
+    args = parser.parse_args(remove_ros_args(['bag_recorder', *raw])[1:])
+    overrides = []
+    if args.output:
+        overrides.append(Parameter('output', value=args.output))
+    if args.topics:
+        overrides.append(Parameter('topics', value=list(args.topics)))
+    if args.storage:
+        overrides.append(Parameter('storage', value=args.storage))
+    if args.flush_period:
+        overrides.append(Parameter('flush_period', value=args.flush_period))
+    rclpy.init(args=['bag_recorder', *raw])
+    node = None
+    try:
+        node = BagRecorderNode(parameter_overrides=overrides)
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except (HexapodError, ValueError) as err:
+        print(f'bag_recorder: error: {err}', file=sys.stderr)
+        return 1
+    finally:
+        if node is not None:
+            node.destroy_node()
+            print(f'recorded: {dict(node.counts)}', file=sys.stderr)
+        rclpy.try_shutdown()
+    return 0

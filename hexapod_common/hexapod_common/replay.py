@@ -1,0 +1,165 @@
+"""Bag replay: a publishing node with flow control, and the in-process offline harness.
+
+Two ways to push a bag through nodes:
+
+- :class:`BagReplayNode` publishes the recorded raw CDR bytes over ROS, in bag-time order, with
+  ``/clock``. Reliable publishers keep every sample (KEEP_ALL) and the replayer waits until
+  every reliable subscriber has acknowledged each batch before it goes on, so a receiver with a
+  reliable KEEP_ALL subscription (``bag_recorder`` is one) gets every message at any rate.
+- :func:`run_offline` feeds the messages straight into the subscription callbacks of nodes in
+  one process, deterministically, and captures what they publish: offline analysis runs the
+  very nodes that run live, so their numbers are equal.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from hexapod_common.bags import BagMessage, iter_messages, open_reader
+from hexapod_common.errors import UnknownTypeError
+from hexapod_common.ros_types import ros_message_class
+
+__all__ = ['ReplayOptions', 'ReplaySource', 'run_offline']
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class ReplayOptions:
+    """What to replay and how fast.
+
+    ``rate`` 0 means as fast as possible, 1 real time, N times real time. Offsets are seconds
+    from the bag's start. ``remap`` maps recorded topic -> published topic.
+    """
+
+    rate: float = 0.0
+    topics: tuple[str, ...] = ()
+    remap: dict[str, str] = field(default_factory=dict)
+    start_offset_s: float = 0.0
+    end_offset_s: float = 0.0  # 0 = to the end
+    publish_clock: bool = True
+
+
+class ReplaySource:
+    """Bag messages to replay, filtered, windowed and typed; unknown types skipped once each."""
+
+    def __init__(self, bag: str | Sequence[str], options: ReplayOptions = ReplayOptions(),
+                 warn: Callable[[str], None] | None = None) -> None:
+        self.options = options
+        self.warn = warn or log.warning
+        self.reader = open_reader(bag)
+        self.start_ns = self.reader.start_time
+        self.end_ns = self.reader.end_time
+        self.types: dict[str, Any] = {}
+        self.skipped: dict[str, str] = {}
+        wanted = set(options.topics)
+        for conn in self.reader.connections:
+            if wanted and conn.topic not in wanted:
+                continue
+            if conn.topic in self.types or conn.topic in self.skipped:
+                continue
+            try:
+                self.types[conn.topic] = ros_message_class(conn.msgtype)
+            except UnknownTypeError as err:
+                self.skipped[conn.topic] = str(err)
+                self.warn(f'skipping topic {conn.topic}: {err}')
+        if wanted - set(self.types) - set(self.skipped):
+            missing = sorted(wanted - set(self.types) - set(self.skipped))
+            self.warn(f'topics not in the bag: {", ".join(missing)}')
+        self.msgtypes = {c.topic: c.msgtype for c in self.reader.connections
+                         if c.topic in self.types}
+
+    def out_topic(self, topic: str) -> str:
+        return self.options.remap.get(topic, topic)
+
+    def messages(self) -> Iterable[BagMessage]:
+        start = self.start_ns + int(self.options.start_offset_s * 1e9)
+        stop = self.start_ns + int(self.options.end_offset_s * 1e9) + 1 \
+            if self.options.end_offset_s > 0 else None
+        return iter_messages(self.reader, topics=list(self.types), start_ns=start, stop_ns=stop)
+
+    def close(self) -> None:
+        self.reader.close()
+
+    def __enter__(self) -> ReplaySource:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _set_sim_time(nodes: Sequence[Any], t_ns: int) -> None:
+    from rclpy.time import Time
+
+    now = Time(nanoseconds=t_ns)
+    for node in nodes:
+        clock = node.get_clock()
+        if hasattr(clock, 'set_ros_time_override'):
+            clock._set_ros_time_is_active(True)
+            clock.set_ros_time_override(now)
+
+
+def run_offline(nodes: Sequence[Any], bag: str | Sequence[str], *,
+                options: ReplayOptions = ReplayOptions(), capture: Sequence[str] = (),
+                progress: bool = False) -> dict[str, list[Any]]:
+    """Feed a bag through ``nodes`` in one process and return what they published.
+
+    Each bag message is deserialised once into the rclpy type and handed, in bag-time order,
+    to every subscription callback of every node on that topic (raw subscriptions get the
+    bytes). Before each message the nodes' ROS clocks are set to its bag time, as ``/clock``
+    would. Publishers on ``capture`` topics (default: every publisher of the nodes) are
+    wrapped so the published messages are returned per topic, in order.
+    """
+    from rclpy.serialization import deserialize_message
+
+    captured: dict[str, list[Any]] = {}
+    for node in nodes:
+        for pub in node.publishers:
+            topic = pub.topic_name
+            if capture and topic not in capture:
+                continue
+            captured.setdefault(topic, [])
+            original = pub.publish
+
+            def _publish(msg: Any, _topic: str = topic, _orig: Callable = original) -> None:
+                captured[_topic].append(msg)
+                _orig(msg)
+            pub.publish = _publish  # type: ignore[method-assign]
+    routes: dict[str, list[Any]] = {}
+    for node in nodes:
+        for sub in node.subscriptions:
+            routes.setdefault(sub.topic_name, []).append(sub)
+    with ReplaySource(bag, options) as source:
+        messages: Iterable[BagMessage] = source.messages()
+        if progress:
+            from tqdm import tqdm
+            messages = tqdm(messages, total=source.reader.message_count, unit='msg',
+                            desc='replay')
+        for item in messages:
+            subs = routes.get(source.out_topic(item.topic))
+            if not subs:
+                continue
+            _set_sim_time(nodes, item.stamp_ns)
+            msg = None
+            for sub in subs:
+                if sub.raw:
+                    sub.callback(item.data)
+                    continue
+                if msg is None:
+                    msg = deserialize_message(item.data, source.types[item.topic])
+                sub.callback(msg)
+    return captured
+
+
+def pace(rate: float, bag_t0_ns: int, wall_t0: float, stamp_ns: int) -> None:
+    """Sleep until ``stamp_ns`` is due at ``rate`` times real time (no-op when rate is 0)."""
+    if rate <= 0:
+        return
+    due = wall_t0 + (stamp_ns - bag_t0_ns) * 1e-9 / rate
+    delay = due - time.monotonic()
+    if delay > 0:
+        time.sleep(delay)

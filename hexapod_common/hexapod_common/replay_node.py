@@ -1,0 +1,158 @@
+"""``bag_replay``: publish a recorded bag's raw messages and ``/clock``, losing none.
+
+Usage: ``bag_replay BAG [--rate R] [--topics T ...] [--remap FROM:=TO ...] [--start S]
+[--end S] [--no-clock] [--wait-subscribers N]``. Rate 0 (default) is as fast as possible.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Sequence
+from typing import Any
+
+from rclpy.duration import Duration
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from hexapod_common.errors import HexapodError
+from hexapod_common.node_utils import LATCHED_QOS
+from hexapod_common.replay import ReplayOptions, ReplaySource, pace
+
+__all__ = ['BagReplayNode', 'main', 'parse_args']
+
+#: Every sample kept until acknowledged: with ack waits this is the flow control.
+REPLAY_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
+                        durability=DurabilityPolicy.VOLATILE)
+LATCHED_TOPICS = ('/bench/session',)
+
+
+class BagReplayNode(Node):
+    """Publishes a bag; call :meth:`run` (blocking) after the graph is up."""
+
+    def __init__(self, bag: str | Sequence[str], options: ReplayOptions = ReplayOptions(), *,
+                 ack_every: int = 64, ack_timeout_s: float = 10.0, context: Any = None,
+                 parameter_overrides: Any = None, namespace: str | None = None,
+                 node_name: str = 'bag_replay') -> None:
+        super().__init__(node_name, context=context, namespace=namespace or '',
+                         parameter_overrides=parameter_overrides or [])
+        self.options = options
+        self.ack_every = max(1, ack_every)
+        self.ack_timeout = Duration(seconds=ack_timeout_s)
+        self.source = ReplaySource(bag, options, warn=self.get_logger().warning)
+        self.pubs: dict[str, Any] = {}
+        for topic, cls in self.source.types.items():
+            out = self.source.out_topic(topic)
+            qos = LATCHED_QOS if out.lstrip('/') in (t.lstrip('/') for t in LATCHED_TOPICS) \
+                else REPLAY_QOS
+            self.pubs[topic] = self.create_publisher(cls, out.lstrip('/') if namespace else out,
+                                                     qos)
+        self.clock_pub = None
+        if options.publish_clock:
+            from rosgraph_msgs.msg import Clock
+            self.clock_pub = self.create_publisher(Clock, '/clock', REPLAY_QOS)
+        self.published: dict[str, int] = {t: 0 for t in self.pubs}
+        self.ack_timeouts = 0
+
+    def wait_for_subscribers(self, count: int, timeout_s: float = 10.0) -> bool:
+        """Wait until every data publisher has at least ``count`` subscribers."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if all(p.get_subscription_count() >= count for p in self.pubs.values()):
+                return True
+            time.sleep(0.01)
+        return False
+
+    def run(self) -> dict[str, int]:
+        """Publish every selected message in bag-time order; returns counts per topic."""
+        from rosgraph_msgs.msg import Clock
+
+        wall_t0 = time.monotonic()
+        bag_t0 = self.source.start_ns + int(self.options.start_offset_s * 1e9)
+        dirty: set[str] = set()
+        n = 0
+        for item in self.source.messages():
+            pace(self.options.rate, bag_t0, wall_t0, item.stamp_ns)
+            if self.clock_pub is not None:
+                clock = Clock()
+                clock.clock.sec, clock.clock.nanosec = divmod(item.stamp_ns, 1_000_000_000)
+                self.clock_pub.publish(clock)
+            self.pubs[item.topic].publish(item.data)
+            self.published[item.topic] += 1
+            dirty.add(item.topic)
+            n += 1
+            if n % self.ack_every == 0:
+                self._wait_acked(dirty)
+                dirty.clear()
+        self._wait_acked(dirty)
+        return dict(self.published)
+
+    def _wait_acked(self, topics: set[str]) -> None:
+        pubs = [self.pubs[t] for t in topics]
+        if self.clock_pub is not None:
+            pubs.append(self.clock_pub)
+        for pub in pubs:
+            if not pub.wait_for_all_acked(self.ack_timeout):
+                self.ack_timeouts += 1
+                self.get_logger().warning(
+                    f'{pub.topic_name}: a reliable subscriber did not acknowledge within '
+                    f'{self.ack_timeout.nanoseconds * 1e-9:.1f} s; going on')
+
+    def destroy_node(self) -> None:
+        self.source.close()
+        super().destroy_node()
+
+
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog='bag_replay', description=__doc__.split('\n')[0])
+    parser.add_argument('bag', help='rosbag2 bag folder (mcap or sqlite3)')
+    parser.add_argument('--rate', type=float, default=0.0,
+                        help='1 = real time, N = N times real time, 0 = as fast as possible')
+    parser.add_argument('--topics', nargs='*', default=[], help='only these topics')
+    parser.add_argument('--remap', nargs='*', default=[], metavar='FROM:=TO',
+                        help='publish a recorded topic under another name')
+    parser.add_argument('--start', type=float, default=0.0, help='start offset [s]')
+    parser.add_argument('--end', type=float, default=0.0, help='end offset [s] (0 = end)')
+    parser.add_argument('--no-clock', action='store_true', help='do not publish /clock')
+    parser.add_argument('--wait-subscribers', type=int, default=0, metavar='N',
+                        help='wait (up to 10 s) for N subscribers on every topic first')
+    args = parser.parse_args(argv)
+    remap = {}
+    for item in args.remap:
+        if ':=' not in item:
+            parser.error(f'--remap takes FROM:=TO, got {item!r}')
+        src, dst = item.split(':=', 1)
+        remap[src] = dst
+    args.options = ReplayOptions(rate=args.rate, topics=tuple(args.topics), remap=remap,
+                                 start_offset_s=args.start, end_offset_s=args.end,
+                                 publish_clock=not args.no_clock)
+    return args
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    import rclpy
+    from rclpy.utilities import remove_ros_args
+
+    raw = list(sys.argv[1:] if argv is None else argv)
+    args = parse_args(remove_ros_args(['bag_replay', *raw])[1:])
+    rclpy.init(args=['bag_replay', *raw])
+    node = None
+    try:
+        node = BagReplayNode(args.bag, args.options)
+        if args.wait_subscribers:
+            node.wait_for_subscribers(args.wait_subscribers)
+        counts = node.run()
+        total = sum(counts.values())
+        print(f'replayed {total} messages: ' +
+              ', '.join(f'{t} {c}' for t, c in sorted(counts.items())))
+        return 0
+    except HexapodError as err:
+        print(f'bag_replay: error: {err}', file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        return 130
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()

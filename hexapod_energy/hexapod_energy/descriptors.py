@@ -1,0 +1,253 @@
+"""Online energetic descriptors over whole gait cycles (core, no ROS).
+
+Inputs are the converted samples of ``hexapod_common.conversions``; outputs are
+:class:`Descriptors`, one per window of ``cycles`` whole gait cycles, with the definitions of
+DESIGN §4:
+
+- ``power_in`` [W]: mean electrical input power, the trapezoidal integral of V*I over the
+  window divided by its length. The current's sign follows ``current_sign``: ``ros`` (negative
+  while discharging, so P_in = -V*I), ``positive_discharge`` (P_in = V*I), or ``auto`` (decided
+  once from the first samples: the sign that makes the median power positive).
+- ``power_out`` [W]: mean mechanical output power, sum over joints of |tau_i * qdot_i| (the
+  servos cannot recover negative work, so both signs cost), from the joint efforts when
+  ``/joint_states`` carries them, else from ``power_out_model(gait, mass)`` when one is given,
+  else 0.
+- ``speed`` [m/s]: from motion capture when poses cover the window (horizontal displacement /
+  window), else the gait schedule's step_length / (beta T).
+- ``power_loss = power_in - power_out``, ``efficiency = power_out / power_in``,
+  ``cost_of_transport = power_loss / speed``, ``specific_cost_of_transport = power_loss /
+  (mass * speed)``, ``specific_resistance = power_in / (mass * g * speed)``.
+
+Windows are decided by stamps, not arrival order: a window closes only once a battery sample
+past its end has arrived, so live streams and replayed bags give identical numbers.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hexapod_common.conversions import (
+    BatterySample,
+    GaitPhaseSample,
+    JointStateSample,
+    PoseSample,
+)
+
+__all__ = [
+    'G_MPS2',
+    'DescriptorAccumulator',
+    'Descriptors',
+    'descriptors_from_powers',
+    'resolve_current_sign',
+]
+
+G_MPS2 = 9.81
+
+
+@dataclass(frozen=True)
+class Descriptors:
+    """Energetic descriptors of one window (fields as EnergeticDescriptors.msg)."""
+
+    t_end_s: float
+    window_s: float
+    mass_kg: float
+    speed_mps: float
+    power_in_w: float
+    power_out_w: float
+    power_loss_w: float
+    efficiency: float
+    cost_of_transport_j_per_m: float
+    specific_cost_of_transport: float
+    specific_resistance: float
+    cycles: int = 1
+    warnings: tuple[str, ...] = ()
+
+
+def descriptors_from_powers(*, power_in_w: float, power_out_w: float, speed_mps: float,
+                            mass_kg: float, window_s: float = 0.0, t_end_s: float = 0.0,
+                            cycles: int = 1, warnings: tuple[str, ...] = ()) -> Descriptors:
+    """All descriptors from mean powers, speed and mass (NaN where undefined, e.g. v = 0)."""
+    loss = power_in_w - power_out_w
+    eff = power_out_w / power_in_w if power_in_w > 0 else math.nan
+    moving = speed_mps > 0 and mass_kg > 0
+    return Descriptors(
+        t_end_s=t_end_s, window_s=window_s, mass_kg=mass_kg, speed_mps=speed_mps,
+        power_in_w=power_in_w, power_out_w=power_out_w, power_loss_w=loss, efficiency=eff,
+        cost_of_transport_j_per_m=loss / speed_mps if speed_mps > 0 else math.nan,
+        specific_cost_of_transport=loss / (mass_kg * speed_mps) if moving else math.nan,
+        specific_resistance=power_in_w / (mass_kg * G_MPS2 * speed_mps) if moving else math.nan,
+        cycles=cycles, warnings=warnings)
+
+
+def resolve_current_sign(voltage_v: np.ndarray, current_a: np.ndarray, mode: str) -> float:
+    """Factor s such that P_in = s * V * I: -1 for ROS convention, +1 for positive discharge.
+
+    ``auto`` picks the sign that makes the median input power positive.
+    """
+    if mode == 'ros':
+        return -1.0
+    if mode == 'positive_discharge':
+        return 1.0
+    if mode != 'auto':
+        raise ValueError(f'current_sign must be ros, positive_discharge or auto, got {mode!r}')
+    median = float(np.median(np.asarray(voltage_v) * np.asarray(current_a)))
+    return -1.0 if median <= 0 else 1.0
+
+
+@dataclass
+class DescriptorAccumulator:
+    """Collects samples and emits :class:`Descriptors` per window of whole gait cycles.
+
+    Parameters
+    ----------
+    mass_kg
+        Total mass [kg], payload included.
+    cycles
+        Gait cycles per window.
+    current_sign
+        ``ros``, ``positive_discharge`` or ``auto`` (see module docstring).
+    auto_samples
+        Battery samples used to decide the sign in ``auto`` mode.
+    power_out_model
+        Optional ``f(gait_sample, mass_kg) -> W`` used when joint efforts are absent.
+    """
+
+    mass_kg: float
+    cycles: int = 1
+    current_sign: str = 'ros'
+    auto_samples: int = 20
+    power_out_model: Callable[[GaitPhaseSample, float], float] | None = None
+    sign_: float | None = field(default=None, init=False)
+    sign_note_: str = field(default='', init=False)
+    _battery: list[tuple[float, float]] = field(default_factory=list, init=False)
+    _pending_battery: list[BatterySample] = field(default_factory=list, init=False)
+    _joint: list[tuple[float, float]] = field(default_factory=list, init=False)
+    _poses: list[tuple[float, float, float]] = field(default_factory=list, init=False)
+    _boundaries: list[float] = field(default_factory=list, init=False)
+    _gait: GaitPhaseSample | None = field(default=None, init=False)
+    _last_phase: tuple[float, float] | None = field(default=None, init=False)
+    _window_start: float | None = field(default=None, init=False)
+
+    def __post_init__(self) -> None:
+        if self.mass_kg <= 0:
+            raise ValueError(f'mass_kg must be > 0, got {self.mass_kg}')
+        if self.cycles < 1:
+            raise ValueError(f'cycles must be >= 1, got {self.cycles}')
+        if self.current_sign != 'auto':
+            self.sign_ = resolve_current_sign(np.zeros(1), np.zeros(1), self.current_sign)
+
+    # -- inputs ----------------------------------------------------------------------------
+    def add_battery(self, sample: BatterySample) -> list[Descriptors]:
+        """Add one battery sample; returns the windows this sample completes."""
+        if self.sign_ is None:
+            self._pending_battery.append(sample)
+            if len(self._pending_battery) < self.auto_samples:
+                return []
+            v = np.array([s.voltage_v for s in self._pending_battery])
+            i = np.array([s.current_a for s in self._pending_battery])
+            self.sign_ = resolve_current_sign(v, i, 'auto')
+            self.sign_note_ = ('current sign auto-detected: ' +
+                               ('ROS convention (negative while discharging)'
+                                if self.sign_ < 0 else 'positive while discharging'))
+            pending, self._pending_battery = self._pending_battery, []
+            out: list[Descriptors] = []
+            for s in pending:
+                out.extend(self._add_power(s))
+            return out
+        return self._add_power(sample)
+
+    def _add_power(self, sample: BatterySample) -> list[Descriptors]:
+        assert self.sign_ is not None
+        self._battery.append((sample.t_s, self.sign_ * sample.voltage_v * sample.current_a))
+        return self._emit()
+
+    def add_joint_state(self, sample: JointStateSample) -> None:
+        """Add joint efforts/velocities (ignored when effort or velocity is empty)."""
+        if sample.effort.size and sample.velocity.size == sample.effort.size:
+            self._joint.append((sample.t_s, float(np.sum(np.abs(sample.effort *
+                                                                sample.velocity)))))
+
+    def add_pose(self, sample: PoseSample) -> None:
+        """Add a body pose (horizontal position used for the speed)."""
+        self._poses.append((sample.t_s, float(sample.position_m[0]),
+                            float(sample.position_m[1])))
+
+    def add_gait_phase(self, sample: GaitPhaseSample) -> list[Descriptors]:
+        """Add a gait schedule sample; a wrap of the cycle phase marks a cycle boundary."""
+        self._gait = sample
+        if self._last_phase is not None:
+            t_prev, phase_prev = self._last_phase
+            if sample.t_s > t_prev and sample.cycle_phase < phase_prev - 0.5:
+                # interpolate the wrap instant between the two samples
+                dphase = (1.0 - phase_prev) + sample.cycle_phase
+                frac = (1.0 - phase_prev) / dphase if dphase > 0 else 1.0
+                self._boundaries.append(t_prev + frac * (sample.t_s - t_prev))
+        if self._last_phase is None or sample.t_s > self._last_phase[0]:
+            self._last_phase = (sample.t_s, sample.cycle_phase)
+        return self._emit()
+
+    # -- windows ---------------------------------------------------------------------------
+    def _emit(self) -> list[Descriptors]:
+        out = []
+        while True:
+            if self._window_start is None:
+                if not self._boundaries:
+                    return out
+                self._window_start = self._boundaries.pop(0)
+            if len(self._boundaries) < self.cycles or not self._battery:
+                return out
+            t0, t1 = self._window_start, self._boundaries[self.cycles - 1]
+            if self._battery[-1][0] < t1 or self._battery[0][0] > t0:
+                if self._battery[0][0] > t0:  # window starts before the first battery sample
+                    self._window_start = None
+                    self._boundaries = self._boundaries[self.cycles - 1:]
+                    continue
+                return out
+            out.append(self._window(t0, t1))
+            self._window_start = t1
+            del self._boundaries[:self.cycles]
+            self._trim(t1)
+
+    def _window(self, t0: float, t1: float) -> Descriptors:
+        warnings: list[str] = []
+        t = np.array([b[0] for b in self._battery])
+        p = np.array([b[1] for b in self._battery])
+        order = np.argsort(t, kind='stable')
+        t, p = t[order], p[order]
+        grid = np.concatenate(([t0], t[(t > t0) & (t < t1)], [t1]))
+        power_in = float(np.trapezoid(np.interp(grid, t, p), grid) / (t1 - t0))
+        if power_in < 0:
+            warnings.append(f'negative mean input power {power_in:.3f} W: check the battery '
+                            'current sign convention (parameter current_sign)')
+        joint = [j for j in self._joint if t0 <= j[0] < t1]
+        if joint:
+            power_out = float(np.mean([j[1] for j in joint]))
+        elif self.power_out_model is not None and self._gait is not None:
+            power_out = float(self.power_out_model(self._gait, self.mass_kg))
+        else:
+            power_out = 0.0
+        speed = self._speed(t0, t1)
+        return descriptors_from_powers(power_in_w=power_in, power_out_w=power_out,
+                                       speed_mps=speed, mass_kg=self.mass_kg,
+                                       window_s=t1 - t0, t_end_s=t1, cycles=self.cycles,
+                                       warnings=tuple(warnings))
+
+    def _speed(self, t0: float, t1: float) -> float:
+        poses = sorted(p for p in self._poses if t0 <= p[0] <= t1)
+        if len(poses) >= 2 and poses[0][0] - t0 < 0.1 * (t1 - t0) and \
+                t1 - poses[-1][0] < 0.1 * (t1 - t0):
+            dx, dy = poses[-1][1] - poses[0][1], poses[-1][2] - poses[0][2]
+            return math.hypot(dx, dy) / (poses[-1][0] - poses[0][0])
+        return self._gait.speed_mps if self._gait is not None else 0.0
+
+    def _trim(self, t: float) -> None:
+        keep_from = t - 1.0
+        last_before = [b for b in self._battery if b[0] <= t]
+        self._battery = ([last_before[-1]] if last_before else []) + \
+            [b for b in self._battery if b[0] > t]
+        self._joint = [j for j in self._joint if j[0] >= keep_from]
+        self._poses = [p for p in self._poses if p[0] >= keep_from]

@@ -1,0 +1,116 @@
+"""``energy_monitor``: EnergeticDescriptors over whole gait cycles from the robot's topics.
+
+Subscribes ``/battery_state``, ``/gait/phase``, ``/joint_states`` and ``/mocap/body``; publishes
+``/energy/descriptors`` each time a window of ``cycles`` gait cycles is complete. The science is in
+:mod:`hexapod_energy.descriptors`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from geometry_msgs.msg import PoseStamped
+from hexapod_interfaces.msg import EnergeticDescriptors, GaitPhase
+from rclpy.node import Node
+from sensor_msgs.msg import BatteryState, JointState
+
+from hexapod_common.conversions import (
+    battery_from_msg,
+    gait_phase_from_msg,
+    joint_state_from_msg,
+    pose_from_msg,
+    s_to_stamp,
+)
+from hexapod_common.node_utils import RELIABLE_QOS, SENSOR_QOS, declare_params, param, run_node
+from hexapod_energy.descriptors import DescriptorAccumulator, Descriptors
+
+__all__ = ['EnergyMonitorNode', 'EnergyParams', 'descriptors_to_msg', 'main']
+
+
+@dataclass(frozen=True)
+class EnergyParams:
+    mass: float = param(2.183, 'total robot mass [kg], payload included',
+                        validate=lambda v: None if v > 0 else 'must be > 0', read_only=True)
+    cycles: int = param(1, 'whole gait cycles per published window',
+                        validate=lambda v: None if v >= 1 else 'must be >= 1', read_only=True)
+    current_sign: str = param(
+        'auto', 'battery current sign: ros (negative discharging), positive_discharge, auto',
+        validate=lambda v: None if v in ('ros', 'positive_discharge', 'auto')
+        else 'expected ros, positive_discharge or auto', read_only=True)
+
+
+def descriptors_to_msg(d: Descriptors, msg: Any = None) -> EnergeticDescriptors:
+    """Fill an EnergeticDescriptors message from core descriptors."""
+    msg = msg or EnergeticDescriptors()
+    msg.header.stamp.sec, msg.header.stamp.nanosec = s_to_stamp(d.t_end_s)
+    msg.window = d.window_s
+    msg.mass = d.mass_kg
+    msg.speed = d.speed_mps
+    msg.power_in = d.power_in_w
+    msg.power_out = d.power_out_w
+    msg.power_loss = d.power_loss_w
+    msg.efficiency = d.efficiency
+    msg.cost_of_transport = d.cost_of_transport_j_per_m
+    msg.specific_cost_of_transport = d.specific_cost_of_transport
+    msg.specific_resistance = d.specific_resistance
+    return msg
+
+
+class EnergyMonitorNode(Node):
+    """Thin node around :class:`DescriptorAccumulator`."""
+
+    def __init__(self, *, context: Any = None, parameter_overrides: Any = None,
+                 namespace: str | None = None, node_name: str = 'energy_monitor') -> None:
+        super().__init__(node_name, context=context, namespace=namespace or '',
+                         parameter_overrides=parameter_overrides or [])
+        p = declare_params(self, EnergyParams)
+        self.core = DescriptorAccumulator(mass_kg=p.mass, cycles=p.cycles,
+                                          current_sign=p.current_sign)
+        self.pub = self.create_publisher(EnergeticDescriptors, 'energy/descriptors',
+                                         RELIABLE_QOS)
+        self.dropped = 0
+        self._sign_logged = False
+        self.create_subscription(BatteryState, 'battery_state', self._on_battery, SENSOR_QOS)
+        self.create_subscription(GaitPhase, 'gait/phase', self._on_gait, SENSOR_QOS)
+        self.create_subscription(JointState, 'joint_states', self._on_joints, SENSOR_QOS)
+        self.create_subscription(PoseStamped, 'mocap/body', self._on_pose, SENSOR_QOS)
+
+    def _guard(self, what: str, fn: Any, msg: Any) -> Any:
+        try:
+            return fn(msg)
+        except (ValueError, IndexError) as err:
+            self.dropped += 1
+            self.get_logger().warning(f'dropped a {what} message: {err}',
+                                      throttle_duration_sec=5.0)
+            return None
+
+    def _publish(self, results: Sequence[Descriptors] | None) -> None:
+        if self.core.sign_note_ and not self._sign_logged:
+            self._sign_logged = True
+            self.get_logger().info(self.core.sign_note_)
+        for d in results or ():
+            for warning in d.warnings:
+                self.get_logger().warning(warning)
+            self.pub.publish(descriptors_to_msg(d))
+
+    def _on_battery(self, msg: BatteryState) -> None:
+        self._publish(self._guard('BatteryState',
+                                  lambda m: self.core.add_battery(battery_from_msg(m)), msg))
+
+    def _on_gait(self, msg: GaitPhase) -> None:
+        self._publish(self._guard('GaitPhase',
+                                  lambda m: self.core.add_gait_phase(gait_phase_from_msg(m)),
+                                  msg))
+
+    def _on_joints(self, msg: JointState) -> None:
+        self._guard('JointState', lambda m: self.core.add_joint_state(joint_state_from_msg(m)),
+                    msg)
+
+    def _on_pose(self, msg: PoseStamped) -> None:
+        self._guard('PoseStamped', lambda m: self.core.add_pose(pose_from_msg(m)), msg)
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    return run_node(EnergyMonitorNode, args)
