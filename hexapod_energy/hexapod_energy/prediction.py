@@ -1,0 +1,305 @@
+"""Whole-robot input and output power from one leg (Brodoline et al. 2024, Eq. 1-3, 6).
+
+Input power, Eq. 1, with the exact support profile ``L(t)`` of the gait (a step function of the
+cycle phase, :meth:`hexapod_gait.gait.GaitPattern.support_profile`)::
+
+    P_in = sum_j w_j [ L_j P_stance(T_stance, m_c(L_j)) + (N - L_j) P_swing(T_swing, m_sw) ]
+
+``w_j`` the width of support interval ``j`` (fractions of the cycle summing to 1), ``N`` the leg
+count, ``T_stance = beta T``, ``T_swing = (1 - beta) T``, ``m_c(L) = (M - m_leg L) / L`` the mass
+carried by each stance leg (Eq. 2) and ``m_sw`` the load of a swinging leg: 0 by default (a leg
+in the air carries nothing; ``swing_load='carried'`` uses ``m_c`` as some readings of the paper
+do).
+
+Output power, Eq. 6 summed over the legs: every leg follows the same joint path in its own leg
+phase (the single-leg method's premise), shifted by its phase offset; while in stance it carries
+``m_c(L(t))`` at the cycle phase it is at.  See :mod:`hexapod_energy.dynamics` for the
+definition of average mechanical power.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, Literal, Protocol
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from hexapod_energy.dynamics import (
+    ANTBOT_LEG_SPEC,
+    LegDynamics,
+    LegSpec,
+    PhaseTorques,
+    PowerDefinition,
+    mean_mechanical_power_w,
+)
+from hexapod_energy.errors import InvalidInputError
+
+__all__ = [
+    'ANTBOT_ROBOT',
+    'OutputPowerModel',
+    'PhasePowerModel',
+    'RobotSpec',
+    'carried_mass_profile_kg',
+    'phase_path',
+    'predict_power_in_w',
+]
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    """Robot constants (DESIGN §7 defaults: AntBot).
+
+    Attributes
+    ----------
+    mass_kg : float
+        Robot mass without payload [kg].
+    leg : LegSpec
+        DH table and link masses of every leg.
+    """
+
+    mass_kg: float = 2.183
+    leg: LegSpec = field(default_factory=lambda: ANTBOT_LEG_SPEC)
+
+    @property
+    def leg_mass_kg(self) -> float:
+        return self.leg.leg_mass_kg
+
+    def total_mass_kg(self, payload_kg: float) -> float:
+        return self.mass_kg + float(payload_kg)
+
+
+ANTBOT_ROBOT = RobotSpec()
+
+
+class PhasePowerModel(Protocol):
+    """Anything giving average phase powers, e.g. a fitted
+    :class:`hexapod_energy.single_leg.SingleLegModel`."""
+
+    def p_stance_w(self, t_stance_s: ArrayLike, load_kg: ArrayLike) -> np.ndarray: ...
+
+    def p_swing_w(self, t_swing_s: ArrayLike, load_kg: ArrayLike) -> np.ndarray: ...
+
+
+def _carried(total_mass_kg: float, leg_mass_kg: float, supporting: np.ndarray) -> np.ndarray:
+    from hexapod_gait.gait import carried_mass_per_leg_kg
+
+    return carried_mass_per_leg_kg(total_mass_kg, leg_mass_kg, supporting)
+
+
+def predict_power_in_w(
+    model: PhasePowerModel,
+    gait: Any,
+    *,
+    total_mass_kg: float,
+    leg_mass_kg: float = ANTBOT_LEG_SPEC.leg_mass_kg,
+    periods_s: ArrayLike | None = None,
+    swing_load: Literal['zero', 'carried'] = 'zero',
+) -> np.ndarray | float:
+    """Whole-robot average input power, Eq. 1 [W].
+
+    Parameters
+    ----------
+    model : PhasePowerModel
+        Single-leg phase-power surfaces.
+    gait : hexapod_gait.gait.GaitPattern
+        Gait (leg count, offsets, duty factor, period).
+    total_mass_kg : float
+        Robot mass with payload ``M`` [kg].
+    leg_mass_kg : float
+        Mass of one leg [kg].
+    periods_s : array (k,), optional
+        Evaluate at these periods instead of ``gait.period_s`` (same support profile).
+    swing_load : {'zero', 'carried'}
+        Load of a swinging leg (module docstring).
+
+    Returns
+    -------
+    float, or array (k,) when ``periods_s`` is given.
+    """
+    bp, supporting = gait.support_profile()
+    widths = np.diff(np.append(bp, 1.0))
+    n_legs = gait.leg_count
+    beta = gait.duty_factor
+    scalar = periods_s is None
+    periods = np.atleast_1d(np.asarray(gait.period_s if scalar else periods_s, dtype=float))
+    if np.any(periods <= 0):
+        raise InvalidInputError(f'periods_s must be > 0, got min {periods.min()}')
+    if swing_load not in ('zero', 'carried'):
+        raise InvalidInputError(f"swing_load must be 'zero' or 'carried', got {swing_load!r}")
+    total = np.zeros_like(periods)
+    t_st, t_sw = beta * periods, (1.0 - beta) * periods
+    for w, big_l in zip(widths, supporting):
+        if w <= 0:
+            continue
+        m_c = float(_carried(total_mass_kg, leg_mass_kg, np.array([big_l]))[0])
+        term = np.zeros_like(periods)
+        if big_l > 0:
+            term += big_l * model.p_stance_w(t_st, m_c)
+        if big_l < n_legs:
+            m_sw = m_c if (swing_load == 'carried' and big_l > 0) else 0.0
+            term += (n_legs - big_l) * model.p_swing_w(t_sw, m_sw)
+        total += w * term
+    return float(total[0]) if scalar else total
+
+
+def carried_mass_profile_kg(
+    gait: Any, leg_phase: ArrayLike, *, total_mass_kg: float, leg_mass_kg: float
+) -> np.ndarray:
+    """Mass each leg carries at leg phases ``leg_phase`` (n,) -> (legs, n) [kg], 0 in swing.
+
+    Leg ``i`` at leg phase ``phi`` is at cycle phase ``(theta_i + phi) mod 1``; it carries
+    ``m_c(L)`` there while ``phi < beta``.
+    """
+    phi = np.asarray(leg_phase, dtype=float)
+    bp, supporting = gait.support_profile()
+    offsets = np.asarray(gait.phase_offsets, dtype=float)[:, None]
+    cycle = (offsets + phi[None, :]) % 1.0
+    big_l = supporting[np.clip(np.searchsorted(bp, cycle, side='right') - 1, 0, len(bp) - 1)]
+    m_c = _carried(total_mass_kg, leg_mass_kg, big_l.ravel()).reshape(big_l.shape)
+    stance = phi[None, :] < gait.duty_factor
+    return np.where(stance & np.isfinite(m_c), m_c, 0.0)
+
+
+def phase_path(
+    gait: Any,
+    *,
+    leg_index: int = 0,
+    n_samples: int = 200,
+    trajectory_factory: Callable[..., Any] | None = None,
+    kinematics: Any | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """One leg's joint path over one leg cycle, parameterised by leg phase.
+
+    Uses ``hexapod_gait.trajectory.LegTrajectory`` (or ``trajectory_factory(gait, leg_index,
+    **kw)``) on a copy of the gait with ``T = 1 s``, so time derivatives are phase derivatives.
+
+    Returns
+    -------
+    phase : (n,)            leg phase in [0, 1), 0 = touchdown
+    q, dq_dphase, d2q_dphase2 : (n, 3)
+    stance : (n,) bool      phase < beta
+    """
+    if trajectory_factory is None:
+        try:
+            from hexapod_gait.trajectory import LegTrajectory
+        except ImportError as err:  # pragma: no cover - depends on the gait package's progress
+            raise InvalidInputError(
+                'output power needs hexapod_gait.trajectory.LegTrajectory, not importable'
+            ) from err
+        trajectory_factory = LegTrajectory
+    unit = gait.with_changes(period_s=1.0)
+    kw = {} if kinematics is None else {'kinematics': kinematics}
+    traj = trajectory_factory(unit, leg_index, **kw)
+    phase = np.arange(n_samples) / n_samples
+    theta = float(unit.phase_offsets[leg_index])
+    q, d1, d2 = traj.joints(theta + phase)
+    return phase, np.asarray(q), np.asarray(d1), np.asarray(d2), phase < unit.duty_factor
+
+
+@dataclass
+class OutputPowerModel:
+    """Whole-robot output power (Eq. 6) along the gait's joint paths.
+
+    Parameters
+    ----------
+    robot : RobotSpec
+    n_samples : int
+        Phase samples per cycle.
+    definition : {'absolute', 'positive', 'net'}
+        Average mechanical power definition (:mod:`hexapod_energy.dynamics`).
+    trajectory_factory : callable, optional
+        Replaces ``hexapod_gait.trajectory.LegTrajectory`` (tests).
+    kinematics : optional
+        ``LegKinematics`` passed to the trajectory.
+    """
+
+    robot: RobotSpec = field(default_factory=RobotSpec)
+    n_samples: int = 200
+    definition: PowerDefinition = 'absolute'
+    trajectory_factory: Callable[..., Any] | None = None
+    kinematics: Any | None = None
+    _cache: dict[tuple[Any, ...], PhaseTorques] = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        self.dynamics = LegDynamics(self.robot.leg)
+
+    def phase_torques(self, gait: Any) -> PhaseTorques:
+        """Torque decomposition of the gait's leg path (cached by path shape)."""
+        key = (gait.duty_factor, gait.step_length_m, gait.step_height_m, self.n_samples)
+        if key not in self._cache:
+            phase, q, d1, d2, stance = phase_path(
+                gait, n_samples=self.n_samples, trajectory_factory=self.trajectory_factory,
+                kinematics=self.kinematics,
+            )
+            self._cache[key] = self.dynamics.phase_torques(phase, q, d1, d2, stance)
+        return self._cache[key]
+
+    def power_out_w(
+        self,
+        gait: Any,
+        *,
+        payload_kg: ArrayLike = 0.0,
+        periods_s: ArrayLike | None = None,
+    ) -> np.ndarray | float:
+        """Whole-robot average output power [W].
+
+        Parameters
+        ----------
+        gait : GaitPattern
+        payload_kg : float or array (m,)
+            Payload on top of :attr:`RobotSpec.mass_kg` [kg].
+        periods_s : array (k,), optional
+            Periods to evaluate at (default ``gait.period_s``).
+
+        Returns
+        -------
+        float if both are scalars, else array (k, m) (k = 1 or m = 1 squeezed away when scalar).
+        """
+        pt = self.phase_torques(gait)
+        scalar_t = periods_s is None
+        periods = np.atleast_1d(np.asarray(gait.period_s if scalar_t else periods_s, float))
+        payload = np.asarray(payload_kg, dtype=float)
+        scalar_m = payload.ndim == 0
+        payloads = np.atleast_1d(payload)
+        out = np.zeros((len(periods), len(payloads)))
+        inv_t = 1.0 / periods
+        for j, m_pay in enumerate(payloads):
+            carried = carried_mass_profile_kg(
+                gait, pt.phase, total_mass_kg=self.robot.total_mass_kg(float(m_pay)),
+                leg_mass_kg=self.robot.leg_mass_kg,
+            )  # (legs, n)
+            # tau (legs, k, n, 3) = G + H / T^2 + m_c u
+            tau = (
+                pt.gravity_nm[None, None]
+                + pt.inertial_nm_s2[None, None] * (inv_t**2)[None, :, None, None]
+                + carried[:, None, :, None] * pt.per_carried_kg_nm[None, None]
+            )
+            power = tau * pt.dq_dphase[None, None] * inv_t[None, :, None, None]
+            out[:, j] = mean_mechanical_power_w(power, self.definition, axis=-1).sum(axis=0)
+        if scalar_t and scalar_m:
+            return float(out[0, 0])
+        if scalar_t:
+            return out[0]
+        if scalar_m:
+            return out[:, 0]
+        return out
+
+    def power_map_w(
+        self,
+        gait: Any,
+        speeds_mps: ArrayLike,
+        payloads_kg: ArrayLike,
+    ) -> np.ndarray:
+        """Output power over speed x payload (Fig. 7D), (n_speed, n_payload) [W].
+
+        The period of each speed follows ``v = step_length / (beta T)``.
+        """
+        v = np.asarray(speeds_mps, dtype=float)
+        if np.any(v <= 0):
+            raise InvalidInputError(f'speeds must be > 0 m/s, got min {v.min()}')
+        periods = gait.step_length_m / (gait.duty_factor * v)
+        return np.asarray(
+            self.power_out_w(gait, payload_kg=np.atleast_1d(payloads_kg), periods_s=periods)
+        )
