@@ -1,0 +1,162 @@
+"""Servo electromechanics: datasheet points, holding, heat, reporting, vectorisation."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from hexapod_bench_drivers.servo_model import (
+    ERROR_OVERHEATING,
+    ServoModel,
+    ServoParams,
+    ServoParamsError,
+)
+
+
+def run(model: ServoModel, seconds: float, goal, tau=0.0, volts=12.0, dt=0.01):
+    out = None
+    for _ in range(int(round(seconds / dt))):
+        out = model.step(dt, goal, tau, volts)
+    return out
+
+
+def test_derived_constants_from_datasheet_points() -> None:
+    p = ServoParams.ax18a()
+    assert_allclose(p.winding_resistance_ohm, 12.0 / 2.15)
+    assert_allclose(p.torque_constant_nm_a, 1.8 / 2.15)
+    # k_e from the no-load point: V = R i_nl + k_e w_nl
+    assert_allclose(p.back_emf_constant_v_s * p.no_load_speed_rad_s
+                    + p.winding_resistance_ohm * p.no_load_current_a, 12.0)
+    assert 0.65 < p.gear_efficiency < 0.8
+    for preset in (ServoParams.ax12a(), ServoParams.xl430(), ServoParams.xm430()):
+        assert 0.3 < preset.gear_efficiency <= 1.0
+    assert ServoParams.by_name('AX-18A') == p
+
+
+def test_no_load_speed_is_reached_at_full_duty() -> None:
+    model = ServoModel(count=1, initial_position_rad=-2.5)
+    out = run(model, 0.3, 2.6, dt=0.001)
+    assert_allclose(out.velocity_rad_s, 97 * 2 * math.pi / 60, rtol=0.01)
+
+
+def test_stall_current_and_torque_at_rated_voltage() -> None:
+    p = ServoParams.ax18a()
+    model = ServoModel(p, count=1)
+    # A load a little under the stall torque is still lifted; the full duty current is drawn.
+    out = run(model, 0.5, 2.0, tau=-(p.stall_torque_nm - p.coulomb_friction_nm - 0.05),
+              dt=0.001)
+    assert out.velocity_rad_s[0] > 0.0
+    # Datasheet resistance holds at 25 degC; 0.2 s of stall heats the winding by < 0.3 K.
+    model = ServoModel(p, count=1, initial_temperature_c=25.0, ambient_temperature_c=25.0)
+    out = run(model, 0.2, 2.0, tau=-(p.stall_torque_nm + 0.1), dt=0.001)
+    assert_allclose(out.velocity_rad_s, 0.0, atol=1e-9)
+    assert_allclose(out.current_a, 2.2, rtol=2e-3)
+    assert_allclose(out.load_fraction, 1.0)
+
+
+def test_idle_servo_draws_standby_current_only() -> None:
+    model = ServoModel(count=2, initial_position_rad=0.3)
+    out = run(model, 1.0, 0.3)
+    assert_allclose(out.current_a, 0.05, rtol=1e-9)
+    assert_allclose(out.power_w, 0.6, rtol=1e-9)
+    unpowered = run(model, 0.1, 0.3, volts=0.0)
+    assert_allclose(unpowered.current_a, 0.0)
+
+
+def test_holding_a_load_costs_joule_power_and_leaves_a_static_error() -> None:
+    model = ServoModel(count=1)
+    out = run(model, 2.0, 0.0, tau=-0.6)
+    assert out.position_rad[0] < -0.02          # sags under load: finite stiffness
+    assert_allclose(out.torque_nm, 0.6, rtol=1e-6)   # at rest the gear balances the load
+    # At rest all bridge power is Joule loss in the winding (energy balance).
+    assert out.winding_loss_w[0] > 0.5
+    assert_allclose(out.power_w - 0.6, out.winding_loss_w, rtol=1e-9)
+    # The gear's stiction carries part of the load: less current than k_t would need.
+    p = ServoParams.ax18a()
+    i_w = math.sqrt(out.winding_loss_w[0] / model.winding_resistance_ohm()[0])
+    assert i_w < 0.6 / p.torque_constant_nm_a
+
+
+def test_vectorised_equals_single_servos() -> None:
+    goals = np.array([0.4, -0.2, 0.1])
+    taus = np.array([-0.3, 0.2, 0.0])
+    many = ServoModel(count=3)
+    outs = [ServoModel(count=1) for _ in range(3)]
+    for k in range(100):
+        g = goals * math.sin(0.1 * k)
+        a = many.step(0.01, g, taus)
+        b = [m.step(0.01, g[i], taus[i]) for i, m in enumerate(outs)]
+    assert_allclose(a.position_rad, [o.position_rad[0] for o in b], rtol=1e-12)
+    assert_allclose(a.power_w, [o.power_w[0] for o in b], rtol=1e-12)
+
+
+def test_copper_resistance_and_heating_time_constant() -> None:
+    p = ServoParams.ax18a()
+    model = ServoModel(p, count=1, initial_temperature_c=35.0, ambient_temperature_c=25.0)
+    assert_allclose(model.winding_resistance_ohm(), p.winding_resistance_ohm * (1 + 0.00393 * 10))
+    # A stalled servo at 30 % duty (torque limit) held by gear stiction: constant voltage on
+    # the winding, first-order approach to T_amb + P R_th.
+    model = ServoModel(p, count=1, initial_temperature_c=25.0, ambient_temperature_c=25.0,
+                       max_substep_s=0.5)
+    model.torque_limit[:] = 0.3
+    out = run(model, p.thermal_time_constant_s, 2.0, tau=-0.6, dt=0.5)
+    assert_allclose(out.velocity_rad_s, 0.0)
+    i2r0 = (0.3 * 12.0) ** 2 / p.winding_resistance_ohm
+    rise = out.temperature_c[0] - 25.0
+    # The resistance rises, so at constant voltage the loss falls a little: the rise lies just
+    # under the constant-resistance value (1 - 1/e) P R_th.
+    expected = (1 - math.exp(-1)) * i2r0 * p.thermal_resistance_k_w
+    assert 0.9 * expected < rise < expected
+    assert out.reported_temperature_c.dtype.kind == 'i'
+    assert out.reported_temperature_c[0] == round(out.temperature_c[0])
+
+
+def test_hot_servo_needs_more_power_for_the_same_work() -> None:
+    def cycle_power(temp_c: float) -> float:
+        m = ServoModel(count=1, initial_temperature_c=temp_c, ambient_temperature_c=temp_c)
+        energy = 0.0
+        for k in range(300):
+            o = m.step(0.01, 0.4 * math.sin(2 * math.pi * 2 * k * 0.01), -0.5)
+            energy += o.power_w[0] * 0.01
+        return energy / 3.0
+    assert cycle_power(60.0) > cycle_power(26.0) * 1.03
+
+
+def test_torque_disabled_servo_is_backdriven_and_draws_no_bridge_current() -> None:
+    model = ServoModel(count=1, torque_enabled=False)
+    out = run(model, 0.5, 1.0, tau=-0.3)
+    assert out.position_rad[0] < -0.2
+    assert_allclose(out.current_a, 0.05)
+    assert not out.torque_enabled[0]
+
+
+def test_moving_speed_limits_the_slew() -> None:
+    model = ServoModel(count=1)
+    model.moving_speed_rad_s[:] = 1.0
+    out = run(model, 0.5, 2.0, dt=0.01)
+    assert_allclose(out.position_rad, 0.5, atol=0.12)
+    assert out.velocity_rad_s[0] < 1.2
+
+
+def test_overheating_shuts_torque_off_and_sets_error_bit() -> None:
+    p = ServoParams.ax18a()
+    model = ServoModel(p, count=2, initial_temperature_c=[30.0, p.temperature_limit_c + 1])
+    out = model.step(0.01, [0.5, 0.5])
+    assert out.error[1] & ERROR_OVERHEATING
+    assert not out.error[0] & ERROR_OVERHEATING
+    assert out.torque_enabled.tolist() == [True, False]
+
+
+def test_bad_inputs_are_refused_with_their_names() -> None:
+    with pytest.raises(ServoParamsError, match='stall_current_a'):
+        ServoParams.ax18a().with_changes(stall_current_a=-1.0)
+    model = ServoModel(count=2)
+    with pytest.raises(ServoParamsError, match='goal_position_rad'):
+        model.step(0.01, [0.0, 0.0, 0.0])
+    with pytest.raises(ServoParamsError, match='dt_s'):
+        model.step(0.0, 0.0)
+    with pytest.raises(ServoParamsError, match='servo model'):
+        ServoParams.by_name('mx64')
