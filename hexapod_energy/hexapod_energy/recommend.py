@@ -1,0 +1,141 @@
+"""Gait recommendation: minimum CoT/M for a target speed and payload within actuator limits.
+
+Candidates: every gait name in ``gaits`` x duty factor in ``duty_factors`` x step length in
+``step_lengths_m`` for the robot's leg count.  A candidate is kept when the period giving the
+target speed (``T = step_length / (beta v)``) satisfies the actuator limits
+(:func:`hexapod_gait.feasibility.check_feasible`), the body is always supported
+(``min L(t) >= min_supporting_legs``) and its leg path is reachable.  The one with the lowest
+``CoT/M = (P_in - P_out) / (M v)`` wins; the saving is reported against the default gait
+(tripod/alternating, beta 0.5, 100 mm) at the same speed and payload, when that one is feasible.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from hexapod_energy.errors import InvalidInputError
+from hexapod_energy.prediction import OutputPowerModel, PhasePowerModel, predict_power_in_w
+
+__all__ = ['Candidate', 'Recommendation', 'recommend_gait']
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One evaluated gait configuration at the target speed."""
+
+    gait: str
+    leg_count: int
+    duty_factor: float
+    step_length_m: float
+    period_s: float
+    power_in_w: float
+    power_out_w: float
+    efficiency: float
+    specific_cost_of_transport: float
+
+
+@dataclass(frozen=True)
+class Recommendation:
+    """Best configuration, the default for comparison, and the saving."""
+
+    speed_mps: float
+    payload_kg: float
+    best: Candidate
+    default: Candidate | None
+    saving_fraction: float | None  # 1 - CoT/M(best) / CoT/M(default)
+    evaluated: int
+    rejected: int
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            'speed_mps': self.speed_mps,
+            'payload_kg': self.payload_kg,
+            'best': asdict(self.best),
+            'default': None if self.default is None else asdict(self.default),
+            'saving_fraction': self.saving_fraction,
+            'evaluated': self.evaluated,
+            'rejected': self.rejected,
+        }
+
+
+def _evaluate(
+    name: str, legs: int, beta: float, step_m: float, speed: float, payload: float,
+    phase_power: PhasePowerModel, output_power: OutputPowerModel, limits: Any,
+    min_supporting_legs: int,
+) -> Candidate | None:
+    from hexapod_gait.feasibility import check_feasible
+    from hexapod_gait.gait import make_gait
+
+    period = step_m / (beta * speed)
+    try:
+        gait = make_gait(name, leg_count=legs, duty_factor=beta, period_s=period,
+                         step_length_m=step_m)
+        check_feasible(gait, limits)
+        if gait.min_supporting_legs() < min_supporting_legs:
+            return None
+        total = output_power.robot.mass_kg + payload
+        p_in = float(predict_power_in_w(phase_power, gait, total_mass_kg=total,
+                                        leg_mass_kg=output_power.robot.leg_mass_kg))
+        p_out = float(output_power.power_out_w(gait, payload_kg=payload))
+    except ValueError:  # infeasible, invalid gait or unreachable path: not a candidate
+        return None
+    return Candidate(name, legs, beta, step_m, period, p_in, p_out, p_out / p_in,
+                     (p_in - p_out) / (total * speed))
+
+
+def recommend_gait(
+    phase_power: PhasePowerModel,
+    output_power: OutputPowerModel,
+    *,
+    speed_mps: float,
+    payload_kg: float = 0.0,
+    leg_count: int = 6,
+    gaits: Sequence[str] = ('alternating', 'wave', 'ripple', 'tetrapod'),
+    duty_factors: Sequence[float] = tuple(np.round(np.arange(0.5, 0.86, 0.05), 2)) + (5 / 6,),
+    step_lengths_m: Sequence[float] = tuple(np.round(np.arange(0.06, 0.141, 0.01), 3)),
+    limits: Any | None = None,
+    min_supporting_legs: int = 3,
+) -> Recommendation:
+    """The configuration minimising CoT/M at ``speed_mps`` with ``payload_kg``.
+
+    Raises
+    ------
+    InvalidInputError
+        If the speed is not positive or no candidate is feasible at that speed.
+    """
+    from hexapod_gait.feasibility import ANTBOT_LIMITS
+
+    if speed_mps <= 0:
+        raise InvalidInputError(f'speed_mps must be > 0, got {speed_mps}')
+    lim = ANTBOT_LIMITS if limits is None else limits
+    min_sup = min(min_supporting_legs, leg_count // 2)
+    best: Candidate | None = None
+    evaluated = rejected = 0
+    for name in gaits:
+        if name == 'tetrapod' and leg_count != 6:
+            continue
+        for beta in duty_factors:
+            for step in step_lengths_m:
+                cand = _evaluate(name, leg_count, float(beta), float(step), speed_mps,
+                                 payload_kg, phase_power, output_power, lim, min_sup)
+                if cand is None:
+                    rejected += 1
+                    continue
+                evaluated += 1
+                if best is None or cand.specific_cost_of_transport < \
+                        best.specific_cost_of_transport:
+                    best = cand
+    if best is None:
+        raise InvalidInputError(
+            f'no feasible gait reaches {speed_mps} m/s within the actuator limits '
+            f'({rejected} configurations rejected)'
+        )
+    default = _evaluate('alternating', leg_count, 0.5, 0.10, speed_mps, payload_kg,
+                        phase_power, output_power, lim, min_sup)
+    saving = None if default is None else \
+        1.0 - best.specific_cost_of_transport / default.specific_cost_of_transport
+    return Recommendation(speed_mps, payload_kg, best, default, saving, evaluated, rejected)

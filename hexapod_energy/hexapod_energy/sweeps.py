@@ -1,0 +1,204 @@
+"""Gait-parameter sweeps of the energetic descriptors (Brodoline et al. 2024, Fig. 3A-D).
+
+A :class:`SweepCurve` is one gait configuration (gait, leg count, duty factor, step length)
+evaluated over speeds from :data:`MIN_SPEED_MPS` up to the configuration's maximum speed under
+the actuator limits, and over a payload band (default 0 to 0.5 kg).  Speed sets the period,
+``T = step_length / (beta v)``; ``P_in`` comes from Eq. 1 (:func:`predict_power_in_w`), ``P_out``
+from Eq. 6 (:class:`OutputPowerModel`).
+
+Optimal operating points are taken on the nominal payload (the first of the band): maximum
+``P_out``, minimum ``CoT/M`` and maximum efficiency; ``min(eta)`` is reported per curve.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from hexapod_energy.errors import InvalidInputError
+from hexapod_energy.metrics import G_MPS2
+from hexapod_energy.prediction import OutputPowerModel, PhasePowerModel, predict_power_in_w
+
+__all__ = [
+    'DEFAULT_PAYLOADS_KG',
+    'MIN_SPEED_MPS',
+    'STANDARD_SWEEPS',
+    'SweepCurve',
+    'SweepSpec',
+    'run_standard_sweeps',
+    'sweep_curve',
+]
+
+MIN_SPEED_MPS = 0.05
+DEFAULT_PAYLOADS_KG = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5)
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """One curve of a sweep: gait configuration and its label."""
+
+    label: str
+    gait: str = 'tripod'
+    leg_count: int = 6
+    duty_factor: float = 0.5
+    step_length_m: float = 0.10
+    step_height_m: float = 0.04
+
+
+#: The paper's four sweeps: duty factor (3A), step length (3B), gait type (3C), leg count (3D).
+STANDARD_SWEEPS: dict[str, tuple[SweepSpec, ...]] = {
+    'duty_factor': tuple(
+        SweepSpec(f'beta {b:.1f}', 'tripod', 6, b) for b in (0.5, 0.6, 0.7, 0.8)
+    ),
+    'step_length': tuple(
+        SweepSpec(f'step {int(round(s * 1000))} mm', 'tripod', 6, 0.5, s)
+        for s in (0.07, 0.10, 0.12, 0.14)
+    ),
+    'gait_type': (
+        SweepSpec('tripod beta 0.5', 'tripod', 6, 0.5),
+        SweepSpec('wave beta 0.83', 'wave', 6, 0.83),
+        SweepSpec('wave beta 0.5', 'wave', 6, 0.5),
+    ),
+    'leg_count': tuple(
+        SweepSpec(f'{n} legs', 'alternating', n, 0.5) for n in (4, 6, 8)
+    ),
+}
+
+
+@dataclass(frozen=True)
+class SweepCurve:
+    """Descriptors of one configuration over speed x payload.
+
+    Attributes
+    ----------
+    spec : SweepSpec
+    speeds_mps : (k,)
+    payloads_kg : (m,)
+    mass_kg : (m,)          total robot mass per payload [kg]
+    power_in_w, power_out_w, efficiency, cot_per_mass, specific_resistance : (k, m)
+        ``cot_per_mass`` = CoT/M [J/(m kg)].
+    """
+
+    spec: SweepSpec
+    speeds_mps: np.ndarray
+    payloads_kg: np.ndarray
+    mass_kg: np.ndarray
+    power_in_w: np.ndarray
+    power_out_w: np.ndarray
+    efficiency: np.ndarray
+    cot_per_mass: np.ndarray
+    specific_resistance: np.ndarray
+
+    def optimal_points(self, payload_index: int = 0) -> dict[str, dict[str, float]]:
+        """Operating points at one payload: ``max_power_out``, ``min_cot_per_mass``,
+        ``max_efficiency``, each ``{'speed_mps', 'value'}``."""
+        j = payload_index
+        out = {}
+        for key, arr, pick in (
+            ('max_power_out', self.power_out_w[:, j], np.argmax),
+            ('min_cot_per_mass', self.cot_per_mass[:, j], np.argmin),
+            ('max_efficiency', self.efficiency[:, j], np.argmax),
+        ):
+            i = int(pick(arr))
+            out[key] = {'speed_mps': float(self.speeds_mps[i]), 'value': float(arr[i])}
+        return out
+
+    @property
+    def min_efficiency(self) -> float:
+        """min(eta) over speeds and payloads."""
+        return float(np.min(self.efficiency))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            'label': self.spec.label,
+            'gait': self.spec.gait,
+            'leg_count': self.spec.leg_count,
+            'duty_factor': self.spec.duty_factor,
+            'step_length_m': self.spec.step_length_m,
+            'speeds_mps': self.speeds_mps.tolist(),
+            'payloads_kg': self.payloads_kg.tolist(),
+            'power_in_w': self.power_in_w.tolist(),
+            'power_out_w': self.power_out_w.tolist(),
+            'efficiency': self.efficiency.tolist(),
+            'specific_cost_of_transport': self.cot_per_mass.tolist(),
+            'specific_resistance': self.specific_resistance.tolist(),
+            'optimal_points': self.optimal_points(),
+            'min_efficiency': self.min_efficiency,
+            'max_speed_mps': float(self.speeds_mps[-1]),
+        }
+
+
+def sweep_curve(
+    spec: SweepSpec,
+    phase_power: PhasePowerModel,
+    output_power: OutputPowerModel,
+    *,
+    payloads_kg: Sequence[float] = DEFAULT_PAYLOADS_KG,
+    n_speeds: int = 40,
+    limits: Any | None = None,
+    min_speed_mps: float = MIN_SPEED_MPS,
+) -> SweepCurve:
+    """Evaluate one configuration over speeds up to its maximum and over payloads."""
+    from hexapod_gait.feasibility import ANTBOT_LIMITS, max_speed_mps
+    from hexapod_gait.gait import make_gait
+
+    lim = ANTBOT_LIMITS if limits is None else limits
+    v_max = max_speed_mps(spec.duty_factor, spec.step_length_m, lim)
+    if v_max <= min_speed_mps:
+        raise InvalidInputError(
+            f'{spec.label}: maximum speed {v_max:.3f} m/s is below the sweep start '
+            f'{min_speed_mps} m/s'
+        )
+    speeds = np.linspace(min_speed_mps, v_max, n_speeds)
+    periods = spec.step_length_m / (spec.duty_factor * speeds)
+    gait = make_gait(
+        spec.gait, leg_count=spec.leg_count, duty_factor=spec.duty_factor,
+        period_s=float(periods[-1]), step_length_m=spec.step_length_m,
+        step_height_m=spec.step_height_m,
+    )
+    payloads = np.asarray(payloads_kg, dtype=float)
+    mass = output_power.robot.mass_kg + payloads
+    p_in = np.stack(
+        [
+            np.asarray(predict_power_in_w(phase_power, gait, total_mass_kg=float(m),
+                                          leg_mass_kg=output_power.robot.leg_mass_kg,
+                                          periods_s=periods))
+            for m in mass
+        ],
+        axis=1,
+    )
+    p_out = np.asarray(output_power.power_out_w(gait, payload_kg=payloads, periods_s=periods))
+    v = speeds[:, None]
+    with np.errstate(divide='ignore', invalid='ignore'):
+        eff = p_out / p_in
+        cot_m = (p_in - p_out) / (mass[None, :] * v)
+        sr = p_in / (mass[None, :] * G_MPS2 * v)
+    return SweepCurve(spec, speeds, payloads, mass, p_in, p_out, eff, cot_m, sr)
+
+
+def run_standard_sweeps(
+    phase_power: PhasePowerModel,
+    output_power: OutputPowerModel,
+    *,
+    sweeps: dict[str, tuple[SweepSpec, ...]] | None = None,
+    payloads_kg: Sequence[float] = DEFAULT_PAYLOADS_KG,
+    n_speeds: int = 40,
+    progress: Any | None = None,
+) -> dict[str, list[SweepCurve]]:
+    """All four standard sweeps (or ``sweeps``); ``progress`` is an optional tqdm-like bar
+    advanced once per curve."""
+    todo = STANDARD_SWEEPS if sweeps is None else sweeps
+    out: dict[str, list[SweepCurve]] = {}
+    for name, specs in todo.items():
+        out[name] = []
+        for spec in specs:
+            out[name].append(
+                sweep_curve(spec, phase_power, output_power, payloads_kg=payloads_kg,
+                            n_speeds=n_speeds)
+            )
+            if progress is not None:
+                progress.update(1)
+    return out

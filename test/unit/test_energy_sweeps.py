@@ -1,0 +1,87 @@
+"""Sweeps, four-quadrant plots and the gait recommendation on an analytic phase-power model."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from hexapod_energy.errors import InvalidInputError
+from hexapod_energy.plots import four_quadrant_plot, power_map_plot
+from hexapod_energy.prediction import OutputPowerModel
+from hexapod_energy.recommend import recommend_gait
+from hexapod_energy.sweeps import STANDARD_SWEEPS, SweepSpec, run_standard_sweeps, sweep_curve
+
+
+class Phase:
+    """Basal 1.9 W per leg plus rate- and load-dependent parts."""
+
+    def p_stance_w(self, t, m):
+        f = 1 / np.asarray(t)
+        return 1.9 + 0.45 * f + 0.05 * f**2 + 2.0 * np.asarray(m) * (1 + 0.2 * f)
+
+    def p_swing_w(self, t, m):
+        f = 1 / np.asarray(t)
+        return 1.9 + 0.5 * f + 0.06 * f**2 + 0 * np.asarray(m)
+
+
+class StubTrajectory:
+    def __init__(self, gait, leg_index, **_kw):
+        self.s = gait.step_length_m / 0.1
+
+    def joints(self, t):
+        t = np.asarray(t, float)[:, None]
+        w = 2 * np.pi
+        a = np.array([0.3, 0.25, -0.35]) * self.s
+        q0 = np.array([0.0, 0.3, -1.6])
+        return q0 + a * np.sin(w * t), a * w * np.cos(w * t), -a * w**2 * np.sin(w * t)
+
+
+@pytest.fixture(scope='module')
+def opm() -> OutputPowerModel:
+    return OutputPowerModel(trajectory_factory=StubTrajectory, n_samples=64)
+
+
+def test_curve_descriptors_consistent(opm) -> None:
+    curve = sweep_curve(SweepSpec('t', 'tripod', 6, 0.5), Phase(), opm, n_speeds=10)
+    assert_allclose(curve.speeds_mps[-1], 0.6, atol=1e-9)  # AntBot limits, beta 0.5, 100 mm
+    m = curve.mass_kg[None, :]
+    v = curve.speeds_mps[:, None]
+    assert_allclose(curve.cot_per_mass, (curve.power_in_w - curve.power_out_w) / (m * v))
+    assert_allclose(curve.efficiency, curve.power_out_w / curve.power_in_w)
+    pts = curve.optimal_points()
+    assert pts['min_cot_per_mass']['speed_mps'] == pytest.approx(0.6)
+    assert curve.min_efficiency == pytest.approx(np.min(curve.efficiency))
+
+
+def test_standard_sweeps_and_plots(opm, tmp_path) -> None:
+    curves = run_standard_sweeps(Phase(), opm, n_speeds=8)
+    assert set(curves) == set(STANDARD_SWEEPS)
+    wave = curves['gait_type'][1]
+    assert_allclose(wave.speeds_mps[-1], 0.1 / (0.83 * 0.16 / 0.17), rtol=1e-6)
+    paths = four_quadrant_plot(curves['leg_count'], tmp_path / 'legs')
+    assert [p.suffix for p in paths] == ['.png', '.svg']
+    assert all(p.stat().st_size > 5000 for p in paths)
+    pm = opm.power_map_w(wave_gait(), np.linspace(0.1, 0.6, 5), np.linspace(0, 0.5, 4))
+    assert all(p.exists() for p in power_map_plot(np.linspace(0.1, 0.6, 5),
+                                                 np.linspace(0, 0.5, 4), pm, tmp_path / 'pm'))
+
+
+def wave_gait():
+    from hexapod_gait.gait import make_gait
+    return make_gait('tripod', duty_factor=0.5)
+
+
+def test_recommendation_beats_or_equals_default(opm) -> None:
+    rec = recommend_gait(Phase(), opm, speed_mps=0.26, payload_kg=0.2,
+                         gaits=('alternating', 'wave'), step_lengths_m=(0.08, 0.10, 0.12))
+    assert rec.default is not None
+    assert rec.best.specific_cost_of_transport <= rec.default.specific_cost_of_transport
+    assert rec.saving_fraction is not None and rec.saving_fraction >= 0
+    assert rec.best.period_s * rec.best.duty_factor * 0.26 == pytest.approx(
+        rec.best.step_length_m)
+
+
+def test_recommendation_refuses_unreachable_speed(opm) -> None:
+    with pytest.raises(InvalidInputError, match='no feasible gait'):
+        recommend_gait(Phase(), opm, speed_mps=5.0, gaits=('alternating',))
