@@ -1,0 +1,802 @@
+"""A Dynamixel bus on a pseudo-terminal: Protocol 1.0 and 2.0 servos with physics and faults.
+
+The emulator opens a pty pair (raw, no echo), keeps the slave open so the port never hangs up,
+and serves the master side from a background thread: it parses instruction packets (checksum for
+1.0, CRC-16 and byte stuffing for 2.0), answers status packets from a per-servo control table
+(:mod:`hexapod_bench_drivers.control_tables`) and steps each servo's physics by the time elapsed
+since its last access. Any client that opens :attr:`ServoBusEmulator.port_name` as a serial port
+(the real ``dynamixel_sdk`` PortHandler, pyserial, the driver node) talks to it as to real servos.
+
+Instructions served. Protocol 1.0: PING, READ, WRITE, REG_WRITE, ACTION, SYNC_WRITE. Protocol 2.0:
+PING (also broadcast), READ, WRITE, REG_WRITE, ACTION, REBOOT, SYNC_READ, SYNC_WRITE, BULK_READ,
+BULK_WRITE. Status Return Level is honoured.
+
+Fault injection per servo (:meth:`ServoBusEmulator.inject`): ``no_answer`` (silent),
+``bad_checksum`` (reply with a corrupted checksum/CRC), ``error_bits`` (hardware error flags in
+the reply; Protocol 2.0 sets Hardware Error Status and the alert bit), ``late_reply`` (answer
+after a delay, holding the bus as a slow servo does), ``overheat`` (present temperature forced).
+
+Physics: :class:`hexapod_bench_drivers.servo_model.ServoModel` when importable (the simulator's
+electromechanical model), else :class:`FirstOrderServo`, a first-order stand-in. Either sits
+behind :class:`ServoPhysics`. Moving Speed / Profile Velocity limit the goal the physics tracks.
+
+Run standalone: ``python -m hexapod_bench_drivers.servo_bus_emulator --model ax18a --ids 1-18``
+prints the port name and serves until interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import select
+import threading
+import time
+import tty
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+from hexapod_bench_drivers.control_tables import (
+    ERROR_INPUT_VOLTAGE,
+    ERROR_OVERHEATING,
+    MODELS_BY_NAME,
+    ControlTable,
+    Register,
+)
+
+__all__ = [
+    'FAULT_KINDS',
+    'Fault',
+    'FirstOrderServo',
+    'ServoBusEmulator',
+    'ServoPhysics',
+    'ServoStepOutput',
+    'EmulatedServo',
+    'crc16',
+    'make_physics',
+    'p1_checksum',
+    'p1_packet',
+    'p2_packet',
+]
+
+FAULT_KINDS = ('no_answer', 'bad_checksum', 'error_bits', 'late_reply', 'overheat')
+
+BROADCAST_ID = 0xFE
+INST_PING, INST_READ, INST_WRITE, INST_REG_WRITE, INST_ACTION = 0x01, 0x02, 0x03, 0x04, 0x05
+INST_REBOOT, INST_STATUS = 0x08, 0x55
+INST_SYNC_READ, INST_SYNC_WRITE, INST_BULK_READ, INST_BULK_WRITE = 0x82, 0x83, 0x92, 0x93
+
+P1_ERR_CHECKSUM, P1_ERR_RANGE, P1_ERR_INSTRUCTION = 0x10, 0x08, 0x40
+P2_ERR_INSTRUCTION, P2_ERR_CRC, P2_ERR_DATA_RANGE, P2_ERR_ACCESS = 0x02, 0x03, 0x04, 0x07
+P2_ALERT = 0x80
+
+
+# --- packet codecs ---------------------------------------------------------------------------
+
+def _crc_table() -> list[int]:
+    table = []
+    for i in range(256):
+        crc = i << 8
+        for _ in range(8):
+            crc = ((crc << 1) ^ 0x8005) if crc & 0x8000 else (crc << 1)
+        table.append(crc & 0xFFFF)
+    return table
+
+
+_CRC_TABLE = _crc_table()
+
+
+def crc16(data: bytes | bytearray) -> int:
+    """Dynamixel Protocol 2.0 CRC (CRC-16, polynomial 0x8005, initial value 0, not reflected)."""
+    crc = 0
+    for byte in data:
+        crc = ((crc << 8) ^ _CRC_TABLE[((crc >> 8) ^ byte) & 0xFF]) & 0xFFFF
+    return crc
+
+
+def p1_checksum(body: bytes | bytearray) -> int:
+    """Protocol 1.0 checksum: inverted low byte of the sum of ID, LENGTH, INST/ERR, PARAMS."""
+    return (~sum(body)) & 0xFF
+
+
+def p1_packet(servo_id: int, inst_or_error: int, params: bytes = b'') -> bytes:
+    """A Protocol 1.0 packet (instruction or status) with its checksum."""
+    body = bytes([servo_id, len(params) + 2, inst_or_error]) + bytes(params)
+    return b'\xff\xff' + body + bytes([p1_checksum(body)])
+
+
+def _stuff(params: bytes) -> bytes:
+    return params.replace(b'\xff\xff\xfd', b'\xff\xff\xfd\xfd')
+
+
+def _unstuff(params: bytes) -> bytes:
+    return params.replace(b'\xff\xff\xfd\xfd', b'\xff\xff\xfd')
+
+
+def p2_packet(servo_id: int, instruction: int, params: bytes = b'', *,
+              error: int | None = None) -> bytes:
+    """A Protocol 2.0 packet with byte stuffing and CRC; ``error`` given -> a status packet."""
+    payload = bytes([instruction]) + (bytes([error]) if error is not None else b'') + _stuff(
+        bytes(params))
+    length = len(payload) + 2
+    head = b'\xff\xff\xfd\x00' + bytes([servo_id, length & 0xFF, length >> 8]) + payload
+    crc = crc16(head)
+    return head + bytes([crc & 0xFF, crc >> 8])
+
+
+@dataclass(frozen=True)
+class _Packet:
+    servo_id: int
+    instruction: int
+    params: bytes
+    checksum_ok: bool
+
+
+def _parse_p1(buf: bytearray) -> tuple[_Packet | None, int]:
+    """First complete packet in ``buf`` and the number of bytes consumed (junk included)."""
+    start = buf.find(b'\xff\xff')
+    if start < 0:
+        return None, max(0, len(buf) - 1)
+    # Skip extra 0xFF (a valid ID is <= 0xFE, and 0xFF 0xFF 0xFF means the header starts later).
+    while start + 2 < len(buf) and buf[start + 2] == 0xFF:
+        start += 1
+    if len(buf) < start + 4:
+        return None, start
+    length = buf[start + 3]
+    end = start + 4 + length
+    if length < 2:
+        return None, start + 2
+    if len(buf) < end:
+        return None, start
+    body = bytes(buf[start + 2:end - 1])
+    ok = p1_checksum(body) == buf[end - 1]
+    return _Packet(body[0], body[2], body[3:], ok), end
+
+
+def _parse_p2(buf: bytearray) -> tuple[_Packet | None, int]:
+    start = buf.find(b'\xff\xff\xfd\x00')
+    if start < 0:
+        return None, max(0, len(buf) - 3)
+    if len(buf) < start + 7:
+        return None, start
+    length = buf[start + 5] | (buf[start + 6] << 8)
+    end = start + 7 + length
+    if length < 3:
+        return None, start + 4
+    if len(buf) < end:
+        return None, start
+    pkt = bytes(buf[start:end])
+    ok = crc16(pkt[:-2]) == (pkt[-2] | (pkt[-1] << 8))
+    return _Packet(pkt[4], pkt[7], _unstuff(pkt[8:-2]), ok), end
+
+
+# --- physics ---------------------------------------------------------------------------------
+
+class ServoPhysics(Protocol):
+    """Servos of one model stepped together: the simulator's ServoModel API (arrays of count)."""
+
+    torque_enabled: Any
+    moving_speed_rad_s: Any
+
+    def step(self, dt_s: float, goal_position_rad: Any, external_torque_nm: Any,
+             supply_voltage_v: Any) -> Any: ...
+
+
+@dataclass(frozen=True)
+class ServoStepOutput:
+    """The subset of the simulator's ServoOutput the emulator reads; arrays of shape (count,)."""
+
+    position_rad: np.ndarray
+    velocity_rad_s: np.ndarray
+    load_fraction: np.ndarray
+    temperature_c: np.ndarray
+
+
+class FirstOrderServo:
+    """Stand-in physics: first-order position tracking with a load-dependent speed limit.
+
+    velocity = clip((goal - position) / time_constant_s, +-v_max) with v_max falling linearly with
+    the external torque from the no-load speed to 0 at stall, and capped by
+    ``moving_speed_rad_s`` (0 = no cap); load = external torque / stall torque. The temperature
+    stays at its initial value. Same call shape as ServoModel.
+    """
+
+    def __init__(self, table: ControlTable, *, count: int = 1,
+                 initial_position_rad: Any = 0.0, initial_temperature_c: Any = 26.0,
+                 time_constant_s: float = 0.02) -> None:
+        self.table = table
+        self.count = int(count)
+        self.torque_enabled = np.zeros(count, dtype=bool)
+        self.moving_speed_rad_s = np.zeros(count)
+        self.position_rad = np.broadcast_to(np.asarray(initial_position_rad, float),
+                                            (count,)).copy()
+        self.velocity_rad_s = np.zeros(count)
+        self.temperature_c = np.broadcast_to(np.asarray(initial_temperature_c, float),
+                                             (count,)).copy()
+        self.time_constant_s = float(time_constant_s)
+
+    def step(self, dt_s: float, goal_position_rad: Any, external_torque_nm: Any = 0.0,
+             supply_voltage_v: Any = 12.0) -> ServoStepOutput:
+        goal = np.broadcast_to(np.asarray(goal_position_rad, float), (self.count,))
+        volts = np.broadcast_to(np.asarray(supply_voltage_v, float), (self.count,))
+        stall = self.table.stall_torque_nm * volts / 12.0
+        load = np.asarray(external_torque_nm, float) / stall
+        v_max = self.table.no_load_speed_rad_s * volts / 12.0 * np.maximum(0.0, 1.0 - abs(load))
+        v_max = np.where(self.moving_speed_rad_s > 0,
+                         np.minimum(v_max, self.moving_speed_rad_s), v_max)
+        step = (goal - self.position_rad) * (1.0 - math.exp(-dt_s / self.time_constant_s))
+        step = np.where(self.torque_enabled, np.clip(step, -v_max * dt_s, v_max * dt_s), 0.0)
+        self.velocity_rad_s = step / dt_s
+        self.position_rad = self.position_rad + step
+        load = np.where(self.torque_enabled, load, 0.0)
+        return ServoStepOutput(self.position_rad.copy(), self.velocity_rad_s.copy(), load,
+                               self.temperature_c.copy())
+
+
+def make_physics(table: ControlTable, *, count: int, initial_position_rad: Any = 0.0,
+                 initial_temperature_c: Any = 26.0, prefer_model: bool = True) -> ServoPhysics:
+    """The simulator's ServoModel for ``table``'s model when importable, else FirstOrderServo."""
+    if prefer_model:
+        try:
+            from hexapod_bench_drivers.servo_model import ServoModel, ServoParams
+            params = ServoParams.by_name(table.model_name)
+        except (ImportError, AttributeError, ValueError):
+            pass
+        else:
+            # 2 ms sub-steps: stable (per the model's docs) and cheap enough for a 1 kHz bus.
+            return ServoModel(params, count=count, initial_position_rad=initial_position_rad,
+                              initial_temperature_c=initial_temperature_c,
+                              ambient_temperature_c=float(np.min(initial_temperature_c)),
+                              max_substep_s=2e-3, torque_enabled=False)
+    return FirstOrderServo(table, count=count, initial_position_rad=initial_position_rad,
+                           initial_temperature_c=initial_temperature_c)
+
+
+# --- servos ----------------------------------------------------------------------------------
+
+@dataclass
+class Fault:
+    """An injected fault; ``count`` replies are affected (None: until cleared)."""
+
+    kind: str
+    count: int | None = None
+    error_bits: int = 0
+    delay_s: float = 0.0
+    temperature_c: float = 0.0
+
+
+@dataclass
+class EmulatedServo:
+    """One servo: its control-table memory and faults; its physics lives in the bus's group.
+
+    Parameters
+    ----------
+    servo_id : int
+        Bus ID, 0..252.
+    table : ControlTable
+        Model; sets the protocol and the memory layout.
+    initial_position_rad : float
+        Start position about the centre tick [rad].
+    initial_temperature_c : float
+        Start winding temperature [degC].
+    external_torque_nm : float
+        Torque the load applies on the output shaft [N m]; may be changed while running.
+    """
+
+    servo_id: int
+    table: ControlTable
+    initial_position_rad: float = 0.0
+    initial_temperature_c: float = 26.0
+    external_torque_nm: float = 0.0
+    memory: bytearray = field(init=False)
+    faults: dict[str, Fault] = field(init=False, default_factory=dict)
+    fault_hits: dict[str, int] = field(init=False, default_factory=dict)
+    registered: tuple[int, bytes] | None = field(init=False, default=None)
+    physics_error: int = field(init=False, default=0)
+
+    def __post_init__(self) -> None:
+        self.memory = bytearray(self.table.memory_size)
+        for reg in self.table.registers.values():
+            self.memory[reg.address:reg.address + reg.size] = reg.default.to_bytes(
+                reg.size, 'little', signed=reg.signed)
+        self.set('id', self.servo_id)
+        self.set('present_temperature', int(round(self.initial_temperature_c)))
+        tick = self.table.rad_to_position(self.initial_position_rad)
+        self.set('goal_position', tick)
+        self.set('present_position', tick)
+
+    def get(self, name: str) -> int:
+        """Integer value of register ``name``."""
+        return self.table.decode(name, self.memory)
+
+    def set(self, name: str, value: int) -> None:
+        """Store ``value`` in register ``name`` (no access check: the servo's own side)."""
+        reg = self.table.reg(name)
+        self.memory[reg.address:reg.address + reg.size] = self.table.encode(name, value)
+
+    @property
+    def protocol(self) -> int:
+        return self.table.protocol
+
+    def hardware_errors(self) -> int:
+        """Hardware error flags now: over the temperature limit, physics flags, injected bits."""
+        flags = self.physics_error
+        if self.get('present_temperature') > self.get('temperature_limit'):
+            flags |= ERROR_OVERHEATING
+        if 'error_bits' in self.faults:
+            flags |= self.faults['error_bits'].error_bits
+        return flags
+
+    def take_fault(self, kind: str) -> Fault | None:
+        """The active fault of ``kind`` for this reply (its count decremented), or None."""
+        fault = self.faults.get(kind)
+        if fault is None:
+            return None
+        self.fault_hits[kind] = self.fault_hits.get(kind, 0) + 1
+        if fault.count is not None:
+            fault.count -= 1
+            if fault.count <= 0:
+                del self.faults[kind]
+        return fault
+
+
+def _get(memory: bytearray, reg: Register) -> int:
+    return int.from_bytes(memory[reg.address:reg.address + reg.size], 'little', signed=reg.signed)
+
+
+def _put(memory: bytearray, reg: Register, value: int) -> None:
+    memory[reg.address:reg.address + reg.size] = int(value).to_bytes(reg.size, 'little',
+                                                                      signed=reg.signed)
+
+
+class _Group:
+    """Servos of one model sharing one vectorised physics object."""
+
+    def __init__(self, servos: list[EmulatedServo], prefer_model: bool) -> None:
+        self.servos = servos
+        t = self.table = servos[0].table
+        self.physics = make_physics(
+            t, count=len(servos),
+            initial_position_rad=np.array([t.position_to_rad(s.get('goal_position'))
+                                           for s in servos]),
+            initial_temperature_c=np.array([s.initial_temperature_c for s in servos]),
+            prefer_model=prefer_model)
+        r = t.registers
+        p1 = t.protocol == 1
+        self.r_torque = r['torque_enable']
+        self.r_goal = r['goal_position']
+        self.r_limit = r[t.speed_limit_register]
+        self.r_pos = r['present_position']
+        self.r_speed = r['present_speed' if p1 else 'present_velocity']
+        self.r_load = r['present_current' if 'present_current' in r else 'present_load']
+        self.r_volt = r['present_voltage' if p1 else 'present_input_voltage']
+        self.r_temp = r['present_temperature']
+        self.r_temp_limit = r['temperature_limit']
+        self.r_moving = r['moving']
+        self.r_shutdown = r['shutdown']
+        self.r_hw = r.get('hardware_error_status')
+
+    def step(self, dt_s: float, supply_voltage_v: float) -> None:
+        """Advance the physics by ``dt_s`` and write the present-value registers."""
+        t = self.table
+        phys = self.physics
+        mems = [s.memory for s in self.servos]
+        phys.torque_enabled = np.array([_get(m, self.r_torque) != 0 for m in mems])
+        limits = np.array([_get(m, self.r_limit) for m in mems], dtype=float)
+        if t.protocol == 1:
+            limits = np.bitwise_and(limits.astype(int), 0x3FF).astype(float)
+        phys.moving_speed_rad_s = limits * t.velocity_unit_rad_s
+        goal = (np.array([_get(m, self.r_goal) for m in mems], dtype=float)
+                - t.center_tick) * t.rad_per_tick
+        torque = np.array([s.external_torque_nm for s in self.servos])
+        out = phys.step(dt_s, goal, torque, supply_voltage_v)
+        errors = getattr(out, 'error', None)
+        errors = ([int(e) & (ERROR_INPUT_VOLTAGE | ERROR_OVERHEATING) for e in errors]
+                  if errors is not None else [0] * len(mems))
+        # Raw register values for all servos at once; the loop below only stores them.
+        pos = np.clip(np.rint(np.asarray(out.position_rad) / t.rad_per_tick) + t.center_tick,
+                      0, t.max_tick).astype(int).tolist()
+        vel = np.asarray(out.velocity_rad_s, dtype=float)
+        vel_units = np.rint(np.abs(vel) / t.velocity_unit_rad_s).astype(int)
+        load = np.asarray(out.load_fraction, dtype=float)
+        if t.protocol == 1:
+            vel_raw = (np.minimum(vel_units, 0x3FF) | np.where(vel < 0, 0x400, 0)).tolist()
+            load_raw = (np.minimum(np.rint(np.abs(load) * 1000).astype(int), 0x3FF)
+                        | np.where(load < 0, 0x400, 0)).tolist()
+        else:
+            vel_raw = (np.sign(vel).astype(int) * vel_units).tolist()
+            if 'present_current' in t.registers:
+                load_raw = np.clip(np.rint(load * t.stall_current_a / t.current_unit_a),
+                                   -32768, 32767).astype(int).tolist()
+            else:
+                load_raw = np.clip(np.rint(load * 1000), -1000, 1000).astype(int).tolist()
+        temp = np.clip(np.rint(np.asarray(out.temperature_c, dtype=float)), 0, 255).astype(
+            int).tolist()
+        moving = (np.abs(vel) > 0.05).tolist()
+        volt = max(0, min(255, int(round(supply_voltage_v * 10))))
+        for k, s in enumerate(self.servos):
+            m = mems[k]
+            s.physics_error = flags = errors[k]
+            temperature = temp[k]
+            if s.faults:
+                if 'overheat' in s.faults:
+                    temperature = max(0, min(255, int(round(s.faults['overheat'].temperature_c))))
+                if 'error_bits' in s.faults:
+                    flags |= s.faults['error_bits'].error_bits
+            _put(m, self.r_pos, pos[k])
+            _put(m, self.r_speed, vel_raw[k])
+            _put(m, self.r_load, load_raw[k])
+            _put(m, self.r_volt, volt)
+            _put(m, self.r_temp, temperature)
+            _put(m, self.r_moving, int(moving[k]))
+            if temperature > m[self.r_temp_limit.address]:
+                flags |= ERROR_OVERHEATING
+            if self.r_hw is not None:
+                _put(m, self.r_hw, flags)
+            if flags & m[self.r_shutdown.address]:
+                # Real servos drop torque on an error selected in the Shutdown register.
+                m[self.r_torque.address] = 0
+
+
+# --- the bus ---------------------------------------------------------------------------------
+
+class ServoBusEmulator:
+    """Servos of one protocol on a pseudo-terminal, served from a thread.
+
+    Parameters
+    ----------
+    servos : sequence of EmulatedServo
+        All of one protocol, unique IDs.
+    supply_voltage_v : float
+        Bus supply [V].
+    clock : callable, optional
+        Monotonic time source [s] for the physics (default ``time.monotonic``).
+    min_step_s : float
+        Physics is advanced when a packet arrives and at least this long has passed [s].
+    prefer_model : bool
+        Use the simulator's ServoModel when importable (else the first-order stand-in).
+
+    Use as a context manager, or ``start()``/``stop()``. Open :attr:`port_name` with the SDK.
+    """
+
+    def __init__(self, servos: Sequence[EmulatedServo], *, supply_voltage_v: float = 12.0,
+                 clock: Callable[[], float] = time.monotonic, min_step_s: float = 2e-3,
+                 prefer_model: bool = True) -> None:
+        if not servos:
+            raise ValueError('servos: expected at least one EmulatedServo, got none')
+        protocols = {s.protocol for s in servos}
+        if len(protocols) != 1:
+            raise ValueError(f'servos: expected one protocol on a bus, got {sorted(protocols)}')
+        ids = [s.servo_id for s in servos]
+        if len(set(ids)) != len(ids) or not all(0 <= i <= 252 for i in ids):
+            raise ValueError(f'servos: expected unique IDs in 0..252, got {ids}')
+        self.protocol = protocols.pop()
+        self.servos = {s.servo_id: s for s in servos}
+        self.supply_voltage_v = float(supply_voltage_v)
+        self.clock = clock
+        self.lock = threading.RLock()
+        self.min_step_s = float(min_step_s)
+        by_model: dict[str, list[EmulatedServo]] = {}
+        for s in servos:
+            by_model.setdefault(s.table.model_name, []).append(s)
+        self._groups = [_Group(g, prefer_model) for g in by_model.values()]
+        self._last_step_s: float | None = None
+        self.packets_received = 0
+        self.packets_corrupt = 0
+        self.replies_sent = 0
+        self._master, self._slave = os.openpty()
+        tty.setraw(self._slave)
+        self.port_name = os.ttyname(self._slave)
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    @classmethod
+    def of_model(cls, model: str, ids: Iterable[int], **kw: Any) -> ServoBusEmulator:
+        """Servos of one model (``ax12a``, ``ax18a``, ``xl430``, ``xm430``) at ``ids``."""
+        try:
+            table = MODELS_BY_NAME[model.lower()]
+        except KeyError:
+            raise ValueError(f'model: expected one of {sorted(MODELS_BY_NAME)}, '
+                             f'got {model!r}') from None
+        return cls([EmulatedServo(i, table) for i in ids], **kw)
+
+    # lifecycle
+    def start(self) -> ServoBusEmulator:
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._run, name='servo-bus-emulator',
+                                            daemon=True)
+            self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+            self._thread = None
+        for fd in (self._master, self._slave):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+        self._master = self._slave = -1
+
+    def __enter__(self) -> ServoBusEmulator:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    # test/operator API
+    def servo(self, servo_id: int) -> EmulatedServo:
+        return self.servos[servo_id]
+
+    def inject(self, servo_id: int, kind: str, *, count: int | None = None,
+               error_bits: int = 0, delay_s: float = 0.0, temperature_c: float = 0.0) -> None:
+        """Inject a fault into one servo's replies (see FAULT_KINDS)."""
+        if kind not in FAULT_KINDS:
+            raise ValueError(f'kind: expected one of {FAULT_KINDS}, got {kind!r}')
+        with self.lock:
+            self.servos[servo_id].faults[kind] = Fault(kind, count, error_bits, delay_s,
+                                                       temperature_c)
+            self._advance(force=True)  # registers show an overheat or error bits at once
+
+    def clear_faults(self, servo_id: int | None = None) -> None:
+        with self.lock:
+            for s in ([self.servos[servo_id]] if servo_id is not None else self.servos.values()):
+                s.faults.clear()
+
+    def read_register(self, servo_id: int, name: str) -> int:
+        """A register as the servo holds it now (physics advanced to now)."""
+        with self.lock:
+            self._advance(force=True)
+            return self.servos[servo_id].get(name)
+
+    def _advance(self, force: bool = False) -> None:
+        """Step every servo's physics to now (lazily: only when a packet arrives)."""
+        now = self.clock()
+        if self._last_step_s is None:
+            self._last_step_s = now
+            return
+        dt = now - self._last_step_s
+        if dt >= self.min_step_s or (force and dt > 0):
+            self._last_step_s = now
+            for g in self._groups:
+                g.step(dt, self.supply_voltage_v)
+
+    def present_position_rad(self, servo_id: int) -> float:
+        s = self.servos[servo_id]
+        return s.table.position_to_rad(self.read_register(servo_id, 'present_position'))
+
+    # the thread
+    def _run(self) -> None:
+        buf = bytearray()
+        parse = _parse_p1 if self.protocol == 1 else _parse_p2
+        while not self._stop.is_set():
+            try:
+                ready, _, _ = select.select([self._master], [], [], 0.05)
+                if not ready:
+                    continue
+                chunk = os.read(self._master, 4096)
+            except (OSError, ValueError):
+                return
+            buf += chunk
+            while True:
+                pkt, consumed = parse(buf)
+                if consumed:
+                    del buf[:consumed]
+                if pkt is None:
+                    break
+                self.packets_received += 1
+                with self.lock:
+                    replies = self._handle(pkt)
+                for delay_s, data in replies:
+                    if delay_s > 0:
+                        time.sleep(delay_s)  # a late servo holds the bus, as on real hardware
+                    try:
+                        os.write(self._master, data)
+                    except OSError:
+                        return
+                    self.replies_sent += 1
+
+    def _status(self, servo: EmulatedServo, error: int, params: bytes = b'',
+                *, is_read: bool = False, is_ping: bool = False) -> list[tuple[float, bytes]]:
+        """The status reply of ``servo`` after faults and Status Return Level."""
+        level = servo.get('status_return_level')
+        if not is_ping and (level == 0 or (level == 1 and not is_read)):
+            return []
+        if servo.take_fault('no_answer') is not None:
+            return []
+        hw = servo.hardware_errors()
+        if servo.protocol == 1:
+            data = p1_packet(servo.servo_id, error | hw, params)
+        else:
+            data = p2_packet(servo.servo_id, INST_STATUS, params,
+                             error=error | (P2_ALERT if hw else 0))
+        if servo.take_fault('bad_checksum') is not None:
+            data = data[:-1] + bytes([data[-1] ^ 0x5A])
+        late = servo.take_fault('late_reply')
+        if 'error_bits' in servo.faults:
+            servo.take_fault('error_bits')
+        return [(late.delay_s if late is not None else 0.0, data)]
+
+    def _access(self, servo: EmulatedServo, address: int, length: int,
+                write: bool) -> int:
+        """0 if the access is inside the table (and writable for a write), else an error code."""
+        self._advance()
+        mem = len(servo.memory)
+        if length <= 0 or address < 0 or address + length > mem:
+            return P1_ERR_RANGE if servo.protocol == 1 else P2_ERR_ACCESS
+        if write:
+            for reg in servo.table.registers.values():
+                overlap = reg.address < address + length and address < reg.address + reg.size
+                if overlap and not reg.writable:
+                    return P1_ERR_RANGE if servo.protocol == 1 else P2_ERR_ACCESS
+        return 0
+
+    def _write(self, servo: EmulatedServo, address: int, data: bytes) -> int:
+        err = self._access(servo, address, len(data), write=True)
+        if err == 0:
+            servo.memory[address:address + len(data)] = data
+        return err
+
+    def _handle(self, pkt: _Packet) -> list[tuple[float, bytes]]:
+        # Physics is advanced lazily: a servo is stepped to now whenever a packet touches it.
+        if self.protocol == 1:
+            return self._handle_p1(pkt)
+        return self._handle_p2(pkt)
+
+    def _handle_p1(self, pkt: _Packet) -> list[tuple[float, bytes]]:
+        servo = self.servos.get(pkt.servo_id)
+        p = pkt.params
+        if not pkt.checksum_ok:
+            self.packets_corrupt += 1
+            return self._status(servo, P1_ERR_CHECKSUM) if servo is not None else []
+        if pkt.instruction == INST_SYNC_WRITE and pkt.servo_id == BROADCAST_ID and len(p) >= 2:
+            address, length = p[0], p[1]
+            for k in range(2, len(p) - length + 1, length + 1):
+                target = self.servos.get(p[k])
+                if target is not None:
+                    self._write(target, address, bytes(p[k + 1:k + 1 + length]))
+            return []
+        if pkt.instruction == INST_ACTION and pkt.servo_id == BROADCAST_ID:
+            for s in self.servos.values():
+                self._action(s)
+            return []
+        if servo is None:
+            return []
+        if pkt.instruction == INST_PING:
+            return self._status(servo, 0, is_ping=True)
+        if pkt.instruction == INST_READ and len(p) == 2:
+            err = self._access(servo, p[0], p[1], write=False)
+            data = bytes(servo.memory[p[0]:p[0] + p[1]]) if err == 0 else b''
+            return self._status(servo, err, data, is_read=True)
+        if pkt.instruction == INST_WRITE and len(p) >= 2:
+            return self._status(servo, self._write(servo, p[0], bytes(p[1:])))
+        if pkt.instruction == INST_REG_WRITE and len(p) >= 2:
+            servo.registered = (p[0], bytes(p[1:]))
+            return self._status(servo, 0)
+        if pkt.instruction == INST_ACTION:
+            self._action(servo)
+            return self._status(servo, 0)
+        return self._status(servo, P1_ERR_INSTRUCTION)
+
+    def _action(self, servo: EmulatedServo) -> None:
+        if servo.registered is not None:
+            self._write(servo, servo.registered[0], servo.registered[1])
+            servo.registered = None
+
+    def _handle_p2(self, pkt: _Packet) -> list[tuple[float, bytes]]:
+        p = pkt.params
+        inst = pkt.instruction
+        servo = self.servos.get(pkt.servo_id)
+        u16 = int.from_bytes
+        if not pkt.checksum_ok:
+            self.packets_corrupt += 1
+            return self._status(servo, P2_ERR_CRC) if servo is not None else []
+        if pkt.servo_id == BROADCAST_ID:
+            if inst == INST_PING:
+                out: list[tuple[float, bytes]] = []
+                for s in sorted(self.servos.values(), key=lambda s: s.servo_id):
+                    out += self._ping_reply(s)
+                return out
+            if inst == INST_SYNC_WRITE and len(p) >= 4:
+                address, length = u16(p[0:2], 'little'), u16(p[2:4], 'little')
+                for k in range(4, len(p) - length + 1, length + 1):
+                    target = self.servos.get(p[k])
+                    if target is not None:
+                        self._write(target, address, bytes(p[k + 1:k + 1 + length]))
+                return []
+            if inst == INST_BULK_WRITE:
+                k = 0
+                while k + 5 <= len(p):
+                    address, length = u16(p[k + 1:k + 3], 'little'), u16(p[k + 3:k + 5], 'little')
+                    target = self.servos.get(p[k])
+                    if target is not None:
+                        self._write(target, address, bytes(p[k + 5:k + 5 + length]))
+                    k += 5 + length
+                return []
+            if inst == INST_SYNC_READ and len(p) >= 4:
+                address, length = u16(p[0:2], 'little'), u16(p[2:4], 'little')
+                return self._multi_read([(i, address, length) for i in p[4:]])
+            if inst == INST_BULK_READ:
+                reqs = [(p[k], u16(p[k + 1:k + 3], 'little'), u16(p[k + 3:k + 5], 'little'))
+                        for k in range(0, len(p) - 4, 5)]
+                return self._multi_read(reqs)
+            if inst == INST_ACTION:
+                for s in self.servos.values():
+                    self._action(s)
+            return []
+        if servo is None:
+            return []
+        if inst == INST_PING:
+            return self._ping_reply(servo)
+        if inst == INST_READ and len(p) == 4:
+            address, length = u16(p[0:2], 'little'), u16(p[2:4], 'little')
+            err = self._access(servo, address, length, write=False)
+            data = bytes(servo.memory[address:address + length]) if err == 0 else b''
+            return self._status(servo, err, data, is_read=True)
+        if inst == INST_WRITE and len(p) >= 2:
+            return self._status(servo, self._write(servo, u16(p[0:2], 'little'), bytes(p[2:])))
+        if inst == INST_REG_WRITE and len(p) >= 2:
+            servo.registered = (u16(p[0:2], 'little'), bytes(p[2:]))
+            return self._status(servo, 0)
+        if inst == INST_ACTION:
+            self._action(servo)
+            return self._status(servo, 0)
+        if inst == INST_REBOOT:
+            servo.faults.pop('error_bits', None)
+            servo.set('torque_enable', 0)
+            return self._status(servo, 0)
+        return self._status(servo, P2_ERR_INSTRUCTION)
+
+    def _ping_reply(self, servo: EmulatedServo) -> list[tuple[float, bytes]]:
+        params = servo.table.encode('model_number', servo.table.model_number) + bytes(
+            [servo.get('firmware_version')])
+        return self._status(servo, 0, params, is_ping=True)
+
+    def _multi_read(self, requests: list[tuple[int, int, int]]) -> list[tuple[float, bytes]]:
+        out: list[tuple[float, bytes]] = []
+        for servo_id, address, length in requests:
+            s = self.servos.get(servo_id)
+            if s is None:
+                continue
+            err = self._access(s, address, length, write=False)
+            data = bytes(s.memory[address:address + length]) if err == 0 else b''
+            out += self._status(s, err, data, is_read=True)
+        return out
+
+
+def _parse_ids(text: str) -> list[int]:
+    ids: list[int] = []
+    for part in text.split(','):
+        if '-' in part:
+            lo, hi = part.split('-')
+            ids += range(int(lo), int(hi) + 1)
+        elif part.strip():
+            ids.append(int(part))
+    return ids
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Serve an emulated bus on a pty until interrupted; prints the port name first."""
+    parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    parser.add_argument('--model', default='ax18a', choices=sorted(MODELS_BY_NAME))
+    parser.add_argument('--ids', default='1-18', help='IDs, e.g. 1-18 or 1,2,5')
+    parser.add_argument('--supply-voltage', type=float, default=12.0)
+    args = parser.parse_args(argv)
+    with ServoBusEmulator.of_model(args.model, _parse_ids(args.ids),
+                                   supply_voltage_v=args.supply_voltage) as emu:
+        print(emu.port_name, flush=True)
+        try:
+            while True:
+                time.sleep(3600)
+        except KeyboardInterrupt:
+            pass
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())
