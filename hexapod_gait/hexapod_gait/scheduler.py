@@ -1,0 +1,390 @@
+"""Gait scheduler: a running gait whose parameters can change while walking (core of the node).
+
+Phase continuity. The scheduler integrates the cycle phase ``c(t) = c(t_s) + int f(tau) dtau``
+(``f = 1/T``), so the cycle phase never jumps. A change of gait starts a transition of duration
+``D = transition_cycles * max(T_old, T_new)``: every parameter (step frequency, duty factor, step
+length, step height, each leg's phase offset along the shorter way round the circle, and the
+Buehler sweep and offset) moves from its value at the switch to the new value with the C2
+smoothstep ``w(s) = 10 s^3 - 15 s^4 + 6 s^5``, ``s = (t - t_s) / D``. The tip position (and the
+Buehler hip angle) is a continuous function of the leg phase and of these parameters, so the
+commanded joints never jump: this is the paper's continuous duty-factor adjustment and gait
+switching. The frequency ramp has the closed-form integral
+``int_0^s w = 5/2 s^4 - 3 s^5 + s^6``.
+
+A change requested during a transition starts a new transition from the parameters of that
+instant. The leg count and the kind of legs (3-DOF pattern or Buehler clock) cannot change.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .buehler import BuehlerClock, buehler_angle
+from .errors import InvalidGaitError
+from .feasibility import ActuatorLimits, check_feasible
+from .gait import GaitPattern, _wrap01
+from .kinematics import Branch, LegKinematics
+from .legs import all_joint_names
+from .trajectory import ANTBOT_NEUTRAL_TIP_M, default_forward_axis, tip_path
+
+__all__ = ['GaitState', 'GaitScheduler', 'smoothstep']
+
+_TWO_PI = 2.0 * np.pi
+# Time step of the central differences used for velocities during a transition [s].
+_FD_STEP_S = 1e-5
+
+
+def smoothstep(s: ArrayLike) -> NDArray[np.float64]:
+    """C2 ramp ``10 s^3 - 15 s^4 + 6 s^5`` of ``s`` clipped to [0, 1]."""
+    x = np.clip(np.asarray(s, dtype=float), 0.0, 1.0)
+    return x * x * x * (10.0 + x * (-15.0 + 6.0 * x))
+
+
+def _smoothstep_integral(s: NDArray[np.float64]) -> NDArray[np.float64]:
+    x = np.clip(s, 0.0, 1.0)
+    return x**4 * (2.5 + x * (-3.0 + x))
+
+
+@dataclass(frozen=True)
+class GaitState:
+    """Schedule at one instant.
+
+    Attributes
+    ----------
+    t_s : float
+        Time [s].
+    cycle_phase : float
+        In ``[0, 1)``.
+    leg_phase : ndarray, shape (legs,)
+        In ``[0, 1)``, 0 = touchdown.
+    in_stance : ndarray of bool, shape (legs,)
+    supporting_legs : int
+        ``L(t)``.
+    gait : GaitPattern
+        The pattern in force at ``t_s`` (during a transition: the intermediate parameters, with
+        the target's name).
+    transition : float
+        Progress of the current transition in [0, 1]; 1 when settled.
+    clock : BuehlerClock or None
+        The Buehler clock in force, for RHex-class legs.
+    """
+
+    t_s: float
+    cycle_phase: float
+    leg_phase: NDArray[np.float64]
+    in_stance: NDArray[np.bool_]
+    supporting_legs: int
+    gait: GaitPattern
+    transition: float
+    clock: BuehlerClock | None = None
+
+
+@dataclass(frozen=True)
+class _Params:
+    """Parameters that ramp during a transition."""
+
+    freq_hz: float
+    beta: float
+    step_length_m: float
+    step_height_m: float
+    theta: NDArray[np.float64]
+    sweep_rad: float
+    offset_rad: float
+
+
+class GaitScheduler:
+    """A running gait with phase-continuous changes.
+
+    Parameters
+    ----------
+    gait : GaitPattern or BuehlerClock
+        Initial gait. A :class:`BuehlerClock` drives one hip joint per leg (``<leg>_hip``);
+        a :class:`GaitPattern` drives 3-DOF legs through :mod:`hexapod_gait.trajectory`.
+    t0_s : float
+        Time at which the cycle phase is 0 [s].
+    leg_count : int
+        Number of legs for a Buehler clock (ignored for a pattern).
+    kinematics : LegKinematics, optional
+        Leg kinematics of 3-DOF legs (default: AntBot).
+    neutral_tip_m : (3,) float
+        Stance midpoint of every leg in its base frame [m].
+    branch : {'knee_up', 'knee_down'}
+    transition_cycles : float
+        Transition duration in periods of the slower of the two gaits, > 0.
+    limits : ActuatorLimits, optional
+        If given, :meth:`set_gait` (and the constructor) refuse infeasible patterns.
+    """
+
+    def __init__(
+        self,
+        gait: GaitPattern | BuehlerClock,
+        t0_s: float = 0.0,
+        *,
+        leg_count: int = 6,
+        kinematics: LegKinematics | None = None,
+        neutral_tip_m: ArrayLike = ANTBOT_NEUTRAL_TIP_M,
+        branch: Branch = 'knee_up',
+        transition_cycles: float = 1.0,
+        limits: ActuatorLimits | None = None,
+    ) -> None:
+        if not transition_cycles > 0.0:
+            raise InvalidGaitError(f'transition_cycles must be > 0, got {transition_cycles!r}')
+        self.limits = limits
+        self.transition_cycles = float(transition_cycles)
+        self.is_buehler = isinstance(gait, BuehlerClock)
+        pattern = gait.as_pattern(leg_count) if isinstance(gait, BuehlerClock) else gait
+        if limits is not None and not self.is_buehler:
+            check_feasible(pattern, limits)
+        self.leg_names = pattern.leg_names
+        self.joint_names = all_joint_names(self.leg_names, 1 if self.is_buehler else 3)
+        self.kinematics = kinematics if kinematics is not None else LegKinematics()
+        self.neutral_tip_m = np.asarray(neutral_tip_m, dtype=float).reshape(3)
+        self.branch: Branch = branch
+        self._forward = np.array([default_forward_axis(leg) for leg in self.leg_names])
+        self._target = gait
+        self._target_pattern = pattern
+        params = self._params_of(gait, pattern)
+        self._p0 = params
+        self._p1 = params
+        self._t_switch = float(t0_s)
+        self._c_switch = 0.0
+        self._duration_s = self.transition_cycles / params.freq_hz
+        self._changed = False  # no transition yet: settled at every time
+
+    # ----------------------------------------------------------------- parameters
+    @staticmethod
+    def _params_of(gait: GaitPattern | BuehlerClock, pattern: GaitPattern) -> _Params:
+        sweep = gait.sweep_angle_rad if isinstance(gait, BuehlerClock) else 0.0
+        offset = gait.leg_offset_rad if isinstance(gait, BuehlerClock) else 0.0
+        return _Params(
+            freq_hz=1.0 / pattern.period_s,
+            beta=pattern.duty_factor,
+            step_length_m=pattern.step_length_m,
+            step_height_m=pattern.step_height_m,
+            theta=np.asarray(pattern.phase_offsets, dtype=float),
+            sweep_rad=sweep,
+            offset_rad=offset,
+        )
+
+    @property
+    def target(self) -> GaitPattern | BuehlerClock:
+        """The gait requested last (reached at the end of the transition)."""
+        return self._target
+
+    @property
+    def transition_end_s(self) -> float:
+        """Time at which the current transition ends [s]."""
+        return self._t_switch + self._duration_s
+
+    def _progress(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
+        if not self._changed:
+            return np.ones_like(t)
+        return np.clip((t - self._t_switch) / self._duration_s, 0.0, 1.0)
+
+    def _ramp(self, t: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
+        """Parameters at times ``t`` (n,): scalars as (n,), ``theta`` as (n, legs)."""
+        w = smoothstep(self._progress(t))
+        p0, p1 = self._p0, self._p1
+        out = {
+            name: getattr(p0, name) + (getattr(p1, name) - getattr(p0, name)) * w
+            for name in ('freq_hz', 'beta', 'step_length_m', 'step_height_m', 'sweep_rad',
+                         'offset_rad')
+        }
+        d = np.mod(p1.theta - p0.theta + 0.5, 1.0) - 0.5
+        out['theta'] = p0.theta[None, :] + d[None, :] * w[:, None]
+        return out
+
+    def _cycles(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Unwrapped cycle count ``c(t)``, shape (n,)."""
+        dt = t - self._t_switch
+        f0, f1, D = self._p0.freq_hz, self._p1.freq_hz, self._duration_s
+        s = np.clip(dt / D, 0.0, 1.0)
+        extra = D * _smoothstep_integral(s) + np.maximum(dt - D, 0.0)
+        return self._c_switch + f0 * dt + (f1 - f0) * extra
+
+    def _pattern_at(self, t: float) -> tuple[GaitPattern, BuehlerClock | None]:
+        if float(self._progress(np.array([t]))[0]) >= 1.0:
+            clock = self._target if isinstance(self._target, BuehlerClock) else None
+            return self._target_pattern, clock
+        r = {k: v[0] for k, v in self._ramp(np.array([t])).items()}
+        pattern = self._target_pattern.with_changes(
+            phase_offsets=tuple(_wrap01(r['theta'])),
+            duty_factor=float(r['beta']),
+            period_s=1.0 / float(r['freq_hz']),
+            step_length_m=float(r['step_length_m']),
+            step_height_m=float(r['step_height_m']),
+        )
+        clock = None
+        if isinstance(self._target, BuehlerClock):
+            clock = BuehlerClock(
+                period_s=pattern.period_s,
+                duty_factor=pattern.duty_factor,
+                sweep_angle_rad=float(r['sweep_rad']),
+                leg_offset_rad=float(r['offset_rad']),
+                kp_norm=self._target.kp_norm,
+                kd_norm=self._target.kd_norm,
+            )
+        return pattern, clock
+
+    # ----------------------------------------------------------------- public API
+    def set_gait(self, new_gait: GaitPattern | BuehlerClock, t_s: float) -> None:
+        """Start a phase-continuous transition to ``new_gait`` at time ``t_s``.
+
+        Raises
+        ------
+        InvalidGaitError
+            If the legs or the kind of gait differ, or ``t_s`` is before the last change.
+        InfeasibleGaitError
+            If ``limits`` were given and the new pattern violates them (nothing changes).
+        """
+        t_s = float(t_s)
+        if t_s < self._t_switch:
+            raise InvalidGaitError(
+                f'set_gait time {t_s!r} s is before the last change at {self._t_switch!r} s'
+            )
+        if isinstance(new_gait, BuehlerClock) != self.is_buehler:
+            raise InvalidGaitError(
+                'cannot switch between a Buehler clock (1 hip joint per leg) and a 3-DOF gait '
+                'pattern while running'
+            )
+        pattern = (
+            new_gait.as_pattern(len(self.leg_names))
+            if isinstance(new_gait, BuehlerClock) else new_gait
+        )
+        if pattern.leg_names != self.leg_names:
+            raise InvalidGaitError(
+                f'new gait legs {pattern.leg_names} differ from the running legs '
+                f'{self.leg_names}; the leg count cannot change while walking'
+            )
+        if self.limits is not None and not self.is_buehler:
+            check_feasible(pattern, self.limits)
+        t = np.array([t_s])
+        r = {k: v[0] for k, v in self._ramp(t).items()}
+        c_now = float(self._cycles(t)[0])
+        self._p0 = _Params(
+            freq_hz=float(r['freq_hz']),
+            beta=float(r['beta']),
+            step_length_m=float(r['step_length_m']),
+            step_height_m=float(r['step_height_m']),
+            theta=np.asarray(r['theta'], dtype=float),
+            sweep_rad=float(r['sweep_rad']),
+            offset_rad=float(r['offset_rad']),
+        )
+        self._p1 = self._params_of(new_gait, pattern)
+        self._c_switch = c_now
+        self._t_switch = t_s
+        self._duration_s = self.transition_cycles / min(self._p0.freq_hz, self._p1.freq_hz)
+        self._target = new_gait
+        self._target_pattern = pattern
+        self._changed = True
+
+    def leg_phases(self, t_s: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Cycle phase (n,) and leg phases (n, legs) at times ``t_s``, both in [0, 1)."""
+        t = np.atleast_1d(np.asarray(t_s, dtype=float))
+        c = self._cycles(t)
+        theta = self._ramp(t)['theta']
+        return _wrap01(c), _wrap01(c[:, None] - theta)
+
+    def state(self, t_s: float) -> GaitState:
+        """Schedule at time ``t_s`` [s]."""
+        t = float(t_s)
+        cycle, phi = self.leg_phases(t)
+        pattern, clock = self._pattern_at(t)
+        in_stance = phi[0] < pattern.duty_factor
+        return GaitState(
+            t_s=t,
+            cycle_phase=float(cycle[0]),
+            leg_phase=phi[0],
+            in_stance=in_stance,
+            supporting_legs=int(in_stance.sum()),
+            gait=pattern,
+            transition=float(self._progress(np.array([t]))[0]),
+            clock=clock,
+        )
+
+    def _positions(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Tip positions (n, legs, 3) [m] or unwrapped hip angles (n, legs) [rad]."""
+        r = self._ramp(t)
+        c = self._cycles(t)
+        rel = c[:, None] - r['theta']
+        phi = _wrap01(rel)
+        n, legs = phi.shape
+        if self.is_buehler:
+            k = np.floor(rel)
+            angle = np.empty_like(phi)
+            for j in range(n):
+                a, _ = buehler_angle(
+                    phi[j], duty_factor=r['beta'][j], sweep_angle_rad=r['sweep_rad'][j],
+                    leg_offset_rad=r['offset_rad'][j],
+                )
+                angle[j] = a
+            return _TWO_PI * k + angle
+        out = np.empty((n, legs, 3))
+        for j in range(n):
+            path = tip_path(
+                phi[j], duty_factor=r['beta'][j], step_length_m=r['step_length_m'][j],
+                step_height_m=r['step_height_m'][j],
+            )
+            out[j] = (self.neutral_tip_m[None, :] + path.u[:, None] * self._forward
+                      + path.z[:, None] * np.array([0.0, 0.0, 1.0]))
+        return out
+
+    def _velocities(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Time derivative of :meth:`_positions`: analytic when settled, else central difference."""
+        settled = self._progress(t - _FD_STEP_S) >= 1.0
+        rows = []
+        for j, tj in enumerate(t):
+            if settled[j]:
+                rows.append(self._settled_velocity(float(tj)))
+            else:
+                p = self._positions(np.array([tj - _FD_STEP_S, tj + _FD_STEP_S]))
+                rows.append((p[1] - p[0]) / (2.0 * _FD_STEP_S))
+        return np.stack(rows)
+
+    def _settled_velocity(self, t: float) -> NDArray[np.float64]:
+        p1 = self._p1
+        c = self._cycles(np.array([t]))[0]
+        phi = _wrap01(c - p1.theta)
+        if self.is_buehler:
+            _, dangle = buehler_angle(
+                phi, duty_factor=p1.beta, sweep_angle_rad=p1.sweep_rad,
+                leg_offset_rad=p1.offset_rad,
+            )
+            return dangle * p1.freq_hz
+        path = tip_path(
+            phi, duty_factor=p1.beta, step_length_m=p1.step_length_m,
+            step_height_m=p1.step_height_m,
+        )
+        return (path.du[:, None] * self._forward
+                + path.dz[:, None] * np.array([0.0, 0.0, 1.0])) * p1.freq_hz
+
+    def tip_targets(self, t_s: ArrayLike) -> NDArray[np.float64]:
+        """Commanded tip positions in each leg's base frame, shape (n, legs, 3) [m] (3-DOF)."""
+        if self.is_buehler:
+            raise InvalidGaitError('a Buehler clock commands hip angles, not tip positions')
+        return self._positions(np.atleast_1d(np.asarray(t_s, dtype=float)))
+
+    def joint_targets(
+        self, t_s: float
+    ) -> tuple[tuple[str, ...], NDArray[np.float64], NDArray[np.float64]]:
+        """Joint names, positions [rad] and velocities [rad/s] at time ``t_s``.
+
+        Returns
+        -------
+        names : tuple of str, length J
+            Leg-major (``L1_coxa, L1_femur, L1_tibia, L2_coxa, ...`` or ``L1_hip, ...``).
+        q : ndarray, shape (J,)
+            Positions; Buehler hip angles are unwrapped.
+        qd : ndarray, shape (J,)
+        """
+        t = np.array([float(t_s)])
+        pos = self._positions(t)[0]
+        vel = self._velocities(t)[0]
+        if self.is_buehler:
+            return self.joint_names, pos.copy(), vel.copy()
+        q = self.kinematics.inverse(pos, branch=self.branch)
+        qd = self.kinematics.joint_velocity(q, vel)
+        return self.joint_names, q.reshape(-1), qd.reshape(-1)
