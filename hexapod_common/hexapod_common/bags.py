@@ -41,6 +41,7 @@ __all__ = [
     'find_msg_dir',
     'iter_messages',
     'new_msg',
+    'OpenedReader',
     'open_reader',
     'stamp',
     'typestore',
@@ -291,6 +292,15 @@ def _merge_info(old: dict[str, Any], new: dict[str, Any]) -> dict[str, Any]:
     return merged
 
 
+class OpenedReader(AnyReader):
+    """An AnyReader that is already open; ``with`` just closes it at the end."""
+
+    def __enter__(self) -> OpenedReader:
+        if not self.stack:
+            self.open()
+        return self
+
+
 @dataclass(frozen=True)
 class BagMessage:
     """One message of a bag: topic, type, bag time [ns] and raw CDR bytes."""
@@ -301,7 +311,8 @@ class BagMessage:
     data: bytes
 
 
-def open_reader(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[str]]) -> AnyReader:
+def open_reader(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[str]]
+                ) -> OpenedReader:
     """Open one bag (or several rosbag1 files) for reading, already opened.
 
     Bags without message definitions (e.g. Foxy-era sqlite3) fall back to the Jazzy typestore
@@ -319,7 +330,7 @@ def open_reader(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[str]]
                    'before its first split closed or was copied incompletely)' if storage else ''
             raise BagReadError(f'not a rosbag2 bag (no metadata.yaml): {p}{hint}')
     try:
-        reader = AnyReader(resolved, default_typestore=typestore())
+        reader = OpenedReader(resolved, default_typestore=typestore())
         reader.open()
     except Exception as err:  # rosbags raises several unrelated types for bad files
         msg = str(err).splitlines()[0] if str(err) else type(err).__name__

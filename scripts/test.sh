@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# Run the test suite: unit tests in one pytest process, each integration file in its own.
+set -uo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/setup.sh || exit 1
+. .venv/bin/activate
+export PYTHONDONTWRITEBYTECODE=1 MPLBACKEND=Agg
+# DDS traffic of tests stays on this machine and apart from other runs
+export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST ROS_DOMAIN_ID=${ROS_DOMAIN_ID:-$(( $$ % 100 + 100 ))}
+passed=0; failed=0; status=0
+summarise() {  # read pytest's closing line counts
+  local out=$1
+  local p f e
+  p=$(grep -Eo '[0-9]+ passed' "$out" | tail -1 | cut -d' ' -f1); f=$(grep -Eo '[0-9]+ failed' "$out" | tail -1 | cut -d' ' -f1)
+  e=$(grep -Eo '[0-9]+ error' "$out" | tail -1 | cut -d' ' -f1)
+  passed=$((passed + ${p:-0})); failed=$((failed + ${f:-0} + ${e:-0}))
+}
+tmp=$(mktemp -d)
+echo "== unit tests"
+python -m pytest -q -p no:cacheprovider test/unit "$@" 2>&1 | tee "$tmp/unit.log"
+rc=${PIPESTATUS[0]}; [ "$rc" -eq 0 ] || [ "$rc" -eq 5 ] || status=1
+summarise "$tmp/unit.log"
+for f in test/integration/test_*.py; do
+  echo "== $f"
+  python -m pytest -q -p no:cacheprovider "$f" "$@" 2>&1 | tee "$tmp/int.log"
+  rc=${PIPESTATUS[0]}; [ "$rc" -eq 0 ] || [ "$rc" -eq 5 ] || status=1
+  summarise "$tmp/int.log"
+done
+rm -rf "$tmp"
+echo "$passed passed, $failed failed"
+[ "$passed" -gt 0 ] || status=1
+exit $status

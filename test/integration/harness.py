@@ -1,0 +1,98 @@
+"""Launch-free integration harness: fresh Context per test, futures with deadlines, no sleeps."""
+
+from __future__ import annotations
+
+import itertools
+import os
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import Any
+
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.task import Future
+
+__all__ = ['Collector', 'RosEnv', 'ros_env', 'unique_namespace']
+
+_counter = itertools.count()
+
+KEEP_ALL_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL,
+                          reliability=ReliabilityPolicy.RELIABLE)
+
+
+def unique_namespace(prefix: str = 't') -> str:
+    """A namespace no other test (in this or another process) uses."""
+    return f'/{prefix}_{os.getpid()}_{next(_counter)}'
+
+
+class RosEnv:
+    """A context and executor; nodes added with :meth:`add` are destroyed at the end."""
+
+    def __init__(self, context: Any, executor: SingleThreadedExecutor, namespace: str) -> None:
+        self.context = context
+        self.executor = executor
+        self.namespace = namespace
+        self.nodes: list[Any] = []
+
+    def add(self, node: Any) -> Any:
+        self.nodes.append(node)
+        self.executor.add_node(node)
+        return node
+
+    def make(self, factory: Callable[..., Any], **kwargs: Any) -> Any:
+        """Build a node with this env's context and namespace and add it to the executor."""
+        return self.add(factory(context=self.context, namespace=self.namespace, **kwargs))
+
+    def spin_until(self, predicate: Callable[[], bool], timeout_s: float = 30.0) -> bool:
+        """Spin until ``predicate()`` is true or the deadline passes; returns the predicate."""
+        fut = Future()
+
+        def check() -> None:
+            if predicate() and not fut.done():
+                fut.set_result(True)
+        helper = rclpy.create_node('spin_until_helper', context=self.context,
+                                   namespace=self.namespace)
+        timer = helper.create_timer(0.005, check)
+        self.executor.add_node(helper)
+        try:
+            check()
+            if not fut.done():
+                self.executor.spin_until_future_complete(fut, timeout_sec=timeout_s)
+        finally:
+            helper.destroy_timer(timer)
+            self.executor.remove_node(helper)
+            helper.destroy_node()
+        return predicate()
+
+
+class Collector:
+    """Subscribes to a topic (reliable, keep all) and keeps every message."""
+
+    def __init__(self, env: RosEnv, msg_type: Any, topic: str, qos: Any = KEEP_ALL_QOS) -> None:
+        self.messages: list[Any] = []
+        self.node = env.add(rclpy.create_node(f'collector_{next(_counter)}',
+                                              context=env.context, namespace=env.namespace))
+        self.node.create_subscription(msg_type, topic, self.messages.append, qos)
+
+    def wait_for(self, env: RosEnv, n: int, timeout_s: float = 30.0) -> list[Any]:
+        assert env.spin_until(lambda: len(self.messages) >= n, timeout_s), \
+            f'got {len(self.messages)} of {n} messages before the deadline'
+        return self.messages
+
+
+@contextmanager
+def ros_env(prefix: str = 't') -> Iterator[RosEnv]:
+    """A fresh Context with its own executor; everything is shut down afterwards."""
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    executor = SingleThreadedExecutor(context=context)
+    env = RosEnv(context, executor, unique_namespace(prefix))
+    try:
+        yield env
+    finally:
+        for node in env.nodes:
+            executor.remove_node(node)
+            node.destroy_node()
+        executor.shutdown()
+        context.try_shutdown()
