@@ -1,0 +1,795 @@
+"""RHex-class EduBot simulator (Komsuoglu et al.): sagittal body on six compliant legs.
+
+Core module: numpy only (the bag writer and the CLI live in :mod:`edubot_bag`, imported lazily by
+:func:`write_edubot_bag` and :func:`add_cli`).
+
+Model
+-----
+* **Body**: a rigid sagittal body (x forward, z up) of ``mass_kg`` = 3.31 kg with pitch inertia
+  ``pitch_inertia_kgm2``; hips at ``hip_x_m`` = (+0.2, 0, -0.2) m (front, middle, rear) on the
+  body's longitudinal axis through the COM. Each tripod (left = L1, R2, L3; right = R1, L2, R3)
+  has one front, one middle and one rear leg, so in the sagittal plane the two tripods are
+  three legs each at the same three hip positions.
+* **Legs**: the half-circle compliant leg is reduced to its *virtual leg*, the hip-to-contact
+  spoke of rest length ``leg_rest_length_m`` = 0.17 m (a half circle of radius about 0.085 m
+  has a hip-to-toe chord of 0.17 m), with radial stiffness ``leg_stiffness_n_m`` per leg and a
+  tangential (bending) stiffness ``leg_bending_stiffness_nm_rad`` between the hip shaft and the
+  foot. The leg is massless; its inertia is lumped into the hip shaft (``hip_inertia_kgm2``).
+  The rolling of the arc is not modelled. The foot is pinned where it touches the ground (no
+  slip: the paper's carpet) and lifts off when the spoke is back at its rest length.
+* **Angles**: hip angle ``phi`` is measured on the body from the body's downward axis, positive
+  in the direction the legs turn (the foot sweeps backward on the ground), i.e. clockwise
+  seen from the robot's right side with x to the right. Body pitch ``beta`` follows REP-103
+  (rotation about +y, positive nose-down), which is the same sense, so the leg's angle from
+  the true vertical is ``phi + beta``. The Buehler clock's slow phase spans
+  ``leg_offset - sweep/2 .. leg_offset + sweep/2`` in this coordinate (plus ``hip_zero_rad``).
+* **Hip motors** (11 W class brushed DC, the figures of a 22 mm 11 W motor with a planetary
+  gearbox): winding resistance, torque constant, gear ratio and efficiency, viscous and Coulomb
+  gear friction, quasi-static electrics (inductance neglected: L/R is about 0.1 ms).
+* **Controller**: the RHex PD law in the normalised coordinates of Fig. 2 (hip position over pi,
+  hip speed over ``speed_norm_rad_s``, terminal voltage over 14.8 V) with the gains of Table 1,
+  times ``gain_scale`` (the firmware's unpublished scale from normalised gains to its PWM
+  units; chosen so that the hips follow the clock with the lag seen in Fig. 5a).
+* **Battery**: 4S LiPo, open-circuit ``battery_ocv_v`` and internal resistance
+  ``battery_resistance_ohm``; the H-bridges are ideal (regenerated power returns to the
+  battery); the on-board computer and electronics draw ``electronics_power_w``.
+* **Integration**: semi-implicit Euler at ``dt_s`` = 1 ms, vectorised over runs (batch).
+
+Outputs are the DESIGN §4 topics as arrays: hip states at 100 Hz, battery at 100 Hz (current
+negative when discharging), and the body pose from a 120 Hz motion capture in a frame that is
+rotated, tilted and offset from the ground, with a clock offset and a limited tracking volume.
+
+Named effects (``effects={'name': value}``; value 0 switches an effect off)
+-------------------------------------------------------------------------
+``leg_damping`` [N s/m], default off
+    Radial viscous damping of the *tripod's* virtual leg: each leg in contact gets
+    ``value / 3`` N s/m along its spoke, so a tripod of three legs in contact acts as one
+    SLIP leg with damping ``value``.
+``hip_torque`` [N m], default off
+    Extra hip torque along the stance that a pure SLIP lacks: while a leg is in contact its
+    motor gets a voltage feed-forward ``R * (value/3) / (N * kt * eta)``, i.e. ``value/3`` N m
+    of stall-equivalent torque per leg (``value`` per tripod), paid from the battery. The PD
+    loop partly absorbs it; the net effect is a larger, more forward-pushing stance torque.
+``time_offset`` [s], default **on**, 0.025 s
+    Motion-capture clock minus proprioception clock: a mocap sample of the body at true time
+    ``t`` carries the stamp ``t + value``.
+``mocap_noise`` [m], default **on**, 0.0002 m
+    Standard deviation of white Gaussian noise on each mocap position axis (and
+    ``value / 0.25 m`` rad on the orientation, for a marker baseline of 0.25 m).
+``mocap_misalignment`` [deg], default **on**, 3 deg
+    Tilt of the mocap frame's xy-plane against the ground about a seeded horizontal axis by
+    ``value`` degrees, with a seeded yaw of the run direction in [-30, 30] deg and the ground
+    plane seeded 5 to 30 mm off the mocap z = 0 plane. ``0`` gives mocap = ground frame
+    (shifted in x and y only so the run crosses the tracking volume).
+
+Ground truth (``EdubotRun.truth``; also the bag's custom metadata ``edubot_truth``, JSON) holds
+each leg's contact intervals, each tripod's contact intervals (any of its legs on the ground),
+the single-support intervals (this tripod on the ground, the other not), all in the
+proprioception clock, the mocap frame transform, the clock offset and the effects.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    'EDUBOT_EFFECTS',
+    'EDUBOT_LEG_NAMES',
+    'EdubotEffect',
+    'EdubotParams',
+    'EdubotRun',
+    'EdubotSimError',
+    'TABLE1_GAINS',
+    'TABLE3',
+    'add_cli',
+    'resolve_clock',
+    'resolve_effects',
+    'run_summary',
+    'simulate_edubot',
+    'simulate_edubot_batch',
+    'write_edubot_bag',
+]
+
+GRAVITY_M_S2 = 9.81
+EDUBOT_LEG_NAMES: tuple[str, ...] = ('L1', 'L2', 'L3', 'R1', 'R2', 'R3')
+_TRIPODS: dict[str, tuple[str, ...]] = {'left': ('L1', 'R2', 'L3'), 'right': ('R1', 'L2', 'R3')}
+_LEG_TRIPOD = tuple('left' if leg in _TRIPODS['left'] else 'right' for leg in EDUBOT_LEG_NAMES)
+# front, middle, rear hip of each leg in EDUBOT_LEG_NAMES order
+_LEG_HIP_INDEX = tuple(int(leg[1]) - 1 for leg in EDUBOT_LEG_NAMES)
+
+#: Table 1 of Komsuoglu et al.: PD gains (normalised) per gait.
+TABLE1_GAINS: dict[str, tuple[float, float]] = {
+    'running': (0.56, 0.03), 'jogging': (0.56, 0.03), 'pace': (0.7, 0.0), 'walk': (0.7, 0.0)}
+#: Table 3 of Komsuoglu et al.: mean power [W] and speed [m/s] per gait.
+TABLE3: dict[str, tuple[float, float]] = {
+    'running': (31.63, 1.06), 'jogging': (42.92, 0.64), 'pace': (26.23, 0.30),
+    'walk': (20.93, 0.16)}
+
+
+class EdubotSimError(ValueError):
+    """Bad input to the EduBot simulator (unknown gait or effect, bad duration)."""
+
+
+_TABLE1_NAMES = ('running', 'jogging', 'pace', 'walk')
+
+
+def resolve_clock(gait: Any) -> tuple[str, Any]:
+    """(name, clock) for a Table 1 gait name or a clock object with the BuehlerClock API."""
+    if not isinstance(gait, str):
+        for attr in ('period_s', 'duty_factor', 'sweep_angle_rad', 'leg_offset_rad'):
+            if not hasattr(gait, attr):
+                raise EdubotSimError(f'gait object {gait!r} lacks {attr!r} (BuehlerClock API)')
+        return 'custom', gait
+    if gait not in _TABLE1_NAMES:
+        raise EdubotSimError(
+            f'unknown EduBot gait {gait!r}; expected one of {list(_TABLE1_NAMES)}')
+    from hexapod_gait.buehler import BUEHLER_PRESETS
+    return gait, BUEHLER_PRESETS[gait]
+
+
+# --------------------------------------------------------------------------------------------
+# Parameters and effects
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class EdubotParams:
+    """EduBot constants (SI units). See the module docstring for the model."""
+
+    mass_kg: float = 3.31
+    pitch_inertia_kgm2: float = 0.072        # 3.31 kg box 0.5 m x 0.1 m: m (L^2 + H^2) / 12
+    hip_x_m: tuple[float, float, float] = (0.20, 0.0, -0.20)
+    hip_z_m: float = 0.0                    # hips on the COM's level
+    leg_rest_length_m: float = 0.17
+    leg_stiffness_n_m: float = 700.0         # per leg, radial; a tripod ~ 2.1 kN/m
+    leg_bending_stiffness_nm_rad: float = 12.0
+    leg_bending_damping_nm_s_rad: float = 0.05
+    body_half_length_m: float = 0.25         # nose/tail points that stop a fall
+    body_half_height_m: float = 0.05
+    hip_inertia_kgm2: float = 1.0e-3         # rotor through the gear + leg, at the hip
+    hip_zero_rad: float = 0.0                # leg angle from vertical = phi + beta + zero
+    # motor + gearbox (22 mm 11 W brushed DC with a planetary gearbox)
+    motor_resistance_ohm: float = 2.5
+    motor_torque_constant_nm_a: float = 0.0134
+    gear_ratio: float = 30.0
+    gear_efficiency: float = 0.75
+    gear_viscous_nm_s_rad: float = 0.002
+    gear_coulomb_nm: float = 0.02
+    # controller
+    supply_norm_v: float = 14.8              # normalised voltage 1 = 14.8 V
+    speed_norm_rad_s: float = math.pi        # normalised speed = speed / this
+    gain_scale: float = 12.0
+    # battery and electronics
+    battery_ocv_v: float = 15.6
+    battery_resistance_ohm: float = 0.15
+    electronics_power_w: float = 8.0
+    # simulation and sensors
+    dt_s: float = 0.001
+    proprio_rate_hz: float = 100.0
+    mocap_rate_hz: float = 120.0
+    settle_s: float = 1.5                    # the robot enters the tracking volume after this
+    initial_height_m: float = 0.155
+    mocap_volume_m: tuple[tuple[float, float], ...] = ((-1.0, 1.0), (-0.5, 0.5), (-0.3, 1.2))
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+@dataclass(frozen=True)
+class EdubotEffect:
+    """A named effect switch: unit, default (0 = off) and meaning."""
+
+    name: str
+    unit: str
+    default: float
+    doc: str
+
+
+EDUBOT_EFFECTS: dict[str, EdubotEffect] = {e.name: e for e in (
+    EdubotEffect('leg_damping', 'N s/m', 0.0,
+                 'radial damping of the tripod virtual leg (value/3 per leg in contact)'),
+    EdubotEffect('hip_torque', 'N m', 0.0,
+                 'extra stance hip torque per tripod (value/3 per leg, voltage feed-forward)'),
+    EdubotEffect('time_offset', 's', 0.025,
+                 'mocap clock minus proprioception clock'),
+    EdubotEffect('mocap_noise', 'm', 0.0002,
+                 'std of Gaussian noise per mocap position axis'),
+    EdubotEffect('mocap_misalignment', 'deg', 3.0,
+                 'tilt of the mocap xy-plane against the ground (plus seeded yaw and offset)'),
+)}
+
+
+def resolve_effects(effects: Mapping[str, float] | None) -> dict[str, float]:
+    """Every effect's value: the defaults overridden by ``effects``; unknown names refused."""
+    out = {name: eff.default for name, eff in EDUBOT_EFFECTS.items()}
+    for name, value in (effects or {}).items():
+        if name not in EDUBOT_EFFECTS:
+            raise EdubotSimError(
+                f'unknown EduBot effect {name!r}; expected one of {sorted(EDUBOT_EFFECTS)}')
+        value = float(value)
+        if not math.isfinite(value) or (value < 0 and name != 'time_offset'):
+            raise EdubotSimError(f'effect {name!r} must be a finite value >= 0, got {value!r}')
+        out[name] = value
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# Result
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class EdubotRun:
+    """One simulated run. Proprioceptive arrays share ``t_s`` (100 Hz, robot clock).
+
+    Attributes
+    ----------
+    gait : str
+        Table 1 name or ``'custom'``.
+    clock : BuehlerClock
+        The clock the hips were driven to (``period_s``, ``duty_factor``, ``sweep_angle_rad``,
+        ``leg_offset_rad``).
+    leg_names : tuple of str
+        ``('L1', 'L2', 'L3', 'R1', 'R2', 'R3')``; joints are ``<leg>_hip``.
+    t_s : (n,) float
+        Proprioception sample times [s].
+    hip_position_rad, hip_velocity_rad_s, hip_effort_nm : (n, 6) float
+        Measured hip angle (unwrapped) [rad], speed [rad/s], output torque [N m].
+    target_position_rad, target_velocity_rad_s : (n, 6) float
+        Buehler-clock targets.
+    battery_voltage_v, battery_current_a : (n,) float
+        Terminal voltage [V] and current [A] (ROS sign: negative when discharging), each the
+        mean over the preceding sample interval.
+    body_x_m, body_z_m, body_pitch_rad, body_vx_m_s, body_vz_m_s : (n,) float
+        True COM position / velocity in the ground frame [m, m/s]; pitch per REP-103 [rad].
+    mocap_t_s : (m,) float
+        Mocap stamps [s] in the mocap clock (= true time + clock offset); only samples inside
+        the tracking volume.
+    mocap_position_m : (m, 3) float
+        COM position in the mocap frame [m].
+    mocap_quat_xyzw : (m, 4) float
+        Body orientation in the mocap frame.
+    fine_t_s : (k,) float
+        Simulation-step times (1 kHz) for the fine truth below.
+    fine_state : (k, 5) float
+        True [x, vx, z, vz, pitch] of the COM in the ground frame at ``fine_t_s``.
+    fine_contact : (k, 6) bool
+        Each leg in contact at ``fine_t_s``.
+    effects : dict
+        Every effect's value (0 = off).
+    truth : dict
+        JSON-able ground truth (see the module docstring).
+    """
+
+    gait: str
+    clock: Any
+    params: EdubotParams
+    seed: int
+    leg_names: tuple[str, ...]
+    t_s: np.ndarray
+    hip_position_rad: np.ndarray
+    hip_velocity_rad_s: np.ndarray
+    hip_effort_nm: np.ndarray
+    target_position_rad: np.ndarray
+    target_velocity_rad_s: np.ndarray
+    battery_voltage_v: np.ndarray
+    battery_current_a: np.ndarray
+    body_x_m: np.ndarray
+    body_z_m: np.ndarray
+    body_pitch_rad: np.ndarray
+    body_vx_m_s: np.ndarray
+    body_vz_m_s: np.ndarray
+    mocap_t_s: np.ndarray
+    mocap_position_m: np.ndarray
+    mocap_quat_xyzw: np.ndarray
+    fine_t_s: np.ndarray
+    fine_state: np.ndarray
+    fine_contact: np.ndarray
+    effects: dict[str, float]
+    truth: dict[str, Any] = field(repr=False)
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.fine_t_s[-1] + self.params.dt_s)
+
+    @property
+    def power_w(self) -> np.ndarray:
+        """(n,) battery input power [W] = -voltage * current."""
+        return -self.battery_voltage_v * self.battery_current_a
+
+
+def run_summary(run: EdubotRun, *, t0_s: float | None = None,
+                t1_s: float | None = None) -> dict[str, float]:
+    """Mean input power [W], mean forward speed [m/s] and specific resistance over a window.
+
+    The window defaults to the steady part of the run: from ``params.settle_s`` to the end.
+    """
+    t0 = run.params.settle_s if t0_s is None else t0_s
+    t1 = run.t_s[-1] if t1_s is None else t1_s
+    sel = (run.t_s >= t0) & (run.t_s <= t1)
+    if sel.sum() < 2:
+        raise EdubotSimError(f'window {t0}..{t1} s holds fewer than 2 samples')
+    power = float(run.power_w[sel].mean())
+    ts = run.t_s[sel]
+    speed = float((run.body_x_m[sel][-1] - run.body_x_m[sel][0]) / (ts[-1] - ts[0]))
+    sr = power / (run.params.mass_kg * GRAVITY_M_S2 * speed) if speed > 0 else math.inf
+    return {'power_w': power, 'speed_m_s': speed, 'specific_resistance': sr}
+
+
+# --------------------------------------------------------------------------------------------
+# Physics
+# --------------------------------------------------------------------------------------------
+def _gains(name: str, clock: Any) -> tuple[float, float]:
+    if name in TABLE1_GAINS:
+        return TABLE1_GAINS[name]
+    kp = float(getattr(clock, 'kp_norm', 0.0) or TABLE1_GAINS['running'][0])
+    return kp, float(getattr(clock, 'kd_norm', 0.0))
+
+
+def _integrate(clock: Any, gains: tuple[float, float], p: EdubotParams, n_steps: int,
+               damping: float, hip_torque: float, init_vx: float, ocv: float
+               ) -> dict[str, np.ndarray]:
+    """Fixed-step semi-implicit Euler integration of one run; per-step arrays.
+
+    Scalar Python over the six legs: for six legs this is several times faster than numpy
+    on (6,) arrays, whose per-call overhead dominates.
+    """
+    dt = p.dt_s
+    t = np.arange(n_steps) * dt
+    tri = {name: (clock.target_angle(t, name), clock.target_speed(t, name))
+           for name in ('left', 'right')}
+    tgt = np.stack([tri[_LEG_TRIPOD[i]][0] for i in range(6)], axis=1)        # (n, 6)
+    tgt_v = np.stack([tri[_LEG_TRIPOD[i]][1] for i in range(6)], axis=1)
+    tgt_l, tgt_r = tri['left'][0].tolist(), tri['right'][0].tolist()
+    tgtv_l, tgtv_r = tri['left'][1].tolist(), tri['right'][1].tolist()
+    is_left = [tr == 'left' for tr in _LEG_TRIPOD]
+    hxs = [p.hip_x_m[j] for j in _LEG_HIP_INDEX]
+    hz = p.hip_z_m
+    kp, kd = gains
+    kpn = p.gain_scale * kp / math.pi * p.supply_norm_v     # volts per rad
+    kdn = p.gain_scale * kd / p.speed_norm_rad_s * p.supply_norm_v
+    r0, kr = p.leg_rest_length_m, p.leg_stiffness_n_m
+    kb, cbend = p.leg_bending_stiffness_nm_rad, p.leg_bending_damping_nm_s_rad
+    rm, n_g, eta = p.motor_resistance_ohm, p.gear_ratio, p.gear_efficiency
+    k_out = p.motor_torque_constant_nm_a * n_g                # N m/A and V s/rad at the hip
+    c_leg = damping / 3.0                                     # per leg in contact
+    v_ff = rm * hip_torque / 3.0 / (k_out * eta)              # volts per leg in contact
+    visc, coul = p.gear_viscous_nm_s_rad, p.gear_coulomb_nm
+    m, inertia, jh = p.mass_kg, p.pitch_inertia_kgm2, p.hip_inertia_kgm2
+    zero = p.hip_zero_rad
+    g = GRAVITY_M_S2
+    two_pi = 2.0 * math.pi
+    cos, sin, sqrt, atan2, tanh, rem = (math.cos, math.sin, math.sqrt, math.atan2, math.tanh,
+                                        math.remainder)
+    # body-ground safety contact (nose, tail): stiff penalty spring with viscous friction
+    bpts = [(x_b, p.body_half_height_m) for x_b in (p.body_half_length_m,
+                                                    -p.body_half_length_m)]
+    kg, cg, cf = 2.0e4, 150.0, 50.0
+    p_elec, r_bat = p.electronics_power_w, p.battery_resistance_ohm
+
+    x, z, beta, vx, vz, wb = 0.0, p.initial_height_m, 0.0, float(init_vx), 0.0, 0.0
+    phi = [float(v) for v in tgt[0]]
+    dphi = [0.0] * 6
+    contact = [False] * 6
+    armed = [True] * 6
+    foot = [0.0] * 6
+    v_bat = float(ocv)
+    rec_state: list[float] = []
+    rec_phi: list[float] = []
+    rec_dphi: list[float] = []
+    rec_tau: list[float] = []
+    rec_vi: list[float] = []
+    rec_contact: list[bool] = []
+    rec_gap: list[float] = []
+    tau_out = [0.0] * 6
+    gap = [0.0] * 6
+    for k in range(n_steps):
+        cb, sb = cos(beta), sin(beta)
+        fx_sum = 0.0
+        fz_sum = 0.0
+        torque_cw = 0.0
+        p_drv = 0.0
+        ddphi_l = [0.0] * 6
+        for i in range(6):
+            hx = hxs[i]
+            rx = hx * cb + hz * sb
+            rz = hz * cb - hx * sb
+            hip_x = x + rx
+            hip_z = z + rz
+            hvx = vx + wb * rz
+            hvz = vz - wb * rx
+            psi_w = rem(phi[i] + beta + zero, two_pi)
+            if contact[i]:
+                dx = hip_x - foot[i]
+                ll = sqrt(dx * dx + hip_z * hip_z)
+                if ll >= r0 or hip_z <= 0.0:
+                    contact[i] = False
+            if not contact[i]:
+                cp = cos(psi_w)
+                toe_z = hip_z - r0 * cp
+                if toe_z > 0.002:
+                    armed[i] = True
+                if armed[i] and toe_z <= 0.0 and cp > 0.0:
+                    contact[i] = True
+                    armed[i] = False
+                    foot[i] = hip_x - r0 * sin(psi_w)
+                    dx = hip_x - foot[i]
+                    ll = sqrt(dx * dx + hip_z * hip_z)
+                else:
+                    gap[i] = toe_z
+            tau_b = 0.0
+            if contact[i]:
+                gap[i] = ll - r0
+                inv_l = 1.0 / ll
+                ldot = (dx * hvx + hip_z * hvz) * inv_l
+                f_r = kr * (r0 - ll) - c_leg * ldot
+                if f_r < 0.0:
+                    f_r = 0.0
+                psi_g = atan2(dx, hip_z)
+                dpsi_g = (hip_z * hvx - dx * hvz) * inv_l * inv_l
+                tau_b = kb * (psi_w - psi_g) + cbend * (dphi[i] + wb - dpsi_g)
+                f_t = tau_b * inv_l
+                gx = (f_r * dx + f_t * hip_z) * inv_l
+                gz = (f_r * hip_z - f_t * dx) * inv_l
+                fx_sum += gx
+                fz_sum += gz
+                torque_cw += rz * gx - rx * gz
+            # hip motor under PD to the clock
+            if is_left[i]:
+                u = kpn * (tgt_l[k] - phi[i]) + kdn * (tgtv_l[k] - dphi[i])
+            else:
+                u = kpn * (tgt_r[k] - phi[i]) + kdn * (tgtv_r[k] - dphi[i])
+            if contact[i]:
+                u += v_ff
+            if u > v_bat:
+                u = v_bat
+            elif u < -v_bat:
+                u = -v_bat
+            w = dphi[i]
+            cur = (u - k_out * w) / rm
+            tau_m = k_out * cur
+            to = tau_m * eta if tau_m * w >= 0.0 else tau_m / eta
+            tau_out[i] = to
+            tau_net = to - visc * w - coul * tanh(w * 20.0)
+            torque_cw -= tau_net
+            ddphi_l[i] = tau_net - tau_b
+            p_drv += u * cur
+        for bx_b, bz_b in bpts:
+            rx = bx_b * cb - bz_b * sb
+            rz = -bz_b * cb - bx_b * sb
+            pz = z + rz
+            if pz < 0.0:
+                pvx = vx + wb * rz
+                pvz = vz - wb * rx
+                fn = -kg * pz - cg * pvz
+                if fn > 0.0:
+                    ft = -cf * pvx
+                    if ft > fn:
+                        ft = fn
+                    elif ft < -fn:
+                        ft = -fn
+                    fx_sum += ft
+                    fz_sum += fn
+                    torque_cw += rz * ft - rx * fn
+        ab = torque_cw / inertia
+        i_bat = (p_drv + p_elec) / v_bat
+        rec_state += (x, vx, z, vz, beta)
+        rec_phi += phi
+        rec_dphi += dphi
+        rec_tau += tau_out
+        rec_vi += (v_bat, i_bat)
+        rec_contact += contact
+        rec_gap += gap
+        vx += fx_sum / m * dt
+        vz += (fz_sum / m - g) * dt
+        wb += ab * dt
+        x += vx * dt
+        z += vz * dt
+        beta += wb * dt
+        for i in range(6):
+            dphi[i] += (ddphi_l[i] / jh - ab) * dt
+            phi[i] += dphi[i] * dt
+        v_bat = ocv - r_bat * i_bat
+    vi = np.array(rec_vi).reshape(n_steps, 2)
+    return {
+        't': t, 'target': tgt, 'target_v': tgt_v,
+        'state': np.array(rec_state).reshape(n_steps, 5),
+        'phi': np.array(rec_phi).reshape(n_steps, 6),
+        'dphi': np.array(rec_dphi).reshape(n_steps, 6),
+        'tau': np.array(rec_tau).reshape(n_steps, 6),
+        'vbat': vi[:, 0], 'ibat': vi[:, 1],
+        'contact': np.array(rec_contact, dtype=bool).reshape(n_steps, 6),
+        'gap': np.array(rec_gap).reshape(n_steps, 6),
+    }
+
+
+# --------------------------------------------------------------------------------------------
+# Truth: contact intervals from the per-step contact flags and the gap signal
+# --------------------------------------------------------------------------------------------
+def _intervals(flag: np.ndarray, gap: np.ndarray | None, t: np.ndarray) -> np.ndarray:
+    """(m, 2) [start, end) intervals where ``flag`` is true; edges refined on ``gap``'s zero."""
+    f = flag.astype(np.int8)
+    d = np.diff(f)
+    starts = list(np.nonzero(d == 1)[0] + 1)
+    ends = list(np.nonzero(d == -1)[0] + 1)
+    if f[0]:
+        starts.insert(0, 0)
+    if f[-1]:
+        ends.append(len(f))
+    out = []
+    for s, e in zip(starts, ends):
+        ts = _crossing(gap, t, s) if gap is not None and s > 0 else t[s]
+        te = _crossing(gap, t, e) if gap is not None and e < len(f) else \
+            (t[e] if e < len(f) else t[-1] + (t[1] - t[0]))
+        out.append((ts, te))
+    return np.array(out, dtype=float).reshape(-1, 2)
+
+
+def _crossing(gap: np.ndarray, t: np.ndarray, i: int) -> float:
+    """Zero crossing of ``gap`` between samples i-1 and i (linear), clipped to that step."""
+    g0, g1 = gap[i - 1], gap[i]
+    if g0 == g1 or np.sign(g0) == np.sign(g1):
+        return float(t[i])
+    frac = g0 / (g0 - g1)
+    return float(t[i - 1] + min(max(frac, 0.0), 1.0) * (t[i] - t[i - 1]))
+
+
+def _interval_ops(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Intervals where boolean step array ``a`` is true and ``b`` false."""
+    return _intervals(a & ~b, None, t)
+
+
+# --------------------------------------------------------------------------------------------
+# Motion capture
+# --------------------------------------------------------------------------------------------
+def _rot(axis: str, angle: float) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    if axis == 'x':
+        return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+    if axis == 'y':
+        return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+
+
+def _quat_from_matrix(rm: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) rotation matrices -> (..., 4) quaternions xyzw (w >= 0)."""
+    m = np.asarray(rm)
+    w = np.sqrt(np.maximum(0.0, 1 + m[..., 0, 0] + m[..., 1, 1] + m[..., 2, 2])) / 2
+    x = np.sqrt(np.maximum(0.0, 1 + m[..., 0, 0] - m[..., 1, 1] - m[..., 2, 2])) / 2
+    y = np.sqrt(np.maximum(0.0, 1 - m[..., 0, 0] + m[..., 1, 1] - m[..., 2, 2])) / 2
+    zq = np.sqrt(np.maximum(0.0, 1 - m[..., 0, 0] - m[..., 1, 1] + m[..., 2, 2])) / 2
+    x = np.copysign(x, m[..., 2, 1] - m[..., 1, 2])
+    y = np.copysign(y, m[..., 0, 2] - m[..., 2, 0])
+    zq = np.copysign(zq, m[..., 1, 0] - m[..., 0, 1])
+    q = np.stack([x, y, zq, w], axis=-1)
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+def _mocap(p: EdubotParams, eff: dict[str, float], rng: np.random.Generator,
+           t_fine: np.ndarray, state: np.ndarray, x_settle: float
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+    tilt_deg = eff['mocap_misalignment']
+    if tilt_deg > 0:
+        yaw = math.radians(rng.uniform(-30.0, 30.0))
+        axis_az = rng.uniform(0.0, 2 * math.pi)
+        z0 = rng.uniform(0.005, 0.030)
+    else:
+        yaw, axis_az, z0 = 0.0, 0.0, 0.0
+    tilt = math.radians(tilt_deg)
+    # tilt about the horizontal axis (cos az, sin az, 0): Rz(az) Rx(tilt) Rz(-az)
+    r_tilt = _rot('z', axis_az) @ _rot('x', tilt) @ _rot('z', -axis_az)
+    rot = r_tilt @ _rot('z', yaw)                     # mocap_from_ground
+    (bx0, bx1), (by0, by1), _ = p.mocap_volume_m
+    half_len = 0.5 * min((bx1 - bx0) / max(abs(math.cos(yaw)), 1e-9),
+                         (by1 - by0) / max(abs(math.sin(yaw)), 1e-9))
+    centre = np.array([0.5 * (bx0 + bx1), 0.5 * (by0 + by1), z0])
+    x_c = x_settle + half_len
+    offset = centre - rot @ np.array([x_c, 0.0, 0.0])
+    # mocap sampling in its own clock
+    toff = eff['time_offset']
+    dt_m = 1.0 / p.mocap_rate_hz
+    t_end = t_fine[-1]
+    phase0 = rng.uniform(0.0, dt_m)
+    t_true = np.arange(phase0, t_end, dt_m)
+    xs = np.interp(t_true, t_fine, state[:, 0])
+    zs = np.interp(t_true, t_fine, state[:, 2])
+    bs = np.interp(t_true, t_fine, state[:, 4])
+    pos_g = np.stack([xs, np.zeros_like(xs), zs], axis=1)
+    pos_m = pos_g @ rot.T + offset
+    cb, sb = np.cos(bs), np.sin(bs)
+    r_body = np.zeros((len(bs), 3, 3))                # rotation about +y by pitch (REP-103)
+    r_body[:, 0, 0] = cb
+    r_body[:, 0, 2] = sb
+    r_body[:, 1, 1] = 1.0
+    r_body[:, 2, 0] = -sb
+    r_body[:, 2, 2] = cb
+    noise = eff['mocap_noise']
+    if noise > 0:
+        pos_m = pos_m + rng.normal(0.0, noise, pos_m.shape)
+        ang = rng.normal(0.0, noise / 0.25, (len(bs), 3))
+        r_noise = np.stack([_rodrigues(a) for a in ang]) if len(bs) else r_body
+        r_body = r_noise @ r_body
+    quat = _quat_from_matrix(rot @ r_body)
+    lo = np.array([v[0] for v in p.mocap_volume_m])
+    hi = np.array([v[1] for v in p.mocap_volume_m])
+    inside = np.all((pos_m >= lo) & (pos_m <= hi), axis=1)
+    frame = {
+        'mocap_from_ground_rotation': rot.tolist(),
+        'mocap_from_ground_translation_m': offset.tolist(),
+        'yaw_deg': math.degrees(yaw),
+        'tilt_deg': tilt_deg,
+        'tilt_axis_azimuth_deg': math.degrees(axis_az),
+        'ground_plane_z_m': float(z0),
+        'volume_m': [list(v) for v in p.mocap_volume_m],
+        'volume_centre_ground_x_m': float(x_c),
+    }
+    return t_true[inside] + toff, pos_m[inside], quat[inside], frame
+
+
+def _rodrigues(a: np.ndarray) -> np.ndarray:
+    th = float(np.linalg.norm(a))
+    if th < 1e-15:
+        return np.eye(3)
+    k = a / th
+    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + math.sin(th) * kx + (1 - math.cos(th)) * (kx @ kx)
+
+
+# --------------------------------------------------------------------------------------------
+# Public API
+# --------------------------------------------------------------------------------------------
+def simulate_edubot_batch(gait: Any, *, duration_s: float,
+                          effects: Mapping[str, float] | None = None,
+                          seeds: list[int] | tuple[int, ...] = (0,),
+                          params: EdubotParams = EdubotParams()) -> list[EdubotRun]:
+    """Simulate one run per seed in one vectorised integration (same gait and effects).
+
+    Each seed varies the initial forward speed (+-10 %), the battery's open-circuit voltage
+    (+-0.2 V), the mocap frame placement and the mocap noise.
+    """
+    name, clock = resolve_clock(gait)
+    eff = resolve_effects(effects)
+    if not (isinstance(duration_s, (int, float)) and math.isfinite(duration_s)
+            and duration_s > 0):
+        raise EdubotSimError(f'duration_s must be a positive number, got {duration_s!r}')
+    seeds = [int(s) for s in seeds]
+    if not seeds:
+        raise EdubotSimError('seeds must not be empty')
+    rngs = [np.random.default_rng(s) for s in seeds]
+    n_steps = int(round(duration_s / params.dt_s))
+    v_nominal = TABLE3.get(name, (0.0, 0.5))[1]
+    init_vx = np.array([v_nominal * (1 + 0.1 * r.uniform(-1, 1)) for r in rngs])
+    ocv = np.array([params.battery_ocv_v + 0.2 * r.uniform(-1, 1) for r in rngs])
+    gains = _gains(name, clock)
+    raws = [_integrate(clock, gains, params, n_steps, eff['leg_damping'], eff['hip_torque'],
+                       float(v0), float(e0)) for v0, e0 in zip(init_vx, ocv)]
+    return [_assemble(name, clock, params, eff, seed, rng, raw)
+            for raw, seed, rng in zip(raws, seeds, rngs)]
+
+
+def simulate_edubot(gait: Any, *, duration_s: float,
+                    effects: Mapping[str, float] | None = None, seed: int = 0,
+                    params: EdubotParams = EdubotParams()) -> EdubotRun:
+    """Simulate one EduBot run of ``duration_s`` seconds.
+
+    Parameters
+    ----------
+    gait
+        ``'running'``, ``'jogging'``, ``'pace'`` or ``'walk'`` (Table 1), or a clock object
+        with the ``hexapod_gait.buehler.BuehlerClock`` API (PD gains then from its ``kp``,
+        ``kd`` attributes if present, else the running gains).
+    duration_s
+        Simulated time [s]; the robot starts at rest height with about its gait's speed and
+        enters the tracking volume ``params.settle_s`` later.
+    effects
+        ``{name: value}`` for :data:`EDUBOT_EFFECTS`; 0 switches an effect off.
+    seed
+        Same seed, same data.
+    """
+    return simulate_edubot_batch(gait, duration_s=duration_s, effects=effects, seeds=(seed,),
+                                 params=params)[0]
+
+
+def _assemble(name: str, clock: Any, p: EdubotParams, eff: dict[str, float], seed: int,
+              rng: np.random.Generator, raw: dict[str, np.ndarray]) -> EdubotRun:
+    t_fine = raw['t']
+    n_steps = len(t_fine)
+    stride = int(round(1.0 / (p.proprio_rate_hz * p.dt_s)))
+    idx = np.arange(0, n_steps, stride)
+    state = raw['state']
+    vbat = raw['vbat']
+    ibat = raw['ibat']
+    # battery: mean over the preceding interval (first sample: its own step)
+    csum_v = np.concatenate([[0.0], np.cumsum(vbat)])
+    csum_i = np.concatenate([[0.0], np.cumsum(ibat)])
+    lo = np.maximum(idx - stride + 1, 0)
+    cnt = idx - lo + 1
+    v_mean = (csum_v[idx + 1] - csum_v[lo]) / cnt
+    i_mean = (csum_i[idx + 1] - csum_i[lo]) / cnt
+    contact = raw['contact']
+    gap = raw['gap']
+    x_settle = float(np.interp(p.settle_s, t_fine, state[:, 0]))
+    m_t, m_pos, m_quat, frame = _mocap(p, eff, rng, t_fine, state, x_settle)
+    # truth
+    leg_contact = {leg: _intervals(contact[:, i], gap[:, i], t_fine)
+                   for i, leg in enumerate(EDUBOT_LEG_NAMES)}
+    tri_mask = {tr: np.array([_LEG_TRIPOD[i] == tr for i in range(6)]) for tr in _TRIPODS}
+    tri_on = {tr: contact[:, tri_mask[tr]].any(axis=1) for tr in _TRIPODS}
+    tripod_contact = {tr: _intervals(tri_on[tr], None, t_fine) for tr in _TRIPODS}
+    single = {tr: _interval_ops(tri_on[tr], tri_on['right' if tr == 'left' else 'left'],
+                                t_fine) for tr in _TRIPODS}
+    # refine tripod edges with the legs' interpolated events
+    leg_events = np.sort(np.concatenate([leg_contact[leg].ravel() for leg in leg_contact]))
+    tripod_contact = {tr: _snap(v, leg_events, p.dt_s) for tr, v in tripod_contact.items()}
+    single = {tr: _snap(v, leg_events, p.dt_s) for tr, v in single.items()}
+    clock_d = {a: float(getattr(clock, a)) for a in
+               ('period_s', 'duty_factor', 'sweep_angle_rad', 'leg_offset_rad')}
+    truth: dict[str, Any] = {
+        'gait': name,
+        'clock': clock_d,
+        'gains_kp_kd': list(_gains(name, clock)),
+        'seed': seed,
+        'duration_s': n_steps * p.dt_s,
+        'time_base': 'proprioception clock [s]; mocap stamps = true time + clock_offset_s',
+        'clock_offset_s': eff['time_offset'],
+        'effects': dict(eff),
+        'frame': frame,
+        'settle_s': p.settle_s,
+        'leg_contact': {k: v.tolist() for k, v in leg_contact.items()},
+        'tripod_contact': {k: v.tolist() for k, v in tripod_contact.items()},
+        'single_support': {k: v.tolist() for k, v in single.items()},
+        'tripod_legs': {k: list(v) for k, v in _TRIPODS.items()},
+        'params': p.to_dict(),
+    }
+    run = EdubotRun(
+        gait=name, clock=clock, params=p, seed=seed, leg_names=EDUBOT_LEG_NAMES,
+        t_s=t_fine[idx].copy(),
+        hip_position_rad=raw['phi'][idx].copy(),
+        hip_velocity_rad_s=raw['dphi'][idx].copy(),
+        hip_effort_nm=raw['tau'][idx].copy(),
+        target_position_rad=raw['target'][idx].copy(),
+        target_velocity_rad_s=raw['target_v'][idx].copy(),
+        battery_voltage_v=v_mean, battery_current_a=-i_mean,
+        body_x_m=state[idx, 0].copy(), body_z_m=state[idx, 2].copy(),
+        body_pitch_rad=state[idx, 4].copy(), body_vx_m_s=state[idx, 1].copy(),
+        body_vz_m_s=state[idx, 3].copy(),
+        mocap_t_s=m_t, mocap_position_m=m_pos, mocap_quat_xyzw=m_quat,
+        fine_t_s=t_fine, fine_state=state.copy(), fine_contact=contact.copy(),
+        effects=dict(eff), truth=truth)
+    summ = run_summary(run) if run.t_s[-1] > p.settle_s + 0.1 else {}
+    truth['summary'] = summ
+    return run
+
+
+def _snap(intervals: np.ndarray, events: np.ndarray, dt: float) -> np.ndarray:
+    """Replace step-resolution edges by the nearest interpolated leg event within one step."""
+    if intervals.size == 0 or events.size == 0:
+        return intervals
+    out = intervals.copy()
+    for j in range(out.shape[0]):
+        for c in range(2):
+            i = np.searchsorted(events, out[j, c])
+            cands = events[max(i - 1, 0):i + 1]
+            if cands.size:
+                best = cands[np.argmin(np.abs(cands - out[j, c]))]
+                if abs(best - out[j, c]) <= dt:
+                    out[j, c] = best
+    return out
+
+
+def write_edubot_bag(path: str | Path, gait: Any, *, duration_s: float,
+                     effects: Mapping[str, float] | None = None, seed: int = 0,
+                     storage: str = 'mcap', params: EdubotParams = EdubotParams()) -> Path:
+    """Simulate and write the run into a rosbag2 bag (see :mod:`edubot_bag`)."""
+    from hexapod_bench_drivers.edubot_bag import write_edubot_bag as _write
+    return _write(path, gait, duration_s=duration_s, effects=effects, seed=seed,
+                  storage=storage, params=params)
+
+
+def add_cli(subparsers: Any) -> None:
+    """Register the ``edubot`` subcommand of ``hexapod-sim`` (see :mod:`edubot_bag`)."""
+    from hexapod_bench_drivers.edubot_bag import add_cli as _add
+    _add(subparsers)
