@@ -1,0 +1,136 @@
+"""SLIP template, integrators and per-stance fits on synthetic stances with known parameters."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from slip_identification.errors import SlipDataError, StanceRejectedError
+from slip_identification.fit import (
+    SlipFitter,
+    SlipPositionFitter,
+    Stance,
+    nerr,
+    validate_stance,
+)
+from slip_identification.model import SlipModel
+from slip_identification.synthetic import make_stance, make_stances
+
+RUNNING = {'speed_mps': (0.6, 1.1)}  # realistic running/jogging stances (< one bounce period)
+
+
+def _params(results, names=('stiffness', 'rest_length', 'foot_x')):
+    return np.array([[r.params[n] for n in names] for r in results])
+
+
+def _stderr(results, names=('stiffness', 'rest_length', 'foot_x')):
+    return np.array([[r.stderr[n] for n in names] for r in results])
+
+
+def test_fast_integrator_matches_reference_with_extensions():
+    model = SlipModel(extensions=('leg_damping', 'hip_torque'))
+    p = np.array([2500.0, 0.15, 0.3, 5.0, 0.5])
+    x0 = np.array([0.3 - 0.15 * math.sin(0.3), 1.0, 0.15 * math.cos(0.3), -0.2])
+    t = np.arange(150) * 1e-3
+    ref = model.simulate_reference(x0, p, t)
+    fast = model.simulate_batch(x0[None], p[None], 150, 1e-3, stride=2)[:, :, 0]
+    assert_allclose(fast, ref, atol=1e-6)
+    # the extensions change the trajectory (they are not silently ignored)
+    plain = SlipModel().simulate_reference(x0, p[:3], t)
+    assert np.abs(plain - ref).max() > 1e-3
+
+
+def test_model_names_and_validation():
+    assert SlipModel(extensions=('leg_damping',)).name == 'slip+leg_damping'
+    assert SlipModel.from_name('slip+hip_torque').param_names[-1] == 'hip_torque'
+    with pytest.raises(SlipDataError, match='unknown SLIP extension'):
+        SlipModel(extensions=('wings',))
+
+
+@pytest.mark.parametrize('sample_hz', [1000.0, 120.0])
+def test_noise_free_recovery_fast_and_reference(sample_hz):
+    syn = make_stances(12, seed=11, sample_hz=sample_hz, **RUNNING)
+    truth = np.array([s.params for s in syn])
+    stances = [s.stance for s in syn]
+    fast = SlipFitter().fit(stances).results_
+    got = _params(fast)
+    assert all(r.converged for r in fast)
+    assert_allclose(got[:, :2], truth[:, :2], rtol=5e-3)
+    assert_allclose(got[:, 2], truth[:, 2], atol=5e-4)
+    # the paper's estimator and the reference give the same SLIP-measure (within 1 %)
+    ref = SlipFitter(method='reference', stderr=False).fit(stances[:3]).results_
+    for a, b in zip(fast[:3], ref):
+        assert abs(a.nerr - b.nerr) <= 0.01 * b.nerr + 1e-6
+        assert_allclose(a.params['stiffness'], b.params['stiffness'], rtol=5e-3)
+
+
+def test_position_estimator_noise_free_120hz():
+    syn = make_stances(6, seed=5, sample_hz=120.0, **RUNNING)
+    res = SlipPositionFitter().fit([s.stance for s in syn]).results_
+    truth = np.array([s.params for s in syn])
+    got = _params(res)
+    assert_allclose(got[:, :2], truth[:, :2], rtol=5e-3)
+    assert_allclose(got[:, 2], truth[:, 2], atol=5e-4)
+
+
+def test_noisy_mocap_accuracy_and_stderr_coverage():
+    """120 Hz, 0.2 mm noise: both estimators side by side; the position one meets the bar."""
+    syn = make_stances(40, seed=7, sample_hz=120.0, noise_m=2e-4, **RUNNING)
+    truth = np.array([s.params for s in syn])
+    stances = [s.stance for s in syn]
+    pos = SlipPositionFitter().fit(stances).results_
+    paper = SlipFitter().fit(stances).results_
+    for name, res in (('position', pos), ('paper', paper)):
+        got, se = _params(res), _stderr(res)
+        rel = np.abs(got - truth) / truth
+        cover = np.mean(np.abs(got - truth) <= 2 * se, axis=0)
+        print(f'{name}: median |dk|/k {np.median(rel[:, 0]):.3f}, |dl0|/l0 '
+              f'{np.median(rel[:, 1]):.4f}, coverage(2 se) {cover}')
+        assert np.all(np.isfinite(se))
+        assert all(r.converged for r in res)
+    got, se = _params(pos), _stderr(pos)
+    rel = np.abs(got - truth) / truth
+    assert np.median(rel[:, 0]) <= 0.10
+    assert np.median(rel[:, 1]) <= 0.02
+    assert np.all(np.mean(np.abs(got - truth) <= 2 * se, axis=0) >= 0.8)
+
+
+def test_extension_fit_recovers_damping_and_lowers_nerr():
+    model = SlipModel(extensions=('leg_damping',))
+    truth = np.array([2500.0, 0.15, 0.8, 8.0])
+    syn = make_stance(truth, speed_mps=0.9, angle_rad=0.3, model=model)
+    plain = SlipFitter().fit([syn.stance]).results_[0]
+    damped = SlipFitter(model).fit([syn.stance]).results_[0]
+    assert damped.model == 'slip+leg_damping'
+    assert_allclose(damped.params['leg_damping'], 8.0, rtol=2e-2)
+    assert_allclose(damped.params['stiffness'], 2500.0, rtol=5e-3)
+    assert damped.nerr < 0.2 * plain.nerr
+
+
+def test_bad_stances_are_rejected_with_reason():
+    good = make_stance(np.array([2000.0, 0.15, 0.5])).stance
+    short = Stance(t_s=good.t_s[:5], state=good.state[:5])
+    with pytest.raises(StanceRejectedError) as err:
+        validate_stance(short)
+    assert err.value.reason == 'too_short'
+    bad = good.state.copy()
+    bad[3, 1] = np.nan
+    with pytest.raises(StanceRejectedError) as err:
+        SlipFitter().fit([Stance(t_s=good.t_s, state=bad)])
+    assert err.value.reason == 'nan'
+
+
+def test_unreachable_fit_reports_not_converged():
+    syn = make_stance(np.array([2000.0, 0.15, 0.5]))
+    res = SlipFitter(maxiter=8).fit([syn.stance]).results_[0]
+    assert res.converged is False
+    assert math.isfinite(res.nerr)
+
+
+def test_nerr_definition():
+    xe = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 2.0, 0.0, 0.0]])
+    xm = xe + np.array([[0.0, 0.0, 0.3, 0.4], [0.0, 0.0, 0.0, 0.0]])
+    assert nerr(xm, xe) == pytest.approx(0.5 / 3.0)
