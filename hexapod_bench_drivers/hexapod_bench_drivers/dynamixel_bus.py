@@ -376,13 +376,18 @@ class DynamixelBus:
             rx, result = self.packet.rxPacket(self.port, False)
             sid = rx[P2_ID] if len(rx) > P2_ID else None
             if result == COMM_SUCCESS and sid in pending:
+                data = list(rx[P2_PARAM0:-2])
+                if len(data) != length:
+                    continue  # a stale reply to an earlier instruction (a late servo)
                 pending.remove(sid)
-                got[sid] = (list(rx[P2_PARAM0:P2_PARAM0 + length]), rx[P2_ERROR])
+                got[sid] = (data, rx[P2_ERROR])
             elif result == COMM_RX_CORRUPT and sid in pending:
                 pending.remove(sid)
                 self._by_id[sid].health.corrupt += 1
             elif result != COMM_SUCCESS:
                 break
+        for sid in pending:
+            self._by_id[sid].health.timeouts += 1  # no (valid) reply before the deadline
         return got
 
     def _hardware_flags(self, s: _Servo, status_error: int) -> int:

@@ -547,6 +547,7 @@ class ServoBusEmulator:
         with self.lock:
             for s in ([self.servos[servo_id]] if servo_id is not None else self.servos.values()):
                 s.faults.clear()
+            self._advance(force=True)
 
     def read_register(self, servo_id: int, name: str) -> int:
         """A register as the servo holds it now (physics advanced to now)."""

@@ -1,0 +1,205 @@
+"""``dynamixel_driver`` node: a Dynamixel bus as /joint_states, /servo_status and /diagnostics.
+
+Topics (relative names, so a namespace applies):
+
+- publishes ``joint_states`` (sensor_msgs/JointState: rad, rad/s, effort N m estimated as load
+  fraction * stall torque) for the servos read this cycle; ``servo_status``
+  (hexapod_interfaces/ServoStatus) for every configured servo, NaN where a servo did not answer;
+  ``/diagnostics`` (diagnostic_msgs/DiagnosticArray) every ``diagnostics_period_s`` and at once
+  when the temperature abort fires.
+- subscribes ``joint_commands`` (sensor_msgs/JointState): positions -> Goal Position by Sync
+  Write; with ``use_command_velocity`` the |velocity| becomes the moving speed. Names not on
+  this bus are ignored.
+- service ``set_torque`` (std_srvs/SetBool): torque on/off for every servo; turning torque on
+  also clears a temperature abort once all servos are below the limit.
+
+On shutdown, torque is turned off (``shutdown_action: torque_off``) or left on (``hold``).
+All bus logic lives in :class:`hexapod_bench_drivers.dynamixel_bus.DynamixelBus`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from hexapod_common.node_utils import RELIABLE_QOS, SENSOR_QOS, declare_params, param, run_node
+from hexapod_interfaces.msg import ServoStatus
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+from std_srvs.srv import SetBool
+
+from hexapod_bench_drivers.control_tables import decode_error_flags
+from hexapod_bench_drivers.dynamixel_bus import (
+    DynamixelBus,
+    PollResult,
+    ServoHealth,
+    load_joint_map,
+)
+
+__all__ = ['DynamixelDriverNode', 'DynamixelDriverParams', 'main']
+
+
+def _positive(v: float) -> str | None:
+    return None if v > 0 else 'expected > 0'
+
+
+@dataclass(frozen=True)
+class DynamixelDriverParams:
+    """Parameters of the dynamixel_driver node."""
+
+    port: str = param('/dev/ttyUSB0', 'Serial device of the bus (or the emulator pty).')
+    baud_rate: int = param(1_000_000, 'Baud rate, one of the dynamixel_sdk rates.')
+    protocol: int = param(1, 'Dynamixel protocol: 1 (AX-12A/AX-18A) or 2 (XL430/XM430).',
+                          validate=lambda v: None if v in (1, 2) else 'expected 1 or 2')
+    joints_file: str = param('', 'YAML joint map: joints: {name: {id, direction, offset_rad}}.',
+                             validate=lambda v: None if v else 'expected a YAML file path')
+    rate_hz: float = param(100.0, 'Read/publish rate [Hz].', validate=_positive)
+    timeout_margin_ms: float = param(5.0, 'Reply deadline beyond the bytes on the wire [ms].',
+                                     validate=_positive)
+    retries: int = param(1, 'Extra attempts for a failed read or torque write.',
+                         validate=lambda v: None if v >= 0 else 'expected >= 0')
+    silent_after: int = param(3, 'Failed cycles in a row before a servo is declared silent.',
+                              validate=lambda v: None if v >= 1 else 'expected >= 1')
+    probe_interval_s: float = param(1.0, 'A silent servo is tried again this often [s].',
+                                    validate=_positive)
+    temperature_limit_c: float = param(70.0, 'Above it: torque off on all servos, abort [degC].')
+    shutdown_action: str = param(
+        'torque_off', 'On shutdown: torque_off, or hold (leave torque on).',
+        validate=lambda v: None if v in ('torque_off', 'hold') else 'expected torque_off or hold')
+    torque_on_start: bool = param(True, 'Turn torque on when the node starts.')
+    use_command_velocity: bool = param(
+        False, 'Use |joint_commands.velocity| as moving speed (0 = as fast as possible).')
+    frame_id: str = param('', 'header.frame_id of the published messages.')
+    diagnostics_period_s: float = param(1.0, 'Period of /diagnostics [s].', validate=_positive)
+
+
+class DynamixelDriverNode(Node):
+    """Thin node around DynamixelBus (see module doc)."""
+
+    def __init__(self, *, context: Any = None, parameter_overrides: Any = None,
+                 namespace: str | None = None, **kw: Any) -> None:
+        super().__init__('dynamixel_driver', context=context,
+                         parameter_overrides=parameter_overrides, namespace=namespace, **kw)
+        p = self.params = declare_params(self, DynamixelDriverParams)
+        self.bus = DynamixelBus(
+            p.port, load_joint_map(p.joints_file), protocol=p.protocol, baud_rate=p.baud_rate,
+            timeout_margin_ms=p.timeout_margin_ms, retries=p.retries,
+            silent_after=p.silent_after,
+            probe_interval_cycles=max(1, int(round(p.probe_interval_s * p.rate_hz))),
+            temperature_limit_c=p.temperature_limit_c).open()
+        for h in self.bus.health():
+            self.get_logger().info(f'servo id {h.servo_id}: {h.model}'
+                                   + (' (silent)' if h.silent else ''))
+        if p.torque_on_start:
+            self.bus.set_torque(True)
+        self.pub_joints = self.create_publisher(JointState, 'joint_states', RELIABLE_QOS)
+        self.pub_status = self.create_publisher(ServoStatus, 'servo_status', RELIABLE_QOS)
+        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', RELIABLE_QOS)
+        self.create_subscription(JointState, 'joint_commands', self._on_command, SENSOR_QOS)
+        self.create_service(SetBool, 'set_torque', self._on_set_torque)
+        self.commands_applied = 0
+        self.commands_dropped = 0
+        self.create_timer(1.0 / p.rate_hz, self._on_timer)
+        self.create_timer(p.diagnostics_period_s, self._publish_diagnostics)
+
+    # --- callbacks -------------------------------------------------------------------------
+    def _on_timer(self) -> None:
+        self._publish(self.bus.poll())
+
+    def _on_command(self, msg: JointState) -> None:
+        try:
+            self._apply_command(msg)
+        except (ValueError, TypeError) as err:
+            self.commands_dropped += 1
+            self.get_logger().warning(f'joint_commands dropped: {err}')
+
+    def _on_set_torque(self, request: Any, response: Any) -> Any:
+        results = self.bus.set_torque(bool(request.data))
+        failed = [n for n, ok in results.items() if not ok]
+        response.success = not failed
+        response.message = ('torque ' + ('on' if request.data else 'off')
+                            + (f'; failed for {failed}' if failed else ''))
+        if request.data and self.bus.aborted:
+            response.message += f'; still aborted: {self.bus.abort_reason}'
+        return response
+
+    # --- helpers ---------------------------------------------------------------------------
+    def _apply_command(self, msg: JointState) -> None:
+        names = list(msg.name)
+        if len(msg.position) != len(names):
+            raise ValueError(f'{len(msg.position)} positions for {len(names)} names')
+        positions = dict(zip(names, (float(x) for x in msg.position)))
+        speeds = None
+        if self.params.use_command_velocity and len(msg.velocity) == len(names):
+            speeds = dict(zip(names, (abs(float(v)) for v in msg.velocity)))
+        if self.bus.write_goals(positions, speeds):
+            self.commands_applied += 1
+
+    def _publish(self, result: PollResult) -> None:
+        stamp = self.get_clock().now().to_msg()
+        js = JointState()
+        js.header.stamp = stamp
+        js.header.frame_id = self.params.frame_id
+        ok = [r for r in result.readings if r.ok]
+        js.name = [r.name for r in ok]
+        js.position = [r.position_rad for r in ok]
+        js.velocity = [r.velocity_rad_s for r in ok]
+        js.effort = [r.effort_nm for r in ok]
+        self.pub_joints.publish(js)
+        st = ServoStatus()
+        st.header = js.header
+        st.name = [r.name for r in result.readings]
+        st.temperature = [float(r.temperature_c) for r in result.readings]
+        st.voltage = [float(r.voltage_v) for r in result.readings]
+        st.load = [float(r.load_fraction) for r in result.readings]
+        st.error = [int(r.error_flags) & 0xFF for r in result.readings]
+        self.pub_status.publish(st)
+        if result.aborted_now:
+            self.get_logger().error(result.abort_reason)
+            self._publish_diagnostics()
+
+    def _publish_diagnostics(self) -> None:
+        arr = DiagnosticArray()
+        arr.header.stamp = self.get_clock().now().to_msg()
+        for h in self.bus.health():
+            arr.status.append(self._servo_diagnostic(h))
+        self.pub_diag.publish(arr)
+
+    def _servo_diagnostic(self, h: ServoHealth) -> DiagnosticStatus:
+        name = next(s.joint.name for s in self.bus.servos if s.joint.servo_id == h.servo_id)
+        d = DiagnosticStatus()
+        d.name = f'{self.get_name()}: {name}'
+        d.hardware_id = f'dynamixel id {h.servo_id}'
+        flags = decode_error_flags(self.bus.protocol, h.last_error_flags)
+        if self.bus.aborted:
+            d.level, d.message = DiagnosticStatus.ERROR, f'aborted: {self.bus.abort_reason}'
+        elif h.silent:
+            d.level, d.message = DiagnosticStatus.ERROR, 'silent: no reply'
+        elif flags:
+            d.level, d.message = DiagnosticStatus.WARN, 'hardware error: ' + ', '.join(flags)
+        else:
+            d.level, d.message = DiagnosticStatus.OK, 'ok'
+        values = {'model': h.model, 'reads_ok': h.reads_ok, 'timeouts': h.timeouts,
+                  'corrupt': h.corrupt, 'retries': h.retries, 'failed_cycles': h.failed_cycles,
+                  'error_replies': h.error_replies, 'error_flags': h.last_error_flags,
+                  'torque_enabled': h.torque_enabled}
+        d.values = [KeyValue(key=k, value=str(v)) for k, v in values.items()]
+        return d
+
+    def destroy_node(self) -> None:
+        if self.bus.is_open:
+            if self.params.shutdown_action == 'torque_off':
+                self.bus.set_torque(False)
+            self.bus.close()
+        super().destroy_node()
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    """Console script ``dynamixel_driver``."""
+    return run_node(DynamixelDriverNode, args)
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

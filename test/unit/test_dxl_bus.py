@@ -1,0 +1,141 @@
+"""DynamixelBus (real dynamixel_sdk) against the emulator: reads, commands, faults, overheating."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from numpy.testing import assert_allclose
+
+from hexapod_bench_drivers.dynamixel_bus import (
+    BusError,
+    DynamixelBus,
+    JointConfig,
+    JointMapError,
+    load_joint_map,
+    parse_joint_map,
+)
+from hexapod_bench_drivers.servo_bus_emulator import ServoBusEmulator
+
+pytestmark = pytest.mark.timeout(60)
+
+CASES = [('ax18a', 1, 18), ('xl430', 2, 4)]
+
+
+def _joints(n):
+    return [JointConfig(f'j{i}', i, -1 if i == 2 else 1, 0.1 if i == 2 else 0.0)
+            for i in range(1, n + 1)]
+
+
+def _poll_until(bus, predicate, max_cycles=3000):
+    for _ in range(max_cycles):
+        result = bus.poll()
+        if predicate(result):
+            return result
+    raise AssertionError('condition not reached')
+
+
+@pytest.mark.parametrize('model,protocol,n', CASES)
+def test_reads_all_and_commands_move(model, protocol, n):
+    with ServoBusEmulator.of_model(model, range(1, n + 1)) as emu, \
+            DynamixelBus(emu.port_name, _joints(n), protocol=protocol,
+                         timeout_margin_ms=10.0) as bus:
+        assert {h.model for h in bus.health()} == {emu.servo(1).table.model_name}
+        result = bus.poll()
+        assert [r.ok for r in result.readings] == [True] * n
+        assert_allclose([r.voltage_v for r in result.readings], 12.0)
+        assert_allclose([r.temperature_c for r in result.readings], 26.0)
+        assert_allclose(result.readings[1].position_rad, 0.1, atol=0.01)  # offset applied
+        assert all(bus.set_torque(True).values())
+        targets = {f'j{i}': 0.02 * i - 0.05 for i in range(1, n + 1)}
+        assert bus.write_goals(targets) == n
+        done = _poll_until(bus, lambda r: all(
+            abs(x.position_rad - targets[x.name]) < 0.02 for x in r.readings))
+        # The emulated servo turned the other way for the reversed joint j2.
+        assert_allclose(emu.present_position_rad(2), -(targets['j2'] - 0.1), atol=0.02)
+        assert all(x.ok for x in done.readings)
+
+
+@pytest.mark.parametrize('model,protocol,n', CASES)
+def test_moving_speed_limits_motion(model, protocol, n):
+    with ServoBusEmulator.of_model(model, range(1, n + 1)) as emu, \
+            DynamixelBus(emu.port_name, _joints(n), protocol=protocol,
+                         timeout_margin_ms=10.0) as bus:
+        bus.set_torque(True)
+        t0 = emu.clock()
+        bus.write_goals({'j1': 0.5}, {'j1': 1.0})       # 0.5 rad at 1 rad/s: ~0.5 s
+        _poll_until(bus, lambda r: abs(r.readings[0].position_rad - 0.5) < 0.02, 20000)
+        elapsed = emu.clock() - t0
+        assert 0.4 < elapsed < 1.5
+
+
+@pytest.mark.parametrize('model,protocol,n', CASES)
+def test_each_fault_counted_others_served(model, protocol, n):
+    ids = list(range(1, n + 1))
+    silent, corrupt, flagged, late = ids[0], ids[1], ids[2], ids[-1]
+    with ServoBusEmulator.of_model(model, ids) as emu, \
+            DynamixelBus(emu.port_name, _joints(n), protocol=protocol, timeout_margin_ms=20.0,
+                         retries=1, silent_after=3, probe_interval_cycles=5) as bus:
+        emu.inject(silent, 'no_answer')
+        emu.inject(corrupt, 'bad_checksum', count=1)
+        emu.inject(flagged, 'error_bits', error_bits=0x20)      # overload
+        emu.inject(late, 'late_reply', count=1, delay_s=0.030)  # 1.5 x the deadline
+        results = [bus.poll() for _ in range(12)]
+        h = {x.servo_id: x for x in bus.health()}
+        assert h[silent].silent and h[silent].timeouts >= 3 and h[silent].reads_ok == 0
+        assert h[corrupt].corrupt == 1 and h[corrupt].failed_cycles == 0
+        assert h[late].timeouts >= 1 and h[late].failed_cycles == 0
+        assert emu.servo(late).fault_hits['late_reply'] == 1
+        assert h[flagged].last_error_flags == 0x20 and h[flagged].error_replies == 12
+        assert results[-1].readings[flagged - 1].error_flags == 0x20
+        others = [i for i in ids if i != silent]
+        for r in results:
+            assert [x.ok for x in r.readings if x.servo_id in others] == [True] * len(others)
+            assert not r.readings[silent - 1].ok
+            assert math.isnan(r.readings[silent - 1].position_rad)
+        # Once silent, the servo no longer costs a timeout every cycle: only on probes.
+        before = h[silent].timeouts
+        for _ in range(10):
+            bus.poll()
+        assert h[silent].timeouts - before <= 2 * (1 + bus.retries)
+        emu.clear_faults(silent)
+        _poll_until(bus, lambda r: r.readings[silent - 1].ok, 20)
+        assert not h[silent].silent
+
+
+@pytest.mark.parametrize('model,protocol,n,temp', [('ax18a', 1, 18, 72), ('xl430', 2, 4, 71)])
+def test_overheating_torque_off_within_one_cycle(model, protocol, n, temp):
+    # Between the driver limit (70) and the servo's own (75 / 72): only the driver acts.
+    with ServoBusEmulator.of_model(model, range(1, n + 1)) as emu, \
+            DynamixelBus(emu.port_name, _joints(n), protocol=protocol, timeout_margin_ms=10.0,
+                         temperature_limit_c=70.0) as bus:
+        bus.set_torque(True)
+        assert bus.poll().aborted_now is False
+        emu.inject(3, 'overheat', temperature_c=temp)
+        result = bus.poll()
+        assert result.aborted_now and 'j3 (id 3)' in result.abort_reason
+        assert [emu.read_register(i, 'torque_enable') for i in range(1, n + 1)] == [0] * n
+        assert bus.write_goals({'j1': 0.3}) == 0                 # commands refused
+        assert not any(bus.set_torque(True).values())            # still hot
+        emu.clear_faults(3)
+        assert all(bus.set_torque(True).values()) and not bus.aborted
+
+
+def test_no_servo_raises_bus_error():
+    with ServoBusEmulator.of_model('ax18a', [1]) as emu:
+        with pytest.raises(BusError, match=r'no servo answered .* expected IDs \[7, 8\]'):
+            DynamixelBus(emu.port_name, [JointConfig('a', 7), JointConfig('b', 8)],
+                         timeout_margin_ms=2.0).open()
+
+
+def test_joint_map_yaml(tmp_path):
+    path = tmp_path / 'joints.yaml'
+    path.write_text('joints:\n  L1_coxa: {id: 1}\n  L1_femur: {id: 2, direction: -1, '
+                    'offset_rad: 0.5}\n')
+    joints = load_joint_map(path)
+    assert joints[1] == JointConfig('L1_femur', 2, -1, 0.5)
+    assert_allclose(joints[1].to_joint(joints[1].to_servo(0.3)), 0.3)
+    with pytest.raises(JointMapError, match='unique'):
+        parse_joint_map({'joints': {'a': {'id': 1}, 'b': {'id': 1}}})
+    with pytest.raises(JointMapError, match='direction 2'):
+        parse_joint_map({'joints': {'a': {'id': 1, 'direction': 2}}})
