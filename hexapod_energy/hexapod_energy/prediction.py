@@ -270,6 +270,8 @@ class OutputPowerModel:
                 gait, pt.phase, total_mass_kg=self.robot.total_mass_kg(float(m_pay)),
                 leg_mass_kg=self.robot.leg_mass_kg,
             )  # (legs, n)
+            # legs with the same carried-mass profile have the same power: evaluate once each
+            carried, counts = np.unique(carried, axis=0, return_counts=True)
             # tau (legs, k, n, 3) = G + H / T^2 + m_c u
             tau = (
                 pt.gravity_nm[None, None]
@@ -277,7 +279,8 @@ class OutputPowerModel:
                 + carried[:, None, :, None] * pt.per_carried_kg_nm[None, None]
             )
             power = tau * pt.dq_dphase[None, None] * inv_t[None, :, None, None]
-            out[:, j] = mean_mechanical_power_w(power, self.definition, axis=-1).sum(axis=0)
+            per_leg = mean_mechanical_power_w(power, self.definition, axis=-1)  # (legs, k)
+            out[:, j] = counts @ per_leg
         if scalar_t and scalar_m:
             return float(out[0, 0])
         if scalar_t:

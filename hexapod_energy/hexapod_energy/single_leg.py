@@ -15,8 +15,9 @@ Pipeline, each step a plain function on arrays:
    paper) and a least-squares polynomial in phase frequency and load (:class:`PolySurface`);
    the one with the lower k-fold cross-validated RMSE is kept, per phase.
 
-0 Hz sessions enter both surfaces at ``1 / T_phase = 0`` with their mean power, so both surfaces
-tend to the basal power at infinitely slow phases.
+0 Hz sessions (leg standing, loaded) enter the stance surface at ``1 / T_stance = 0`` with their
+mean power, so it tends to the loaded basal power at infinitely slow stances; they are left out
+of the swing surface, since a swinging leg carries no load while a standing one does.
 """
 
 from __future__ import annotations
@@ -57,12 +58,17 @@ def align_offset_s(
     *,
     max_lag_s: float = 0.5,
     dt_s: float = 0.002,
+    binarize: bool = True,
+    height_margin_m: float = 0.01,
 ) -> float:
     """Offset to *add* to the force timestamps so that force and tip height line up [s].
 
-    Both streams are interpolated on a common grid of step ``dt_s``, standardised, and
-    cross-correlated (force against ``-tip_z``) over lags ``|lag| <= max_lag_s``; the peak is
-    refined by parabolic interpolation.
+    Both streams are interpolated on a common grid of step ``dt_s``, turned into contact
+    indicators when ``binarize`` (force above half its 5-95 percentile range; tip within
+    ``height_margin_m`` of its 5th percentile), else used raw (force against ``-tip_z``),
+    standardised, and cross-correlated over lags ``|lag| <= max_lag_s`` (each lag's product
+    averaged over its overlap); the lag is the weighted centre of the region around the peak
+    above 80 % of its height.
 
     Parameters
     ----------
@@ -85,6 +91,13 @@ def align_offset_s(
     grid = np.arange(t0, t1, dt_s)
     a = np.interp(grid, tf, fz)
     b = -np.interp(grid, tt, tz)
+    if binarize:
+        # contact indicators from each stream: two rectangle waves whose correlation is a
+        # triangle with a sharp peak (the raw tip height is flat near touchdown, which would
+        # leave the peak ill-defined)
+        lo, hi = np.percentile(a, [5, 95])
+        a = (a > lo + 0.5 * (hi - lo)).astype(float)
+        b = (-b < np.percentile(-b, 5) + height_margin_m).astype(float)
     a = (a - a.mean()) / (a.std() or 1.0)
     b = (b - b.mean()) / (b.std() or 1.0)
     n = len(grid)
@@ -93,14 +106,21 @@ def align_offset_s(
     corr_full = np.fft.irfft(np.fft.rfft(a, nfft) * np.conj(np.fft.rfft(b, nfft)), nfft)
     max_k = int(round(max_lag_s / dt_s))
     lags = np.arange(-max_k, max_k + 1)
-    corr = corr_full[lags % nfft]
+    corr = corr_full[lags % nfft] / (n - np.abs(lags))  # mean over the overlap, unbiased
+    # centre of the contiguous region around the peak above 80 % of the peak's height: the
+    # correlation of two contact indicators of unequal widths is a trapezoid whose flat top is
+    # centred on the true lag, where the bare argmax is not
     i = int(np.argmax(corr))
-    frac = 0.0
-    if 0 < i < len(corr) - 1:
-        y0, y1, y2 = corr[i - 1], corr[i], corr[i + 1]
-        denom = y0 - 2 * y1 + y2
-        frac = 0.5 * (y0 - y2) / denom if denom != 0 else 0.0
-    lag_s = (lags[i] + frac) * dt_s
+    level = corr.min() + 0.8 * (corr[i] - corr.min())
+    lo_i, hi_i = i, i
+    while lo_i > 0 and corr[lo_i - 1] >= level:
+        lo_i -= 1
+    while hi_i < len(corr) - 1 and corr[hi_i + 1] >= level:
+        hi_i += 1
+    sel = slice(lo_i, hi_i + 1)
+    weights = corr[sel] - level
+    lag_s = float(np.sum(lags[sel] * weights) / np.sum(weights)) * dt_s if weights.sum() > 0 \
+        else float(lags[i]) * dt_s
     return float(-lag_s)
 
 
@@ -119,7 +139,7 @@ def stance_mask(
     force_z_n, tip_z_m : array (n,)
         Normal force [N] and tip height [m] on the same (aligned) time base.
     force_threshold_n : float, optional
-        Default: 20 % of the way from the 5th to the 95th force percentile.
+        Default: halfway between the 5th and the 95th force percentiles.
     height_margin_m : float
         Tip height above ground still counted as contact [m].
     """
@@ -129,7 +149,7 @@ def stance_mask(
         raise InvalidInputError(f'force and tip must have the same shape, got {fz.shape}, {z.shape}')
     if force_threshold_n is None:
         lo, hi = np.percentile(fz, [5, 95])
-        force_threshold_n = lo + 0.2 * (hi - lo)
+        force_threshold_n = lo + 0.5 * (hi - lo)
     ground = np.percentile(z, 5)
     return (fz > force_threshold_n) & (z < ground + height_margin_m)
 
@@ -167,8 +187,8 @@ def phase_powers(
 ) -> PhaseSample:
     """Average power over stance and swing samples of one session.
 
-    Each power sample takes the label of the latest label sample at or before it.  At 0 Hz (or
-    when one phase is absent) both phase powers are the session mean (basal power).
+    Each power sample takes the label of the nearest label sample.  At 0 Hz (or when one phase
+    is absent) both phase powers are the session mean (basal power).
 
     Parameters
     ----------
@@ -185,7 +205,14 @@ def phase_powers(
     if frequency_hz <= 0 or len(tl) == 0:
         return PhaseSample(session_id, float(load_kg), 0.0, float(duty_factor), math.inf,
                            math.inf, mean, mean, mean, float('nan'), len(p))
-    idx = np.clip(np.searchsorted(tl, tp, side='right') - 1, 0, len(tl) - 1)
+    # nearest label sample (the latest one before would delay labels by half a label period)
+    right = np.clip(np.searchsorted(tl, tp), 1, len(tl) - 1) if len(tl) > 1 else \
+        np.zeros(len(tp), dtype=int)
+    if len(tl) > 1:
+        left = right - 1
+        idx = np.where(np.abs(tp - tl[left]) <= np.abs(tl[right] - tp), left, right)
+    else:
+        idx = right
     lab = st[idx]
     p_st = float(p[lab].mean()) if lab.any() else mean
     p_sw = float(p[~lab].mean()) if (~lab).any() else mean
@@ -408,11 +435,13 @@ class SingleLegModel:
         cols = PhaseSamples.from_samples(samples)
         self.samples_ = list(samples)
         self._fits = {}
-        for phase, rate, y in (
-            ('stance', cols.stance_rate_hz, cols.p_stance_w),
-            ('swing', cols.swing_rate_hz, cols.p_swing_w),
+        moving = cols.frequency_hz > 0
+        for phase, rate, y, keep in (
+            ('stance', cols.stance_rate_hz, cols.p_stance_w, np.ones_like(moving)),
+            ('swing', cols.swing_rate_hz, cols.p_swing_w, moving),
         ):
-            x = np.stack([rate, cols.load_kg], axis=1)
+            x = np.stack([rate, cols.load_kg], axis=1)[keep]
+            y = y[keep]
             cv = {
                 kind: cross_validated_rmse(
                     self._factory(kind, phase), x, y, folds=self.folds, seed=self.seed

@@ -1,0 +1,301 @@
+"""Read bench and robot bags into the arrays the energy analysis needs.
+
+Uses ``hexapod_common.bags.open_reader`` (rosbags, definitions from the bag) and the message
+converters of ``hexapod_common.conversions``; all times are header stamps [s].
+
+Bench bags need ``/battery_state``, ``/bench/ground_force``, ``/bench/leg_tip`` and
+``/bench/session``; robot bags need ``/battery_state`` and ``/gait/phase`` (``/joint_states``
+with efforts and ``/mocap/body`` are used when present).  A missing topic raises
+:class:`~hexapod_energy.errors.BagContentError` naming what is missing and what is there.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hexapod_energy.errors import BagContentError
+from hexapod_energy.single_leg import PhaseSample, align_offset_s, phase_powers, stance_mask
+
+__all__ = [
+    'BENCH_TOPICS',
+    'ROBOT_TOPICS',
+    'BenchData',
+    'RobotRun',
+    'bench_phase_samples',
+    'read_bench_bag',
+    'read_robot_bag',
+]
+
+BENCH_TOPICS = ('/battery_state', '/bench/ground_force', '/bench/leg_tip', '/bench/session')
+ROBOT_TOPICS = ('/battery_state', '/gait/phase')
+
+
+def _check_topics(reader: Any, required: Sequence[str], path: str) -> None:
+    present = sorted({c.topic for c in reader.connections})
+    missing = [t for t in required if t not in present]
+    if missing:
+        raise BagContentError(
+            f'bag {path} lacks topic(s) {missing} needed for this analysis; it has {present}'
+        )
+
+
+def _custom_data(reader: Any) -> dict[str, str]:
+    out: dict[str, str] = {}
+    for r in getattr(reader, 'readers', []):
+        meta = getattr(r, 'metadata', None)
+        custom = getattr(meta, 'custom', None) if meta is not None else None
+        if isinstance(custom, dict):
+            out.update({str(k): str(v) for k, v in custom.items()})
+    return out
+
+
+def _find_number(custom: dict[str, str], keys: Sequence[str]) -> float | None:
+    for key in keys:
+        if key in custom:
+            try:
+                return float(custom[key])
+            except ValueError:
+                pass
+    for value in custom.values():
+        try:
+            doc = json.loads(value)
+        except (ValueError, TypeError):
+            continue
+        stack = [doc]
+        while stack:
+            d = stack.pop()
+            if isinstance(d, dict):
+                for key in keys:
+                    if isinstance(d.get(key), (int, float)):
+                        return float(d[key])
+                stack.extend(v for v in d.values() if isinstance(v, dict))
+    return None
+
+
+@dataclass
+class BenchData:
+    """Streams of one bench bag (arrays (n,), stamps [s])."""
+
+    path: str
+    battery_t_s: np.ndarray
+    battery_v: np.ndarray
+    battery_a: np.ndarray
+    force_t_s: np.ndarray
+    force_z_n: np.ndarray
+    tip_t_s: np.ndarray
+    tip_z_m: np.ndarray
+    sessions: list[dict[str, Any]] = field(default_factory=list)  # stamp-ordered messages
+
+
+def read_bench_bag(path: str | Path) -> BenchData:
+    """Read one bench bag's streams."""
+    from hexapod_common.bags import iter_messages, open_reader
+    from hexapod_common.conversions import (
+        battery_from_msg,
+        point_from_msg,
+        stamp_to_s,
+        wrench_from_msg,
+    )
+
+    bat: list[tuple[float, float, float]] = []
+    frc: list[tuple[float, float]] = []
+    tip: list[tuple[float, float]] = []
+    ses: list[dict[str, Any]] = []
+    with open_reader(path) as reader:
+        _check_topics(reader, BENCH_TOPICS, str(path))
+        for m in iter_messages(reader, BENCH_TOPICS):
+            msg = reader.deserialize(m.data, m.msgtype)
+            if m.topic == '/battery_state':
+                b = battery_from_msg(msg)
+                bat.append((b.t_s, b.voltage_v, b.current_a))
+            elif m.topic == '/bench/ground_force':
+                w = wrench_from_msg(msg)
+                frc.append((w.t_s, float(w.force_n[2])))
+            elif m.topic == '/bench/leg_tip':
+                p = point_from_msg(msg)
+                tip.append((p.t_s, float(p.point_m[2])))
+            else:
+                ses.append({
+                    't_s': stamp_to_s(msg.header.stamp),
+                    'session_id': str(msg.session_id),
+                    'state': str(msg.state),
+                    'load_kg': float(msg.load_mass),
+                    'frequency_hz': float(msg.frequency),
+                    'duty_factor': float(msg.duty_factor),
+                    'step_length_m': float(msg.step_length),
+                })
+    for name, rows in (('/battery_state', bat), ('/bench/ground_force', frc),
+                       ('/bench/leg_tip', tip), ('/bench/session', ses)):
+        if not rows:
+            raise BagContentError(f'bag {path}: topic {name} has no messages')
+    b_arr = np.array(sorted(bat))
+    f_arr = np.array(sorted(frc))
+    t_arr = np.array(sorted(tip))
+    ses.sort(key=lambda s: s['t_s'])
+    return BenchData(str(path), b_arr[:, 0], b_arr[:, 1], b_arr[:, 2], f_arr[:, 0],
+                     f_arr[:, 1], t_arr[:, 0], t_arr[:, 1], ses)
+
+
+def _walking_segments(sessions: list[dict[str, Any]], t_end_s: float
+                      ) -> list[tuple[dict[str, Any], float, float]]:
+    """Contiguous (session, start, end) intervals in state 'walking'."""
+    out: list[tuple[dict[str, Any], float, float]] = []
+    current: dict[str, Any] | None = None
+    start = 0.0
+    for s in sessions + [{'t_s': t_end_s, 'session_id': None, 'state': 'end'}]:
+        same = current is not None and s['session_id'] == current['session_id'] and \
+            s['state'] == 'walking'
+        if same:
+            continue
+        if current is not None:
+            out.append((current, start, s['t_s']))
+            current = None
+        if s['state'] == 'walking':
+            current, start = s, s['t_s']
+    return out
+
+
+def bench_phase_samples(
+    data: BenchData,
+    *,
+    current_sign: str = 'auto',
+    settle_s: float = 1.0,
+    force_threshold_n: float | None = None,
+    height_margin_m: float = 0.01,
+) -> tuple[list[PhaseSample], dict[str, Any]]:
+    """Per-session phase powers of one bench bag, and diagnostics.
+
+    The force stream is shifted by the median over walking sessions, weighted by each session's
+    number of cycles, of the cross-correlation offset (:func:`align_offset_s`); the first
+    ``settle_s`` of each walking segment is skipped.
+    """
+    from hexapod_energy.descriptors import resolve_current_sign
+
+    sign = resolve_current_sign(data.battery_v, data.battery_a, current_sign)
+    power = sign * data.battery_v * data.battery_a
+    t_end = float(max(data.battery_t_s[-1], data.force_t_s[-1], data.tip_t_s[-1]))
+    segments = _walking_segments(data.sessions, t_end)
+    if not segments:
+        raise BagContentError(f'bag {data.path}: /bench/session never reports state walking')
+    offsets, cycles = [], []
+    for s, t0, t1 in segments:
+        f = s['frequency_hz']
+        if f <= 0:
+            continue
+        fm = (data.force_t_s >= t0) & (data.force_t_s < t1)
+        tm = (data.tip_t_s >= t0) & (data.tip_t_s < t1)
+        max_lag = min(0.5, 0.45 / f)
+        try:
+            offsets.append(align_offset_s(data.force_t_s[fm], data.force_z_n[fm],
+                                          data.tip_t_s[tm], data.tip_z_m[tm],
+                                          max_lag_s=max_lag))
+            cycles.append(f * (t1 - t0))
+        except ValueError:
+            continue
+    offset = _weighted_median(np.array(offsets), np.array(cycles)) if offsets else 0.0
+    samples = []
+    for s, t0, t1 in segments:
+        a = t0 + settle_s if t1 - t0 > 2 * settle_s else t0
+        pm = (data.battery_t_s >= a) & (data.battery_t_s < t1)
+        tm = (data.tip_t_s >= a) & (data.tip_t_s < t1)
+        if not pm.any():
+            continue
+        t_tip = data.tip_t_s[tm]
+        if s['frequency_hz'] > 0 and len(t_tip) >= 4:
+            fz = np.interp(t_tip, data.force_t_s + offset, data.force_z_n)
+            st = stance_mask(fz, data.tip_z_m[tm], force_threshold_n=force_threshold_n,
+                             height_margin_m=height_margin_m)
+        else:
+            t_tip, st = np.empty(0), np.empty(0, bool)
+        samples.append(phase_powers(
+            data.battery_t_s[pm], power[pm], t_tip, st, session_id=s['session_id'],
+            load_kg=s['load_kg'], frequency_hz=s['frequency_hz'],
+            duty_factor=s['duty_factor'] if s['duty_factor'] > 0 else 0.5))
+    diag = {'bag': data.path, 'force_offset_s': offset, 'current_sign': sign,
+            'sessions': len(samples)}
+    return samples, diag
+
+
+def _weighted_median(values: np.ndarray, weights: np.ndarray) -> float:
+    order = np.argsort(values)
+    cum = np.cumsum(weights[order])
+    return float(values[order][np.searchsorted(cum, 0.5 * cum[-1])])
+
+
+@dataclass
+class RobotRun:
+    """Whole-cycle measurement of one robot bag.
+
+    ``power_out_w`` is from joint efforts (nan when the bag has none); ``gait`` holds the last
+    ``/gait/phase`` sample's schedule.
+    """
+
+    path: str
+    windows: int
+    window_s: float
+    power_in_w: float
+    power_out_w: float
+    speed_mps: float
+    gait: Any
+    payload_kg: float | None
+    current_sign: float
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def read_robot_bag(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
+                   cycles: int = 1) -> RobotRun:
+    """Whole-gait-cycle averages of one robot bag, computed by the same accumulator as the
+    ``energy_monitor`` node (so live and offline numbers agree)."""
+    from hexapod_common.bags import iter_messages, open_reader
+    from hexapod_common.conversions import (
+        battery_from_msg,
+        gait_phase_from_msg,
+        joint_state_from_msg,
+        pose_from_msg,
+    )
+
+    from hexapod_energy.descriptors import DescriptorAccumulator
+
+    acc = DescriptorAccumulator(mass_kg=mass_kg, cycles=cycles, current_sign=current_sign)
+    windows = []
+    gait = None
+    has_effort = False
+    with open_reader(path) as reader:
+        _check_topics(reader, ROBOT_TOPICS, str(path))
+        custom = _custom_data(reader)
+        topics = ROBOT_TOPICS + ('/joint_states', '/mocap/body')
+        for m in iter_messages(reader, topics):
+            msg = reader.deserialize(m.data, m.msgtype)
+            if m.topic == '/battery_state':
+                windows.extend(acc.add_battery(battery_from_msg(msg)))
+            elif m.topic == '/gait/phase':
+                gait = gait_phase_from_msg(msg)
+                windows.extend(acc.add_gait_phase(gait))
+            elif m.topic == '/joint_states':
+                js = joint_state_from_msg(msg)
+                has_effort = has_effort or bool(js.effort.size)
+                acc.add_joint_state(js)
+            else:
+                acc.add_pose(pose_from_msg(msg))
+    if not windows or gait is None:
+        raise BagContentError(
+            f'bag {path}: no whole gait cycle with battery samples around it '
+            '(need /gait/phase wrapping at least twice and /battery_state across it)'
+        )
+    w = np.array([d.window_s for d in windows])
+    avg = lambda xs: float(np.sum(w * np.array(xs)) / np.sum(w))  # noqa: E731
+    payload = _find_number(custom, ('payload_kg', 'payload'))
+    return RobotRun(
+        path=str(path), windows=len(windows), window_s=float(w.sum()),
+        power_in_w=avg([d.power_in_w for d in windows]),
+        power_out_w=avg([d.power_out_w for d in windows]) if has_effort else math.nan,
+        speed_mps=avg([d.speed_mps for d in windows]), gait=gait, payload_kg=payload,
+        current_sign=float(acc.sign_ or 0.0), extra={'custom_data': custom},
+    )

@@ -1,0 +1,281 @@
+"""``hexapod-analyze energy``: offline energetics of bench and robot bags.
+
+Usage::
+
+    hexapod-analyze energy --bench BAG [BAG ...] [--robot BAG [BAG ...]] --out DIR
+                           [--sweep] [--recommend --speed V --payload KG]
+
+Steps: bench bags -> per-session phase powers -> surface fits (LOWESS vs polynomial by k-fold
+CV); robot bags -> measured whole-cycle P_in, P_out (joint efforts, else the Eq. 6 model), speed
+-> Eq. 1 prediction for the same gait and mass; ``--sweep`` -> Fig. 3 sweeps (four-quadrant
+plots, PNG + SVG) and the Fig. 7D power map; ``--recommend`` -> minimum-CoT/M gait.
+
+``energy.json`` schema (version 1; keys are a contract, units in the names or below)::
+
+    {
+      "schema": "hexapod_energy.energy/1",
+      "bench": {"bags": [...], "diagnostics": [{"bag", "force_offset_s", "current_sign",
+                "sessions"}], "fit": {"spans", "chosen": {"stance", "swing"},
+                "cv_rmse_w": {"stance": {"lowess", "poly"}, "swing": {...}},
+                "fit_rmse_w": {"stance", "swing"}, "basal_power_w": {"<load kg>": W},
+                "sessions": [PhaseSample fields]}},
+      "robot_runs": [{"bag", "gait", "leg_count", "duty_factor", "period_s", "step_length_m",
+                      "payload_kg", "mass_kg", "windows", "window_s",
+                      "measured_power_in_w", "predicted_power_in_w", "residual_w",
+                      "power_out_w", "power_out_source" ("effort" | "model" | "none"),
+                      "power_out_model_w", "efficiency", "speed" [m/s],
+                      "cost_of_transport" [J/m], "specific_cost_of_transport" [J/(m kg)],
+                      "specific_resistance"}],
+      "prediction_error": {"runs", "rmse_w", "mae_w", "bias_w" (mean predicted - measured),
+                           "mean_power_w", "relative_rmse", "max_abs_relative"},
+      "sweeps": {"<sweep name>": [SweepCurve.to_dict()]},     # with --sweep
+      "power_map": {"speeds_mps", "payloads_kg", "power_out_w" (n_speed x n_payload),
+                    "seconds"},                               # with --sweep
+      "recommendation": Recommendation.to_dict(),             # with --recommend
+      "plots": [relative paths]
+    }
+
+Exit codes: 0 success, 2 bad input (missing topic, bad option), 1 other failure.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hexapod_energy.errors import EnergyError
+
+__all__ = ['add_cli', 'build_parser', 'gait_from_sample', 'main', 'run']
+
+
+def _add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument('--bench', nargs='+', required=True, metavar='BAG',
+                   help='bench bags (MiMiC-Ant single-leg sessions)')
+    p.add_argument('--robot', nargs='*', default=[], metavar='BAG',
+                   help='robot bags to compare with the Eq. 1 prediction')
+    p.add_argument('--out', required=True, metavar='DIR', help='output folder')
+    p.add_argument('--sweep', action='store_true',
+                   help='run the Fig. 3 sweeps and the Fig. 7D power map, with plots')
+    p.add_argument('--recommend', action='store_true',
+                   help='recommend the gait minimising CoT/M at --speed and --payload')
+    p.add_argument('--speed', type=float, default=None, metavar='V',
+                   help='target speed for --recommend [m/s]')
+    p.add_argument('--payload', type=float, default=0.0, metavar='KG',
+                   help='payload for --recommend [kg] (default 0)')
+    p.add_argument('--robot-mass', type=float, default=2.183, metavar='KG',
+                   help='robot mass without payload [kg] (default 2.183, AntBot)')
+    p.add_argument('--robot-payload', type=float, default=None, metavar='KG',
+                   help='payload of the robot runs [kg] (default: from the bag metadata, '
+                        'else 0)')
+    p.add_argument('--current-sign', choices=('ros', 'positive_discharge', 'auto'),
+                   default='auto', help='battery current sign convention (default auto)')
+    p.add_argument('--swing-load', choices=('zero', 'carried'), default='zero',
+                   help='load of a swinging leg in Eq. 1 (default zero)')
+    p.add_argument('--folds', type=int, default=5, help='k of the k-fold CV (default 5)')
+    p.add_argument('--no-progress', action='store_true', help='hide the progress bar')
+
+
+def add_cli(subparsers: Any) -> argparse.ArgumentParser:
+    """Register the ``energy`` subcommand on ``hexapod-analyze``'s subparsers."""
+    p = subparsers.add_parser(
+        'energy', help='energetics of bench and robot bags (Brodoline et al. 2024)',
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    _add_arguments(p)
+    p.set_defaults(func=_handler)
+    return p
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Stand-alone parser (same options as ``hexapod-analyze energy``)."""
+    p = argparse.ArgumentParser(prog='hexapod-analyze energy', description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    _add_arguments(p)
+    return p
+
+
+def gait_from_sample(sample: Any) -> Any:
+    """``GaitPattern`` from a converted ``/gait/phase`` sample."""
+    from hexapod_gait.gait import GAIT_NAMES, GaitPattern
+
+    name = sample.gait if sample.gait in GAIT_NAMES else 'custom'
+    return GaitPattern(
+        name=name, leg_names=tuple(sample.leg_names),
+        phase_offsets=tuple(float(x) % 1.0 for x in sample.phase_offsets),
+        duty_factor=sample.duty_factor, period_s=sample.period_s,
+        step_length_m=sample.step_length_m, step_height_m=sample.step_height_m)
+
+
+def _finite(x: float) -> float | None:
+    return float(x) if x is not None and math.isfinite(x) else None
+
+
+def _jsonable(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, (np.floating, float)):
+        return _finite(float(obj))
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, np.ndarray):
+        return _jsonable(obj.tolist())
+    return obj
+
+
+def run(args: argparse.Namespace) -> dict[str, Any]:
+    """Carry out the analysis; returns the ``energy.json`` document (also written)."""
+    from tqdm import tqdm
+
+    from hexapod_energy.bag_io import bench_phase_samples, read_bench_bag, read_robot_bag
+    from hexapod_energy.metrics import descriptors
+    from hexapod_energy.prediction import OutputPowerModel, RobotSpec, predict_power_in_w
+    from hexapod_energy.single_leg import SingleLegModel
+
+    if args.recommend and (args.speed is None or args.speed <= 0):
+        raise EnergyError('--recommend needs --speed V with V > 0 [m/s]')
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    robot = RobotSpec(mass_kg=args.robot_mass)
+    n_steps = len(args.bench) + len(args.robot) + 1 + (16 if args.sweep else 0) + \
+        (1 if args.recommend else 0)
+    bar = tqdm(total=n_steps, desc='energy', unit='step', disable=args.no_progress,
+               file=sys.stderr)
+    doc: dict[str, Any] = {'schema': 'hexapod_energy.energy/1', 'plots': []}
+    try:
+        samples, diags = [], []
+        for path in args.bench:
+            s, d = bench_phase_samples(read_bench_bag(path), current_sign=args.current_sign)
+            samples.extend(s)
+            diags.append(d)
+            bar.update(1)
+        model = SingleLegModel(folds=args.folds).fit(samples)
+        bar.update(1)
+        doc['bench'] = {'bags': list(args.bench), 'diagnostics': diags, 'fit': model.summary()}
+
+        opm = OutputPowerModel(robot=robot)
+        runs = []
+        for path in args.robot:
+            run_ = read_robot_bag(path, mass_kg=robot.mass_kg, current_sign=args.current_sign)
+            payload = args.robot_payload if args.robot_payload is not None else \
+                (run_.payload_kg or 0.0)
+            mass = robot.total_mass_kg(payload)
+            gait = gait_from_sample(run_.gait)
+            predicted = float(predict_power_in_w(model, gait, total_mass_kg=mass,
+                                                 leg_mass_kg=robot.leg_mass_kg,
+                                                 swing_load=args.swing_load))
+            try:
+                p_model = float(opm.power_out_w(gait, payload_kg=payload))
+            except (ValueError, ImportError) as err:
+                p_model = math.nan
+                doc.setdefault('warnings', []).append(f'{path}: no P_out model: {err}')
+            if math.isfinite(run_.power_out_w):
+                p_out, source = run_.power_out_w, 'effort'
+            elif math.isfinite(p_model):
+                p_out, source = p_model, 'model'
+            else:
+                p_out, source = 0.0, 'none'
+            # the accumulator used robot.mass_kg; descriptors are recomputed with the payload
+            d = descriptors(power_in_w=run_.power_in_w, power_out_w=p_out, mass_kg=mass,
+                            speed_mps=run_.speed_mps)
+            runs.append({
+                'bag': str(path), 'gait': gait.name, 'leg_count': gait.leg_count,
+                'duty_factor': gait.duty_factor, 'period_s': gait.period_s,
+                'step_length_m': gait.step_length_m, 'payload_kg': payload, 'mass_kg': mass,
+                'windows': run_.windows, 'window_s': run_.window_s,
+                'measured_power_in_w': run_.power_in_w, 'predicted_power_in_w': predicted,
+                'residual_w': run_.power_in_w - predicted,
+                'power_out_w': p_out, 'power_out_source': source, 'power_out_model_w': p_model,
+                'efficiency': d.efficiency, 'speed': d.speed_mps,
+                'cost_of_transport': d.cost_of_transport_j_per_m,
+                'specific_cost_of_transport': d.specific_cost_of_transport_j_per_m_kg,
+                'specific_resistance': d.specific_resistance,
+            })
+            bar.update(1)
+        doc['robot_runs'] = runs
+        if runs:
+            meas = np.array([r['measured_power_in_w'] for r in runs])
+            pred = np.array([r['predicted_power_in_w'] for r in runs])
+            err = pred - meas
+            doc['prediction_error'] = {
+                'runs': len(runs), 'rmse_w': float(np.sqrt(np.mean(err**2))),
+                'mae_w': float(np.mean(np.abs(err))), 'bias_w': float(np.mean(err)),
+                'mean_power_w': float(np.mean(meas)),
+                'relative_rmse': float(np.sqrt(np.mean(err**2)) / np.mean(meas)),
+                'max_abs_relative': float(np.max(np.abs(err) / meas)),
+            }
+            from hexapod_energy.plots import prediction_plot
+
+            doc['plots'] += [str(p.relative_to(out)) for p in prediction_plot(
+                [r['speed'] for r in runs], meas, pred, out / 'prediction')]
+
+        if args.sweep:
+            _sweep(doc, model, opm, out, bar)
+        if args.recommend:
+            from hexapod_energy.recommend import recommend_gait
+
+            rec = recommend_gait(model, opm, speed_mps=args.speed, payload_kg=args.payload)
+            doc['recommendation'] = rec.to_dict()
+            bar.update(1)
+    finally:
+        bar.close()
+    (out / 'energy.json').write_text(json.dumps(_jsonable(doc), indent=1))
+    return doc
+
+
+def _sweep(doc: dict[str, Any], model: Any, opm: Any, out: Path, bar: Any) -> None:
+    from hexapod_gait.gait import make_gait
+
+    from hexapod_energy.plots import four_quadrant_plot, power_map_plot
+    from hexapod_energy.sweeps import STANDARD_SWEEPS, run_standard_sweeps
+
+    curves = run_standard_sweeps(model, opm, progress=bar)
+    doc['sweeps'] = {k: [c.to_dict() for c in v] for k, v in curves.items()}
+    titles = {'duty_factor': 'Fig. 3A duty factor', 'step_length': 'Fig. 3B step length',
+              'gait_type': 'Fig. 3C gait type', 'leg_count': 'Fig. 3D leg count'}
+    for name in STANDARD_SWEEPS:
+        paths = four_quadrant_plot(curves[name], out / f'four_quadrant_{name}',
+                                   title=titles.get(name, name) + ' (band: 0-500 g)')
+        doc['plots'] += [str(p.relative_to(out)) for p in paths]
+    speeds = np.linspace(0.1, 0.6, 50)
+    payloads = np.linspace(0.0, 0.5, 50)
+    t0 = time.perf_counter()
+    pm = opm.power_map_w(make_gait('tripod'), speeds, payloads)
+    seconds = time.perf_counter() - t0
+    doc['power_map'] = {'speeds_mps': speeds.tolist(), 'payloads_kg': payloads.tolist(),
+                        'power_out_w': pm.tolist(), 'seconds': seconds}
+    doc['plots'] += [str(p.relative_to(out))
+                     for p in power_map_plot(speeds, payloads, pm, out / 'power_map')]
+
+
+def _handler(args: argparse.Namespace) -> int:
+    from hexapod_common.errors import HexapodError
+
+    try:
+        doc = run(args)
+    except (EnergyError, HexapodError, ValueError) as err:
+        print(f'hexapod-analyze energy: error: {err}', file=sys.stderr)
+        return 2
+    err = doc.get('prediction_error')
+    line = f"wrote {Path(args.out) / 'energy.json'}"
+    if err:
+        line += f" (prediction rmse {err['rmse_w']:.3f} W, {100 * err['relative_rmse']:.2f} %)"
+    print(line)
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Stand-alone entry (``python -m hexapod_energy.cli``)."""
+    return _handler(build_parser().parse_args(argv))
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,135 @@
+"""`hexapod-analyze energy` on synthetic bags written with the project's BagWriter."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hexapod_common.bags import BagWriter, new_msg, stamp
+from hexapod_energy.cli import build_parser, main, run
+from hexapod_energy.prediction import ANTBOT_ROBOT
+
+LOADS = (0.0, 0.095, 0.187, 0.515)
+FREQS = (0.0, 0.5, 1.0, 2.0, 3.0)
+
+
+def p_stance(rate, load):
+    return 2.0 + 0.4 * rate + 0.05 * rate**2 + 3.0 * load + 0.3 * load * rate
+
+
+def p_swing(rate, load):
+    return 1.8 + 0.5 * rate + 0.06 * rate**2
+
+
+def _write_bench(path: Path, offset_s: float = 0.02) -> None:
+    """Sessions of 4 s walking; power levels follow the truth per phase; force clock offset."""
+    dt = 0.01
+    with BagWriter(path) as w:
+        t0 = 1.0
+        for load in LOADS:
+            for f in FREQS:
+                sid = f'L{load}_F{f}'
+                w.write('/bench/session', 'hexapod_interfaces/msg/BenchSession', new_msg(
+                    'hexapod_interfaces/msg/BenchSession', header=stamp(int(t0 * 1e9)),
+                    session_id=sid, state='walking', load_mass=load, frequency=f,
+                    duty_factor=0.5, step_length=0.1, step_height=0.04), int(t0 * 1e9))
+                t = t0 + np.arange(0, 4.0, dt)
+                phase = ((t - t0) * f) % 1.0
+                stance = phase < 0.5 if f > 0 else np.ones_like(t, bool)
+                rate = 2 * f
+                power = np.where(stance, p_stance(rate, load), p_swing(rate, load))
+                z = np.where(stance, 0.0, 0.04 * np.sin(np.pi * (phase - 0.5) / 0.5))
+                force = np.where(stance, 9.81 * (0.17 + load), 0.0)
+                for k, tk in enumerate(t):
+                    ns = int(round(tk * 1e9))
+                    w.write('/battery_state', 'sensor_msgs/msg/BatteryState', new_msg(
+                        'sensor_msgs/msg/BatteryState', header=stamp(ns), voltage=12.0,
+                        current=-power[k] / 12.0), ns)
+                    fns = int(round((tk - offset_s) * 1e9))
+                    w.write('/bench/ground_force', 'geometry_msgs/msg/WrenchStamped', new_msg(
+                        'geometry_msgs/msg/WrenchStamped', header=stamp(fns), wrench=new_msg(
+                            'geometry_msgs/msg/Wrench', force=new_msg(
+                                'geometry_msgs/msg/Vector3', z=float(force[k])))), fns)
+                    if k % 2 == 0:
+                        w.write('/bench/leg_tip', 'geometry_msgs/msg/PointStamped', new_msg(
+                            'geometry_msgs/msg/PointStamped', header=stamp(ns),
+                            point=new_msg('geometry_msgs/msg/Point', z=float(z[k]))), ns)
+                t0 += 4.0
+                w.write('/bench/session', 'hexapod_interfaces/msg/BenchSession', new_msg(
+                    'hexapod_interfaces/msg/BenchSession', header=stamp(int(t0 * 1e9)),
+                    session_id=sid, state='cooling', load_mass=load, frequency=f),
+                    int(t0 * 1e9))
+                t0 += 0.5
+
+
+def _write_robot(path: Path, period_s: float) -> float:
+    """Tripod beta 0.5 robot whose battery power equals Eq. 1 on the truth surfaces."""
+    legs = ('L1', 'L2', 'L3', 'R1', 'R2', 'R3')
+    offsets = (0.0, 0.5, 0.0, 0.5, 0.0, 0.5)
+    m_c = (ANTBOT_ROBOT.mass_kg - 3 * ANTBOT_ROBOT.leg_mass_kg) / 3
+    rate = 2 / period_s
+    p_in = 3 * p_stance(rate, m_c) + 3 * p_swing(rate, 0.0)
+    with BagWriter(path) as w:
+        for k, t in enumerate(np.arange(0.0, 8 * period_s, 0.01)):
+            ns = int(round(t * 1e9))
+            w.write('/battery_state', 'sensor_msgs/msg/BatteryState', new_msg(
+                'sensor_msgs/msg/BatteryState', header=stamp(ns), voltage=12.0,
+                current=-p_in / 12.0), ns)
+            w.write('/gait/phase', 'hexapod_interfaces/msg/GaitPhase', new_msg(
+                'hexapod_interfaces/msg/GaitPhase', header=stamp(ns), gait='tripod',
+                period=period_s, duty_factor=0.5, step_length=0.1, step_height=0.04,
+                cycle_phase=(t / period_s) % 1.0, leg_names=list(legs),
+                phase_offsets=list(offsets), in_stance=[True] * 6, supporting_legs=3), ns)
+    return p_in
+
+
+@pytest.fixture(scope='module')
+def bags(tmp_path_factory):
+    root = tmp_path_factory.mktemp('bags')
+    _write_bench(root / 'bench')
+    truth = [_write_robot(root / f'robot{i}', T) for i, T in enumerate((0.5, 1.0))]
+    return root, truth
+
+
+def test_energy_json_prediction_and_schema(bags) -> None:
+    root, truth = bags
+    out = root / 'out'
+    args = build_parser().parse_args([
+        '--bench', str(root / 'bench'), '--robot', str(root / 'robot0'), str(root / 'robot1'),
+        '--out', str(out), '--no-progress'])
+    doc = run(args)
+    saved = json.loads((out / 'energy.json').read_text())
+    assert saved['schema'] == doc['schema'] == 'hexapod_energy.energy/1'
+    diag = saved['bench']['diagnostics'][0]
+    # 10 ms force sampling leaves ~5 ms of ambiguity in where a sampled contact edge lies
+    assert abs(diag['force_offset_s'] - 0.02) < 0.01
+    assert diag['sessions'] == len(LOADS) * len(FREQS)
+    runs = saved['robot_runs']
+    for r, p_true in zip(runs, truth):
+        for key in ('measured_power_in_w', 'predicted_power_in_w', 'power_out_w', 'efficiency',
+                    'speed', 'specific_cost_of_transport', 'specific_resistance'):
+            assert key in r
+        assert r['measured_power_in_w'] == pytest.approx(p_true, rel=1e-6)  # float32 fields
+        assert r['predicted_power_in_w'] == pytest.approx(p_true, rel=0.02)
+        assert r['power_out_source'] == 'model' and r['power_out_w'] > 0
+    assert set(saved['prediction_error']) >= {'rmse_w', 'mae_w', 'bias_w'}
+    assert saved['prediction_error']['relative_rmse'] < 0.02
+
+
+def test_missing_topic_is_named(bags, tmp_path, capsys) -> None:
+    root, _ = bags
+    code = main(['--bench', str(root / 'robot0'), '--out', str(tmp_path / 'o'), '--no-progress'])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert '/bench/ground_force' in err and '/bench/session' in err
+
+
+def test_recommend_needs_speed(bags, tmp_path, capsys) -> None:
+    root, _ = bags
+    code = main(['--bench', str(root / 'bench'), '--out', str(tmp_path / 'o'), '--recommend',
+                 '--no-progress'])
+    assert code == 2
+    assert '--speed' in capsys.readouterr().err
