@@ -64,9 +64,9 @@ def buehler_angle(
 
     Parameters
     ----------
-    leg_phase : array, shape (n,)
+    leg_phase : array, shape (n,) (or any shape)
         Clock phase of the leg in ``[0, 1)``, 0 = start of the slow phase.
-    duty_factor, sweep_angle_rad, leg_offset_rad : float
+    duty_factor, sweep_angle_rad, leg_offset_rad : float or array broadcastable to leg_phase
         ``dc``, ``phi_s`` [rad], ``phi_0`` [rad].
 
     Returns
@@ -77,7 +77,9 @@ def buehler_angle(
         ``d angle / d phase`` [rad per cycle].
     """
     f = np.atleast_1d(np.asarray(leg_phase, dtype=float))
-    dc, phs, ph0 = float(duty_factor), float(sweep_angle_rad), float(leg_offset_rad)
+    dc = np.asarray(duty_factor, dtype=float)
+    phs = np.asarray(sweep_angle_rad, dtype=float)
+    ph0 = np.asarray(leg_offset_rad, dtype=float)
     slow = f < dc
     angle = np.where(
         slow,
@@ -85,7 +87,7 @@ def buehler_angle(
         ph0 + 0.5 * phs + (_TWO_PI - phs) * (f - dc) / (1.0 - dc),
     )
     dangle = np.where(slow, phs / dc, (_TWO_PI - phs) / (1.0 - dc))
-    return angle, dangle
+    return angle, np.broadcast_to(dangle, angle.shape).copy()
 
 
 @dataclass(frozen=True)

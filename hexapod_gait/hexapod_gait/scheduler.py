@@ -311,26 +311,18 @@ class GaitScheduler:
         c = self._cycles(t)
         rel = c[:, None] - r['theta']
         phi = _wrap01(rel)
-        n, legs = phi.shape
         if self.is_buehler:
-            k = np.floor(rel)
-            angle = np.empty_like(phi)
-            for j in range(n):
-                a, _ = buehler_angle(
-                    phi[j], duty_factor=r['beta'][j], sweep_angle_rad=r['sweep_rad'][j],
-                    leg_offset_rad=r['offset_rad'][j],
-                )
-                angle[j] = a
-            return _TWO_PI * k + angle
-        out = np.empty((n, legs, 3))
-        for j in range(n):
-            path = tip_path(
-                phi[j], duty_factor=r['beta'][j], step_length_m=r['step_length_m'][j],
-                step_height_m=r['step_height_m'][j],
+            angle, _ = buehler_angle(
+                phi, duty_factor=r['beta'][:, None], sweep_angle_rad=r['sweep_rad'][:, None],
+                leg_offset_rad=r['offset_rad'][:, None],
             )
-            out[j] = (self.neutral_tip_m[None, :] + path.u[:, None] * self._forward
-                      + path.z[:, None] * np.array([0.0, 0.0, 1.0]))
-        return out
+            return _TWO_PI * np.floor(rel) + angle
+        path = tip_path(
+            phi, duty_factor=r['beta'][:, None], step_length_m=r['step_length_m'][:, None],
+            step_height_m=r['step_height_m'][:, None],
+        )
+        return (self.neutral_tip_m + path.u[..., None] * self._forward[None]
+                + path.z[..., None] * np.array([0.0, 0.0, 1.0]))
 
     def _velocities(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
         """Time derivative of :meth:`_positions`: analytic when settled, else central difference."""

@@ -142,39 +142,63 @@ class TipPath:
     in_stance: NDArray[np.bool_]
 
 
+def _basis(s: NDArray[np.float64], nu: int) -> NDArray[np.float64]:
+    """Values (or derivatives) of the five basis swing splines at ``s``, shape (5,) + s.shape."""
+    i = np.clip(np.searchsorted(_KNOTS, s, side='right') - 1, 0, 3)
+    h = s - _KNOTS[i]
+    c = _BASIS_COEFFS[:, :, i]  # (5, 4, ...)
+    if nu == 0:
+        return ((c[:, 0] * h + c[:, 1]) * h + c[:, 2]) * h + c[:, 3]
+    if nu == 1:
+        return (3.0 * c[:, 0] * h + 2.0 * c[:, 1]) * h + c[:, 2]
+    return 6.0 * c[:, 0] * h + 2.0 * c[:, 1]
+
+
 def tip_path(
     leg_phase: ArrayLike,
     *,
-    duty_factor: float,
-    step_length_m: float,
-    step_height_m: float,
+    duty_factor: ArrayLike,
+    step_length_m: ArrayLike,
+    step_height_m: ArrayLike,
 ) -> TipPath:
     """Tip path relative to the stance midpoint, as a function of the leg phase.
 
     Parameters
     ----------
-    leg_phase : float or array, shape (n,)
+    leg_phase : float or array, shape (n,) (or any shape)
         Leg phase in ``[0, 1)``, 0 = touchdown.
-    duty_factor, step_length_m, step_height_m : float
+    duty_factor, step_length_m, step_height_m : float or array broadcastable to leg_phase
         ``beta``, ``L`` [m], ``h`` [m].
 
     Returns
     -------
     TipPath
-        ``u`` along the forward axis (``+L/2`` at touchdown), ``z`` up (0 in stance).
+        ``u`` along the forward axis (``+L/2`` at touchdown), ``z`` up (0 in stance); arrays of
+        the broadcast shape (at least 1-D).
     """
     phi = np.atleast_1d(np.asarray(leg_phase, dtype=float))
-    beta, L, h = float(duty_factor), float(step_length_m), float(step_height_m)
-    fwd, up = swing_splines(beta)
+    beta = np.asarray(duty_factor, dtype=float)
+    if np.any(~((beta > 0.0) & (beta < 1.0))):
+        raise InvalidGaitError(f'duty_factor must be in (0, 1), got {duty_factor!r}')
+    L = np.asarray(step_length_m, dtype=float)
+    h = np.asarray(step_height_m, dtype=float)
+    phi, beta, L, h = np.broadcast_arrays(phi, beta, L, h)
     stance = phi < beta
     s = np.clip((phi - beta) / (1.0 - beta), 0.0, 1.0)
     k1 = 1.0 / (1.0 - beta)
-    u = np.where(stance, L * (0.5 - phi / beta), L * fwd(s))
-    du = np.where(stance, -L / beta, L * fwd(s, 1) * k1)
-    ddu = np.where(stance, 0.0, L * fwd(s, 2) * k1 * k1)
-    z = np.where(stance, 0.0, h * up(s))
-    dz = np.where(stance, 0.0, h * up(s, 1) * k1)
-    ddz = np.where(stance, 0.0, h * up(s, 2) * k1 * k1)
+    # unit forward spline = -1/2 B(y0) + 1/2 B(y4) + g (B(g0) + B(g1)), unit up spline = B(y2)
+    g = -(1.0 - beta) / beta
+    b0, b1, b2 = _basis(s, 0), _basis(s, 1), _basis(s, 2)
+
+    def fwd(b: NDArray[np.float64]) -> NDArray[np.float64]:
+        return -0.5 * b[0] + 0.5 * b[2] + g * (b[3] + b[4])
+
+    u = np.where(stance, L * (0.5 - phi / beta), L * fwd(b0))
+    du = np.where(stance, -L / beta, L * fwd(b1) * k1)
+    ddu = np.where(stance, 0.0, L * fwd(b2) * k1 * k1)
+    z = np.where(stance, 0.0, h * b0[1])
+    dz = np.where(stance, 0.0, h * b1[1] * k1)
+    ddz = np.where(stance, 0.0, h * b2[1] * k1 * k1)
     return TipPath(u=u, du=du, ddu=ddu, z=z, dz=dz, ddz=ddz, in_stance=stance)
 
 
