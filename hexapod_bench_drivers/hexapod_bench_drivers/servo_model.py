@@ -14,7 +14,8 @@ Physics, all quantities referred to the OUTPUT shaft (after the gearbox):
   - back-EMF constant ``k_e = (V - R i_nl) / w_nl`` [V s/rad] with the no-load current
     ``i_nl = (c + b w_nl) / k_t`` that overcomes the gear's Coulomb ``c`` and viscous ``b``
     friction;
-  - gear efficiency ``eta = k_t / k_e`` (about 0.72 for the AX-18A), modelled as a
+  - gear efficiency ``eta = k_t / k_e`` (0.93 for the AX-18A, whose calibrated constant Coulomb
+    friction takes most of the gear loss), modelled as a
     load-dependent Coulomb friction ``(1 - eta) |k_e i|`` in the gear: the gearbox passes
     ``eta k_e i`` when the motor drives the load, the load must supply ``(2 - eta) k_e i`` to
     back-drive it, and at standstill the gear holds any torque inside that band (stiction).
@@ -140,9 +141,12 @@ class ServoParams:
     stall_current_a: float
     no_load_speed_rad_s: float
     standby_current_a: float
-    rotor_inertia_kgm2: float = 8.0e-8
-    coulomb_friction_nm: float = 0.02
-    viscous_friction_nm_s: float = 0.002
+    # Rotor inertia and gear friction are not on the datasheets: calibrated so that an AntBot of
+    # 18 AX-18A reproduces Brodoline et al.'s whole-robot figures (standing ~11 W, ~65 W at
+    # 0.6 m/s, CoT/M ~37 J/(m kg) at 0.84 m/s); the no-load current is then ~0.5 A.
+    rotor_inertia_kgm2: float = 1.2e-8
+    coulomb_friction_nm: float = 0.22
+    viscous_friction_nm_s: float = 0.02
     stick_speed_rad_s: float = 1e-3
     compliance_slope_rad: float = 32 * 0.29 * _DEG
     compliance_margin_rad: float = 1 * 0.29 * _DEG
@@ -245,7 +249,7 @@ class ServoParams:
         """Dynamixel AX-12A: 254:1, stall 1.5 N m at 1.5 A and 12 V, 59 rpm, standby 50 mA."""
         return cls(model='AX-12A', gear_ratio=254.0, rated_voltage_v=12.0, stall_torque_nm=1.5,
                    stall_current_a=1.5, no_load_speed_rad_s=59.0 * _RPM,
-                   standby_current_a=0.05, rotor_inertia_kgm2=6.0e-8)
+                   standby_current_a=0.05)
 
     @classmethod
     def xl430(cls) -> ServoParams:
@@ -255,7 +259,7 @@ class ServoParams:
         """
         return cls(model='XL430-W250', gear_ratio=258.5, rated_voltage_v=12.0,
                    stall_torque_nm=1.5, stall_current_a=1.4, no_load_speed_rad_s=61.0 * _RPM,
-                   standby_current_a=0.052, rotor_inertia_kgm2=6.0e-8,
+                   standby_current_a=0.052,
                    compliance_slope_rad=0.15, compliance_margin_rad=0.0,
                    max_voltage_v=14.8, min_voltage_v=6.5, temperature_limit_c=72.0,
                    position_min_rad=-math.pi, position_max_rad=math.pi)
@@ -296,13 +300,14 @@ class ServoOutput:
     ----------
     position_rad : output shaft angle as the potentiometer measures it [rad]
     velocity_rad_s : output speed [rad/s]
-    torque_nm : torque the servo applies to its load through the gear [N m] (mean over the step)
+    torque_nm : torque the servo horn applies to its load [N m] (``-external_torque_nm`` while
+        the servo drives or holds; the rotor's own inertia is inside the servo)
     current_a : supply current of each servo, electronics included [A] (mean; the real servo
         cannot measure it)
     temperature_c : true winding temperature [degC]
     load_fraction : signed PWM duty as the servo reports its present load (-1..1)
     power_w : supply power of each servo [W] (mean)
-    mechanical_power_w : output power ``torque * velocity`` [W] (mean)
+    mechanical_power_w : power delivered to the load ``-external_torque * velocity`` [W] (mean)
     winding_loss_w : Joule loss in the winding [W] (mean)
     reported_temperature_c : integer degC as the servo reports it
     reported_voltage_v : supply voltage with 0.1 V resolution
@@ -475,50 +480,57 @@ class ServoModel:
         resistance = self.winding_resistance_ohm()
         deflection = self._deflection(tau_ext)
         umax = np.where(drive, np.clip(self.torque_limit, 0.0, 1.0), 0.0)
-        ke, eta, kp, margin = self._ke, self._eta, self._kp, p.compliance_margin_rad
+        neg_umax = -umax
+        ke, kp, margin = self._ke, self._kp, p.compliance_margin_rad
         coulomb = p.coulomb_friction_nm + self.extra_friction_nm
         visc, w_eps, mu = p.viscous_friction_nm_s, p.stick_speed_rad_s, 1.0 - self._eta
-        inv_j = 1.0 / self.inertia_kgm2
-        j_over_h = self.inertia_kgm2 / h
+        h_inv_j = h / self.inertia_kgm2
+        # Plain ufuncs only in the sub-step loop: it is the simulators' hot path.
+        volt_over_r = volts / resistance
+        ke_over_r = ke / resistance
+        drive_f = drive.astype(float)
+        all_drive = bool(drive.all())
         speed_limit = self.moving_speed_rad_s
         limited = speed_limit > 0.0
         any_limited = bool(np.any(limited))
         setpoint = self._setpoint_rad
-        q = self.motor_position_rad
-        w = self.velocity_rad_s
+        q0 = self.motor_position_rad
+        q = q0.copy()
+        w = self.velocity_rad_s.copy()
         sum_bridge = np.zeros(n)
         sum_i2 = np.zeros(n)
-        sum_tau = np.zeros(n)
-        sum_pmech = np.zeros(n)
         u = np.zeros(n)
+        absolute, maximum, minimum, where = np.absolute, np.maximum, np.minimum, np.where
         for _ in range(n_sub):
             if any_limited:
                 dq = np.clip(goal - setpoint, -speed_limit * h, speed_limit * h)
-                setpoint = np.where(limited, setpoint + dq, goal)
+                setpoint = where(limited, setpoint + dq, goal)
             else:
                 setpoint = goal
-            err = setpoint - (q + deflection)
-            mag = np.abs(err) - margin
-            u = np.clip(np.copysign(np.maximum(mag, 0.0), err) * kp, -umax, umax)
-            i = np.where(drive, (u * volts - ke * w) / resistance, 0.0)
+            err = setpoint - q - deflection
+            u = np.copysign(maximum(absolute(err) - margin, 0.0) * kp, err)
+            u = minimum(maximum(u, neg_umax), umax)
+            i = u * volt_over_r - ke_over_r * w
+            if not all_drive:
+                i *= drive_f
             gen = ke * i
             # Karnopp friction: load-dependent Coulomb (gear loss) plus constant Coulomb; the
             # shaft sticks while the static torque stays inside the friction band.
-            f_max = coulomb + mu * np.abs(gen)
+            f_max = coulomb + mu * absolute(gen)
             tau_free = gen + tau_ext - visc * w
-            moving = np.abs(w) > w_eps
-            direction = np.where(moving, np.sign(w), np.sign(tau_free))
-            w_new = w + h * inv_j * (tau_free - f_max * direction)
-            stick = (~moving & (np.abs(tau_free) <= f_max)) | (moving & (w_new * w < 0.0))
-            w_new = np.where(stick, 0.0, w_new)
-            tau_out = (w_new - w) * j_over_h - tau_ext
-            w = w_new
-            q = q + h * w
-            sum_bridge += np.maximum(u * i, 0.0)
+            moving = absolute(w) > w_eps
+            direction = where(moving, np.sign(w), np.sign(tau_free))
+            w_new = w + h_inv_j * (tau_free - f_max * direction)
+            stick = (~moving & (absolute(tau_free) <= f_max)) | (moving & (w_new * w < 0.0))
+            w = where(stick, 0.0, w_new)
+            q += h * w
+            sum_bridge += maximum(u * i, 0.0)
             sum_i2 += i * i
-            sum_tau += tau_out
-            sum_pmech += tau_out * w
-        self._setpoint_rad = np.asarray(setpoint, dtype=float).copy()
+        # Power into the load: work of the load torque plus the kinetic energy of any load
+        # inertia carried on the output (the rotor's own kinetic energy stays in the servo).
+        load_j = self.inertia_kgm2 - p.reflected_inertia_kgm2
+        sum_pmech = (-tau_ext * (q - q0) + 0.5 * load_j * (w * w - self.velocity_rad_s ** 2)) / h
+        self._setpoint_rad = np.array(setpoint, dtype=float)
         self.motor_position_rad = q
         self.velocity_rad_s = w
 
@@ -544,7 +556,7 @@ class ServoModel:
         return ServoOutput(
             position_rad=q + deflection,
             velocity_rad_s=w.copy(),
-            torque_nm=sum_tau / n_sub,
+            torque_nm=np.where(drive | (self.velocity_rad_s == 0.0), -tau_ext, 0.0),
             current_a=current_a,
             temperature_c=self.temperature_c.copy(),
             load_fraction=np.where(drive, u, 0.0),

@@ -1,0 +1,358 @@
+"""Servo hexapod simulator (AntBot defaults; 4, 6 or 8 legs), the embedded default hardware.
+
+Core module: numpy, pinocchio and ``hexapod_gait``; no ROS. Each leg is the 3-DOF DH leg of
+DESIGN section 7 driven by three servos (:mod:`servo_model`, AX-18A by default). Every output
+sample (100 Hz by default):
+
+1. the commanded joint angles (from the gait's tip trajectories in batch mode, or from
+   ``/joint_commands`` in the live node) and the stance flags give the load each joint carries:
+   ``tau = M qdd + C qd + G - J^T f`` with the ground force ``f = (0, 0, m_c g)`` on each stance
+   tip, ``m_c = (M - m_leg L) / L`` the mass each of the ``L`` supporting legs carries (body
+   weight shared by the stance legs, payload included), plus the ``speed_friction`` drag;
+2. the servos track the commands against that load (finite stiffness, back-EMF, gear friction),
+   draw current and heat up;
+3. the supply (lab supply at 11.9 V, or a 3S LiPo) delivers the sum of the servo currents plus
+   the effects' extra power; the power monitor measures voltage and current (ROS sign).
+
+Standing still (``period_s = 0``) holds every leg on the ground at its neutral pose.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hexapod_gait.gait import GaitPattern, carried_mass_per_leg_kg, make_gait
+from hexapod_gait.kinematics import ANTBOT_LEG, DHParameters
+from hexapod_gait.legs import joint_names
+from hexapod_gait.trajectory import ANTBOT_NEUTRAL_TIP_M, LegTrajectory
+
+from .effects import EffectSet
+from .servo_model import ServoModel, ServoParams
+from .sim_core import G_MPS2, LegLoads, SimTrace, Supply, TraceBuilder, quantise_position
+
+__all__ = ['RobotConfig', 'RobotSimulator', 'SampleInput', 'simulate_robot']
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class RobotConfig:
+    """Robot, gait and hardware of one simulated run (AntBot defaults).
+
+    Attributes
+    ----------
+    leg_count : int
+        4, 6 or 8 (any even count works).
+    gait : str
+        ``hexapod_gait`` gait name (``tripod`` is ``alternating`` for other leg counts).
+    duty_factor, period_s, step_length_m, step_height_m : float
+        Gait parameters; ``period_s = 0`` means standing still.
+    speed_mps : float
+        If > 0, the period is ``step_length / (duty_factor * speed)`` instead of ``period_s``.
+    robot_mass_kg : float
+        Robot mass without payload [kg] (legs included).
+    payload_kg : float
+        Payload on the body [kg].
+    supply : {'supply', 'battery'}
+        Lab supply at ``supply_voltage_v`` or a 3S LiPo.
+    supply_voltage_v : float
+        Lab supply voltage [V].
+    servo : str
+        Servo preset (``ax18a``, ``ax12a``, ``xl430``, ``xm430``).
+    rate_hz : float
+        Output sample rate [Hz].
+    ambient_temperature_c, initial_temperature_c : float
+        Air and starting winding temperature [degC].
+    max_substep_s : float
+        Servo integration sub-step [s].
+    """
+
+    leg_count: int = 6
+    gait: str = 'tripod'
+    duty_factor: float = 0.5
+    period_s: float = 1.0
+    speed_mps: float = 0.0
+    step_length_m: float = 0.10
+    step_height_m: float = 0.04
+    robot_mass_kg: float = 2.183
+    payload_kg: float = 0.0
+    supply: str = 'supply'
+    supply_voltage_v: float = 11.9
+    servo: str = 'ax18a'
+    rate_hz: float = 100.0
+    ambient_temperature_c: float = 26.0
+    initial_temperature_c: float = 26.0
+    max_substep_s: float = 2.5e-3
+
+    def gait_pattern(self) -> GaitPattern | None:
+        """The gait, or None when standing still."""
+        period = self.effective_period_s
+        if period <= 0.0:
+            return None
+        name = self.gait
+        if name == 'tripod' and self.leg_count != 6:
+            name = 'alternating'
+        return make_gait(name, leg_count=self.leg_count, duty_factor=self.duty_factor,
+                         period_s=period, step_length_m=self.step_length_m,
+                         step_height_m=self.step_height_m)
+
+    @property
+    def effective_period_s(self) -> float:
+        if self.speed_mps > 0.0:
+            return self.step_length_m / (self.duty_factor * self.speed_mps)
+        return max(self.period_s, 0.0)
+
+    @property
+    def total_mass_kg(self) -> float:
+        return self.robot_mass_kg + self.payload_kg
+
+
+@dataclass
+class SampleInput:
+    """What one sample of the simulator is driven with (batch: the gait; live: the topics).
+
+    Arrays: ``q``, ``qd``, ``qdd`` (legs, 3) commanded joint angle, velocity, acceleration;
+    ``in_stance`` (legs,); ``speed_mps`` body speed; ``step_frequency_hz`` (0 standing).
+    """
+
+    q: FloatArray
+    qd: FloatArray
+    qdd: FloatArray
+    in_stance: NDArray[np.bool_]
+    speed_mps: float
+    step_frequency_hz: float
+    tip_velocity_mps: FloatArray | None = None   # (legs, 3) for speed_friction
+
+
+class RobotSimulator:
+    """Stateful servo hexapod; :meth:`step` advances one sample, :meth:`run` a whole batch.
+
+    Parameters
+    ----------
+    config : RobotConfig
+    effects : EffectSet, optional
+        Named effects (defaults: sensor noise on).
+    seed : int
+        Seed of the sensor noise (same seed, same data).
+    dh : DHParameters
+        Leg geometry and masses.
+    """
+
+    kind = 'robot'
+
+    def __init__(self, config: RobotConfig | None = None, *, effects: EffectSet | None = None,
+                 seed: int = 0, dh: DHParameters = ANTBOT_LEG) -> None:
+        self.config = config or RobotConfig()
+        self.effects = effects if effects is not None else EffectSet.defaults()
+        self.rng = np.random.default_rng(seed)
+        cfg = self.config
+        self.gait = cfg.gait_pattern()
+        legs_gait = self.gait or make_gait('alternating' if cfg.leg_count != 6 else 'tripod',
+                                           leg_count=cfg.leg_count)
+        self.leg_names: tuple[str, ...] = legs_gait.leg_names
+        self.joint_names: tuple[str, ...] = tuple(
+            j for leg in self.leg_names for j in joint_names(leg))
+        self.loads = LegLoads(dh)
+        self.kinematics = self.loads.kinematics
+        n_legs = len(self.leg_names)
+        self.trajectories = [LegTrajectory(legs_gait, i, kinematics=self.kinematics)
+                             for i in range(n_legs)]
+        self.neutral_q = np.tile(self.kinematics.inverse(np.array(ANTBOT_NEUTRAL_TIP_M))[0],
+                                 (n_legs, 1))
+        self.servo_params = ServoParams.by_name(cfg.servo)
+        eff = self.effects
+        self.servos = ServoModel(
+            self.servo_params, count=3 * n_legs, initial_position_rad=self.neutral_q.ravel(),
+            initial_temperature_c=cfg.initial_temperature_c,
+            ambient_temperature_c=cfg.ambient_temperature_c,
+            thermal_drift_w_k=float(eff.value('thermal_drift')),
+            load_inertia_kgm2=np.tile(self.loads.joint_inertia_kgm2(self.neutral_q[0]), n_legs),
+            max_substep_s=cfg.max_substep_s)
+        self.supply = Supply(kind=cfg.supply, voltage_v=cfg.supply_voltage_v,
+                             series_resistance_ohm=float(eff.value('supply_resistance')))
+        anomaly = eff.value('leg_anomaly')
+        self.anomaly_leg = -1
+        self.anomaly_w = 0.0
+        if anomaly is not None:
+            if anomaly[0] not in self.leg_names:
+                raise ValueError(f'effect leg_anomaly={anomaly[0]}:{anomaly[1]}: leg '
+                                 f'{anomaly[0]!r} is not one of {self.leg_names}')
+            self.anomaly_leg = self.leg_names.index(anomaly[0])
+            self.anomaly_w = float(anomaly[1])
+        self.noise = float(eff.value('sensor_noise'))
+        self.powered = True
+        self.t_s = 0.0
+
+    # ----------------------------------------------------------------------------------------
+    def carried_mass_kg(self, supporting: int) -> float:
+        """Mass each stance leg carries with ``supporting`` legs on the ground [kg]."""
+        if supporting <= 0:
+            return 0.0
+        return float(carried_mass_per_leg_kg(self.config.total_mass_kg, self.loads.leg_mass_kg,
+                                             supporting)[0])
+
+    def tip_forces_n(self, inp: SampleInput) -> FloatArray:
+        """Ground force on every tip, (legs, 3) [N]."""
+        stance = inp.in_stance
+        supporting = int(stance.sum())
+        forces = np.zeros((len(self.leg_names), 3))
+        forces[stance, 2] = self.carried_mass_kg(supporting) * G_MPS2
+        c = float(self.effects.value('speed_friction'))
+        if c > 0.0 and supporting > 0 and inp.tip_velocity_mps is not None:
+            # Ground drag c v on the body, shared by the stance legs: it pushes on each stance
+            # tip against the tip's motion relative to the body.
+            forces[stance] -= c * inp.tip_velocity_mps[stance] / supporting
+        return forces
+
+    def step(self, dt_s: float, inp: SampleInput,
+             tau_required_nm: FloatArray | None = None) -> dict[str, Any]:
+        """Advance one sample of ``dt_s`` seconds; returns the measured and true quantities.
+
+        ``tau_required_nm`` (legs, 3), if given, is the precomputed load of every joint.
+        """
+        eff = self.effects
+        if tau_required_nm is None:
+            tau_req = self.loads.static_torques(inp.q, self.tip_forces_n(inp))
+        else:
+            tau_req = tau_required_nm
+        goal = inp.q
+        k_err = float(eff.value('kinematic_error'))
+        if k_err and inp.step_frequency_hz > 0.0:
+            goal = inp.q + 0.01 * k_err * inp.step_frequency_hz * (inp.q - self.neutral_q)
+        volts = self.supply.terminal_voltage_v() if self.powered else 0.0
+        out = self.servos.step(dt_s, goal.ravel(), -tau_req.ravel(), volts)
+        extra_w = 0.0
+        if self.powered:
+            extra_w += float(eff.value('basal_power'))
+            extra_w += k_err * inp.step_frequency_hz
+            if self.anomaly_leg >= 0 and inp.in_stance[self.anomaly_leg]:
+                extra_w += self.anomaly_w
+        current = float(out.current_a.sum()) + (extra_w / volts if volts > 1.0 else 0.0)
+        self.supply.draw(current, dt_s)
+        self.t_s += dt_s
+        return {'servo': out, 'current_a': current, 'voltage_v': volts,
+                'power_w': current * volts}
+
+    # ----------------------------------------------------------------------------------------
+    def gait_inputs(self, t_s: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray,
+                                                     NDArray[np.bool_], FloatArray]:
+        """Commanded q, qd, qdd (n, legs, 3), stance (n, legs), tip velocity (n, legs, 3)."""
+        n, n_legs = t_s.shape[0], len(self.leg_names)
+        if self.gait is None:
+            zeros = np.zeros((n, n_legs, 3))
+            return (np.broadcast_to(self.neutral_q, (n, n_legs, 3)).copy(), zeros, zeros.copy(),
+                    np.ones((n, n_legs), dtype=bool), zeros.copy())
+        q = np.empty((n, n_legs, 3))
+        qd = np.empty_like(q)
+        qdd = np.empty_like(q)
+        tipv = np.empty_like(q)
+        for i, traj in enumerate(self.trajectories):
+            q[:, i], qd[:, i], qdd[:, i] = traj.joints(t_s)
+            tipv[:, i] = traj.tip_velocity(t_s)
+        return q, qd, qdd, self.gait.stance_mask(t_s), tipv
+
+    def required_torques(self, q: FloatArray, qd: FloatArray, qdd: FloatArray,
+                         stance: NDArray[np.bool_], tip_velocity: FloatArray) -> FloatArray:
+        """Quasi-static joint loads of a batch, (n, legs, 3) [N m]; inputs as :meth:`gait_inputs`.
+
+        Gravity and ground forces only: the links' inertia rides on the servos (their diagonal
+        joint-space inertia at the neutral pose), so it acts on the servos' actual motion.
+        """
+        n, n_legs = stance.shape
+        supporting = stance.sum(axis=1)
+        carried = np.zeros(n)
+        some = supporting > 0
+        carried[some] = carried_mass_per_leg_kg(self.config.total_mass_kg,
+                                                self.loads.leg_mass_kg, supporting[some])
+        forces = np.zeros((n, n_legs, 3))
+        forces[..., 2] = np.where(stance, carried[:, None] * G_MPS2, 0.0)
+        c = float(self.effects.value('speed_friction'))
+        if c > 0.0:
+            share = np.where(stance, c / np.maximum(supporting, 1)[:, None], 0.0)
+            forces -= share[..., None] * tip_velocity
+        tau = self.loads.static_torques(q.reshape(-1, 3), forces.reshape(-1, 3))
+        return tau.reshape(n, n_legs, 3)
+
+    def run(self, duration_s: float, *, progress: Callable[[int], None] | None = None
+            ) -> SimTrace:
+        """Simulate ``duration_s`` seconds from the current state (batch mode)."""
+        cfg = self.config
+        dt = 1.0 / cfg.rate_hz
+        n = int(round(duration_s * cfg.rate_hz))
+        t = self.t_s + dt * np.arange(1, n + 1)
+        q, qd, qdd, stance, tipv = self.gait_inputs(t)
+        gait = self.gait
+        speed = gait.speed_mps if gait is not None else 0.0
+        freq = gait.step_frequency_hz if gait is not None else 0.0
+        tau = self.required_torques(q, qd, qdd, stance, tipv)
+        tb = TraceBuilder(n, len(self.joint_names), len(self.leg_names))
+        for k in range(n):
+            inp = SampleInput(q[k], qd[k], qdd[k], stance[k], speed, freq, tipv[k])
+            res = self.step(dt, inp, tau[k])
+            self._record(tb, k, t[k], inp, res)
+            if progress is not None and k % 100 == 99:
+                progress(100)
+        tb.cycle_phase[:] = gait.cycle_phase(t) if gait is not None else 0.0
+        tb.gait_name[:] = gait.name if gait is not None else 'stand'
+        tb.period_s[:] = gait.period_s if gait is not None else 0.0
+        tb.duty_factor[:] = cfg.duty_factor
+        tb.step_length_m[:] = cfg.step_length_m if gait is not None else 0.0
+        tb.step_height_m[:] = cfg.step_height_m if gait is not None else 0.0
+        offsets = gait.phase_offsets if gait is not None else (0.0,) * len(self.leg_names)
+        return self._finish(tb, offsets)
+
+    def _finish(self, tb: TraceBuilder, offsets: tuple[float, ...]) -> SimTrace:
+        return tb.build(
+            kind=self.kind, joint_names=self.joint_names, leg_names=self.leg_names,
+            phase_offsets=tuple(offsets),
+            battery_stamp_offset_s=float(self.effects.value('time_offset')),
+            servo_stamp_offset_s=float(self.effects.value('sensor_latency')),
+            effects_json=self.effects.to_json(),
+            config={'simulator': self.kind, **asdict(self.config)})
+
+    def _record(self, tb: TraceBuilder, k: int, t: float, inp: SampleInput,
+                res: dict[str, Any]) -> None:
+        out = res['servo']
+        rng, noise = self.rng, self.noise
+        n_j = out.position_rad.shape[0]
+        tb.t_s[k] = t
+        tb.position_rad[k] = quantise_position(out.position_rad)
+        vel = out.velocity_rad_s
+        if noise:
+            vel = vel + rng.normal(0.0, 0.02 * noise, n_j)
+        tb.velocity_rad_s[k] = vel
+        tb.effort_nm[k] = out.load_fraction * self.servo_params.stall_torque_nm
+        tb.command_position_rad[k] = inp.q.ravel()
+        tb.command_velocity_rad_s[k] = inp.qd.ravel()
+        tb.temperature_c[k] = out.reported_temperature_c
+        tb.servo_voltage_v[k] = out.reported_voltage_v
+        tb.load_fraction[k] = np.round(out.load_fraction * 1023.0) / 1023.0
+        tb.servo_error[k] = out.error
+        volts, current = res['voltage_v'], res['current_a']
+        if noise:
+            volts = volts + rng.normal(0.0, 0.004 * noise)
+            current = current + rng.normal(0.0, 0.008 * noise)
+        tb.battery_voltage_v[k] = volts
+        tb.battery_current_a[k] = -current
+        tb.in_stance[k] = inp.in_stance
+        tb.supporting_legs[k] = int(inp.in_stance.sum())
+        tb.true_power_in_w[k] = res['power_w']
+        tb.true_mechanical_power_w[k] = out.mechanical_power_w
+        tb.true_temperature_c[k] = out.temperature_c
+        tb.speed_mps[k] = inp.speed_mps
+        tb.powered[k] = self.powered
+
+
+def simulate_robot(duration_s: float, config: RobotConfig | None = None, *,
+                   effects: EffectSet | None = None, seed: int = 0,
+                   progress: Callable[[int], None] | None = None) -> SimTrace:
+    """Batch run of the servo hexapod: ``duration_s`` seconds into a :class:`SimTrace`."""
+    if not (math.isfinite(duration_s) and duration_s > 0.0):
+        raise ValueError(f'duration_s = {duration_s!r}: expected a finite duration > 0 s')
+    return RobotSimulator(config, effects=effects, seed=seed).run(duration_s, progress=progress)
