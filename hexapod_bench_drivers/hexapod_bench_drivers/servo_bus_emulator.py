@@ -30,10 +30,14 @@ import argparse
 import math
 import os
 import select
+import signal
+import subprocess
+import sys
 import threading
 import time
 import tty
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -56,6 +60,7 @@ __all__ = [
     'ServoStepOutput',
     'EmulatedServo',
     'crc16',
+    'emulator_process',
     'make_physics',
     'p1_checksum',
     'p1_packet',
@@ -460,10 +465,12 @@ class ServoBusEmulator:
         Use the simulator's ServoModel when importable (else the first-order stand-in).
 
     Use as a context manager, or ``start()``/``stop()``. Open :attr:`port_name` with the SDK.
+    Physics is stepped when a packet arrives and ``min_step_s`` has passed, so present values
+    are at most that old (4 ms default: one physics step costs ~0.4 ms for 18 servos).
     """
 
     def __init__(self, servos: Sequence[EmulatedServo], *, supply_voltage_v: float = 12.0,
-                 clock: Callable[[], float] = time.monotonic, min_step_s: float = 2e-3,
+                 clock: Callable[[], float] = time.monotonic, min_step_s: float = 4e-3,
                  prefer_model: bool = True) -> None:
         if not servos:
             raise ValueError('servos: expected at least one EmulatedServo, got none')
@@ -779,6 +786,33 @@ def _parse_ids(text: str) -> list[int]:
         elif part.strip():
             ids.append(int(part))
     return ids
+
+
+@contextmanager
+def emulator_process(model: str, ids: Iterable[int], *,
+                     supply_voltage_v: float = 12.0) -> Iterator[str]:
+    """Run an emulated bus in a child process (own interpreter, own GIL); yields the port name.
+
+    Real servos do not share the driver's CPU time; this is the fair set-up for benchmarks.
+    """
+    ids_text = ','.join(str(i) for i in ids)
+    proc = subprocess.Popen(
+        [sys.executable, '-m', 'hexapod_bench_drivers.servo_bus_emulator', '--model', model,
+         '--ids', ids_text, '--supply-voltage', str(supply_voltage_v)],
+        stdout=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout is not None
+        port = proc.stdout.readline().strip()
+        if not port:
+            raise RuntimeError(f'emulator process for {model} {ids_text} printed no port name')
+        yield port
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=5.0)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
 
 
 def main(argv: Sequence[str] | None = None) -> int:
