@@ -175,6 +175,11 @@ class GaitScheduler:
         return self._target
 
     @property
+    def last_change_s(self) -> float:
+        """Time of the last :meth:`set_gait` (or ``t0_s``) [s]."""
+        return self._t_switch
+
+    @property
     def transition_end_s(self) -> float:
         """Time at which the current transition ends [s]."""
         return self._t_switch + self._duration_s

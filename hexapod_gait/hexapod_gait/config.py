@@ -1,0 +1,113 @@
+"""Gait from a flat parameter set (what the gait node's parameters describe), validated.
+
+Kept out of the node so that the rules (speed chooses the period, feasibility, reach of every
+tip on the path) are tested without ROS.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .buehler import BUEHLER_PRESETS, BuehlerClock
+from .errors import InfeasibleGaitError, InvalidGaitError, UnreachableError
+from .feasibility import ActuatorLimits, check_feasible, period_for_speed
+from .gait import GaitPattern, make_gait
+from .kinematics import Branch, LegKinematics
+from .trajectory import ANTBOT_NEUTRAL_TIP_M, default_forward_axis, tip_path
+
+__all__ = ['build_gait', 'check_reachable']
+
+
+def check_reachable(
+    gait: GaitPattern,
+    *,
+    kinematics: LegKinematics | None = None,
+    neutral_tip_m: ArrayLike = ANTBOT_NEUTRAL_TIP_M,
+    branch: Branch = 'knee_up',
+    samples: int = 200,
+) -> None:
+    """Raise :class:`UnreachableError` if any tip of the gait's path leaves the leg's workspace.
+
+    The path is sampled at ``samples`` leg phases (it is the same for every leg up to the sign
+    of the forward axis, so both signs are checked).
+    """
+    kin = kinematics if kinematics is not None else LegKinematics()
+    phi = (np.arange(samples) + 0.5) / samples
+    path = tip_path(phi, duty_factor=gait.duty_factor, step_length_m=gait.step_length_m,
+                    step_height_m=gait.step_height_m)
+    neutral = np.asarray(neutral_tip_m, dtype=float).reshape(3)
+    for leg in {gait.leg_names[0][0] + '1', 'R1' if gait.leg_names[0][0] == 'L' else 'L1'}:
+        axis = np.asarray(default_forward_axis(leg))
+        p = neutral + path.u[:, None] * axis + path.z[:, None] * np.array([0.0, 0.0, 1.0])
+        try:
+            kin.inverse(p, branch=branch)
+        except UnreachableError as err:
+            raise UnreachableError(
+                f'step length {gait.step_length_m:g} m / step height {gait.step_height_m:g} m '
+                f'leave the leg workspace: {err}'
+            ) from err
+
+
+def build_gait(
+    gait: str,
+    *,
+    leg_count: int = 6,
+    duty_factor: float = 0.5,
+    period_s: float = 1.0,
+    step_length_m: float = 0.10,
+    step_height_m: float = 0.04,
+    speed_mps: float = 0.0,
+    sweep_angle_rad: float = 1.0,
+    leg_offset_rad: float = 0.0,
+    preset: str = '',
+    limits: ActuatorLimits | None = ActuatorLimits(),
+    kinematics: LegKinematics | None = None,
+    neutral_tip_m: ArrayLike = ANTBOT_NEUTRAL_TIP_M,
+) -> GaitPattern | BuehlerClock:
+    """The gait a parameter set asks for, or a typed error giving the reason.
+
+    Parameters
+    ----------
+    gait : str
+        A pattern name of :func:`hexapod_gait.gait.make_gait` (not ``custom``) or ``buehler``.
+    speed_mps : float
+        If > 0, the period is chosen for this speed (``period_s`` is ignored) and an infeasible
+        speed is refused.
+    sweep_angle_rad, leg_offset_rad : float
+        Buehler clock only.
+    preset : str
+        Buehler clock only: a key of :data:`BUEHLER_PRESETS` (``running``, ``jogging``,
+        ``pace``, ``walk``); when set, it gives period, duty cycle, sweep and offset.
+    limits : ActuatorLimits or None
+        Limits for 3-DOF patterns (None: no check).
+
+    Raises
+    ------
+    InvalidGaitError, InfeasibleGaitError, UnreachableError
+    """
+    if gait == 'buehler':
+        if preset:
+            if preset not in BUEHLER_PRESETS:
+                raise InvalidGaitError(
+                    f'preset must be one of {sorted(BUEHLER_PRESETS)}, got {preset!r}'
+                )
+            return BUEHLER_PRESETS[preset]
+        return BuehlerClock(period_s=period_s, duty_factor=duty_factor,
+                            sweep_angle_rad=sweep_angle_rad, leg_offset_rad=leg_offset_rad)
+    if gait == 'custom':
+        raise InvalidGaitError("gait 'custom' needs phase offsets; build it with make_gait")
+    if preset:
+        raise InvalidGaitError(f'preset is for the buehler gait only, got gait {gait!r}')
+    if speed_mps > 0.0:
+        period_s = period_for_speed(speed_mps, duty_factor, step_length_m,
+                                    limits if limits is not None else ActuatorLimits(
+                                        1e-12, 1e-12, 1e12))
+    elif speed_mps < 0.0:
+        raise InfeasibleGaitError(f'speed must be >= 0 (0 = use the period), got {speed_mps!r}')
+    pattern = make_gait(gait, leg_count=leg_count, duty_factor=duty_factor, period_s=period_s,
+                        step_length_m=step_length_m, step_height_m=step_height_m)
+    if limits is not None:
+        check_feasible(pattern, limits)
+    check_reachable(pattern, kinematics=kinematics, neutral_tip_m=neutral_tip_m)
+    return pattern

@@ -1,0 +1,204 @@
+"""``gait_scheduler``: publishes the gait schedule and the joint commands that walk it.
+
+Publishes ``gait/phase`` (hexapod_interfaces/GaitPhase) and ``joint_commands``
+(sensor_msgs/JointState, position and velocity) at ``rate`` Hz on a timer of the node clock
+(so ``use_sim_time`` works). Parameter changes at run time start a phase-continuous transition
+(:class:`hexapod_gait.scheduler.GaitScheduler`); an infeasible request is refused with its reason
+and the gait keeps running. The science is in the core modules of :mod:`hexapod_gait`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from hexapod_interfaces.msg import GaitPhase
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+
+from hexapod_common.conversions import s_to_stamp
+from hexapod_common.errors import ParameterError
+from hexapod_common.node_utils import RELIABLE_QOS, declare_params, param, run_node
+from hexapod_gait.buehler import BUEHLER_PRESETS, BuehlerClock
+from hexapod_gait.config import build_gait
+from hexapod_gait.errors import HexapodGaitError
+from hexapod_gait.feasibility import ActuatorLimits
+from hexapod_gait.gait import GAIT_NAMES, GaitPattern
+from hexapod_gait.scheduler import GaitScheduler, GaitState
+
+__all__ = ['GaitParams', 'GaitSchedulerNode', 'gait_state_to_msg', 'joint_command_msg', 'main']
+
+
+def _positive(v: float) -> str | None:
+    return None if v > 0 else 'must be > 0'
+
+
+@dataclass(frozen=True)
+class GaitParams:
+    gait: str = param(
+        'tripod', 'tripod, alternating, wave, ripple, tetrapod or buehler (1 hip per leg)',
+        validate=lambda v: None if v in GAIT_NAMES and v != 'custom'
+        else f'expected one of {[g for g in GAIT_NAMES if g != "custom"]}')
+    leg_count: int = param(6, 'number of legs (even); cannot change while walking',
+                           validate=lambda v: None if v >= 2 and v % 2 == 0 else 'must be even')
+    duty_factor: float = param(0.5, 'beta = T_stance / T (Buehler: duty cycle dc)',
+                               validate=lambda v: None if 0 < v < 1 else 'must be in (0, 1)')
+    period: float = param(1.0, 'cycle period T [s] (ignored when speed > 0)', validate=_positive)
+    step_length: float = param(0.10, 'distance travelled in one stance [m]',
+                               validate=lambda v: None if v >= 0 else 'must be >= 0')
+    step_height: float = param(0.04, 'swing lift [m]',
+                               validate=lambda v: None if v >= 0 else 'must be >= 0')
+    speed: float = param(0.0, 'body speed [m/s]; > 0 chooses the period, 0 uses period',
+                         validate=lambda v: None if v >= 0 else 'must be >= 0')
+    rate: float = param(100.0, 'command rate [Hz]', validate=_positive, read_only=True)
+    sweep_angle: float = param(1.0, 'Buehler clock sweep angle phi_s [rad]',
+                               validate=lambda v: None if 0 < v < 6.283185307179586
+                               else 'must be in (0, 2 pi)')
+    leg_offset: float = param(0.0, 'Buehler clock leg offset phi_0 [rad]')
+    preset: str = param('', 'Buehler preset (running, jogging, pace, walk); empty = parameters',
+                        validate=lambda v: None if v in ('', *BUEHLER_PRESETS)
+                        else f'expected one of {sorted(BUEHLER_PRESETS)} or empty')
+    transition_cycles: float = param(1.0, 'duration of a transition in gait periods',
+                                     validate=_positive)
+    min_swing: float = param(0.16, 'actuator limit: shortest swing [s]', validate=_positive,
+                             read_only=True)
+    min_stance: float = param(0.15, 'actuator limit: shortest stance [s]', validate=_positive,
+                              read_only=True)
+    max_step_frequency: float = param(3.0, 'actuator limit: highest step frequency [Hz]',
+                                      validate=_positive, read_only=True)
+
+
+def _limits(p: GaitParams) -> ActuatorLimits:
+    return ActuatorLimits(min_swing_s=p.min_swing, min_stance_s=p.min_stance,
+                          max_step_frequency_hz=p.max_step_frequency)
+
+
+def gait_from_params(p: GaitParams) -> GaitPattern | BuehlerClock:
+    """The gait the parameters describe (raises a :class:`HexapodGaitError` with the reason)."""
+    return build_gait(p.gait, leg_count=p.leg_count, duty_factor=p.duty_factor,
+                      period_s=p.period, step_length_m=p.step_length,
+                      step_height_m=p.step_height, speed_mps=p.speed,
+                      sweep_angle_rad=p.sweep_angle, leg_offset_rad=p.leg_offset,
+                      preset=p.preset, limits=_limits(p))
+
+
+def _stamp(msg: Any, t_ns: int | None, t_s: float) -> None:
+    if t_ns is not None:
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(t_ns), 1_000_000_000)
+    else:
+        msg.header.stamp.sec, msg.header.stamp.nanosec = s_to_stamp(t_s)
+
+
+def gait_state_to_msg(state: GaitState, t_s: float, msg: Any = None, *,
+                      t_ns: int | None = None) -> GaitPhase:
+    """Fill a GaitPhase message from a scheduler state.
+
+    The stamp is ``t_ns`` [ns] when given (exact), else ``t_s`` rounded to the nanosecond.
+    """
+    msg = msg or GaitPhase()
+    _stamp(msg, t_ns, t_s)
+    g = state.gait
+    msg.gait = g.name
+    msg.period = g.period_s
+    msg.duty_factor = g.duty_factor
+    msg.step_length = g.step_length_m
+    msg.step_height = g.step_height_m
+    msg.sweep_angle = state.clock.sweep_angle_rad if state.clock is not None else 0.0
+    msg.leg_offset = state.clock.leg_offset_rad if state.clock is not None else 0.0
+    msg.cycle_phase = state.cycle_phase
+    msg.leg_names = list(g.leg_names)
+    msg.phase_offsets = [float(x) for x in g.phase_offsets]
+    msg.in_stance = [bool(x) for x in state.in_stance]
+    msg.supporting_legs = int(state.supporting_legs)
+    return msg
+
+
+def joint_command_msg(t_s: float, names: Sequence[str], q: Sequence[float],
+                      qd: Sequence[float], *, t_ns: int | None = None) -> JointState:
+    """A JointState command with position and velocity (stamp as in :func:`gait_state_to_msg`)."""
+    msg = JointState()
+    _stamp(msg, t_ns, t_s)
+    msg.name = list(names)
+    msg.position = [float(x) for x in q]
+    msg.velocity = [float(x) for x in qd]
+    return msg
+
+
+class GaitSchedulerNode(Node):
+    """Thin node around :class:`GaitScheduler`."""
+
+    def __init__(self, *, context: Any = None, parameter_overrides: Any = None,
+                 namespace: str | None = None, node_name: str = 'gait_scheduler',
+                 **kw: Any) -> None:
+        super().__init__(node_name, context=context, namespace=namespace or '',
+                         parameter_overrides=parameter_overrides or [], **kw)
+        self.scheduler: GaitScheduler | None = None
+        # The scheduler runs on seconds since the first tick, t0_ns: wall-clock seconds as one
+        # float resolve only about 0.2 us.
+        self.t0_ns: int | None = None
+        self.t0_s: float | None = None
+        p = declare_params(self, GaitParams, on_change=self._on_change)
+        try:
+            self._gait = gait_from_params(p)
+        except HexapodGaitError as err:
+            raise ParameterError(f'gait parameters refused: {err}') from err
+        self.phase_pub = self.create_publisher(GaitPhase, 'gait/phase', RELIABLE_QOS)
+        self.cmd_pub = self.create_publisher(JointState, 'joint_commands', RELIABLE_QOS)
+        self.ticks = 0
+        self.timer = self.create_timer(1.0 / p.rate, self._on_timer)
+        self.get_logger().info(f'walking {self._describe(self._gait)}')
+
+    @staticmethod
+    def _describe(g: GaitPattern | BuehlerClock) -> str:
+        if isinstance(g, BuehlerClock):
+            return (f'buehler clock T={g.period_s:.4g} s dc={g.duty_factor:.3g} '
+                    f'sweep={g.sweep_angle_rad:.3g} rad offset={g.leg_offset_rad:.3g} rad')
+        return (f'{g.name} on {g.leg_count} legs, beta={g.duty_factor:.3g}, '
+                f'T={g.period_s:.4g} s, step {g.step_length_m:.3g} m, v={g.speed_mps:.3g} m/s')
+
+    def _now_s(self) -> float:
+        """Scheduler time: seconds since the first tick (0 before it)."""
+        now_ns = self.get_clock().now().nanoseconds
+        return 0.0 if self.t0_ns is None else (now_ns - self.t0_ns) * 1e-9
+
+    def _on_change(self, new: GaitParams) -> str | None:
+        """Validate a run-time change and start a transition; a returned string refuses it."""
+        try:
+            gait = gait_from_params(new)
+            if self.scheduler is not None:
+                self.scheduler.transition_cycles = new.transition_cycles
+                self.scheduler.set_gait(gait, max(self._now_s(), self.scheduler.last_change_s))
+        except HexapodGaitError as err:
+            self.get_logger().warning(f'gait change refused: {err}')
+            return str(err)
+        self._gait = gait
+        self.get_logger().info(f'transition to {self._describe(gait)}')
+        return None
+
+    def _on_timer(self) -> None:
+        now_ns = self.get_clock().now().nanoseconds
+        if now_ns <= 0:
+            return  # sim time not started
+        if self.scheduler is None:
+            self.t0_ns = now_ns
+            self.t0_s = now_ns * 1e-9
+            self.scheduler = GaitScheduler(
+                self._gait, 0.0, leg_count=self.params.leg_count,
+                transition_cycles=self.params.transition_cycles)
+        assert self.t0_ns is not None
+        t = (now_ns - self.t0_ns) * 1e-9
+        try:
+            state = self.scheduler.state(t)
+            names, q, qd = self.scheduler.joint_targets(t)
+        except HexapodGaitError as err:
+            self.get_logger().error(f'no command at t={t:.3f} s: {err}',
+                                    throttle_duration_sec=5.0)
+            return
+        self.phase_pub.publish(gait_state_to_msg(state, t, t_ns=now_ns))
+        self.cmd_pub.publish(joint_command_msg(t, names, q, qd, t_ns=now_ns))
+        self.ticks += 1
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    return run_node(GaitSchedulerNode, args)
