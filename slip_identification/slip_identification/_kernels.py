@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-__all__ = ['HAVE_NUMBA', 'fit_many', 'trajectory']
+__all__ = ['HAVE_NUMBA', 'fit_many', 'trajectory', 'trajectories']
 
 try:
     from numba import njit, prange
@@ -205,26 +205,43 @@ if HAVE_NUMBA:
             sim, fsim = _sort(sim, fsim)
         return sim[0].copy(), fsim[0], converged, it, fcalls
 
-    @njit(cache=True, parallel=True)
-    def fit_many(x0s, xes, ns, dens, fx0s, dt, stride, inv_m, g, scales, ext_idx, npar,
-                 xatol, fatol, maxiter):  # type: ignore[no-untyped-def]
-        """Nelder-Mead per stance. ``xes`` (B, Nmax, 4) padded; returns q, f, conv, it, calls."""
-        b = x0s.shape[0]
-        q = np.empty((b, npar))
-        f = np.empty(b)
-        conv = np.zeros(b, dtype=np.bool_)
-        its = np.zeros(b, dtype=np.int64)
-        calls = np.zeros(b, dtype=np.int64)
-        for j in prange(b):
-            qj, fj, cj, ij, nj = _nelder_mead(x0s[j], xes[j], ns[j], dens[j], fx0s[j], dt,
-                                              stride, inv_m, g, scales, ext_idx, npar,
-                                              xatol, fatol, maxiter)
-            q[j] = qj
-            f[j] = fj
-            conv[j] = cj
-            its[j] = ij
-            calls[j] = nj
-        return q, f, conv, its, calls
+    def _make_fit_many(parallel):  # type: ignore[no-untyped-def]
+        loop = prange if parallel else range
+
+        @njit(cache=True, parallel=parallel)
+        def fit_many_impl(x0s, xes, ns, dens, fx0s, dt, stride, inv_m, g, scales, ext_idx,
+                          npar, xatol, fatol, maxiter):  # type: ignore[no-untyped-def]
+            b = x0s.shape[0]
+            q = np.empty((b, npar))
+            f = np.empty(b)
+            conv = np.zeros(b, dtype=np.bool_)
+            its = np.zeros(b, dtype=np.int64)
+            calls = np.zeros(b, dtype=np.int64)
+            for j in loop(b):
+                qj, fj, cj, ij, nj = _nelder_mead(x0s[j], xes[j], ns[j], dens[j], fx0s[j], dt,
+                                                  stride, inv_m, g, scales, ext_idx, npar,
+                                                  xatol, fatol, maxiter)
+                q[j] = qj
+                f[j] = fj
+                conv[j] = cj
+                its[j] = ij
+                calls[j] = nj
+            return q, f, conv, its, calls
+
+        return fit_many_impl
+
+    _fit_many_parallel = _make_fit_many(True)
+    _fit_many_serial = _make_fit_many(False)
+
+    def fit_many(x0s, xes, *args):  # type: ignore[no-untyped-def]
+        """Nelder-Mead per stance. ``xes`` (B, Nmax, 4) padded; returns q, f, conv, it, calls.
+
+        Small batches (the online case) run serially: starting the thread pool costs more
+        than a fit.
+        """
+        if x0s.shape[0] >= 16:
+            return _fit_many_parallel(x0s, xes, *args)
+        return _fit_many_serial(x0s, xes, *args)
 
     @njit(cache=True)
     def trajectory(p, x0, n, dt, stride, inv_m, g):  # type: ignore[no-untyped-def]
@@ -233,6 +250,30 @@ if HAVE_NUMBA:
         _run(p, x0, np.zeros((0, 4)), n, dt, stride, inv_m, g, out)
         return out
 
+    def _make_trajectories(parallel):  # type: ignore[no-untyped-def]
+        loop = prange if parallel else range
+
+        @njit(cache=True, parallel=parallel)
+        def impl(p5s, x0s, n, dt, stride, inv_m, g):  # type: ignore[no-untyped-def]
+            m = p5s.shape[0]
+            out = np.empty((m, n, 4))
+            empty = np.zeros((0, 4))
+            for j in loop(m):
+                _run(p5s[j], x0s[j], empty, n, dt, stride, inv_m, g, out[j])
+            return out
+
+        return impl
+
+    _traj_parallel = _make_trajectories(True)
+    _traj_serial = _make_trajectories(False)
+
+    def trajectories(p5s, x0s, *args):  # type: ignore[no-untyped-def]
+        """States (M, n, 4) for rows of ``p5s`` (M, 5) from ``x0s`` (M, 4)."""
+        if p5s.shape[0] >= 64:
+            return _traj_parallel(p5s, x0s, *args)
+        return _traj_serial(p5s, x0s, *args)
+
 else:  # pragma: no cover
     fit_many = None
     trajectory = None
+    trajectories = None

@@ -491,43 +491,50 @@ class SlipFitter:
                                     int(calls[j]), float(errs[1][j])))
         return out
 
-    def _trajectories(self, x0: FloatArray, params: FloatArray, n: int, dt_s: float
-                      ) -> FloatArray:
-        """States (n, 4, M) for parameter rows ``params`` (M, P) from one ``x0`` (4,)."""
-        model = self.model
-        if _kernels.HAVE_NUMBA and self.compiled:
-            out = np.empty((n, 4, params.shape[0]))
-            p5 = _physical5(params, model)
-            for m in range(params.shape[0]):
-                out[:, :, m] = _kernels.trajectory(p5[m], x0, n, dt_s, self.stride,
-                                                   1.0 / model.mass_kg, model.gravity_mps2)
-            return out
-        return model.simulate_batch(np.tile(x0, (params.shape[0], 1)), params, n, dt_s,
-                                    stride=self.stride)
-
     def _stderr_batch(self, batch: _Batch, pbest: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Gauss-Newton standard errors and RSS of every stance of the bucket, vectorised."""
         model = self.model
         b, p = pbest.shape
-        stderr = np.full((b, p), np.nan)
-        rss = np.full(b, np.nan)
-        for j in range(b):
-            n = int(batch.mask[:, j].sum())
-            steps = np.maximum(np.abs(pbest[j]) * 1e-4, _scales(model) * 1e-5)
-            pts = np.tile(pbest[j], (2 * p + 1, 1))
+        steps = np.maximum(np.abs(pbest) * 1e-4, _scales(model)[None, :] * 1e-5)  # (B, P)
+        pts = np.repeat(pbest[:, None, :], 2 * p + 1, axis=1)  # (B, 2P+1, P)
+        for k in range(p):
+            pts[:, 1 + 2 * k, k] += steps[:, k]
+            pts[:, 2 + 2 * k, k] -= steps[:, k]
+        flat = pts.reshape(-1, p)
+        x0 = np.repeat(batch.x0, 2 * p + 1, axis=0)
+        if _kernels.HAVE_NUMBA and self.compiled:
+            traj = _kernels.trajectories(_physical5(flat, model), np.ascontiguousarray(x0),
+                                         batch.n, batch.dt_s, self.stride,
+                                         1.0 / model.mass_kg, model.gravity_mps2)
+        else:
+            traj = model.simulate_batch(x0, flat, batch.n, batch.dt_s,
+                                        stride=self.stride).transpose(2, 0, 1)
+        traj = traj.reshape(b, 2 * p + 1, batch.n, 4)
+        mask = batch.mask.T[:, :, None].copy()  # (B, N, 1)
+        mask[:, 0] = False  # sample 0 is the fixed initial state
+        xe = batch.xe.transpose(2, 0, 1)
+        with np.errstate(all='ignore'):
+            res0 = np.where(mask, traj[:, 0] - xe, 0.0)
+            rss = np.sum(res0**2, axis=(1, 2))
+            jac = np.empty((b, batch.n * 4, p))
             for k in range(p):
-                pts[1 + 2 * k, k] += steps[k]
-                pts[2 + 2 * k, k] -= steps[k]
-            with np.errstate(all='ignore'):
-                traj = self._trajectories(batch.x0[j], pts, n, batch.dt_s)
-                res0 = traj[1:, :, 0] - batch.xe[1:n, :, j]
-                rss[j] = float(np.sum(res0**2))
-                jac = np.empty((4 * (n - 1), p))
-                for k in range(p):
-                    jac[:, k] = ((traj[1:, :, 1 + 2 * k] - traj[1:, :, 2 + 2 * k])
-                                 / (2 * steps[k])).ravel()
-            n_raw = int(batch.n_raw[j])
-            stderr[j] = _stderr_from_jacobian(jac, float(rss[j]), 4 * (n - 1),
-                                              max(1.0, (n - 1) / max(n_raw - 1, 1)))
+                d = (traj[:, 1 + 2 * k] - traj[:, 2 + 2 * k]) / (2 * steps[:, k, None, None])
+                jac[:, :, k] = np.where(mask, d, 0.0).reshape(b, -1)
+            jtj = np.einsum('bik,bil->bkl', jac, jac)
+        n_res = 4 * (batch.mask.sum(axis=0) - 1)
+        dof = n_res - p
+        inflation = np.maximum(1.0, (batch.mask.sum(axis=0) - 1) / np.maximum(batch.n_raw - 1, 1))
+        stderr = np.full((b, p), np.nan)
+        ok = (dof > 0) & np.all(np.isfinite(jtj), axis=(1, 2)) & np.isfinite(rss)
+        if ok.any():
+            good = np.flatnonzero(ok)
+            cond = np.linalg.cond(jtj[good])
+            good = good[cond < 1e14]
+            if good.size:
+                cov = np.linalg.inv(jtj[good]) * (rss[good] / dof[good] * inflation[good]
+                                                  )[:, None, None]
+                d = np.diagonal(cov, axis1=1, axis2=2)
+                stderr[good] = np.where(d >= 0, np.sqrt(np.abs(d)), np.nan)
         return stderr, rss
 
     # ------------------------------------------------------------------ reference path
