@@ -38,8 +38,10 @@ Physics, all quantities referred to the OUTPUT shaft (after the gearbox):
   semi-implicit Euler in sub-steps.
 
 * **Heat.** One first-order winding node: ``C dT/dt = i^2 R(T) - (T - T_amb) / R_th`` with
-  ``tau_th = R_th C`` of minutes and copper resistance ``R(T) = R_ref (1 + 0.00393 (T - T_ref))``,
-  so a hot servo needs more current and power for the same torque.
+  ``tau_th = R_th C`` of minutes, copper resistance ``R(T) = R_ref (1 + 0.00393 (T - T_ref))``
+  and magnet flux ``k_e(T) = k_e,ref (1 - 0.003 (T - T_ref))``, so a hot servo needs more
+  current for the same torque (about +1 W per leg after 10 min at 3 Hz with 500 g, as Brodoline
+  et al. measured).
 
 * **Reporting as the servo does:** integer degC, the present load as the signed PWM fraction
   (that is what AX/MX firmware reports), voltage in 0.1 V, no current sensing. The true supply
@@ -125,7 +127,13 @@ class ServoParams:
     thermal_time_constant_s : float
         Winding thermal time constant [s].
     reference_temperature_c : float
-        Temperature at which the datasheet resistance holds [degC].
+        Temperature at which the datasheet resistance and constants hold [degC].
+    copper_temp_coeff_per_k : float
+        Relative change of the winding resistance per kelvin (copper: +0.393 %/K).
+    magnet_temp_coeff_per_k : float
+        Relative change of the motor constant (magnet flux) per kelvin (ferrite and bonded
+        magnets: -0.2 to -0.3 %/K; -0.3 %/K calibrated to the paper's thermal drift): a hot
+        motor needs more current for the same torque.
     temperature_limit_c : float
         Overheating shutdown threshold [degC].
     min_voltage_v, max_voltage_v : float
@@ -153,7 +161,7 @@ class ServoParams:
     structural_stiffness_nm_rad: float = 60.0
     backlash_rad: float = 0.4 * _DEG
     backlash_torque_nm: float = 0.02
-    thermal_resistance_k_w: float = 18.0
+    thermal_resistance_k_w: float = 24.0
     thermal_time_constant_s: float = 480.0
     reference_temperature_c: float = 25.0
     temperature_limit_c: float = 75.0
@@ -162,6 +170,7 @@ class ServoParams:
     position_min_rad: float = -150.0 * _DEG
     position_max_rad: float = 150.0 * _DEG
     copper_temp_coeff_per_k: float = field(default=COPPER_TEMP_COEFF_PER_K)
+    magnet_temp_coeff_per_k: float = -0.003
 
     def __post_init__(self) -> None:
         positive = ('gear_ratio', 'rated_voltage_v', 'stall_torque_nm', 'stall_current_a',
@@ -481,7 +490,9 @@ class ServoModel:
         deflection = self._deflection(tau_ext)
         umax = np.where(drive, np.clip(self.torque_limit, 0.0, 1.0), 0.0)
         neg_umax = -umax
-        ke, kp, margin = self._ke, self._kp, p.compliance_margin_rad
+        ke = self._ke * (1.0 + p.magnet_temp_coeff_per_k
+                         * (self.temperature_c - p.reference_temperature_c))
+        kp, margin = self._kp, p.compliance_margin_rad
         coulomb = p.coulomb_friction_nm + self.extra_friction_nm
         visc, w_eps, mu = p.viscous_friction_nm_s, p.stick_speed_rad_s, 1.0 - self._eta
         h_inv_j = h / self.inertia_kgm2

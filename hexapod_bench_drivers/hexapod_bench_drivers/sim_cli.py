@@ -1,0 +1,181 @@
+"""``hexapod-sim bench|robot|edubot --out BAG ...``: simulated hardware straight into a bag.
+
+Examples::
+
+    hexapod-sim robot --out run1 --duration 30 --speed 0.6 --effect basal_power=3
+    hexapod-sim robot --out stand --duration 10 --period 0
+    hexapod-sim bench --out plan --loads 0,0.095,0.515 --frequencies 0,1,3 --duration 20
+
+Prints one JSON line with the bag path, message counts and the effects that were on.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import sys
+import time
+from collections.abc import Sequence
+from typing import Any
+
+from .effects import EFFECTS, EffectError, parse_effects
+
+__all__ = ['build_parser', 'main']
+
+
+def _floats(text: str) -> tuple[float, ...]:
+    try:
+        values = tuple(float(x) for x in text.split(',') if x.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'expected comma-separated numbers, got {text!r}') \
+            from None
+    if not values:
+        raise argparse.ArgumentTypeError('expected at least one number')
+    return values
+
+
+def _common(p: argparse.ArgumentParser) -> None:
+    p.add_argument('--out', required=True, help='bag folder to create (must not exist)')
+    p.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap')
+    p.add_argument('--seed', type=int, default=0, help='noise seed (same seed, same bag)')
+    p.add_argument('--effect', action='append', default=[], metavar='NAME=VALUE',
+                   help='switch an effect on (NAME=off turns a default one off); known: '
+                        + ', '.join(sorted(EFFECTS)))
+    p.add_argument('--servo', default='ax18a', help='servo preset: ax18a, ax12a, xl430, xm430')
+    p.add_argument('--rate', type=float, default=100.0, help='sample rate [Hz]')
+    p.add_argument('--no-progress', action='store_true', help='no progress bar')
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog='hexapod-sim', description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = parser.add_subparsers(dest='command', required=True)
+
+    robot = sub.add_parser('robot', help='servo hexapod (AntBot defaults)')
+    _common(robot)
+    robot.add_argument('--duration', type=float, default=10.0, help='simulated time [s]')
+    robot.add_argument('--gait', default='tripod')
+    robot.add_argument('--duty-factor', type=float, default=0.5)
+    robot.add_argument('--period', type=float, default=1.0, help='gait period [s]; 0 = stand')
+    robot.add_argument('--speed', type=float, default=0.0,
+                       help='body speed [m/s]; > 0 overrides --period')
+    robot.add_argument('--step-length', type=float, default=0.10, help='[m]')
+    robot.add_argument('--step-height', type=float, default=0.04, help='[m]')
+    robot.add_argument('--legs', type=int, default=6, help='leg count (4, 6, 8)')
+    robot.add_argument('--payload', type=float, default=0.0, help='[kg]')
+    robot.add_argument('--battery', action='store_true', help='3S LiPo instead of a 11.9 V supply')
+    robot.set_defaults(func=_run_robot)
+
+    bench = sub.add_parser('bench', help='single leg on the MiMiC-Ant bench, a plan of sessions')
+    _common(bench)
+    bench.add_argument('--duration', type=float, default=10.0,
+                       help='walking time of each session [s]')
+    bench.add_argument('--loads', type=_floats, default=(0.0, 0.095, 0.141, 0.187, 0.515),
+                       help='comma-separated loads [kg]')
+    bench.add_argument('--frequencies', type=_floats, default=(0.0, 0.5, 1.0, 2.0, 3.0),
+                       help='comma-separated step frequencies [Hz]')
+    bench.add_argument('--duty-factor', type=float, default=0.5)
+    bench.add_argument('--step-length', type=float, default=0.10, help='[m]')
+    bench.add_argument('--step-height', type=float, default=0.04, help='[m]')
+    bench.add_argument('--leg', default='R2')
+    bench.add_argument('--max-cool', type=float, default=1800.0,
+                       help='longest cooling between sessions [s]')
+    bench.set_defaults(func=_run_bench)
+
+    try:
+        edubot = importlib.import_module('hexapod_bench_drivers.edubot_sim')
+    except ImportError:
+        edubot = None
+    if edubot is not None and hasattr(edubot, 'add_cli'):
+        edubot.add_cli(sub)
+    return parser
+
+
+class _Progress:
+    def __init__(self, total: int, label: str, enabled: bool) -> None:
+        self.bar: Any = None
+        if enabled:
+            try:
+                from tqdm import tqdm
+            except ImportError:
+                return
+            self.bar = tqdm(total=total, desc=label, unit='sample', file=sys.stderr,
+                            leave=False)
+
+    def __call__(self, n: int) -> None:
+        if self.bar is not None:
+            self.bar.update(n)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _finish(args: argparse.Namespace, trace: Any, effects: Any, t0: float) -> int:
+    from .sim_bag import write_trace
+    progress = _Progress(trace.sample_count, 'bag', not args.no_progress)
+    try:
+        counts = write_trace(trace, args.out, storage=args.storage, seed=args.seed,
+                             progress=progress)
+    finally:
+        progress.close()
+    wall = time.perf_counter() - t0
+    sim_s = float(trace.t_s[-1]) if trace.sample_count else 0.0
+    print(json.dumps({'bag': str(args.out), 'simulator': trace.kind, 'simulated_s': sim_s,
+                      'wall_s': round(wall, 3),
+                      'real_time_factor': round(sim_s / wall, 2) if wall > 0 else None,
+                      'messages': counts, 'effects': json.loads(effects.to_json())}))
+    return 0
+
+
+def _run_robot(args: argparse.Namespace) -> int:
+    from .robot_sim import RobotConfig, RobotSimulator
+    effects = parse_effects(args.effect, simulator='robot')
+    config = RobotConfig(leg_count=args.legs, gait=args.gait, duty_factor=args.duty_factor,
+                         period_s=args.period, speed_mps=args.speed,
+                         step_length_m=args.step_length, step_height_m=args.step_height,
+                         payload_kg=args.payload,
+                         supply='battery' if args.battery else 'supply', servo=args.servo,
+                         rate_hz=args.rate)
+    t0 = time.perf_counter()
+    sim = RobotSimulator(config, effects=effects, seed=args.seed)
+    progress = _Progress(int(args.duration * args.rate), 'robot', not args.no_progress)
+    try:
+        trace = sim.run(args.duration, progress=progress)
+    finally:
+        progress.close()
+    return _finish(args, trace, effects, t0)
+
+
+def _run_bench(args: argparse.Namespace) -> int:
+    from .bench_sim import BenchConfig, BenchPlan, BenchSimulator
+    effects = parse_effects(args.effect, simulator='bench')
+    plan = BenchPlan(loads_kg=args.loads, frequencies_hz=args.frequencies,
+                     walk_s=args.duration, duty_factor=args.duty_factor,
+                     step_length_m=args.step_length, step_height_m=args.step_height,
+                     max_cool_s=args.max_cool)
+    config = BenchConfig(leg=args.leg, servo=args.servo, rate_hz=args.rate)
+    t0 = time.perf_counter()
+    sim = BenchSimulator(config, effects=effects, seed=args.seed)
+    total = int(len(plan.sessions()) * args.duration * args.rate)
+    progress = _Progress(total, 'bench', not args.no_progress)
+    try:
+        trace = sim.run_plan(plan, progress=progress)
+    finally:
+        progress.close()
+    return _finish(args, trace, effects, t0)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args))
+    except (EffectError, ValueError) as err:
+        print(f'hexapod-sim: error: {err}', file=sys.stderr)
+        return 2
+
+
+if __name__ == '__main__':
+    sys.exit(main())
