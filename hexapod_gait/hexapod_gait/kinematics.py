@@ -11,7 +11,8 @@ In the leg base frame (z up, x along the coxa at ``q_1 = 0``), with ``R`` the ra
 
 Inverse-kinematics branches: ``'knee_up'`` puts the femur-tibia joint above the line from the
 femur joint to the tip (``t3 < 0``, the usual standing posture), ``'knee_down'`` below it
-(``t3 > 0``). The coxa angle is always ``atan2(y, x)`` (tip in front of the coxa axis, R > 0).
+(``t3 > 0``). The coxa angle is ``atan2(y, x)`` (tip in front of the coxa axis, R > 0), or that
+plus pi when only the coxa turned half a turn reaches the tip.
 """
 
 from __future__ import annotations
@@ -288,6 +289,16 @@ class LegKinematics:
         r = np.hypot(x, y) - a1
         dist2 = r * r + z * z
         D = (dist2 - a2 * a2 - a3 * a3) / (2.0 * a2 * a3)
+        # A tip behind the coxa axis may be reachable only with the coxa turned half a turn
+        # (femur pointing backwards over the coxa): use that solution when the usual one fails.
+        r_back = -np.hypot(x, y) - a1
+        D_back = (r_back * r_back + z * z - a2 * a2 - a3 * a3) / (2.0 * a2 * a3)
+        back = ~(np.abs(D) <= 1.0 + 1e-12) & (np.abs(D_back) <= 1.0 + 1e-12)
+        if np.any(back):
+            t1 = np.where(back, t1 + np.pi, t1)
+            r = np.where(back, r_back, r)
+            D = np.where(back, D_back, D)
+            dist2 = np.where(back, r_back * r_back + z * z, dist2)
         lo, hi = self.reach_m
         bad = ~(np.abs(D) <= 1.0 + 1e-12) | ~np.isfinite(D)
         if np.any(bad):

@@ -310,59 +310,52 @@ class GaitScheduler:
             clock=clock,
         )
 
-    def _positions(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Tip positions (n, legs, 3) [m] or unwrapped hip angles (n, legs) [rad]."""
+    def _positions(
+        self, t: NDArray[np.float64], *, with_velocity: bool = False
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
+        """Tip positions (n, legs, 3) [m] or unwrapped hip angles (n, legs) [rad].
+
+        With ``with_velocity`` also their time derivative at fixed parameters
+        (``d/dphi * dphi/dt``, exact when no transition is under way), else None.
+        """
         r = self._ramp(t)
         c = self._cycles(t)
         rel = c[:, None] - r['theta']
         phi = _wrap01(rel)
+        freq = r['freq_hz'][:, None]
         if self.is_buehler:
-            angle, _ = buehler_angle(
+            angle, dangle = buehler_angle(
                 phi, duty_factor=r['beta'][:, None], sweep_angle_rad=r['sweep_rad'][:, None],
                 leg_offset_rad=r['offset_rad'][:, None],
             )
-            return _TWO_PI * np.floor(rel) + angle
+            return _TWO_PI * np.floor(rel) + angle, (dangle * freq if with_velocity else None)
         path = tip_path(
             phi, duty_factor=r['beta'][:, None], step_length_m=r['step_length_m'][:, None],
-            step_height_m=r['step_height_m'][:, None],
+            step_height_m=r['step_height_m'][:, None], with_acceleration=False,
         )
-        return (self.neutral_tip_m + path.u[..., None] * self._forward[None]
-                + path.z[..., None] * np.array([0.0, 0.0, 1.0]))
+        up = np.array([0.0, 0.0, 1.0])
+        pos = self.neutral_tip_m + path.u[..., None] * self._forward[None] + path.z[..., None] * up
+        if not with_velocity:
+            return pos, None
+        vel = (path.du[..., None] * self._forward[None] + path.dz[..., None] * up)
+        vel = vel * freq[..., None]
+        return pos, vel
 
-    def _velocities(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Time derivative of :meth:`_positions`: analytic when settled, else central difference."""
-        settled = self._progress(t - _FD_STEP_S) >= 1.0
-        rows = []
-        for j, tj in enumerate(t):
-            if settled[j]:
-                rows.append(self._settled_velocity(float(tj)))
-            else:
-                p = self._positions(np.array([tj - _FD_STEP_S, tj + _FD_STEP_S]))
-                rows.append((p[1] - p[0]) / (2.0 * _FD_STEP_S))
-        return np.stack(rows)
-
-    def _settled_velocity(self, t: float) -> NDArray[np.float64]:
-        p1 = self._p1
-        c = self._cycles(np.array([t]))[0]
-        phi = _wrap01(c - p1.theta)
-        if self.is_buehler:
-            _, dangle = buehler_angle(
-                phi, duty_factor=p1.beta, sweep_angle_rad=p1.sweep_rad,
-                leg_offset_rad=p1.offset_rad,
-            )
-            return dangle * p1.freq_hz
-        path = tip_path(
-            phi, duty_factor=p1.beta, step_length_m=p1.step_length_m,
-            step_height_m=p1.step_height_m,
-        )
-        return (path.du[:, None] * self._forward
-                + path.dz[:, None] * np.array([0.0, 0.0, 1.0])) * p1.freq_hz
+    def _pos_vel(self, t_s: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Position and velocity at one time: analytic when settled, else central difference."""
+        t = np.array([t_s])
+        if self._progress(t - _FD_STEP_S)[0] >= 1.0:
+            pos, vel = self._positions(t, with_velocity=True)
+            assert vel is not None
+            return pos[0], vel[0]
+        p, _ = self._positions(np.array([t_s, t_s - _FD_STEP_S, t_s + _FD_STEP_S]))
+        return p[0], (p[2] - p[1]) / (2.0 * _FD_STEP_S)
 
     def tip_targets(self, t_s: ArrayLike) -> NDArray[np.float64]:
         """Commanded tip positions in each leg's base frame, shape (n, legs, 3) [m] (3-DOF)."""
         if self.is_buehler:
             raise InvalidGaitError('a Buehler clock commands hip angles, not tip positions')
-        return self._positions(np.atleast_1d(np.asarray(t_s, dtype=float)))
+        return self._positions(np.atleast_1d(np.asarray(t_s, dtype=float)))[0]
 
     def joint_targets(
         self, t_s: float
@@ -377,9 +370,7 @@ class GaitScheduler:
             Positions; Buehler hip angles are unwrapped.
         qd : ndarray, shape (J,)
         """
-        t = np.array([float(t_s)])
-        pos = self._positions(t)[0]
-        vel = self._velocities(t)[0]
+        pos, vel = self._pos_vel(float(t_s))
         if self.is_buehler:
             return self.joint_names, pos.copy(), vel.copy()
         q = self.kinematics.inverse(pos, branch=self.branch)

@@ -160,6 +160,7 @@ def tip_path(
     duty_factor: ArrayLike,
     step_length_m: ArrayLike,
     step_height_m: ArrayLike,
+    with_acceleration: bool = True,
 ) -> TipPath:
     """Tip path relative to the stance midpoint, as a function of the leg phase.
 
@@ -169,6 +170,8 @@ def tip_path(
         Leg phase in ``[0, 1)``, 0 = touchdown.
     duty_factor, step_length_m, step_height_m : float or array broadcastable to leg_phase
         ``beta``, ``L`` [m], ``h`` [m].
+    with_acceleration : bool
+        False skips the second derivatives (``ddu``, ``ddz`` are then zeros).
 
     Returns
     -------
@@ -188,17 +191,21 @@ def tip_path(
     k1 = 1.0 / (1.0 - beta)
     # unit forward spline = -1/2 B(y0) + 1/2 B(y4) + g (B(g0) + B(g1)), unit up spline = B(y2)
     g = -(1.0 - beta) / beta
-    b0, b1, b2 = _basis(s, 0), _basis(s, 1), _basis(s, 2)
+    b0, b1 = _basis(s, 0), _basis(s, 1)
 
     def fwd(b: NDArray[np.float64]) -> NDArray[np.float64]:
         return -0.5 * b[0] + 0.5 * b[2] + g * (b[3] + b[4])
 
     u = np.where(stance, L * (0.5 - phi / beta), L * fwd(b0))
     du = np.where(stance, -L / beta, L * fwd(b1) * k1)
-    ddu = np.where(stance, 0.0, L * fwd(b2) * k1 * k1)
     z = np.where(stance, 0.0, h * b0[1])
     dz = np.where(stance, 0.0, h * b1[1] * k1)
-    ddz = np.where(stance, 0.0, h * b2[1] * k1 * k1)
+    if with_acceleration:
+        b2 = _basis(s, 2)
+        ddu = np.where(stance, 0.0, L * fwd(b2) * k1 * k1)
+        ddz = np.where(stance, 0.0, h * b2[1] * k1 * k1)
+    else:
+        ddu = ddz = np.zeros_like(u)
     return TipPath(u=u, du=du, ddu=ddu, z=z, dz=dz, ddz=ddz, in_stance=stance)
 
 

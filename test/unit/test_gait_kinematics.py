@@ -97,7 +97,7 @@ def test_unreachable_target_names_target_and_reach():
     assert '(0.4, 0.0, -0.1)' in msg
     assert 'reach is [0.063, 0.229] m' in msg
     with pytest.raises(UnreachableError, match='reach'):
-        KIN.inverse([0.053, 0.0, 0.01])  # closer than |a2 - a3| to the femur joint
+        KIN.inverse([0.0, 0.0, 0.0])  # closer than |a2 - a3| to the femur joint either way
 
 
 def test_joint_limits_are_enforced():
@@ -120,3 +120,12 @@ def test_theta_offsets_and_vertical_offset():
 def test_unsupported_dh_structure_is_refused():
     with pytest.raises(ValueError, match='alpha'):
         LegKinematics(DHParameters(alpha_rad=(0.0, 0.0, 0.0)))
+
+
+def test_tip_behind_the_coxa_axis_uses_the_turned_coxa():
+    # 10 mm behind the coxa axis (radial reach R < 0 along the coxa direction 0.4 rad), 20 mm
+    # up: the usual solution would need the tip 43 mm from the femur joint (< 63 mm reach)
+    p = np.array([-0.01 * np.cos(0.4), -0.01 * np.sin(0.4), 0.02])
+    q = KIN.inverse(p, check_limits=False)[0]
+    assert_allclose(KIN.forward(q)[0], p, atol=1e-15)
+    assert_allclose(q[0], 0.4, atol=1e-12)
