@@ -1,0 +1,117 @@
+"""Preprocessing (offset, world frame, sagittal state) and stance extraction on known data."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from hexapod_gait.buehler import BUEHLER_PRESETS
+from slip_identification.errors import SlipDataError
+from slip_identification.preprocess import (
+    Box,
+    check_straight,
+    estimate_offset,
+    fit_world_frame,
+    permissible_mask,
+    sagittal_state,
+)
+from slip_identification.stance import (
+    best_shift,
+    edges_from_target,
+    single_tripod_stances,
+    tripod_stance_windows,
+)
+
+
+def _rot(yaw: float, tilt: float) -> np.ndarray:
+    cz, sz = math.cos(yaw), math.sin(yaw)
+    cx, sx = math.cos(tilt), math.sin(tilt)
+    rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    return rz @ rx
+
+
+def test_offset_between_100hz_and_120hz_streams():
+    rng = np.random.default_rng(0)
+    f = 6.05  # stepping frequency [Hz]
+    ta = np.arange(0, 6, 0.01)
+    a = np.sin(2 * np.pi * f * ta) + 0.3 * np.sin(2 * np.pi * 2 * f * ta + 0.4)
+    offset = 0.0237
+    tb = np.arange(0.003, 6, 1 / 120)
+    b = np.sin(2 * np.pi * f * (tb - offset)) + 0.3 * np.sin(2 * np.pi * 2 * f * (tb - offset)
+                                                           + 0.4)
+    b += rng.normal(0, 0.02, tb.size)
+    assert estimate_offset(ta, a, tb, b, max_offset_s=0.06) == pytest.approx(offset, abs=1e-3)
+
+
+def test_world_frame_recovers_misalignment_and_height():
+    t = np.arange(0, 2.0, 1 / 120)
+    x = 0.8 * t - 0.8
+    z = 0.15 + 0.01 * np.sin(2 * np.pi * 6 * t)
+    y = 0.003 * np.sin(2 * np.pi * 0.7 * t)
+    p_world = np.column_stack([x, y, z])
+    rot = _rot(math.radians(30.0), math.radians(3.0))
+    shift = rot @ np.array([0.2, -0.1, 0.0])  # mocap origin on the floor
+    p_mocap = p_world @ rot.T + shift
+    box = Box((-0.7, -1.0, -0.5), (1.2, 1.0, 0.5))
+    inside = permissible_mask(p_mocap, box)
+    up = rot @ np.array([0.001, -0.001, 1.0])  # mean body z axis (small attitude bias)
+    frame = fit_world_frame(p_mocap[inside], up_mocap=up)
+    assert math.degrees(frame.tilt_rad) == pytest.approx(3.0, abs=0.5)
+    assert math.degrees(frame.yaw_rad) == pytest.approx(30.0, abs=0.5)
+    pw = frame.to_world(p_mocap[inside])
+    assert_allclose(pw[:, 2].mean(), 0.15, atol=2e-3)
+    assert pw[0, 0] == pytest.approx(0.0, abs=1e-9)  # origin where the COM enters the box
+    assert np.all(np.diff(pw[:, 0]) > 0)  # x along the direction of travel
+    assert check_straight(pw) < 0.01
+    with pytest.raises(SlipDataError, match='not straight'):
+        check_straight(pw + np.column_stack([0 * x[inside], 0.2 * x[inside], 0 * x[inside]]))
+
+
+def test_sagittal_state_splits_at_gaps():
+    t = np.arange(0, 1.0, 1 / 120)
+    p = np.column_stack([0.5 * t, 0 * t, 0.15 + 0.01 * np.sin(2 * np.pi * 3 * t)])
+    keep = (t < 0.4) | (t > 0.5)
+    track = sagittal_state(t[keep], p[keep])
+    mid = (track.t_s > 0.41) & (track.t_s < 0.49)
+    assert np.all(track.segment[mid] == -1)
+    ok = (track.t_s > 0.05) & (track.t_s < 0.35)
+    assert_allclose(track.state[ok, 1], 0.5, atol=1e-6)
+    assert_allclose(track.state[ok, 3], 0.01 * 2 * np.pi * 3 * np.cos(2 * np.pi * 3 * track.t_s[ok]),
+                    atol=2e-3)
+    *_, whole = track.window(0.3, 0.6)
+    assert whole is False
+
+
+def test_stance_extraction_recovers_shift_and_edges():
+    clock = BUEHLER_PRESETS['jogging']
+    t = np.arange(0.0, 4.0, 0.01)  # 100 Hz proprioception
+    lag = 0.023
+    # measured hip speed: the target delayed, low-pass filtered (a PD-tracked hip)
+    fine = np.arange(-0.5, 4.0, 1e-4)
+    target_fine = clock.target_speed(fine - lag, 'left')
+    alpha = 1e-4 / 0.004
+    filt = np.empty_like(target_fine)
+    acc = target_fine[0]
+    for i, v in enumerate(target_fine):
+        acc += alpha * (v - acc)
+        filt[i] = acc
+    measured = np.interp(t, fine, filt)
+    tau = best_shift(t, measured, lambda tt: clock.target_speed(tt, 'left'))
+    assert tau == pytest.approx(lag + 0.004, abs=3e-3)  # delay + filter time constant
+    shifted = clock.target_speed(np.arange(0.5, 3.5, 1e-3) - lag, 'left')
+    td, lo = edges_from_target(np.arange(0.5, 3.5, 1e-3), shifted)
+    windows = clock.stance_windows(0.5 - lag, 3.5 - lag, 'left') + lag
+    got = tripod_stance_windows(td, lo)
+    assert_allclose(got, windows[: len(got)], atol=1.5e-3)
+
+
+def test_single_tripod_parts_of_overlapping_stances():
+    w = {'left': np.array([[0.0, 0.7]]), 'right': np.array([[-0.5, 0.2], [0.5, 1.2]])}
+    st = single_tripod_stances(w)
+    left = [s for s in st if s.tripod == 'left']
+    assert len(left) == 1
+    assert (left[0].touchdown_s, left[0].liftoff_s) == pytest.approx((0.2, 0.5))
