@@ -61,11 +61,11 @@ def test_states_for_all_servos_and_commands_move(tmp_path, model, protocol, n):
         def arrived():
             pub.publish(cmd)
             last = states.messages[-1]
-            return all(abs(p - t) < 0.03 for p, t in zip(last.position, targets))
+            return all(abs(p - t) < 0.05 for p, t in zip(last.position, targets))
         assert env.spin_until(arrived, 30.0)
         # The reversed right-side joints turned the emulated servos the other way.
         if n > 9:
-            assert_allclose(emu.present_position_rad(10), -targets[9], atol=0.06)
+            assert_allclose(emu.present_position_rad(10), -targets[9], atol=0.08)
         assert node.commands_applied > 0
 
 

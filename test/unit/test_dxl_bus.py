@@ -47,12 +47,12 @@ def test_reads_all_and_commands_move(model, protocol, n):
         assert_allclose([r.temperature_c for r in result.readings], 26.0)
         assert_allclose(result.readings[1].position_rad, 0.1, atol=0.01)  # offset applied
         assert all(bus.set_torque(True).values())
-        targets = {f'j{i}': 0.02 * i - 0.05 for i in range(1, n + 1)}
+        targets = {f'j{i}': 0.3 if i % 2 else -0.25 for i in range(1, n + 1)}
         assert bus.write_goals(targets) == n
         done = _poll_until(bus, lambda r: all(
-            abs(x.position_rad - targets[x.name]) < 0.02 for x in r.readings))
+            abs(x.position_rad - targets[x.name]) < 0.05 for x in r.readings))
         # The emulated servo turned the other way for the reversed joint j2.
-        assert_allclose(emu.present_position_rad(2), -(targets['j2'] - 0.1), atol=0.02)
+        assert_allclose(emu.present_position_rad(2), -(targets['j2'] - 0.1), atol=0.05)
         assert all(x.ok for x in done.readings)
 
 
@@ -64,7 +64,7 @@ def test_moving_speed_limits_motion(model, protocol, n):
         bus.set_torque(True)
         t0 = emu.clock()
         bus.write_goals({'j1': 0.5}, {'j1': 1.0})       # 0.5 rad at 1 rad/s: ~0.5 s
-        _poll_until(bus, lambda r: abs(r.readings[0].position_rad - 0.5) < 0.02, 20000)
+        _poll_until(bus, lambda r: abs(r.readings[0].position_rad - 0.5) < 0.05, 20000)
         elapsed = emu.clock() - t0
         assert 0.4 < elapsed < 1.5
 

