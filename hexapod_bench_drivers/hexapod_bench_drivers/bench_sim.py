@@ -219,7 +219,7 @@ class BenchSimulator:
         k_err = float(eff.value('kinematic_error'))
         goal = q
         if k_err and freq > 0.0:
-            goal = q + 0.01 * k_err * freq * (q - self.neutral_q)
+            goal = q + 0.0025 * k_err * freq * (q - self.neutral_q)
         extra_w = np.zeros(n)
         if powered:
             extra_w += float(eff.value('basal_power')) + k_err * freq

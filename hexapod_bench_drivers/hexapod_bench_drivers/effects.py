@@ -17,8 +17,9 @@ thermal_drift       W/K      every powered servo draws ``value * (T_i - T_ambien
                              resistance rise (+0.393 %/K) that is always modelled.
 kinematic_error     W/Hz     tracking-error cost while walking: ``P_in += value * f_step``
                              (``f_step = 1 / period`` from ``/gait/phase``), zero at standstill;
-                             the joints' measured positions also overshoot the commanded swing
-                             by ``0.01 * value * f_step`` of the motion (a visible symptom).
+                             the joints' goals also overshoot the commanded motion by
+                             ``0.0025 * value * f_step`` of its excursion from the neutral
+                             pose (a visible symptom, whose own physical cost is small).
 supply_resistance   ohm      series resistance between the ideal source and the monitor and
                              robot (cable, connector, battery): the monitored voltage is
                              ``V = V_source - value * I``; the servos run at that voltage.

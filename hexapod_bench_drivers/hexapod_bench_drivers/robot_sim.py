@@ -224,7 +224,7 @@ class RobotSimulator:
         goal = inp.q
         k_err = float(eff.value('kinematic_error'))
         if k_err and inp.step_frequency_hz > 0.0:
-            goal = inp.q + 0.01 * k_err * inp.step_frequency_hz * (inp.q - self.neutral_q)
+            goal = inp.q + 0.0025 * k_err * inp.step_frequency_hz * (inp.q - self.neutral_q)
         volts = self.supply.terminal_voltage_v() if self.powered else 0.0
         out = self.servos.step(dt_s, goal.ravel(), -tau_req.ravel(), volts)
         extra_w = 0.0

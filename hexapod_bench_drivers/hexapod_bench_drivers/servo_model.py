@@ -39,7 +39,7 @@ Physics, all quantities referred to the OUTPUT shaft (after the gearbox):
 
 * **Heat.** One first-order winding node: ``C dT/dt = i^2 R(T) - (T - T_amb) / R_th`` with
   ``tau_th = R_th C`` of minutes, copper resistance ``R(T) = R_ref (1 + 0.00393 (T - T_ref))``
-  and magnet flux ``k_e(T) = k_e,ref (1 - 0.003 (T - T_ref))``, so a hot servo needs more
+  and magnet flux ``k_e(T) = k_e,ref (1 - 0.0035 (T - T_ref))``, so a hot servo needs more
   current for the same torque (about +1 W per leg after 10 min at 3 Hz with 500 g, as Brodoline
   et al. measured).
 
@@ -132,7 +132,7 @@ class ServoParams:
         Relative change of the winding resistance per kelvin (copper: +0.393 %/K).
     magnet_temp_coeff_per_k : float
         Relative change of the motor constant (magnet flux) per kelvin (ferrite and bonded
-        magnets: -0.2 to -0.3 %/K; -0.3 %/K calibrated to the paper's thermal drift): a hot
+        magnets: -0.2 to -0.35 %/K; -0.35 %/K calibrated to the paper's thermal drift): a hot
         motor needs more current for the same torque.
     temperature_limit_c : float
         Overheating shutdown threshold [degC].
@@ -153,7 +153,7 @@ class ServoParams:
     # 18 AX-18A reproduces Brodoline et al.'s whole-robot figures (standing ~11 W, ~65 W at
     # 0.6 m/s, CoT/M ~37 J/(m kg) at 0.84 m/s); the no-load current is then ~0.5 A.
     rotor_inertia_kgm2: float = 1.2e-8
-    coulomb_friction_nm: float = 0.22
+    coulomb_friction_nm: float = 0.24
     viscous_friction_nm_s: float = 0.02
     stick_speed_rad_s: float = 1e-3
     compliance_slope_rad: float = 32 * 0.29 * _DEG
@@ -161,7 +161,7 @@ class ServoParams:
     structural_stiffness_nm_rad: float = 60.0
     backlash_rad: float = 0.4 * _DEG
     backlash_torque_nm: float = 0.02
-    thermal_resistance_k_w: float = 24.0
+    thermal_resistance_k_w: float = 18.0
     thermal_time_constant_s: float = 480.0
     reference_temperature_c: float = 25.0
     temperature_limit_c: float = 75.0
@@ -170,7 +170,7 @@ class ServoParams:
     position_min_rad: float = -150.0 * _DEG
     position_max_rad: float = 150.0 * _DEG
     copper_temp_coeff_per_k: float = field(default=COPPER_TEMP_COEFF_PER_K)
-    magnet_temp_coeff_per_k: float = -0.003
+    magnet_temp_coeff_per_k: float = -0.0035
 
     def __post_init__(self) -> None:
         positive = ('gear_ratio', 'rated_voltage_v', 'stall_torque_nm', 'stall_current_a',
