@@ -1,0 +1,144 @@
+"""``power_monitor`` node: supply voltage and current as ``battery_state`` (ROS sign).
+
+Backends (parameter ``backend``): ``sim`` (constant voltage/current, optional noise), ``ina226`` /
+``ina219`` on Linux I2C bus ``i2c_bus`` (smbus2), ``scpi`` (lab supply on ``serial_port``).
+``BatteryState.current`` is **negative while the robot draws current** (REP/ROS convention).
+
+Zero-current offset: with ``zero_offset_samples`` > 0, the first that many readings (taken with
+the robot unpowered) are averaged into an offset, subtracted afterwards; the service
+``calibrate_zero`` (std_srvs/Trigger) starts a new calibration at any time. Nothing is published
+while calibrating.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from hexapod_common.node_utils import RELIABLE_QOS, declare_params, param, run_node
+from rclpy.node import Node
+from sensor_msgs.msg import BatteryState
+from std_srvs.srv import Trigger
+
+from hexapod_bench_drivers.power_backends import (
+    Ina2xxBackend,
+    PowerBackend,
+    PowerBackendError,
+    ScpiSupplyBackend,
+    SimPowerBackend,
+    ZeroOffset,
+    ros_battery_current,
+)
+
+__all__ = ['PowerMonitorNode', 'PowerMonitorParams', 'main', 'make_backend']
+
+BACKENDS = ('sim', 'ina226', 'ina219', 'scpi')
+
+
+@dataclass(frozen=True)
+class PowerMonitorParams:
+    """Parameters of the power_monitor node."""
+
+    backend: str = param('sim', 'sim, ina226, ina219 or scpi.',
+                         validate=lambda v: None if v in BACKENDS else f'expected one of {BACKENDS}')
+    rate_hz: float = param(100.0, 'Sampling/publish rate [Hz].',
+                           validate=lambda v: None if v > 0 else 'expected > 0')
+    i2c_bus: int = param(1, 'Linux I2C bus number (/dev/i2c-N) for ina226/ina219.')
+    i2c_address: int = param(0x40, '7-bit I2C address of the INA chip.')
+    shunt_ohm: float = param(0.01, 'Shunt resistance [ohm].')
+    max_current_a: float = param(8.0, 'Largest expected current [A] (sets the current LSB).')
+    serial_port: str = param('/dev/ttyUSB1', 'Serial port of the SCPI lab supply.')
+    baud_rate: int = param(9600, 'Baud rate of the SCPI supply.')
+    sim_voltage_v: float = param(11.9, 'sim backend: supply voltage [V].')
+    sim_current_a: float = param(1.0, 'sim backend: drawn current [A].')
+    sim_noise_a: float = param(0.0, 'sim backend: current noise, standard deviation [A].')
+    zero_offset_samples: int = param(0, 'Readings averaged into the zero-current offset at '
+                                        'start (0 = no calibration).')
+    frame_id: str = param('', 'header.frame_id of battery_state.')
+
+
+def make_backend(p: PowerMonitorParams) -> PowerBackend:
+    """The backend the parameters select (opens the I2C bus or serial port)."""
+    if p.backend == 'sim':
+        return SimPowerBackend(p.sim_voltage_v, p.sim_current_a, noise_a=p.sim_noise_a)
+    if p.backend == 'scpi':
+        return ScpiSupplyBackend(p.serial_port, baud_rate=p.baud_rate)
+    from smbus2 import SMBus
+
+    try:
+        bus = SMBus(p.i2c_bus)
+    except OSError as err:
+        raise PowerBackendError(f'/dev/i2c-{p.i2c_bus}: cannot open: {err}') from err
+    return Ina2xxBackend(bus, chip=p.backend, address=p.i2c_address, shunt_ohm=p.shunt_ohm,
+                         max_current_a=p.max_current_a)
+
+
+class PowerMonitorNode(Node):
+    """Thin node: backend.read() -> zero offset -> BatteryState (see module doc)."""
+
+    def __init__(self, *, context: Any = None, parameter_overrides: Any = None,
+                 namespace: str | None = None, backend: PowerBackend | None = None,
+                 **kw: Any) -> None:
+        super().__init__('power_monitor', context=context,
+                         parameter_overrides=parameter_overrides, namespace=namespace, **kw)
+        p = self.params = declare_params(self, PowerMonitorParams)
+        self.backend = backend if backend is not None else make_backend(p)
+        self.offset: ZeroOffset | None = None
+        self._calibration: list[float] = []
+        self._calibrating = p.zero_offset_samples > 0
+        self.read_errors = 0
+        self.pub = self.create_publisher(BatteryState, 'battery_state', RELIABLE_QOS)
+        self.create_service(Trigger, 'calibrate_zero', self._on_calibrate)
+        self.create_timer(1.0 / p.rate_hz, self._on_timer)
+
+    def _on_calibrate(self, request: Any, response: Any) -> Any:
+        self._calibration = []
+        self._calibrating = True
+        response.success = True
+        response.message = (f'averaging the next {max(10, self.params.zero_offset_samples)} '
+                            'readings; keep the robot unpowered')
+        return response
+
+    def _on_timer(self) -> None:
+        try:
+            sample = self.backend.read()
+        except PowerBackendError as err:
+            self.read_errors += 1
+            self.get_logger().warning(f'power read failed: {err}')
+            return
+        if self._calibrating:
+            self._calibration.append(sample.current_a)
+            if len(self._calibration) >= max(10, self.params.zero_offset_samples):
+                self.offset = ZeroOffset().fit(self._calibration)
+                self._calibrating = False
+                self.get_logger().info(f'zero-current offset {self.offset.offset_a_:+.4f} A '
+                                       f'(noise {self.offset.noise_a_:.4f} A)')
+            return
+        if self.offset is not None:
+            sample = self.offset.apply(sample)
+        msg = BatteryState()
+        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.header.frame_id = self.params.frame_id
+        msg.voltage = float(sample.voltage_v)
+        msg.current = ros_battery_current(sample.current_a)
+        msg.power_supply_status = (BatteryState.POWER_SUPPLY_STATUS_DISCHARGING
+                                   if sample.current_a > 0 else
+                                   BatteryState.POWER_SUPPLY_STATUS_NOT_CHARGING)
+        msg.present = True
+        for name in ('charge', 'capacity', 'design_capacity', 'percentage', 'temperature'):
+            setattr(msg, name, float('nan'))
+        self.pub.publish(msg)
+
+    def destroy_node(self) -> None:
+        self.backend.close()
+        super().destroy_node()
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    """Console script ``power_monitor``."""
+    return run_node(PowerMonitorNode, args)
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())
