@@ -1,0 +1,233 @@
+"""``hexapod-analyze slip BAG... --out DIR [--jobs N]``: per-stance SLIP fits of recorded runs.
+
+Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json``::
+
+    {
+      "schema": "slip/1",
+      "model": "slip",
+      "mass_kg": 3.31,
+      "stances": [            # one per fitted single-tripod stance (paper's estimator)
+        {"bag", "gait", "tripod", "touchdown", "liftoff" [s, proprioception clock],
+         "stiffness" [N/m], "rest_length" [m], "foot_x" [m, world frame],
+         "stiffness_stderr", "rest_length_stderr", "foot_x_stderr",
+         "nerr", "converged", "samples", "iterations",
+         "position_fit": {same parameter and stderr keys, "nerr", "converged"} or null,
+         "power_w", "speed_mps", "sr"}     # the run's values, as in the paper
+      ],
+      "runs": [{"bag", "gait", "offset_s", "shift_s": {"left", "right"}, "power_w",
+                "speed_mps", "sr", "current_sign", "frame": {"tilt_deg", "yaw_deg", "origin_m"},
+                "stances", "skipped"}],
+      "gaits": {"<gait>": {"stances", "nerr_mean", "nerr_std", "power_w_mean", ...}},  # Table 3
+      "skipped": [{"bag", "label", "tripod", "touchdown", "liftoff", "reason"}],
+      "skipped_counts": {"<reason>": n},   # too_short, nan, mocap_gap, outside_volume, ...
+      "failed_bags": [{"bag", "error"}]    # e.g. a missing topic
+    }
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from collections import Counter
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .energetics import gait_table, plot_figures
+from .errors import MissingTopicError, SlipError
+from .model import EDUBOT_MASS_KG, SlipModel
+from .pipeline import RunData, analyze_run
+from .preprocess import Box
+
+__all__ = ['add_cli', 'analyze_bag', 'main', 'read_run']
+
+TOPICS = ('/joint_states', '/joint_commands', '/mocap/body', '/battery_state')
+
+
+def read_run(path: str | Path) -> RunData:
+    """Read the four topics of one bag (and ``/gait/phase`` for the gait name)."""
+    from hexapod_common.bags import iter_messages, open_reader, typestore
+    from hexapod_common.conversions import (
+        battery_from_msg,
+        gait_phase_from_msg,
+        joint_state_from_msg,
+        pose_from_msg,
+    )
+
+    store = typestore()
+    js: list[Any] = []
+    jc: list[Any] = []
+    mo: list[Any] = []
+    bt: list[Any] = []
+    gait = 'unknown'
+    with open_reader(path) as reader:
+        present = {c.topic for c in reader.connections}
+        missing = [t for t in TOPICS if t not in present]
+        if missing:
+            raise MissingTopicError(f'bag {path} lacks topic(s) {missing}; needs {list(TOPICS)}')
+        for m in iter_messages(reader, list(TOPICS) + ['/gait/phase']):
+            msg = store.deserialize_cdr(m.data, m.msgtype)
+            try:
+                if m.topic == '/joint_states':
+                    js.append(joint_state_from_msg(msg))
+                elif m.topic == '/joint_commands':
+                    jc.append(joint_state_from_msg(msg))
+                elif m.topic == '/mocap/body':
+                    mo.append(pose_from_msg(msg))
+                elif m.topic == '/battery_state':
+                    bt.append(battery_from_msg(msg))
+                elif gait == 'unknown':
+                    gait = _gait_name(gait_phase_from_msg(msg))
+            except ValueError:
+                continue  # a bad message is dropped, as the nodes do
+    names = js[0].names
+    js = [s for s in js if s.names == names and s.velocity.size == len(names)]
+    jc = [s for s in jc if s.names == names and s.velocity.size == len(names)]
+    if not (js and jc and mo and bt):
+        raise MissingTopicError(f'bag {path}: a required topic has no usable message')
+    return RunData(
+        joint_names=names, joint_t_s=np.array([s.t_s for s in js]),
+        joint_velocity=np.array([s.velocity for s in js]),
+        command_t_s=np.array([s.t_s for s in jc]),
+        command_velocity=np.array([s.velocity for s in jc]),
+        mocap_t_s=np.array([s.t_s for s in mo]),
+        mocap_position_m=np.array([s.position_m for s in mo]),
+        mocap_quat_xyzw=np.array([s.orientation_xyzw for s in mo]),
+        battery_t_s=np.array([s.t_s for s in bt]),
+        battery_voltage_v=np.array([s.voltage_v for s in bt]),
+        battery_current_a=np.array([s.current_a for s in bt]), gait=gait, label=str(path))
+
+
+def _gait_name(phase: Any) -> str:
+    """Table 1 preset name of a Buehler-clock GaitPhase (period and duty within 1 %)."""
+    if phase.gait != 'buehler':
+        return str(phase.gait)
+    from hexapod_gait.buehler import BUEHLER_PRESETS
+    for name, clk in BUEHLER_PRESETS.items():
+        if abs(clk.period_s - phase.period_s) <= 0.01 * clk.period_s and \
+                abs(clk.duty_factor - phase.duty_factor) <= 0.01:
+            return name
+    return 'buehler'
+
+
+def _f(x: float) -> float | None:
+    return float(x) if math.isfinite(float(x)) else None
+
+
+def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
+    """Analyse one bag; returns a JSON-able dict (``error`` set when the bag is refused)."""
+    try:
+        run = read_run(path)
+        box = Box(tuple(options['box_lower']), tuple(options['box_upper'])) \
+            if options.get('box_lower') else Box()
+        model = SlipModel.from_name(options.get('model', 'slip'),
+                                    mass_kg=options.get('mass_kg', EDUBOT_MASS_KG))
+        res = analyze_run(run, model=model, box=box, offset_s=options.get('offset', 0.0),
+                          offset_lag_s=options.get('offset_lag', 0.0),
+                          max_lateral_m=options.get('max_lateral', 0.05),
+                          position_fit=options.get('position_fit', True))
+    except (SlipError, ValueError, OSError) as err:
+        return {'bag': path, 'error': str(err)}
+    stances = []
+    pos = {r.label: r for r in res.position_fits}
+    for r in res.fits:
+        d: dict[str, Any] = {'bag': path, 'gait': run.gait, 'tripod': r.tripod,
+                             'touchdown': r.touchdown_s, 'liftoff': r.liftoff_s}
+        for k, v in r.params.items():
+            d[k] = _f(v)
+            d[f'{k}_stderr'] = _f(r.stderr[k])
+        d.update(nerr=_f(r.nerr), converged=r.converged, samples=r.samples,
+                 iterations=r.iterations)
+        p = pos.get(r.label)
+        d['position_fit'] = None if p is None else {
+            **{k: _f(v) for k, v in p.params.items()},
+            **{f'{k}_stderr': _f(v) for k, v in p.stderr.items()},
+            'nerr': _f(p.nerr), 'converged': p.converged}
+        d.update(power_w=_f(res.power_w), speed_mps=_f(res.speed_mps), sr=_f(res.sr))
+        stances.append(d)
+    return {'bag': path, 'gait': run.gait, 'stances': stances,
+            'skipped': [{'bag': path, **s} for s in res.skipped],
+            'run': {'bag': path, 'gait': run.gait, 'offset_s': res.offset_s,
+                    'shift_s': res.shift_s, 'power_w': _f(res.power_w),
+                    'speed_mps': _f(res.speed_mps), 'sr': _f(res.sr),
+                    'current_sign': res.current_sign, 'frame': res.frame,
+                    'stances': len(stances), 'skipped': len(res.skipped)}}
+
+
+def run_command(args: argparse.Namespace) -> int:
+    """Handler of ``hexapod-analyze slip``; returns the exit code."""
+    from tqdm import tqdm
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    options = {'offset': 'auto' if args.offset == 'auto' else float(args.offset),
+               'offset_lag': args.offset_lag, 'max_lateral': args.max_lateral,
+               'mass_kg': args.mass, 'model': args.model, 'position_fit': not args.no_position_fit,
+               'box_lower': args.box[:3] if args.box else None,
+               'box_upper': args.box[3:] if args.box else None}
+    bags = [str(b) for b in args.bags]
+    results: list[dict[str, Any]] = []
+    if args.jobs > 1 and len(bags) > 1:
+        with ProcessPoolExecutor(max_workers=args.jobs) as pool:
+            futs = [pool.submit(analyze_bag, b, options) for b in bags]
+            for fut in tqdm(futs, desc='slip', unit='bag'):
+                results.append(fut.result())
+    else:
+        for b in tqdm(bags, desc='slip', unit='bag'):
+            results.append(analyze_bag(b, options))
+    stances = [s for r in results for s in r.get('stances', [])]
+    skipped = [s for r in results for s in r.get('skipped', [])]
+    rows = [{'gait': s['gait'], 'nerr': s['nerr'] if s['nerr'] is not None else math.nan,
+             'power_w': s['power_w'] or math.nan, 'speed_mps': s['speed_mps'] or math.nan,
+             'sr': s['sr'] or math.nan} for s in stances]
+    doc = {'schema': 'slip/1', 'model': args.model, 'mass_kg': args.mass, 'stances': stances,
+           'runs': [r['run'] for r in results if 'run' in r], 'gaits': gait_table(rows),
+           'skipped': skipped, 'skipped_counts': dict(Counter(s['reason'] for s in skipped)),
+           'failed_bags': [{'bag': r['bag'], 'error': r['error']} for r in results
+                           if 'error' in r]}
+    (out / 'slip.json').write_text(json.dumps(doc, indent=1), encoding='utf-8')
+    if rows:
+        plot_figures(rows, out)
+    for f in doc['failed_bags']:
+        print(f"slip: refused {f['bag']}: {f['error']}")
+    print(f'slip: {len(stances)} stances fitted, {len(skipped)} skipped, '
+          f"{len(doc['failed_bags'])} bag(s) refused -> {out / 'slip.json'}")
+    return 0 if len(doc['failed_bags']) < len(bags) else 1
+
+
+def add_cli(subparsers: Any) -> None:
+    """Register the ``slip`` subcommand on an argparse subparsers object."""
+    p = subparsers.add_parser('slip', help='per-stance SLIP fits (Komsuoglu et al.)',
+                              description=__doc__,
+                              formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument('bags', nargs='+', help='rosbag2 folders')
+    p.add_argument('--out', required=True, help='output folder')
+    p.add_argument('--jobs', type=int, default=1, help='bags analysed in parallel')
+    p.add_argument('--offset', default='0', help="mocap clock offset [s] or 'auto'")
+    p.add_argument('--offset-lag', type=float, default=0.0,
+                   help="physical lag removed from the 'auto' offset [s]")
+    p.add_argument('--max-lateral', type=float, default=0.05,
+                   help='straight-run limit on lateral deviation [m]')
+    p.add_argument('--box', type=float, nargs=6, metavar=('X0', 'Y0', 'Z0', 'X1', 'Y1', 'Z1'),
+                   help='permissible box in the mocap frame [m] (default 2 x 1 x 1 m)')
+    p.add_argument('--mass', type=float, default=EDUBOT_MASS_KG, help='robot mass [kg]')
+    p.add_argument('--model', default='slip', help="'slip' or 'slip+leg_damping' etc.")
+    p.add_argument('--no-position-fit', action='store_true',
+                   help='skip the second estimator (initial state free)')
+    p.set_defaults(func=run_command)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Stand-alone entry: ``python -m slip_identification.cli BAG... --out DIR``."""
+    ap = argparse.ArgumentParser(prog='hexapod-analyze')
+    sub = ap.add_subparsers(dest='command', required=True)
+    add_cli(sub)
+    args = ap.parse_args(['slip'] + (argv if argv is not None else __import__('sys').argv[1:]))
+    return int(args.func(args))
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

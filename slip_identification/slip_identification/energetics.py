@@ -1,0 +1,92 @@
+"""Energetics per run (Komsuoglu et al., Section 5): specific resistance, Table 3, Figs. 7-9."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .errors import SlipDataError
+from .model import GRAVITY_MPS2
+
+__all__ = ['battery_power_w', 'gait_table', 'plot_figures', 'specific_resistance']
+
+
+def battery_power_w(voltage_v: ArrayLike, current_a: ArrayLike, *, sign: str = 'auto'
+                    ) -> tuple[float, str]:
+    """Mean input power [W] and the current sign convention used.
+
+    ``sign``: ``'ros'`` (current negative when discharging, P = -V I), ``'positive_discharge'``
+    (P = V I) or ``'auto'`` (whichever makes the mean power positive).
+    """
+    v = np.asarray(voltage_v, dtype=float)
+    i = np.asarray(current_a, dtype=float)
+    ok = np.isfinite(v) & np.isfinite(i)
+    if not ok.any():
+        raise SlipDataError('battery power needs finite voltage and current samples')
+    vi = float(np.mean(v[ok] * i[ok]))
+    if sign == 'auto':
+        sign = 'ros' if vi < 0 else 'positive_discharge'
+    if sign not in ('ros', 'positive_discharge'):
+        raise SlipDataError(f"sign must be 'ros', 'positive_discharge' or 'auto', got {sign!r}")
+    p = -vi if sign == 'ros' else vi
+    if p < 0:
+        raise SlipDataError(f'input power is negative ({p:.2f} W) with sign={sign!r}')
+    return p, sign
+
+
+def specific_resistance(power_w: float, mass_kg: float, speed_mps: float,
+                        gravity_mps2: float = GRAVITY_MPS2) -> float:
+    """SR = P / (m g v) (Eq. 5); NaN when the speed is not positive."""
+    return power_w / (mass_kg * gravity_mps2 * speed_mps) if speed_mps > 0 else math.nan
+
+
+def gait_table(rows: Sequence[dict[str, float | str]]) -> dict[str, dict[str, float]]:
+    """Table 3: per gait mean and std of ``nerr``, ``power_w``, ``speed_mps`` (and ``sr``).
+
+    ``rows`` holds one dict per stance with keys ``gait``, ``nerr``, ``power_w``,
+    ``speed_mps``, ``sr`` (run values repeated on each of the run's stances, as in the paper).
+    """
+    out: dict[str, dict[str, float]] = {}
+    for gait in sorted({str(r['gait']) for r in rows}):
+        sel = [r for r in rows if r['gait'] == gait]
+        entry: dict[str, float] = {'stances': float(len(sel))}
+        for key in ('nerr', 'power_w', 'speed_mps', 'sr'):
+            vals = np.array([float(r[key]) for r in sel], dtype=float)
+            vals = vals[np.isfinite(vals)]
+            entry[f'{key}_mean'] = float(vals.mean()) if vals.size else math.nan
+            entry[f'{key}_std'] = float(vals.std()) if vals.size else math.nan
+        out[gait] = entry
+    return out
+
+
+def plot_figures(rows: Sequence[dict[str, float | str]], out_dir: str | Path) -> list[Path]:
+    """Scatter plots of Figs. 7 (v vs SR), 8 (P vs v), 9 (nerr vs SR), colour per gait."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    gaits = sorted({str(r['gait']) for r in rows})
+    specs = [('fig7_speed_vs_sr.png', 'sr', 'speed_mps', 'specific resistance', 'speed [m/s]'),
+             ('fig8_power_vs_speed.png', 'speed_mps', 'power_w', 'speed [m/s]', 'power [W]'),
+             ('fig9_nerr_vs_sr.png', 'sr', 'nerr', 'specific resistance',
+              'SLIP-measure (nerr)')]
+    paths = []
+    for name, kx, ky, lx, ly in specs:
+        fig, ax = plt.subplots(figsize=(5, 4))
+        for g in gaits:
+            sel = [r for r in rows if r['gait'] == g]
+            ax.scatter([float(r[kx]) for r in sel], [float(r[ky]) for r in sel], s=10, label=g)
+        ax.set_xlabel(lx)
+        ax.set_ylabel(ly)
+        ax.legend()
+        fig.tight_layout()
+        fig.savefig(out / name, dpi=100)
+        plt.close(fig)
+        paths.append(out / name)
+    return paths

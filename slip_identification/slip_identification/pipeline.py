@@ -1,0 +1,185 @@
+"""One run, arrays in, per-stance fits out: the composition of preprocess, stance and fit.
+
+Used by the ``hexapod-analyze slip`` command (arrays read from a bag) and usable on any
+recording. Core module: numpy/scipy only.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .energetics import battery_power_w, specific_resistance
+from .errors import SlipDataError, StanceRejectedError
+from .fit import SlipFitResult, SlipFitter, SlipPositionFitter, Stance, validate_stance
+from .model import SlipModel
+from .preprocess import (
+    Box,
+    check_straight,
+    estimate_offset,
+    fit_world_frame,
+    permissible_mask,
+    sagittal_state,
+)
+from .stance import best_shift, edges_from_target, single_tripod_stances, tripod_stance_windows
+
+__all__ = ['RunData', 'RunResult', 'analyze_run', 'TRIPODS']
+
+FloatArray = NDArray[np.float64]
+TRIPODS = {'left': ('L1', 'R2', 'L3'), 'right': ('R1', 'L2', 'R3')}
+
+
+@dataclass(frozen=True)
+class RunData:
+    """Raw streams of one run (times [s] in each stream's own clock).
+
+    ``joint_names`` (J,), ``joint_t_s`` (n,), ``joint_velocity`` (n, J) measured hip speeds;
+    ``command_t_s`` (c,), ``command_velocity`` (c, J) target speeds (same names);
+    ``mocap_t_s`` (m,), ``mocap_position_m`` (m, 3), ``mocap_quat_xyzw`` (m, 4);
+    ``battery_t_s``, ``battery_voltage_v``, ``battery_current_a`` (b,); ``gait`` name.
+    """
+
+    joint_names: tuple[str, ...]
+    joint_t_s: FloatArray
+    joint_velocity: FloatArray
+    command_t_s: FloatArray
+    command_velocity: FloatArray
+    mocap_t_s: FloatArray
+    mocap_position_m: FloatArray
+    mocap_quat_xyzw: FloatArray
+    battery_t_s: FloatArray
+    battery_voltage_v: FloatArray
+    battery_current_a: FloatArray
+    gait: str = 'unknown'
+    label: str = ''
+
+
+@dataclass
+class RunResult:
+    """Fits, skipped stances with reasons, and run energetics."""
+
+    fits: list[SlipFitResult] = field(default_factory=list)
+    position_fits: list[SlipFitResult] = field(default_factory=list)
+    skipped: list[dict[str, Any]] = field(default_factory=list)
+    skipped_counts: Counter[str] = field(default_factory=Counter)
+    offset_s: float = 0.0
+    shift_s: dict[str, float] = field(default_factory=dict)
+    power_w: float = math.nan
+    speed_mps: float = math.nan
+    sr: float = math.nan
+    current_sign: str = ''
+    frame: dict[str, Any] = field(default_factory=dict)
+
+
+def _tripod_mean(names: tuple[str, ...], values: FloatArray, tripod: str) -> FloatArray:
+    cols = [names.index(f'{leg}_hip') for leg in TRIPODS[tripod] if f'{leg}_hip' in names]
+    if not cols:
+        raise SlipDataError(f'no {tripod} tripod hips ({TRIPODS[tripod]}_hip) in {names}')
+    return np.asarray(values, dtype=float)[:, cols].mean(axis=1)
+
+
+def _up_from_quats(q: FloatArray) -> FloatArray:
+    """Mean body z axis from (m, 4) x, y, z, w quaternions."""
+    x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    up = np.column_stack([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)])
+    up = up[np.all(np.isfinite(up), axis=1)]
+    m = up.mean(axis=0)
+    return m / np.linalg.norm(m)
+
+
+def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None = None,
+                offset_s: float | str = 0.0, offset_lag_s: float = 0.0,
+                max_lateral_m: float = 0.05, position_fit: bool = True,
+                min_stance_s: float = 0.02) -> RunResult:
+    """Preprocess one run, extract single-tripod stances, fit each (see module docs).
+
+    ``offset_s``: seconds to subtract from mocap times, or ``'auto'`` to estimate it by
+    cross-correlating the mocap vertical velocity with the tripod speed difference
+    (minus ``offset_lag_s``, a calibrated physical lag).
+    """
+    model = model if model is not None else SlipModel()
+    box = box if box is not None else Box()
+    res = RunResult()
+    names = tuple(run.joint_names)
+    tj = np.asarray(run.joint_t_s, dtype=float)
+    speed = {tp: _tripod_mean(names, run.joint_velocity, tp) for tp in TRIPODS}
+    target = {tp: _tripod_mean(names, run.command_velocity, tp) for tp in TRIPODS}
+    tm = np.asarray(run.mocap_t_s, dtype=float)
+    pm = np.asarray(run.mocap_position_m, dtype=float)
+    if isinstance(offset_s, str):
+        vz = np.gradient(pm[:, 2], tm)
+        off = estimate_offset(tj, speed['left'] - speed['right'], tm, vz, lag_s=offset_lag_s)
+    else:
+        off = float(offset_s)
+    res.offset_s = off
+    tm = tm - off
+    inside = permissible_mask(pm, box)
+    if inside.sum() < 10:
+        raise SlipDataError(f'run {run.label!r}: {int(inside.sum())} mocap samples inside the '
+                            'permissible box, need >= 10')
+    up = _up_from_quats(np.asarray(run.mocap_quat_xyzw, dtype=float)[inside])
+    frame = fit_world_frame(pm[inside], up_mocap=up)
+    pw = frame.to_world(pm[inside])
+    check_straight(pw, max_lateral_m=max_lateral_m)
+    res.frame = {'tilt_deg': math.degrees(frame.tilt_rad), 'yaw_deg': math.degrees(frame.yaw_rad),
+                 'origin_m': frame.origin_m.tolist()}
+    track = sagittal_state(tm[inside], pw)
+    # stance extraction
+    windows = {}
+    tc = np.asarray(run.command_t_s, dtype=float)
+    for tp in TRIPODS:
+        tgt_t, tgt_v = tc, target[tp]
+
+        def tgt(t: FloatArray, tgt_t: FloatArray = tgt_t, tgt_v: FloatArray = tgt_v
+                ) -> FloatArray:
+            return np.interp(t, tgt_t, tgt_v)
+
+        shift = best_shift(tj, speed[tp], tgt)
+        res.shift_s[tp] = shift
+        td, lo = edges_from_target(tgt_t + shift, tgt_v)
+        windows[tp] = tripod_stance_windows(td, lo)
+    stance_windows = single_tripod_stances(windows, res.shift_s)
+    t_in0, t_in1 = track.t_s[0], track.t_s[-1]
+    stances: list[Stance] = []
+    for k, w in enumerate(stance_windows):
+        label = f'{run.label}#{k}'
+        if w.liftoff_s < t_in0 or w.touchdown_s > t_in1:
+            continue  # outside the tracked part of the run: not a candidate
+        reason = ''
+        if w.liftoff_s - w.touchdown_s < min_stance_s:
+            reason = 'too_short'
+        t, x, rt, rxz, whole = track.window(w.touchdown_s, w.liftoff_s)
+        if not reason and not whole:
+            reason = 'mocap_gap' if t.size and np.any(np.isfinite(x[:, 0])) else 'outside_volume'
+        if not reason:
+            st = Stance(t_s=t, state=x, tripod=w.tripod, raw_t_s=rt, raw_xz_m=rxz, label=label)
+            try:
+                validate_stance(st)
+                stances.append(st)
+            except StanceRejectedError as err:
+                reason = err.reason
+        if reason:
+            res.skipped.append({'label': label, 'tripod': w.tripod, 'touchdown': w.touchdown_s,
+                                'liftoff': w.liftoff_s, 'reason': reason})
+            res.skipped_counts[reason] += 1
+    if stances:
+        res.fits = SlipFitter(model).fit(stances).results_
+        if position_fit:
+            res.position_fits = SlipPositionFitter(model).fit(stances).results_
+    # energetics of the run: power over the tracked interval, speed from the world path
+    tb = np.asarray(run.battery_t_s, dtype=float)
+    sel = (tb >= t_in0) & (tb <= t_in1)
+    if sel.sum() >= 2:
+        res.power_w, res.current_sign = battery_power_w(
+            np.asarray(run.battery_voltage_v)[sel], np.asarray(run.battery_current_a)[sel])
+    ok = np.isfinite(track.state[:, 0])
+    if ok.sum() > 1:
+        res.speed_mps = float((track.state[ok, 0][-1] - track.state[ok, 0][0])
+                              / (track.t_s[ok][-1] - track.t_s[ok][0]))
+    res.sr = specific_resistance(res.power_w, model.mass_kg, res.speed_mps)
+    return res

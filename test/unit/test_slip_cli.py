@@ -1,0 +1,47 @@
+"""``hexapod-analyze slip`` on simulated EduBot bags: slip.json schema, plots, refusals."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import pytest
+
+from slip_identification.cli import add_cli
+
+edubot_sim = pytest.importorskip('hexapod_bench_drivers.edubot_sim')
+
+
+def _run(argv):
+    ap = argparse.ArgumentParser()
+    sub = ap.add_subparsers(dest='command', required=True)
+    add_cli(sub)
+    args = ap.parse_args(argv)
+    return args.func(args)
+
+
+def test_slip_command_writes_schema_and_refuses_missing_topic(tmp_path):
+    good = edubot_sim.write_edubot_bag(tmp_path / 'run', 'running', duration_s=4.0, seed=1)
+    # a bag without the mocap topic
+    from hexapod_common.bags import BagWriter, new_msg, stamp
+    bad = tmp_path / 'nomocap'
+    with BagWriter(bad) as w:
+        msg = new_msg('sensor_msgs/msg/BatteryState', header=stamp(1_000_000_000),
+                      voltage=14.8, current=-2.0)
+        w.write('/battery_state', 'sensor_msgs/msg/BatteryState', msg, 1_000_000_000)
+    out = tmp_path / 'out'
+    code = _run(['slip', str(good), str(bad), '--out', str(out), '--jobs', '2',
+                 '--box', '-10', '-10', '-10', '10', '10', '10'])
+    assert code == 0
+    doc = json.loads((out / 'slip.json').read_text())
+    assert doc['schema'] == 'slip/1'
+    assert len(doc['stances']) >= 5
+    s = doc['stances'][0]
+    for key in ('touchdown', 'liftoff', 'tripod', 'stiffness', 'rest_length', 'foot_x',
+                'stiffness_stderr', 'rest_length_stderr', 'foot_x_stderr', 'nerr', 'converged',
+                'position_fit'):
+        assert key in s
+    assert s['liftoff'] > s['touchdown']
+    assert doc['gaits']['running']['stances'] == len(doc['stances'])
+    assert len(doc['failed_bags']) == 1 and 'lacks topic' in doc['failed_bags'][0]['error']
+    assert (out / 'fig9_nerr_vs_sr.png').is_file()
