@@ -4,7 +4,8 @@ Core module: numpy, pinocchio and ``hexapod_gait``; no ROS. The 3-DOF leg (DESIG
 from a vertical stage that carries the load (0 to 515 g) and walks the gait's tip trajectory on
 a freewheel treadmill:
 
-* **Contact.** The stage rests on a stop ``stop_drop_m`` below the leg's stance height; the leg
+* **Contact.** The stage rests on a stop ``stop_drop_m`` below the leg's standing height under
+  the session's load (set after heating, as the operator does); the leg
   lifts it whenever its tip reaches the ground: ``base_z = max(stop_z, -FK_z(q))``. The tip is on
   the ground (stance) exactly when it carries the stage. The force sensor under the treadmill
   then reads the weight of leg, stage and load, ``(m_leg + m_stage + m_load) g``; zero in swing.
@@ -307,6 +308,9 @@ class BenchSimulator:
                     break
                 parts.append(self._segment(int(cfg.rate_hz), dt, session, walking=False,
                                            powered=True))
+            # The operator sets the stop just under the loaded leg's standing height.
+            standing = self.kinematics.forward(self.servos.output_position_rad())[0]
+            self.stop_z = float(-standing[2]) - cfg.stop_drop_m
             mark(sid, 'walking', session)
             walk_n = max(1, int(round(plan.walk_s * cfg.rate_hz)))
             chunk = int(10 * cfg.rate_hz)
