@@ -1,0 +1,144 @@
+"""Online stance detection and fitting (core of the ``slip_fitter`` node; no ROS).
+
+Streams are buffered (last ``buffer_s`` seconds). On every :meth:`OnlineSlip.step` the target
+edges of each tripod are shifted by the best shift over the buffer (Section 3), single-tripod
+stances are formed, and every stance whose lift-off is covered by motion capture plus a
+``margin_s`` (the spline needs support after lift-off) and not yet fitted is fitted with the
+paper's estimator and returned once. The world frame is built from the buffered in-box mocap
+samples.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import SlipError
+from .fit import SlipFitResult, SlipFitter, Stance, validate_stance
+from .model import SlipModel
+from .pipeline import TRIPODS, _tripod_mean, _up_from_quats
+from .preprocess import Box, fit_world_frame, permissible_mask, sagittal_state
+from .stance import best_shift, edges_from_target, single_tripod_stances, tripod_stance_windows
+
+__all__ = ['OnlineSlip', 'OnlineSkip']
+
+
+@dataclass(frozen=True)
+class OnlineSkip:
+    """A stance that could not be fitted and why."""
+
+    touchdown_s: float
+    liftoff_s: float
+    tripod: str
+    reason: str
+
+
+class OnlineSlip:
+    """Buffers and the per-stance fit loop.
+
+    Parameters
+    ----------
+    model : SlipModel
+    box : Box
+        Permissible box in the mocap frame.
+    mocap_offset_s : float
+        Seconds subtracted from mocap stamps (stream offset).
+    buffer_s, margin_s : float
+        History kept; mocap needed after lift-off before fitting.
+    """
+
+    def __init__(self, model: SlipModel | None = None, *, box: Box | None = None,
+                 mocap_offset_s: float = 0.0, buffer_s: float = 3.0,
+                 margin_s: float = 0.03, min_stance_s: float = 0.02) -> None:
+        self.model = model if model is not None else SlipModel()
+        self.box = box if box is not None else Box()
+        self.mocap_offset_s = mocap_offset_s
+        self.buffer_s = buffer_s
+        self.margin_s = margin_s
+        self.min_stance_s = min_stance_s
+        self.fitter = SlipFitter(self.model)
+        self._js: deque[tuple[float, np.ndarray]] = deque()
+        self._cmd: deque[tuple[float, np.ndarray]] = deque()
+        self._mocap: deque[tuple[float, np.ndarray, np.ndarray]] = deque()
+        self.names: tuple[str, ...] = ()
+        self._done: set[tuple[str, int]] = set()
+        self.skipped: list[OnlineSkip] = []
+
+    def _trim(self, buf: deque, t: float) -> None:  # type: ignore[type-arg]
+        while buf and buf[0][0] < t - self.buffer_s:
+            buf.popleft()
+
+    def add_joint_state(self, t_s: float, names: tuple[str, ...], velocity: np.ndarray) -> None:
+        if self.names and names != self.names:
+            raise SlipError(f'joint names changed: {names} != {self.names}')
+        self.names = names
+        self._js.append((t_s, np.asarray(velocity, dtype=float)))
+        self._trim(self._js, t_s)
+
+    def add_command(self, t_s: float, names: tuple[str, ...], velocity: np.ndarray) -> None:
+        if self.names and names != self.names:
+            raise SlipError(f'command joint names {names} differ from {self.names}')
+        self._cmd.append((t_s, np.asarray(velocity, dtype=float)))
+        self._trim(self._cmd, t_s)
+
+    def add_mocap(self, t_s: float, position_m: np.ndarray, quat_xyzw: np.ndarray) -> None:
+        self._mocap.append((t_s - self.mocap_offset_s, np.asarray(position_m, dtype=float),
+                            np.asarray(quat_xyzw, dtype=float)))
+        self._trim(self._mocap, t_s)
+
+    def step(self) -> list[SlipFitResult]:
+        """Fit every newly completed stance; returns the new fits (possibly empty)."""
+        if len(self._js) < 50 or len(self._cmd) < 50 or len(self._mocap) < 20:
+            return []
+        tj = np.array([x[0] for x in self._js])
+        vj = np.array([x[1] for x in self._js])
+        tc = np.array([x[0] for x in self._cmd])
+        vc = np.array([x[1] for x in self._cmd])
+        tm = np.array([x[0] for x in self._mocap])
+        pm = np.array([x[1] for x in self._mocap])
+        qm = np.array([x[2] for x in self._mocap])
+        windows = {}
+        shifts = {}
+        for tp in TRIPODS:
+            target = _tripod_mean(self.names, vc, tp)
+            shift = best_shift(tj, _tripod_mean(self.names, vj, tp),
+                               lambda t, a=tc, b=target: np.interp(t, a, b))
+            shifts[tp] = shift
+            td, lo = edges_from_target(tc + shift, target)
+            windows[tp] = tripod_stance_windows(td, lo)
+        ready = [w for w in single_tripod_stances(windows, shifts)
+                 if w.liftoff_s + self.margin_s <= tm[-1]
+                 and (w.tripod, round(w.liftoff_s * 100)) not in self._done
+                 and w.touchdown_s >= max(tj[0], tm[0])]
+        if not ready:
+            return []
+        inside = permissible_mask(pm, self.box)
+        out: list[SlipFitResult] = []
+        stances = []
+        for w in ready:
+            self._done.add((w.tripod, round(w.liftoff_s * 100)))
+            reason = ''
+            if inside.sum() < 10:
+                reason = 'outside_volume'
+            elif w.liftoff_s - w.touchdown_s < self.min_stance_s:
+                reason = 'too_short'
+            else:
+                try:
+                    frame = fit_world_frame(pm[inside], up_mocap=_up_from_quats(qm[inside]))
+                    track = sagittal_state(tm[inside], frame.to_world(pm[inside]))
+                    t, x, rt, rxz, whole = track.window(w.touchdown_s, w.liftoff_s)
+                    if not whole:
+                        reason = 'mocap_gap'
+                    else:
+                        st = Stance(t_s=t, state=x, tripod=w.tripod, raw_t_s=rt, raw_xz_m=rxz)
+                        validate_stance(st)
+                        stances.append(st)
+                except SlipError as err:
+                    reason = getattr(err, 'reason', 'bad_data')
+            if reason:
+                self.skipped.append(OnlineSkip(w.touchdown_s, w.liftoff_s, w.tripod, reason))
+        if stances:
+            out = self.fitter.fit(stances).results_
+        return out

@@ -1,0 +1,114 @@
+"""``slip_fitter`` node: one ``SlipFit`` on ``/slip/fit`` for every stance as soon as it ends.
+
+Subscribes ``/joint_states`` and ``/joint_commands`` (hip speeds; the commanded speeds are the
+Buehler target), ``/mocap/body`` (PoseStamped); the science is in
+:class:`slip_identification.online.OnlineSlip`. Fits run on each mocap message once the
+motion capture covers a lift-off plus ``margin`` seconds.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from geometry_msgs.msg import PoseStamped
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+
+from hexapod_common.conversions import joint_state_from_msg, pose_from_msg, s_to_stamp
+from hexapod_common.node_utils import RELIABLE_QOS, SENSOR_QOS, declare_params, param, run_node
+from hexapod_interfaces.msg import SlipFit
+
+from .fit import SlipFitResult
+from .model import SlipModel
+from .online import OnlineSlip
+from .preprocess import Box
+
+__all__ = ['SlipFitterNode', 'SlipParams', 'main', 'result_to_msg']
+
+
+def _positive(v: float) -> str | None:
+    return None if v > 0 else 'must be > 0'
+
+
+@dataclass(frozen=True)
+class SlipParams:
+    mass: float = param(3.31, 'robot mass m [kg]', validate=_positive)
+    model: str = param('slip', "template: 'slip' or 'slip+leg_damping' etc.", read_only=True)
+    mocap_offset: float = param(0.0, 'seconds subtracted from mocap stamps (stream offset)')
+    margin: float = param(0.03, 'mocap needed after lift-off before fitting [s]',
+                          validate=_positive)
+    box: list[float] = param([-1.0, -0.5, -0.5, 1.0, 0.5, 0.5],
+                             'permissible box in the mocap frame x0 y0 z0 x1 y1 z1 [m]',
+                             read_only=True)
+
+
+def result_to_msg(r: SlipFitResult) -> SlipFit:
+    """SlipFitResult -> hexapod_interfaces/SlipFit (stamp = touchdown)."""
+    msg = SlipFit()
+    msg.header.stamp.sec, msg.header.stamp.nanosec = s_to_stamp(r.touchdown_s)
+    msg.liftoff.sec, msg.liftoff.nanosec = s_to_stamp(r.liftoff_s)
+    msg.tripod = r.tripod
+    msg.model = r.model
+    msg.stiffness = r.params['stiffness']
+    msg.rest_length = r.params['rest_length']
+    msg.foot_x = r.params['foot_x']
+    msg.stiffness_stderr = r.stderr['stiffness']
+    msg.rest_length_stderr = r.stderr['rest_length']
+    msg.foot_x_stderr = r.stderr['foot_x']
+    extra = [k for k in r.params if k not in ('stiffness', 'rest_length', 'foot_x')]
+    msg.extra_names = extra
+    msg.extra = [r.params[k] for k in extra]
+    msg.nerr = r.nerr if math.isfinite(r.nerr) else float('nan')
+    msg.samples = r.samples
+    msg.converged = r.converged
+    return msg
+
+
+class SlipFitterNode(Node):
+    """Thin node around :class:`OnlineSlip`."""
+
+    def __init__(self, *, context: Any = None, parameter_overrides: Any = None,
+                 namespace: str | None = None, **kw: Any) -> None:
+        super().__init__('slip_fitter', context=context,
+                         parameter_overrides=parameter_overrides, namespace=namespace, **kw)
+        p = declare_params(self, SlipParams)
+        b = list(p.box)
+        self.core = OnlineSlip(SlipModel.from_name(p.model, mass_kg=p.mass),
+                               box=Box(tuple(b[:3]), tuple(b[3:])),
+                               mocap_offset_s=p.mocap_offset, margin_s=p.margin)
+        self.pub = self.create_publisher(SlipFit, 'slip/fit', RELIABLE_QOS)
+        self.create_subscription(JointState, 'joint_states', self._on_js, SENSOR_QOS)
+        self.create_subscription(JointState, 'joint_commands', self._on_cmd, SENSOR_QOS)
+        self.create_subscription(PoseStamped, 'mocap/body', self._on_mocap, SENSOR_QOS)
+        self.published = 0
+
+    def _guard(self, fn: Any, msg: Any) -> None:
+        try:
+            fn(msg)
+        except (ValueError, RuntimeError) as err:  # a bad message is logged and dropped
+            self.get_logger().warning(f'dropped message: {err}')
+
+    def _on_js(self, msg: JointState) -> None:
+        self._guard(lambda m: (lambda s: self.core.add_joint_state(s.t_s, s.names, s.velocity))(
+            joint_state_from_msg(m)), msg)
+
+    def _on_cmd(self, msg: JointState) -> None:
+        self._guard(lambda m: (lambda s: self.core.add_command(s.t_s, s.names, s.velocity))(
+            joint_state_from_msg(m)), msg)
+
+    def _on_mocap(self, msg: PoseStamped) -> None:
+        self._guard(self._mocap_and_fit, msg)
+
+    def _mocap_and_fit(self, msg: PoseStamped) -> None:
+        s = pose_from_msg(msg)
+        self.core.add_mocap(s.t_s, s.position_m, s.orientation_xyzw)
+        for r in self.core.step():
+            self.pub.publish(result_to_msg(r))
+            self.published += 1
+
+
+def main(args: list[str] | None = None) -> int:
+    """Console script ``slip_fitter``."""
+    return run_node(SlipFitterNode, args)

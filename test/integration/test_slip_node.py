@@ -1,0 +1,29 @@
+"""slip_fitter node: builds with overrides in a fresh context; a fit becomes a SlipFit message."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import rclpy
+
+from slip_identification.fit import SlipFitter
+from slip_identification.slip_node import SlipFitterNode, result_to_msg
+from slip_identification.synthetic import make_stance
+
+
+@pytest.mark.timeout(60)
+def test_node_builds_and_message_conversion():
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    try:
+        node = SlipFitterNode(context=ctx, namespace='/slip_node_test',
+                              parameter_overrides=[rclpy.parameter.Parameter('mass', value=3.0)])
+        assert node.core.model.mass_kg == 3.0
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)
+    syn = make_stance(np.array([2500.0, 0.15, 0.5]), speed_mps=0.9)
+    r = SlipFitter().fit([syn.stance]).results_[0]
+    msg = result_to_msg(r)
+    assert msg.stiffness == pytest.approx(2500.0, rel=5e-3)
+    assert msg.converged is True and msg.samples == syn.stance.n_samples
