@@ -1,0 +1,178 @@
+"""Live (sample-by-sample) drivers of the simulators, for the ``sim_robot``/``sim_bench`` nodes.
+
+Core module: no ROS. The nodes feed the latest ``/joint_commands`` and ``/gait/phase`` (as the
+plain samples of ``hexapod_common.conversions``) and call :meth:`tick` on a timer.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .bench_sim import BenchConfig, BenchSimulator
+from .effects import EffectSet
+from .robot_sim import RobotConfig, RobotSimulator, SampleInput
+from .sim_core import G_MPS2, quantise_position
+
+__all__ = ['LiveBench', 'LiveRobot', 'LiveSample']
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class LiveSample:
+    """One published sample: arrays over ``joint_names``; bench fields None on the robot."""
+
+    joint_names: tuple[str, ...]
+    position_rad: FloatArray
+    velocity_rad_s: FloatArray
+    effort_nm: FloatArray
+    temperature_c: FloatArray
+    voltage_v: FloatArray
+    load_fraction: FloatArray
+    error: NDArray[np.uint8]
+    battery_voltage_v: float
+    battery_current_a: float           # ROS sign: negative while discharging
+    ground_force_n: float | None = None
+    tip_m: FloatArray | None = None
+
+
+class _Commands:
+    """Latest joint commands by name, with a finite-difference acceleration."""
+
+    def __init__(self, names: tuple[str, ...], q0: FloatArray) -> None:
+        self.names = names
+        self.index = {n: i for i, n in enumerate(names)}
+        self.q = q0.astype(float).copy()
+        self.qd = np.zeros_like(self.q)
+        self.qdd = np.zeros_like(self.q)
+        self._t_prev: float | None = None
+
+    def update(self, t_s: float, names: tuple[str, ...], position: FloatArray,
+               velocity: FloatArray) -> int:
+        """Take the joints of ours in a JointState sample; returns how many were used."""
+        used = 0
+        qd_new = self.qd.copy()
+        for k, name in enumerate(names):
+            i = self.index.get(name)
+            if i is None:
+                continue
+            if position.size:
+                self.q[i] = position[k]
+            if velocity.size:
+                qd_new[i] = velocity[k]
+            used += 1
+        if self._t_prev is not None and t_s > self._t_prev:
+            self.qdd = (qd_new - self.qd) / (t_s - self._t_prev)
+        self._t_prev = t_s
+        self.qd = qd_new
+        return used
+
+
+class LiveRobot:
+    """The servo hexapod stepped live from ``/joint_commands`` and ``/gait/phase``."""
+
+    def __init__(self, config: RobotConfig | None = None, *,
+                 effects: EffectSet | None = None, seed: int = 0) -> None:
+        # The live robot is driven by the gait node, so its own gait is "standing".
+        cfg = config or RobotConfig()
+        self.sim = RobotSimulator(RobotConfig(**{**cfg.__dict__, 'period_s': 0.0,
+                                                 'speed_mps': 0.0}),
+                                  effects=effects, seed=seed)
+        self.commands = _Commands(self.sim.joint_names, self.sim.neutral_q.ravel())
+        n_legs = len(self.sim.leg_names)
+        self.in_stance = np.ones(n_legs, dtype=bool)
+        self.speed_mps = 0.0
+        self.step_frequency_hz = 0.0
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        return self.sim.joint_names
+
+    def set_gait(self, leg_names: tuple[str, ...], in_stance: NDArray[np.bool_],
+                 speed_mps: float, period_s: float) -> None:
+        """Stance flags (by leg name) and speed from a ``/gait/phase`` sample."""
+        for name, flag in zip(leg_names, in_stance):
+            if name in self.sim.leg_names:
+                self.in_stance[self.sim.leg_names.index(name)] = bool(flag)
+        self.speed_mps = float(speed_mps)
+        self.step_frequency_hz = 1.0 / period_s if period_s > 0 else 0.0
+
+    def tick(self, dt_s: float) -> LiveSample:
+        sim, c = self.sim, self.commands
+        n_legs = len(sim.leg_names)
+        inp = SampleInput(c.q.reshape(n_legs, 3), c.qd.reshape(n_legs, 3),
+                          c.qdd.reshape(n_legs, 3), self.in_stance.copy(), self.speed_mps,
+                          self.step_frequency_hz, None)
+        res = sim.step(dt_s, inp)
+        out = res['servo']
+        noise, rng = sim.noise, sim.rng
+        volts, current = res['voltage_v'], res['current_a']
+        vel = out.velocity_rad_s
+        if noise:
+            volts += rng.normal(0.0, 0.004 * noise)
+            current += rng.normal(0.0, 0.008 * noise)
+            vel = vel + rng.normal(0.0, 0.02 * noise, vel.shape)
+        return LiveSample(
+            sim.joint_names, quantise_position(out.position_rad), vel,
+            out.load_fraction * sim.servo_params.stall_torque_nm,
+            out.reported_temperature_c.astype(float), out.reported_voltage_v,
+            out.load_fraction, out.error, float(volts), -float(current))
+
+
+class LiveBench:
+    """The bench leg stepped live; the load on the stage is a setting."""
+
+    def __init__(self, config: BenchConfig | None = None, *, load_kg: float = 0.0,
+                 effects: EffectSet | None = None, seed: int = 0) -> None:
+        self.sim = BenchSimulator(config, effects=effects, seed=seed)
+        self.load_kg = float(load_kg)
+        self.commands = _Commands(self.sim.joint_names, self.sim.neutral_q)
+        self.in_stance = True
+        self.step_frequency_hz = 0.0
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        return self.sim.joint_names
+
+    def set_gait(self, leg_names: tuple[str, ...], in_stance: NDArray[np.bool_],
+                 period_s: float) -> None:
+        if self.sim.leg in leg_names:
+            self.in_stance = bool(in_stance[list(leg_names).index(self.sim.leg)])
+        self.step_frequency_hz = 1.0 / period_s if period_s > 0 else 0.0
+
+    def tick(self, dt_s: float) -> LiveSample:
+        sim = self.sim
+        eff = sim.effects
+        weight_n = (sim.loads.leg_mass_kg + sim.config.stage_mass_kg + self.load_kg) * G_MPS2
+        force = np.array([0.0, 0.0, weight_n if self.in_stance else 0.0])
+        q = self.commands.q
+        tau = sim.loads.static_torques(q, force)[0]
+        k_err = float(eff.value('kinematic_error'))
+        goal = q + 0.0025 * k_err * self.step_frequency_hz * (q - sim.neutral_q)
+        volts = sim.supply.terminal_voltage_v()
+        out = sim.servos.step(dt_s, goal, -tau, volts)
+        extra = float(eff.value('basal_power')) + k_err * self.step_frequency_hz \
+            + (sim.anomaly_w if self.in_stance else 0.0)
+        current = float(out.current_a.sum()) + extra / volts
+        sim.supply.draw(current, dt_s)
+        tip_leg = sim.kinematics.forward(out.position_rad)[0]
+        contact = -tip_leg[2] >= sim.stop_z
+        base_z = max(sim.stop_z, -tip_leg[2])
+        tip = np.array([tip_leg @ sim.forward_axis, tip_leg[0], base_z + tip_leg[2]])
+        f = weight_n if contact else 0.0
+        noise, rng = sim.noise, sim.rng
+        vel = out.velocity_rad_s
+        if noise:
+            volts += rng.normal(0.0, 0.004 * noise)
+            current += rng.normal(0.0, 0.008 * noise)
+            f += rng.normal(0.0, 0.05 * noise)
+            tip = tip + rng.normal(0.0, 0.0003 * noise, 3)
+            vel = vel + rng.normal(0.0, 0.02 * noise, 3)
+        return LiveSample(
+            sim.joint_names, quantise_position(out.position_rad), vel,
+            out.load_fraction * sim.servo_params.stall_torque_nm,
+            out.reported_temperature_c.astype(float), out.reported_voltage_v,
+            out.load_fraction, out.error, float(volts), -float(current), float(f), tip)

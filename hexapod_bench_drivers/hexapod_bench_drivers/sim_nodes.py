@@ -1,0 +1,231 @@
+"""Nodes ``sim_robot`` and ``sim_bench``: simulated hardware on live topics.
+
+Both subscribe to ``/joint_commands`` and ``/gait/phase`` (from the gait node) and publish, on a
+timer of the node clock (so ``use_sim_time`` and a ``/clock`` publisher drive them), the real
+drivers' topics: ``/joint_states``, ``/servo_status`` (every ``status_every`` ticks),
+``/battery_state`` (ROS sign), and for the bench ``/bench/ground_force``, ``/bench/leg_tip`` and
+``/bench/session`` (latched). The physics is in ``sim_live`` (core); callbacks are one line.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from rclpy.node import Node
+
+from geometry_msgs.msg import PointStamped, WrenchStamped
+from hexapod_common.conversions import gait_phase_from_msg, joint_state_from_msg
+from hexapod_common.node_utils import (
+    LATCHED_QOS,
+    RELIABLE_QOS,
+    SENSOR_QOS,
+    declare_params,
+    param,
+    run_node,
+)
+from hexapod_interfaces.msg import BenchSession, GaitPhase, ServoStatus
+from sensor_msgs.msg import BatteryState, JointState
+
+from .bench_sim import BenchConfig
+from .effects import EffectError, parse_effects
+from .robot_sim import RobotConfig
+from .sim_live import LiveBench, LiveRobot, LiveSample
+
+__all__ = ['BenchNodeParams', 'RobotNodeParams', 'SimBenchNode', 'SimRobotNode', 'main_bench',
+           'main_robot']
+
+
+def _positive(x: Any) -> str | None:
+    return None if x > 0 else 'must be > 0'
+
+
+def _effects_ok(items: Any) -> str | None:
+    try:
+        parse_effects(list(items))
+    except EffectError as err:
+        return str(err)
+    return None
+
+
+@dataclass(frozen=True)
+class RobotNodeParams:
+    leg_count: int = param(6, 'number of legs (even)', validate=lambda x: None
+                           if x >= 2 and x % 2 == 0 else 'must be even and >= 2')
+    payload: float = param(0.0, 'payload on the body [kg]')
+    robot_mass: float = param(2.183, 'robot mass without payload [kg]', validate=_positive)
+    battery: bool = param(False, 'true: 3S LiPo; false: 11.9 V lab supply')
+    servo: str = param('ax18a', 'servo preset: ax18a, ax12a, xl430, xm430')
+    rate: float = param(100.0, 'publish rate [Hz]', validate=_positive)
+    status_every: int = param(10, 'publish /servo_status every N ticks', validate=_positive)
+    effects: tuple[str, ...] = param(('sensor_noise=1',), 'named effects NAME=VALUE',
+                                     validate=_effects_ok)
+    seed: int = param(0, 'noise seed')
+
+
+@dataclass(frozen=True)
+class BenchNodeParams:
+    leg: str = param('R2', 'leg on the bench (its joints are taken from /joint_commands)')
+    load: float = param(0.0, 'load on the vertical stage [kg]',
+                        validate=lambda x: None if x >= 0 else 'must be >= 0')
+    servo: str = param('ax18a', 'servo preset')
+    rate: float = param(100.0, 'publish rate [Hz]', validate=_positive)
+    status_every: int = param(10, 'publish /servo_status every N ticks', validate=_positive)
+    effects: tuple[str, ...] = param(('sensor_noise=1',), 'named effects NAME=VALUE',
+                                     validate=_effects_ok)
+    seed: int = param(0, 'noise seed')
+    session_id: str = param('live', 'session id on /bench/session')
+
+
+class _SimNode(Node):
+    """Shared plumbing of the two simulator nodes."""
+
+    live: Any
+    params: Any
+
+    def _setup(self) -> None:
+        p = self.params
+        self._tick_count = 0
+        self._last_ns: int | None = None
+        self.pub_js = self.create_publisher(JointState, 'joint_states', RELIABLE_QOS)
+        self.pub_status = self.create_publisher(ServoStatus, 'servo_status', RELIABLE_QOS)
+        self.pub_battery = self.create_publisher(BatteryState, 'battery_state', RELIABLE_QOS)
+        self.create_subscription(JointState, 'joint_commands', self._on_commands, SENSOR_QOS)
+        self.create_subscription(GaitPhase, 'gait/phase', self._on_gait, SENSOR_QOS)
+        self.timer = self.create_timer(1.0 / p.rate, self._on_timer)
+
+    def _on_commands(self, msg: JointState) -> None:
+        try:
+            s = joint_state_from_msg(msg)
+            self.live.commands.update(s.t_s, s.names, s.position, s.velocity)
+        except (ValueError, IndexError) as err:
+            self.get_logger().warning(f'dropped a bad /joint_commands message: {err}')
+
+    def _on_gait(self, msg: GaitPhase) -> None:
+        try:
+            self._apply_gait(gait_phase_from_msg(msg))
+        except (ValueError, IndexError) as err:
+            self.get_logger().warning(f'dropped a bad /gait/phase message: {err}')
+
+    def _apply_gait(self, g: Any) -> None:
+        raise NotImplementedError
+
+    def _on_timer(self) -> None:
+        now = self.get_clock().now()
+        now_ns = now.nanoseconds
+        dt = 1.0 / self.params.rate if self._last_ns is None or now_ns <= self._last_ns \
+            else min((now_ns - self._last_ns) * 1e-9, 0.1)
+        self._last_ns = now_ns
+        sample = self.live.tick(dt)
+        self._publish(sample, now.to_msg())
+        self._tick_count += 1
+
+    def _publish(self, s: LiveSample, stamp: Any) -> None:
+        js = JointState()
+        js.header.stamp = stamp
+        js.name = list(s.joint_names)
+        js.position = [float(x) for x in s.position_rad]
+        js.velocity = [float(x) for x in s.velocity_rad_s]
+        js.effort = [float(x) for x in s.effort_nm]
+        self.pub_js.publish(js)
+        if self._tick_count % self.params.status_every == 0:
+            st = ServoStatus()
+            st.header.stamp = stamp
+            st.name = list(s.joint_names)
+            st.temperature = [float(x) for x in s.temperature_c]
+            st.voltage = [float(x) for x in s.voltage_v]
+            st.load = [float(x) for x in s.load_fraction]
+            st.error = bytes(int(x) for x in s.error)
+            self.pub_status.publish(st)
+        bat = BatteryState()
+        bat.header.stamp = stamp
+        bat.header.frame_id = 'supply'
+        bat.voltage = s.battery_voltage_v
+        bat.current = s.battery_current_a
+        for name in ('temperature', 'charge', 'capacity', 'design_capacity', 'percentage'):
+            setattr(bat, name, math.nan)
+        bat.power_supply_status = BatteryState.POWER_SUPPLY_STATUS_DISCHARGING
+        bat.present = True
+        self.pub_battery.publish(bat)
+
+
+class SimRobotNode(_SimNode):
+    """``sim_robot``: the servo hexapod on live topics."""
+
+    def __init__(self, *, context: Any = None, parameter_overrides: Any = None,
+                 namespace: str | None = None, **kw: Any) -> None:
+        super().__init__('sim_robot', context=context, parameter_overrides=parameter_overrides,
+                         namespace=namespace, **kw)
+        p = declare_params(self, RobotNodeParams)
+        cfg = RobotConfig(leg_count=p.leg_count, payload_kg=p.payload, robot_mass_kg=p.robot_mass,
+                          supply='battery' if p.battery else 'supply', servo=p.servo,
+                          rate_hz=p.rate)
+        self.live = LiveRobot(cfg, effects=parse_effects(list(p.effects), defaults=False),
+                              seed=p.seed)
+        self._setup()
+
+    def _apply_gait(self, g: Any) -> None:
+        self.live.set_gait(g.leg_names, g.in_stance, g.speed_mps, g.period_s)
+
+
+class SimBenchNode(_SimNode):
+    """``sim_bench``: one leg on the MiMiC-Ant bench on live topics."""
+
+    def __init__(self, *, context: Any = None, parameter_overrides: Any = None,
+                 namespace: str | None = None, **kw: Any) -> None:
+        super().__init__('sim_bench', context=context, parameter_overrides=parameter_overrides,
+                         namespace=namespace, **kw)
+        p = declare_params(self, BenchNodeParams)
+        self.live = LiveBench(BenchConfig(leg=p.leg, servo=p.servo, rate_hz=p.rate),
+                              load_kg=p.load,
+                              effects=parse_effects(list(p.effects), defaults=False),
+                              seed=p.seed)
+        self.pub_force = self.create_publisher(WrenchStamped, 'bench/ground_force', RELIABLE_QOS)
+        self.pub_tip = self.create_publisher(PointStamped, 'bench/leg_tip', RELIABLE_QOS)
+        self.pub_session = self.create_publisher(BenchSession, 'bench/session', LATCHED_QOS)
+        self._frequency_hz = 0.0
+        self._gait = (0.5, 0.1, 0.04)
+        self._setup()
+        self._publish_session()
+
+    def _publish_session(self) -> None:
+        msg = BenchSession()
+        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.header.frame_id = 'bench'
+        msg.session_id = self.params.session_id
+        msg.state = 'walking'
+        msg.load_mass = float(self.params.load)
+        msg.frequency = float(self._frequency_hz)
+        msg.duty_factor, msg.step_length, msg.step_height = (float(x) for x in self._gait)
+        self.pub_session.publish(msg)
+
+    def _apply_gait(self, g: Any) -> None:
+        self.live.set_gait(g.leg_names, g.in_stance, g.period_s)
+        freq = 1.0 / g.period_s if g.period_s > 0 else 0.0
+        gait = (g.duty_factor, g.step_length_m, g.step_height_m)
+        if freq != self._frequency_hz or gait != self._gait:
+            self._frequency_hz, self._gait = freq, gait
+            self._publish_session()
+
+    def _publish(self, s: LiveSample, stamp: Any) -> None:
+        super()._publish(s, stamp)
+        w = WrenchStamped()
+        w.header.stamp = stamp
+        w.header.frame_id = 'bench'
+        w.wrench.force.z = float(s.ground_force_n or 0.0)
+        self.pub_force.publish(w)
+        tip = PointStamped()
+        tip.header.stamp = stamp
+        tip.header.frame_id = 'bench'
+        if s.tip_m is not None:
+            tip.point.x, tip.point.y, tip.point.z = (float(v) for v in s.tip_m)
+        self.pub_tip.publish(tip)
+
+
+def main_robot(args: list[str] | None = None) -> int:
+    return run_node(SimRobotNode, args)
+
+
+def main_bench(args: list[str] | None = None) -> int:
+    return run_node(SimBenchNode, args)

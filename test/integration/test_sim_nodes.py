@@ -1,0 +1,53 @@
+"""sim_robot and sim_bench driven live by the gait node: the drivers' topics with physics."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from harness import Collector, ros_env
+from rclpy.parameter import Parameter
+
+from geometry_msgs.msg import WrenchStamped
+from hexapod_bench_drivers.sim_nodes import SimBenchNode, SimRobotNode
+from hexapod_gait.gait_node import GaitSchedulerNode
+from hexapod_interfaces.msg import BenchSession, ServoStatus
+from sensor_msgs.msg import BatteryState, JointState
+
+
+@pytest.mark.timeout(60)
+def test_sim_robot_follows_the_gait_node() -> None:
+    with ros_env('simrobot') as env:
+        env.make(GaitSchedulerNode, parameter_overrides=[Parameter('period', value=1.0)])
+        env.make(SimRobotNode, parameter_overrides=[Parameter('effects', value=['basal_power=1'])])
+        js = Collector(env, JointState, 'joint_states')
+        bat = Collector(env, BatteryState, 'battery_state')
+        status = Collector(env, ServoStatus, 'servo_status')
+        cmd = Collector(env, JointState, 'joint_commands')
+        js.wait_for(env, 60, timeout_s=40.0)
+        status.wait_for(env, 2, timeout_s=20.0)
+        assert len(js.messages[-1].name) == 18
+        assert all(m.current < 0.0 for m in bat.messages)          # ROS sign: discharging
+        p_in = np.mean([-m.voltage * m.current for m in bat.messages])
+        assert 10.0 < p_in < 60.0
+        # the servos follow the commands to within a few degrees
+        last_cmd = dict(zip(cmd.messages[-1].name, cmd.messages[-1].position))
+        last = js.messages[-1]
+        err = [abs(p - last_cmd[n]) for n, p in zip(last.name, last.position)]
+        assert np.median(err) < 0.15
+        assert list(status.messages[-1].name) == list(last.name)
+
+
+@pytest.mark.timeout(60)
+def test_sim_bench_publishes_force_tip_and_session() -> None:
+    with ros_env('simbench') as env:
+        env.make(GaitSchedulerNode, parameter_overrides=[Parameter('period', value=0.5)])
+        env.make(SimBenchNode, parameter_overrides=[Parameter('load', value=0.2)])
+        force = Collector(env, WrenchStamped, 'bench/ground_force')
+        session = Collector(env, BenchSession, 'bench/session')
+        js = Collector(env, JointState, 'joint_states')
+        force.wait_for(env, 80, timeout_s=40.0)
+        assert session.wait_for(env, 1, timeout_s=10.0)[-1].load_mass == pytest.approx(0.2)
+        fz = np.array([m.wrench.force.z for m in force.messages])
+        assert fz.max() > (0.166 + 0.2) * 9.81 * 0.9           # stance: leg + load weight
+        assert fz.min() < 0.5                                   # swing: off the belt
+        assert len(js.messages[-1].name) == 3
