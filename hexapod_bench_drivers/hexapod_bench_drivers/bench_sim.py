@@ -129,7 +129,7 @@ class BenchConfig:
     cooling_rate_hz: float = 2.0
     ambient_temperature_c: float = 26.0
     initial_temperature_c: float = 26.0
-    max_substep_s: float = 2.5e-3
+    max_substep_s: float = 1.0 / 300.0
 
 
 @dataclass

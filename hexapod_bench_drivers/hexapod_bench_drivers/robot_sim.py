@@ -88,7 +88,7 @@ class RobotConfig:
     rate_hz: float = 100.0
     ambient_temperature_c: float = 26.0
     initial_temperature_c: float = 26.0
-    max_substep_s: float = 2.5e-3
+    max_substep_s: float = 1.0 / 300.0
 
     def gait_pattern(self) -> GaitPattern | None:
         """The gait, or None when standing still."""

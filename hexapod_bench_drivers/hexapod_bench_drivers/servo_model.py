@@ -511,7 +511,8 @@ class ServoModel:
         sum_bridge = np.zeros(n)
         sum_i2 = np.zeros(n)
         u = np.zeros(n)
-        absolute, maximum, minimum, where = np.absolute, np.maximum, np.minimum, np.where
+        absolute, maximum, minimum, where, sign = (np.absolute, np.maximum, np.minimum,
+                                                   np.where, np.sign)
         for _ in range(n_sub):
             if any_limited:
                 dq = np.clip(goal - setpoint, -speed_limit * h, speed_limit * h)
@@ -530,9 +531,10 @@ class ServoModel:
             f_max = coulomb + mu * absolute(gen)
             tau_free = gen + tau_ext - visc * w
             moving = absolute(w) > w_eps
-            direction = where(moving, np.sign(w), np.sign(tau_free))
+            direction = sign(where(moving, w, tau_free))
             w_new = w + h_inv_j * (tau_free - f_max * direction)
-            stick = (~moving & (absolute(tau_free) <= f_max)) | (moving & (w_new * w < 0.0))
+            # stick: at rest inside the friction band, or crossing zero speed in this sub-step
+            stick = where(moving, w_new * w < 0.0, absolute(tau_free) <= f_max)
             w = where(stick, 0.0, w_new)
             q += h * w
             sum_bridge += maximum(u * i, 0.0)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Sequence
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -68,16 +69,40 @@ class CdrBuffer:
         return b''.join(self.parts)
 
 
+@lru_cache(maxsize=64)
+def _prefix(names: tuple[str, ...], frame_id: str) -> tuple[bytes, int]:
+    """Encoded ``frame_id`` and name list after the stamp, and the payload offset at its end."""
+    b = CdrBuffer()
+    b.pack('iI', 4, 0, 0)
+    b.string(frame_id)
+    b.strings(names)
+    return b.bytes()[12:], b.pos
+
+
+_PAD = tuple(b'\x00' * i for i in range(8))
+_STAMP = struct.Struct('<iI')
+_U32 = struct.Struct('<I')
+
+
 def joint_state(t_ns: int, names: Sequence[str], position: ArrayLike, velocity: ArrayLike,
                 effort: ArrayLike, frame_id: str = '') -> bytes:
-    """sensor_msgs/msg/JointState."""
-    b = CdrBuffer()
-    b.header(t_ns, frame_id)
-    b.strings(names)
-    b.array(position, 'f8')
-    b.array(velocity, 'f8')
-    b.array(effort, 'f8')
-    return b.bytes()
+    """sensor_msgs/msg/JointState (the name block is cached: the hot path of the bags)."""
+    prefix, pos = _prefix(tuple(names), frame_id)
+    parts = [_HEADER, _STAMP.pack(int(t_ns // 1_000_000_000), int(t_ns % 1_000_000_000)),
+             prefix]
+    for values in (position, velocity, effort):
+        arr = np.asarray(values, dtype='<f8')
+        pad = -pos % 4
+        parts.append(_PAD[pad])
+        parts.append(_U32.pack(arr.size))
+        pos += pad + 4
+        if arr.size:
+            pad = -pos % 8
+            parts.append(_PAD[pad])
+            data = arr.tobytes()
+            parts.append(data)
+            pos += pad + len(data)
+    return b''.join(parts)
 
 
 def battery_state(t_ns: int, voltage_v: float, current_a: float, *, status: int,
