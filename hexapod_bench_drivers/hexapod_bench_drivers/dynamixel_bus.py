@@ -120,7 +120,8 @@ def parse_joint_map(data: Mapping[str, Any]) -> tuple[JointConfig, ...]:
     names = [j.name for j in out]
     ids = [j.servo_id for j in out]
     if len(set(names)) != len(names) or len(set(ids)) != len(ids):
-        raise JointMapError(f'joint map: names and ids must be unique, got {list(zip(names, ids))}')
+        raise JointMapError('joint map: names and ids must be unique, got '
+                            f'{list(zip(names, ids))}')
     if not out:
         raise JointMapError('joint map: no joints')
     return tuple(out)

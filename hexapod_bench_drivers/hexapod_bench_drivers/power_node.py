@@ -40,8 +40,9 @@ BACKENDS = ('sim', 'ina226', 'ina219', 'scpi')
 class PowerMonitorParams:
     """Parameters of the power_monitor node."""
 
-    backend: str = param('sim', 'sim, ina226, ina219 or scpi.',
-                         validate=lambda v: None if v in BACKENDS else f'expected one of {BACKENDS}')
+    backend: str = param(
+        'sim', 'sim, ina226, ina219 or scpi.',
+        validate=lambda v: None if v in BACKENDS else f'expected one of {BACKENDS}')
     rate_hz: float = param(100.0, 'Sampling/publish rate [Hz].',
                            validate=lambda v: None if v > 0 else 'expected > 0')
     i2c_bus: int = param(1, 'Linux I2C bus number (/dev/i2c-N) for ina226/ina219.')
