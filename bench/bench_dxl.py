@@ -28,10 +28,16 @@ from hexapod_bench_drivers.servo_bus_emulator import ServoBusEmulator, emulator_
 DURATION_S = 3.0
 
 
-def poll_rate(model: str, protocol: int, n: int) -> float:
-    with ServoBusEmulator.of_model(model, range(1, n + 1)) as emu, \
-            DynamixelBus(emu.port_name, [JointConfig(f'j{i}', i) for i in range(1, n + 1)],
-                         protocol=protocol) as bus:
+def poll_rate(model: str, protocol: int, n: int, in_process: bool = True) -> float:
+    from contextlib import ExitStack
+
+    with ExitStack() as stack:
+        if in_process:
+            port = stack.enter_context(ServoBusEmulator.of_model(model, range(1, n + 1))).port_name
+        else:
+            port = stack.enter_context(emulator_process(model, range(1, n + 1)))
+        bus = stack.enter_context(DynamixelBus(
+            port, [JointConfig(f'j{i}', i) for i in range(1, n + 1)], protocol=protocol))
         bus.set_torque(True)
         cycles, ok = 0, True
         t0 = time.perf_counter()
@@ -40,7 +46,9 @@ def poll_rate(model: str, protocol: int, n: int) -> float:
             cycles += 1
         rate = cycles / (time.perf_counter() - t0)
         failures = sum(h.failed_cycles for h in bus.health())
-    print(f'  poll {n:2d} x {model}: {rate:7.1f} cycles/s  ({failures} failed servo-cycles)')
+    where = 'thread' if in_process else 'child process'
+    print(f'  poll {n:2d} x {model}: {rate:7.1f} cycles/s  ({failures} failed servo-cycles, '
+          f'emulator in {where})')
     return rate
 
 
@@ -117,6 +125,7 @@ def main() -> None:
         ours = poll_rate(model, protocol, n)
         base = baseline_rate(model, protocol, n)
         print(f'  ratio {n} x {model}: {ours / base:5.1f}x the baseline')
+    poll_rate('ax18a', 1, 18, in_process=False)
     node_rate(in_process=False)
     node_rate(in_process=True)
 
