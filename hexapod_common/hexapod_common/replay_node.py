@@ -32,7 +32,7 @@ class BagReplayNode(Node):
     """Publishes a bag; call :meth:`run` (blocking) after the graph is up."""
 
     def __init__(self, bag: str | Sequence[str], options: ReplayOptions = ReplayOptions(), *,
-                 ack_every: int = 64, ack_timeout_s: float = 10.0, context: Any = None,
+                 ack_every: int = 1, ack_timeout_s: float = 10.0, context: Any = None,
                  parameter_overrides: Any = None, namespace: str | None = None,
                  node_name: str = 'bag_replay') -> None:
         super().__init__(node_name, context=context, namespace=namespace or '',
@@ -140,6 +140,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     node = None
     try:
         node = BagReplayNode(args.bag, args.options)
+        if not node.source.types:
+            unknown = '; '.join(f'{t}: {why}' for t, why in node.source.skipped.items())
+            raise HexapodError('nothing to replay' + (f' (unknown types: {unknown})'
+                                                      if unknown else ' (no matching topics)'))
         if args.wait_subscribers:
             node.wait_for_subscribers(args.wait_subscribers)
         counts = node.run()

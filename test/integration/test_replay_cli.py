@@ -1,0 +1,132 @@
+"""bag_replay and bag_recorder as commands: bad input gives one clear line and a non-zero exit."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from hexapod_common.bags import BagWriter, open_reader
+from hexapod_common.testbags import write_mixed_bag
+
+BIN = Path(sys.executable).parent
+ENV = dict(os.environ, PYTHONUNBUFFERED='1')
+
+
+def run(*args: str, timeout: float = 60) -> subprocess.CompletedProcess:
+    return subprocess.run([str(BIN / args[0]), *args[1:]], capture_output=True, text=True,
+                          timeout=timeout, env=ENV)
+
+
+def assert_one_line_error(proc: subprocess.CompletedProcess, *words: str) -> None:
+    assert proc.returncode != 0
+    assert 'Traceback' not in proc.stderr, proc.stderr
+    lines = [ln for ln in proc.stderr.splitlines() if 'error' in ln]
+    assert len(lines) == 1, proc.stderr
+    for word in words:
+        assert word in lines[0], lines[0]
+
+
+@pytest.mark.timeout(60)
+def test_missing_path(tmp_path):
+    assert_one_line_error(run('bag_replay', str(tmp_path / 'nope')), 'no such bag')
+
+
+@pytest.mark.timeout(60)
+def test_folder_that_is_not_a_bag(tmp_path):
+    (tmp_path / 'notes.txt').write_text('hello')
+    assert_one_line_error(run('bag_replay', str(tmp_path)), 'not a rosbag2 bag')
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
+def test_truncated_bag(tmp_path, storage):
+    bag = tmp_path / 'cut'
+    write_mixed_bag(bag, 3000, storage=storage)
+    data_file = next(p for p in bag.iterdir() if p.suffix in ('.mcap', '.db3'))
+    size = data_file.stat().st_size
+    with data_file.open('r+b') as fh:
+        fh.truncate(size // 2)
+    proc = run('bag_replay', str(bag))
+    assert_one_line_error(proc, 'bag')
+    # the file on disk is left as it was: replay never writes
+    assert data_file.stat().st_size == size // 2
+
+
+@pytest.mark.timeout(60)
+def test_bag_with_only_unknown_types(tmp_path):
+    bag = tmp_path / 'alien'
+    msgdef = 'float64 torque_nm\nstring joint\n'
+    from rosbags.typesys import get_types_from_msg
+    from rosbags.typesys.store import Typestore
+
+    from hexapod_common.bags import typestore
+    store: Typestore = typestore()
+    types = get_types_from_msg(msgdef, 'other_lab_msgs/msg/Torque')
+    fresh = type(store)()
+    fresh.register(store.fielddefs)
+    fresh.register(types)
+    with BagWriter(bag, store=fresh) as writer:
+        msg = fresh.types['other_lab_msgs/msg/Torque'](torque_nm=1.5, joint='hip')
+        writer.write('/torque', 'other_lab_msgs/msg/Torque', msg, 1_000)
+    proc = run('bag_replay', str(bag))
+    assert_one_line_error(proc, 'other_lab_msgs/msg/Torque')
+
+
+@pytest.mark.timeout(60)
+def test_recorder_refuses_to_overwrite(tmp_path):
+    bag = tmp_path / 'exists'
+    write_mixed_bag(bag, 30)
+    before = sorted(p.name for p in bag.iterdir())
+    proc = run('bag_recorder', '-o', str(bag))
+    assert_one_line_error(proc, 'refusing to overwrite')
+    assert sorted(p.name for p in bag.iterdir()) == before
+    with open_reader(bag) as reader:
+        assert reader.message_count == 30
+
+
+@pytest.mark.timeout(90)
+def test_recorder_killed_keeps_all_but_the_last_second(tmp_path):
+    """SIGKILL after 10 s at 100 Hz: the bag opens and holds at least 9 s of messages."""
+    bag = tmp_path / 'killed'
+    topic = '/kill_test_' + str(os.getpid())
+    rec = subprocess.Popen([str(BIN / 'bag_recorder'), '-o', str(bag), '--topics', topic],
+                           env=ENV, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    pub = subprocess.Popen([sys.executable, '-c', f'''
+import rclpy, time
+from sensor_msgs.msg import BatteryState
+rclpy.init()
+n = rclpy.create_node("kill_pub")
+p = n.create_publisher(BatteryState, "{topic}", 10)
+t0 = time.monotonic(); k = 0
+while time.monotonic() - t0 < 30:
+    m = BatteryState(); m.voltage = 12.0; m.current = -1.0
+    p.publish(m); k += 1
+    time.sleep(max(0.0, t0 + k / 100 - time.monotonic()))
+'''], env=ENV)
+    try:
+        # the recorder subscribes once the publisher is discovered; wait for its first split
+        deadline = time.monotonic() + 30
+        while not (bag / 'metadata.yaml').exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert (bag / 'metadata.yaml').exists(), 'recorder wrote nothing'
+        t_first = time.monotonic()
+        time.sleep(10.0)  # the scenario itself is 10 s of recording
+        rec.send_signal(signal.SIGKILL)
+        rec.wait(10)
+        recorded_for = time.monotonic() - t_first + 1.0
+    finally:
+        pub.kill()
+        pub.wait(10)
+        if rec.poll() is None:
+            rec.kill()
+    with open_reader(bag) as reader:
+        span_s = (reader.end_time - reader.start_time) * 1e-9
+        count = reader.message_count
+    assert span_s >= 9.0, (span_s, recorded_for)
+    assert count >= 900
