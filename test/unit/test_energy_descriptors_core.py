@@ -1,0 +1,69 @@
+"""Whole-cycle descriptors: P_in from BatteryState in either sign convention, windows by stamp."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from hexapod_common.conversions import BatterySample, GaitPhaseSample
+from hexapod_energy.descriptors import DescriptorAccumulator
+
+
+def gait(t: float, period: float = 0.5) -> GaitPhaseSample:
+    return GaitPhaseSample(t, 'tripod', period, 0.5, 0.1, 0.04, 0.0, 0.0, (t / period) % 1.0,
+                           ('L1',), np.zeros(1), np.ones(1, bool), 3)
+
+
+def feed(acc: DescriptorAccumulator, sign: float, order: str = 'time') -> list:
+    t = np.arange(0, 3.0, 0.01)
+    power = 20.0 + 5.0 * np.sin(2 * np.pi * t / 0.5)  # mean 20 W over each whole cycle
+    events = [(ti, 'g') for ti in t] + [(ti + 1e-4, 'b') for ti in t]
+    if order == 'shuffled':
+        rng = np.random.default_rng(0)
+        events = [events[i] for i in rng.permutation(len(events))]
+        events = sorted(events, key=lambda e: e[0] if e[1] == 'b' else e[0] - 1.0)
+    else:
+        events.sort()
+    out = []
+    for ti, kind in events:
+        if kind == 'g':
+            out += acc.add_gait_phase(gait(ti))
+        else:
+            p = 20.0 + 5.0 * np.sin(2 * np.pi * ti / 0.5)
+            out += acc.add_battery(BatterySample(ti, 12.0, sign * p / 12.0, 25.0))
+    assert power.mean() > 0
+    return out
+
+
+@pytest.mark.parametrize(('mode', 'sign'), [('ros', -1.0), ('positive_discharge', 1.0),
+                                            ('auto', -1.0), ('auto', 1.0)])
+def test_power_in_whatever_the_sign_convention(mode, sign):
+    acc = DescriptorAccumulator(mass_kg=2.0, current_sign=mode)
+    out = feed(acc, sign)
+    assert len(out) >= 4
+    for d in out:
+        assert d.power_in_w == pytest.approx(20.0, abs=0.05)
+        assert d.window_s == pytest.approx(0.5, abs=1e-6)
+        assert d.speed_mps == pytest.approx(0.4)
+        assert d.specific_resistance == pytest.approx(20.0 / (2.0 * 9.81 * 0.4), rel=3e-3)
+        assert not d.warnings
+    if mode == 'auto':
+        assert 'auto-detected' in acc.sign_note_
+
+
+def test_wrong_sign_is_reported_not_silent():
+    acc = DescriptorAccumulator(mass_kg=2.0, current_sign='ros')
+    out = feed(acc, +1.0)
+    assert out and all(d.power_in_w < 0 and d.warnings for d in out)
+
+
+def test_zero_speed_gives_nan_not_inf():
+    acc = DescriptorAccumulator(mass_kg=2.0)
+    acc._gait = None
+    d = acc._speed(0.0, 1.0)
+    assert d == 0.0
+    from hexapod_energy.descriptors import descriptors_from_powers
+    r = descriptors_from_powers(power_in_w=10.0, power_out_w=1.0, speed_mps=0.0, mass_kg=2.0)
+    assert math.isnan(r.specific_resistance) and math.isnan(r.cost_of_transport_j_per_m)
