@@ -203,6 +203,14 @@ def bench_phase_samples(
     samples = []
     for s, t0, t1 in segments:
         a = t0 + settle_s if t1 - t0 > 2 * settle_s else t0
+        f = s['frequency_hz']
+        if f > 0 and (t1 - t0) * f >= 1.0:
+            # whole gait cycles only (the walk starts at cycle phase 0 when the session enters
+            # 'walking'): a fractional cycle weights one phase more than the other
+            a = t0 + math.ceil((a - t0) * f - 1e-9) / f
+            if t1 - a < 1.0 / f:
+                a = t0
+            t1 = a + math.floor((t1 - a) * f + 1e-9) / f
         pm = (data.battery_t_s >= a) & (data.battery_t_s < t1)
         tm = (data.tip_t_s >= a) & (data.tip_t_s < t1)
         if not pm.any():

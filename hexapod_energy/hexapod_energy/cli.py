@@ -79,6 +79,10 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
                    default='auto', help='battery current sign convention (default auto)')
     p.add_argument('--swing-load', choices=('zero', 'carried'), default='zero',
                    help='load of a swinging leg in Eq. 1 (default zero)')
+    p.add_argument('--load-offset', type=float, default=0.0, metavar='KG',
+                   help='subtract KG from the carried mass m_c before reading the bench '
+                        'surfaces (default 0, the paper; use the leg mass, 0.166, for robots '
+                        'whose stance tips carry only m_c g, such as hexapod-sim robot)')
     p.add_argument('--folds', type=int, default=5, help='k of the k-fold CV (default 5)')
     p.add_argument('--no-progress', action='store_true', help='hide the progress bar')
 
@@ -171,7 +175,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             gait = gait_from_sample(run_.gait)
             predicted = float(predict_power_in_w(model, gait, total_mass_kg=mass,
                                                  leg_mass_kg=robot.leg_mass_kg,
-                                                 swing_load=args.swing_load))
+                                                 swing_load=args.swing_load,
+                                                 load_offset_kg=args.load_offset))
             try:
                 p_model = float(opm.power_out_w(gait, payload_kg=payload))
             except (ValueError, ImportError) as err:

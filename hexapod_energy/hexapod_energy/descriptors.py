@@ -8,10 +8,11 @@ DESIGN §4:
   window divided by its length. The current's sign follows ``current_sign``: ``ros`` (negative
   while discharging, so P_in = -V*I), ``positive_discharge`` (P_in = V*I), or ``auto`` (decided
   once from the first samples: the sign that makes the median power positive).
-- ``power_out`` [W]: mean mechanical output power, sum over joints of |tau_i * qdot_i| (the
-  servos cannot recover negative work, so both signs cost), from the joint efforts when
-  ``/joint_states`` carries them, else from ``power_out_model(gait, mass)`` when one is given,
-  else 0.
+- ``power_out`` [W]: mean mechanical output power, the mean over the window's joint samples of
+  ``sum_i max(tau_i * qdot_i, 0)``: positive joint work only, the definition of
+  :mod:`hexapod_energy.dynamics` (servos do not regenerate), from the joint efforts when
+  ``/joint_states`` carries them, else from ``power_out_model(gait, mass)`` when one is given
+  (:func:`model_power_out`), else 0.
 - ``speed`` [m/s]: from motion capture when poses cover the window (horizontal displacement /
   window), else the gait schedule's step_length / (beta T).
 - ``power_loss = power_in - power_out``, ``efficiency = power_out / power_in``,
@@ -42,6 +43,7 @@ __all__ = [
     'DescriptorAccumulator',
     'Descriptors',
     'descriptors_from_powers',
+    'joint_power_out_w',
     'resolve_current_sign',
 ]
 
@@ -81,6 +83,11 @@ def descriptors_from_powers(*, power_in_w: float, power_out_w: float, speed_mps:
         specific_cost_of_transport=loss / (mass_kg * speed_mps) if moving else math.nan,
         specific_resistance=power_in_w / (mass_kg * G_MPS2 * speed_mps) if moving else math.nan,
         cycles=cycles, warnings=warnings)
+
+
+def joint_power_out_w(effort_nm: np.ndarray, velocity_rad_s: np.ndarray) -> float:
+    """Instantaneous output power of one joint sample, ``sum_i max(tau_i qdot_i, 0)`` [W]."""
+    return float(np.sum(np.clip(np.asarray(effort_nm) * np.asarray(velocity_rad_s), 0.0, None)))
 
 
 def resolve_current_sign(voltage_v: np.ndarray, current_a: np.ndarray, mode: str) -> float:
@@ -168,8 +175,8 @@ class DescriptorAccumulator:
     def add_joint_state(self, sample: JointStateSample) -> None:
         """Add joint efforts/velocities (ignored when effort or velocity is empty)."""
         if sample.effort.size and sample.velocity.size == sample.effort.size:
-            self._joint.append((sample.t_s, float(np.sum(np.abs(sample.effort *
-                                                                sample.velocity)))))
+            self._joint.append((sample.t_s, joint_power_out_w(sample.effort,
+                                                              sample.velocity)))
 
     def add_pose(self, sample: PoseSample) -> None:
         """Add a body pose (horizontal position used for the speed)."""

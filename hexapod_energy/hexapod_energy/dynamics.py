@@ -14,15 +14,20 @@ with ``f = (0, 0, m_c g)`` the ground reaction force on the tip while the leg is
 (``m_c`` the mass the leg carries, Eq. 2 / :func:`hexapod_gait.gait.carried_mass_per_leg_kg`),
 zero in swing; ``J`` is the linear part of the tip Jacobian in base-aligned axes.
 
-Average mechanical (output) power, Eq. 6.  **Definition used here**::
+Average mechanical (output) power, Eq. 6.  **Definition used here, and everywhere in
+hexapod_energy** (the ``energy_monitor`` node from joint efforts, the offline analysis, this
+model)::
 
-    P_out = (1 / T) * integral_0^T  sum_j |tau_j(t) qd_j(t)|  dt
+    P_out = (1 / T) * integral_0^T  sum_j max(tau_j(t) qd_j(t), 0)  dt
 
-the absolute joint power: servomotors cannot store or return energy, so negative joint work is
-dissipated and counts as output the actuators had to deliver (``definition='positive'`` gives the
-positive-only variant, ``'net'`` the signed mean, which is zero for conservative periodic motion).
-The integral is over one period sampled uniformly in phase (exact to the sampling for a periodic
-trajectory).
+the mean *positive* joint power: the work the actuators deliver.  Servomotors do not regenerate
+(the bridge dissipates braking energy, it never returns it to the supply), so negative joint work
+is not a credit (the signed mean, ``'net'``, is zero for conservative periodic motion) and it is
+not an output either: while a joint is back-driven the load works on the servo, whose loss of
+that energy is part of ``P_loss``.  With ``sum |tau qd|`` (``'absolute'``) that absorbed work would
+count as useful output twice over and the simulated AntBot's efficiency would be ~11 % instead of
+the paper's 0.5-6 %.  The integral is over one period sampled uniformly in phase (exact to the
+sampling for a periodic trajectory).
 
 Speed scaling.  A gait's joint path in *phase* ``phi = t / T`` does not depend on ``T``.  With
 ``q' = dq/dphi`` and ``q'' = d2q/dphi2``, ``qd = q' / T`` and ``qdd = q'' / T^2`` so that::
@@ -291,7 +296,7 @@ class PhaseTorques:
 
 
 def mean_mechanical_power_w(
-    joint_power_w: Any, definition: PowerDefinition = 'absolute', axis: int | Sequence[int] = 0
+    joint_power_w: Any, definition: PowerDefinition = 'positive', axis: int | Sequence[int] = 0
 ) -> np.ndarray:
     """Average mechanical power (Eq. 6) from uniformly sampled joint powers.
 
@@ -300,7 +305,7 @@ def mean_mechanical_power_w(
     joint_power_w : array (..., n, 3) or (n, 3)
         ``tau_j qd_j`` at uniform samples of one period [W].
     definition : {'absolute', 'positive', 'net'}
-        ``mean(sum_j |p_j|)`` (default, see module docstring), ``mean(sum_j max(p_j, 0))`` or
+        ``mean(sum_j |p_j|)``, ``mean(sum_j max(p_j, 0))`` (default, see module docstring) or
         ``mean(sum_j p_j)``.
     axis : int
         Axis of the time samples.

@@ -96,6 +96,7 @@ def predict_power_in_w(
     leg_mass_kg: float = ANTBOT_LEG_SPEC.leg_mass_kg,
     periods_s: ArrayLike | None = None,
     swing_load: Literal['zero', 'carried'] = 'zero',
+    load_offset_kg: float = 0.0,
 ) -> np.ndarray | float:
     """Whole-robot average input power, Eq. 1 [W].
 
@@ -113,6 +114,12 @@ def predict_power_in_w(
         Evaluate at these periods instead of ``gait.period_s`` (same support profile).
     swing_load : {'zero', 'carried'}
         Load of a swinging leg (module docstring).
+    load_offset_kg : float
+        Subtracted from ``m_c`` to give the bench load the surfaces are evaluated at [kg]
+        (clipped at 0).  0 by the paper: the bench tip carries ``(m_leg + load) g``, a robot's
+        stance tip ``M g / L = (m_c + m_leg) g``, so ``load = m_c``.  A robot whose stance tips
+        carry only ``m_c g`` (this project's simulated robot, ``robot_sim.tip_forces_n``) is
+        matched by ``load_offset_kg = m_leg``.
 
     Returns
     -------
@@ -133,7 +140,8 @@ def predict_power_in_w(
     for w, big_l in zip(widths, supporting):
         if w <= 0:
             continue
-        m_c = float(_carried(total_mass_kg, leg_mass_kg, np.array([big_l]))[0])
+        m_c = max(float(_carried(total_mass_kg, leg_mass_kg, np.array([big_l]))[0]) -
+                  float(load_offset_kg), 0.0)
         term = np.zeros_like(periods)
         if big_l > 0:
             term += big_l * model.p_stance_w(t_st, m_c)
@@ -217,7 +225,7 @@ class OutputPowerModel:
 
     robot: RobotSpec = field(default_factory=RobotSpec)
     n_samples: int = 200
-    definition: PowerDefinition = 'absolute'
+    definition: PowerDefinition = 'positive'
     trajectory_factory: Callable[..., Any] | None = None
     kinematics: Any | None = None
     _cache: dict[tuple[Any, ...], PhaseTorques] = field(default_factory=dict, repr=False)

@@ -120,3 +120,4 @@ def test_power_definitions() -> None:
     assert_allclose(mean_mechanical_power_w(p, 'absolute'), 3.75)
     assert_allclose(mean_mechanical_power_w(p, 'positive'), 2.25)
     assert_allclose(mean_mechanical_power_w(p, 'net'), 0.75)
+    assert_allclose(mean_mechanical_power_w(p), 2.25)  # the project's definition: positive
