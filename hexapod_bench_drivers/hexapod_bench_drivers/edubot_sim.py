@@ -187,7 +187,9 @@ class EdubotParams:
     mocap_rate_hz: float = 120.0
     settle_s: float = 1.5                    # the robot enters the tracking volume after this
     initial_height_m: float = 0.155
-    mocap_volume_m: tuple[tuple[float, float], ...] = ((-1.0, 1.0), (-0.5, 0.5), (-0.3, 1.2))
+    # permissible domain P of the paper's Fig. 3 (2 x 1 x 1 m, mocap frame): samples outside
+    # it are not tracked accurately, so the simulator drops them
+    mocap_volume_m: tuple[tuple[float, float], ...] = ((-1.0, 1.0), (-0.5, 0.5), (-0.5, 0.5))
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -679,6 +681,8 @@ def _mocap(p: EdubotParams, eff: dict[str, float], rng: np.random.Generator,
         'tilt_axis_azimuth_deg': math.degrees(axis_az),
         'ground_plane_z_m': float(z0),
         'volume_m': [list(v) for v in p.mocap_volume_m],
+        # the same box in the fields of slip_identification.preprocess.Box
+        'permissible_box': {'lower_m': lo.tolist(), 'upper_m': hi.tolist()},
         'volume_centre_ground_x_m': float(x_c),
     }
     return t_true[inside] + toff, pos_m[inside], quat[inside], frame

@@ -132,6 +132,11 @@ def test_mocap_volume_and_frame_truth():
     z = np.interp(run.mocap_t_s, run.fine_t_s, run.fine_state[:, 2])
     expect = np.stack([x, 0 * x, z], axis=1) @ rot.T + off
     assert_allclose(run.mocap_position_m, expect, atol=1e-9)
+    # the permissible box (paper Fig. 3: 2 x 1 x 1 m) in slip_identification.Box's fields
+    box = frame['permissible_box']
+    assert_allclose(box['lower_m'], lo)
+    assert_allclose(box['upper_m'], hi)
+    assert_allclose(np.subtract(box['upper_m'], box['lower_m']), [2.0, 1.0, 1.0])
     # tilt of the mocap z axis against the ground normal = the effect's value
     tilt = math.degrees(math.acos(rot[2, 2]))
     assert tilt == pytest.approx(EDUBOT_EFFECTS['mocap_misalignment'].default, abs=1e-9)
