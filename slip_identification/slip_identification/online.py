@@ -2,10 +2,15 @@
 
 Streams are buffered (last ``buffer_s`` seconds). On every :meth:`OnlineSlip.step` the target
 edges of each tripod are shifted by the best shift over the buffer (Section 3), single-tripod
-stances are formed, and every stance whose lift-off is covered by motion capture plus a
-``margin_s`` (the spline needs support after lift-off) and not yet fitted is fitted with the
-paper's estimator and returned once. The world frame is built from the buffered in-box mocap
-samples.
+stances are formed, and every stance whose lift-off is covered by motion capture (plus
+``margin_s``, default 0) and not yet fitted is fitted with the paper's estimator and returned
+once. The spline ends at the newest sample with not-a-knot (one-sided) end conditions, so the
+fit starts on the first motion-capture sample after lift-off: the data latency is at most one
+mocap period (8.3 ms at 120 Hz) plus the compute time. The world frame is built from the
+buffered in-box mocap samples.
+
+Latency bookkeeping (simulated time, no wall clock): for every fit, ``latency_s`` records the
+time of the newest motion-capture sample (proprioception clock) minus the stance's lift-off.
 """
 
 from __future__ import annotations
@@ -51,7 +56,7 @@ class OnlineSlip:
 
     def __init__(self, model: SlipModel | None = None, *, box: Box | None = None,
                  mocap_offset_s: float = 0.0, buffer_s: float = 3.0,
-                 margin_s: float = 0.03, min_stance_s: float = 0.02) -> None:
+                 margin_s: float = 0.0, min_stance_s: float = 0.02) -> None:
         self.model = model if model is not None else SlipModel()
         self.box = box if box is not None else Box()
         self.mocap_offset_s = mocap_offset_s
@@ -63,8 +68,9 @@ class OnlineSlip:
         self._cmd: deque[tuple[float, np.ndarray]] = deque()
         self._mocap: deque[tuple[float, np.ndarray, np.ndarray]] = deque()
         self.names: tuple[str, ...] = ()
-        self._done: set[tuple[str, int]] = set()
+        self._done: list[tuple[str, float]] = []
         self.skipped: list[OnlineSkip] = []
+        self.latency_s: list[float] = []
 
     def _trim(self, buf: deque, t: float) -> None:  # type: ignore[type-arg]
         while buf and buf[0][0] < t - self.buffer_s:
@@ -110,7 +116,7 @@ class OnlineSlip:
             windows[tp] = tripod_stance_windows(td, lo)
         ready = [w for w in single_tripod_stances(windows, shifts)
                  if w.liftoff_s + self.margin_s <= tm[-1]
-                 and (w.tripod, round(w.liftoff_s * 100)) not in self._done
+                 and not self._is_done(w.tripod, w.liftoff_s)
                  and w.touchdown_s >= max(tj[0], tm[0])]
         if not ready:
             return []
@@ -118,7 +124,7 @@ class OnlineSlip:
         out: list[SlipFitResult] = []
         stances = []
         for w in ready:
-            self._done.add((w.tripod, round(w.liftoff_s * 100)))
+            self._done.append((w.tripod, w.liftoff_s))
             reason = ''
             if inside.sum() < 10:
                 reason = 'outside_volume'
@@ -141,4 +147,11 @@ class OnlineSlip:
                 self.skipped.append(OnlineSkip(w.touchdown_s, w.liftoff_s, w.tripod, reason))
         if stances:
             out = self.fitter.fit(stances).results_
+            self.latency_s.extend(float(tm[-1]) - r.liftoff_s for r in out)
+        if len(self._done) > 64:
+            del self._done[:-64]
         return out
+
+    def _is_done(self, tripod: str, liftoff_s: float) -> bool:
+        # the shift over the moving buffer may move an edge by a few ms between steps
+        return any(tp == tripod and abs(lo - liftoff_s) < 0.03 for tp, lo in self._done)

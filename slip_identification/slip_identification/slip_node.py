@@ -2,8 +2,8 @@
 
 Subscribes ``/joint_states`` and ``/joint_commands`` (hip speeds; the commanded speeds are the
 Buehler target), ``/mocap/body`` (PoseStamped); the science is in
-:class:`slip_identification.online.OnlineSlip`. Fits run on each mocap message once the
-motion capture covers a lift-off plus ``margin`` seconds.
+:class:`slip_identification.online.OnlineSlip`. Fits run on the first mocap message after a
+lift-off (plus ``margin`` seconds, default 0).
 """
 
 from __future__ import annotations
@@ -32,13 +32,17 @@ def _positive(v: float) -> str | None:
     return None if v > 0 else 'must be > 0'
 
 
+def _non_negative(v: float) -> str | None:
+    return None if v >= 0 else 'must be >= 0'
+
+
 @dataclass(frozen=True)
 class SlipParams:
     mass: float = param(3.31, 'robot mass m [kg]', validate=_positive)
     model: str = param('slip', "template: 'slip' or 'slip+leg_damping' etc.", read_only=True)
     mocap_offset: float = param(0.0, 'seconds subtracted from mocap stamps (stream offset)')
-    margin: float = param(0.03, 'mocap needed after lift-off before fitting [s]',
-                          validate=_positive)
+    margin: float = param(0.0, 'mocap needed after lift-off before fitting [s] (0: the '
+                          'first sample after lift-off)', validate=_non_negative)
     box: list[float] = param([-1.0, -0.5, -0.5, 1.0, 0.5, 0.5],
                              'permissible box in the mocap frame x0 y0 z0 x1 y1 z1 [m]',
                              read_only=True)

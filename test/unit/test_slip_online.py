@@ -1,0 +1,98 @@
+"""Online stance fitting (OnlineSlip) on a simulated EduBot run fed in arrival order.
+
+Latency is measured in simulated time: the newest motion-capture sample (proprioception clock)
+at the moment a stance is fitted, minus that stance's lift-off. Compute time is a benchmark
+figure (bench/bench_slip.py), never asserted here.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from slip_identification.online import OnlineSlip
+from slip_identification.pipeline import RunData, analyze_run
+from slip_identification.preprocess import Box
+
+edubot_sim = pytest.importorskip('hexapod_bench_drivers.edubot_sim')
+
+BOX = Box((-10.0, -10.0, -10.0), (10.0, 10.0, 10.0))
+
+
+def run_data(run) -> RunData:
+    """EdubotRun -> RunData (the arrays a bag would give)."""
+    names = tuple(f'{leg}_hip' for leg in run.leg_names)
+    return RunData(joint_names=names, joint_t_s=run.t_s, joint_velocity=run.hip_velocity_rad_s,
+                   command_t_s=run.t_s, command_velocity=run.target_velocity_rad_s,
+                   mocap_t_s=run.mocap_t_s, mocap_position_m=run.mocap_position_m,
+                   mocap_quat_xyzw=run.mocap_quat_xyzw, battery_t_s=run.t_s,
+                   battery_voltage_v=run.battery_voltage_v,
+                   battery_current_a=run.battery_current_a, gait=run.gait)
+
+
+def events(run):
+    """(arrival time [s], kind, index) in arrival order: mocap arrives at true time."""
+    off = run.truth['clock_offset_s']
+    ev = [(float(t), 0, i) for i, t in enumerate(run.t_s)]
+    ev += [(float(t) - off, 1, i) for i, t in enumerate(run.mocap_t_s)]
+    ev.sort()
+    return ev
+
+
+@pytest.fixture(scope='module')
+def running():
+    return edubot_sim.simulate_edubot('running', duration_s=4.0, seed=3)
+
+
+@pytest.fixture(scope='module')
+def online(running):
+    run = running
+    names = tuple(f'{leg}_hip' for leg in run.leg_names)
+    core = OnlineSlip(box=BOX, mocap_offset_s=run.truth['clock_offset_s'])
+    fits = []
+    for _, kind, i in events(run):
+        if kind == 0:
+            core.add_joint_state(float(run.t_s[i]), names, run.hip_velocity_rad_s[i])
+            core.add_command(float(run.t_s[i]), names, run.target_velocity_rad_s[i])
+        else:
+            core.add_mocap(float(run.mocap_t_s[i]), run.mocap_position_m[i],
+                           run.mocap_quat_xyzw[i])
+            fits.extend(core.step())
+    return core, fits
+
+
+def test_online_latency_in_simulated_time(online):
+    core, fits = online
+    assert len(fits) >= 10
+    lat_ms = 1e3 * np.array(core.latency_s)
+    print(f'online data latency: median {np.median(lat_ms):.1f} ms, '
+          f'p95 {np.percentile(lat_ms, 95):.1f} ms, max {lat_ms.max():.1f} ms')
+    assert np.all(lat_ms >= 0.0)
+    # typically fitted on the first 120 Hz mocap sample after lift-off
+    assert np.median(lat_ms) <= 1e3 / 120.0 + 1e-6
+    assert np.mean(lat_ms <= 20.0) >= 0.95
+
+
+def test_online_fits_match_offline_pipeline(running, online):
+    _, fits = online
+    off = analyze_run(run_data(running), box=BOX, offset_s=running.truth['clock_offset_s'],
+                      position_fit=False)
+    t0 = max(fits[0].touchdown_s, off.fits[0].touchdown_s) - 1e-3
+    a = [f for f in fits if f.touchdown_s >= t0]
+    b = [f for f in off.fits if f.touchdown_s >= t0 and f.liftoff_s <= fits[-1].liftoff_s + 1e-3]
+    assert abs(len(a) - len(b)) <= 1
+    pairs = [(x, min(b, key=lambda y: abs(y.touchdown_s - x.touchdown_s))) for x in a]
+    pairs = [(x, y) for x, y in pairs if abs(x.touchdown_s - y.touchdown_s) < 0.015]
+    print("dtd ms", [round(1e3 * (x.touchdown_s - y.touchdown_s), 1) for x, y in pairs])
+    assert len(pairs) >= len(a) - 1
+    # online spline ends at lift-off and its world frame comes from the buffer, so values
+    # differ a little from the whole-run offline fit
+    dk = np.array([abs(x.params['stiffness'] - y.params['stiffness']) / y.params['stiffness']
+                   for x, y in pairs])
+    dl = np.array([abs(x.params['rest_length'] - y.params['rest_length'])
+                   for x, y in pairs])
+    print(f'online vs offline: median |dk|/k {np.median(dk):.3f}, median |dl0| '
+          f'{1e3 * np.median(dl):.2f} mm over {len(pairs)} stances')
+    assert np.median(dk) < 0.25
+    assert np.median(dl) < 0.01
+    assert all(x.tripod == y.tripod for x, y in pairs)
