@@ -40,9 +40,20 @@ Model
 Tuning (honest status): the free constants (winding resistance, gear ratio and efficiency,
 current limit, gain scale, leg stiffness/damping, hip zero, electronics power) were set by a
 random search plus Nelder-Mead against Table 3, with a penalty on body pitch above 25 deg.
-With these defaults the speeds land within about 35 % of Table 3 (running 0.98, jogging 0.79,
-pace 0.40, walk 0.22 m/s) in the right order, but the input power is 45 % to 120 % too high
-(62, 62, 38, 46 W) and running costs as much as jogging instead of less.
+With these defaults (6 s, seed 3) the speeds are running 0.98, jogging 0.47, pace 0.41, walk
+0.22 m/s (Table 3: 1.06, 0.64, 0.30, 0.16; ordered right, within 45 %, not all within 35 %),
+and the input power is 62, 76, 36, 45 W (Table 3: 31.6, 42.9, 26.2, 20.9), 40 % to 120 % high.
+:func:`power_breakdown` shows where the watts go: copper losses I^2 R are 22 to 52 W of it
+(walk 35 of 45 W), with the motors at the driver's current limit 10 % to 47 % of the time;
+the electronics baseline (3.3 W here) is small. Cause: in stance the foot is pinned and the
+leg's bending spring is stiff, so when the body does not move on (double support, feet ahead
+of the hips) the hip stalls at the current limit, the robot moves stop-and-go, and in jogging
+(and for other constants in every gait) the legs lose whole turns in a stall/deadlock state.
+A second round of search (a 25 mm 10-11 W 12 V ironless motor, 2.32 ohm, 20.5 mN m/A, 19:1
+planetary, 9 W electronics for the PC104 stack) kept power near twice Table 3. The missing
+physics is most likely the C-leg's rolling contact (the contact point moves along the arc, the
+virtual leg turns at half the shaft rate ahead of the hip) and a lift-off when the shaft has
+turned away from a stalled foot; until then the power acceptance test is an xfail.
 
 Outputs are the DESIGN §4 topics as arrays: hip states at 100 Hz, battery at 100 Hz (current
 negative when discharging), and the body pose from a 120 Hz motion capture in a frame that is
@@ -98,6 +109,7 @@ __all__ = [
     'TABLE1_GAINS',
     'TABLE3',
     'add_cli',
+    'power_breakdown',
     'resolve_clock',
     'resolve_effects',
     'run_summary',
@@ -332,6 +344,54 @@ def run_summary(run: EdubotRun, *, t0_s: float | None = None,
     speed = float((run.body_x_m[sel][-1] - run.body_x_m[sel][0]) / (ts[-1] - ts[0]))
     sr = power / (run.params.mass_kg * GRAVITY_M_S2 * speed) if speed > 0 else math.inf
     return {'power_w': power, 'speed_m_s': speed, 'specific_resistance': sr}
+
+
+def power_breakdown(run: EdubotRun, *, t0_s: float | None = None,
+                    t1_s: float | None = None) -> dict[str, float]:
+    """Where the input watts go, mean over a window (default: settle to the end) [W].
+
+    Estimated from the 100 Hz samples (instantaneous hip torque and speed, so the means are
+    unbiased but carry sampling noise): the motor current is recovered from the output torque
+    through the gear efficiency (``tau_out = k N I eta`` when driving, ``/ eta`` when driven).
+
+    Returns
+    -------
+    dict
+        ``input_w`` (battery), ``electronics_w``, ``copper_w`` (sum of I^2 R over the six
+        motors), ``hip_mechanical_w`` (net sum of output torque x hip speed, negative when the
+        legs are driven back), ``gear_and_friction_w`` (electrical power into the motors minus
+        copper minus hip mechanical), ``battery_internal_w`` (I^2 R_bat, not in ``input_w``),
+        ``current_limited_fraction`` (share of motor samples at the driver's current limit) and
+        ``mean_abs_lag_rad`` (clock target minus measured hip angle).
+    """
+    p = run.params
+    t0 = p.settle_s if t0_s is None else t0_s
+    t1 = run.t_s[-1] if t1_s is None else t1_s
+    sel = (run.t_s >= t0) & (run.t_s <= t1)
+    if sel.sum() < 2:
+        raise EdubotSimError(f'window {t0}..{t1} s holds fewer than 2 samples')
+    tau = run.hip_effort_nm[sel]
+    w = run.hip_velocity_rad_s[sel]
+    k_out = p.motor_torque_constant_nm_a * p.gear_ratio
+    eta = p.gear_efficiency
+    tau_m = np.where(tau * w >= 0.0, tau / eta, tau * eta)
+    cur = tau_m / k_out
+    copper = float((cur ** 2 * p.motor_resistance_ohm).sum(axis=1).mean())
+    mech = float((tau * w).sum(axis=1).mean())
+    p_in = float(run.power_w[sel].mean())
+    i_bat = -run.battery_current_a[sel]
+    return {
+        'input_w': p_in,
+        'electronics_w': p.electronics_power_w,
+        'copper_w': copper,
+        'hip_mechanical_w': mech,
+        'gear_and_friction_w': p_in - p.electronics_power_w - copper - mech,
+        'battery_internal_w': float((i_bat ** 2 * p.battery_resistance_ohm).mean()),
+        'current_limited_fraction': float(
+            np.mean(np.abs(cur) >= 0.999 * p.motor_current_limit_a)),
+        'mean_abs_lag_rad': float(np.mean(np.abs(
+            run.target_position_rad[sel] - run.hip_position_rad[sel]))),
+    }
 
 
 # --------------------------------------------------------------------------------------------

@@ -13,6 +13,7 @@ from hexapod_bench_drivers.edubot_sim import (
     EDUBOT_EFFECTS,
     TABLE3,
     EdubotSimError,
+    power_breakdown,
     resolve_effects,
     run_summary,
     simulate_edubot,
@@ -42,8 +43,9 @@ def test_table3_speed_within_35_percent(runs):
         assert run_summary(run)['speed_m_s'] == pytest.approx(TABLE3[gait][1], rel=0.35), gait
 
 
-@pytest.mark.xfail(strict=True, reason='tuning gap: simulated input power is 45-120 % above '
-                   'Table 3 (motors too lossy) and running costs as much as jogging')
+@pytest.mark.xfail(strict=True, reason='model gap: input power 40-120 % above Table 3; copper '
+                   'losses at the current limit dominate (power_breakdown), from stance stalls '
+                   'of the pinned-foot virtual leg (jogging loses whole turns)')
 def test_table3_power_within_35_percent_and_ordered(runs):
     powers = {g: run_summary(r)['power_w'] for g, r in runs.items()}
     for gait, power in powers.items():
@@ -57,6 +59,21 @@ def test_power_is_plausible_and_faster_clocks_cost_more(runs):
     for gait, power in powers.items():
         assert 0.5 * TABLE3[gait][0] < power < 2.5 * TABLE3[gait][0], gait
     assert min(powers['running'], powers['jogging']) > powers['pace']
+
+
+def test_power_breakdown_accounts_for_the_input(runs):
+    for gait, run in runs.items():
+        b = power_breakdown(run)
+        assert b['input_w'] == pytest.approx(run_summary(run)['power_w'])
+        # every sink is a physical, non-negative share and the parts sum to the input
+        assert b['copper_w'] > 0 and b['gear_and_friction_w'] > -1.0, gait
+        parts = b['electronics_w'] + b['copper_w'] + b['hip_mechanical_w'] \
+            + b['gear_and_friction_w']
+        assert parts == pytest.approx(b['input_w'], rel=1e-9)
+        assert 0.0 <= b['current_limited_fraction'] <= 1.0
+    # slow walking costs torque-time: copper is the walk's largest sink
+    walk = power_breakdown(runs['walk'])
+    assert walk['copper_w'] > walk['hip_mechanical_w'] + walk['electronics_w']
 
 
 def test_single_tripod_stances_exist_for_every_gait(runs):
