@@ -87,8 +87,10 @@ class SlipFitterNode(Node):
         self.create_subscription(JointState, 'joint_commands', self._on_cmd, SENSOR_QOS)
         self.create_subscription(PoseStamped, 'mocap/body', self._on_mocap, SENSOR_QOS)
         self.published = 0
+        self.received = 0
 
     def _guard(self, fn: Any, msg: Any) -> None:
+        self.received += 1
         try:
             fn(msg)
         except (ValueError, RuntimeError) as err:  # a bad message is logged and dropped
