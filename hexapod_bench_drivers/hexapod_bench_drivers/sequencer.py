@@ -41,6 +41,7 @@ __all__ = [
     'SequencerCommand',
     'SessionSpec',
     'load_plan',
+    'move_aside',
 ]
 
 
@@ -111,6 +112,18 @@ def load_plan(source: str | Path | Mapping[str, Any]) -> BenchPlan:
         for load, f, b, s in itertools.product(loads, freqs, betas, steps))
     return BenchPlan(sessions, float(data.get('temperature_gate_c', 26.0)),
                      float(data.get('temperature_tolerance_c', 1.0)))
+
+
+def move_aside(path: Path) -> Path | None:
+    """Rename an existing ``path`` to ``<name>.interrupted-N`` (first free N); returns it."""
+    if not path.exists():
+        return None
+    k = 1
+    while path.with_name(f'{path.name}.interrupted-{k}').exists():
+        k += 1
+    target = path.with_name(f'{path.name}.interrupted-{k}')
+    path.rename(target)
+    return target
 
 
 @dataclass(frozen=True)

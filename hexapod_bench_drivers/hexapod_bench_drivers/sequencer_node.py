@@ -12,8 +12,20 @@
   unfinished earlier attempt is moved aside to ``<session_id>.interrupted-N``);
 - progress in ``state_file`` (JSON), so a restart resumes at the first unfinished session.
 
+- ``gait_node`` (e.g. ``gait_scheduler``): the sequencer drives the walk by setting that node's
+  ``period``, ``duty_factor``, ``step_length`` and ``step_height`` parameters to the session's
+  gait while heating/walking, and ``step_length = step_height = 0`` (standing) otherwise.
+
 Time is the node clock (simulated time with ``use_sim_time``), so a simulator running faster
 than real time runs the plan in accelerated time.
+
+``backend: sim`` runs the plan on the embedded bench simulator instead (core:
+:mod:`.sequencer_sim`): each timer tick advances the simulated bench by ``sim_step_s``
+(``sim_cool_step_s`` with the torque off) and feeds its servo temperatures to the gate, so the
+plan runs in accelerated time; the node publishes ``clock`` (the simulated time), ``servo_status``
+(the simulated temperatures) and ``bench/session`` stamped in simulated time, and writes each
+session's walk to ``<output_dir>/<session_id>`` with the bench topics that
+``hexapod-analyze energy --bench`` reads. Load changes are automatic.
 """
 
 from __future__ import annotations
@@ -33,13 +45,25 @@ from hexapod_common.node_utils import (
     run_node,
 )
 from hexapod_common.ros_types import CONTRACT_TOPICS, ros_message_class
+from hexapod_common.conversions import s_to_stamp
 from hexapod_interfaces.msg import BenchSession, ServoStatus
 from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rcl_interfaces.srv import SetParameters
+from rosgraph_msgs.msg import Clock
 from std_srvs.srv import SetBool, Trigger
 
-from hexapod_bench_drivers.sequencer import BenchSequencer, SequencerCommand, load_plan
+from hexapod_bench_drivers.sequencer import (
+    BenchSequencer,
+    SequencerCommand,
+    load_plan,
+    move_aside,
+)
 
-__all__ = ['BenchSequencerNode', 'BenchSequencerParams', 'main']
+__all__ = ['SIM_EPOCH_S', 'BenchSequencerNode', 'BenchSequencerParams', 'main']
+
+#: Clock time of the embedded simulator's t = 0 [s] (the bag time of its per-session bags).
+SIM_EPOCH_S = 1_700_000_000.0
 
 # Relative names, so that the node's namespace applies (as to every topic of the drivers).
 DEFAULT_RECORD = ('joint_states', 'joint_commands', 'servo_status', 'battery_state',
@@ -59,6 +83,18 @@ class BenchSequencerParams:
     torque_service: str = param('', 'std_srvs/SetBool service for servo torque ("" = none).')
     rate_hz: float = param(10.0, 'State machine update rate [Hz].',
                            validate=lambda v: None if v > 0 else 'expected > 0')
+    gait_node: str = param('', 'Gait node whose gait parameters the sequencer sets ("" = none).')
+    backend: str = param('external', 'external (drivers and gait node on topics) or sim '
+                         '(embedded bench simulator, accelerated time)',
+                         validate=lambda v: None if v in ('external', 'sim')
+                         else 'expected external or sim')
+    sim_step_s: float = param(0.5, 'sim: simulated seconds per tick while powered [s].',
+                              validate=lambda v: None if v > 0 else 'expected > 0')
+    sim_cool_step_s: float = param(5.0, 'sim: simulated seconds per tick with torque off [s].',
+                                   validate=lambda v: None if v > 0 else 'expected > 0')
+    sim_initial_temperature_c: float = param(26.0, 'sim: servo temperature at start [degC].')
+    sim_ambient_temperature_c: float = param(25.5, 'sim: air temperature [degC].')
+    sim_seed: int = param(0, 'sim: noise seed.')
 
 
 class BenchSequencerNode(Node):
@@ -69,23 +105,48 @@ class BenchSequencerNode(Node):
         super().__init__('bench_sequencer', context=context,
                          parameter_overrides=parameter_overrides, namespace=namespace, **kw)
         p = self.params = declare_params(self, BenchSequencerParams)
-        self.seq = BenchSequencer(load_plan(p.plan_file), state_file=p.state_file)
+        plan = load_plan(p.plan_file)
+        self.sim_run: Any = None
+        if p.backend == 'sim':
+            from hexapod_bench_drivers.bench_sim import BenchConfig
+            from hexapod_bench_drivers.sequencer_sim import SimulatedBench, SimulatedBenchRun
+
+            bench = SimulatedBench(BenchConfig(
+                initial_temperature_c=p.sim_initial_temperature_c,
+                ambient_temperature_c=p.sim_ambient_temperature_c), seed=p.sim_seed)
+            self.sim_run = SimulatedBenchRun(plan, bench, state_file=p.state_file,
+                                             output_dir=p.output_dir, step_s=p.sim_step_s,
+                                             cool_step_s=p.sim_cool_step_s)
+            self.seq = self.sim_run.seq
+        else:
+            self.seq = BenchSequencer(plan, state_file=p.state_file)
         if self.seq.skipped:
             self.get_logger().info(f'resuming: {len(self.seq.skipped)} sessions already done')
         self.temperatures: list[float] = []
         self.pub = self.create_publisher(BenchSession, 'bench/session', LATCHED_QOS)
-        self.create_subscription(ServoStatus, 'servo_status', self._on_status, SENSOR_QOS)
         self.create_service(Trigger, 'confirm_load', self._on_confirm)
         self.torque_client = (self.create_client(SetBool, p.torque_service)
                               if p.torque_service else None)
+        self.gait_client = (self.create_client(
+            SetParameters, f'{p.gait_node.rstrip("/")}/set_parameters')
+            if p.gait_node else None)
+        self._gait_sent: tuple[float, ...] | None = None
         self._last: tuple[str, str] | None = None
         self._torque: bool | None = None
         self.writer: BagWriter | None = None
         self._recording_id = ''
         self._rec_subs: list[Any] = []
         self.last_command: SequencerCommand | None = None
-        self._subscribe_recorded()
-        self.create_timer(1.0 / p.rate_hz, self._on_timer)
+        if self.sim_run is not None:
+            from rclpy.qos import QoSProfile
+
+            self.pub_clock = self.create_publisher(Clock, '/clock', QoSProfile(depth=10))
+            self.pub_status = self.create_publisher(ServoStatus, 'servo_status', RELIABLE_QOS)
+            self.create_timer(1.0 / p.rate_hz, self._on_sim_timer)
+        else:
+            self.create_subscription(ServoStatus, 'servo_status', self._on_status, SENSOR_QOS)
+            self._subscribe_recorded()
+            self.create_timer(1.0 / p.rate_hz, self._on_timer)
 
     def _on_status(self, msg: ServoStatus) -> None:
         self.temperatures = [float(t) for t in msg.temperature]
@@ -105,6 +166,7 @@ class BenchSequencerNode(Node):
             self.seq.confirm_load(cmd.load_request_kg)
         self._set_recording(cmd)
         self._set_torque(cmd.torque)
+        self._set_gait(cmd)
         key = (cmd.state, cmd.session.session_id if cmd.session else '')
         if key != self._last:
             self._last = key
@@ -113,9 +175,31 @@ class BenchSequencerNode(Node):
                                           'then call confirm_load')
             self._publish(cmd)
 
-    def _publish(self, cmd: SequencerCommand) -> None:
+    def _on_sim_timer(self) -> None:
+        run = self.sim_run
+        if run.done:
+            return
+        cmd = self.last_command = run.step()
+        if cmd.finished_session:
+            self.get_logger().info(f'session {cmd.finished_session} done')
+        t_s = SIM_EPOCH_S + run.bench.t_s
+        sec, nanosec = s_to_stamp(t_s)
+        clock = Clock()
+        clock.clock.sec, clock.clock.nanosec = sec, nanosec
+        self.pub_clock.publish(clock)
+        status = ServoStatus()
+        status.header.stamp = clock.clock
+        status.name = list(run.bench.sim.joint_names)
+        status.temperature = [float(t) for t in run.bench.temperatures_c]
+        self.pub_status.publish(status)
+        key = (cmd.state, cmd.session.session_id if cmd.session else '')
+        if key != self._last:
+            self._last = key
+            self._publish(cmd, stamp=clock.clock)
+
+    def _publish(self, cmd: SequencerCommand, stamp: Any = None) -> None:
         msg = BenchSession()
-        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.header.stamp = stamp if stamp is not None else self.get_clock().now().to_msg()
         msg.state = cmd.state
         s = cmd.session
         if s is not None:
@@ -134,6 +218,36 @@ class BenchSequencerNode(Node):
             self.torque_client.call_async(SetBool.Request(data=on))
             self._torque = on
 
+    def _set_gait(self, cmd: SequencerCommand) -> None:
+        """Set the gait node's parameters to the session's gait (walk) or standing."""
+        s, sent = cmd.session, self._gait_sent
+        if self.gait_client is None or (s is None and sent is None):
+            return
+        if s is None:                   # done or aborted: stand with the last gait's timing
+            assert sent is not None
+            values = (sent[0], sent[1], 0.0, 0.0)
+        elif cmd.walk:
+            values = (1.0 / s.frequency_hz, s.duty_factor, s.step_length_m, s.step_height_m)
+        else:
+            values = (1.0 / s.frequency_hz, s.duty_factor, 0.0, 0.0)
+        if values == self._gait_sent or not self.gait_client.service_is_ready():
+            return
+        names = ('period', 'duty_factor', 'step_length', 'step_height')
+        request = SetParameters.Request(parameters=[
+            Parameter(n, value=float(v)).to_parameter_msg() for n, v in zip(names, values)])
+        self.gait_client.call_async(request).add_done_callback(self._on_gait_set)
+        self._gait_sent = values
+
+    def _on_gait_set(self, future: Any) -> None:
+        try:
+            results = future.result().results
+        except Exception as err:  # noqa: BLE001 -- a failed call is logged, never raised
+            self.get_logger().error(f'setting the gait failed: {err}')
+            return
+        for r in results:
+            if not r.successful:
+                self.get_logger().error(f'gait node refused the session gait: {r.reason}')
+
     def _set_recording(self, cmd: SequencerCommand) -> None:
         if (self.writer is not None and cmd.session is not None
                 and cmd.session.session_id != self._recording_id):
@@ -141,11 +255,7 @@ class BenchSequencerNode(Node):
         if cmd.record and self.writer is None and cmd.session is not None:
             self._recording_id = cmd.session.session_id
             path = Path(self.params.output_dir) / cmd.session.session_id
-            if path.exists():
-                k = 1
-                while path.with_name(f'{path.name}.interrupted-{k}').exists():
-                    k += 1
-                path.rename(path.with_name(f'{path.name}.interrupted-{k}'))
+            move_aside(path)
             path.parent.mkdir(parents=True, exist_ok=True)
             self.writer = BagWriter(path)
             self.writer.set_custom_data('bench_session', cmd.session.session_id)
@@ -162,9 +272,13 @@ class BenchSequencerNode(Node):
                 self.get_logger().warning(f'not recording {topic}: not a contract topic')
                 continue
             qos = LATCHED_QOS if topic.endswith('bench/session') else RELIABLE_QOS
+            # Recorded under the contract name (namespace stripped): the analysis reads
+            # /battery_state, /bench/session, ... whatever namespace the bench ran in.
+            contract = '/' + topic.lstrip('/')
             self._rec_subs.append(self.create_subscription(
                 ros_message_class(msgtype), name,
-                lambda data, _t=name, _m=msgtype: self._record(_t, _m, data), qos, raw=True))
+                lambda data, _t=contract, _m=msgtype: self._record(_t, _m, data), qos,
+                raw=True))
 
     def _record(self, topic: str, msgtype: str, data: bytes) -> None:
         if self.writer is not None:

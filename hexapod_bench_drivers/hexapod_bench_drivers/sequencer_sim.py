@@ -27,22 +27,10 @@ from .bench_sim import BenchConfig, BenchSimulator
 from .bench_sim import BenchPlan as SimBenchPlan
 from .bench_sim import BenchSession as SimBenchSession
 from .effects import EffectSet
-from .sequencer import BenchPlan, BenchSequencer, SequencerCommand, SessionSpec
+from .sequencer import BenchPlan, BenchSequencer, SequencerCommand, SessionSpec, move_aside
 from .sim_core import SessionRecord, SimTrace, TraceBuilder
 
-__all__ = ['RunEvent', 'SimulatedBench', 'SimulatedBenchRun', 'move_aside']
-
-
-def move_aside(path: Path) -> Path | None:
-    """Rename an existing ``path`` to ``<name>.interrupted-N`` (first free N); returns it."""
-    if not path.exists():
-        return None
-    k = 1
-    while path.with_name(f'{path.name}.interrupted-{k}').exists():
-        k += 1
-    target = path.with_name(f'{path.name}.interrupted-{k}')
-    path.rename(target)
-    return target
+__all__ = ['RunEvent', 'SimulatedBench', 'SimulatedBenchRun']
 
 
 def _sim_session(s: SessionSpec) -> SimBenchSession:
@@ -194,6 +182,10 @@ class SimulatedBenchRun:
             raise ValueError(f'step_s = {self.step_s!r}, cool_step_s = {self.cool_step_s!r}: '
                              'expected > 0 s')
         self.seq = BenchSequencer(self.plan, state_file=self.state_file)
+        if self.seq.progress.current_load_kg is not None:
+            # Resumed: the stage still carries the load the state file says it does (a fresh
+            # simulator after a restart must not silently walk the next sessions unloaded).
+            self.bench.load_kg = self.seq.progress.current_load_kg
         self.last: SequencerCommand | None = None
         self._parts: list[TraceBuilder] = []
         self._records: list[SessionRecord] = []

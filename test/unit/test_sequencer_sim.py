@@ -107,6 +107,9 @@ def test_killed_and_restarted_resumes_without_repeating(tmp_path):
     assert crashed.state == 'cooling'
     done1 = _ids(first, 'finished')
     assert done1 == sessions[:4]
+    # A fresh simulator after the restart takes the stage load from the state file.
+    fresh = SimulatedBenchRun(plan, _bench(), state_file=state)
+    assert fresh.bench.load_kg == plan.sessions[4].load_kg == 0.095
     second = SimulatedBenchRun(plan, bench, state_file=state, output_dir=bags)
     assert second.seq.skipped == done1
     assert second.run().state == 'done'
