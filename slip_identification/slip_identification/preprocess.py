@@ -143,7 +143,8 @@ def fit_world_frame(p_mocap_m: ArrayLike, *, up_mocap: ArrayLike | None = None,
     A straight run's COM path is (nearly) a line, so it fixes the travel direction and its
     slope but not the roll of the ground about it. The ground normal therefore comes from the
     body attitude when given (``up_mocap``: the mean body z axis in the mocap frame, e.g. from
-    the pose quaternions; the body pitches and rolls about level on flat ground); otherwise it
+    the pose quaternions; the body rolls about level on flat ground, and its mean pitch is
+    removed by orthogonalising against the path direction); otherwise it
     is the mocap z axis made orthogonal to the path (corrects tilt along the travel direction
     only).
 
@@ -165,7 +166,10 @@ def fit_world_frame(p_mocap_m: ArrayLike, *, up_mocap: ArrayLike | None = None,
     _, _, vt = np.linalg.svd(p - c, full_matrices=False)
     direction = vt[0] if (p[-1] - p[0]) @ vt[0] >= 0 else -vt[0]
     if up_mocap is not None:
+        # the body's mean pitch tilts its z axis along the path: keep only the part of the
+        # attitude normal orthogonal to the (level) direction of travel
         normal = np.asarray(up_mocap, dtype=float)
+        normal = normal - (normal @ direction) * direction
         normal = normal / np.linalg.norm(normal)
     else:
         normal = np.array([0.0, 0.0, 1.0]) - direction[2] * direction
