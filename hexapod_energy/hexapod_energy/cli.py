@@ -22,7 +22,8 @@ plots, PNG + SVG) and the Fig. 7D power map; ``--recommend`` -> minimum-CoT/M ga
       "robot_runs": [{"bag", "gait", "leg_count", "duty_factor", "period_s", "step_length_m",
                       "payload_kg", "mass_kg", "windows", "window_s",
                       "measured_power_in_w", "predicted_power_in_w", "residual_w",
-                      "power_out_w", "power_out_source" ("effort" | "model" | "none"),
+                      "power_out_w", "power_out_source" ("effort" | "model" | "none";
+                      --power-out), "power_out_effort_w" (nan/null without efforts),
                       "power_out_model_w", "efficiency", "speed" [m/s],
                       "cost_of_transport" [J/m], "specific_cost_of_transport" [J/(m kg)],
                       "specific_resistance"}],
@@ -32,6 +33,7 @@ plots, PNG + SVG) and the Fig. 7D power map; ``--recommend`` -> minimum-CoT/M ga
       "power_map": {"speeds_mps", "payloads_kg", "power_out_w" (n_speed x n_payload),
                     "seconds"},                               # with --sweep
       "recommendation": Recommendation.to_dict(),             # with --recommend
+      "warnings": [str],                                      # when any
       "plots": [relative paths]
     }
 
@@ -83,6 +85,10 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
                    help='subtract KG from the carried mass m_c before reading the bench '
                         'surfaces (default 0, the paper; use the leg mass, 0.166, for robots '
                         'whose stance tips carry only m_c g, such as hexapod-sim robot)')
+    p.add_argument('--power-out', choices=('auto', 'effort', 'model'), default='auto',
+                   help='P_out source: joint effort x velocity (positive part), the Eq. 6 '
+                        'inverse-dynamics model, or auto (default: effort when the bag has '
+                        'efforts and they give P_out < P_in, else the model, with a warning)')
     p.add_argument('--folds', type=int, default=5, help='k of the k-fold CV (default 5)')
     p.add_argument('--no-progress', action='store_true', help='hide the progress bar')
 
@@ -182,7 +188,14 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             except (ValueError, ImportError) as err:
                 p_model = math.nan
                 doc.setdefault('warnings', []).append(f'{path}: no P_out model: {err}')
-            if math.isfinite(run_.power_out_w):
+            effort_ok = math.isfinite(run_.power_out_w) and args.power_out != 'model'
+            if effort_ok and args.power_out == 'auto' and run_.power_out_w >= run_.power_in_w:
+                effort_ok = False
+                doc.setdefault('warnings', []).append(
+                    f'{path}: P_out from joint efforts ({run_.power_out_w:.3f} W) is not below '
+                    f'P_in ({run_.power_in_w:.3f} W): efforts are not joint torques (AX-series '
+                    'servos report PWM load); using the model')
+            if effort_ok:
                 p_out, source = run_.power_out_w, 'effort'
             elif math.isfinite(p_model):
                 p_out, source = p_model, 'model'
@@ -199,6 +212,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 'measured_power_in_w': run_.power_in_w, 'predicted_power_in_w': predicted,
                 'residual_w': run_.power_in_w - predicted,
                 'power_out_w': p_out, 'power_out_source': source, 'power_out_model_w': p_model,
+                'power_out_effort_w': run_.power_out_w,
                 'efficiency': d.efficiency, 'speed': d.speed_mps,
                 'cost_of_transport': d.cost_of_transport_j_per_m,
                 'specific_cost_of_transport': d.specific_cost_of_transport_j_per_m_kg,

@@ -1,0 +1,197 @@
+"""Issue 6 acceptance on the simulators: bench plan -> surfaces -> predicted robot P_in, and the
+paper's findings on the model fitted to simulated bench data.
+
+Data: ``hexapod_bench_drivers`` bench plan of 5 loads x 8 frequencies (4 s walking per session)
+and six tripod robot runs at 0.1 to 0.6 m/s, written to bags with the simulators' own writer and
+read back through ``hexapod-analyze energy``.  Only the default effects are on (sensor noise), so
+the robot has no effect the bench cannot see.  The bags are made once per module.
+
+The simulated robot loads each stance tip with ``m_c g`` (``robot_sim.tip_forces_n``) where the
+simulated bench loads its tip with ``(m_leg + load) g``; the bench load equivalent to the robot's
+legs is therefore ``m_c - m_leg`` (``--load-offset`` = leg mass), not the paper's ``m_c``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hexapod_bench_drivers.bench_sim import BENCH_LOADS_KG, BenchConfig, BenchPlan, BenchSimulator
+from hexapod_bench_drivers.robot_sim import RobotConfig, simulate_robot
+from hexapod_bench_drivers.sim_bag import write_trace
+from hexapod_energy.bag_io import bench_phase_samples, read_bench_bag
+from hexapod_energy.cli import build_parser, run
+from hexapod_energy.prediction import ANTBOT_ROBOT, OutputPowerModel
+from hexapod_energy.single_leg import SingleLegModel
+from hexapod_energy.sweeps import SweepSpec, run_standard_sweeps, sweep_curve
+
+FREQS_HZ = (0.0, 0.5, 0.8, 1.2, 1.6, 2.0, 2.5, 3.0)
+SPEEDS_MPS = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6)
+LEG_KG = ANTBOT_ROBOT.leg_mass_kg
+
+
+@pytest.fixture(scope='module')
+def bags(tmp_path_factory) -> Path:
+    root = tmp_path_factory.mktemp('e2e')
+    plan = BenchPlan(loads_kg=BENCH_LOADS_KG, frequencies_hz=FREQS_HZ, walk_s=4.0,
+                     max_cool_s=5.0)
+    write_trace(BenchSimulator(BenchConfig(), seed=3).run_plan(plan), root / 'bench')
+    for i, v in enumerate(SPEEDS_MPS):
+        write_trace(simulate_robot(6.0, RobotConfig(speed_mps=v), seed=10 + i),
+                    root / f'robot_{v:.1f}')
+    return root
+
+
+@pytest.fixture(scope='module')
+def model(bags) -> SingleLegModel:
+    samples, _ = bench_phase_samples(read_bench_bag(bags / 'bench'))
+    return SingleLegModel().fit(samples)
+
+
+def _analyze(bags: Path, out: Path, *extra: str) -> dict:
+    robots = [str(bags / f'robot_{v:.1f}') for v in SPEEDS_MPS]
+    args = build_parser().parse_args(['--bench', str(bags / 'bench'), '--robot', *robots,
+                                      '--out', str(out), '--no-progress', *extra])
+    run(args)
+    return json.loads((out / 'energy.json').read_text())
+
+
+def test_predicted_robot_power_within_5_percent(bags, tmp_path) -> None:
+    doc = _analyze(bags, tmp_path / 'net', '--load-offset', f'{LEG_KG:.6f}',
+                   '--power-out', 'model')
+    err = doc['prediction_error']
+    fit = doc['bench']['fit']
+    print(f"\nbench sessions {doc['bench']['diagnostics'][0]['sessions']}, surfaces "
+          f"{fit['chosen']}, CV RMSE {fit['cv_rmse_w']}")
+    for r in doc['robot_runs']:
+        print(f"  v {r['speed']:.2f} m/s: measured {r['measured_power_in_w']:.2f} W, predicted "
+              f"{r['predicted_power_in_w']:.2f} W "
+              f"({100 * (r['predicted_power_in_w'] / r['measured_power_in_w'] - 1):+.1f} %), "
+              f"P_out {r['power_out_w']:.3f} W ({r['power_out_source']}; from efforts "
+              f"{r['power_out_effort_w']:.3f} W), eta {r['efficiency']:.4f}")
+    print(f"  prediction: rmse {err['rmse_w']:.3f} W = {100 * err['relative_rmse']:.2f} % of "
+          f"{err['mean_power_w']:.2f} W, bias {err['bias_w']:+.3f} W, worst "
+          f"{100 * err['max_abs_relative']:.2f} %")
+    assert err['runs'] == 6
+    assert doc['bench']['diagnostics'][0]['sessions'] == 5 * 8
+    speeds = [r['speed'] for r in doc['robot_runs']]
+    np.testing.assert_allclose(speeds, SPEEDS_MPS, rtol=1e-6)
+    assert err['relative_rmse'] < 0.05
+    assert err['max_abs_relative'] < 0.06
+    for r in doc['robot_runs']:
+        # Eq. 6 positive joint power: the paper's 0.5-6 % efficiency band
+        assert r['power_out_source'] == 'model'
+        assert 0.003 < r['efficiency'] < 0.07
+        # the simulated /joint_states effort is the AX load (PWM fraction x stall torque), not
+        # a torque: effort x velocity overstates P_out (up to more than P_in at 0.6 m/s)
+        assert r['power_out_effort_w'] > 10 * r['power_out_w']
+
+
+def test_paper_load_convention_overstates_simulated_robot(bags, tmp_path) -> None:
+    """With the paper's bench load m_c the simulated robot (tips carrying m_c g) is
+    overpredicted: the gap that ``--load-offset`` closes is the simulators' tip-force mismatch."""
+    paper = _analyze(bags, tmp_path / 'paper')['prediction_error']
+    net = _analyze(bags, tmp_path / 'net2', '--load-offset', f'{LEG_KG:.6f}')['prediction_error']
+    print(f"\npaper convention bias {paper['bias_w']:+.3f} W ({100 * paper['relative_rmse']:.2f}"
+          f" % rmse); m_c - m_leg bias {net['bias_w']:+.3f} W "
+          f"({100 * net['relative_rmse']:.2f} % rmse)")
+    assert paper['bias_w'] > net['bias_w']
+
+
+# ------------------------------------------------------------------------------- findings
+
+
+@pytest.fixture(scope='module')
+def curves(model):
+    return run_standard_sweeps(model, OutputPowerModel(), n_speeds=30)
+
+
+def _at(curve, speed_mps: float, payload_index: int = 0) -> dict[str, float]:
+    return {k: float(np.interp(speed_mps, curve.speeds_mps, getattr(curve, k)[:, payload_index]))
+            for k in ('power_in_w', 'power_out_w', 'cot_per_mass', 'efficiency')}
+
+
+def test_finding_four_legs_lowest_cot_per_mass(curves) -> None:
+    legs = {c.spec.leg_count: c for c in curves['leg_count']}
+    best = {n: float(np.min(c.cot_per_mass[:, 0])) for n, c in legs.items()}
+    print(f'\nmin CoT/M [J/(m kg)] by leg count: {best}')
+    assert best[4] < best[6] < best[8]
+    # at every speed and payload, not only at the optimum
+    assert np.all(legs[4].cot_per_mass < legs[6].cot_per_mass)
+
+
+def test_finding_best_point_at_maximum_speed(curves) -> None:
+    for name, cs in curves.items():
+        for c in cs:
+            pts = c.optimal_points()
+            print(f"\n{name} / {c.spec.label}: v_max {c.speeds_mps[-1]:.3f} m/s, min CoT/M "
+                  f"{pts['min_cot_per_mass']['value']:.2f} at "
+                  f"{pts['min_cot_per_mass']['speed_mps']:.3f}, max eta "
+                  f"{pts['max_efficiency']['value']:.4f} at "
+                  f"{pts['max_efficiency']['speed_mps']:.3f}, min eta {c.min_efficiency:.4f}",
+                  end='')
+            last = len(c.speeds_mps) - 1
+            assert np.all(np.argmin(c.cot_per_mass, axis=0) == last), c.spec.label
+            assert np.all(np.argmax(c.efficiency, axis=0) == last), c.spec.label
+            assert np.all(np.argmax(c.power_out_w, axis=0) == last), c.spec.label
+
+
+def _sim_loss_w(**kw) -> float:
+    """Whole-cycle mean P_in - P_out of a simulated robot run (measured battery power, the
+    servos' true positive output power), after one settling cycle."""
+    cfg = RobotConfig(**kw)
+    period = cfg.effective_period_s
+    cycles = max(2, math.ceil(4.0 / period))
+    tr = simulate_robot(period * (cycles + 1), cfg, seed=5)
+    keep = tr.t_s > period + 1e-9
+    p_in = -tr.battery_voltage_v[keep] * tr.battery_current_a[keep]
+    p_out = np.clip(tr.true_mechanical_power_w[keep], 0.0, None).sum(axis=1)
+    return float(np.mean(p_in - p_out))
+
+
+def test_duty_factor_and_wave_findings_follow_the_simulator(model) -> None:
+    """beta 0.7 vs 0.5 at 0.26 m/s and wave vs tripod at 0.1 m/s with 0.5 kg: the fitted model
+    and the simulated robot agree on the direction of the power-loss change."""
+    opm = OutputPowerModel()
+    b5 = _at(sweep_curve(SweepSpec('b5', 'tripod', 6, 0.5), model, opm), 0.26)
+    b7 = _at(sweep_curve(SweepSpec('b7', 'tripod', 6, 0.7), model, opm), 0.26)
+    pay = (0.0, 0.5)
+    tri = _at(sweep_curve(SweepSpec('t', 'tripod', 6, 0.5), model, opm, payloads_kg=pay), 0.1, 1)
+    wave = _at(sweep_curve(SweepSpec('w', 'wave', 6, 0.83), model, opm, payloads_kg=pay), 0.1, 1)
+    sim_b5 = _sim_loss_w(speed_mps=0.26, duty_factor=0.5)
+    sim_b7 = _sim_loss_w(speed_mps=0.26, duty_factor=0.7)
+    sim_tri = _sim_loss_w(speed_mps=0.1, payload_kg=0.5)
+    sim_wave = _sim_loss_w(speed_mps=0.1, payload_kg=0.5, gait='wave', duty_factor=0.83)
+    mass = ANTBOT_ROBOT.mass_kg
+    loss = lambda d: d['power_in_w'] - d['power_out_w']  # noqa: E731
+    print(f"\nbeta 0.7 vs 0.5 at 0.26 m/s: P_loss model {loss(b7):.2f} vs {loss(b5):.2f} W "
+          f"({100 * (loss(b7) / loss(b5) - 1):+.1f} %), simulator {sim_b7:.2f} vs {sim_b5:.2f} W "
+          f"({100 * (sim_b7 / sim_b5 - 1):+.1f} %); P_out model {b7['power_out_w']:.3f} vs "
+          f"{b5['power_out_w']:.3f} W; CoT/M {b7['cot_per_mass']:.1f} vs "
+          f"{b5['cot_per_mass']:.1f} (sim {sim_b7 / (mass * 0.26):.1f} vs "
+          f"{sim_b5 / (mass * 0.26):.1f})")
+    print(f"wave 0.83 vs tripod at 0.1 m/s, 0.5 kg: P_loss model {loss(wave):.2f} vs "
+          f"{loss(tri):.2f} W ({100 * (loss(wave) / loss(tri) - 1):+.1f} %), simulator "
+          f"{sim_wave:.2f} vs {sim_tri:.2f} W ({100 * (sim_wave / sim_tri - 1):+.1f} %)")
+    assert np.sign(loss(b7) - loss(b5)) == np.sign(sim_b7 - sim_b5)
+    assert np.sign(loss(wave) - loss(tri)) == np.sign(sim_wave - sim_tri)
+    # output power rises with the duty factor, as in the paper (+192 % there)
+    assert b7['power_out_w'] > 2 * b5['power_out_w']
+    assert wave['power_out_w'] > tri['power_out_w']
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    'simulator physics: the simulated AX-18A swing power rises steeply with swing speed '
+    '(~14 W per leg at a 0.17 s swing against ~7 W stance), so the shorter swings of beta 0.7 '
+    'and of the wave gait cost more than they save; the simulated robot itself loses '
+    '~+30 % (beta 0.7) and ~+14 % (wave) more, see '
+    'test_duty_factor_and_wave_findings_follow_the_simulator'))
+def test_paper_direction_beta_and_wave(model) -> None:
+    opm = OutputPowerModel()
+    b5 = _at(sweep_curve(SweepSpec('b5', 'tripod', 6, 0.5), model, opm), 0.26)
+    b7 = _at(sweep_curve(SweepSpec('b7', 'tripod', 6, 0.7), model, opm), 0.26)
+    assert b7['cot_per_mass'] < b5['cot_per_mass']
