@@ -6,7 +6,7 @@ import subprocess
 import sys
 
 CORE = ['control_tables', 'servo_bus_emulator', 'dynamixel_bus', 'power_backends',
-        'force_backend', 'sequencer']
+        'force_backend', 'sequencer', 'sequencer_sim']
 
 
 def test_cores_import_with_rclpy_blocked():
