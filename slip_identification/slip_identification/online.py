@@ -52,11 +52,14 @@ class OnlineSlip:
         Seconds subtracted from mocap stamps (stream offset).
     buffer_s, margin_s : float
         History kept; mocap needed after lift-off before fitting.
+    shift_every_s : float
+        The best shift is recomputed when this much new proprioception has arrived.
     """
 
     def __init__(self, model: SlipModel | None = None, *, box: Box | None = None,
                  mocap_offset_s: float = 0.0, buffer_s: float = 3.0,
-                 margin_s: float = 0.0, min_stance_s: float = 0.02) -> None:
+                 margin_s: float = 0.0, min_stance_s: float = 0.02,
+                 shift_every_s: float = 0.25) -> None:
         self.model = model if model is not None else SlipModel()
         self.box = box if box is not None else Box()
         self.mocap_offset_s = mocap_offset_s
@@ -71,6 +74,8 @@ class OnlineSlip:
         self._done: list[tuple[str, float]] = []
         self.skipped: list[OnlineSkip] = []
         self.latency_s: list[float] = []
+        self.shift_every_s = shift_every_s
+        self._shift_cache: dict[str, tuple[float, float]] = {}
 
     def _trim(self, buf: deque, t: float) -> None:  # type: ignore[type-arg]
         while buf and buf[0][0] < t - self.buffer_s:
@@ -109,8 +114,13 @@ class OnlineSlip:
         shifts = {}
         for tp in TRIPODS:
             target = _tripod_mean(self.names, vc, tp)
-            shift = best_shift(tj, _tripod_mean(self.names, vj, tp),
-                               lambda t, a=tc, b=target: np.interp(t, a, b))
+            cached = self._shift_cache.get(tp)
+            if cached is not None and tj[-1] - cached[0] < self.shift_every_s:
+                shift = cached[1]  # the shift drifts slowly: recompute a few times a second
+            else:
+                shift = best_shift(tj, _tripod_mean(self.names, vj, tp),
+                                   lambda t, a=tc, b=target: np.interp(t, a, b))
+                self._shift_cache[tp] = (float(tj[-1]), shift)
             shifts[tp] = shift
             td, lo = edges_from_target(tc + shift, target)
             windows[tp] = tripod_stance_windows(td, lo)
