@@ -1,0 +1,274 @@
+"""Catalogue of candidate effects for the energy residual loop (DESIGN section 8).
+
+Core module: numpy only. Each effect is one small class: a physically named extension of the
+whole-robot power model ``P_model = P_pred + sum_e X_e beta_e``, with the regressor columns
+``X_e`` it computes from a :class:`WindowTable` (per-window means of what the bags provide) and
+the conversion of the fitted coefficients ``beta_e`` into named, unit-carrying parameters.
+Coefficients are bounded to the physical sign (every effect here *adds* input power), so a
+model that over-predicts cannot be "explained" by an effect that would have to be negative.
+
+To add an effect, subclass :class:`EnergyEffect`, implement :meth:`~EnergyEffect.columns` and
+:meth:`~EnergyEffect.params`, and append an instance to :func:`default_catalogue`.
+
+=================== ============================================ =============================
+name                regressor (window mean)                       parameter [unit]
+=================== ============================================ =============================
+basal_power         1                                             ``power_w`` [W]
+thermal_drift       sum_i (T_i - T_ref) from /servo_status [K]    ``w_per_k`` [W/K]
+kinematic_error     step frequency 1/T from /gait/phase [Hz]      ``w_per_hz`` [W/Hz]
+supply_resistance   -I^2 [A^2], only when V falls with I          ``resistance_ohm`` [ohm] from
+                                                                  the V-I slope, and
+                                                                  ``power_coefficient_ohm``
+speed_friction      DRIVE_LOSS_FACTOR * v^2 [m^2/s^2]              ``c_n_s_per_m`` [N s/m]
+leg_anomaly         fraction of the window leg j is in stance     ``power_w`` [W], ``leg``
+time_offset         (realignment, see :mod:`residuals`)           ``offset_s`` [s]
+=================== ============================================ =============================
+
+``T_ref`` is the servo temperature the bench model was measured at (median over the bench's
+walking sessions), so ``thermal_drift`` is the extra power relative to the bench conditions.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    'DRIVE_LOSS_FACTOR',
+    'BasalPower',
+    'EnergyEffect',
+    'KinematicError',
+    'LegAnomaly',
+    'SpeedFriction',
+    'SupplyResistance',
+    'ThermalDrift',
+    'TimeOffset',
+    'WindowTable',
+    'default_catalogue',
+]
+
+#: Electrical input power per watt of viscous ground friction ``c v^2`` for the AX-18A
+#: hexapod (drive losses: winding copper loss and 254:1 gear friction): the slope of the extra
+#: input power against ``c v^2`` fitted with an offset over 0.2-0.4 m/s tripod runs of the servo
+#: model (point-wise ratios 3.1 to 5: the losses grow with the load). The fitted coefficient on
+#: ``v^2`` divided by this factor is
+#: the friction coefficient ``c`` [N s/m].
+DRIVE_LOSS_FACTOR = 3.0
+
+
+@dataclass
+class WindowTable:
+    """Per-window means of one or more robot runs, arrays (n,) unless noted.
+
+    Attributes
+    ----------
+    run : int array       index of the run of each window
+    t_s : window centre [s] (bag time)
+    duration_s : window length [s]
+    measured_w, predicted_w : mean measured and predicted input power [W]
+    step_frequency_hz : 1 / T, 0 standing [Hz]
+    speed_mps : body speed from the gait schedule [m/s]
+    current_sq_a2 : mean of I^2 (discharge current) [A^2]
+    temp_excess_k : mean of sum_i (T_i - T_ref) [K], nan without /servo_status
+    stance_fraction : (n, legs) fraction of the window each leg is in stance
+    leg_names : tuple of str
+    supply_slope_ohm, supply_slope_stderr_ohm : -dV/dI over all samples (lagged) [ohm]
+    """
+
+    run: np.ndarray
+    t_s: np.ndarray
+    duration_s: np.ndarray
+    measured_w: np.ndarray
+    predicted_w: np.ndarray
+    step_frequency_hz: np.ndarray
+    speed_mps: np.ndarray
+    current_sq_a2: np.ndarray
+    temp_excess_k: np.ndarray
+    stance_fraction: np.ndarray
+    leg_names: tuple[str, ...]
+    supply_slope_ohm: float = 0.0
+    supply_slope_stderr_ohm: float = float('inf')
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def residual_w(self) -> np.ndarray:
+        """Measured minus predicted [W], (n,)."""
+        return self.measured_w - self.predicted_w
+
+    def subset(self, mask: np.ndarray) -> WindowTable:
+        """The windows in ``mask`` (bool (n,))."""
+        kw = {k: getattr(self, k)[mask] for k in (
+            'run', 't_s', 'duration_s', 'measured_w', 'predicted_w', 'step_frequency_hz',
+            'speed_mps', 'current_sq_a2', 'temp_excess_k', 'stance_fraction')}
+        return WindowTable(**kw, leg_names=self.leg_names, supply_slope_ohm=self.supply_slope_ohm,
+                           supply_slope_stderr_ohm=self.supply_slope_stderr_ohm,
+                           extra=self.extra)
+
+
+class EnergyEffect:
+    """One candidate effect. Subclasses set ``name``, ``unit`` and implement two methods."""
+
+    name = ''
+    unit = ''
+    #: names of the regressor columns (one coefficient each, bounded below by ``lower``)
+    lower = 0.0
+
+    def applicable(self, table: WindowTable) -> bool:
+        """Whether the bags give this effect's regressor (and any evidence it needs)."""
+        return True
+
+    def columns(self, table: WindowTable) -> np.ndarray:
+        """Regressor columns (n, k) whose coefficients this effect fits."""
+        raise NotImplementedError
+
+    def params(self, coef: np.ndarray, stderr: np.ndarray, table: WindowTable
+               ) -> tuple[dict[str, Any], dict[str, Any]]:
+        """Named parameters and their standard errors from the fitted coefficients."""
+        raise NotImplementedError
+
+
+class BasalPower(EnergyEffect):
+    """Constant extra input power ``P += power_w`` [W] (electronics, holding)."""
+
+    name, unit = 'basal_power', 'W'
+
+    def columns(self, table: WindowTable) -> np.ndarray:
+        return np.ones((table.t_s.shape[0], 1))
+
+    def params(self, coef, stderr, table):  # type: ignore[no-untyped-def]
+        return {'power_w': float(coef[0])}, {'power_w': float(stderr[0])}
+
+
+class ThermalDrift(EnergyEffect):
+    """Extra power per kelvin of servo temperature above the bench's:
+    ``P += w_per_k * sum_i (T_i - T_ref)`` [W/K]."""
+
+    name, unit = 'thermal_drift', 'W/K'
+
+    def applicable(self, table: WindowTable) -> bool:
+        x = table.temp_excess_k
+        return bool(np.all(np.isfinite(x)) and np.ptp(x) > 0.5)
+
+    def columns(self, table: WindowTable) -> np.ndarray:
+        return table.temp_excess_k[:, None]
+
+    def params(self, coef, stderr, table):  # type: ignore[no-untyped-def]
+        return {'w_per_k': float(coef[0])}, {'w_per_k': float(stderr[0])}
+
+
+class KinematicError(EnergyEffect):
+    """Tracking-error power growing with step frequency: ``P += w_per_hz * f_step`` [W/Hz]."""
+
+    name, unit = 'kinematic_error', 'W/Hz'
+
+    def applicable(self, table: WindowTable) -> bool:
+        return bool(np.ptp(table.step_frequency_hz) > 0.05)
+
+    def columns(self, table: WindowTable) -> np.ndarray:
+        return table.step_frequency_hz[:, None]
+
+    def params(self, coef, stderr, table):  # type: ignore[no-untyped-def]
+        return {'w_per_hz': float(coef[0])}, {'w_per_hz': float(stderr[0])}
+
+
+class SupplyResistance(EnergyEffect):
+    """Series resistance before the monitor: the voltage falls as ``V = V_s - R I`` and the
+    servos, at the lower voltage, draw less: ``P += -k I^2``.
+
+    ``resistance_ohm`` is the lagged V-I slope (exact, from the monitor's own two channels);
+    ``power_coefficient_ohm`` is the fitted ``k`` (about 0.5-0.7 R for the AX servos). Only a
+    candidate when the voltage falls with the current by more than 4 standard errors.
+    """
+
+    name, unit = 'supply_resistance', 'ohm'
+
+    def applicable(self, table: WindowTable) -> bool:
+        r, se = table.supply_slope_ohm, table.supply_slope_stderr_ohm
+        return bool(r > 4.0 * se and r > 0.005)
+
+    def columns(self, table: WindowTable) -> np.ndarray:
+        return -table.current_sq_a2[:, None]
+
+    def params(self, coef, stderr, table):  # type: ignore[no-untyped-def]
+        return ({'resistance_ohm': table.supply_slope_ohm, 'power_coefficient_ohm': float(coef[0])},
+                {'resistance_ohm': table.supply_slope_stderr_ohm,
+                 'power_coefficient_ohm': float(stderr[0])})
+
+
+class SpeedFriction(EnergyEffect):
+    """Viscous ground friction ``F = c v`` on the stance tips: mechanical ``c v^2``, electrical
+    ``DRIVE_LOSS_FACTOR c v^2`` [W]; the parameter is ``c`` [N s/m]."""
+
+    name, unit = 'speed_friction', 'N s/m'
+
+    def applicable(self, table: WindowTable) -> bool:
+        return bool(np.ptp(table.speed_mps) > 0.01)
+
+    def columns(self, table: WindowTable) -> np.ndarray:
+        return (DRIVE_LOSS_FACTOR * table.speed_mps ** 2)[:, None]
+
+    def params(self, coef, stderr, table):  # type: ignore[no-untyped-def]
+        return ({'c_n_s_per_m': float(coef[0]), 'drive_loss_factor': DRIVE_LOSS_FACTOR},
+                {'c_n_s_per_m': float(stderr[0]), 'drive_loss_factor': 0.0})
+
+
+@dataclass
+class LegAnomaly(EnergyEffect):
+    """One leg draws ``power_w`` extra while in stance: ``P += power_w * in_stance(leg)``.
+
+    One candidate per leg; legs whose stance pattern is identical in the gait (a tripod's three
+    legs) cannot be told apart: :meth:`params` names them in ``same_stance_as``.
+    """
+
+    leg_index: int = 0
+    leg: str = ''
+
+    def __post_init__(self) -> None:
+        self.name, self.unit = 'leg_anomaly', 'W'
+
+    def applicable(self, table: WindowTable) -> bool:
+        return bool(np.ptp(table.stance_fraction[:, self.leg_index]) > 0.2)
+
+    def columns(self, table: WindowTable) -> np.ndarray:
+        return table.stance_fraction[:, self.leg_index][:, None]
+
+    def params(self, coef, stderr, table):  # type: ignore[no-untyped-def]
+        col = table.stance_fraction[:, self.leg_index]
+        same = [n for j, n in enumerate(table.leg_names) if j != self.leg_index
+                and np.allclose(table.stance_fraction[:, j], col, atol=0.05)]
+        return ({'leg': self.leg, 'power_w': float(coef[0]), 'same_stance_as': same},
+                {'power_w': float(stderr[0])})
+
+
+class TimeOffset(EnergyEffect):
+    """Clock offset of ``/battery_state`` against the other streams [s].
+
+    Estimated by cross-correlating the measured input power with the mechanical power of the
+    joints (``|effort * velocity|`` summed, from ``/joint_states``); applying it realigns the
+    power with the gait windows. It has no regressor column: a whole-cycle model with a
+    constant support count cannot see a shift, so it is reported (with its lag), and selected
+    only when the realignment itself lowers the held-out error.
+    """
+
+    name, unit = 'time_offset', 's'
+
+    def applicable(self, table: WindowTable) -> bool:
+        return 'offset_s' in table.extra
+
+    def columns(self, table: WindowTable) -> np.ndarray:
+        return np.zeros((table.t_s.shape[0], 0))
+
+    def params(self, coef, stderr, table):  # type: ignore[no-untyped-def]
+        return ({'offset_s': float(table.extra.get('offset_s', 0.0))},
+                {'offset_s': float(table.extra.get('offset_stderr_s', float('nan')))})
+
+
+def default_catalogue(leg_names: tuple[str, ...] = ()) -> list[EnergyEffect]:
+    """Every energy effect, one :class:`LegAnomaly` per leg."""
+    effects: list[EnergyEffect] = [BasalPower(), ThermalDrift(), KinematicError(),
+                                   SupplyResistance(), SpeedFriction()]
+    effects += [LegAnomaly(leg_index=j, leg=n) for j, n in enumerate(leg_names)]
+    effects.append(TimeOffset())
+    return effects

@@ -1,0 +1,641 @@
+"""Energy loop (DESIGN section 8): residual, trace to a missing effect, add it, report.
+
+1. **Residual.** The whole-robot prediction of the single-leg method (Eq. 1 on the bench
+   surfaces, evaluated per sample with the support count ``L(t)`` of ``/gait/phase``) against
+   the robot's measured ``P_in`` from ``/battery_state``: per sample, and per *window* of half
+   a gait cycle (cycle phase [0, 0.5) and [0.5, 1); 0.5 s when standing). The model predicts
+   cycle averages, so selection and errors use the windows; half cycles keep one tripod's
+   stance apart from the other's (a leg's anomaly shows).
+2. **Trace.** Every candidate of :mod:`hexapod_energy.effects_catalogue` is fitted on the
+   residual of a training split (time blocks of each run: every third block held out),
+   coefficients bounded to their physical sign (``scipy.optimize.lsq_linear``).
+3. **Add.** Forward selection: the candidate with the lowest held-out RMSE is added if its BIC
+   on the training windows falls by more than ``min_delta_bic`` and its held-out RMSE by more
+   than ``min_improvement`` of the current one; repeat until nothing passes.
+4. **Report.** :func:`energy_loop_document` gives the ``residuals.json`` content.
+
+The analysis never reads the simulator's effect metadata. Core functions take arrays; the
+bag readers (:func:`read_residual_run`, :func:`run_energy_loop`) import ``hexapod_common.bags``
+lazily.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.optimize import lsq_linear
+
+from hexapod_energy.effects_catalogue import EnergyEffect, WindowTable, default_catalogue
+from hexapod_energy.errors import BagContentError, InvalidInputError
+
+__all__ = [
+    'EffectSelection',
+    'ResidualDataError',
+    'ResidualRun',
+    'build_windows',
+    'energy_loop_document',
+    'estimate_stream_lag_s',
+    'read_residual_run',
+    'run_energy_loop',
+    'split_mask',
+]
+
+
+class ResidualDataError(InvalidInputError):
+    """Too little data for the residual loop (names what is short and what is needed)."""
+
+
+@dataclass
+class ResidualRun:
+    """Per-sample streams of one robot bag, on the battery stamps [s].
+
+    Arrays (n,) unless noted: ``t_s``, ``voltage_v``, ``current_a`` (discharge positive),
+    ``power_w``, ``cycle_phase``, ``period_s``, ``duty_factor``, ``step_length_m``,
+    ``in_stance`` (n, legs), ``supporting`` (n,) int, ``temp_sum_c`` (n,) sum of the servo
+    temperatures (nan without ``/servo_status``), ``lag_s`` estimated battery clock offset.
+    """
+
+    name: str
+    t_s: np.ndarray
+    voltage_v: np.ndarray
+    current_a: np.ndarray
+    power_w: np.ndarray
+    cycle_phase: np.ndarray
+    period_s: np.ndarray
+    duty_factor: np.ndarray
+    step_length_m: np.ndarray
+    in_stance: np.ndarray
+    supporting: np.ndarray
+    temp_sum_c: np.ndarray
+    servo_count: int
+    leg_names: tuple[str, ...]
+    phase_offsets: tuple[float, ...]
+    gait: str
+    lag_s: float = 0.0
+    lag_stderr_s: float = math.nan
+    predicted_w: np.ndarray | None = None
+
+
+def estimate_stream_lag_s(t_power_s: np.ndarray, power_w: np.ndarray, t_ref_s: np.ndarray,
+                          ref: np.ndarray, *, max_lag_s: float, dt_s: float = 0.002
+                          ) -> float:
+    """Offset ``d`` [s] such that ``power(t + d)`` best matches ``ref(t)`` (cross-correlation
+    of the standardised signals on a ``dt_s`` grid, |d| <= ``max_lag_s``)."""
+    lo = max(t_power_s[0], t_ref_s[0]) + max_lag_s
+    hi = min(t_power_s[-1], t_ref_s[-1]) - max_lag_s
+    if hi - lo < 4 * max_lag_s:
+        return 0.0
+    grid = np.arange(lo, hi, dt_s)
+    r = np.interp(grid, t_ref_s, ref)
+    r = (r - r.mean()) / (r.std() or 1.0)
+    lags = np.arange(-max_lag_s, max_lag_s + dt_s / 2, dt_s)
+    scores = []
+    for d in lags:
+        p = np.interp(grid + d, t_power_s, power_w)
+        p = (p - p.mean()) / (p.std() or 1.0)
+        scores.append(float(np.mean(p * r)))
+    return float(lags[int(np.argmax(scores))])
+
+
+def read_residual_run(path: str | Path, *, current_sign: str = 'auto') -> ResidualRun:
+    """Read one robot bag: ``/battery_state`` and ``/gait/phase`` (required), ``/servo_status``
+    and ``/joint_states`` (optional: thermal regressor, stream lag)."""
+    from hexapod_common.bags import iter_messages, open_reader
+    from hexapod_common.conversions import (
+        battery_from_msg,
+        gait_phase_from_msg,
+        joint_state_from_msg,
+        servo_status_from_msg,
+    )
+
+    from hexapod_energy.descriptors import resolve_current_sign
+
+    bat, gp, temps, mech = [], [], [], []
+    with open_reader(path) as reader:
+        present = sorted({c.topic for c in reader.connections})
+        for topic in ('/battery_state', '/gait/phase'):
+            if topic not in present:
+                raise BagContentError(
+                    f'robot bag {path} has no {topic} (needed for the residual: '
+                    f'{"measured P_in" if topic == "/battery_state" else "gait schedule"}); '
+                    f'it has {present}')
+        for m in iter_messages(reader, ('/battery_state', '/gait/phase', '/servo_status',
+                                        '/joint_states')):
+            msg = reader.deserialize(m.data, m.msgtype)
+            if m.topic == '/battery_state':
+                b = battery_from_msg(msg)
+                bat.append((b.t_s, b.voltage_v, b.current_a))
+            elif m.topic == '/gait/phase':
+                gp.append(gait_phase_from_msg(msg))
+            elif m.topic == '/servo_status':
+                s = servo_status_from_msg(msg)
+                temps.append((s.t_s, float(np.sum(s.temperature_c)), len(s.temperature_c)))
+            else:
+                js = joint_state_from_msg(msg)
+                if js.effort.size == js.velocity.size and js.effort.size:
+                    mech.append((js.t_s, float(np.sum(np.abs(js.effort * js.velocity)))))
+    if len(bat) < 10:
+        raise BagContentError(f'robot bag {path}: /battery_state has {len(bat)} messages, '
+                              'need at least 10')
+    if len(gp) < 2:
+        raise BagContentError(f'robot bag {path}: /gait/phase has {len(gp)} messages, need 2+')
+    b = np.array(sorted(bat))
+    sign = resolve_current_sign(b[:, 1], b[:, 2], current_sign)
+    t = b[:, 0]
+    gp.sort(key=lambda g: g.t_s)
+    gt = np.array([g.t_s for g in gp])
+    idx = np.clip(np.searchsorted(gt, t, side='right') - 1, 0, len(gp) - 1)
+    col = lambda f: np.array([f(gp[i]) for i in idx])  # noqa: E731
+    phase_gt = np.array([g.cycle_phase for g in gp])
+    period_gt = np.array([g.period_s for g in gp])
+    # cycle phase at the battery stamps: advance from the previous gait sample
+    dt = t - gt[idx]
+    with np.errstate(divide='ignore', invalid='ignore'):
+        adv = np.where(period_gt[idx] > 0, dt / period_gt[idx], 0.0)
+    cycle_phase = (phase_gt[idx] + adv) % 1.0
+    in_stance = np.array([np.asarray(gp[i].in_stance, bool) for i in idx])
+    if temps:
+        tt = np.array(sorted(temps))
+        temp_sum = np.interp(t, tt[:, 0], tt[:, 1])
+        servo_count = int(tt[0, 2])
+    else:
+        temp_sum, servo_count = np.full(t.shape, np.nan), 0
+    power = sign * b[:, 1] * b[:, 2]
+    run = ResidualRun(
+        name=str(path), t_s=t, voltage_v=b[:, 1], current_a=np.zeros(0),
+        power_w=power, cycle_phase=cycle_phase, period_s=period_gt[idx],
+        duty_factor=col(lambda g: g.duty_factor), step_length_m=col(lambda g: g.step_length_m),
+        in_stance=in_stance, supporting=in_stance.sum(axis=1), temp_sum_c=temp_sum,
+        servo_count=servo_count, leg_names=tuple(gp[-1].leg_names),
+        phase_offsets=tuple(float(x) for x in gp[-1].phase_offsets), gait=gp[-1].gait)
+    run.current_a = power / np.where(np.abs(b[:, 1]) > 1e-6, b[:, 1], np.nan)
+    if len(mech) > 20 and np.median(period_gt) > 0:
+        mm = np.array(sorted(mech))
+        max_lag = min(0.3, 0.2 * float(np.median(period_gt)))
+        run.lag_s = estimate_stream_lag_s(t, power, mm[:, 0], mm[:, 1], max_lag_s=max_lag)
+        run.lag_stderr_s = 0.002
+    return run
+
+
+def predict_run_w(run: ResidualRun, model: Any, *, total_mass_kg: float,
+                  leg_mass_kg: float) -> np.ndarray:
+    """Per-sample Eq. 1 prediction [W], (n,): ``L P_st(beta T, m_c(L)) + (N - L) P_sw((1-beta)
+    T, 0)`` with ``L`` the support count at each sample; standing: ``N`` legs at the bench's
+    basal power interpolated at ``m_c(N)``."""
+    from hexapod_gait.gait import carried_mass_per_leg_kg
+
+    n_legs = run.in_stance.shape[1]
+    big_l = np.maximum(run.supporting, 1)
+    m_c = carried_mass_per_leg_kg(total_mass_kg, leg_mass_kg, big_l)
+    out = np.empty(run.t_s.shape)
+    walking = run.period_s > 0
+    if walking.any():
+        t_st = run.duty_factor[walking] * run.period_s[walking]
+        t_sw = (1.0 - run.duty_factor[walking]) * run.period_s[walking]
+        lw = big_l[walking]
+        out[walking] = lw * model.p_stance_w(t_st, m_c[walking]) + \
+            (n_legs - lw) * model.p_swing_w(t_sw, np.zeros_like(t_sw))
+    if (~walking).any():
+        basal = getattr(model, 'basal_power_w_', {})
+        if not basal:
+            raise ResidualDataError(f'robot bag {run.name} stands still but the bench bags have '
+                                    'no 0 Hz session to predict standing power from')
+        loads, watts = np.array(list(basal)), np.array(list(basal.values()))
+        m_stand = carried_mass_per_leg_kg(total_mass_kg, leg_mass_kg, np.array([n_legs]))[0]
+        out[~walking] = n_legs * np.interp(m_stand, loads, watts)
+    return out
+
+
+def _lagged_slope(runs: Sequence[ResidualRun]) -> tuple[float, float]:
+    """-dV/dI [ohm] and its standard error, V[k] against I[k-1] within each run."""
+    xs, ys = [], []
+    for r in runs:
+        xs.append(r.current_a[:-1] - r.current_a[:-1].mean())
+        ys.append(r.voltage_v[1:] - r.voltage_v[1:].mean())
+    x, y = np.concatenate(xs), np.concatenate(ys)
+    sxx = float(np.sum(x * x))
+    if sxx <= 0 or x.size < 3:
+        return 0.0, math.inf
+    slope = float(np.sum(x * y) / sxx)
+    res = y - slope * x
+    se = math.sqrt(float(np.sum(res * res)) / (x.size - 2) / sxx)
+    return -slope, se
+
+
+def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = None,
+                  settle_s: float = 1.0) -> WindowTable:
+    """Half-cycle windows of every run (runs must carry ``predicted_w``)."""
+    cols: dict[str, list[Any]] = {k: [] for k in (
+        'run', 't_s', 'duration_s', 'measured_w', 'predicted_w', 'step_frequency_hz',
+        'speed_mps', 'current_sq_a2', 'temp_excess_k', 'stance_fraction')}
+    for ri, r in enumerate(runs):
+        assert r.predicted_w is not None
+        keep = r.t_s >= r.t_s[0] + settle_s
+        t = r.t_s[keep]
+        walking = r.period_s[keep] > 0
+        # window label: half-cycle count (walking), 0.5 s blocks (standing)
+        half = np.floor(r.cycle_phase[keep] * 2.0)
+        wraps = np.concatenate([[0], np.cumsum(np.diff(half) != 0)])
+        label = np.where(walking, wraps, np.floor((t - t[0]) / 0.5) + 1e6)
+        _, inv, counts = np.unique(label, return_inverse=True, return_counts=True)
+        full = counts[inv] >= 0.6 * np.max(counts)
+        ref = temp_ref_c if temp_ref_c is not None else \
+            float(r.temp_sum_c[0] / max(r.servo_count, 1))
+        texcess = r.temp_sum_c - r.servo_count * ref
+        per = np.where(r.period_s > 0, r.period_s, np.inf)
+        freq = np.where(r.period_s > 0, 1.0 / per, 0.0)
+        speed = np.where(r.period_s > 0, r.step_length_m / (r.duty_factor * per), 0.0)
+        sub = {
+            'measured_w': r.power_w, 'predicted_w': r.predicted_w, 'step_frequency_hz': freq,
+            'speed_mps': speed, 'current_sq_a2': r.current_a ** 2, 'temp_excess_k': texcess,
+        }
+        for w in np.unique(inv[full]):
+            m = inv == w
+            m &= full
+            tw = t[m]
+            if tw.size < 3:
+                continue
+            cols['run'].append(ri)
+            cols['t_s'].append(float(tw.mean()))
+            cols['duration_s'].append(float(tw[-1] - tw[0]))
+            for k, arr in sub.items():
+                cols[k].append(float(np.mean(arr[keep][m])))
+            cols['stance_fraction'].append(r.in_stance[keep][m].mean(axis=0))
+    if not cols['run']:
+        raise ResidualDataError('robot bags give no complete half-cycle window after the '
+                                f'first {settle_s} s; record longer runs')
+    arrays = {k: np.array(v) for k, v in cols.items()}
+    arrays['run'] = arrays['run'].astype(int)
+    slope, se = _lagged_slope(runs)
+    lags = [r.lag_s for r in runs]
+    extra: dict[str, Any] = {}
+    if any(np.isfinite(r.lag_stderr_s) for r in runs):
+        extra = {'offset_s': float(np.median(lags)),
+                 'offset_stderr_s': float(np.std(lags) / math.sqrt(len(lags)) + 0.002)}
+    return WindowTable(**arrays, leg_names=runs[0].leg_names, supply_slope_ohm=slope,
+                       supply_slope_stderr_ohm=se, extra=extra)
+
+
+def split_mask(table: WindowTable, *, block_s: float = 2.0, every: int = 3) -> np.ndarray:
+    """Held-out mask (bool (n,)): contiguous time blocks of ``block_s`` in each run, every
+    ``every``-th block held out. Raises :class:`ResidualDataError` when a side is too small."""
+    held = np.zeros(table.t_s.shape, bool)
+    for r in np.unique(table.run):
+        m = table.run == r
+        t = table.t_s[m]
+        block = np.floor((t - t.min()) / block_s).astype(int)
+        held[m] = block % every == every - 1
+    n_test, n_train = int(held.sum()), int((~held).sum())
+    if n_test < 4 or n_train < 8:
+        raise ResidualDataError(
+            f'too little robot data to split: {n_train} training and {n_test} held-out '
+            f'half-cycle windows (need >= 8 and >= 4); record at least {3 * block_s:.0f} s of '
+            'walking after the first second')
+    return held
+
+
+def _metrics(r: np.ndarray) -> dict[str, float]:
+    return {'rmse': float(np.sqrt(np.mean(r ** 2))), 'mae': float(np.mean(np.abs(r))),
+            'bias': float(np.mean(r))}
+
+
+def _bic(sse: float, n: int, k: int) -> float:
+    return n * math.log(max(sse, 1e-300) / n) + k * math.log(n)
+
+
+@dataclass
+class EffectSelection:
+    """Forward selection of catalogue effects on a residual (settings in ``__init__``).
+
+    Parameters
+    ----------
+    catalogue : list of EnergyEffect, optional
+        Candidates (default :func:`default_catalogue` with the table's legs).
+    min_delta_bic : float
+        A candidate must lower the training BIC by more than this.
+    min_improvement : float
+        ... and the held-out RMSE by more than this fraction of the current one.
+
+    Fitted attributes
+    -----------------
+    selected_ : list of EnergyEffect, in order of addition
+    coef_ : (k,) coefficients of the selected effects' columns
+    candidates_ : list of dict (name, heldout_rmse, delta_bic, selected, params, stderr)
+    rmse_heldout_before_, rmse_heldout_after_ : float [W]
+    """
+
+    catalogue: list[EnergyEffect] | None = None
+    min_delta_bic: float = 10.0
+    min_improvement: float = 0.05
+    transfer_offset: bool = True
+    history_: list[dict[str, Any]] = field(default_factory=list, repr=False)
+
+    def _fit(self, effects: Sequence[EnergyEffect], table: WindowTable, train: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """Bounded least squares on train; returns coef, stderr, full-table model term, sse."""
+        y = table.residual_w
+        blocks = [e.columns(table) for e in effects]
+        lows = [np.full(b.shape[1], e.lower) for e, b in zip(effects, blocks)]
+        if self.transfer_offset:
+            blocks.insert(0, np.ones((y.size, 1)))
+            lows.insert(0, np.array([-np.inf]))
+        x = np.hstack(blocks) if blocks else np.zeros((y.size, 0))
+        if x.shape[1] == 0:
+            return np.zeros(0), np.zeros(0), np.zeros_like(y), float(np.sum(y[train] ** 2))
+        lower = np.concatenate(lows)
+        if np.all(np.isinf(lower)):
+            coef = np.linalg.lstsq(x[train], y[train], rcond=None)[0]
+        else:
+            coef = lsq_linear(x[train], y[train], bounds=(lower, np.inf), method='bvls').x
+        res = y[train] - x[train] @ coef
+        sse = float(res @ res)
+        dof = max(int(train.sum()) - x.shape[1], 1)
+        try:
+            cov = np.linalg.pinv(x[train].T @ x[train]) * sse / dof
+            stderr = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        except np.linalg.LinAlgError:
+            stderr = np.full(coef.shape, np.nan)
+        self._offset = (float(coef[0]), float(stderr[0])) if self.transfer_offset else (0.0, 0.0)
+        if self.transfer_offset:
+            coef, stderr = coef[1:], stderr[1:]
+        return coef, stderr, x @ np.concatenate([[self._offset[0]], coef]) \
+            if self.transfer_offset else x @ coef, sse
+
+    def _params(self, effects: Sequence[EnergyEffect], coef: np.ndarray, stderr: np.ndarray,
+                table: WindowTable) -> list[tuple[dict[str, Any], dict[str, Any]]]:
+        out, i = [], 0
+        for e in effects:
+            k = e.columns(table).shape[1]
+            out.append(e.params(coef[i:i + k], stderr[i:i + k], table))
+            i += k
+        return out
+
+    def fit(self, table: WindowTable, held: np.ndarray) -> EffectSelection:
+        """Select effects on ``table`` with held-out mask ``held``."""
+        train = ~held
+        cat = self.catalogue if self.catalogue is not None else \
+            default_catalogue(table.leg_names)
+        cands = [e for e in cat if e.applicable(table)
+                 and not (self.transfer_offset and e.name == 'basal_power')]
+        y = table.residual_w
+        selected: list[EnergyEffect] = []
+        _, _, term0, sse = self._fit(selected, table, train)
+        self.offset_only_w_ = self._offset
+        n = int(train.sum())
+        rmse0 = float(np.sqrt(np.mean((y[held] - term0[held]) ** 2)))
+        cur_rmse, cur_bic = rmse0, _bic(sse, n, 0)
+        records: dict[int, dict[str, Any]] = {}
+        while True:
+            best: tuple[float, int, float] | None = None
+            for ci, e in enumerate(cands):
+                if e in selected:
+                    continue
+                trial = selected + [e]
+                coef, se, term, sse = self._fit(trial, table, train)
+                k = coef.size + (1 if e.name == 'time_offset' else 0)
+                rmse = float(np.sqrt(np.mean((y[held] - term[held]) ** 2)))
+                dbic = _bic(sse, n, k) - cur_bic
+                params, stderr = self._params(trial, coef, se, table)[-1]
+                rec = {'name': e.name, 'heldout_rmse': rmse, 'delta_bic': dbic,
+                       'selected': False, 'params': params, 'stderr': stderr}
+                prev = records.get(ci)
+                # keep, per effect, the evaluation of the round it was last considered in;
+                # for the leg candidates keep the best leg
+                records[ci] = rec if prev is None or not prev['selected'] else prev
+                ok = dbic < -self.min_delta_bic and rmse < cur_rmse * (1 - self.min_improvement)
+                if ok and (best is None or rmse < best[0]):
+                    best = (rmse, ci, dbic)
+            if best is None:
+                break
+            rmse, ci, dbic = best
+            selected.append(cands[ci])
+            records[ci]['selected'] = True
+            cur_rmse, cur_bic = rmse, cur_bic + dbic
+        coef, se, term, _ = self._fit(selected, table, train)
+        self.transfer_offset_w_ = self._offset
+        # collapse the per-leg candidates into one leg_anomaly entry (the best or selected leg)
+        out: list[dict[str, Any]] = []
+        legs = [records[i] for i, e in enumerate(cands) if e.name == 'leg_anomaly' and
+                i in records]
+        for i, e in enumerate(cands):
+            if i in records and e.name != 'leg_anomaly':
+                out.append(records[i])
+        if legs:
+            chosen = [r for r in legs if r['selected']] or \
+                [min(legs, key=lambda r: r['heldout_rmse'])]
+            out.extend(chosen)
+        for e in cat:
+            if self.transfer_offset and e.name == 'basal_power':
+                off, off_se = self.offset_only_w_
+                out.append({'name': e.name, 'heldout_rmse': None, 'delta_bic': None,
+                            'selected': False, 'params': {'power_w': off},
+                            'stderr': {'power_w': off_se},
+                            'note': 'a constant power cannot be told apart from the '
+                                    'bench-to-robot transfer offset, which the baseline fits; '
+                                    'params give that offset'})
+            elif e not in cands and e.name not in {r['name'] for r in out}:
+                out.append({'name': e.name, 'heldout_rmse': None, 'delta_bic': None,
+                            'selected': False, 'params': {}, 'stderr': {},
+                            'note': 'not applicable to these bags (regressor absent or '
+                                    'constant)'})
+        self.selected_ = selected
+        self.coef_ = coef
+        self.stderr_ = se
+        self.term_w_ = term
+        self.candidates_ = out
+        self.rmse_heldout_before_ = rmse0
+        self.rmse_heldout_after_ = float(np.sqrt(np.mean((y[held] - term[held]) ** 2)))
+        self.final_params_ = self._params(selected, coef, se, table)
+        return self
+
+
+def energy_loop_document(table: WindowTable, sel: EffectSelection,
+                         held: np.ndarray) -> dict[str, Any]:
+    """The ``residuals.json`` document of the energy loop (issue 8 schema, plus extras)."""
+    r0 = table.residual_w
+    r1 = r0 - sel.term_w_
+    added = [e.name for e in sel.selected_]
+    doc: dict[str, Any] = {
+        'model': 'energy', 'unit': 'W',
+        'baseline': _metrics(r0),
+        'candidates': sel.candidates_,
+        'effects_added': added,
+        'final': _metrics(r1),
+        'heldout': {'rmse_before': sel.rmse_heldout_before_,
+                    'rmse_after': sel.rmse_heldout_after_},
+        'windows': {'count': int(r0.size), 'heldout': int(held.sum()),
+                    'kind': 'half gait cycle (0.5 s standing)'},
+        'transfer_offset_w': {'value': sel.transfer_offset_w_[0],
+                              'stderr': sel.transfer_offset_w_[1],
+                              'baseline_value': sel.offset_only_w_[0]},
+        'added_params': [{'name': e.name, 'params': p, 'stderr': s}
+                         for e, (p, s) in zip(sel.selected_, sel.final_params_)],
+    }
+    doc['summary'] = summary_text(doc)
+    return doc
+
+
+def summary_text(doc: dict[str, Any]) -> str:
+    """The plain-words paragraph of a ``residuals.json`` document."""
+    unit = doc['unit']
+    h = doc['heldout']
+    b = doc['baseline']
+    intro = (f"The {doc['model']} model's residual (measured minus model) had RMSE "
+             f"{b['rmse']:.3g} {unit} and bias {b['bias']:+.3g} {unit} before any effect. ")
+    if not doc['effects_added']:
+        return intro + ('No candidate effect lowered the held-out error significantly, so none '
+                        f"was added (held-out RMSE {h['rmse_before']:.3g} {unit}).")
+    parts = []
+    for a in doc.get('added_params', []):
+        ps = ', '.join(f'{k} = {v:.4g} +/- {a["stderr"].get(k, float("nan")):.2g}'
+                       if isinstance(v, float) else f'{k} = {v}'
+                       for k, v in a['params'].items() if k != 'same_stance_as')
+        parts.append(f"{a['name']} ({ps})")
+    return intro + (f"The model missed {' and '.join(parts)}; adding "
+                    f"{'it' if len(parts) == 1 else 'them'} reduced held-out error from "
+                    f"{h['rmse_before']:.3g} to {h['rmse_after']:.3g} {unit}.")
+
+
+def _bench_temperature_c(bench_bags: Sequence[str | Path]) -> float | None:
+    """Median servo temperature during the bench bags' walking sessions [degC]."""
+    from hexapod_common.bags import iter_messages, open_reader
+    from hexapod_common.conversions import servo_status_from_msg, stamp_to_s
+
+    temps: list[float] = []
+    for path in bench_bags:
+        with open_reader(path) as reader:
+            if '/servo_status' not in {c.topic for c in reader.connections}:
+                continue
+            state, sessions = '', []
+            for m in iter_messages(reader, ('/bench/session', '/servo_status')):
+                msg = reader.deserialize(m.data, m.msgtype)
+                if m.topic == '/bench/session':
+                    state = str(msg.state)
+                    sessions.append(stamp_to_s(msg.header.stamp))
+                elif state == 'walking':
+                    temps.extend(float(x) for x in servo_status_from_msg(msg).temperature_c)
+    return float(np.median(temps)) if temps else None
+
+
+def run_energy_loop(bench_bags: Sequence[str | Path], robot_bags: Sequence[str | Path],
+                    out_dir: str | Path | None = None, *, robot_mass_kg: float = 2.183,
+                    payload_kg: float = 0.0, current_sign: str = 'auto',
+                    plots: bool = True) -> dict[str, Any]:
+    """Whole energy loop from bags; writes ``residuals.json`` (and plots) into ``out_dir`` when
+    given and returns the document. Prints nothing."""
+    from hexapod_energy.bag_io import bench_phase_samples, read_bench_bag
+    from hexapod_energy.prediction import RobotSpec
+    from hexapod_energy.single_leg import SingleLegModel
+
+    if not bench_bags:
+        raise InvalidInputError('the energy loop needs --bench BAG (at least one bench bag)')
+    if not robot_bags:
+        raise InvalidInputError('the energy loop needs --robot BAG (at least one robot bag)')
+    samples = []
+    for p in bench_bags:
+        s, _ = bench_phase_samples(read_bench_bag(p), current_sign=current_sign)
+        samples.extend(s)
+    model = SingleLegModel().fit(samples)
+    runs = [read_residual_run(p, current_sign=current_sign) for p in robot_bags]
+    return energy_loop_from_runs(model, runs, out_dir, robot_mass_kg=robot_mass_kg,
+                                 payload_kg=payload_kg,
+                                 temp_ref_c=_bench_temperature_c(bench_bags), plots=plots,
+                                 robot_spec_cls=RobotSpec)
+
+
+def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
+                          out_dir: str | Path | None = None, *, robot_mass_kg: float = 2.183,
+                          payload_kg: float = 0.0, temp_ref_c: float | None = None,
+                          plots: bool = True, robot_spec_cls: Any = None) -> dict[str, Any]:
+    """The loop on a fitted bench model and read robot runs (tests reuse one bench fit)."""
+    from hexapod_energy.prediction import RobotSpec
+
+    spec = (robot_spec_cls or RobotSpec)(mass_kg=robot_mass_kg)
+    for r in runs:
+        r.predicted_w = predict_run_w(r, model, total_mass_kg=spec.total_mass_kg(payload_kg),
+                                      leg_mass_kg=spec.leg_mass_kg)
+    table = build_windows(runs, temp_ref_c=temp_ref_c)
+    held = split_mask(table)
+    sel = EffectSelection().fit(table, held)
+    doc = energy_loop_document(table, sel, held)
+    doc['per_run'] = [{'bag': r.name, 'gait': r.gait,
+                       'period_s': float(np.median(r.period_s)),
+                       'measured_w': float(np.mean(r.power_w)),
+                       'predicted_w': float(np.mean(r.predicted_w)),  # type: ignore[arg-type]
+                       'sample_rmse_w': float(np.sqrt(np.mean((r.power_w - r.predicted_w)**2))),
+                       'stream_lag_s': r.lag_s} for r in runs]
+    if temp_ref_c is not None:
+        doc['temperature_reference_c'] = temp_ref_c
+    if out_dir is not None:
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        doc['plots'] = plot_energy_loop(table, sel, held, runs, out) if plots else []
+        import json
+
+        (out / 'residuals.json').write_text(json.dumps(_jsonable(doc), indent=2) + '\n')
+    return _jsonable(doc)
+
+
+def _jsonable(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if math.isfinite(float(obj)) else None
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, np.ndarray):
+        return _jsonable(obj.tolist())
+    return obj
+
+
+def plot_energy_loop(table: WindowTable, sel: EffectSelection, held: np.ndarray,
+                     runs: Sequence[ResidualRun], out: Path) -> list[str]:
+    """Residual vs time (per sample and per window, before/after) and vs the chosen
+    regressors; returns the PNG names."""
+    import matplotlib
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    names = []
+    r0, r1 = table.residual_w, table.residual_w - sel.term_w_
+    fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=False)
+    for r in runs:
+        assert r.predicted_w is not None
+        axes[0].plot(r.t_s - r.t_s[0], r.power_w - r.predicted_w, lw=0.4, alpha=0.6)
+    axes[0].set_ylabel('residual per sample [W]')
+    axes[0].set_xlabel('time in run [s]')
+    axes[1].plot(np.arange(r0.size), r0, '.', ms=3, label='before')
+    axes[1].plot(np.arange(r1.size), r1, '.', ms=3, label='after')
+    axes[1].plot(np.flatnonzero(held), r0[held], 'x', ms=3, color='k', label='held out')
+    axes[1].set_ylabel('residual per half cycle [W]')
+    axes[1].set_xlabel('window (runs in order)')
+    axes[1].legend()
+    fig.tight_layout()
+    fig.savefig(out / 'residual_time.png', dpi=90)
+    plt.close(fig)
+    names.append('residual_time.png')
+    chosen = sel.selected_ or []
+    if chosen:
+        fig, axes = plt.subplots(1, len(chosen), figsize=(4.5 * len(chosen), 3.8),
+                                 squeeze=False)
+        for ax, e in zip(axes[0], chosen):
+            x = e.columns(table)
+            xv = x[:, 0] if x.shape[1] else table.t_s
+            ax.plot(xv, r0, '.', ms=3, label='before')
+            ax.plot(xv, r1, '.', ms=3, label='after')
+            ax.set_xlabel(f'{e.name} regressor')
+            ax.set_ylabel('residual [W]')
+            ax.legend()
+        fig.tight_layout()
+        fig.savefig(out / 'residual_regressors.png', dpi=90)
+        plt.close(fig)
+        names.append('residual_regressors.png')
+    return names
