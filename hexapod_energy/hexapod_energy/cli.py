@@ -53,6 +53,7 @@ from typing import Any
 
 import numpy as np
 
+from hexapod_energy.descriptors import gait_from_sample
 from hexapod_energy.errors import EnergyError
 
 __all__ = ['add_cli', 'build_parser', 'gait_from_sample', 'main', 'run']
@@ -109,18 +110,6 @@ def build_parser() -> argparse.ArgumentParser:
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     _add_arguments(p)
     return p
-
-
-def gait_from_sample(sample: Any) -> Any:
-    """``GaitPattern`` from a converted ``/gait/phase`` sample."""
-    from hexapod_gait.gait import GAIT_NAMES, GaitPattern
-
-    name = sample.gait if sample.gait in GAIT_NAMES else 'custom'
-    return GaitPattern(
-        name=name, leg_names=tuple(sample.leg_names),
-        phase_offsets=tuple(float(x) % 1.0 for x in sample.phase_offsets),
-        duty_factor=sample.duty_factor, period_s=sample.period_s,
-        step_length_m=sample.step_length_m, step_height_m=sample.step_height_m)
 
 
 def _finite(x: float) -> float | None:

@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -43,6 +44,8 @@ __all__ = [
     'DescriptorAccumulator',
     'Descriptors',
     'descriptors_from_powers',
+    'gait_from_sample',
+    'model_power_out',
     'joint_power_out_w',
     'resolve_current_sign',
 ]
@@ -85,6 +88,44 @@ def descriptors_from_powers(*, power_in_w: float, power_out_w: float, speed_mps:
         cycles=cycles, warnings=warnings)
 
 
+def gait_from_sample(sample: GaitPhaseSample) -> Any:
+    """``hexapod_gait.gait.GaitPattern`` of a converted ``/gait/phase`` sample."""
+    from hexapod_gait.gait import GAIT_NAMES, GaitPattern
+
+    name = sample.gait if sample.gait in GAIT_NAMES else 'custom'
+    return GaitPattern(
+        name=name, leg_names=tuple(sample.leg_names),
+        phase_offsets=tuple(float(x) % 1.0 for x in sample.phase_offsets),
+        duty_factor=sample.duty_factor, period_s=sample.period_s,
+        step_length_m=sample.step_length_m, step_height_m=sample.step_height_m)
+
+
+def model_power_out(output_power: Any, *, robot_mass_kg: float
+                    ) -> Callable[[GaitPhaseSample, float], float]:
+    """``f(gait_sample, mass_kg) -> P_out [W]`` from an
+    :class:`hexapod_energy.prediction.OutputPowerModel` (Eq. 6, positive joint power), for
+    :class:`DescriptorAccumulator` when ``/joint_states`` has no efforts.
+
+    The payload is ``mass_kg - robot_mass_kg``; a standing or clock-driven schedule (period 0)
+    gives 0 W; results are cached per schedule.
+    """
+    cache: dict[tuple[Any, ...], float] = {}
+
+    def power_out_w(gait: GaitPhaseSample, mass_kg: float) -> float:
+        key = (gait.gait, tuple(gait.leg_names), tuple(np.round(gait.phase_offsets, 12)),
+               gait.duty_factor, gait.period_s, gait.step_length_m, gait.step_height_m,
+               mass_kg)
+        if key not in cache:
+            if gait.period_s <= 0 or not gait.leg_names:
+                cache[key] = 0.0
+            else:
+                cache[key] = float(output_power.power_out_w(
+                    gait_from_sample(gait), payload_kg=max(mass_kg - robot_mass_kg, 0.0)))
+        return cache[key]
+
+    return power_out_w
+
+
 def joint_power_out_w(effort_nm: np.ndarray, velocity_rad_s: np.ndarray) -> float:
     """Instantaneous output power of one joint sample, ``sum_i max(tau_i qdot_i, 0)`` [W]."""
     return float(np.sum(np.clip(np.asarray(effort_nm) * np.asarray(velocity_rad_s), 0.0, None)))
@@ -120,7 +161,11 @@ class DescriptorAccumulator:
     auto_samples
         Battery samples used to decide the sign in ``auto`` mode.
     power_out_model
-        Optional ``f(gait_sample, mass_kg) -> W`` used when joint efforts are absent.
+        Optional ``f(gait_sample, mass_kg) -> W`` (e.g. :func:`model_power_out`).
+    power_out_source
+        ``auto`` (joint efforts when the window has any, else the model, else 0), ``effort``
+        (efforts only, 0 without) or ``model`` (the model only; for drivers whose effort is not
+        a torque, such as the AX series' PWM load).
     """
 
     mass_kg: float
@@ -128,6 +173,7 @@ class DescriptorAccumulator:
     current_sign: str = 'ros'
     auto_samples: int = 20
     power_out_model: Callable[[GaitPhaseSample, float], float] | None = None
+    power_out_source: str = 'auto'
     sign_: float | None = field(default=None, init=False)
     sign_note_: str = field(default='', init=False)
     _battery: list[tuple[float, float]] = field(default_factory=list, init=False)
@@ -144,6 +190,9 @@ class DescriptorAccumulator:
             raise ValueError(f'mass_kg must be > 0, got {self.mass_kg}')
         if self.cycles < 1:
             raise ValueError(f'cycles must be >= 1, got {self.cycles}')
+        if self.power_out_source not in ('auto', 'effort', 'model'):
+            raise ValueError('power_out_source must be auto, effort or model, got '
+                             f'{self.power_out_source!r}')
         if self.current_sign != 'auto':
             self.sign_ = resolve_current_sign(np.zeros(1), np.zeros(1), self.current_sign)
 
@@ -231,11 +280,16 @@ class DescriptorAccumulator:
             warnings.append(f'negative mean input power {power_in:.3f} W: check the battery '
                             'current sign convention (parameter current_sign)')
         joint = [j for j in self._joint if t0 <= j[0] < t1]
-        if joint:
+        use_model = self.power_out_source == 'model' or \
+            (self.power_out_source == 'auto' and not joint)
+        if joint and self.power_out_source != 'model':
             power_out = float(np.mean([j[1] for j in joint]))
-        elif self.power_out_model is not None and self._gait is not None:
+        elif use_model and self.power_out_model is not None and self._gait is not None:
             power_out = float(self.power_out_model(self._gait, self.mass_kg))
         else:
+            if self.power_out_source == 'model':
+                warnings.append('power_out_source is model but no model or gait schedule: '
+                                'P_out = 0')
             power_out = 0.0
         speed = self._speed(t0, t1)
         return descriptors_from_powers(power_in_w=power_in, power_out_w=power_out,

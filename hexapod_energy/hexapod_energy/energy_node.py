@@ -1,8 +1,10 @@
 """``energy_monitor``: EnergeticDescriptors over whole gait cycles from the robot's topics.
 
 Subscribes ``/battery_state``, ``/gait/phase``, ``/joint_states`` and ``/mocap/body``; publishes
-``/energy/descriptors`` each time a window of ``cycles`` gait cycles is complete. The science is in
-:mod:`hexapod_energy.descriptors`.
+``/energy/descriptors`` each time a window of ``cycles`` gait cycles is complete. P_out is the mean
+positive joint power (:mod:`hexapod_energy.dynamics`): from joint efforts when present, else from
+the Eq. 6 inverse-dynamics model of the gait on ``/gait/phase`` (``power_out_source``). The science
+is in :mod:`hexapod_energy.descriptors`.
 """
 
 from __future__ import annotations
@@ -24,7 +26,8 @@ from hexapod_common.conversions import (
     s_to_stamp,
 )
 from hexapod_common.node_utils import RELIABLE_QOS, SENSOR_QOS, declare_params, param, run_node
-from hexapod_energy.descriptors import DescriptorAccumulator, Descriptors
+from hexapod_energy.descriptors import DescriptorAccumulator, Descriptors, model_power_out
+from hexapod_energy.prediction import OutputPowerModel, RobotSpec
 
 __all__ = ['EnergyMonitorNode', 'EnergyParams', 'descriptors_to_msg', 'main']
 
@@ -39,6 +42,15 @@ class EnergyParams:
         'auto', 'battery current sign: ros (negative discharging), positive_discharge, auto',
         validate=lambda v: None if v in ('ros', 'positive_discharge', 'auto')
         else 'expected ros, positive_discharge or auto', read_only=True)
+    power_out_source: str = param(
+        'auto', 'P_out from: auto (joint efforts when present, else the Eq. 6 model), effort, '
+        'or model (for drivers whose effort is not a torque, e.g. AX-series PWM load)',
+        validate=lambda v: None if v in ('auto', 'effort', 'model')
+        else 'expected auto, effort or model', read_only=True)
+    robot_mass: float = param(2.183, 'robot mass without payload [kg], for the P_out model '
+                              '(payload = mass - robot_mass)',
+                              validate=lambda v: None if v > 0 else 'must be > 0',
+                              read_only=True)
 
 
 def descriptors_to_msg(d: Descriptors, msg: Any = None) -> EnergeticDescriptors:
@@ -66,8 +78,13 @@ class EnergyMonitorNode(Node):
         super().__init__(node_name, context=context, namespace=namespace or '',
                          parameter_overrides=parameter_overrides or [])
         p = declare_params(self, EnergyParams)
+        model = None
+        if p.power_out_source != 'effort':
+            model = model_power_out(OutputPowerModel(robot=RobotSpec(mass_kg=p.robot_mass)),
+                                    robot_mass_kg=p.robot_mass)
         self.core = DescriptorAccumulator(mass_kg=p.mass, cycles=p.cycles,
-                                          current_sign=p.current_sign)
+                                          current_sign=p.current_sign, power_out_model=model,
+                                          power_out_source=p.power_out_source)
         self.pub = self.create_publisher(EnergeticDescriptors, 'energy/descriptors',
                                          RELIABLE_QOS)
         self.dropped = 0
