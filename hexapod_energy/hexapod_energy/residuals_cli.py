@@ -1,0 +1,175 @@
+"""``hexapod-analyze residuals``: model against measurement, traced effects, before/after.
+
+Usage::
+
+    hexapod-analyze residuals --bench BAG [BAG ...] --robot BAG [BAG ...] --out DIR
+    hexapod-analyze residuals --slip BAG [BAG ...] --out DIR
+
+Energy: the bench bags give the single-leg model, the robot bags the measured ``P_in``
+(``/battery_state``), the gait (``/gait/phase``) and the candidate regressors (``/servo_status``,
+``/joint_states``); the catalogue effects are selected by held-out RMSE and BIC
+(:mod:`hexapod_energy.residuals`). SLIP: every stance of the EduBot bags is fitted with plain
+SLIP, SLIP + leg damping and SLIP + hip torque (:mod:`slip_identification.residuals`).
+
+``residuals.json``::
+
+    {"model": "energy"|"slip", "unit": "W"|"nerr", "baseline": {"rmse", "mae", "bias"},
+     "candidates": [{"name", "heldout_rmse", "delta_bic", "selected", "params", "stderr"}],
+     "effects_added": [names in order], "final": {"rmse", "mae", "bias"},
+     "heldout": {"rmse_before", "rmse_after"}, "summary": "plain words", "plots": [...], ...}
+
+Energy residuals are measured minus predicted ``P_in`` per half gait cycle [W] (``bias`` is
+their mean); SLIP residuals are the per-stance nerr. Exit codes: 0 success, 2 bad input (missing
+topic or session, too little data), 1 other failure.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+__all__ = ['add_cli', 'build_parser', 'main', 'run', 'run_slip_loop']
+
+
+def _add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument('--bench', nargs='+', default=[], metavar='BAG',
+                   help='bench bags (single-leg sessions) for the energy loop')
+    p.add_argument('--robot', nargs='+', default=[], metavar='BAG',
+                   help='robot bags (/battery_state, /gait/phase, /servo_status) for the '
+                        'energy loop; several runs at different step frequencies are best')
+    p.add_argument('--slip', nargs='+', default=[], metavar='BAG',
+                   help='RHex-class bags for the SLIP loop (instead of --bench/--robot)')
+    p.add_argument('--out', required=True, metavar='DIR', help='output folder')
+    p.add_argument('--robot-mass', type=float, default=2.183, metavar='KG',
+                   help='robot mass without payload [kg] (default 2.183, AntBot)')
+    p.add_argument('--robot-payload', type=float, default=0.0, metavar='KG',
+                   help='payload of the robot runs [kg] (default 0)')
+    p.add_argument('--current-sign', choices=('ros', 'positive_discharge', 'auto'),
+                   default='auto', help='battery current sign convention (default auto)')
+    p.add_argument('--no-plots', action='store_true', help='skip the PNG plots')
+
+
+def add_cli(subparsers: Any) -> argparse.ArgumentParser:
+    """Register the ``residuals`` subcommand on ``hexapod-analyze``'s subparsers."""
+    p = subparsers.add_parser(
+        'residuals', help='residual loop: trace model error to named effects, before/after',
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    _add_arguments(p)
+    p.set_defaults(func=_handler)
+    return p
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Stand-alone parser (same options as ``hexapod-analyze residuals``)."""
+    p = argparse.ArgumentParser(prog='hexapod-analyze residuals', description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    _add_arguments(p)
+    return p
+
+
+def run_slip_loop(bags: list[str], out_dir: str | Path | None = None, *,
+                  plots: bool = True) -> dict[str, Any]:
+    """SLIP loop on EduBot bags; writes ``residuals.json`` when ``out_dir`` is given."""
+    from slip_identification.cli import read_run
+    from slip_identification.model import SlipModel
+    from slip_identification.pipeline import analyze_run
+    from slip_identification.residuals import (
+        SLIP_CANDIDATES,
+        SlipExtensionSelection,
+        slip_loop_document,
+    )
+
+    fits: dict[str, list[Any]] = {'slip': [], **{k: [] for k in SLIP_CANDIDATES}}
+    for path in bags:
+        data = read_run(path)
+        per: dict[str, dict[str, Any]] = {}
+        for name, ext in [('slip', ())] + list(SLIP_CANDIDATES.items()):
+            res = analyze_run(data, model=SlipModel(extensions=ext), position_fit=False)
+            per[name] = {r.label: r for r in res.fits}
+        common = [k for k in per['slip'] if all(k in per[n] for n in per)]
+        for name in fits:
+            fits[name].extend(per[name][k] for k in common)
+    doc = slip_loop_document(SlipExtensionSelection().fit(fits))
+    doc['bags'] = list(bags)
+    if out_dir is not None:
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        doc['plots'] = []
+        if plots:
+            doc['plots'] = _plot_slip(fits, doc, out)
+        (out / 'residuals.json').write_text(json.dumps(doc, indent=2) + '\n')
+    return doc
+
+
+def _plot_slip(fits: dict[str, list[Any]], doc: dict[str, Any], out: Path) -> list[str]:
+    import matplotlib
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    fig, ax = plt.subplots(figsize=(8, 4))
+    t = np.array([r.touchdown_s for r in fits['slip']])
+    for name, res in fits.items():
+        ax.plot(t, [r.nerr for r in res], '.-' if name in doc['effects_added'] or name == 'slip'
+                else '.', ms=4, lw=0.6, label=name)
+    ax.set_xlabel('touchdown [s]')
+    ax.set_ylabel('nerr per stance')
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(out / 'residual_slip_nerr.png', dpi=90)
+    plt.close(fig)
+    return ['residual_slip_nerr.png']
+
+
+def run(args: argparse.Namespace) -> dict[str, Any]:
+    """Carry out the analysis chosen by the options; returns the written document."""
+    from hexapod_energy.errors import InvalidInputError
+    from hexapod_energy.residuals import run_energy_loop
+
+    if args.slip:
+        if args.bench or args.robot:
+            raise InvalidInputError('give either --slip BAG... or --bench/--robot BAG..., '
+                                    'not both')
+        return run_slip_loop(list(args.slip), args.out, plots=not args.no_plots)
+    if not args.bench or not args.robot:
+        raise InvalidInputError('the energy loop needs both --bench BAG... and --robot BAG... '
+                                '(or use --slip BAG...)')
+    return run_energy_loop(args.bench, args.robot, args.out, robot_mass_kg=args.robot_mass,
+                           payload_kg=args.robot_payload, current_sign=args.current_sign,
+                           plots=not args.no_plots)
+
+
+def _handler(args: argparse.Namespace) -> int:
+    from hexapod_common.errors import HexapodError
+    from hexapod_energy.errors import EnergyError
+
+    try:
+        from slip_identification.errors import SlipError as _SlipError
+    except ImportError:  # pragma: no cover
+        _SlipError = EnergyError  # type: ignore[misc,assignment]
+    try:
+        doc = run(args)
+    except (EnergyError, _SlipError, HexapodError, ValueError, OSError) as err:
+        print(f'hexapod-analyze residuals: error: {err}', file=sys.stderr)
+        return 2
+    except Exception as err:  # noqa: BLE001 - one line for the user, not a traceback
+        print(f'hexapod-analyze residuals: failed: {type(err).__name__}: {err}',
+              file=sys.stderr)
+        return 1
+    print(doc.get('summary', ''))
+    print(f'wrote {Path(args.out) / "residuals.json"}')
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Stand-alone entry (``python -m hexapod_energy.residuals_cli``)."""
+    args = build_parser().parse_args(argv)
+    return _handler(args)
+
+
+if __name__ == '__main__':  # pragma: no cover
+    sys.exit(main())
