@@ -29,12 +29,14 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import struct
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from hexapod_bench_drivers import sim_cdr as cdr
 from hexapod_bench_drivers.edubot_sim import (
     EDUBOT_EFFECTS,
     EdubotParams,
@@ -65,81 +67,154 @@ def effects_json(effects: Mapping[str, float]) -> str:
                       sort_keys=True)
 
 
-def _stamp(types: Any, t_ns: int) -> Any:
-    return types['builtin_interfaces/msg/Time'](sec=int(t_ns // 1_000_000_000),
-                                                nanosec=int(t_ns % 1_000_000_000))
+_STAMP = struct.Struct('<iI')
+_F32 = struct.Struct('<f')
+_F64 = struct.Struct('<d')
+_POSE = struct.Struct('<7d')
+
+
+def _patch_stamp(buf: bytearray, t_ns: int) -> None:
+    _STAMP.pack_into(buf, 4, int(t_ns // 1_000_000_000), int(t_ns % 1_000_000_000))
+
+
+class _BatteryTemplate:
+    """sensor_msgs/msg/BatteryState of the EduBot's 4S LiPo, encoded once and patched.
+
+    Discharging, health good, LiPo, present, design capacity 1.32 Ah, four cell voltages of
+    ``voltage_v / 4``, location ``edubot``; unknown fields NaN.
+    """
+
+    def __init__(self) -> None:
+        nan = math.nan
+        b = cdr.CdrBuffer()
+        b.header(0, '')
+        b.align(4)
+        self.off_v = 4 + b.pos
+        b.pack('fffffff', 4, 0.0, nan, 0.0, nan, nan, 1.32, nan)
+        b.pack('BBB?', 1, 2, 1, 3, True)     # DISCHARGING, GOOD, LIPO, present
+        b.pack('I', 4, 4)
+        self.off_cells = 4 + b.pos
+        b.raw(bytes(16))
+        b.array((), 'f4')
+        b.string('edubot')
+        b.string('')
+        self.buf = bytearray(b.bytes())
+
+    def encode(self, t_ns: int, voltage_v: float, current_a: float) -> bytes:
+        buf = bytearray(self.buf)
+        _patch_stamp(buf, t_ns)
+        _F32.pack_into(buf, self.off_v, voltage_v)
+        _F32.pack_into(buf, self.off_v + 8, current_a)
+        buf[self.off_cells:self.off_cells + 16] = np.full(
+            4, voltage_v / 4, dtype='<f4').tobytes()
+        return bytes(buf)
+
+
+class _GaitPhaseTemplate:
+    """hexapod_interfaces/msg/GaitPhase of one Buehler clock, encoded once and patched.
+
+    The layout is fixed for a clock (strings and array lengths do not change), so only the
+    stamp, ``cycle_phase``, ``in_stance`` and ``supporting_legs`` are written per message.
+    """
+
+    def __init__(self, clock: Any, leg_names: list[str], offsets: np.ndarray) -> None:
+        b = cdr.CdrBuffer()
+        b.header(0, '')
+        b.string('buehler')
+        b.pack('dddddd', 8, float(clock.period_s), float(clock.duty_factor), 0.0, 0.0,
+               float(clock.sweep_angle_rad), float(clock.leg_offset_rad))
+        b.align(8)
+        self.off_phase = 4 + b.pos
+        b.pack('d', 8, 0.0)
+        b.strings(leg_names)
+        b.array(offsets, 'f8')
+        b.pack('I', 4, len(leg_names))
+        self.off_stance = 4 + b.pos
+        self.n = len(leg_names)
+        b.raw(bytes(self.n))
+        self.off_support = 4 + b.pos
+        b.pack('B', 1, 0)
+        self.buf = bytearray(b.bytes())
+
+    def encode(self, t_ns: int, cycle_phase: float, in_stance: np.ndarray,
+               supporting: int) -> bytes:
+        buf = bytearray(self.buf)
+        _patch_stamp(buf, t_ns)
+        _F64.pack_into(buf, self.off_phase, cycle_phase)
+        buf[self.off_stance:self.off_stance + self.n] = \
+            np.asarray(in_stance, dtype=bool).view(np.uint8).tobytes()
+        buf[self.off_support] = supporting
+        return bytes(buf)
+
+
+class _PoseTemplate:
+    """geometry_msgs/msg/PoseStamped in one frame, encoded once and patched."""
+
+    def __init__(self, frame_id: str) -> None:
+        b = cdr.CdrBuffer()
+        b.header(0, frame_id)
+        b.align(8)
+        self.off = 4 + b.pos
+        b.raw(bytes(56))
+        self.buf = bytearray(b.bytes())
+
+    def encode(self, t_ns: int, position_m: np.ndarray, quat_xyzw: np.ndarray) -> bytes:
+        buf = bytearray(self.buf)
+        _patch_stamp(buf, t_ns)
+        _POSE.pack_into(buf, self.off, *position_m.tolist(), *quat_xyzw.tolist())
+        return bytes(buf)
 
 
 def write_run(path: str | Path, run: EdubotRun, *, storage: str = 'mcap') -> Path:
-    """Write an already simulated run into a new bag at ``path``; returns the path."""
+    """Write an already simulated run into a new bag at ``path``; returns the path.
+
+    Messages are encoded by the fast CDR encoders of :mod:`sim_cdr` and the templates above, which
+    write the bytes rosbags' serializer writes (checked in ``test_edubot_bag.py``).
+    """
     from hexapod_common.bags import BagWriter
 
     path = Path(path)
     names = [f'{leg}_hip' for leg in run.leg_names]
     clock = run.clock
+    js_t, bat_t = 'sensor_msgs/msg/JointState', 'sensor_msgs/msg/BatteryState'
+    phase_t, pose_t = 'hexapod_interfaces/msg/GaitPhase', 'geometry_msgs/msg/PoseStamped'
     with BagWriter(path, storage=storage) as w:
-        types = w.types.types
-        header_t = types['std_msgs/msg/Header']
-        joint_t = types['sensor_msgs/msg/JointState']
-        batt_t = types['sensor_msgs/msg/BatteryState']
-        pose_t = types['geometry_msgs/msg/PoseStamped']
-        posep_t = types['geometry_msgs/msg/Pose']
-        point_t = types['geometry_msgs/msg/Point']
-        quat_t = types['geometry_msgs/msg/Quaternion']
-        phase_t = types['hexapod_interfaces/msg/GaitPhase']
         w.set_custom_data(EFFECTS_KEY, effects_json(run.effects))
         w.set_custom_data(TRUTH_KEY, json.dumps(run.truth, sort_keys=True))
-        empty = np.zeros(0)
         slow_l = clock.in_slow_phase(run.t_s, 'left') if hasattr(clock, 'in_slow_phase') \
             else np.zeros(run.t_s.shape, dtype=bool)
         slow_r = clock.in_slow_phase(run.t_s, 'right') if hasattr(clock, 'in_slow_phase') \
             else np.zeros(run.t_s.shape, dtype=bool)
         left_leg = np.array([leg in ('L1', 'R2', 'L3') for leg in run.leg_names])
         offsets = np.where(left_leg, 0.0, 0.5)
-        proprio = sorted(
+        in_stance = np.where(left_leg[None, :], slow_l[:, None], slow_r[:, None])
+        supporting = in_stance.sum(axis=1)
+        period = float(clock.period_s)
+        legs = list(run.leg_names)
+        pos, vel, eff = run.hip_position_rad, run.hip_velocity_rad_s, run.hip_effort_nm
+        tpos, tvel = run.target_position_rad, run.target_velocity_rad_s
+        volt, cur = run.battery_voltage_v, run.battery_current_a
+        m_pos, m_quat = run.mocap_position_m, run.mocap_quat_xyzw
+        battery = _BatteryTemplate()
+        phase = _GaitPhaseTemplate(clock, legs, offsets)
+        pose = _PoseTemplate('mocap')
+        cycle = (run.t_s / period) % 1.0
+        events = sorted(
             [(int(round(t * 1e9)), k, 'p') for k, t in enumerate(run.t_s)]
             + [(int(round(t * 1e9)), k, 'm') for k, t in enumerate(run.mocap_t_s) if t >= 0])
-        for t_ns, k, kind in proprio:
-            stamp = _stamp(types, t_ns)
+        for t_ns, k, kind in events:
             if kind == 'm':
-                pos = run.mocap_position_m[k]
-                q = run.mocap_quat_xyzw[k]
-                msg = pose_t(header=header_t(stamp=stamp, frame_id='mocap'),
-                             pose=posep_t(position=point_t(x=float(pos[0]), y=float(pos[1]),
-                                                           z=float(pos[2])),
-                                          orientation=quat_t(x=float(q[0]), y=float(q[1]),
-                                                             z=float(q[2]), w=float(q[3]))))
-                w.write('/mocap/body', 'geometry_msgs/msg/PoseStamped', msg, t_ns)
+                w.write('/mocap/body', pose_t,
+                        pose.encode(t_ns, m_pos[k], m_quat[k]), t_ns)
                 continue
-            hdr = header_t(stamp=stamp, frame_id='')
-            w.write('/joint_states', 'sensor_msgs/msg/JointState', joint_t(
-                header=hdr, name=names, position=run.hip_position_rad[k].copy(),
-                velocity=run.hip_velocity_rad_s[k].copy(),
-                effort=run.hip_effort_nm[k].copy()), t_ns)
-            w.write('/joint_commands', 'sensor_msgs/msg/JointState', joint_t(
-                header=hdr, name=names, position=run.target_position_rad[k].copy(),
-                velocity=run.target_velocity_rad_s[k].copy(), effort=empty), t_ns)
-            in_stance = np.where(left_leg, slow_l[k], slow_r[k])
-            w.write('/gait/phase', 'hexapod_interfaces/msg/GaitPhase', phase_t(
-                header=hdr, gait='buehler', period=float(clock.period_s),
-                duty_factor=float(clock.duty_factor), step_length=0.0, step_height=0.0,
-                sweep_angle=float(clock.sweep_angle_rad),
-                leg_offset=float(clock.leg_offset_rad),
-                cycle_phase=float((run.t_s[k] / clock.period_s) % 1.0),
-                leg_names=list(run.leg_names), phase_offsets=offsets,
-                in_stance=in_stance.astype(bool),
-                supporting_legs=int(in_stance.sum())), t_ns)
-            w.write('/battery_state', 'sensor_msgs/msg/BatteryState', batt_t(
-                header=hdr, voltage=float(run.battery_voltage_v[k]), temperature=math.nan,
-                current=float(run.battery_current_a[k]), charge=math.nan, capacity=math.nan,
-                design_capacity=1.32, percentage=math.nan,
-                power_supply_status=2,         # DISCHARGING
-                power_supply_health=1,         # GOOD
-                power_supply_technology=3,     # LIPO
-                present=True, cell_voltage=np.full(4, float(run.battery_voltage_v[k]) / 4,
-                                                   dtype=np.float32),
-                cell_temperature=np.zeros(0, dtype=np.float32), location='edubot',
-                serial_number=''), t_ns)
+            w.write('/joint_states', js_t,
+                    cdr.joint_state(t_ns, names, pos[k], vel[k], eff[k]), t_ns)
+            w.write('/joint_commands', js_t,
+                    cdr.joint_state(t_ns, names, tpos[k], tvel[k], ()), t_ns)
+            w.write('/gait/phase', phase_t, phase.encode(
+                t_ns, float(cycle[k]), in_stance[k], int(supporting[k])), t_ns)
+            w.write('/battery_state', bat_t,
+                    battery.encode(t_ns, float(volt[k]), float(cur[k])), t_ns)
     return path
 
 
