@@ -226,11 +226,12 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 [r['speed'] for r in runs], meas, pred, out / 'prediction')]
 
         if args.sweep:
-            _sweep(doc, model, opm, out, bar)
+            _sweep(doc, model, opm, out, bar, args.load_offset)
         if args.recommend:
             from hexapod_energy.recommend import recommend_gait
 
-            rec = recommend_gait(model, opm, speed_mps=args.speed, payload_kg=args.payload)
+            rec = recommend_gait(model, opm, speed_mps=args.speed, payload_kg=args.payload,
+                                 load_offset_kg=args.load_offset)
             doc['recommendation'] = rec.to_dict()
             bar.update(1)
     finally:
@@ -239,13 +240,14 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     return doc
 
 
-def _sweep(doc: dict[str, Any], model: Any, opm: Any, out: Path, bar: Any) -> None:
+def _sweep(doc: dict[str, Any], model: Any, opm: Any, out: Path, bar: Any,
+           load_offset_kg: float = 0.0) -> None:
     from hexapod_gait.gait import make_gait
 
     from hexapod_energy.plots import four_quadrant_plot, power_map_plot
     from hexapod_energy.sweeps import STANDARD_SWEEPS, run_standard_sweeps
 
-    curves = run_standard_sweeps(model, opm, progress=bar)
+    curves = run_standard_sweeps(model, opm, progress=bar, load_offset_kg=load_offset_kg)
     doc['sweeps'] = {k: [c.to_dict() for c in v] for k, v in curves.items()}
     titles = {'duty_factor': 'Fig. 3A duty factor', 'step_length': 'Fig. 3B step length',
               'gait_type': 'Fig. 3C gait type', 'leg_count': 'Fig. 3D leg count'}

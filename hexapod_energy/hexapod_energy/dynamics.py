@@ -92,7 +92,8 @@ class LegSpec:
     @classmethod
     def from_dh(cls, dh: Any) -> LegSpec:
         """Build from any object with ``a_m, alpha_rad, d_m`` (and optionally
-        ``theta_offset_rad``, ``link_masses_kg``), e.g. ``hexapod_gait.kinematics.DHParameters``."""
+        ``theta_offset_rad``, ``link_masses_kg``), e.g.
+        ``hexapod_gait.kinematics.DHParameters``."""
         kw: dict[str, Any] = {
             'a_m': tuple(float(x) for x in dh.a_m),
             'alpha_rad': tuple(float(x) for x in dh.alpha_rad),

@@ -65,7 +65,7 @@ class Recommendation:
 def _evaluate(
     name: str, legs: int, beta: float, step_m: float, speed: float, payload: float,
     phase_power: PhasePowerModel, output_power: OutputPowerModel, limits: Any,
-    min_supporting_legs: int,
+    min_supporting_legs: int, load_offset_kg: float = 0.0,
 ) -> Candidate | None:
     from hexapod_gait.feasibility import check_feasible
     from hexapod_gait.gait import make_gait
@@ -79,7 +79,8 @@ def _evaluate(
             return None
         total = output_power.robot.mass_kg + payload
         p_in = float(predict_power_in_w(phase_power, gait, total_mass_kg=total,
-                                        leg_mass_kg=output_power.robot.leg_mass_kg))
+                                        leg_mass_kg=output_power.robot.leg_mass_kg,
+                                        load_offset_kg=load_offset_kg))
         p_out = float(output_power.power_out_w(gait, payload_kg=payload))
     except ValueError:  # infeasible, invalid gait or unreachable path: not a candidate
         return None
@@ -99,6 +100,7 @@ def recommend_gait(
     step_lengths_m: Sequence[float] = tuple(np.round(np.arange(0.06, 0.141, 0.01), 3)),
     limits: Any | None = None,
     min_supporting_legs: int = 3,
+    load_offset_kg: float = 0.0,
 ) -> Recommendation:
     """The configuration minimising CoT/M at ``speed_mps`` with ``payload_kg``.
 
@@ -121,7 +123,8 @@ def recommend_gait(
         for beta in duty_factors:
             for step in step_lengths_m:
                 cand = _evaluate(name, leg_count, float(beta), float(step), speed_mps,
-                                 payload_kg, phase_power, output_power, lim, min_sup)
+                                 payload_kg, phase_power, output_power, lim, min_sup,
+                                 load_offset_kg)
                 if cand is None:
                     rejected += 1
                     continue
@@ -135,7 +138,7 @@ def recommend_gait(
             f'({rejected} configurations rejected)'
         )
     default = _evaluate('alternating', leg_count, 0.5, 0.10, speed_mps, payload_kg,
-                        phase_power, output_power, lim, min_sup)
+                        phase_power, output_power, lim, min_sup, load_offset_kg)
     saving = None if default is None else \
         1.0 - best.specific_cost_of_transport / default.specific_cost_of_transport
     return Recommendation(speed_mps, payload_kg, best, default, saving, evaluated, rejected)

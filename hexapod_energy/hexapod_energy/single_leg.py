@@ -151,7 +151,8 @@ def stance_mask(
     fz = np.asarray(force_z_n, float)
     z = np.asarray(tip_z_m, float)
     if fz.shape != z.shape:
-        raise InvalidInputError(f'force and tip must have the same shape, got {fz.shape}, {z.shape}')
+        raise InvalidInputError(
+            f'force and tip must have the same shape, got {fz.shape}, {z.shape}')
     if force_threshold_n is None:
         lo, hi = np.percentile(fz, [5, 95])
         force_threshold_n = lo + 0.5 * (hi - lo)
@@ -378,7 +379,8 @@ class PolySurface:
         return self._design(xq) @ self.coef_
 
     def to_dict(self) -> dict[str, Any]:
-        return {'kind': 'poly' if self.degree == 2 else 'poly3', 'coef': [float(c) for c in getattr(self, 'coef_', [])]}
+        return {'kind': 'poly' if self.degree == 2 else 'poly3',
+                'coef': [float(c) for c in getattr(self, 'coef_', [])]}
 
 
 def cross_validated_rmse(

@@ -140,8 +140,12 @@ def sweep_curve(
     n_speeds: int = 40,
     limits: Any | None = None,
     min_speed_mps: float = MIN_SPEED_MPS,
+    load_offset_kg: float = 0.0,
 ) -> SweepCurve:
-    """Evaluate one configuration over speeds up to its maximum and over payloads."""
+    """Evaluate one configuration over speeds up to its maximum and over payloads.
+
+    ``load_offset_kg`` is passed to :func:`predict_power_in_w` (bench load = m_c - offset).
+    """
     from hexapod_gait.feasibility import ANTBOT_LIMITS, max_speed_mps
     from hexapod_gait.gait import make_gait
 
@@ -165,7 +169,8 @@ def sweep_curve(
         [
             np.asarray(predict_power_in_w(phase_power, gait, total_mass_kg=float(m),
                                           leg_mass_kg=output_power.robot.leg_mass_kg,
-                                          periods_s=periods))
+                                          periods_s=periods,
+                                          load_offset_kg=load_offset_kg))
             for m in mass
         ],
         axis=1,
@@ -187,6 +192,7 @@ def run_standard_sweeps(
     payloads_kg: Sequence[float] = DEFAULT_PAYLOADS_KG,
     n_speeds: int = 40,
     progress: Any | None = None,
+    load_offset_kg: float = 0.0,
 ) -> dict[str, list[SweepCurve]]:
     """All four standard sweeps (or ``sweeps``); ``progress`` is an optional tqdm-like bar
     advanced once per curve."""
@@ -197,7 +203,7 @@ def run_standard_sweeps(
         for spec in specs:
             out[name].append(
                 sweep_curve(spec, phase_power, output_power, payloads_kg=payloads_kg,
-                            n_speeds=n_speeds)
+                            n_speeds=n_speeds, load_offset_kg=load_offset_kg)
             )
             if progress is not None:
                 progress.update(1)
