@@ -37,6 +37,9 @@ plots, PNG + SVG) and the Fig. 7D power map; ``--recommend`` -> minimum-CoT/M ga
       "plots": [relative paths]
     }
 
+``power_out_w`` everywhere is the mean *positive* joint power (servos do not regenerate; see
+:mod:`hexapod_energy.dynamics`), the definition the ``energy_monitor`` node uses too.
+
 Exit codes: 0 success, 2 bad input (missing topic, bad option), 1 other failure.
 """
 
