@@ -1,0 +1,178 @@
+"""Energy residual loop (issue 8) on simulated bench and robot bags, the analysis not told the
+effects: each effect is selected first, held-out RMSE at least halves, its parameter is within
+20 %; two effects are both found; clean data adds nothing; bad input names what is missing."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hexapod_bench_drivers.bench_sim import BenchPlan, simulate_bench
+from hexapod_bench_drivers.effects import parse_effects
+from hexapod_bench_drivers.robot_sim import RobotConfig, simulate_robot
+from hexapod_bench_drivers.sim_bag import write_trace
+from hexapod_energy import residuals as R
+from hexapod_energy.bag_io import bench_phase_samples, read_bench_bag
+from hexapod_energy.errors import BagContentError
+from hexapod_energy.residuals_cli import add_cli
+from hexapod_energy.single_leg import SingleLegModel
+
+PERIODS_S = (1.0, 0.7, 0.5)       # three tripod runs: 1, 1.43, 2 Hz
+RUN_S = 10.0
+
+
+@pytest.fixture(scope='module')
+def bench(tmp_path_factory):
+    """One clean bench bag and its single-leg fit, shared by every test."""
+    path = tmp_path_factory.mktemp('bench') / 'bench'
+    plan = BenchPlan(loads_kg=(0.0, 0.187, 0.4, 0.6),
+                     frequencies_hz=(0.0, 0.75, 1.25, 1.75, 2.25), walk_s=4.0)
+    write_trace(simulate_bench(plan, seed=1), path)
+    samples, _ = bench_phase_samples(read_bench_bag(path))
+    return {'path': path, 'model': SingleLegModel().fit(samples),
+            'temp_ref_c': R._bench_temperature_c([path])}
+
+
+def robot_bags(root: Path, effects: list[str], *, temps=(26.0, 26.0, 26.0),
+               run_s: float = RUN_S) -> list[Path]:
+    root.mkdir(parents=True, exist_ok=True)
+    out = []
+    for i, period in enumerate(PERIODS_S):
+        path = root / f'run{i}'
+        cfg = RobotConfig(period_s=period, initial_temperature_c=temps[i])
+        write_trace(simulate_robot(run_s, cfg, effects=parse_effects(effects), seed=10 + i),
+                    path)
+        out.append(path)
+    return out
+
+
+def loop(bench, bags) -> dict:
+    runs = [R.read_residual_run(p) for p in bags]
+    return R.energy_loop_from_runs(bench['model'], runs, None, temp_ref_c=bench['temp_ref_c'])
+
+
+def added(doc: dict, name: str) -> dict:
+    return next(a for a in doc['added_params'] if a['name'] == name)
+
+
+@pytest.fixture(scope='module')
+def clean(bench, tmp_path_factory):
+    return loop(bench, robot_bags(tmp_path_factory.mktemp('clean'), []))
+
+
+CASES = [
+    # effect on the robot, name, parameter, true value, initial servo temperatures
+    (['kinematic_error=3'], 'kinematic_error', 'w_per_hz', 3.0, (26.0, 26.0, 26.0)),
+    (['supply_resistance=0.3'], 'supply_resistance', 'resistance_ohm', 0.3, (26.0, 26.0, 26.0)),
+    (['speed_friction=15'], 'speed_friction', 'c_n_s_per_m', 15.0, (26.0, 26.0, 26.0)),
+    (['leg_anomaly=L2:2'], 'leg_anomaly', 'power_w', 2.0, (26.0, 26.0, 26.0)),
+    (['thermal_drift=0.05'], 'thermal_drift', 'w_per_k', 0.05, (50.0, 26.0, 38.0)),
+]
+
+
+@pytest.mark.parametrize('effects,name,param,true,temps', CASES,
+                         ids=[c[1] for c in CASES])
+def test_each_effect_is_found_first_and_recovered(bench, tmp_path, effects, name, param, true,
+                                                   temps):
+    doc = loop(bench, robot_bags(tmp_path, effects, temps=temps))
+    assert doc['effects_added'][0] == name, doc['summary']
+    h = doc['heldout']
+    assert h['rmse_after'] <= 0.5 * h['rmse_before']
+    got = added(doc, name)['params'][param]
+    np.testing.assert_allclose(got, true, rtol=0.2)
+    if name == 'leg_anomaly':
+        p = added(doc, name)['params']
+        assert {p['leg'], *p['same_stance_as']} == {'L2', 'R1', 'R3'}   # L2's tripod
+
+
+def test_two_effects_are_both_found(bench, tmp_path):
+    doc = loop(bench, robot_bags(tmp_path, ['kinematic_error=3', 'leg_anomaly=L2:2']))
+    assert set(doc['effects_added']) == {'kinematic_error', 'leg_anomaly'}
+    np.testing.assert_allclose(added(doc, 'kinematic_error')['params']['w_per_hz'], 3.0,
+                               rtol=0.2)
+    np.testing.assert_allclose(added(doc, 'leg_anomaly')['params']['power_w'], 2.0, rtol=0.2)
+
+
+def test_clean_data_adds_nothing(clean):
+    assert clean['effects_added'] == []
+    h = clean['heldout']
+    assert abs(h['rmse_after'] - h['rmse_before']) <= 0.05 * h['rmse_before']
+    assert 'none was added' in clean['summary']
+    # the bench-derived prediction over-predicts this robot: reported, not hidden
+    assert clean['baseline']['bias'] < 0.0
+
+
+def test_basal_power_shows_as_the_transfer_offset(bench, clean, tmp_path):
+    """A constant power cannot be told from the bench-to-robot offset: it is not attributed to
+    another effect, and the fitted offset moves by the simulated watts."""
+    doc = loop(bench, robot_bags(tmp_path, ['basal_power=3']))
+    assert doc['effects_added'] == []
+    shift = doc['transfer_offset_w']['value'] - clean['transfer_offset_w']['value']
+    np.testing.assert_allclose(shift, 3.0, rtol=0.05)
+
+
+def test_time_offset_moves_the_stream_lag(bench, clean, tmp_path):
+    doc = loop(bench, robot_bags(tmp_path, ['time_offset=0.05']))
+    assert doc['effects_added'] == []
+    lag = np.median([r['stream_lag_s'] for r in doc['per_run']])
+    lag0 = np.median([r['stream_lag_s'] for r in clean['per_run']])
+    np.testing.assert_allclose(lag - lag0, 0.05, atol=0.005)
+
+
+def _cli(argv):
+    ap = argparse.ArgumentParser()
+    sub = ap.add_subparsers(dest='command', required=True)
+    add_cli(sub)
+    args = ap.parse_args(argv)
+    return args.func(args)
+
+
+def test_cli_writes_the_schema_and_plots(bench, tmp_path, capsys):
+    bags = robot_bags(tmp_path / 'r', ['supply_resistance=0.3'])
+    out = tmp_path / 'out'
+    code = _cli(['residuals', '--bench', str(bench['path']), '--robot', *map(str, bags),
+                 '--out', str(out)])
+    assert code == 0
+    doc = json.loads((out / 'residuals.json').read_text())
+    assert doc['model'] == 'energy' and doc['unit'] == 'W'
+    for part in ('baseline', 'final'):
+        assert set(doc[part]) == {'rmse', 'mae', 'bias'}
+    assert set(doc['heldout']) == {'rmse_before', 'rmse_after'}
+    for c in doc['candidates']:
+        assert {'name', 'heldout_rmse', 'delta_bic', 'selected', 'params', 'stderr'} <= set(c)
+    names = {c['name'] for c in doc['candidates']}
+    assert names == {'basal_power', 'thermal_drift', 'kinematic_error', 'supply_resistance',
+                     'speed_friction', 'leg_anomaly', 'time_offset'}
+    assert doc['effects_added'][0] == 'supply_resistance'
+    assert 'reduced held-out error from' in doc['summary']
+    for p in doc['plots']:
+        assert (out / p).stat().st_size > 1000
+    assert 'residual_regressors.png' in doc['plots']
+    assert 'supply_resistance' in capsys.readouterr().out
+
+
+def test_bad_input_names_what_is_missing(bench, tmp_path, capsys):
+    from hexapod_common.bags import BagWriter, new_msg, stamp
+
+    robot = robot_bags(tmp_path / 'r', [], run_s=3.0)
+    # a robot bag used as a bench bag: no sessions
+    with pytest.raises(BagContentError, match='/bench/session'):
+        R.run_energy_loop([robot[0]], robot, None)
+    # a robot bag without /battery_state
+    nobat = tmp_path / 'nobat'
+    with BagWriter(nobat) as w:
+        w.write('/servo_status', 'hexapod_interfaces/msg/ServoStatus', new_msg(
+            'hexapod_interfaces/msg/ServoStatus', header=stamp(1_000_000_000)), 1_000_000_000)
+    with pytest.raises(BagContentError, match='/battery_state'):
+        R.read_residual_run(nobat)
+    # 3 s runs: too little to split
+    with pytest.raises(R.ResidualDataError, match='too little'):
+        loop(bench, robot)
+    code = _cli(['residuals', '--bench', str(bench['path']), '--robot', str(nobat),
+                 '--out', str(tmp_path / 'o')])
+    assert code == 2
+    assert '/battery_state' in capsys.readouterr().err
