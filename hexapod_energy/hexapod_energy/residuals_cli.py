@@ -28,6 +28,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -49,6 +50,8 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
                    help='payload of the robot runs [kg] (default 0)')
     p.add_argument('--current-sign', choices=('ros', 'positive_discharge', 'auto'),
                    default='auto', help='battery current sign convention (default auto)')
+    p.add_argument('--box', type=float, nargs=6, metavar=('X0', 'Y0', 'Z0', 'X1', 'Y1', 'Z1'),
+                   help='--slip: permissible box in the mocap frame [m] (default 2 x 1 x 1 m)')
     p.add_argument('--no-plots', action='store_true', help='skip the PNG plots')
 
 
@@ -71,11 +74,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def run_slip_loop(bags: list[str], out_dir: str | Path | None = None, *,
-                  plots: bool = True) -> dict[str, Any]:
+                  plots: bool = True, box: Sequence[float] | None = None) -> dict[str, Any]:
     """SLIP loop on EduBot bags; writes ``residuals.json`` when ``out_dir`` is given."""
     from slip_identification.cli import read_run
     from slip_identification.model import SlipModel
     from slip_identification.pipeline import analyze_run
+    from slip_identification.preprocess import Box
     from slip_identification.residuals import (
         SLIP_CANDIDATES,
         SlipExtensionSelection,
@@ -83,11 +87,13 @@ def run_slip_loop(bags: list[str], out_dir: str | Path | None = None, *,
     )
 
     fits: dict[str, list[Any]] = {'slip': [], **{k: [] for k in SLIP_CANDIDATES}}
+    region = Box(tuple(box[:3]), tuple(box[3:])) if box else Box()  # type: ignore[arg-type]
     for path in bags:
         data = read_run(path)
         per: dict[str, dict[str, Any]] = {}
         for name, ext in [('slip', ())] + list(SLIP_CANDIDATES.items()):
-            res = analyze_run(data, model=SlipModel(extensions=ext), position_fit=False)
+            res = analyze_run(data, model=SlipModel(extensions=ext), box=region,
+                              position_fit=False)
             per[name] = {r.label: r for r in res.fits}
         common = [k for k in per['slip'] if all(k in per[n] for n in per)]
         for name in fits:
@@ -134,7 +140,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         if args.bench or args.robot:
             raise InvalidInputError('give either --slip BAG... or --bench/--robot BAG..., '
                                     'not both')
-        return run_slip_loop(list(args.slip), args.out, plots=not args.no_plots)
+        return run_slip_loop(list(args.slip), args.out, plots=not args.no_plots, box=args.box)
     if not args.bench or not args.robot:
         raise InvalidInputError('the energy loop needs both --bench BAG... and --robot BAG... '
                                 '(or use --slip BAG...)')

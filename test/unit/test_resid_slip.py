@@ -1,0 +1,82 @@
+"""SLIP residual loop (issue 8): stances simulated with leg damping, or with hip torque, select
+that extension and lower the held-out nerr; pure SLIP stances select nothing."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import numpy as np
+import pytest
+
+from slip_identification.errors import SlipDataError
+from slip_identification.model import SlipModel
+from slip_identification.residuals import (
+    SlipExtensionSelection,
+    fit_slip_candidates,
+    slip_loop_document,
+)
+from slip_identification.synthetic import make_stance
+
+
+def stances(ext: str | None, value: float, n: int = 9, seed: int = 0):
+    """Stances through 120 Hz motion capture with 0.2 mm noise (the paper's preprocessing)."""
+    rng = np.random.default_rng(seed)
+    model = SlipModel(extensions=(ext,) if ext else ())
+    out = []
+    for i in range(n):
+        p = [rng.uniform(1500, 4000), rng.uniform(0.13, 0.17), rng.uniform(0.2, 1.8)]
+        p += [value] if ext else []
+        out.append(make_stance(np.array(p), speed_mps=rng.uniform(0.5, 1.0),
+                               angle_rad=rng.uniform(0.2, 0.35), vz_mps=rng.uniform(-0.2, 0.0),
+                               model=model, sample_hz=120.0, noise_m=0.0002, rng=rng,
+                               t0_s=float(i), label=f's{i}').stance)
+    return out
+
+
+def run_loop(ext, value):
+    fits = fit_slip_candidates(stances(ext, value), maxiter=3000)
+    return slip_loop_document(SlipExtensionSelection().fit(fits))
+
+
+@pytest.mark.parametrize('ext,value', [('leg_damping', 100.0), ('hip_torque', 1.0),
+                                       ('hip_torque', -1.0)])
+def test_extension_in_the_data_is_selected_and_lowers_nerr(ext, value):
+    doc = run_loop(ext, value)
+    assert doc['effects_added'] == [ext], doc['summary']
+    assert doc['heldout']['rmse_after'] < 0.8 * doc['heldout']['rmse_before']
+    chosen = next(c for c in doc['candidates'] if c['selected'])
+    np.testing.assert_allclose(chosen['params'][ext], value, rtol=0.2)
+    assert doc['model'] == 'slip' and doc['unit'] == 'nerr'
+
+
+def test_pure_slip_selects_nothing():
+    doc = run_loop(None, 0.0)
+    assert doc['effects_added'] == []
+    assert doc['heldout']['rmse_after'] == doc['heldout']['rmse_before']
+    assert 'plain SLIP is kept' in doc['summary']
+
+
+def test_too_few_stances_is_a_clear_error():
+    fits = fit_slip_candidates(stances(None, 0.0, n=2))
+    with pytest.raises(SlipDataError, match='too little data to split'):
+        SlipExtensionSelection().fit(fits)
+
+
+def test_cli_slip_writes_residuals_json(tmp_path):
+    edubot = pytest.importorskip('hexapod_bench_drivers.edubot_sim')
+    from hexapod_energy.residuals_cli import add_cli
+
+    bag = edubot.write_edubot_bag(tmp_path / 'run', 'running', duration_s=4.0, seed=1,
+                                  effects={'leg_damping': 20.0})
+    ap = argparse.ArgumentParser()
+    sub = ap.add_subparsers(dest='command', required=True)
+    add_cli(sub)
+    args = ap.parse_args(['residuals', '--slip', str(bag), '--out', str(tmp_path / 'out'),
+                          '--box', '-10', '-10', '-10', '10', '10', '10'])
+    assert args.func(args) == 0
+    doc = json.loads((tmp_path / 'out' / 'residuals.json').read_text())
+    assert doc['model'] == 'slip' and doc['unit'] == 'nerr'
+    assert {c['name'] for c in doc['candidates']} == {'leg_damping', 'hip_torque'}
+    assert doc['stances']['count'] >= 3
+    assert (tmp_path / 'out' / 'residual_slip_nerr.png').is_file()
