@@ -112,7 +112,7 @@ class EnergyEffect:
 
     name = ''
     unit = ''
-    #: names of the regressor columns (one coefficient each, bounded below by ``lower``)
+    #: lower bound of every coefficient (effects add power: 0)
     lower = 0.0
 
     def applicable(self, table: WindowTable) -> bool:
@@ -192,7 +192,8 @@ class SupplyResistance(EnergyEffect):
         return -table.current_sq_a2[:, None]
 
     def params(self, coef, stderr, table):  # type: ignore[no-untyped-def]
-        return ({'resistance_ohm': table.supply_slope_ohm, 'power_coefficient_ohm': float(coef[0])},
+        return ({'resistance_ohm': table.supply_slope_ohm,
+                 'power_coefficient_ohm': float(coef[0])},
                 {'resistance_ohm': table.supply_slope_stderr_ohm,
                  'power_coefficient_ohm': float(stderr[0])})
 

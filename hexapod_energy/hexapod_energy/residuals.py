@@ -504,19 +504,18 @@ def summary_text(doc: dict[str, Any]) -> str:
 def _bench_temperature_c(bench_bags: Sequence[str | Path]) -> float | None:
     """Median servo temperature during the bench bags' walking sessions [degC]."""
     from hexapod_common.bags import iter_messages, open_reader
-    from hexapod_common.conversions import servo_status_from_msg, stamp_to_s
+    from hexapod_common.conversions import servo_status_from_msg
 
     temps: list[float] = []
     for path in bench_bags:
         with open_reader(path) as reader:
             if '/servo_status' not in {c.topic for c in reader.connections}:
                 continue
-            state, sessions = '', []
+            state = ''
             for m in iter_messages(reader, ('/bench/session', '/servo_status')):
                 msg = reader.deserialize(m.data, m.msgtype)
                 if m.topic == '/bench/session':
                     state = str(msg.state)
-                    sessions.append(stamp_to_s(msg.header.stamp))
                 elif state == 'walking':
                     temps.extend(float(x) for x in servo_status_from_msg(msg).temperature_c)
     return float(np.median(temps)) if temps else None
