@@ -6,6 +6,11 @@ the same for the straightforward baseline (scipy ``solve_ivp`` rtol 1e-10 + scip
 stance by stance) measured in the same run on a subset, their ratio, the largest relative
 difference of the SLIP-measure between the two, and the single-stance latency (online case).
 
+Online: a simulated EduBot running run (mocap clock offset, noise, misalignment) is fed to
+:class:`OnlineSlip` in arrival order; for each stance the publish latency is the data latency in
+simulated time (newest mocap sample minus lift-off) plus the measured compute time of the step
+that fitted it; the share within 20 ms is printed (acceptance: >= 95 %).
+
 Usage: ``python bench/bench_slip.py [--distinct 60] [--copies 20] [--baseline 8]``
 """
 
@@ -78,6 +83,49 @@ def main() -> None:
     SlipPositionFitter().fit(stances)
     print(f'position estimator (initial state free): '
           f'{len(stances) / (time.perf_counter() - t):.0f} stances/s')
+    online()
+
+
+def online(duration_s: float = 6.0, seed: int = 3) -> None:
+    """Publish latency of OnlineSlip on a simulated run (data latency + compute time)."""
+    from hexapod_bench_drivers.edubot_sim import simulate_edubot
+
+    from slip_identification.online import OnlineSlip
+    from slip_identification.preprocess import Box
+
+    run = simulate_edubot('running', duration_s=duration_s, seed=seed)
+    names = tuple(f'{leg}_hip' for leg in run.leg_names)
+    off = run.truth['clock_offset_s']
+    ev = [(float(t), 0, i) for i, t in enumerate(run.t_s)]
+    ev += [(float(t) - off, 1, i) for i, t in enumerate(run.mocap_t_s)]
+    ev.sort()
+    for rep in range(2):  # first pass warms caches; the second is measured
+        core = OnlineSlip(box=Box((-10.0,) * 3, (10.0,) * 3), mocap_offset_s=off)
+        compute_ms: list[float] = []
+        nofit_ms: list[float] = []
+        for _, kind, i in ev:
+            if kind == 0:
+                core.add_joint_state(float(run.t_s[i]), names, run.hip_velocity_rad_s[i])
+                core.add_command(float(run.t_s[i]), names, run.target_velocity_rad_s[i])
+                continue
+            core.add_mocap(float(run.mocap_t_s[i]), run.mocap_position_m[i],
+                           run.mocap_quat_xyzw[i])
+            t = time.perf_counter()
+            fits = core.step()
+            dt_ms = 1e3 * (time.perf_counter() - t)
+            if fits:
+                compute_ms.extend([dt_ms] * len(fits))
+            else:
+                nofit_ms.append(dt_ms)
+    data_ms = 1e3 * np.array(core.latency_s)
+    comp = np.array(compute_ms)
+    total = data_ms + comp
+    print(f'online: {total.size} fits; step with a fit: compute median {np.median(comp):.1f} ms,'
+          f' p95 {np.percentile(comp, 95):.1f} ms; step without: median '
+          f'{np.median(nofit_ms):.2f} ms, p95 {np.percentile(nofit_ms, 95):.2f} ms')
+    print(f'online publish latency (data {np.median(data_ms):.1f} ms median + compute): median '
+          f'{np.median(total):.1f} ms, p95 {np.percentile(total, 95):.1f} ms, max '
+          f'{total.max():.1f} ms; within 20 ms: {100 * np.mean(total <= 20.0):.0f} %')
 
 
 if __name__ == '__main__':

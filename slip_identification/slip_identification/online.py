@@ -7,7 +7,9 @@ stances are formed, and every stance whose lift-off is covered by motion capture
 once. The spline ends at the newest sample with not-a-knot (one-sided) end conditions, so the
 fit starts on the first motion-capture sample after lift-off: the data latency is at most one
 mocap period (8.3 ms at 120 Hz) plus the compute time. The world frame is built from the
-buffered in-box mocap samples.
+buffered in-box mocap samples and cached (axes refitted every ``frame_every_s`` of data, the
+origin kept where the path first entered the volume); only the stance's own window (plus
+``spline_pad_s``) is splined, so a step with a fit costs a few ms (bench/bench_slip.py).
 
 Latency bookkeeping (simulated time, no wall clock): for every fit, ``latency_s`` records the
 time of the newest motion-capture sample (proprioception clock) minus the stance's lift-off.
@@ -24,7 +26,7 @@ from .errors import SlipError
 from .fit import SlipFitResult, SlipFitter, Stance, validate_stance
 from .model import SlipModel
 from .pipeline import TRIPODS, _tripod_mean, _up_from_quats
-from .preprocess import Box, fit_world_frame, permissible_mask, sagittal_state
+from .preprocess import Box, WorldFrame, fit_world_frame, permissible_mask, sagittal_state
 from .stance import best_shift, edges_from_target, single_tripod_stances, tripod_stance_windows
 
 __all__ = ['OnlineSlip', 'OnlineSkip']
@@ -59,7 +61,8 @@ class OnlineSlip:
     def __init__(self, model: SlipModel | None = None, *, box: Box | None = None,
                  mocap_offset_s: float = 0.0, buffer_s: float = 3.0,
                  margin_s: float = 0.0, min_stance_s: float = 0.02,
-                 shift_every_s: float = 0.25) -> None:
+                 shift_every_s: float = 0.25, frame_every_s: float = 1.0,
+                 spline_pad_s: float = 0.05) -> None:
         self.model = model if model is not None else SlipModel()
         self.box = box if box is not None else Box()
         self.mocap_offset_s = mocap_offset_s
@@ -76,6 +79,9 @@ class OnlineSlip:
         self.latency_s: list[float] = []
         self.shift_every_s = shift_every_s
         self._shift_cache: dict[str, tuple[float, float]] = {}
+        self.frame_every_s = frame_every_s
+        self.spline_pad_s = spline_pad_s
+        self._frame: tuple[float, WorldFrame] | None = None
 
     def _trim(self, buf: deque, t: float) -> None:  # type: ignore[type-arg]
         while buf and buf[0][0] < t - self.buffer_s:
@@ -133,6 +139,7 @@ class OnlineSlip:
         inside = permissible_mask(pm, self.box)
         out: list[SlipFitResult] = []
         stances = []
+        frame = None
         for w in ready:
             self._done.append((w.tripod, w.liftoff_s))
             reason = ''
@@ -142,8 +149,11 @@ class OnlineSlip:
                 reason = 'too_short'
             else:
                 try:
-                    frame = fit_world_frame(pm[inside], up_mocap=_up_from_quats(qm[inside]))
-                    track = sagittal_state(tm[inside], frame.to_world(pm[inside]))
+                    frame = frame or self._world_frame(tm, pm, qm, inside)
+                    # spline only this stance's window plus a pad (not-a-knot ends)
+                    sel = inside & (tm >= w.touchdown_s - self.spline_pad_s) \
+                        & (tm <= w.liftoff_s + self.spline_pad_s)
+                    track = sagittal_state(tm[sel], frame.to_world(pm[sel]))
                     t, x, rt, rxz, whole = track.window(w.touchdown_s, w.liftoff_s)
                     if not whole:
                         reason = 'mocap_gap'
@@ -161,6 +171,21 @@ class OnlineSlip:
         if len(self._done) > 64:
             del self._done[:-64]
         return out
+
+    def _world_frame(self, tm: np.ndarray, pm: np.ndarray, qm: np.ndarray,
+                     inside: np.ndarray) -> WorldFrame:
+        """The buffered world frame, refitted when ``frame_every_s`` of new mocap arrived."""
+        if self._frame is None or tm[-1] - self._frame[0] >= self.frame_every_s:
+            frame = fit_world_frame(pm[inside], up_mocap=_up_from_quats(qm[inside]))
+            if self._frame is not None:
+                # keep the origin where the path first entered the volume: foot_x stays in
+                # one frame for the whole run; only the axes are refined
+                old = self._frame[1].origin_m
+                n = frame.rotation[2]
+                frame = WorldFrame(rotation=frame.rotation,
+                                   origin_m=old - ((old - frame.origin_m) @ n) * n)
+            self._frame = (float(tm[-1]), frame)
+        return self._frame[1]
 
     def _is_done(self, tripod: str, liftoff_s: float) -> bool:
         # the shift over the moving buffer may move an edge by a few ms between steps

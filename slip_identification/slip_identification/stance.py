@@ -62,15 +62,21 @@ def best_shift(t_s: ArrayLike, measured_speed: ArrayLike,
     if t.size < 10:
         raise SlipDataError(f'best_shift needs >= 10 finite hip-speed samples, got {t.size}')
 
-    def cost(tau: float) -> float:
-        return float(np.mean(np.abs(w - target_speed(t - tau))))
+    def costs(taus: FloatArray) -> FloatArray:
+        # all candidate shifts at once: (len(taus), n) target samples, in row blocks
+        out = np.empty(taus.size)
+        rows = max(1, 200_000 // max(t.size, 1))
+        for a in range(0, taus.size, rows):
+            tt = taus[a:a + rows]
+            tgt = np.asarray(target_speed((t[None, :] - tt[:, None]).ravel()), dtype=float)
+            out[a:a + rows] = np.mean(np.abs(w[None, :] - tgt.reshape(tt.size, t.size)), axis=1)
+        return out
 
     taus = np.arange(0.0, max_shift_s + 0.5 * step_s, step_s)
-    costs = np.array([cost(x) for x in taus])
-    i = int(np.argmin(costs))
+    i = int(np.argmin(costs(taus)))
     lo, hi = taus[max(i - 1, 0)], taus[min(i + 1, taus.size - 1)]
     fine = np.arange(lo, hi + 1e-12, step_s / 20)
-    fc = np.array([cost(x) for x in fine])
+    fc = costs(fine)
     # the cost is piecewise linear and flat-bottomed between edges: take the middle of the
     # minimising set
     best = fine[fc <= fc.min() + 1e-12]
