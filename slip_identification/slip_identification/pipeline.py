@@ -18,6 +18,7 @@ from .energetics import battery_power_w, specific_resistance
 from .errors import SlipDataError, StanceRejectedError
 from .fit import SlipFitResult, SlipFitter, SlipPositionFitter, Stance, validate_stance
 from .model import SlipModel
+from .proprio_edges import estimate_offset_contacts, refine_touchdowns, tripod_touchdowns
 from .preprocess import (
     Box,
     check_straight,
@@ -41,7 +42,9 @@ class RunData:
     ``joint_names`` (J,), ``joint_t_s`` (n,), ``joint_velocity`` (n, J) measured hip speeds;
     ``command_t_s`` (c,), ``command_velocity`` (c, J) target speeds (same names);
     ``mocap_t_s`` (m,), ``mocap_position_m`` (m, 3), ``mocap_quat_xyzw`` (m, 4);
-    ``battery_t_s``, ``battery_voltage_v``, ``battery_current_a`` (b,); ``gait`` name.
+    ``battery_t_s``, ``battery_voltage_v``, ``battery_current_a`` (b,); ``gait`` name;
+    ``joint_effort`` (n, J) measured hip efforts [N m] or None (needed by ``edges='effort'`` and
+    the contact-based offset).
     """
 
     joint_names: tuple[str, ...]
@@ -57,6 +60,7 @@ class RunData:
     battery_current_a: FloatArray
     gait: str = 'unknown'
     label: str = ''
+    joint_effort: FloatArray | None = None
 
 
 @dataclass
@@ -74,6 +78,8 @@ class RunResult:
     sr: float = math.nan
     current_sign: str = ''
     frame: dict[str, Any] = field(default_factory=dict)
+    offset_method: str = 'given'
+    edges: str = 'paper'
 
 
 def _tripod_mean(names: tuple[str, ...], values: FloatArray, tripod: str) -> FloatArray:
@@ -95,13 +101,28 @@ def _up_from_quats(q: FloatArray) -> FloatArray:
 def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None = None,
                 offset_s: float | str = 0.0, offset_lag_s: float = 0.0,
                 max_lateral_m: float = 0.05, position_fit: bool = True,
-                min_stance_s: float = 0.02) -> RunResult:
+                min_stance_s: float = 0.02, edges: str = 'paper') -> RunResult:
     """Preprocess one run, extract single-tripod stances, fit each (see module docs).
 
-    ``offset_s``: seconds to subtract from mocap times, or ``'auto'`` to estimate it by
-    cross-correlating the mocap vertical velocity with the tripod speed difference
-    (minus ``offset_lag_s``, a calibrated physical lag).
+    ``offset_s``: seconds to subtract from mocap times, or a method to estimate it:
+    ``'contact'`` (touchdowns from hip-effort onsets against touchdowns from the body height,
+    :func:`estimate_offset_contacts`; needs ``run.joint_effort``), ``'xcorr'`` (cross-correlate
+    the mocap vertical velocity with the tripod speed difference, minus ``offset_lag_s``, a
+    calibrated physical lag), or ``'auto'`` (``'contact'`` when efforts are present, else
+    ``'xcorr'``). ``edges``: ``'paper'`` (shifted clock edges, Section 3) or ``'effort'``
+    (touchdown refined to the hip-effort onset, lift-off the paper's edge).
     """
+    if edges not in ('paper', 'effort'):
+        raise SlipDataError(f"edges must be 'paper' or 'effort', got {edges!r}")
+    if isinstance(offset_s, str) and offset_s not in ('auto', 'contact', 'xcorr'):
+        raise SlipDataError(f"offset_s must be seconds or 'auto', 'contact', 'xcorr', got "
+                            f'{offset_s!r}')
+    effort = None if run.joint_effort is None else np.asarray(run.joint_effort, dtype=float)
+    if effort is not None and (effort.shape != np.shape(run.joint_velocity)
+                               or not np.any(np.isfinite(effort))):
+        effort = None
+    if edges == 'effort' and effort is None:
+        raise SlipDataError("edges='effort' needs run.joint_effort shaped like joint_velocity")
     model = model if model is not None else SlipModel()
     box = box if box is not None else Box()
     res = RunResult()
@@ -111,13 +132,6 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
     target = {tp: _tripod_mean(names, run.command_velocity, tp) for tp in TRIPODS}
     tm = np.asarray(run.mocap_t_s, dtype=float)
     pm = np.asarray(run.mocap_position_m, dtype=float)
-    if isinstance(offset_s, str):
-        vz = np.gradient(pm[:, 2], tm)
-        off = estimate_offset(tj, speed['left'] - speed['right'], tm, vz, lag_s=offset_lag_s)
-    else:
-        off = float(offset_s)
-    res.offset_s = off
-    tm = tm - off
     inside = permissible_mask(pm, box)
     if inside.sum() < 10:
         raise SlipDataError(f'run {run.label!r}: {int(inside.sum())} mocap samples inside the '
@@ -128,6 +142,26 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
     check_straight(pw, max_lateral_m=max_lateral_m)
     res.frame = {'tilt_deg': math.degrees(frame.tilt_rad), 'yaw_deg': math.degrees(frame.yaw_rad),
                  'origin_m': frame.origin_m.tolist()}
+    touchdowns: dict[str, FloatArray] = {}
+    if effort is not None:
+        touchdowns = {tp: tripod_touchdowns(names, tj, effort, TRIPODS[tp]) for tp in TRIPODS}
+    method = offset_s if isinstance(offset_s, str) else 'given'
+    if method == 'auto':
+        method = 'contact' if effort is not None else 'xcorr'
+    if method == 'contact':
+        if effort is None:
+            raise SlipDataError("offset 'contact' needs run.joint_effort")
+        off, _ = estimate_offset_contacts(np.concatenate(list(touchdowns.values())),
+                                          tm[inside], pw[:, 2])
+    elif method == 'xcorr':
+        vz = np.gradient(pm[:, 2], tm)
+        off = estimate_offset(tj, speed['left'] - speed['right'], tm, vz, lag_s=offset_lag_s)
+    else:
+        off = float(offset_s)
+    res.offset_s = off
+    res.offset_method = method
+    res.edges = edges
+    tm = tm - off
     track = sagittal_state(tm[inside], pw)
     # stance extraction
     windows = {}
@@ -143,6 +177,8 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
         res.shift_s[tp] = shift
         td, lo = edges_from_target(tgt_t + shift, tgt_v)
         windows[tp] = tripod_stance_windows(td, lo)
+        if edges == 'effort':
+            windows[tp], _ = refine_touchdowns(windows[tp], touchdowns[tp])
     stance_windows = single_tripod_stances(windows, res.shift_s)
     t_in0, t_in1 = track.t_s[0], track.t_s[-1]
     stances: list[Stance] = []
