@@ -15,7 +15,8 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
          "position_fit": {same parameter and stderr keys, "nerr", "converged"} or null,
          "power_w", "speed_mps", "sr"}     # the run's values, as in the paper
       ],
-      "runs": [{"bag", "gait", "offset_s", "shift_s": {"left", "right"}, "power_w",
+      "runs": [{"bag", "gait", "offset_s", "offset_method" (given|contact|xcorr),
+                "edges" (paper|effort), "shift_s": {"left", "right"}, "power_w",
                 "speed_mps", "sr", "current_sign", "frame": {"tilt_deg", "yaw_deg", "origin_m"},
                 "stances", "skipped"}],
       "gaits": {"<gait>": {"stances", "nerr_mean", "nerr_std", "power_w_mean", ...}},  # Table 3
@@ -107,7 +108,9 @@ def read_run(path: str | Path) -> RunData:
         mocap_quat_xyzw=np.array([s.orientation_xyzw for s in mo]),
         battery_t_s=np.array([s.t_s for s in bt]),
         battery_voltage_v=np.array([s.voltage_v for s in bt]),
-        battery_current_a=np.array([s.current_a for s in bt]), gait=gait, label=str(path))
+        battery_current_a=np.array([s.current_a for s in bt]), gait=gait, label=str(path),
+        joint_effort=(np.array([s.effort for s in js])
+                      if all(s.effort.size == len(names) for s in js) else None))
 
 
 def _gait_name(phase: Any) -> str:
@@ -136,6 +139,7 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
                                     mass_kg=options.get('mass_kg', EDUBOT_MASS_KG))
         res = analyze_run(run, model=model, box=box, offset_s=options.get('offset', 0.0),
                           offset_lag_s=options.get('offset_lag', 0.0),
+                          edges=options.get('edges', 'paper'),
                           max_lateral_m=options.get('max_lateral', 0.05),
                           position_fit=options.get('position_fit', True))
     except (SlipError, ValueError, OSError) as err:
@@ -160,6 +164,7 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
     return {'bag': path, 'gait': run.gait, 'stances': stances,
             'skipped': [{'bag': path, **s} for s in res.skipped],
             'run': {'bag': path, 'gait': run.gait, 'offset_s': res.offset_s,
+                    'offset_method': res.offset_method, 'edges': res.edges,
                     'shift_s': res.shift_s, 'power_w': _f(res.power_w),
                     'speed_mps': _f(res.speed_mps), 'sr': _f(res.sr),
                     'current_sign': res.current_sign, 'frame': res.frame,
@@ -172,7 +177,8 @@ def run_command(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    options = {'offset': 'auto' if args.offset == 'auto' else float(args.offset),
+    options = {'offset': args.offset if args.offset in ('auto', 'contact', 'xcorr')
+               else float(args.offset), 'edges': args.edges,
                'offset_lag': args.offset_lag, 'max_lateral': args.max_lateral,
                'mass_kg': args.mass, 'model': args.model, 'position_fit': not args.no_position_fit,
                'box_lower': args.box[:3] if args.box else None,
@@ -216,7 +222,13 @@ def add_cli(subparsers: Any) -> None:
     p.add_argument('bags', nargs='+', help='rosbag2 folders')
     p.add_argument('--out', required=True, help='output folder')
     p.add_argument('--jobs', type=int, default=1, help='bags analysed in parallel')
-    p.add_argument('--offset', default='0', help="mocap clock offset [s] or 'auto'")
+    p.add_argument('--offset', default='0',
+                   help="mocap clock offset [s], or 'contact' (touchdowns from hip-effort onsets "
+                        "against body height), 'xcorr' (cross-correlation), 'auto' (contact "
+                        "when the bag has efforts, else xcorr)")
+    p.add_argument('--edges', choices=('paper', 'effort'), default='paper',
+                   help="stance edges: the paper's shifted clock edges, or touchdown refined to "
+                        'the hip-effort onset')
     p.add_argument('--offset-lag', type=float, default=0.0,
                    help="physical lag removed from the 'auto' offset [s]")
     p.add_argument('--max-lateral', type=float, default=0.05,

@@ -154,7 +154,8 @@ def test_effort_edges_need_efforts(runs):
 
 
 @pytest.mark.xfail(reason='issue 7 bars not met: offset within 2 ms (contact estimator: 0 to '
-                          '~10 ms, limited by body-height touchdowns under 0.2 mm noise); lift-off '
+                          '~10 ms, limited by body-height touchdowns under 0.2 mm noise); '
+                          'lift-off '
                           'within 5 ms (the clock lift-off is 20 to 35 ms early and the hip '
                           'effort has no lift-off signature)', strict=False)
 def test_issue_bars_offset_2ms_and_edges_5ms(runs):
