@@ -42,8 +42,9 @@ Model
   the true vertical is ``phi + beta``. The Buehler clock's slow phase spans
   ``leg_offset - sweep/2 .. leg_offset + sweep/2`` in this coordinate (plus ``hip_zero_rad``).
 * **Hip motors** (11 W class brushed DC, the figures of a 25 mm 10-11 W 12 V graphite-brush
-  motor with a planetary gearbox): winding resistance, torque constant, gear ratio and efficiency, viscous and Coulomb
-  gear friction, quasi-static electrics (inductance neglected: L/R is about 0.1 ms).
+  motor with a planetary gearbox): winding resistance, torque constant, gear ratio and
+  efficiency, viscous and Coulomb gear friction, quasi-static electrics (inductance
+  neglected: L/R is about 0.1 ms).
 * **Controller**: the RHex PD law in the normalised coordinates of Fig. 2 (hip position over pi,
   hip speed over ``speed_norm_rad_s``, terminal voltage over 14.8 V) with the gains of Table 1,
   times ``gain_scale`` (the firmware's unpublished scale from normalised gains to its PWM
