@@ -18,9 +18,11 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from hexapod_common.replay import ReplayOptions
-from hexapod_common.replay_node import BagReplayNode
+from hexapod_common.replay_node import BagReplayNode, use_replay_profile
 from hexapod_common.ros_types import ros_message_class
 from hexapod_common.testbags import write_mixed_bag
+
+use_replay_profile()  # before any ROS context of this process
 
 
 def count_subscriber(ctx, topics, qos):
@@ -52,7 +54,7 @@ def run(bag: Path, expected: dict[str, int], flow_control: bool) -> tuple[float,
     thread = threading.Thread(target=spin, daemon=True)
     thread.start()
     replay = BagReplayNode(str(bag), ReplayOptions(publish_clock=False), context=ctx,
-                           ack_every=int(__import__("os").environ.get("ACK", "1")) if flow_control else 10**9)
+                           ack_every=64 if flow_control else 10**9)
     replay.wait_for_subscribers(1)
     t0 = time.perf_counter()
     if flow_control:

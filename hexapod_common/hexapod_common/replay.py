@@ -4,11 +4,11 @@ Two ways to push a bag through nodes:
 
 - :class:`BagReplayNode` publishes the recorded raw CDR bytes over ROS, in bag-time order, with
   ``/clock``. Reliable publishers keep every sample (KEEP_ALL) and the replayer waits until
-  every reliable subscriber has acknowledged each message before it sends the next, so a
-  receiver with a reliable KEEP_ALL subscription (``bag_recorder`` is one) gets every message at
-  any rate. (Acknowledging in batches of 16 or more stalled Fast DDS's shared-memory transport
-  for seconds at a time beyond about 20,000 messages; one at a time did not, at about 75 % of
-  the speed of an uncontrolled loop that loses a third of the messages.)
+  every reliable subscriber has acknowledged each batch of 64 messages before it sends more,
+  so a receiver with a reliable KEEP_ALL subscription (``bag_recorder`` is one) gets every
+  message at any rate. Acknowledgements answer Fast DDS heartbeats, so the replay process uses
+  a writer profile with a 2 ms heartbeat (``fastdds_replay.xml``); the waits poll and release
+  the GIL, so a receiver spinning in another thread of the same process is not starved.
 - :func:`run_offline` feeds the messages straight into the subscription callbacks of nodes in
   one process, deterministically, and captures what they publish: offline analysis runs the
   very nodes that run live, so their numbers are equal.

@@ -7,9 +7,11 @@ Usage: ``bag_replay BAG [--rate R] [--topics T ...] [--remap FROM:=TO ...] [--st
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 from rclpy.duration import Duration
@@ -20,19 +22,34 @@ from hexapod_common.errors import HexapodError
 from hexapod_common.node_utils import LATCHED_QOS
 from hexapod_common.replay import ReplayOptions, ReplaySource, pace
 
-__all__ = ['BagReplayNode', 'main', 'parse_args']
+__all__ = ['BagReplayNode', 'FASTDDS_PROFILE', 'main', 'parse_args', 'use_replay_profile']
+
+#: Fast DDS writer profile with a 2 ms heartbeat period. Acknowledgements answer heartbeats, and
+#: with the default 3 s period a replayer waiting for acks crawls (measured: 3000 messages to
+#: another process took 58 s; with this profile 30,000 took 4 s, none lost).
+FASTDDS_PROFILE = Path(__file__).with_name('fastdds_replay.xml')
+
+
+def use_replay_profile() -> None:
+    """Make this process's Fast DDS writers use :data:`FASTDDS_PROFILE`.
+
+    Must run before the first ROS context of the process is initialised; a profile file the
+    user set in ``FASTRTPS_DEFAULT_PROFILES_FILE`` is kept.
+    """
+    os.environ.setdefault('FASTRTPS_DEFAULT_PROFILES_FILE', str(FASTDDS_PROFILE))
 
 #: Every sample kept until acknowledged: with ack waits this is the flow control.
 REPLAY_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.VOLATILE)
 LATCHED_TOPICS = ('/bench/session',)
+_ACK_POLL = Duration(nanoseconds=2_000_000)
 
 
 class BagReplayNode(Node):
     """Publishes a bag; call :meth:`run` (blocking) after the graph is up."""
 
     def __init__(self, bag: str | Sequence[str], options: ReplayOptions = ReplayOptions(), *,
-                 ack_every: int = 1, ack_timeout_s: float = 10.0, context: Any = None,
+                 ack_every: int = 64, ack_timeout_s: float = 10.0, context: Any = None,
                  parameter_overrides: Any = None, namespace: str | None = None,
                  node_name: str = 'bag_replay') -> None:
         super().__init__(node_name, context=context, namespace=namespace or '',
@@ -93,11 +110,18 @@ class BagReplayNode(Node):
         if self.clock_pub is not None:
             pubs.append(self.clock_pub)
         for pub in pubs:
-            if not pub.wait_for_all_acked(self.ack_timeout):
-                self.ack_timeouts += 1
-                self.get_logger().warning(
-                    f'{pub.topic_name}: a reliable subscriber did not acknowledge within '
-                    f'{self.ack_timeout.nanoseconds * 1e-9:.1f} s; going on')
+            # Short polls with a GIL release in between: rclpy holds the GIL inside
+            # wait_for_all_acked, which would starve a receiver spinning in another thread of
+            # this process until its KEEP_ALL history filled and acks stopped (a deadlock).
+            deadline = time.monotonic() + self.ack_timeout.nanoseconds * 1e-9
+            while not pub.wait_for_all_acked(_ACK_POLL):
+                if time.monotonic() > deadline:
+                    self.ack_timeouts += 1
+                    self.get_logger().warning(
+                        f'{pub.topic_name}: a reliable subscriber did not acknowledge within '
+                        f'{self.ack_timeout.nanoseconds * 1e-9:.1f} s; going on')
+                    break
+                time.sleep(0.0002)
 
     def destroy_node(self) -> None:
         self.source.close()
@@ -136,6 +160,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     raw = list(sys.argv[1:] if argv is None else argv)
     args = parse_args(remove_ros_args(['bag_replay', *raw])[1:])
+    use_replay_profile()
     rclpy.init(args=['bag_replay', *raw])
     node = None
     try:

@@ -2,59 +2,75 @@
 
 from __future__ import annotations
 
-import threading
-
 import pytest
-import rclpy
-from harness import KEEP_ALL_QOS, ros_env
+from harness import ros_env
 
 from hexapod_common.replay import ReplayOptions
-from hexapod_common.replay_node import BagReplayNode
-from hexapod_common.ros_types import ros_message_class
+from hexapod_common.replay_node import BagReplayNode, use_replay_profile
 from hexapod_common.testbags import write_mixed_bag
+
+use_replay_profile()  # before any ROS context of this process
 
 TYPES = {'/joint_states': 'sensor_msgs/msg/JointState',
          '/battery_state': 'sensor_msgs/msg/BatteryState',
          '/gait/phase': 'hexapod_interfaces/msg/GaitPhase'}
 
 
+RECEIVER = """
+import json, sys, time
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from hexapod_common.ros_types import ros_message_class
+ns, total = sys.argv[1], int(sys.argv[2])
+types = json.loads(sys.argv[3])
+rclpy.init()
+node = rclpy.create_node('receiver')
+qos = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
+counts = dict.fromkeys(types, 0)
+for topic, msgtype in types.items():
+    def cb(_m, _t=topic):
+        counts[_t] += 1
+    node.create_subscription(ros_message_class(msgtype), ns + topic, cb, qos, raw=True)
+ex = SingleThreadedExecutor()
+ex.add_node(node)
+print('ready', flush=True)
+deadline = time.monotonic() + 200
+while sum(counts.values()) < total and time.monotonic() < deadline:
+    ex.spin_once(timeout_sec=0.05)
+print(json.dumps(counts), flush=True)
+"""
+
+
 @pytest.mark.timeout(240)
 def test_100k_mixed_messages_none_dropped(tmp_path):
+    """bag_replay and a reliable KEEP_ALL receiver in another process, as in a real graph."""
+    import json
+    import subprocess
+    import sys
+
     bag = tmp_path / 'mixed'
-    recorded = write_mixed_bag(bag, int(__import__("os").environ.get("REPLAY_N", "100000")))
+    recorded = write_mixed_bag(bag, int(__import__('os').environ.get('REPLAY_N', '100000')))
     with ros_env('replay') as env:
         ns = env.namespace
-        sub = env.add(rclpy.create_node('counter', context=env.context, namespace=ns))
-        counts = dict.fromkeys(TYPES, 0)
-        for topic, msgtype in TYPES.items():
-            def cb(_msg, _t=topic):
-                counts[_t] += 1
-            sub.create_subscription(ros_message_class(msgtype), ns + topic, cb, KEEP_ALL_QOS,
-                                    raw=True)
-        remap = {t: ns + t for t in TYPES}
-        replay = BagReplayNode(str(bag), ReplayOptions(remap=remap, publish_clock=False),
-                               context=env.context)
-        env.nodes.append(replay)
-        assert replay.wait_for_subscribers(1)
-        # the receiver spins in its own thread, as a separate process would
-        stop = threading.Event()
-
-        def spin() -> None:
-            while not stop.is_set():
-                env.executor.spin_once(timeout_sec=0.02)
-        receiver = threading.Thread(target=spin)
-        receiver.start()
+        receiver = subprocess.Popen(
+            [sys.executable, '-c', RECEIVER, ns, str(sum(recorded.values())), json.dumps(TYPES)],
+            stdout=subprocess.PIPE, text=True)
         try:
+            assert receiver.stdout.readline().strip() == 'ready'
+            remap = {t: ns + t for t in TYPES}
+            replay = BagReplayNode(str(bag), ReplayOptions(remap=remap, publish_clock=False),
+                                   context=env.context)
+            env.nodes.append(replay)
+            assert replay.wait_for_subscribers(1, timeout_s=30)
             replay.run()
-            deadline = __import__('time').monotonic() + 60
-            while counts != recorded and __import__('time').monotonic() < deadline:
-                stop.wait(0.05)
+            out, _ = receiver.communicate(timeout=200)
         finally:
-            stop.set()
-            receiver.join(10)
+            if receiver.poll() is None:
+                receiver.kill()
+    counts = json.loads(out.strip().splitlines()[-1])
     assert counts == recorded
     assert replay.published == recorded
-    assert replay.ack_timeouts == 0
 
 
 @pytest.mark.timeout(60)
