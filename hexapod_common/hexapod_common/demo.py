@@ -26,6 +26,15 @@ from typing import Any
 
 __all__ = ['main']
 
+def _energy_params() -> list:
+    from rclpy.parameter import Parameter
+
+    # AX servos report load as PWM duty, not torque: effort x velocity is not output power,
+    # so the demo takes P_out from the Eq. 6 inverse-dynamics model of the gait.
+    return [Parameter('current_sign', value='ros'),
+            Parameter('power_out_source', value='model')]
+
+
 FIELDS = ('window', 'speed', 'power_in', 'power_out', 'efficiency',
           'specific_cost_of_transport', 'specific_resistance')
 
@@ -58,8 +67,7 @@ def run_live(out: Path, seconds: float, speed_mps: float) -> tuple[Path, list[An
             Parameter('topics', value=['joint_states', 'joint_commands', 'servo_status',
                                        'battery_state', 'gait/phase', 'energy/descriptors']),
             Parameter('discovery_period', value=0.1)]),
-        EnergyMonitorNode(context=context, namespace=ns, parameter_overrides=[
-            Parameter('current_sign', value='ros')]),
+        EnergyMonitorNode(context=context, namespace=ns, parameter_overrides=_energy_params()),
         SimRobotNode(context=context, namespace=ns, parameter_overrides=[
             Parameter('seed', value=1)]),
     ]
@@ -106,8 +114,8 @@ def replay_offline(bag: Path, namespace_of: str) -> list[Any]:
 
     context = rclpy.Context()
     rclpy.init(context=context)
-    node = EnergyMonitorNode(context=context, namespace=namespace_of, parameter_overrides=[
-        Parameter('current_sign', value='ros')])
+    node = EnergyMonitorNode(context=context, namespace=namespace_of,
+                             parameter_overrides=_energy_params())
     try:
         out = run_offline([node], bag)
     finally:
