@@ -32,6 +32,7 @@ echo "setup: building hexapod_interfaces (rosidl)" >&2
 export CMAKE_PREFIX_PATH=$VENV AMENT_PREFIX_PATH=$VENV
 BUILD=$ROOT/build/hexapod_interfaces
 rm -rf "$BUILD"
+mkdir -p "$ROOT/build"
 cmake -S src/hexapod_interfaces -B "$BUILD" -DCMAKE_INSTALL_PREFIX="$VENV" \
   -DBUILD_TESTING=OFF -DPython3_EXECUTABLE="$VENV/bin/python" >"$ROOT/build/interfaces.log" 2>&1 \
   && cmake --build "$BUILD" -j2 >>"$ROOT/build/interfaces.log" 2>&1 \
