@@ -39,6 +39,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import multiprocessing
 from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
@@ -186,7 +187,11 @@ def run_command(args: argparse.Namespace) -> int:
     bags = [str(b) for b in args.bags]
     results: list[dict[str, Any]] = []
     if args.jobs > 1 and len(bags) > 1:
-        with ProcessPoolExecutor(max_workers=args.jobs) as pool:
+        # not fork: the parallel fit kernels (numba, GNU OpenMP layer) may already have run in
+        # this process, and forking after OpenMP aborts the child ('fork() called from a
+        # process already using GNU OpenMP')
+        ctx = multiprocessing.get_context('forkserver')
+        with ProcessPoolExecutor(max_workers=args.jobs, mp_context=ctx) as pool:
             futs = [pool.submit(analyze_bag, b, options) for b in bags]
             for fut in tqdm(futs, desc='slip', unit='bag'):
                 results.append(fut.result())

@@ -10,6 +10,13 @@ mocap period (8.3 ms at 120 Hz) plus the compute time. The world frame is built 
 buffered in-box mocap samples and cached (axes refitted every ``frame_every_s`` of data, the
 origin kept where the path first entered the volume); only the stance's own window (plus
 ``spline_pad_s``) is splined, so a step with a fit costs a few ms (bench/bench_slip.py).
+The frame needs ``frame_min_s`` of in-box path first and is refitted on every fitting step
+until it rests on ``frame_every_s`` of path: over a short path the vertical bounce of the COM
+tilts the best-fit line (simulated running: ground normal off by 20-36 deg from 0.15 s of
+path, 0.4-1.2 deg from 0.3-0.7 s, 0.1-0.25 deg from 1 s), and the tilt times the distance from
+the mocap origin (the ground height) moves the rest length by centimetres (a frame cached
+from the first 0.15 s put the first online rest lengths 10-50 mm off the offline ones).
+Stances that end before the frame is ready are skipped with reason ``frame_not_ready``.
 
 Latency bookkeeping (simulated time, no wall clock): for every fit, ``latency_s`` records the
 time of the newest motion-capture sample (proprioception clock) minus the stance's lift-off.
@@ -56,13 +63,19 @@ class OnlineSlip:
         History kept; mocap needed after lift-off before fitting.
     shift_every_s : float
         The best shift is recomputed when this much new proprioception has arrived.
+    frame_every_s : float
+        The world frame's axes are refitted when this much new motion capture has arrived
+        (on every fitting step while the frame rests on less than this much path).
+    frame_min_s : float
+        In-box motion capture [s] needed before the first world frame (earlier stances are
+        skipped, reason ``frame_not_ready``).
     """
 
     def __init__(self, model: SlipModel | None = None, *, box: Box | None = None,
                  mocap_offset_s: float = 0.0, buffer_s: float = 3.0,
                  margin_s: float = 0.0, min_stance_s: float = 0.02,
                  shift_every_s: float = 0.25, frame_every_s: float = 1.0,
-                 spline_pad_s: float = 0.05) -> None:
+                 frame_min_s: float = 0.5, spline_pad_s: float = 0.05) -> None:
         self.model = model if model is not None else SlipModel()
         self.box = box if box is not None else Box()
         self.mocap_offset_s = mocap_offset_s
@@ -80,6 +93,8 @@ class OnlineSlip:
         self.shift_every_s = shift_every_s
         self._shift_cache: dict[str, tuple[float, float]] = {}
         self.frame_every_s = frame_every_s
+        self.frame_min_s = frame_min_s
+        self._first_inside_s: float | None = None
         self.spline_pad_s = spline_pad_s
         self._frame: tuple[float, WorldFrame] | None = None
 
@@ -137,6 +152,11 @@ class OnlineSlip:
         if not ready:
             return []
         inside = permissible_mask(pm, self.box)
+        if self._first_inside_s is None and np.any(inside):
+            self._first_inside_s = float(tm[np.argmax(inside)])
+        frame_ready = (self._frame is not None or (
+            self._first_inside_s is not None
+            and tm[-1] - self._first_inside_s >= self.frame_min_s))
         out: list[SlipFitResult] = []
         stances = []
         frame = None
@@ -147,6 +167,8 @@ class OnlineSlip:
                 reason = 'outside_volume'
             elif w.liftoff_s - w.touchdown_s < self.min_stance_s:
                 reason = 'too_short'
+            elif not frame_ready:
+                reason = 'frame_not_ready'
             else:
                 try:
                     frame = frame or self._world_frame(tm, pm, qm, inside)
@@ -175,7 +197,9 @@ class OnlineSlip:
     def _world_frame(self, tm: np.ndarray, pm: np.ndarray, qm: np.ndarray,
                      inside: np.ndarray) -> WorldFrame:
         """The buffered world frame, refitted when ``frame_every_s`` of new mocap arrived."""
-        if self._frame is None or tm[-1] - self._frame[0] >= self.frame_every_s:
+        young = (self._first_inside_s is not None and self._frame is not None
+                 and self._frame[0] - self._first_inside_s < self.frame_every_s)
+        if self._frame is None or young or tm[-1] - self._frame[0] >= self.frame_every_s:
             frame = fit_world_frame(pm[inside], up_mocap=_up_from_quats(qm[inside]))
             if self._frame is not None:
                 # keep the origin where the path first entered the volume: foot_x stays in

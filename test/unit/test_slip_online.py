@@ -63,7 +63,9 @@ def online(running):
 
 def test_online_latency_in_simulated_time(online):
     core, fits = online
-    assert len(fits) >= 10
+    # about 1.9 s of in-volume mocap; the first 0.5 s builds the world frame (frame_not_ready)
+    assert len(fits) >= 8
+    assert {s.reason for s in core.skipped} <= {'frame_not_ready'}
     lat_ms = 1e3 * np.array(core.latency_s)
     print(f'online data latency: median {np.median(lat_ms):.1f} ms, '
           f'p95 {np.percentile(lat_ms, 95):.1f} ms, max {lat_ms.max():.1f} ms')
