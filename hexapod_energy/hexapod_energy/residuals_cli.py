@@ -48,6 +48,11 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
                    help='robot mass without payload [kg] (default 2.183, AntBot)')
     p.add_argument('--robot-payload', type=float, default=0.0, metavar='KG',
                    help='payload of the robot runs [kg] (default 0)')
+    p.add_argument('--load-offset', type=float, default=0.0, metavar='KG',
+                   help='subtracted from the carried mass before the bench surfaces are read '
+                        '[kg]: 0 (default, the paper: a real stance tip carries M g / L); '
+                        '0.166 (the leg mass) for this project\'s simulated robot, whose stance '
+                        'tips carry only (M - m_leg L) g / L')
     p.add_argument('--current-sign', choices=('ros', 'positive_discharge', 'auto'),
                    default='auto', help='battery current sign convention (default auto)')
     p.add_argument('--box', type=float, nargs=6, metavar=('X0', 'Y0', 'Z0', 'X1', 'Y1', 'Z1'),
@@ -146,7 +151,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                                 '(or use --slip BAG...)')
     return run_energy_loop(args.bench, args.robot, args.out, robot_mass_kg=args.robot_mass,
                            payload_kg=args.robot_payload, current_sign=args.current_sign,
-                           plots=not args.no_plots)
+                           load_offset_kg=args.load_offset, plots=not args.no_plots)
 
 
 def _handler(args: argparse.Namespace) -> int:

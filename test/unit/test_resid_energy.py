@@ -17,12 +17,15 @@ from hexapod_bench_drivers.robot_sim import RobotConfig, simulate_robot
 from hexapod_bench_drivers.sim_bag import write_trace
 from hexapod_energy import residuals as R
 from hexapod_energy.bag_io import bench_phase_samples, read_bench_bag
+from hexapod_energy.effects_catalogue import ModelOffset, default_catalogue
 from hexapod_energy.errors import BagContentError
+from hexapod_energy.prediction import RobotSpec
 from hexapod_energy.residuals_cli import add_cli
-from hexapod_energy.single_leg import SingleLegModel
 
 PERIODS_S = (1.0, 0.7, 0.5)       # three tripod runs: 1, 1.43, 2 Hz
 RUN_S = 10.0
+#: the simulated robot's stance tips carry (M - m_leg L) g / L, the bench's (m_leg + load) g
+LEG_KG = RobotSpec().leg_mass_kg
 
 
 @pytest.fixture(scope='module')
@@ -33,7 +36,7 @@ def bench(tmp_path_factory):
                      frequencies_hz=(0.0, 0.75, 1.25, 1.75, 2.25), walk_s=4.0)
     write_trace(simulate_bench(plan, seed=1), path)
     samples, _ = bench_phase_samples(read_bench_bag(path))
-    return {'path': path, 'model': SingleLegModel().fit(samples),
+    return {'path': path, 'model': R.fit_bench_model(samples),
             'temp_ref_c': R._bench_temperature_c([path])}
 
 
@@ -52,7 +55,8 @@ def robot_bags(root: Path, effects: list[str], *, temps=(26.0, 26.0, 26.0),
 
 def loop(bench, bags) -> dict:
     runs = [R.read_residual_run(p) for p in bags]
-    return R.energy_loop_from_runs(bench['model'], runs, None, temp_ref_c=bench['temp_ref_c'])
+    return R.energy_loop_from_runs(bench['model'], runs, None, temp_ref_c=bench['temp_ref_c'],
+                                   load_offset_kg=LEG_KG)
 
 
 def added(doc: dict, name: str) -> dict:
@@ -66,6 +70,7 @@ def clean(bench, tmp_path_factory):
 
 CASES = [
     # effect on the robot, name, parameter, true value, initial servo temperatures
+    (['basal_power=3'], 'basal_power', 'power_w', 3.0, (26.0, 26.0, 26.0)),
     (['kinematic_error=3'], 'kinematic_error', 'w_per_hz', 3.0, (26.0, 26.0, 26.0)),
     (['supply_resistance=0.3'], 'supply_resistance', 'resistance_ohm', 0.3, (26.0, 26.0, 26.0)),
     (['speed_friction=15'], 'speed_friction', 'c_n_s_per_m', 15.0, (26.0, 26.0, 26.0)),
@@ -90,8 +95,12 @@ def test_each_effect_is_found_first_and_recovered(bench, tmp_path, effects, name
 
 
 def test_two_effects_are_both_found(bench, tmp_path):
+    """Both are added first. The simulated tracking error also overshoots the joints' motion
+    (a cost growing about as f^2, 0.55 W at 2 Hz for 3 W/Hz): the f^2-shaped speed_friction
+    term may follow with a small coefficient (3 N s/m here, against 15 in its own case)."""
     doc = loop(bench, robot_bags(tmp_path, ['kinematic_error=3', 'leg_anomaly=L2:2']))
-    assert set(doc['effects_added']) == {'kinematic_error', 'leg_anomaly'}
+    assert set(doc['effects_added'][:2]) == {'kinematic_error', 'leg_anomaly'}
+    assert set(doc['effects_added'][2:]) <= {'speed_friction'}
     np.testing.assert_allclose(added(doc, 'kinematic_error')['params']['w_per_hz'], 3.0,
                                rtol=0.2)
     np.testing.assert_allclose(added(doc, 'leg_anomaly')['params']['power_w'], 2.0, rtol=0.2)
@@ -102,17 +111,26 @@ def test_clean_data_adds_nothing(clean):
     h = clean['heldout']
     assert abs(h['rmse_after'] - h['rmse_before']) <= 0.05 * h['rmse_before']
     assert 'none was added' in clean['summary']
-    # the bench-derived prediction over-predicts this robot: reported, not hidden
-    assert clean['baseline']['bias'] < 0.0
+    # with the matching tip-load convention and cross-validated spans the bench-derived
+    # prediction is unbiased to a fraction of a watt (27-43 W measured)
+    assert abs(clean['baseline']['bias']) < 0.3
 
 
-def test_basal_power_shows_as_the_transfer_offset(bench, clean, tmp_path):
-    """A constant power cannot be told from the bench-to-robot offset: it is not attributed to
-    another effect, and the fitted offset moves by the simulated watts."""
-    doc = loop(bench, robot_bags(tmp_path, ['basal_power=3']))
+def test_wrong_load_convention_shows_as_bias_not_as_an_effect(bench, tmp_path):
+    """Read at the paper's convention the bench over-predicts the simulated robot (its stance
+    tips carry m_leg g less): reported as a negative bias, not hidden in an effect; the opt-in
+    model_offset candidate names it."""
+    runs = [R.read_residual_run(p) for p in robot_bags(tmp_path, [])]
+    doc = R.energy_loop_from_runs(bench['model'], runs, None, temp_ref_c=bench['temp_ref_c'])
     assert doc['effects_added'] == []
-    shift = doc['transfer_offset_w']['value'] - clean['transfer_offset_w']['value']
-    np.testing.assert_allclose(shift, 3.0, rtol=0.05)
+    assert -2.0 < doc['baseline']['bias'] < -0.8
+    table = R.build_windows(runs, temp_ref_c=bench['temp_ref_c'])
+    held = R.split_mask(table)
+    cat = default_catalogue(table.leg_names) + [ModelOffset()]
+    sel = R.EffectSelection(catalogue=cat).fit(table, held)
+    assert [e.name for e in sel.selected_] == ['model_offset']
+    np.testing.assert_allclose(sel.final_params_[0][0]['offset_w'], doc['baseline']['bias'],
+                               rtol=0.1)
 
 
 def test_time_offset_moves_the_stream_lag(bench, clean, tmp_path):
@@ -135,7 +153,7 @@ def test_cli_writes_the_schema_and_plots(bench, tmp_path, capsys):
     bags = robot_bags(tmp_path / 'r', ['supply_resistance=0.3'])
     out = tmp_path / 'out'
     code = _cli(['residuals', '--bench', str(bench['path']), '--robot', *map(str, bags),
-                 '--out', str(out)])
+                 '--out', str(out), '--load-offset', str(LEG_KG)])
     assert code == 0
     doc = json.loads((out / 'residuals.json').read_text())
     assert doc['model'] == 'energy' and doc['unit'] == 'W'
