@@ -46,5 +46,16 @@ args=()
 for p in $PKGS; do args+=(-e "./$p"); done
 python -m pip install -q --disable-pip-version-check --no-deps --no-build-isolation "${args[@]}" 2>&1 \
   | grep -vE "BuildBackendWarning|Please be careful|name as your package|warnings.warn|^ *$" || true
+# setup.cfg's [develop] script_dir puts the executables in .venv/lib/<pkg>/ (the ros2 run
+# layout) when setuptools honours it; make them callable from .venv/bin as well.
+for p in $PKGS; do
+  for exe in "$VENV/lib/$p"/*; do
+    [ -f "$exe" ] && [ -x "$exe" ] || continue
+    [ -e "$VENV/bin/$(basename "$exe")" ] || ln -s "$exe" "$VENV/bin/$(basename "$exe")"
+  done
+done
+for exe in bag_replay bag_recorder hexapod-demo hexapod-analyze hexapod-sim energy_monitor; do
+  [ -x "$VENV/bin/$exe" ] || { echo "setup: $exe was not installed" >&2; exit 1; }
+done
 echo "$want" > "$VENV/.setup-stamp"
 echo "setup: done" >&2

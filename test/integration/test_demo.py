@@ -1,0 +1,32 @@
+"""hexapod-demo end to end (quick settings): live == replayed, analysis and report written."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+
+@pytest.mark.timeout(420)
+def test_demo_runs_end_to_end(tmp_path):
+    out = tmp_path / 'demo'
+    exe = Path(sys.executable).parent / 'hexapod-demo'
+    proc = subprocess.run([str(exe), '--out', str(out), '--quick', '--live-seconds', '4'],
+                          capture_output=True, text=True, timeout=400,
+                          env=dict(os.environ, MPLBACKEND='Agg'))
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert 'Traceback' not in proc.stderr
+    summary = json.loads((out / 'demo.json').read_text())
+    live = summary['live']
+    assert live['windows'] >= 2 and live['replayed'] >= live['windows']
+    assert live['max_abs_difference'] <= 1e-9
+    assert all(p > 5.0 for p in live['power_in_w'])
+    batch = summary['batch']
+    assert batch['prediction_error']['rmse_w'] > 0
+    assert isinstance(batch['residuals'], dict), batch['residuals']
+    assert (out / 'report.html').stat().st_size > 10_000
+    assert (out / 'residuals' / 'residuals.json').is_file()
