@@ -18,7 +18,6 @@ from hexapod_bench_drivers.sim_bag import write_trace
 from hexapod_energy import residuals as R
 from hexapod_energy.bag_io import bench_phase_samples, read_bench_bag
 from hexapod_energy.prediction import RobotSpec
-from hexapod_energy.single_leg import SingleLegModel
 
 CASES = [
     ([], None, None, None, (26, 26, 26)),
@@ -29,7 +28,8 @@ CASES = [
     (['thermal_drift=0.05'], 'thermal_drift', 'w_per_k', 0.05, (50, 26, 38)),
     (['kinematic_error=3', 'leg_anomaly=L2:2'], 'kinematic_error', 'w_per_hz', 3.0,
      (26, 26, 26)),
-    (['basal_power=3'], None, None, None, (26, 26, 26)),
+    (['basal_power=3'], 'basal_power', 'power_w', 3.0, (26, 26, 26)),
+    (['time_offset=0.05'], 'time_offset', 'offset_s', 0.05, (26, 26, 26)),
 ]
 
 
@@ -38,11 +38,11 @@ def main() -> None:
     plan = BenchPlan(loads_kg=(0.0, 0.187, 0.4, 0.6),
                      frequencies_hz=(0.0, 0.75, 1.25, 1.75, 2.25), walk_s=4.0)
     write_trace(simulate_bench(plan, seed=1), root / 'bench')
-    model = SingleLegModel().fit(bench_phase_samples(read_bench_bag(root / 'bench'))[0])
+    model = R.fit_bench_model(bench_phase_samples(read_bench_bag(root / 'bench'))[0])
     tref = R._bench_temperature_c([root / 'bench'])
     spec = RobotSpec()
     print(f'{"effects":40s} {"added":38s} {"heldout before":>14s} {"after":>8s} '
-          f'{"recovered":>10s} {"true":>6s} {"offset W":>8s}')
+          f'{"recovered":>10s} {"true":>6s} {"bias W":>7s} {"sample before":>13s} {"after":>6s}')
     t_loop = t_base = 0.0
     for effects, name, param, true, temps in CASES:
         bags = []
@@ -55,11 +55,13 @@ def main() -> None:
         t0 = time.perf_counter()
         runs = [R.read_residual_run(p) for p in bags]
         for r in runs:
-            R.predict_run_w(r, model, total_mass_kg=spec.mass_kg, leg_mass_kg=spec.leg_mass_kg)
+            R.predict_run_w(r, model, total_mass_kg=spec.mass_kg, leg_mass_kg=spec.leg_mass_kg,
+                            load_offset_kg=spec.leg_mass_kg)
         t_base += time.perf_counter() - t0
         t0 = time.perf_counter()
         runs = [R.read_residual_run(p) for p in bags]
-        doc = R.energy_loop_from_runs(model, runs, None, temp_ref_c=tref)
+        doc = R.energy_loop_from_runs(model, runs, None, temp_ref_c=tref,
+                                      load_offset_kg=spec.leg_mass_kg)
         t_loop += time.perf_counter() - t0
         got = ''
         if name is not None:
@@ -68,7 +70,9 @@ def main() -> None:
         h = doc['heldout']
         print(f'{" ".join(effects) or "(clean)":40s} {",".join(doc["effects_added"]) or "-":38s}'
               f' {h["rmse_before"]:14.3f} {h["rmse_after"]:8.3f} {got:>10s} '
-              f'{"" if true is None else true:>6} {doc["transfer_offset_w"]["value"]:8.3f}')
+              f'{"" if true is None else true:>6} {doc["baseline"]["bias"]:7.3f} '
+              f'{doc["sample_view"]["heldout_rmse_before"]:13.3f} '
+              f'{doc["sample_view"]["heldout_rmse_after"]:6.3f}')
     print(f'loop time {t_loop:.2f} s, baseline (read + Eq. 1 residual) {t_base:.2f} s, '
           f'ratio {t_loop / t_base:.2f}')
 

@@ -276,11 +276,10 @@ class LegAnomaly(EnergyEffect):
 class TimeOffset(EnergyEffect):
     """Clock offset of ``/battery_state`` against the other streams [s].
 
-    Estimated by cross-correlating the measured input power with the mechanical power of the
-    joints (``|effort * velocity|`` summed, from ``/joint_states``); applying it realigns the
-    power with the gait windows. It has no regressor column: a whole-cycle model with a
-    constant support count cannot see a shift, so it is reported (with its lag), and selected
-    only when the realignment itself lowers the held-out error.
+    Half-cycle windows cannot see a shift, so this effect has no window column and is never
+    applicable to a :class:`WindowTable`: it is fitted and selected in the per-sample view
+    (:class:`hexapod_energy.residuals.SampleView`), which realigns the battery stream before
+    the windows are built when it is selected.
     """
 
     name, unit = 'time_offset', 's'
