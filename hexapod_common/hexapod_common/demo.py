@@ -144,8 +144,14 @@ def batch_analysis(out: Path, hidden: str, quick: bool) -> dict[str, Any]:
             raise RuntimeError(f'hexapod-sim robot failed with exit code {rc}')
         robots.append(bag)
     from hexapod_energy.cli import main as energy_main
+    from hexapod_energy.prediction import RobotSpec
+
+    # The simulated robot's stance tips carry (M - m_leg L)/L g each, the bench tip carries
+    # (m_leg + load) g: compare them at equal tip force (hexapod-analyze energy --load-offset).
+    leg_mass = f'{RobotSpec().leg_mass_kg:.4f}'
     rc = energy_main(['--bench', str(bench), '--robot', *map(str, robots),
-                      '--out', str(out / 'energy'), '--no-progress'])
+                      '--out', str(out / 'energy'), '--no-progress', '--load-offset', leg_mass,
+                      '--power-out', 'model'])
     if rc:
         raise RuntimeError(f'hexapod-analyze energy failed with exit code {rc}')
     energy = json.loads((out / 'energy' / 'energy.json').read_text())
@@ -156,9 +162,9 @@ def batch_analysis(out: Path, hidden: str, quick: bool) -> dict[str, Any]:
     except ImportError as err:
         result['residuals'] = f'unavailable: {err}'
         return result
-    res = run_energy_loop([bench], robots, out / 'residuals')
+    res = run_energy_loop([bench], robots, out / 'residuals', load_offset_kg=float(leg_mass))
     result['residuals'] = {k: res.get(k) for k in ('baseline', 'effects_added', 'final',
-                                                   'heldout', 'paragraph')}
+                                                   'heldout', 'added_params', 'summary')}
     return result
 
 
@@ -227,8 +233,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         _say(f'   residual loop added: {res.get("effects_added")}; held-out RMSE '
              f'{held.get("rmse_before", math.nan):.3f} W -> '
              f'{held.get("rmse_after", math.nan):.3f} W')
-        if res.get('paragraph'):
-            _say(f'   {res["paragraph"]}')
+        if res.get('summary'):
+            _say(f'   {res["summary"]}')
     else:
         _say(f'   residual loop: {res}')
 

@@ -54,8 +54,9 @@ def write_report(out_dir: str | Path) -> Path:
             for key in data.get('summary_lines', []) if isinstance(
                     data.get('summary_lines'), list) else []:
                 parts.append(f'<p>{html.escape(str(key))}</p>')
-            if isinstance(data.get('paragraph'), str):
-                parts.append(f'<p><b>{html.escape(data["paragraph"])}</b></p>')
+            for key in ('paragraph', 'summary'):
+                if isinstance(data.get(key), str):
+                    parts.append(f'<p><b>{html.escape(data[key])}</b></p>')
             keys = HEADLINES.get(path.name) or list(data)[:8]
             rows = [f'<tr><th>{html.escape(k)}</th><td><pre>{_fmt(data[k])}</pre></td></tr>'
                     for k in keys if k in data]
