@@ -132,13 +132,13 @@ def batch_analysis(out: Path, hidden: str, quick: bool) -> dict[str, Any]:
     loads = '0,0.095,0.187,0.515' if quick else '0,0.095,0.141,0.187,0.515'
     freqs = '0,0.5,1,1.5,2,2.5,3' if quick else '0,0.5,1,1.5,2,2.5,3,3.3'
     rc = sim_main(['bench', '--out', str(bench), '--loads', loads, '--frequencies', freqs,
-                   '--duration', '6', '--max-cool', '5', '--seed', '1', '--no-progress'])
+                   '--duration', '5', '--max-cool', '5', '--seed', '1', '--no-progress'])
     if rc:
         raise RuntimeError(f'hexapod-sim bench failed with exit code {rc}')
     robots = []
     for k, speed in enumerate((0.15, 0.3, 0.45, 0.6)):
         bag = out / f'robot_{k}'
-        rc = sim_main(['robot', '--out', str(bag), '--speed', str(speed), '--duration', '20',
+        rc = sim_main(['robot', '--out', str(bag), '--speed', str(speed), '--duration', '15',
                        '--seed', str(10 + k), '--effect', hidden, '--no-progress'])
         if rc:
             raise RuntimeError(f'hexapod-sim robot failed with exit code {rc}')
@@ -171,8 +171,8 @@ def batch_analysis(out: Path, hidden: str, quick: bool) -> dict[str, Any]:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog='hexapod-demo', description=__doc__.split('\n')[0])
     parser.add_argument('--out', default='demo_out', help='output folder (default demo_out)')
-    parser.add_argument('--live-seconds', type=float, default=8.0,
-                        help='wall-clock seconds of the live graph (default 8)')
+    parser.add_argument('--live-seconds', type=float, default=6.0,
+                        help='wall-clock seconds of the live graph (default 6)')
     parser.add_argument('--speed', type=float, default=0.3, help='walking speed [m/s]')
     parser.add_argument('--hidden-effect', default='supply_resistance=0.35',
                         help='effect put in the robot data and not told to the analysis')
