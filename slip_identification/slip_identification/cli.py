@@ -15,7 +15,7 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
          "position_fit": {same parameter and stderr keys, "nerr", "converged"} or null,
          "power_w", "speed_mps", "sr"}     # the run's values, as in the paper
       ],
-      "runs": [{"bag", "gait", "offset_s", "offset_method" (given|contact|xcorr),
+      "runs": [{"bag", "gait", "offset_s", "offset_method" (given|contact|joint|xcorr),
                 "edges" (paper|effort), "shift_s": {"left", "right"}, "power_w",
                 "speed_mps", "sr", "current_sign", "frame": {"tilt_deg", "yaw_deg", "origin_m"},
                 "stances", "skipped"}],
@@ -178,7 +178,7 @@ def run_command(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    options = {'offset': args.offset if args.offset in ('auto', 'contact', 'xcorr')
+    options = {'offset': args.offset if args.offset in ('auto', 'contact', 'joint', 'xcorr')
                else float(args.offset), 'edges': args.edges,
                'offset_lag': args.offset_lag, 'max_lateral': args.max_lateral,
                'mass_kg': args.mass, 'model': args.model, 'position_fit': not args.no_position_fit,
@@ -229,8 +229,9 @@ def add_cli(subparsers: Any) -> None:
     p.add_argument('--jobs', type=int, default=1, help='bags analysed in parallel')
     p.add_argument('--offset', default='0',
                    help="mocap clock offset [s], or 'contact' (touchdowns from hip-effort onsets "
-                        "against body height), 'xcorr' (cross-correlation), 'auto' (contact "
-                        "when the bag has efforts, else xcorr)")
+                        "against body height, median), 'joint' (one offset fitted over all "
+                        "stances' body heights, touchdowns fixed at the effort onsets), 'xcorr' "
+                        "(cross-correlation), 'auto' (joint when the bag has efforts, else xcorr)")
     p.add_argument('--edges', choices=('paper', 'effort'), default='paper',
                    help="stance edges: the paper's shifted clock edges, or touchdown refined to "
                         'the hip-effort onset')

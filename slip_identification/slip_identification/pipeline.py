@@ -18,7 +18,12 @@ from .energetics import battery_power_w, specific_resistance
 from .errors import SlipDataError, StanceRejectedError
 from .fit import SlipFitResult, SlipFitter, SlipPositionFitter, Stance, validate_stance
 from .model import SlipModel
-from .proprio_edges import estimate_offset_contacts, refine_touchdowns, tripod_touchdowns
+from .proprio_edges import (
+    estimate_offset_contacts,
+    estimate_offset_joint,
+    refine_touchdowns,
+    tripod_touchdowns,
+)
 from .preprocess import (
     Box,
     check_straight,
@@ -106,17 +111,19 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
 
     ``offset_s``: seconds to subtract from mocap times, or a method to estimate it:
     ``'contact'`` (touchdowns from hip-effort onsets against touchdowns from the body height,
-    :func:`estimate_offset_contacts`; needs ``run.joint_effort``), ``'xcorr'`` (cross-correlate
+    :func:`estimate_offset_contacts`; needs ``run.joint_effort``), ``'joint'`` (one offset
+    fitted over all stances' body heights with the touchdowns fixed at the hip-effort onsets,
+    :func:`estimate_offset_joint`; needs ``run.joint_effort``), ``'xcorr'`` (cross-correlate
     the mocap vertical velocity with the tripod speed difference, minus ``offset_lag_s``, a
-    calibrated physical lag), or ``'auto'`` (``'contact'`` when efforts are present, else
+    calibrated physical lag), or ``'auto'`` (``'joint'`` when efforts are present, else
     ``'xcorr'``). ``edges``: ``'paper'`` (shifted clock edges, Section 3) or ``'effort'``
     (touchdown refined to the hip-effort onset, lift-off the paper's edge).
     """
     if edges not in ('paper', 'effort'):
         raise SlipDataError(f"edges must be 'paper' or 'effort', got {edges!r}")
-    if isinstance(offset_s, str) and offset_s not in ('auto', 'contact', 'xcorr'):
-        raise SlipDataError(f"offset_s must be seconds or 'auto', 'contact', 'xcorr', got "
-                            f'{offset_s!r}')
+    if isinstance(offset_s, str) and offset_s not in ('auto', 'contact', 'joint', 'xcorr'):
+        raise SlipDataError(f"offset_s must be seconds or 'auto', 'contact', 'joint', 'xcorr', "
+                            f'got {offset_s!r}')
     effort = None if run.joint_effort is None else np.asarray(run.joint_effort, dtype=float)
     if effort is not None and (effort.shape != np.shape(run.joint_velocity)
                                or not np.any(np.isfinite(effort))):
@@ -147,12 +154,15 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
         touchdowns = {tp: tripod_touchdowns(names, tj, effort, TRIPODS[tp]) for tp in TRIPODS}
     method = offset_s if isinstance(offset_s, str) else 'given'
     if method == 'auto':
-        method = 'contact' if effort is not None else 'xcorr'
-    if method == 'contact':
+        method = 'joint' if effort is not None else 'xcorr'
+    if method in ('contact', 'joint'):
         if effort is None:
-            raise SlipDataError("offset 'contact' needs run.joint_effort")
-        off, _ = estimate_offset_contacts(np.concatenate(list(touchdowns.values())),
-                                          tm[inside], pw[:, 2])
+            raise SlipDataError(f"offset {method!r} needs run.joint_effort")
+        if method == 'contact':
+            off, _ = estimate_offset_contacts(np.concatenate(list(touchdowns.values())),
+                                              tm[inside], pw[:, 2])
+        else:
+            off, _ = estimate_offset_joint(touchdowns, tm[inside], pw[:, 2])
     elif method == 'xcorr':
         vz = np.gradient(pm[:, 2], tm)
         off = estimate_offset(tj, speed['left'] - speed['right'], tm, vz, lag_s=offset_lag_s)
