@@ -16,6 +16,8 @@ maximum efficiency.  Uses the non-interactive Agg backend; writes PNG and SVG.
 
 from __future__ import annotations
 
+from typing import Any
+
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -75,13 +77,7 @@ def four_quadrant_plot(
     if title:
         fig.suptitle(title)
     fig.tight_layout()
-    stem = Path(out_stem)
-    stem.parent.mkdir(parents=True, exist_ok=True)
-    paths = [stem.with_suffix('.png'), stem.with_suffix('.svg')]
-    for p in paths:
-        fig.savefig(p, dpi=110)
-    plt.close(fig)
-    return paths
+    return _save(fig, out_stem)
 
 
 def power_map_plot(
@@ -96,13 +92,7 @@ def power_map_plot(
     ax.set_ylabel('payload [g]')
     ax.set_title('Robot output power (Eq. 6)')
     fig.tight_layout()
-    stem = Path(out_stem)
-    stem.parent.mkdir(parents=True, exist_ok=True)
-    paths = [stem.with_suffix('.png'), stem.with_suffix('.svg')]
-    for p in paths:
-        fig.savefig(p, dpi=110)
-    plt.close(fig)
-    return paths
+    return _save(fig, out_stem)
 
 
 def prediction_plot(
@@ -118,10 +108,15 @@ def prediction_plot(
     ax.legend()
     ax.grid(alpha=0.3)
     fig.tight_layout()
+    return _save(fig, out_stem)
+
+
+def _save(fig: Any, out_stem: str | Path) -> list[Path]:
+    """Write ``fig`` as PNG and SVG next to ``out_stem``, close it, return both paths."""
     stem = Path(out_stem)
     stem.parent.mkdir(parents=True, exist_ok=True)
     paths = [stem.with_suffix('.png'), stem.with_suffix('.svg')]
-    for p in paths:
-        fig.savefig(p, dpi=110)
+    for path in paths:
+        fig.savefig(path, dpi=110)
     plt.close(fig)
     return paths

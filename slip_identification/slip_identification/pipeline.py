@@ -34,7 +34,7 @@ from .preprocess import (
 )
 from .stance import best_shift, edges_from_target, single_tripod_stances, tripod_stance_windows
 
-__all__ = ['RunData', 'RunResult', 'analyze_run', 'TRIPODS']
+__all__ = ['RunData', 'RunResult', 'analyze_run', 'run_data_from_sim', 'TRIPODS']
 
 FloatArray = NDArray[np.float64]
 TRIPODS = {'left': ('L1', 'R2', 'L3'), 'right': ('R1', 'L2', 'R3')}
@@ -229,3 +229,16 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                               / (track.t_s[ok][-1] - track.t_s[ok][0]))
     res.sr = specific_resistance(res.power_w, model.mass_kg, res.speed_mps)
     return res
+
+
+def run_data_from_sim(run: Any, *, with_effort: bool = True) -> RunData:
+    """:class:`RunData` from a simulated EduBot run (``edubot_sim.EdubotRun``): the arrays a
+    bag of that run would give."""
+    names = tuple(f'{leg}_hip' for leg in run.leg_names)
+    return RunData(joint_names=names, joint_t_s=run.t_s, joint_velocity=run.hip_velocity_rad_s,
+                   command_t_s=run.t_s, command_velocity=run.target_velocity_rad_s,
+                   mocap_t_s=run.mocap_t_s, mocap_position_m=run.mocap_position_m,
+                   mocap_quat_xyzw=run.mocap_quat_xyzw, battery_t_s=run.t_s,
+                   battery_voltage_v=run.battery_voltage_v,
+                   battery_current_a=run.battery_current_a, gait=run.gait,
+                   joint_effort=run.hip_effort_nm if with_effort else None)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from slip_identification.online import OnlineSlip
-from slip_identification.pipeline import RunData, analyze_run
+from slip_identification.pipeline import RunData, analyze_run, run_data_from_sim
 from slip_identification.preprocess import Box
 
 edubot_sim = pytest.importorskip('hexapod_bench_drivers.edubot_sim')
@@ -20,14 +20,7 @@ BOX = Box((-10.0, -10.0, -10.0), (10.0, 10.0, 10.0))
 
 
 def run_data(run) -> RunData:
-    """EdubotRun -> RunData (the arrays a bag would give)."""
-    names = tuple(f'{leg}_hip' for leg in run.leg_names)
-    return RunData(joint_names=names, joint_t_s=run.t_s, joint_velocity=run.hip_velocity_rad_s,
-                   command_t_s=run.t_s, command_velocity=run.target_velocity_rad_s,
-                   mocap_t_s=run.mocap_t_s, mocap_position_m=run.mocap_position_m,
-                   mocap_quat_xyzw=run.mocap_quat_xyzw, battery_t_s=run.t_s,
-                   battery_voltage_v=run.battery_voltage_v,
-                   battery_current_a=run.battery_current_a, gait=run.gait)
+    return run_data_from_sim(run, with_effort=False)
 
 
 def events(run):
