@@ -49,6 +49,7 @@ from hexapod_common.conversions import s_to_stamp
 from hexapod_interfaces.msg import BenchSession, ServoStatus
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.task import Future
 from rcl_interfaces.srv import SetParameters
 from rosgraph_msgs.msg import Clock
 from std_srvs.srv import SetBool, Trigger
@@ -95,6 +96,8 @@ class BenchSequencerParams:
     sim_initial_temperature_c: float = param(26.0, 'sim: servo temperature at start [degC].')
     sim_ambient_temperature_c: float = param(25.5, 'sim: air temperature [degC].')
     sim_seed: int = param(0, 'sim: noise seed.')
+    exit_when_done: bool = param(True, 'Exit (code 0; 1 if aborted) once the plan is done '
+                                 'or aborted; false keeps publishing the final state.')
 
 
 class BenchSequencerNode(Node):
@@ -137,6 +140,10 @@ class BenchSequencerNode(Node):
         self._recording_id = ''
         self._rec_subs: list[Any] = []
         self.last_command: SequencerCommand | None = None
+        #: Resolved with the exit code (0 done, 1 aborted) when the plan ends, if
+        #: ``exit_when_done``; ``run_node`` spins until then.
+        self.finished = Future()
+        self._calls: list[Any] = []        # service calls in flight (torque, gait)
         if self.sim_run is not None:
             from rclpy.qos import QoSProfile
 
@@ -174,6 +181,7 @@ class BenchSequencerNode(Node):
                 self.get_logger().warning(f'put {cmd.load_request_kg:.3f} kg on the stage, '
                                           'then call confirm_load')
             self._publish(cmd)
+        self._check_finished(cmd)
 
     def _on_sim_timer(self) -> None:
         run = self.sim_run
@@ -196,6 +204,18 @@ class BenchSequencerNode(Node):
         if key != self._last:
             self._last = key
             self._publish(cmd, stamp=clock.clock)
+        self._check_finished(cmd)
+
+    def _check_finished(self, cmd: SequencerCommand) -> None:
+        self._calls = [c for c in self._calls if not c.done()]
+        if cmd.state in ('done', 'aborted') and not self.finished.done():
+            if self._calls:             # the final torque-off / stand request is still in flight
+                return
+            self.get_logger().info(f'plan {cmd.state}: {len(self.seq.completed)} sessions '
+                                   'completed')
+            if self.params.exit_when_done:
+                self._stop_recording()
+                self.finished.set_result(0 if cmd.state == 'done' else 1)
 
     def _publish(self, cmd: SequencerCommand, stamp: Any = None) -> None:
         msg = BenchSession()
@@ -215,7 +235,7 @@ class BenchSequencerNode(Node):
         if on == self._torque or self.torque_client is None:
             return
         if self.torque_client.service_is_ready():
-            self.torque_client.call_async(SetBool.Request(data=on))
+            self._calls.append(self.torque_client.call_async(SetBool.Request(data=on)))
             self._torque = on
 
     def _set_gait(self, cmd: SequencerCommand) -> None:
@@ -235,7 +255,9 @@ class BenchSequencerNode(Node):
         names = ('period', 'duty_factor', 'step_length', 'step_height')
         request = SetParameters.Request(parameters=[
             Parameter(n, value=float(v)).to_parameter_msg() for n, v in zip(names, values)])
-        self.gait_client.call_async(request).add_done_callback(self._on_gait_set)
+        call = self.gait_client.call_async(request)
+        call.add_done_callback(self._on_gait_set)
+        self._calls.append(call)
         self._gait_sent = values
 
     def _on_gait_set(self, future: Any) -> None:

@@ -157,6 +157,9 @@ def declare_params(node: Any, cls: type[T], *,
 def run_node(node_factory: Callable[..., Any], args: Sequence[str] | None = None) -> int:
     """The Jazzy ``main()``: init, spin, clean shutdown on Ctrl-C or external shutdown.
 
+    A node that has a ``finished`` attribute (an ``rclpy.task.Future``) is spun until that
+    future is done, and its result is the exit code (a plan that ends, a replay that finishes).
+
     A parameter error at start-up is printed as one line and gives exit code 2.
     """
     import rclpy
@@ -166,7 +169,15 @@ def run_node(node_factory: Callable[..., Any], args: Sequence[str] | None = None
     node = None
     try:
         node = node_factory()
-        rclpy.spin(node)
+        finished = getattr(node, 'finished', None)
+        if finished is None:
+            rclpy.spin(node)
+        else:
+            # A node with a job that ends (e.g. a bench plan) resolves ``node.finished`` with
+            # its exit code; spin until then.
+            rclpy.spin_until_future_complete(node, finished)
+            if finished.done():
+                return int(finished.result() or 0)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except ParameterError as err:

@@ -57,6 +57,9 @@ def test_sim_backend_runs_the_plan_killed_and_resumed(tmp_path):
         sessions2 = Collector(env, BenchSession, 'bench/session', LATCHED)
         assert env.spin_until(lambda: sessions2.messages
                               and sessions2.messages[-1].state == 'done', 90)
+        # the plan is over: the node resolves ``finished`` (run_node then exits with 0)
+        assert env.spin_until(lambda: node.finished.done(), 10)
+        assert node.finished.result() == 0
     all_ids = json.loads((tmp_path / 'state.json').read_text())['completed']
     assert len(all_ids) == 9 and all_ids[:4] == done1
     walked2 = [m.session_id for m in sessions2.messages if m.state == 'walking']
@@ -70,3 +73,24 @@ def test_sim_backend_runs_the_plan_killed_and_resumed(tmp_path):
         assert len(samples) == 1 and samples[0].session_id == sid
         assert samples[0].load_kg == pytest.approx(walks[sid].load_mass)
         assert samples[0].p_stance_w > 0.5
+
+
+@pytest.mark.timeout(120)
+def test_bench_sequencer_executable_exits_when_the_plan_is_done(tmp_path):
+    """The console script (run_node) returns 0 once the plan is done instead of spinning on."""
+    import shutil
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    plan = tmp_path / 'plan.yaml'
+    plan.write_text('loads_kg: [0.0]\nfrequencies_hz: [2.0]\nwalk_duration_s: 1.0\n')
+    exe = shutil.which('bench_sequencer') or str(Path(sys.executable).parent / 'bench_sequencer')
+    proc = subprocess.run(
+        [exe, '--ros-args', '-r', '__ns:=/seqexit', '-p', f'plan_file:={plan}',
+         '-p', f'state_file:={tmp_path / "state.json"}', '-p', f'output_dir:={tmp_path / "bags"}',
+         '-p', 'backend:=sim', '-p', 'rate_hz:=500.0', '-p', 'sim_initial_temperature_c:=26.0'],
+        capture_output=True, text=True, timeout=100)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert 'plan done: 1 sessions completed' in proc.stderr + proc.stdout
+    assert json.loads((tmp_path / 'state.json').read_text())['completed']
