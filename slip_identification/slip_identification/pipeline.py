@@ -6,6 +6,7 @@ recording. Core module: numpy/scipy only.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections import Counter
 from dataclasses import dataclass, field
@@ -17,6 +18,7 @@ from numpy.typing import NDArray
 from .energetics import battery_power_w, specific_resistance
 from .errors import SlipDataError, StanceRejectedError
 from .fit import SlipFitResult, SlipFitter, SlipPositionFitter, Stance, validate_stance
+from .geometry import LegGeometry, body_pitch_rad, fit_ground_offset, leg_contacts, single_support
 from .model import SlipModel
 from .proprio_edges import (
     estimate_offset_contacts,
@@ -32,7 +34,13 @@ from .preprocess import (
     permissible_mask,
     sagittal_state,
 )
-from .stance import best_shift, edges_from_target, single_tripod_stances, tripod_stance_windows
+from .stance import (
+    StanceWindow,
+    best_shift,
+    edges_from_target,
+    single_tripod_stances,
+    tripod_stance_windows,
+)
 
 __all__ = ['RunData', 'RunResult', 'analyze_run', 'run_data_from_sim', 'TRIPODS']
 
@@ -49,7 +57,8 @@ class RunData:
     ``mocap_t_s`` (m,), ``mocap_position_m`` (m, 3), ``mocap_quat_xyzw`` (m, 4);
     ``battery_t_s``, ``battery_voltage_v``, ``battery_current_a`` (b,); ``gait`` name;
     ``joint_effort`` (n, J) measured hip efforts [N m] or None (needed by ``edges='effort'`` and
-    the contact-based offset).
+    the contact-based offset); ``joint_position`` (n, J) measured hip angles [rad] (unwrapped)
+    or None (needed by the geometric edges and offset).
     """
 
     joint_names: tuple[str, ...]
@@ -66,6 +75,7 @@ class RunData:
     gait: str = 'unknown'
     label: str = ''
     joint_effort: FloatArray | None = None
+    joint_position: FloatArray | None = None
 
 
 @dataclass
@@ -85,6 +95,9 @@ class RunResult:
     frame: dict[str, Any] = field(default_factory=dict)
     offset_method: str = 'given'
     edges: str = 'paper'
+    ground_m: float = math.nan
+    paper_windows: list[StanceWindow] = field(default_factory=list)
+    geometry_windows: list[StanceWindow] = field(default_factory=list)
 
 
 def _tripod_mean(names: tuple[str, ...], values: FloatArray, tripod: str) -> FloatArray:
@@ -106,30 +119,55 @@ def _up_from_quats(q: FloatArray) -> FloatArray:
 def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None = None,
                 offset_s: float | str = 0.0, offset_lag_s: float = 0.0,
                 max_lateral_m: float = 0.05, position_fit: bool = True,
-                min_stance_s: float = 0.02, edges: str = 'paper') -> RunResult:
+                min_stance_s: float = 0.02, edges: str = 'auto',
+                geometry: LegGeometry | None = None) -> RunResult:
     """Preprocess one run, extract single-tripod stances, fit each (see module docs).
 
     ``offset_s``: seconds to subtract from mocap times, or a method to estimate it:
     ``'contact'`` (touchdowns from hip-effort onsets against touchdowns from the body height,
     :func:`estimate_offset_contacts`; needs ``run.joint_effort``), ``'joint'`` (one offset
     fitted over all stances' body heights with the touchdowns fixed at the hip-effort onsets,
-    :func:`estimate_offset_joint`; needs ``run.joint_effort``), ``'xcorr'`` (cross-correlate
-    the mocap vertical velocity with the tripod speed difference, minus ``offset_lag_s``, a
-    calibrated physical lag), or ``'auto'`` (``'joint'`` when efforts are present, else
-    ``'xcorr'``). ``edges``: ``'paper'`` (shifted clock edges, Section 3) or ``'effort'``
-    (touchdown refined to the hip-effort onset, lift-off the paper's edge).
+    :func:`estimate_offset_joint`; needs ``run.joint_effort``), ``'geometry'`` (offset and
+    ground height fitted to the body's vertical dynamics with the legs' geometric contacts,
+    :func:`.geometry.fit_ground_offset`; needs ``geometry`` and ``run.joint_position``; started
+    from ``'joint'`` with efforts, else from ``'xcorr'``), ``'xcorr'`` (cross-correlate the
+    mocap vertical velocity with the tripod speed difference, minus ``offset_lag_s``, a
+    calibrated physical lag), or ``'auto'`` (``'geometry'`` when its inputs exist, else
+    ``'joint'`` when efforts are present, else ``'xcorr'``).
+
+    ``edges``: ``'paper'`` (shifted clock edges, Section 3), ``'effort'`` (touchdown refined to
+    the hip-effort onset, lift-off the paper's edge), ``'geometry'`` (single support from the
+    legs' geometric contacts: hip below the half-circle leg's rest height, with the fitted
+    ground height and offset) or ``'auto'`` (``'geometry'`` when ``geometry`` and
+    ``run.joint_position`` are given, else ``'paper'``). The paper's windows are always
+    computed and kept in ``RunResult.paper_windows`` (side by side with
+    ``geometry_windows``). With a geometric fit, the world frame's ground is moved to the
+    fitted ground height (``RunResult.ground_m``, the frame's vertical translation); without
+    it the ground passes through the mocap origin.
     """
-    if edges not in ('paper', 'effort'):
-        raise SlipDataError(f"edges must be 'paper' or 'effort', got {edges!r}")
-    if isinstance(offset_s, str) and offset_s not in ('auto', 'contact', 'joint', 'xcorr'):
-        raise SlipDataError(f"offset_s must be seconds or 'auto', 'contact', 'joint', 'xcorr', "
-                            f'got {offset_s!r}')
+    if edges not in ('paper', 'effort', 'geometry', 'auto'):
+        raise SlipDataError(f"edges must be 'paper', 'effort', 'geometry' or 'auto', "
+                            f'got {edges!r}')
+    methods = ('auto', 'contact', 'joint', 'xcorr', 'geometry')
+    if isinstance(offset_s, str) and offset_s not in methods:
+        raise SlipDataError(f"offset_s must be seconds or one of {methods}, got {offset_s!r}")
     effort = None if run.joint_effort is None else np.asarray(run.joint_effort, dtype=float)
     if effort is not None and (effort.shape != np.shape(run.joint_velocity)
                                or not np.any(np.isfinite(effort))):
         effort = None
+    position = None if run.joint_position is None else np.asarray(run.joint_position,
+                                                                  dtype=float)
+    if position is not None and (position.shape != np.shape(run.joint_velocity)
+                                 or not np.any(np.isfinite(position))):
+        position = None
+    can_geo = geometry is not None and position is not None
+    if edges == 'auto':
+        edges = 'geometry' if can_geo else 'paper'
     if edges == 'effort' and effort is None:
         raise SlipDataError("edges='effort' needs run.joint_effort shaped like joint_velocity")
+    if (edges == 'geometry' or offset_s == 'geometry') and not can_geo:
+        raise SlipDataError("geometric edges/offset need a LegGeometry (geometry=...) and "
+                            'run.joint_position shaped like joint_velocity')
     model = model if model is not None else SlipModel()
     box = box if box is not None else Box()
     res = RunResult()
@@ -143,37 +181,57 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
     if inside.sum() < 10:
         raise SlipDataError(f'run {run.label!r}: {int(inside.sum())} mocap samples inside the '
                             'permissible box, need >= 10')
-    up = _up_from_quats(np.asarray(run.mocap_quat_xyzw, dtype=float)[inside])
+    quats = np.asarray(run.mocap_quat_xyzw, dtype=float)[inside]
+    up = _up_from_quats(quats)
     frame = fit_world_frame(pm[inside], up_mocap=up)
     pw = frame.to_world(pm[inside])
     check_straight(pw, max_lateral_m=max_lateral_m)
     res.frame = {'tilt_deg': math.degrees(frame.tilt_rad), 'yaw_deg': math.degrees(frame.yaw_rad),
-                 'origin_m': frame.origin_m.tolist()}
+                 'origin_m': frame.origin_m.tolist(), 'ground_source': 'mocap_origin'}
     touchdowns: dict[str, FloatArray] = {}
     if effort is not None:
         touchdowns = {tp: tripod_touchdowns(names, tj, effort, TRIPODS[tp]) for tp in TRIPODS}
     method = offset_s if isinstance(offset_s, str) else 'given'
     if method == 'auto':
-        method = 'joint' if effort is not None else 'xcorr'
-    if method in ('contact', 'joint'):
+        method = 'geometry' if can_geo else ('joint' if effort is not None else 'xcorr')
+    init = 'joint' if effort is not None else 'xcorr'
+    first = init if method == 'geometry' else method
+    if first in ('contact', 'joint'):
         if effort is None:
-            raise SlipDataError(f"offset {method!r} needs run.joint_effort")
-        if method == 'contact':
+            raise SlipDataError(f"offset {first!r} needs run.joint_effort")
+        if first == 'contact':
             off, _ = estimate_offset_contacts(np.concatenate(list(touchdowns.values())),
                                               tm[inside], pw[:, 2])
         else:
             off, _ = estimate_offset_joint(touchdowns, tm[inside], pw[:, 2])
-    elif method == 'xcorr':
+    elif first == 'xcorr':
         vz = np.gradient(pm[:, 2], tm)
         off = estimate_offset(tj, speed['left'] - speed['right'], tm, vz, lag_s=offset_lag_s)
     else:
         off = float(offset_s)
+    geo_inputs: tuple[Any, ...] = ()
+    if can_geo and (edges == 'geometry' or method == 'geometry'):
+        assert geometry is not None and position is not None
+        pitch = body_pitch_rad(frame.rotation, quats)
+        geo_inputs = (geometry, names, tj, position, np.asarray(run.joint_velocity, dtype=float),
+                      tm[inside], pw[:, 2], pitch)
+        gfit = fit_ground_offset(*geo_inputs, initial_offset_s=off,
+                                 offset_range_s=0.015 if init == 'joint' or method != 'geometry'
+                                 else 0.1, fix_offset=method != 'geometry')
+        off = gfit.offset_s
+        res.ground_m = gfit.ground_m
+        # the fitted ground is the frame's vertical translation: heights above the ground
+        frame = dataclasses.replace(frame, origin_m=frame.origin_m
+                                    + gfit.ground_m * frame.rotation[2])
+        pw = pw - np.array([0.0, 0.0, gfit.ground_m])
+        res.frame.update(origin_m=frame.origin_m.tolist(), ground_m=gfit.ground_m,
+                         ground_source='geometry', geometry_rms_m=gfit.rms_m)
     res.offset_s = off
     res.offset_method = method
     res.edges = edges
     tm = tm - off
     track = sagittal_state(tm[inside], pw)
-    # stance extraction
+    # stance extraction: the paper's windows always (reported side by side)
     windows = {}
     tc = np.asarray(run.command_t_s, dtype=float)
     for tp in TRIPODS:
@@ -190,6 +248,16 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
         if edges == 'effort':
             windows[tp], _ = refine_touchdowns(windows[tp], touchdowns[tp])
     stance_windows = single_tripod_stances(windows, res.shift_s)
+    res.paper_windows = stance_windows
+    if geo_inputs:
+        # heights in geo_inputs are those before the ground was moved
+        contacts = leg_contacts(*geo_inputs, offset_s=res.offset_s, ground_m=res.ground_m)
+        ss = single_support(contacts, TRIPODS)
+        res.geometry_windows = sorted(
+            (StanceWindow(float(a), float(b), tp, res.shift_s.get(tp, 0.0))
+             for tp, iv in ss.items() for a, b in iv), key=lambda w: w.touchdown_s)
+        if edges == 'geometry':
+            stance_windows = res.geometry_windows
     t_in0, t_in1 = track.t_s[0], track.t_s[-1]
     stances: list[Stance] = []
     for k, w in enumerate(stance_windows):
@@ -241,4 +309,5 @@ def run_data_from_sim(run: Any, *, with_effort: bool = True) -> RunData:
                    mocap_quat_xyzw=run.mocap_quat_xyzw, battery_t_s=run.t_s,
                    battery_voltage_v=run.battery_voltage_v,
                    battery_current_a=run.battery_current_a, gait=run.gait,
-                   joint_effort=run.hip_effort_nm if with_effort else None)
+                   joint_effort=run.hip_effort_nm if with_effort else None,
+                   joint_position=run.hip_position_rad)
