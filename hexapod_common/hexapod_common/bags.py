@@ -6,10 +6,17 @@
   ``split_every_s`` it closes a storage file every so many seconds and rewrites
   ``metadata.yaml`` atomically, so a killed recorder loses at most the open split.
 - :func:`open_reader` opens bags written by any tool, with a one-line typed error on bad input.
+  Bags recorded under other topic names (another lab's namespace, a renamed topic) are read
+  through a topic remapping: ``open_reader(path, remap={'/antbot/joint_states':
+  '/joint_states'}, namespace='/antbot')``, or for every reader of the process through the
+  environment variable ``HEXAPOD_BAG_REMAP`` (JSON ``{"remap": {...}, "namespace": "..."}``,
+  set by ``hexapod-analyze --remap FROM:=TO --namespace NS``), so analyses see the contract
+  names of DESIGN section 4.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import sys
@@ -43,6 +50,8 @@ __all__ = [
     'new_msg',
     'OpenedReader',
     'open_reader',
+    'REMAP_ENV',
+    'parse_remap',
     'stamp',
     'typestore',
 ]
@@ -292,8 +301,87 @@ def _merge_info(old: dict[str, Any], new: dict[str, Any]) -> dict[str, Any]:
     return merged
 
 
+#: Environment variable holding a process-wide topic remapping for :func:`open_reader` (JSON).
+REMAP_ENV = 'HEXAPOD_BAG_REMAP'
+
+
+def parse_remap(items: Sequence[str]) -> dict[str, str]:
+    """``['FROM:=TO', ...]`` -> ``{FROM: TO}`` (recorded topic -> topic the analysis reads).
+
+    Raises :class:`ValueError` naming the bad item.
+    """
+    out: dict[str, str] = {}
+    for item in items:
+        src, sep, dst = item.partition(':=')
+        if not sep or not src.strip() or not dst.strip():
+            raise ValueError(f'a topic remap is FROM:=TO (recorded topic := analysed topic), '
+                             f'got {item!r}')
+        out['/' + src.strip().lstrip('/')] = '/' + dst.strip().lstrip('/')
+    return out
+
+
+def _remap_from_env() -> tuple[dict[str, str], str]:
+    raw = os.environ.get(REMAP_ENV, '').strip()
+    if not raw:
+        return {}, ''
+    try:
+        doc = json.loads(raw)
+        return {str(k): str(v) for k, v in dict(doc.get('remap', {})).items()}, \
+            str(doc.get('namespace', '') or '')
+    except (ValueError, TypeError, AttributeError) as err:
+        raise BagReadError(f'{REMAP_ENV} is not JSON {{"remap": {{...}}, "namespace": ...}}: '
+                           f'{err}') from err
+
+
 class OpenedReader(AnyReader):
-    """An AnyReader that is already open; ``with`` just closes it at the end."""
+    """An AnyReader that is already open; ``with`` just closes it at the end.
+
+    ``topic_alias`` maps recorded topic -> analysed topic for the connections renamed by
+    :meth:`apply_remap` (``connections`` then carry the analysed names).
+    """
+
+    topic_alias: dict[str, str]
+
+    def apply_remap(self, remap: dict[str, str], namespace: str = '') -> None:
+        """Rename connections: explicit ``remap`` first, then strip ``namespace``.
+
+        A recorded topic ``<namespace>/x`` is read as ``/x`` unless the bag also has ``/x``.
+        Two recorded topics mapped onto one name raise :class:`BagReadError` (ambiguous).
+        """
+        ns = '/' + namespace.strip('/') if namespace.strip('/') else ''
+        present = {c.topic for c in self.connections}
+        alias: dict[str, str] = {}
+        for topic in sorted(present):
+            if topic in remap:
+                alias[topic] = remap[topic]
+            elif ns and topic.startswith(ns + '/') and topic[len(ns):] not in present:
+                alias[topic] = topic[len(ns):]
+        targets: dict[str, str] = {}
+        for topic in sorted(present):
+            new = alias.get(topic, topic)
+            if new in targets and targets[new] != topic:
+                raise BagReadError(f'topic remapping is ambiguous: {targets[new]} and {topic} '
+                                   f'would both be read as {new}')
+            targets[new] = topic
+        self.topic_alias = {k: v for k, v in alias.items() if k != v}
+        if self.topic_alias:
+            self._originals = {(id(c.owner), c.id): c for c in self.connections}
+            self.connections[:] = [c._replace(topic=self.topic_alias.get(c.topic, c.topic))
+                                   for c in self.connections]
+
+    def messages(self, connections: Any = (), start: int | None = None,
+                 stop: int | None = None) -> Iterator[tuple[Any, int, bytes]]:
+        """AnyReader.messages on renamed connections: the storage is asked with the recorded
+        connections and the yielded ones carry the analysed topic names."""
+        originals = getattr(self, '_originals', None)
+        if not originals:
+            yield from super().messages(connections, start, stop)
+            return
+        asked = [originals.get((id(c.owner), c.id), c) for c in connections]
+        alias = self.topic_alias
+        for conn, t_ns, data in super().messages(asked, start, stop):
+            yield (conn._replace(topic=alias[conn.topic]) if conn.topic in alias else conn,
+                   t_ns, data)
 
     def __enter__(self) -> OpenedReader:
         if not self.stack:
@@ -311,13 +399,18 @@ class BagMessage:
     data: bytes
 
 
-def open_reader(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[str]]
+def open_reader(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[str]], *,
+                remap: dict[str, str] | None = None, namespace: str | None = None
                 ) -> OpenedReader:
     """Open one bag (or several rosbag1 files) for reading, already opened.
 
     Bags without message definitions (e.g. Foxy-era sqlite3) fall back to the Jazzy typestore
     plus ``hexapod_interfaces``. Raises :class:`BagNotFoundError` or :class:`BagReadError` with
     a one-line message naming the path and the problem.
+
+    ``remap`` (recorded topic -> analysed topic) and ``namespace`` (a prefix stripped from
+    recorded topics) rename the reader's connections; when both are None the process-wide
+    remapping of the ``HEXAPOD_BAG_REMAP`` environment variable applies (see module doc).
     """
     items = [paths] if isinstance(paths, (str, os.PathLike)) else list(paths)
     resolved = [Path(p) for p in items]
@@ -336,6 +429,15 @@ def open_reader(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[str]]
         msg = str(err).splitlines()[0] if str(err) else type(err).__name__
         where = ', '.join(str(p) for p in resolved)
         raise BagReadError(f'cannot read bag {where}: {msg}') from err
+    reader.topic_alias = {}
+    if remap is None and namespace is None:
+        remap, namespace = _remap_from_env()
+    if remap or namespace:
+        try:
+            reader.apply_remap(dict(remap or {}), namespace or '')
+        except BagReadError:
+            reader.close()
+            raise
     return reader
 
 
