@@ -322,6 +322,15 @@ class ServoOutput:
     reported_voltage_v : supply voltage with 0.1 V resolution
     error : Dynamixel error bits (uint8)
     torque_enabled : whether each servo drives its motor
+    losses : power breakdown [W] (means over the step, shape ``(count,)``) when the model was
+        built with ``record_losses=True``, else None. Keys: ``standby`` (electronics),
+        ``extra`` (effects), ``copper`` (``i^2 R``), ``coulomb`` (``c |w|``), ``gear``
+        (load-dependent gear friction ``(1 - eta) |k_e i| |w|``), ``viscous`` (``b w^2``),
+        ``kinetic`` (rate of change of the rotor's kinetic energy), ``load`` (power into the
+        load, ``mechanical_power_w``, carried load inertia included), ``brake`` (power the
+        bridge dissipates while the motor generates, ``max(-u i, 0) V``). ``standby + extra +
+        copper + brake + coulomb + gear + viscous + kinetic + load`` equals ``power_w`` up to
+        the integrator's own dissipation (about 1 % over a gait cycle at 3.3 ms sub-steps).
     """
 
     position_rad: FloatArray
@@ -337,6 +346,7 @@ class ServoOutput:
     reported_voltage_v: FloatArray
     error: NDArray[np.uint8]
     torque_enabled: NDArray[np.bool_]
+    losses: dict[str, FloatArray] | None = None
 
 
 def _as_count(value: ArrayLike, count: int, name: str) -> FloatArray:
@@ -379,6 +389,8 @@ class ServoModel:
         Longest integration sub-step [s]; 1 ms is accurate, 2 ms is still stable.
     torque_enabled : bool or (count,)
         Initial torque enable.
+    record_losses : bool
+        Fill :attr:`ServoOutput.losses` with the power breakdown (diagnostics; a little slower).
     """
 
     def __init__(self, params: ServoParams | None = None, *, count: int = 1,
@@ -390,7 +402,8 @@ class ServoModel:
                  thermal_drift_w_k: float = 0.0,
                  extra_friction_nm: ArrayLike = 0.0,
                  max_substep_s: float = 1e-3,
-                 torque_enabled: ArrayLike = True) -> None:
+                 torque_enabled: ArrayLike = True,
+                 record_losses: bool = False) -> None:
         if count < 1:
             raise ServoParamsError(f'count = {count!r}: expected at least 1 servo')
         if not max_substep_s > 0.0:
@@ -400,6 +413,7 @@ class ServoModel:
         p = self.params
         self.ambient_temperature_c = float(ambient_temperature_c)
         self.max_substep_s = float(max_substep_s)
+        self.record_losses = bool(record_losses)
         self.thermal_drift_w_k = float(thermal_drift_w_k)
         self.extra_power_w = _as_count(extra_power_w, count, 'extra_power_w')
         self.extra_friction_nm = _as_count(extra_friction_nm, count, 'extra_friction_nm')
@@ -507,12 +521,16 @@ class ServoModel:
         setpoint = self._setpoint_rad
         q0 = self.motor_position_rad
         q = q0.copy()
-        w = self.velocity_rad_s.copy()
+        w0 = self.velocity_rad_s
+        w = w0.copy()
         sum_bridge = np.zeros(n)
         sum_i2 = np.zeros(n)
         u = np.zeros(n)
         absolute, maximum, minimum, where, sign = (np.absolute, np.maximum, np.minimum,
                                                    np.where, np.sign)
+        rec = self.record_losses
+        if rec:
+            sum_coulomb, sum_gear, sum_visc, sum_brake = (np.zeros(n) for _ in range(4))
         for _ in range(n_sub):
             if any_limited:
                 dq = np.clip(goal - setpoint, -speed_limit * h, speed_limit * h)
@@ -535,6 +553,13 @@ class ServoModel:
             w_new = w + h_inv_j * (tau_free - f_max * direction)
             # stick: at rest inside the friction band, or crossing zero speed in this sub-step
             stick = where(moving, w_new * w < 0.0, absolute(tau_free) <= f_max)
+            if rec:
+                # the sub-step's displacement is h * w_new (semi-implicit Euler)
+                w_abs = absolute(where(stick, 0.0, w_new))
+                sum_coulomb += coulomb * w_abs
+                sum_gear += mu * absolute(gen) * w_abs
+                sum_visc += visc * absolute(w) * w_abs
+                sum_brake += maximum(-u * i, 0.0)
             w = where(stick, 0.0, w_new)
             q += h * w
             sum_bridge += maximum(u * i, 0.0)
@@ -566,6 +591,19 @@ class ServoModel:
             ERROR_INPUT_VOLTAGE
         error[self._overheated] |= ERROR_OVERHEATING
         error[drive & (np.abs(u) >= umax) & (np.abs(w) < 0.05) & (umax > 0)] |= ERROR_OVERLOAD
+        losses = None
+        if rec:
+            losses = {
+                'standby': np.where(powered, p.standby_current_a * volts, 0.0),
+                'extra': extra_w,
+                'copper': winding_loss_w,
+                'coulomb': sum_coulomb / n_sub,
+                'gear': sum_gear / n_sub,
+                'viscous': sum_visc / n_sub,
+                'kinetic': 0.5 * p.reflected_inertia_kgm2 * (w * w - w0 * w0) / dt_s,
+                'load': sum_pmech / n_sub,
+                'brake': sum_brake / n_sub * volts,
+            }
         return ServoOutput(
             position_rad=q + deflection,
             velocity_rad_s=w.copy(),
@@ -580,4 +618,5 @@ class ServoModel:
             reported_voltage_v=np.round(volts * 10.0) / 10.0,
             error=error,
             torque_enabled=drive.copy(),
+            losses=losses,
         )

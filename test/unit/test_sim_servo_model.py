@@ -160,3 +160,45 @@ def test_bad_inputs_are_refused_with_their_names() -> None:
         model.step(0.0, 0.0)
     with pytest.raises(ServoParamsError, match='servo model'):
         ServoParams.by_name('mx64')
+
+
+def test_loss_breakdown_balances_supply_power() -> None:
+    """Every watt of supply power is in one loss term (fine sub-steps: the integrator's own
+    dissipation vanishes); recording the breakdown does not change the simulation."""
+    goals = lambda t: [0.8 * math.sin(6 * t), 0.5 * math.copysign(1.0, math.sin(3 * t)),  # noqa: E731
+                       0.3 * math.sin(20 * t)]
+    kw = dict(count=3, load_inertia_kgm2=3e-4, max_substep_s=1e-4, extra_power_w=0.2)
+    rec = ServoModel(record_losses=True, **kw)
+    plain = ServoModel(**kw)
+    supply, parts = [], []
+    for k in range(200):
+        out = rec.step(0.01, goals(0.01 * k), [-0.3, 0.1, -0.5], 11.9)
+        ref = plain.step(0.01, goals(0.01 * k), [-0.3, 0.1, -0.5], 11.9)
+        assert ref.losses is None
+        assert_allclose(out.power_w, ref.power_w, rtol=0, atol=0)
+        supply.append(out.power_w)
+        parts.append(sum(out.losses.values()))
+    assert set(out.losses) == {'standby', 'extra', 'copper', 'brake', 'coulomb', 'gear',
+                               'viscous', 'kinetic', 'load'}
+    assert_allclose(np.mean(parts, axis=0), np.mean(supply, axis=0), rtol=2e-3)
+    assert_allclose(out.losses['standby'], 0.05 * 11.9)
+    assert_allclose(out.losses['load'], out.mechanical_power_w)
+
+
+def test_goal_faster_than_the_no_load_speed_is_not_followed() -> None:
+    """A goal ramp at 13.4 rad/s (the femur's peak in a 0.165 s swing of the AntBot gait) is
+    beyond the AX-18A at 11.9 V: the servo saturates at full duty and its speed stays at the
+    no-load speed for that voltage, so the tracking error grows."""
+    p = ServoParams.ax18a()
+    w_max = (11.9 - p.winding_resistance_ohm * p.no_load_current_a) / p.back_emf_constant_v_s
+    model = ServoModel(p, count=1, initial_position_rad=-1.0)
+    speeds, errors = [], []
+    for k in range(1, 13):
+        goal = -1.0 + 13.4 * 0.01 * k
+        out = model.step(0.01, goal, 0.0, 11.9)
+        speeds.append(out.velocity_rad_s[0])
+        errors.append(goal - out.position_rad[0])
+    assert max(speeds) <= w_max * 1.01     # 26 degC winding: magnet flux 0.35 % lower
+    assert_allclose(speeds[-1], w_max, rtol=0.01)
+    assert errors[-1] > errors[5] > math.radians(10)
+    assert_allclose(out.load_fraction, 1.0)
