@@ -184,40 +184,40 @@ class EdubotParams:
     pitch_inertia_kgm2: float = 0.072        # 3.31 kg box 0.5 m x 0.1 m: m (L^2 + H^2) / 12
     hip_x_m: tuple[float, float, float] = (0.20, 0.0, -0.20)
     hip_z_m: float = 0.0                    # hips on the COM's level
-    leg_rest_length_m: float = 0.146       # hip-to-toe chord = 2 R of the half circle [a]
-    leg_stiffness_n_m: float = 2550.0        # per leg, radial; a tripod ~ 7.7 kN/m [a]
-    leg_bending_stiffness_nm_rad: float = 31.0   # [a]
+    leg_rest_length_m: float = 0.105       # hip-to-toe chord = 2 R of the half circle [c]
+    leg_stiffness_n_m: float = 3400.0        # per leg, radial; a tripod ~ 10 kN/m [a]
+    leg_bending_stiffness_nm_rad: float = 15.5   # [a]
     leg_bending_damping_nm_s_rad: float = 0.027
-    leg_radial_damping_n_s_m: float = 20.7    # structural, per leg [a]; leg_damping adds
+    leg_radial_damping_n_s_m: float = 11.6    # structural, per leg [a]; leg_damping adds
     foot_friction: float = 0.8               # Coulomb, rubber foot on the paper's carpet
     foot_slide_stiffness_n_m: float = 2000.0  # relaxation of a slipping foot [N per m slid]
     body_half_length_m: float = 0.25         # nose/tail points that stop a fall
     body_half_height_m: float = 0.05
     hip_inertia_kgm2: float = 4.0e-4         # rotor through the gear + leg, at the hip
-    hip_zero_rad: float = -0.21              # leg angle from vertical = phi + beta + zero [a]
+    hip_zero_rad: float = 0.0                # leg angle from vertical = phi + beta + zero [d]
     # motor + gearbox: a 25 mm 10-11 W 12 V graphite-brush ironless DC motor (the paper's
     # '11 W brushed DC motor'; figures of that class, not one verified datasheet row) [b]
     motor_resistance_ohm: float = 2.32
     motor_torque_constant_nm_a: float = 0.0205
-    gear_ratio: float = 28.0                  # planetary, in the 20-30:1 range [a]
-    motor_current_limit_a: float = 3.0        # driver's current limit (about 2x nominal)
+    gear_ratio: float = 21.4                  # planetary, in the 20-30:1 range [a]
+    motor_current_limit_a: float = 5.0        # driver's peak current limit [e]
     gear_efficiency: float = 0.67             # [a]; catalogue 2-3 stage planetary 0.6-0.8
     gear_viscous_nm_s_rad: float = 0.002
     gear_coulomb_nm: float = 0.02
     # controller
     supply_norm_v: float = 14.8              # normalised voltage 1 = 14.8 V
     speed_norm_rad_s: float = math.pi        # normalised speed = speed / this
-    gain_scale: float = 14.4                 # [a]
+    gain_scale: float = 7.15                 # [a]
     # battery and electronics
     battery_ocv_v: float = 15.6
     battery_resistance_ohm: float = 0.139
-    electronics_power_w: float = 7.5         # PC104 stack + motor boards [a]
+    electronics_power_w: float = 6.7         # PC104 stack + motor boards [a]
     # simulation and sensors
     dt_s: float = 0.001
     proprio_rate_hz: float = 100.0
     mocap_rate_hz: float = 120.0
     settle_s: float = 1.5                    # the robot enters the tracking volume after this
-    initial_height_m: float = 0.155
+    initial_height_m: float = 0.105
     # permissible domain P of the paper's Fig. 3 (2 x 1 x 1 m, mocap frame): samples outside
     # it are not tracked accurately, so the simulator drops them
     mocap_volume_m: tuple[tuple[float, float], ...] = ((-1.0, 1.0), (-0.5, 0.5), (-0.5, 0.5))
@@ -605,15 +605,27 @@ def _kernel(tgt: np.ndarray, tgt_v: np.ndarray, hxs: np.ndarray, c: np.ndarray,
                     tau_leg += r_arc * gx
                     roll_rate[i] = r_arc * w_abs
             # hip motor under PD to the clock
-            u = kpn * (tgt[k, i] - phi[i]) + kdn * (tgt_v[k, i] - dphi[i])
-            if contact[i]:
-                u += v_ff
-            if u > v_bat:
-                u = v_bat
-            elif u < -v_bat:
-                u = -v_bat
             w = dphi[i]
-            cur = (u - k_out * w) / rm
+            u0 = kpn * (tgt[k, i] - phi[i]) + kdn * tgt_v[k, i]
+            if contact[i]:
+                u0 += v_ff
+            # the speed term -kdn * w and the back-EMF are taken at the end of the step
+            # (backward Euler on the motor's electrical damping): the firmware's normalised
+            # speed gain is far stiffer than an explicit 1 ms step can follow
+            coul_w = coul * math.tanh(w * 20.0)
+            # gear efficiency: eta when the motor drives the leg, 1/eta when it is driven
+            e_g = eta
+            for _ in range(2):
+                w_new = (jh * w / dt + e_g * k_out * u0 / rm - coul_w - tau_leg) / (
+                    jh / dt + e_g * k_out * (kdn + k_out) / rm + visc)
+                u = u0 - kdn * w_new
+                cur = (u - k_out * w_new) / rm
+                if cur * w >= 0.0:
+                    break
+                e_g = 1.0 / eta
+            if u > v_bat or u < -v_bat:
+                u = v_bat if u > 0.0 else -v_bat
+                cur = (u - k_out * w) / rm
             if cur > i_max or cur < -i_max:
                 # the driver's current limit lowers the applied voltage
                 cur = i_max if cur > 0.0 else -i_max
@@ -621,7 +633,7 @@ def _kernel(tgt: np.ndarray, tgt_v: np.ndarray, hxs: np.ndarray, c: np.ndarray,
             tau_m = k_out * cur
             to = tau_m * eta if tau_m * w >= 0.0 else tau_m / eta
             tau_out[i] = to
-            tau_net = to - visc * w - coul * math.tanh(w * 20.0)
+            tau_net = to - visc * w - coul_w
             torque_cw -= tau_net
             ddphi_l[i] = tau_net - tau_leg
             p_drv += u * cur

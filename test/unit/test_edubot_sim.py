@@ -28,30 +28,33 @@ def runs():
     return {g: simulate_edubot(g, duration_s=DURATION_S, seed=3) for g in GAITS}
 
 
-def test_table3_speed_ordered_and_within_45_percent(runs):
+def test_table3_speed_ordered_and_within_35_percent(runs):
     speeds = {g: run_summary(r)['speed_m_s'] for g, r in runs.items()}
     for gait, speed in speeds.items():
-        assert speed == pytest.approx(TABLE3[gait][1], rel=0.45), gait
+        assert speed == pytest.approx(TABLE3[gait][1], rel=0.35), gait
     order = [speeds[g] for g in GAITS]
     assert order == sorted(order, reverse=True)           # running > jogging > pace > walk
 
 
-@pytest.mark.xfail(strict=False, reason='model gap: walk runs about 43 % too fast (rolling legs '
-                   'stay loaded into the fast phase in its long double support), pace +33 %')
-def test_table3_speed_within_35_percent(runs):
-    for gait, run in runs.items():
-        assert run_summary(run)['speed_m_s'] == pytest.approx(TABLE3[gait][1], rel=0.35), gait
-
-
-@pytest.mark.xfail(strict=True, reason='model gap (rolling contact): power -15 .. +50 % of '
-                   'Table 3, running +44 % and walk +50 % (walk holding torque in double '
-                   'support is copper), and walk costs more than pace')
 def test_table3_power_within_35_percent_and_ordered(runs):
     powers = {g: run_summary(r)['power_w'] for g, r in runs.items()}
     for gait, power in powers.items():
         assert power == pytest.approx(TABLE3[gait][0], rel=0.35), gait
     # jogging costs most, then running, pace, walk (Table 3)
     assert powers['jogging'] > powers['running'] > powers['pace'] > powers['walk']
+
+
+@pytest.mark.parametrize('seed', [0, 1, 2])
+def test_table3_running_and_jogging_do_not_depend_on_the_seed(seed):
+    # the fast gaits once had a stalled mode (a rear tripod losing turns at the current
+    # limit) that some seeds fell into; every seed now settles into the same gait
+    run = {g: run_summary(simulate_edubot(g, duration_s=DURATION_S, seed=seed))
+           for g in ('running', 'jogging')}
+    assert run['running']['speed_m_s'] > run['jogging']['speed_m_s']
+    assert run['jogging']['power_w'] > run['running']['power_w']
+    for gait, summ in run.items():
+        assert summ['speed_m_s'] == pytest.approx(TABLE3[gait][1], rel=0.35), (gait, seed)
+        assert summ['power_w'] == pytest.approx(TABLE3[gait][0], rel=0.35), (gait, seed)
 
 
 def test_power_is_plausible_and_faster_clocks_cost_more(runs):
