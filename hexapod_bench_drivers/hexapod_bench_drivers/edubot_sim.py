@@ -42,13 +42,21 @@ Model
   the true vertical is ``phi + beta``. The Buehler clock's slow phase spans
   ``leg_offset - sweep/2 .. leg_offset + sweep/2`` in this coordinate (plus ``hip_zero_rad``).
 * **Hip motors** (11 W class brushed DC, the figures of a 25 mm 10-11 W 12 V graphite-brush
-  motor with a planetary gearbox): winding resistance, torque constant, gear ratio and
-  efficiency, viscous and Coulomb gear friction, quasi-static electrics (inductance
-  neglected: L/R is about 0.1 ms).
+  motor with a planetary gearbox, driver peak current 5 A): winding resistance, torque
+  constant, gear ratio and efficiency, viscous and Coulomb gear friction, quasi-static
+  electrics (inductance neglected: L/R is about 0.1 ms).
 * **Controller**: the RHex PD law in the normalised coordinates of Fig. 2 (hip position over pi,
   hip speed over ``speed_norm_rad_s``, terminal voltage over 14.8 V) with the gains of Table 1,
   times ``gain_scale`` (the firmware's unpublished scale from normalised gains to its PWM
-  units; chosen so that the hips follow the clock with the lag seen in Fig. 5a).
+  units). The paper writes the speed normalisation as ``phi_dot / (10^-3 pi)``; the firmware
+  runs at 1 kHz and measures speed as the position change per 1 ms tick, so its
+  ``phi_dot`` is in rad per ms and ``(rad/ms) / (10^-3 pi)`` = ``(rad/s) / pi``: one
+  normalised speed unit is pi rad/s, the same scale as the position. The two other readings
+  were tried and rejected: taking ``phi_dot`` in rad/s (``kd`` 1000x stiffer, 141 V per
+  rad/s at ``gain_scale`` 1) turns the running/jogging hips into a current-limited speed servo
+  that loses whole turns in stance, and rad/ms without the rescale makes ``kd`` 10^6 x weaker
+  than ``kp`` (Table 1's ``kd`` would then be meaningless). The speed term is integrated
+  backward-Euler (with the back-EMF) so that stiff gains stay stable at the 1 ms step.
 * **Battery**: 4S LiPo, open-circuit ``battery_ocv_v`` and internal resistance
   ``battery_resistance_ohm``; the H-bridges are ideal (regenerated power returns to the
   battery); the on-board computer and electronics draw ``electronics_power_w``.
@@ -56,22 +64,29 @@ Model
 * **Integration**: semi-implicit Euler at ``dt_s`` = 1 ms; the step loop is compiled with numba
   when installed (several hundred times real time), else plain Python (about 5x real time).
 
-Constants: [a] = tuned (random search + Nelder-Mead against Table 3 power and speed, two
-seeds, with penalties on lost hip turns, body pitch and a body lower than 0.10 m); [b] = the
-class of motor the paper names. The tuned ones are the leg's compliance and size, the gear
-ratio and efficiency, the hip zero, the firmware gain scale and the electronics power.
+Constants: [a] = tuned (random search then a local search against Table 3 power and speed of
+the four gaits over three seeds, with the orderings of Table 3 and a margin of jogging over
+running power in the objective); [b] = the class of motor the paper names; [c] = from Table 3:
+jogging, pace and walk travel 0.09 .. 0.11 m per radian of the clock's slow-phase sweep
+(0.64/6.9, 0.30/2.65, 0.16/1.64 m/s over rad/s), which a rolling half-circle leg gives for
+``2 R`` = 0.10 .. 0.11 m (the hip advances ``R (1 + cos psi)`` per rad, about ``2R`` near the
+vertical); the earlier 0.146 m chord made walk and pace 40-50 % too fast; [d] = the paper's
+convention (``phi = 0``: leg pointing straight down; the slow phase is centred on ``+phi_0``,
+toe behind the hip, i.e. in the direction the leg turns); [e] = the driver's peak current,
+0.8 of the motor's stall current at 14.8 V: with the earlier 3 A limit the running gait had a
+second, stalled mode (nose up, a rear leg at the limit losing turns, 0.45 m/s at 63 W) that 4
+seeds in 10 fell into; from 4.5 A up the running is the same for every seed. The tuned ones
+are the leg's compliance, the gear ratio, the firmware gain scale and the electronics power,
+all inside the ranges stated next to them.
 
-Status (6 s, seed 3, after the 1.5 s settle; Table 3 in brackets): running 45.5 W (31.6) at
-1.13 m/s (1.06); jogging 55 W (42.9) at 0.50 (0.64); pace 22 W (26.2) at 0.40 (0.30); walk
-31 W (20.9) at 0.23 (0.16). Speeds are ordered as in Table 3; power within -15 % .. +50 %
-(the pinned-foot model before the rolling contact was +40 % .. +120 %, copper at the current
-limit), jogging costs most, running second, but walk costs more than pace (Table 3: pace >
-walk). What is left: walk is too fast and too costly because its long double support keeps
-the rolling legs loaded into the fast phase (holding torque W R sin(psi) times time is
-copper, 19 of its 31 W); jogging sometimes stalls a tripod whose toe lands far ahead of the
-hip (the toe strut needs more than the current-limited torque to vault the body), losing
-part of a turn (seed dependent, 0.4 .. 0.6 m/s). :func:`power_breakdown` shows the sinks.
-The 35 % power acceptance is an xfail until these are fixed.
+Status (6 s, after the 1.5 s settle; seeds 0..5 agree within 1 W and 0.01 m/s; Table 3 in
+brackets): running 32.2 W (31.6, +2 %) at 0.90 m/s (1.06, -15 %); jogging 38.2 W (42.9,
+-11 %) at 0.69 (0.64, +8 %); pace 22.5 W (26.2, -14 %) at 0.35 (0.30, +16 %); walk 18.9 W
+(20.9, -10 %) at 0.19 (0.16, +18 %). Speeds ordered running > jogging > pace > walk and power
+jogging > running > pace > walk, as in Table 3. What is approximate: walk and pace are still
+15-20 % fast (their toe strut vaults the body over a pole of length 2R before the rolling
+starts), running 15 % slow; the running is SLIP-like with about 60 % aerial time, jogging too,
+so single-tripod stances are short (35-70 ms). :func:`power_breakdown` shows the sinks.
 
 Outputs are the DESIGN §4 topics as arrays: hip states at 100 Hz, battery at 100 Hz (current
 negative when discharging), and the body pose from a 120 Hz motion capture in a frame that is
