@@ -50,6 +50,7 @@ __all__ = [
     'GeometryFit',
     'LegGeometry',
     'body_pitch_rad',
+    'FIT_MODELS',
     'fit_ground_offset',
     'leg_contacts',
     'rest_height_m',
@@ -148,7 +149,8 @@ class _Body:
 
     def __init__(self, geometry: LegGeometry, joint_names: tuple[str, ...], joint_t_s: ArrayLike,
                  joint_position: ArrayLike, joint_velocity: ArrayLike, mocap_t_s: ArrayLike,
-                 height_m: ArrayLike, pitch_rad: ArrayLike) -> None:
+                 height_m: ArrayLike, pitch_rad: ArrayLike,
+                 forward_m: ArrayLike | None = None) -> None:
         self.geo = geometry
         tj = np.asarray(joint_t_s, dtype=float)
         q = np.asarray(joint_position, dtype=float)
@@ -170,8 +172,9 @@ class _Body:
         tm = np.asarray(mocap_t_s, dtype=float)
         z = np.asarray(height_m, dtype=float)
         b = np.asarray(pitch_rad, dtype=float)
-        ok = np.isfinite(tm) & np.isfinite(z) & np.isfinite(b)
-        tm, z, b = tm[ok], z[ok], b[ok]
+        x = np.zeros_like(z) if forward_m is None else np.asarray(forward_m, dtype=float)
+        ok = np.isfinite(tm) & np.isfinite(z) & np.isfinite(b) & np.isfinite(x)
+        tm, z, b, x = tm[ok], z[ok], b[ok], x[ok]
         o = np.argsort(tm)
         keep = np.concatenate([[True], np.diff(tm[o]) > 0])
         o = o[keep]
@@ -180,6 +183,7 @@ class _Body:
         self.tm, self.z, self.b = tm[o], z[o], b[o]
         self.zs = CubicSpline(self.tm, self.z)
         self.bs = CubicSpline(self.tm, self.b)
+        self.xs = None if forward_m is None else CubicSpline(self.tm, x[o])
         self.hx = np.array([geometry.hip_x_of(leg) for leg in self.legs])
 
     def gaps(self, tf: FloatArray, offset_s: float, ground_m: float) -> FloatArray:
@@ -190,6 +194,60 @@ class _Body:
                + self.geo.hip_z_m * np.cos(b)[:, None])
         psi = self.phi(tf) + b[:, None] + self.geo.hip_zero_rad
         return hip - rest_height_m(psi, self.geo.leg_radius_m)
+
+
+    def spoke_force(self, tf: FloatArray, offset_s: float, ground_m: float, tau_s: float,
+                    *, max_contact_s: float = 0.6) -> FloatArray:
+        """Sum over legs of the vertical spoke force over the leg stiffness [m], shape (n,).
+
+        Per leg, from each geometric touchdown (hip height crosses the rest height) the contact
+        point is the toe (pinned) and, while the arc rolls, advances ``R`` per radian of shaft
+        rotation; the spoke compression ``rest length - |hip - contact point|`` plus ``tau_s``
+        times its rate, clipped at zero (a leg cannot pull), times the spoke's vertical
+        direction cosine; the contact ends when the compression vanishes.
+        """
+        assert self.xs is not None
+        step = float(tf[1] - tf[0])
+        z = self.zs(tf + offset_s) - ground_m
+        b = self.bs(tf + offset_s)
+        x = self.xs(tf + offset_s)
+        sb, cb = np.sin(b), np.cos(b)
+        psi = self.phi(tf) + b[:, None] + self.geo.hip_zero_rad
+        psi = psi - 2 * np.pi * np.floor(psi / (2 * np.pi) + 0.5)
+        r = self.geo.leg_radius_m
+        roll = (psi >= 0) & (psi < np.pi)
+        c = np.cos(psi)
+        rest_h = np.where(roll, r * (1 + c), np.where(c > 0, 2 * r * c, -1.0))
+        rest_l = np.where(roll, 2 * r * np.cos(0.5 * psi), 2 * r)
+        rest_th = np.where(roll, 0.5 * psi, psi)
+        dpsi = np.diff(psi, axis=0, prepend=psi[:1])
+        droll = np.where(roll & (np.abs(dpsi) < np.pi), r * dpsi, 0.0)
+        out = np.zeros(tf.size)
+        n_max = int(max_contact_s / step)
+        for j in range(len(self.legs)):
+            hz = z - self.hx[j] * sb + self.geo.hip_z_m * cb
+            hxw = x + self.hx[j] * cb + self.geo.hip_z_m * sb
+            gap = hz - rest_h[:, j]
+            tds = np.flatnonzero((gap[:-1] > 0) & (gap[1:] <= 0)) + 1
+            last = -1
+            for a in tds:
+                if a <= last:
+                    continue
+                e = min(a + n_max, tf.size)
+                foot = hxw[a] - rest_l[a, j] * np.sin(rest_th[a, j]) + np.cumsum(
+                    droll[a:e, j]) - droll[a, j]
+                dx = hxw[a:e] - foot
+                ll = np.hypot(dx, hz[a:e])
+                comp = rest_l[a:e, j] - ll
+                stop = np.flatnonzero((comp < 0) | (hz[a:e] <= 0))
+                m = int(stop[0]) if stop.size else e - a
+                if m < 2:
+                    continue
+                cm = comp[:m]
+                f = np.maximum(cm + tau_s * np.gradient(cm, step), 0.0)
+                out[a:a + m] += f * hz[a:a + m] / ll[:m]
+                last = a + m
+        return out
 
 
 def _windows(tm: FloatArray, window_s: float) -> list[NDArray[np.bool_]]:
@@ -211,27 +269,63 @@ def _windows(tm: FloatArray, window_s: float) -> list[NDArray[np.bool_]]:
     return out
 
 
+def _flight_windows(body: _Body, t_lo: float, t_hi: float, offset_s: float, ground_m: float,
+                    *, min_flight_s: float = 0.01) -> list[NDArray[np.bool_]]:
+    """Masks of mocap samples between the middles of consecutive flight phases (no leg in
+    contact), where the body is ballistic; windows across a mocap gap are dropped."""
+    tf = np.arange(t_lo - offset_s, t_hi - offset_s, 1e-3)
+    air = np.all(body.gaps(tf, offset_s, ground_m) > 0, axis=1)
+    e = np.flatnonzero(np.diff(air.astype(np.int8)) != 0) + 1
+    mids = []
+    for i, j in zip(e[:-1], e[1:]):
+        if air[i] and tf[j - 1] - tf[i] >= min_flight_s:
+            mids.append(0.5 * (tf[i] + tf[j - 1]) + offset_s)
+    dt = float(np.median(np.diff(body.tm)))
+    out = []
+    for w0, w1 in zip(mids[:-1], mids[1:]):
+        k = (body.tm >= w0) & (body.tm < w1)
+        if k.sum() >= 8 and not np.any(np.diff(body.tm[k]) > 2.5 * dt):
+            out.append(k)
+    return out
+
+
+def _force(body: _Body, tf: FloatArray, offset_s: float, ground_m: float, model: str,
+           tau_s: float) -> FloatArray:
+    """Vertical leg force over the leg stiffness [m] on the grid ``tf`` (see fit models)."""
+    if model == 'spoke':
+        return body.spoke_force(tf, offset_s, ground_m, tau_s)
+    pen = np.maximum(-body.gaps(tf, offset_s, ground_m), 0.0)
+    if model == 'clipped':
+        rate = np.gradient(pen, float(tf[1] - tf[0]), axis=0)
+        return np.where(pen > 0, np.maximum(pen + tau_s * rate, 0.0), 0.0).sum(axis=1)
+    return pen.sum(axis=1)
+
+
 def _cost(body: _Body, masks: list[NDArray[np.bool_]], t_lo: float, t_hi: float,
-          offset_s: float, ground_m: float, *, step_s: float = 1e-3,
-          full: bool = False) -> Any:
-    """Mean squared residual of the per-window dynamics fit for one (offset, ground)."""
+          offset_s: float, ground_m: float, *, model: str = 'linear', tau_s: float = 0.0,
+          step_s: float = 1e-3, full: bool = False) -> Any:
+    """Mean squared residual of the per-window dynamics fit for one (offset, ground[, tau]).
+
+    Per window: free height, vertical velocity and stiffness (over the mass); with the
+    ``'linear'`` model also one damping (the force's rate) shared by all windows.
+    """
     tf = np.arange(t_lo - offset_s, t_hi - offset_s + step_s, step_s)
-    pen = np.maximum(-body.gaps(tf, offset_s, ground_m), 0.0).sum(axis=1)
+    pen = _force(body, tf, offset_s, ground_m, model, tau_s)
     i1 = np.concatenate([[0.0], np.cumsum(0.5 * (pen[1:] + pen[:-1])) * step_s])
     i2 = np.concatenate([[0.0], np.cumsum(0.5 * (i1[1:] + i1[:-1])) * step_s])
     ts = body.tm - offset_s
     y = body.z - ground_m + 0.5 * GRAVITY_M_S2 * (ts - ts[0]) ** 2
     a2 = np.interp(ts, tf, i2)
-    a1 = np.interp(ts, tf, i1)
     n_w = len(masks)
     used = np.zeros(ts.size, dtype=bool)
-    a = np.zeros((ts.size, 3 * n_w + 1))
+    a = np.zeros((ts.size, 3 * n_w + (model == 'linear')))
     for w, k in enumerate(masks):
         used |= k
         a[k, 3 * w] = 1.0
         a[k, 3 * w + 1] = ts[k] - ts[k][0]
         a[k, 3 * w + 2] = a2[k]
-    a[:, -1] = a1
+    if model == 'linear':
+        a[:, -1] = np.interp(ts, tf, i1)
     a, y = a[used], y[used]
     scale = np.maximum(np.abs(a).max(axis=0), 1e-300)
     coef, *_ = np.linalg.lstsq(a / scale, y, rcond=None)
@@ -239,17 +333,24 @@ def _cost(body: _Body, masks: list[NDArray[np.bool_]], t_lo: float, t_hi: float,
     r = y - a @ coef
     mse = float(r @ r) / max(int(used.sum()), 1)
     if full:
-        k_mean = float(np.mean(coef[2::3][:n_w]))
-        return mse, int(used.sum()), (float(coef[-1]) / k_mean if k_mean > 0 else math.nan)
+        k_mean = float(np.mean(coef[2:3 * n_w:3]))
+        ratio = (float(coef[-1]) / k_mean if k_mean > 0 else math.nan) \
+            if model == 'linear' else tau_s
+        return mse, int(used.sum()), ratio
     return mse
+
+
+FIT_MODELS = ('linear', 'clipped', 'spoke')
 
 
 def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint_t_s: ArrayLike,
                       joint_position: ArrayLike, joint_velocity: ArrayLike,
                       mocap_t_s: ArrayLike, height_m: ArrayLike, pitch_rad: ArrayLike, *,
+                      forward_m: ArrayLike | None = None,
                       initial_offset_s: float = 0.0, offset_range_s: float = 0.015,
                       ground_range_m: tuple[float, float] = (-0.05, 0.05),
-                      window_s: float = 0.3, min_windows: int = 3,
+                      window_s: float = 0.3, min_windows: int = 3, windows: str = 'flight',
+                      model: str = 'clipped', tau_s: float = 0.008,
                       fix_offset: bool = False) -> GeometryFit:
     """Stream offset and ground height from the body's vertical dynamics (module docs).
 
@@ -266,61 +367,89 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
         Raw mocap stamps [s] (mocap clock).
     height_m, pitch_rad : array_like, shape (m,)
         COM height in a world frame whose ground height is unknown [m]; pitch [rad].
+    forward_m : array_like, shape (m,), optional
+        COM forward position in that frame [m] (needed by ``model='spoke'``).
     initial_offset_s : float
         Centre of the offset search [s] (e.g. the joint or contact estimate).
     offset_range_s : float
         Half-width of the coarse offset grid [s].
     ground_range_m : (float, float)
         Coarse ground-height grid bounds [m].
+    windows : str
+        ``'flight'``: one window per stance, between the middles of the flight phases around
+        it (ballistic ends); ``'fixed'`` (or too few flights, e.g. gaits without aerial
+        phases): consecutive windows of ``window_s``.
+    model : str
+        Leg force over the stiffness: ``'linear'`` (sum of the legs' penetrations below their
+        rest heights plus one damping on its rate), ``'clipped'`` (per leg penetration plus
+        ``tau`` times its rate, clipped at zero: a leg cannot pull; ``tau`` fitted from
+        ``tau_s``), ``'spoke'`` (compression of the spoke to a pinned toe / rolling contact
+        point, clipped likewise).
     fix_offset : bool
-        Keep ``initial_offset_s`` (a known offset) and fit the ground height only.
+        Keep ``initial_offset_s`` (a known offset) and fit the ground height (and tau) only.
 
     Returns
     -------
     GeometryFit
     """
+    if model not in FIT_MODELS:
+        raise SlipDataError(f'model must be one of {FIT_MODELS}, got {model!r}')
+    if model == 'spoke' and forward_m is None:
+        raise SlipDataError("model='spoke' needs forward_m (COM forward position)")
     body = _Body(geometry, tuple(joint_names), joint_t_s, joint_position, joint_velocity,
-                 mocap_t_s, height_m, pitch_rad)
+                 mocap_t_s, height_m, pitch_rad, forward_m=forward_m)
     masks = _windows(body.tm, window_s)
-    if len(masks) < min_windows:
-        raise SlipDataError(f'geometry fit: {len(masks)} gap-free mocap windows of {window_s} s, '
-                            f'need >= {min_windows}')
     lo_j, hi_j = body.t_j[0], body.t_j[-1]
     t_lo = max(body.tm[0], lo_j + initial_offset_s + offset_range_s + 0.02)
     t_hi = min(body.tm[-1], hi_j + initial_offset_s - offset_range_s - 0.02)
+    if t_hi - t_lo < min_windows * window_s:
+        raise SlipDataError(f'geometry fit: mocap and hip angles overlap for {t_hi - t_lo:.2f} '
+                            f's, need >= {min_windows * window_s:.2f} s')
     keep = (body.tm >= t_lo) & (body.tm <= t_hi)
     masks = [k & keep for k in masks]
     masks = [k for k in masks if k.sum() >= 8]
     if len(masks) < min_windows:
-        raise SlipDataError(f'geometry fit: {len(masks)} mocap windows overlap the hip '
-                            f'angles, need >= {min_windows}')
+        raise SlipDataError(f'geometry fit: {len(masks)} gap-free mocap windows of {window_s} s '
+                            f'overlap the hip angles, need >= {min_windows}')
+    tau_fit = model != 'linear'
 
-    def f(d: float, g: float) -> float:
-        return _cost(body, masks, t_lo, t_hi, d, g)
+    def f(d: float, g: float, tau: float = tau_s) -> float:
+        return _cost(body, masks, t_lo, t_hi, d, g, model=model, tau_s=max(tau, 0.0))
 
-    # coarse: ground on 2 mm, offset on 2.5 ms steps; then Nelder-Mead from the best
-    d_grid = initial_offset_s + np.arange(-offset_range_s, offset_range_s + 1e-9, 2.5e-3)
+    # coarse: ground on 2 mm, offset on 2.5 ms steps
+    d_best = float(initial_offset_s)
     g_grid = np.arange(ground_range_m[0], ground_range_m[1] + 1e-9, 2e-3)
-    g_best = min(g_grid, key=lambda g: f(initial_offset_s, g))
-    if fix_offset:
-        r1 = minimize_scalar(lambda g: f(initial_offset_s, g), method='bounded',
-                             bounds=(g_best - 2.5e-3, g_best + 2.5e-3),
-                             options={'xatol': 1e-5})
-        d, g = float(initial_offset_s), float(r1.x)
-        mse, _, ratio = _cost(body, masks, t_lo, t_hi, d, g, full=True)
-        return GeometryFit(offset_s=d, ground_m=g, rms_m=math.sqrt(mse), windows=len(masks),
-                           damping_ratio_s=ratio)
-    d_best = min(d_grid, key=lambda d: f(d, g_best))
-    g_best = min(g_best + np.arange(-4e-3, 4.01e-3, 1e-3), key=lambda g: f(d_best, g))
-    s_d, s_g = 1e3, 1e3  # ms and mm for the simplex
-    res = minimize(lambda v: f(v[0] / s_d, v[1] / s_g) * 1e8, [d_best * s_d, g_best * s_g],
-                   method='Nelder-Mead',
-                   options={'xatol': 0.02, 'fatol': 1e-6,
-                            'initial_simplex': [[d_best * s_d, g_best * s_g],
-                                                [d_best * s_d + 2.0, g_best * s_g],
-                                                [d_best * s_d, g_best * s_g + 2.0]]})
-    d, g = float(res.x[0] / s_d), float(res.x[1] / s_g)
-    mse, n, ratio = _cost(body, masks, t_lo, t_hi, d, g, full=True)
+    g_best = float(min(g_grid, key=lambda g: f(d_best, g)))
+    if not fix_offset:
+        d_grid = initial_offset_s + np.arange(-offset_range_s, offset_range_s + 1e-9, 2.5e-3)
+        d_best = float(min(d_grid, key=lambda d: f(d, g_best)))
+        g_best = float(min(g_best + np.arange(-4e-3, 4.01e-3, 1e-3),
+                           key=lambda g: f(d_best, g)))
+    if windows == 'flight':
+        fm = _flight_windows(body, t_lo, t_hi, d_best, g_best)
+        if len(fm) >= min_windows:
+            masks = fm
+    # Nelder-Mead in ms, mm (and ms for tau)
+    x0 = [d_best * 1e3, g_best * 1e3] + ([tau_s * 1e3] if tau_fit else [])
+    free = [not fix_offset, True] + ([True] if tau_fit else [])
+    idx = [i for i, fr in enumerate(free) if fr]
+
+    def obj(v: FloatArray) -> float:
+        x = list(x0)
+        for i, vi in zip(idx, v):
+            x[i] = vi
+        return f(x[0] * 1e-3, x[1] * 1e-3, *(x[2:3] and [x[2] * 1e-3])) * 1e8
+
+    start = np.array([x0[i] for i in idx])
+    simplex = [start] + [start + 2.0 * np.eye(len(idx))[i] for i in range(len(idx))]
+    res = minimize(obj, start, method='Nelder-Mead',
+                   options={'xatol': 0.02, 'fatol': 1e-6, 'initial_simplex': simplex})
+    x = list(x0)
+    for i, vi in zip(idx, res.x):
+        x[i] = float(vi)
+    d, g = x[0] * 1e-3, x[1] * 1e-3
+    tau = max(x[2] * 1e-3, 0.0) if tau_fit else tau_s
+    mse, _, ratio = _cost(body, masks, t_lo, t_hi, d, g, model=model, tau_s=tau, full=True)
     return GeometryFit(offset_s=d, ground_m=g, rms_m=math.sqrt(mse), windows=len(masks),
                        damping_ratio_s=ratio)
 
@@ -328,43 +457,57 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
 def leg_contacts(geometry: LegGeometry, joint_names: tuple[str, ...], joint_t_s: ArrayLike,
                  joint_position: ArrayLike, joint_velocity: ArrayLike, mocap_t_s: ArrayLike,
                  height_m: ArrayLike, pitch_rad: ArrayLike, *, offset_s: float,
-                 ground_m: float, step_s: float = 5e-4) -> dict[str, FloatArray]:
+                 ground_m: float, step_s: float = 5e-4
+                 ) -> tuple[dict[str, FloatArray], FloatArray]:
     """Per-leg contact intervals where the hip is below the leg's rest height, (k, 2) [s].
 
     Times are in the proprioception clock, over the span the mocap (shifted by ``offset_s``)
-    covers; edges are the interpolated zero crossings of hip height minus rest height (a
-    contact cut by the span's ends is dropped). Arguments as :func:`fit_ground_offset`.
+    and the hip angles cover; edges are the interpolated zero crossings of hip height minus
+    rest height. A contact cut by the span's ends or by a mocap gap is kept, clipped there.
+    Arguments as :func:`fit_ground_offset`.
+
+    Returns
+    -------
+    contacts : dict
+        ``{leg: (k, 2)}`` [s].
+    unknown : ndarray, shape (u, 2)
+        Intervals where contact is not known (before and after the span, mocap gaps) [s];
+        :func:`single_support` drops pieces that touch them.
     """
     body = _Body(geometry, tuple(joint_names), joint_t_s, joint_position, joint_velocity,
                  mocap_t_s, height_m, pitch_rad)
     t0 = max(body.tm[0] - offset_s, body.t_j[0])
     t1 = min(body.tm[-1] - offset_s, body.t_j[-1])
+    if t1 - t0 < 10 * step_s:
+        raise SlipDataError(f'mocap (offset {offset_s:.3f} s) and hip angles overlap for '
+                            f'{max(t1 - t0, 0.0):.3f} s only')
     tf = np.arange(t0, t1, step_s)
-    # no contact across a mocap gap (the spline there is not data)
     dt = float(np.median(np.diff(body.tm)))
     gi = np.flatnonzero(np.diff(body.tm) > 2.5 * dt)
-    in_gap = np.zeros(tf.size, dtype=bool)
-    for i in gi:
-        in_gap |= (tf + offset_s > body.tm[i]) & (tf + offset_s < body.tm[i + 1])
+    unknown = [(-np.inf, float(tf[0]))] + [
+        (float(body.tm[i] - offset_s), float(body.tm[i + 1] - offset_s)) for i in gi] + [
+        (float(tf[-1]), np.inf)]
+    known = np.ones(tf.size, dtype=bool)
+    for a, b in unknown[1:-1]:
+        known &= ~((tf > a) & (tf < b))
     gaps = body.gaps(tf, offset_s, ground_m)
     out: dict[str, FloatArray] = {}
     for j, leg in enumerate(body.legs):
         s = gaps[:, j]
-        c = np.flatnonzero(np.sign(s[:-1]) != np.sign(s[1:]))
-        tc = tf[c] + step_s * s[c] / (s[c] - s[c + 1])
-        down = s[c] > 0
-        iv = []
-        k = 0
-        while k < c.size:
-            if down[k] and k + 1 < c.size and not down[k + 1]:
-                a, b = c[k], c[k + 1]
-                if not np.any(in_gap[a:b + 2]):
-                    iv.append((tc[k], tc[k + 1]))
-                k += 2
-            else:
-                k += 1
-        out[leg] = np.array(iv, dtype=float).reshape(-1, 2)
-    return out
+        on = (s < 0) & known
+        e = np.flatnonzero(on[1:] != on[:-1])
+        # interpolate crossings of s where both samples are known, else take the sample time
+        tc = tf[e + 1].astype(float)
+        both = known[e] & known[e + 1] & (s[e] != s[e + 1])
+        tc[both] = tf[e[both]] + step_s * s[e[both]] / (s[e[both]] - s[e[both] + 1])
+        starts = list(tc[on[e + 1]])
+        ends = list(tc[~on[e + 1]])
+        if on[0]:
+            starts.insert(0, float(tf[0]))
+        if on[-1]:
+            ends.append(float(tf[-1]))
+        out[leg] = np.array(list(zip(starts, ends)), dtype=float).reshape(-1, 2)
+    return out, np.array(unknown, dtype=float)
 
 
 def _union(iv: list[FloatArray]) -> FloatArray:
@@ -381,12 +524,16 @@ def _union(iv: list[FloatArray]) -> FloatArray:
     return np.array(out, dtype=float)
 
 
-def single_support(contacts: dict[str, FloatArray], tripods: dict[str, tuple[str, ...]]
+def single_support(contacts: dict[str, FloatArray], tripods: dict[str, tuple[str, ...]],
+                   unknown: ArrayLike | None = None, *, guard_s: float = 1e-3
                    ) -> dict[str, FloatArray]:
     """Per tripod, the intervals where any of its legs is in contact and no leg of the others.
 
-    Returns ``{tripod: (k, 2)}`` [s], the longest piece of each tripod contact interval.
+    Returns ``{tripod: (k, 2)}`` [s], the longest piece of each tripod contact interval;
+    pieces within ``guard_s`` of an ``unknown`` interval (:func:`leg_contacts`) are dropped
+    (the other tripod's contact there is not known).
     """
+    unk = np.zeros((0, 2)) if unknown is None else np.asarray(unknown, dtype=float).reshape(-1, 2)
     on = {tp: _union([contacts[leg] for leg in legs if leg in contacts])
           for tp, legs in tripods.items()}
     out: dict[str, FloatArray] = {}
@@ -407,6 +554,8 @@ def single_support(contacts: dict[str, FloatArray], tripods: dict[str, tuple[str
                         nxt.append((d, s1))
                 segs = nxt
             if segs:
-                pieces.append(max(segs, key=lambda x: x[1] - x[0]))
+                s0, s1 = max(segs, key=lambda x: x[1] - x[0])
+                if not np.any((unk[:, 0] <= s1 + guard_s) & (unk[:, 1] >= s0 - guard_s)):
+                    pieces.append((s0, s1))
         out[tp] = np.array(pieces, dtype=float).reshape(-1, 2)
     return out

@@ -251,8 +251,9 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
     res.paper_windows = stance_windows
     if geo_inputs:
         # heights in geo_inputs are those before the ground was moved
-        contacts = leg_contacts(*geo_inputs, offset_s=res.offset_s, ground_m=res.ground_m)
-        ss = single_support(contacts, TRIPODS)
+        contacts, unknown = leg_contacts(*geo_inputs, offset_s=res.offset_s,
+                                         ground_m=res.ground_m)
+        ss = single_support(contacts, TRIPODS, unknown)
         res.geometry_windows = sorted(
             (StanceWindow(float(a), float(b), tp, res.shift_s.get(tp, 0.0))
              for tp, iv in ss.items() for a, b in iv), key=lambda w: w.touchdown_s)
