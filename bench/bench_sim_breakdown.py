@@ -82,7 +82,8 @@ def breakdown(label: str, show_joints: bool = False, **kw) -> dict[str, float]:
                 m = mask[:, cols]
                 vals = {term: float((terms[:, j][:, cols] * m).sum() / max(m.sum(), 1))
                         for j, term in enumerate(TERMS)}
-                print(f'      {joint:5s} ' + ' '.join(f'{term} {v:5.2f}' for term, v in vals.items()))
+                print(f'      {joint:5s} '
+                      + ' '.join(f'{term} {v:5.2f}' for term, v in vals.items()))
     return {'p_in_w': float(p_in.mean()), 'p_out_w': p_out, 'p_loss_w': loss,
             'cot_per_mass': loss / (mass * speed), 'hold_w': hold}
 

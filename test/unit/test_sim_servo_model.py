@@ -165,8 +165,10 @@ def test_bad_inputs_are_refused_with_their_names() -> None:
 def test_loss_breakdown_balances_supply_power() -> None:
     """Every watt of supply power is in one loss term (fine sub-steps: the integrator's own
     dissipation vanishes); recording the breakdown does not change the simulation."""
-    goals = lambda t: [0.8 * math.sin(6 * t), 0.5 * math.copysign(1.0, math.sin(3 * t)),  # noqa: E731
-                       0.3 * math.sin(20 * t)]
+    def goals(t: float) -> list[float]:
+        return [0.8 * math.sin(6 * t), 0.5 * math.copysign(1.0, math.sin(3 * t)),
+                0.3 * math.sin(20 * t)]
+
     kw = dict(count=3, load_inertia_kgm2=3e-4, max_substep_s=1e-4, extra_power_w=0.2)
     rec = ServoModel(record_losses=True, **kw)
     plain = ServoModel(**kw)
