@@ -14,19 +14,25 @@ supply voltage (a swing faster than that cannot be followed: the servo saturates
 largest possible saving from sharing the body weight over more stance legs: the time-mean
 holding copper ``R (tau / k_t)^2`` of the stance joints (no friction helping to hold).
 
-    .venv/bin/python bench/bench_sim_breakdown.py [--joints]
+    .venv/bin/python bench/bench_sim_breakdown.py [--joints] [--servo NAME=VALUE ...]
+
+``--servo`` replaces AX-18A constants for a what-if (for example
+``--servo friction_smoothing_rad_s=0.2 --servo coulomb_friction_nm=0.1``).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import time
+from collections.abc import Iterator
 
 import numpy as np
 
 from hexapod_bench_drivers.effects import EffectSet
 from hexapod_bench_drivers.robot_sim import RobotConfig, RobotSimulator, SampleInput
+from hexapod_bench_drivers.servo_model import ServoParams
 
 TERMS = ('standby', 'copper', 'brake', 'coulomb', 'gear', 'viscous', 'kinetic', 'load')
 JOINTS = ('coxa', 'femur', 'tibia')
@@ -88,10 +94,42 @@ def breakdown(label: str, show_joints: bool = False, **kw) -> dict[str, float]:
             'cot_per_mass': loss / (mass * speed), 'hold_w': hold}
 
 
+@contextlib.contextmanager
+def servo_overrides(changes: dict[str, float]) -> Iterator[None]:
+    """Within the block, every servo preset the simulators build has ``changes`` applied."""
+    original = ServoParams.__dict__['by_name']
+    if not changes:
+        yield
+        return
+
+    def by_name(cls: type[ServoParams], name: str) -> ServoParams:
+        return original.__func__(cls, name).with_changes(**changes)
+
+    ServoParams.by_name = classmethod(by_name)  # type: ignore[method-assign,assignment]
+    try:
+        yield
+    finally:
+        ServoParams.by_name = original  # type: ignore[method-assign]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--joints', action='store_true', help='per-joint rows as well')
+    parser.add_argument('--servo', action='append', default=[], metavar='NAME=VALUE',
+                        help='replace a ServoParams constant (repeatable)')
     args = parser.parse_args()
+    changes = {}
+    for item in args.servo:
+        name, _, value = item.partition('=')
+        changes[name.strip()] = float(value)
+    if changes:
+        print(f'servo constants replaced: {changes}')
+    with servo_overrides(changes):
+        run_cases(args.joints)
+
+
+def run_cases(show_joints: bool) -> None:
+    """The duty-factor, wave and load cases, each against its baseline."""
     start = time.perf_counter()
     cases = (
         ('beta 0.7 vs 0.5 at 0.26 m/s',
@@ -101,8 +139,8 @@ def main() -> None:
          dict(speed_mps=0.1, payload_kg=0.5, gait='wave', duty_factor=0.83)),
     )
     for title, base_kw, var_kw in cases:
-        base = breakdown(f'{title}: baseline', args.joints, **base_kw)
-        var = breakdown(f'{title}: variant', args.joints, **var_kw)
+        base = breakdown(f'{title}: baseline', show_joints, **base_kw)
+        var = breakdown(f'{title}: variant', show_joints, **var_kw)
         print(f'-> {title}: P_loss {var["p_loss_w"]:.2f} vs {base["p_loss_w"]:.2f} W, ratio '
               f'{var["p_loss_w"] / base["p_loss_w"]:.3f}; CoT/M ratio '
               f'{var["cot_per_mass"] / base["cot_per_mass"]:.3f}; holding bound saving '

@@ -34,7 +34,9 @@ Physics, all quantities referred to the OUTPUT shaft (after the gearbox):
 
 * **Mechanics.** ``J w' = k_e i + tau_ext - (c + (1 - eta) |k_e i|) sgn(w) - b w`` with ``J``
   the rotor inertia times the gear ratio squared plus any load inertia; Karnopp stick-slip
-  friction (the shaft sticks while the static torque stays inside the friction band);
+  friction (the shaft sticks while the static torque stays inside the friction band), or,
+  with ``friction_smoothing_rad_s > 0``, a dithered friction that grows linearly with speed
+  below that speed (no sticking: a static load is then held by the motor alone);
   semi-implicit Euler in sub-steps.
 
 * **Heat.** One first-order winding node: ``C dT/dt = i^2 R(T) - (T - T_amb) / R_th`` with
@@ -46,6 +48,33 @@ Physics, all quantities referred to the OUTPUT shaft (after the gearbox):
 * **Reporting as the servo does:** integer degC, the present load as the signed PWM fraction
   (that is what AX/MX firmware reports), voltage in 0.1 V, no current sensing. The true supply
   current is returned separately for the simulated power monitor.
+
+* **Loss breakdown** (``record_losses=True``): every step also returns the power of each term
+  (standby, copper, bridge braking, Coulomb, gear, viscous, rotor kinetic energy, load), which
+  sum to the supply power; ``bench/bench_sim_breakdown.py`` prints it per gait phase and joint.
+
+Calibration against Brodoline et al.'s gait findings (measured with that benchmark; constants
+unchanged). With these constants the simulated AntBot reproduces the paper's whole-robot
+figures but not two of its gait findings: tripod beta 0.7 at 0.26 m/s loses +30 % more than
+beta 0.5 (paper: -10 %) and the wave gait (beta 0.83) at 0.1 m/s with 0.5 kg +14 % more than
+the tripod (paper: up to -8 %). The cause is the swing: a 0.165 s swing of the gait's tip
+spline needs 13.4 rad/s at the femur (0.205 s: 10.7 rad/s), beyond the no-load speed (10.0
+rad/s at 11.9 V), so the servos run at full duty and reverse against their own rotor inertia;
+a swinging leg then draws 15.7 W against 6.6 W in the 0.385 s swing of beta 0.5, while its
+energy per swing stays about the same (Coulomb friction is paid per radian), and beta 0.7
+swings 1.4 times as often at the same speed. Sharing the body weight over 4.2 instead of 3
+stance legs can save at most the stance holding copper ``R (tau / k_t)^2``, 1.7 W for the
+whole robot against +9.1 W of swing power. The same swing makes 0.6 m/s cost 64 W (the
+issue's 35-80 W and efficiency <= 6 % bands need it), so no servo constant can make the
+0.165 s swing cheap without breaking those bands. Honest AX-class numbers make it worse: a
+no-load current of 0.2 A (Coulomb 0.1 N m, viscous 0.008 N m s/rad instead of 0.24 and 0.02)
+gives beta 0.7 +42 %, wave +16 %, and 0.6 m/s only 44 W (efficiency 8.6 %). With
+``friction_smoothing_rad_s = 0.2`` the load sensitivity rises from +0.9 W to +2.0 W per 500 g
+at 0.3 m/s (paper: about +4 W) and the wave gait saves 0.5 % (beta 0.7 still +25 %); it stays
+off by default because the bench-fitted model then disagrees with the simulated robot on the
+wave gait (+25 %) and the worst robot prediction error grows to 6.7 %: the bench's force
+contact lasts ~0.7 of the cycle at beta 0.5, so its P_stance carries early-swing power, which
+Eq. 1 weights by beta and so overstates gaits with beta > 0.5.
 
 Sign convention: ``external_torque_nm`` is the torque the outside world applies ON the output
 shaft, positive in the joint's positive direction (gravity pulling a joint down gives a negative
@@ -114,6 +143,14 @@ class ServoParams:
         Gear friction at the output [N m], [N m s/rad].
     stick_speed_rad_s : float
         Speed below which the shaft may stick (Karnopp friction band) [rad/s].
+    friction_smoothing_rad_s : float
+        0 (default): Karnopp stick-slip, a loaded shaft at rest stays anywhere inside the static
+        friction band, so after a touchdown the gear friction carries up to ``c + (1 - eta)
+        |k_e i|`` of the load and the motor holds only the rest. > 0: no sticking; below this
+        output speed the Coulomb and gear friction grow linearly with speed (a dithered
+        friction: the vibration of a walking robot and the PWM ripple keep a loaded joint
+        creeping until the motor carries the whole static load). Implicit in the linear
+        region, so any value is stable.
     compliance_slope_rad, compliance_margin_rad : float
         P controller: full PWM at ``slope`` beyond the dead band ``margin`` [rad].
     structural_stiffness_nm_rad : float
@@ -156,6 +193,7 @@ class ServoParams:
     coulomb_friction_nm: float = 0.24
     viscous_friction_nm_s: float = 0.02
     stick_speed_rad_s: float = 1e-3
+    friction_smoothing_rad_s: float = 0.0
     compliance_slope_rad: float = 32 * 0.29 * _DEG
     compliance_margin_rad: float = 1 * 0.29 * _DEG
     structural_stiffness_nm_rad: float = 60.0
@@ -183,7 +221,7 @@ class ServoParams:
                 raise ServoParamsError(f'ServoParams.{name} = {value!r}: expected a finite '
                                        'value > 0')
         for name in ('standby_current_a', 'coulomb_friction_nm', 'viscous_friction_nm_s',
-                     'compliance_margin_rad', 'backlash_rad'):
+                     'compliance_margin_rad', 'backlash_rad', 'friction_smoothing_rad_s'):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise ServoParamsError(f'ServoParams.{name} = {value!r}: expected a finite '
@@ -509,6 +547,8 @@ class ServoModel:
         kp, margin = self._kp, p.compliance_margin_rad
         coulomb = p.coulomb_friction_nm + self.extra_friction_nm
         visc, w_eps, mu = p.viscous_friction_nm_s, p.stick_speed_rad_s, 1.0 - self._eta
+        w_s = p.friction_smoothing_rad_s
+        no_stick = np.zeros(n, dtype=bool)
         h_inv_j = h / self.inertia_kgm2
         # Plain ufuncs only in the sub-step loop: it is the simulators' hot path.
         volt_over_r = volts / resistance
@@ -548,16 +588,25 @@ class ServoModel:
             # shaft sticks while the static torque stays inside the friction band.
             f_max = coulomb + mu * absolute(gen)
             tau_free = gen + tau_ext - visc * w
-            moving = absolute(w) > w_eps
-            direction = sign(where(moving, w, tau_free))
-            w_new = w + h_inv_j * (tau_free - f_max * direction)
-            # stick: at rest inside the friction band, or crossing zero speed in this sub-step
-            stick = where(moving, w_new * w < 0.0, absolute(tau_free) <= f_max)
+            if w_s > 0.0:
+                # dithered friction: linear in speed below w_s (implicit), Coulomb above
+                w_lin = (w + h_inv_j * tau_free) / (1.0 + h_inv_j * f_max / w_s)
+                w_new = w + h_inv_j * (tau_free - f_max * sign(w_lin))
+                w_new = where((absolute(w_lin) <= w_s) | (w_new * w_lin < 0.0),
+                              np.clip(w_lin, -w_s, w_s), w_new)
+                stick = no_stick
+            else:
+                moving = absolute(w) > w_eps
+                direction = sign(where(moving, w, tau_free))
+                w_new = w + h_inv_j * (tau_free - f_max * direction)
+                # stick: at rest inside the friction band, or crossing zero speed in this step
+                stick = where(moving, w_new * w < 0.0, absolute(tau_free) <= f_max)
             if rec:
                 # the sub-step's displacement is h * w_new (semi-implicit Euler)
                 w_abs = absolute(where(stick, 0.0, w_new))
-                sum_coulomb += coulomb * w_abs
-                sum_gear += mu * absolute(gen) * w_abs
+                f_frac = minimum(w_abs / w_s, 1.0) if w_s > 0.0 else 1.0
+                sum_coulomb += coulomb * f_frac * w_abs
+                sum_gear += mu * absolute(gen) * f_frac * w_abs
                 sum_visc += visc * absolute(w) * w_abs
                 sum_brake += maximum(-u * i, 0.0)
             w = where(stick, 0.0, w_new)

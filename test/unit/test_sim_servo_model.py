@@ -204,3 +204,35 @@ def test_goal_faster_than_the_no_load_speed_is_not_followed() -> None:
     assert_allclose(speeds[-1], w_max, rtol=0.01)
     assert errors[-1] > errors[5] > math.radians(10)
     assert_allclose(out.load_fraction, 1.0)
+
+
+def test_dithered_friction_holds_a_static_load_with_the_motor() -> None:
+    """Karnopp stick-slip lets the gear friction carry part of a static load (the shaft rests at
+    the band edge it was pushed to); with friction smoothing the joint creeps until the motor
+    carries all of it, and the loss terms still balance the supply power."""
+    base = ServoParams.ax18a()
+    torques = {}
+    for w_s in (0.0, 0.2):
+        p = base.with_changes(friction_smoothing_rad_s=w_s)
+        model = ServoModel(p, count=1, record_losses=True)
+        out = run(model, 3.0, 0.0, tau=-0.5, volts=11.9)
+        ke = p.back_emf_constant_v_s * (1.0 + p.magnet_temp_coeff_per_k
+                                        * (26.0 - p.reference_temperature_c))
+        torques[w_s] = float(out.load_fraction[0] * 11.9 / model.winding_resistance_ohm()[0]
+                             * ke)
+        assert abs(out.velocity_rad_s[0]) < 1e-3
+    # band edge (0.5 - c) / (2 - eta) against the whole load
+    assert_allclose(torques[0.0], (0.5 - base.coulomb_friction_nm) / (2 - base.gear_efficiency),
+                    rtol=0.05)
+    assert_allclose(torques[0.2], 0.5, rtol=0.02)
+    with pytest.raises(ServoParamsError, match='friction_smoothing_rad_s'):
+        base.with_changes(friction_smoothing_rad_s=-0.1)
+    p = base.with_changes(friction_smoothing_rad_s=0.2)
+    model = ServoModel(p, count=1, record_losses=True, max_substep_s=1e-4,
+                       load_inertia_kgm2=3e-4)
+    supply, parts = [], []
+    for k in range(300):
+        out = model.step(0.01, 0.5 * math.sin(0.05 * k), -0.4, 11.9)
+        supply.append(out.power_w[0])
+        parts.append(sum(v[0] for v in out.losses.values()))
+    assert_allclose(np.mean(parts), np.mean(supply), rtol=2e-3)
