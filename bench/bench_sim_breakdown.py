@@ -14,7 +14,12 @@ supply voltage (a swing faster than that cannot be followed: the servo saturates
 largest possible saving from sharing the body weight over more stance legs: the time-mean
 holding copper ``R (tau / k_t)^2`` of the stance joints (no friction helping to hold).
 
-    .venv/bin/python bench/bench_sim_breakdown.py [--joints] [--servo NAME=VALUE ...]
+    .venv/bin/python bench/bench_sim_breakdown.py [--joints] [--servo NAME=VALUE ...] [--grid]
+
+``--grid`` sweeps Coulomb and viscous friction, rotor inertia, friction smoothing and the
+compliance slope (40 valid AX-18A variants, about a minute) and prints, for each, the P_loss
+change of beta 0.7 and of the wave gait and the 0.6 m/s figures the issue bounds (P_in 35-80 W,
+efficiency <= 6 %).
 
 ``--servo`` replaces AX-18A constants for a what-if (for example
 ``--servo friction_smoothing_rad_s=0.2 --servo coulomb_friction_nm=0.1``).
@@ -112,12 +117,63 @@ def servo_overrides(changes: dict[str, float]) -> Iterator[None]:
         ServoParams.by_name = original  # type: ignore[method-assign]
 
 
+def _loss_w(**kw) -> tuple[float, float, float]:
+    """Clean run: whole-cycle mean P_loss, P_in, P_out [W] after one settling cycle."""
+    cfg = RobotConfig(**kw)
+    period = cfg.effective_period_s
+    cycles = max(2, math.ceil(3.0 / period))
+    sim = RobotSimulator(cfg, effects=EffectSet.none())
+    tr = sim.run(period * (cycles + 1))
+    keep = tr.t_s > period + 1e-9
+    p_in = float(np.mean(tr.true_power_in_w[keep]))
+    p_out = float(np.mean(np.clip(tr.true_mechanical_power_w[keep], 0.0, None).sum(axis=1)))
+    return p_in - p_out, p_in, p_out
+
+
+def run_grid() -> None:
+    """Findings and 0.6 m/s figures over a grid of servo constants."""
+    import itertools
+
+    from hexapod_bench_drivers.servo_model import ServoParamsError
+
+    tick = math.radians(0.29)
+    print('Coulomb N m, viscous N m s/rad, rotor kg m^2, smoothing rad/s, slope ticks: '
+          'P_loss change beta 0.7 (0.26 m/s) and wave (0.1 m/s, 0.5 kg); 0.6 m/s P_in, eta')
+    grid = itertools.product((0.05, 0.24, 0.4), (0.002, 0.02), (0.3e-8, 1.2e-8), (0.0, 0.2),
+                             (32, 128))
+    for c, b, j, w_s, slope in grid:
+        changes = dict(coulomb_friction_nm=c, viscous_friction_nm_s=b, rotor_inertia_kgm2=j,
+                       friction_smoothing_rad_s=w_s, compliance_slope_rad=slope * tick)
+        try:
+            ServoParams.ax18a().with_changes(**changes)
+        except ServoParamsError:
+            continue        # no-load friction beyond what the datasheet points allow
+        with servo_overrides(changes):
+            b5 = _loss_w(speed_mps=0.26)[0]
+            b7 = _loss_w(speed_mps=0.26, duty_factor=0.7)[0]
+            tri = _loss_w(speed_mps=0.1, payload_kg=0.5)[0]
+            wave = _loss_w(speed_mps=0.1, payload_kg=0.5, gait='wave', duty_factor=0.83)[0]
+            _, p_in, p_out = _loss_w(speed_mps=0.6)
+        ok = 35.0 <= p_in <= 80.0 and p_out / p_in <= 0.06
+        print(f'c {c:.2f} b {b:.3f} J {j:.1e} w_s {w_s:.1f} slope {slope:3d}: beta 0.7 '
+              f'{100 * (b7 / b5 - 1):+6.1f} %, wave {100 * (wave / tri - 1):+6.1f} %; '
+              f'0.6 m/s {p_in:5.1f} W, eta {100 * p_out / p_in:4.1f} %'
+              f'{"" if ok else "  (outside the 0.6 m/s bands)"}', flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--joints', action='store_true', help='per-joint rows as well')
     parser.add_argument('--servo', action='append', default=[], metavar='NAME=VALUE',
                         help='replace a ServoParams constant (repeatable)')
+    parser.add_argument('--grid', action='store_true',
+                        help='sweep servo constants instead (findings and 0.6 m/s bands)')
     args = parser.parse_args()
+    if args.grid:
+        start = time.perf_counter()
+        run_grid()
+        print(f'\nwall time {time.perf_counter() - start:.1f} s')
+        return
     changes = {}
     for item in args.servo:
         name, _, value = item.partition('=')
