@@ -74,9 +74,11 @@ def test_power_breakdown_accounts_for_the_input(runs):
             + b['gear_and_friction_w']
         assert parts == pytest.approx(b['input_w'], rel=1e-9)
         assert 0.0 <= b['current_limited_fraction'] <= 1.0
-    # slow walking costs torque-time: copper is the walk's largest sink
+    # slow walking costs torque-time: copper is the walk's largest sink, several times the
+    # net mechanical work of the hips
     walk = power_breakdown(runs['walk'])
-    assert walk['copper_w'] > walk['hip_mechanical_w'] + walk['electronics_w']
+    assert walk['copper_w'] > max(walk['electronics_w'], walk['gear_and_friction_w'])
+    assert walk['copper_w'] > 3.0 * walk['hip_mechanical_w']
 
 
 def test_single_tripod_stances_exist_for_every_gait(runs):
