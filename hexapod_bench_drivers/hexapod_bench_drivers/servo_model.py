@@ -59,22 +59,24 @@ figures but not two of its gait findings: tripod beta 0.7 at 0.26 m/s loses +30 
 beta 0.5 (paper: -10 %) and the wave gait (beta 0.83) at 0.1 m/s with 0.5 kg +14 % more than
 the tripod (paper: up to -8 %). The cause is the swing: a 0.165 s swing of the gait's tip
 spline needs 13.4 rad/s at the femur (0.205 s: 10.7 rad/s), beyond the no-load speed (10.0
-rad/s at 11.9 V), so the servos run at full duty and reverse against their own rotor inertia;
-a swinging leg then draws 15.7 W against 6.6 W in the 0.385 s swing of beta 0.5, while its
-energy per swing stays about the same (Coulomb friction is paid per radian), and beta 0.7
-swings 1.4 times as often at the same speed. Sharing the body weight over 4.2 instead of 3
-stance legs can save at most the stance holding copper ``R (tau / k_t)^2``, 1.7 W for the
-whole robot against +9.1 W of swing power. The same swing makes 0.6 m/s cost 64 W (the
-issue's 35-80 W and efficiency <= 6 % bands need it), so no servo constant can make the
-0.165 s swing cheap without breaking those bands. Honest AX-class numbers make it worse: a
-no-load current of 0.2 A (Coulomb 0.1 N m, viscous 0.008 N m s/rad instead of 0.24 and 0.02)
-gives beta 0.7 +42 %, wave +16 %, and 0.6 m/s only 44 W (efficiency 8.6 %). With
-``friction_smoothing_rad_s = 0.2`` the load sensitivity rises from +0.9 W to +2.0 W per 500 g
-at 0.3 m/s (paper: about +4 W) and the wave gait saves 0.5 % (beta 0.7 still +25 %); it stays
-off by default because the bench-fitted model then disagrees with the simulated robot on the
-wave gait (+25 %) and the worst robot prediction error grows to 6.7 %: the bench's force
-contact lasts ~0.7 of the cycle at beta 0.5, so its P_stance carries early-swing power, which
-Eq. 1 weights by beta and so overstates gaits with beta > 0.5.
+rad/s at 11.9 V), so the servos run at full duty and reverse against their own rotor inertia; a
+swinging leg then draws 15.7 W against 6.6 W in the 0.385 s swing of beta 0.5, while its energy
+per swing stays about the same (Coulomb friction is paid per radian), and beta 0.7 swings 1.4
+times as often at the same speed. Sharing the body weight over 4.2 instead of 3 stance legs can
+save at most the stance holding copper ``R (tau / k_t)^2``, 1.7 W for the whole robot against
++10.6 W of swing power (P_loss +9.1 W). The same swing makes 0.6 m/s cost 64 W (the issue's
+35-80 W and efficiency <= 6 % bands need it), so no servo constant can make the 0.165 s swing
+cheap without breaking those bands (``bench_sim_breakdown.py --grid``, 40 variants: beta 0.7
+at best +0.9 % inside the bands, with a 0.5 A no-load current and a 37 degree compliance
+slope). Honest AX-class numbers make it worse: a no-load current of
+0.2 A (Coulomb 0.1 N m, viscous 0.008 N m s/rad instead of 0.24 and 0.02) gives beta 0.7 +42 %,
+wave +16 %, and 0.6 m/s only 44 W (efficiency 8.6 %). With ``friction_smoothing_rad_s = 0.2``
+the load sensitivity rises from +0.9 W to +2.0 W per 500 g at 0.3 m/s (paper: about +4 W) and
+the wave gait saves 0.5 % (beta 0.7 still +25 %); it stays off by default because the
+bench-fitted model then disagrees with the simulated robot on the wave gait (+25 %) and the
+worst robot prediction error grows to 6.7 %: the bench's force contact lasts ~0.7 of the cycle
+at beta 0.5, so its P_stance carries early-swing power, which Eq. 1 weights by beta and so
+overstates gaits with beta > 0.5.
 
 Sign convention: ``external_torque_nm`` is the torque the outside world applies ON the output
 shaft, positive in the joint's positive direction (gravity pulling a joint down gives a negative
