@@ -15,9 +15,16 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
          "position_fit": {same parameter and stderr keys, "nerr", "converged"} or null,
          "power_w", "speed_mps", "sr"}     # the run's values, as in the paper
       ],
-      "runs": [{"bag", "gait", "offset_s", "offset_method" (given|contact|joint|xcorr),
-                "edges" (paper|effort), "shift_s": {"left", "right"}, "power_w",
-                "speed_mps", "sr", "current_sign", "frame": {"tilt_deg", "yaw_deg", "origin_m"},
+      "runs": [{"bag", "gait", "offset_s",
+                "offset_method" (given|geometry|contact|joint|xcorr),
+                "edges" (geometry|paper|effort), "shift_s": {"left", "right"}, "power_w",
+                "speed_mps", "sr", "current_sign",
+                "frame": {"tilt_deg", "yaw_deg", "origin_m", "ground_source"
+                          (geometry|mocap_origin), "ground_m", "geometry_rms_m",
+                          "offset_initial"},
+                "ground_m" [m, fitted ground height in the path frame, null without it],
+                "paper_edges": [{"tripod", "touchdown", "liftoff"}],    # side by side:
+                "geometry_edges": [{"tripod", "touchdown", "liftoff"}], # single support
                 "stances", "skipped"}],
       "gaits": {"<gait>": {"stances", "nerr_mean", "nerr_std", "power_w_mean", ...}},  # Table 3
       "skipped": [{"bag", "label", "tripod", "touchdown", "liftoff", "reason"}],
@@ -50,6 +57,7 @@ import numpy as np
 from .energetics import gait_table, plot_figures
 from .errors import MissingTopicError, SlipError
 from .model import EDUBOT_MASS_KG, SlipModel
+from .geometry import LegGeometry
 from .pipeline import RunData, analyze_run
 from .preprocess import Box
 
@@ -111,7 +119,9 @@ def read_run(path: str | Path) -> RunData:
         battery_voltage_v=np.array([s.voltage_v for s in bt]),
         battery_current_a=np.array([s.current_a for s in bt]), gait=gait, label=str(path),
         joint_effort=(np.array([s.effort for s in js])
-                      if all(s.effort.size == len(names) for s in js) else None))
+                      if all(s.effort.size == len(names) for s in js) else None),
+        joint_position=(np.array([s.position for s in js])
+                        if all(s.position.size == len(names) for s in js) else None))
 
 
 def _gait_name(phase: Any) -> str:
@@ -138,11 +148,16 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
             if options.get('box_lower') else Box()
         model = SlipModel.from_name(options.get('model', 'slip'),
                                     mass_kg=options.get('mass_kg', EDUBOT_MASS_KG))
+        geometry = None
+        if options.get('geometry', 'edubot') == 'edubot':
+            tau = options.get('leg_damping_time', 'default')
+            geometry = (LegGeometry() if tau == 'default'
+                        else LegGeometry(leg_damping_time_s=tau))
         res = analyze_run(run, model=model, box=box, offset_s=options.get('offset', 0.0),
                           offset_lag_s=options.get('offset_lag', 0.0),
                           edges=options.get('edges', 'paper'),
                           max_lateral_m=options.get('max_lateral', 0.05),
-                          position_fit=options.get('position_fit', True))
+                          position_fit=options.get('position_fit', True), geometry=geometry)
     except (SlipError, ValueError, OSError) as err:
         return {'bag': path, 'error': str(err)}
     stances = []
@@ -169,6 +184,12 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
                     'shift_s': res.shift_s, 'power_w': _f(res.power_w),
                     'speed_mps': _f(res.speed_mps), 'sr': _f(res.sr),
                     'current_sign': res.current_sign, 'frame': res.frame,
+                    'ground_m': _f(res.ground_m),
+                    'paper_edges': [{'tripod': w.tripod, 'touchdown': w.touchdown_s,
+                                     'liftoff': w.liftoff_s} for w in res.paper_windows],
+                    'geometry_edges': [{'tripod': w.tripod, 'touchdown': w.touchdown_s,
+                                        'liftoff': w.liftoff_s}
+                                       for w in res.geometry_windows],
                     'stances': len(stances), 'skipped': len(res.skipped)}}
 
 
@@ -178,8 +199,12 @@ def run_command(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    options = {'offset': args.offset if args.offset in ('auto', 'contact', 'joint', 'xcorr')
-               else float(args.offset), 'edges': args.edges,
+    methods = ('auto', 'contact', 'joint', 'xcorr', 'geometry')
+    options = {'offset': args.offset if args.offset in methods else float(args.offset),
+               'edges': args.edges, 'geometry': args.geometry,
+               'leg_damping_time': (None if args.leg_damping_time in ('fit', 'none')
+                                    else 'default' if args.leg_damping_time == 'default'
+                                    else float(args.leg_damping_time)),
                'offset_lag': args.offset_lag, 'max_lateral': args.max_lateral,
                'mass_kg': args.mass, 'model': args.model, 'position_fit': not args.no_position_fit,
                'box_lower': args.box[:3] if args.box else None,
@@ -227,14 +252,25 @@ def add_cli(subparsers: Any) -> None:
     p.add_argument('bags', nargs='+', help='rosbag2 folders')
     p.add_argument('--out', required=True, help='output folder')
     p.add_argument('--jobs', type=int, default=1, help='bags analysed in parallel')
-    p.add_argument('--offset', default='0',
-                   help="mocap clock offset [s], or 'contact' (touchdowns from hip-effort onsets "
-                        "against body height, median), 'joint' (one offset fitted over all "
-                        "stances' body heights, touchdowns fixed at the effort onsets), 'xcorr' "
-                        "(cross-correlation), 'auto' (joint when the bag has efforts, else xcorr)")
-    p.add_argument('--edges', choices=('paper', 'effort'), default='paper',
-                   help="stance edges: the paper's shifted clock edges, or touchdown refined to "
-                        'the hip-effort onset')
+    p.add_argument('--offset', default='auto',
+                   help="mocap clock offset [s], or 'geometry' (offset and ground height fitted "
+                        "to the body's vertical dynamics with the half-circle legs' geometric "
+                        "contacts), 'contact' (touchdowns from hip-effort onsets against body "
+                        "height, median), 'joint' (one offset fitted over all stances' body "
+                        "heights, touchdowns fixed at the effort onsets), 'xcorr' "
+                        "(cross-correlation), 'auto' (geometry when the bag has hip angles and "
+                        '--geometry is set, else contact/joint with efforts, else xcorr)')
+    p.add_argument('--edges', choices=('auto', 'geometry', 'paper', 'effort'), default='auto',
+                   help="stance edges: 'geometry' (hip below the leg's rest height, single "
+                        "support), the paper's shifted clock edges, touchdown refined to the "
+                        "hip-effort onset; 'auto': geometry when possible, else paper (the "
+                        "paper's edges are always in runs[].paper_edges)")
+    p.add_argument('--geometry', choices=('edubot', 'none'), default='edubot',
+                   help="robot description for the geometric edges/offset: 'edubot' "
+                        '(slip_identification.geometry.LegGeometry defaults) or none')
+    p.add_argument('--leg-damping-time', default='default',
+                   help="leg radial damping over stiffness [s] for the geometric fit, 'fit' "
+                        "to fit it, or 'default' (the EduBot description's)")
     p.add_argument('--offset-lag', type=float, default=0.0,
                    help="physical lag removed from the 'auto' offset [s]")
     p.add_argument('--max-lateral', type=float, default=0.05,

@@ -35,7 +35,9 @@ Core module: numpy/scipy only (does not import the simulator: pass its parameter
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import os
 from dataclasses import dataclass
 from typing import Any
 
@@ -76,21 +78,32 @@ class LegGeometry:
     hip_zero_rad : float
         Leg angle from the body's downward axis at zero hip angle [rad]: shaft angle from the
         true vertical = hip angle + pitch + ``hip_zero_rad``.
+    leg_damping_time_s : float or None
+        The leg's radial damping over its radial stiffness [s] (e.g. from a drop test of one
+        leg), or None when unknown: :func:`fit_ground_offset` then fits it, at the price of
+        a less certain offset (the damper advances the force like a clock shift).
     """
 
     hip_x_m: tuple[float, float, float] = (0.20, 0.0, -0.20)
     hip_z_m: float = 0.0
-    leg_radius_m: float = 0.073
-    hip_zero_rad: float = -0.21
+    leg_radius_m: float = 0.0525
+    hip_zero_rad: float = 0.0
+    leg_damping_time_s: float | None = 11.6 / 3400.0
 
     @classmethod
-    def from_params(cls, params: Any) -> LegGeometry:
+    def from_params(cls, params: Any, *, with_damping: bool = True) -> LegGeometry:
         """From an object with EduBot parameter names (``hip_x_m``, ``hip_z_m``,
-        ``leg_rest_length_m`` = 2 R, ``hip_zero_rad``), e.g. the simulator's ``EdubotParams``."""
+        ``leg_rest_length_m`` = 2 R, ``hip_zero_rad``; for the damping time
+        ``leg_radial_damping_n_s_m`` / ``leg_stiffness_n_m``), e.g. the simulator's
+        ``EdubotParams``. ``with_damping=False`` leaves the damping time unknown."""
+        tau = None
+        if with_damping and hasattr(params, 'leg_radial_damping_n_s_m') and \
+                float(getattr(params, 'leg_stiffness_n_m', 0.0)) > 0:
+            tau = float(params.leg_radial_damping_n_s_m) / float(params.leg_stiffness_n_m)
         return cls(hip_x_m=tuple(float(v) for v in params.hip_x_m),  # type: ignore[arg-type]
                    hip_z_m=float(params.hip_z_m),
                    leg_radius_m=0.5 * float(params.leg_rest_length_m),
-                   hip_zero_rad=float(params.hip_zero_rad))
+                   hip_zero_rad=float(params.hip_zero_rad), leg_damping_time_s=tau)
 
     def hip_x_of(self, leg: str) -> float:
         """Hip x of leg ``'<side><1|2|3>'`` (1 front, 2 middle, 3 rear) [m]."""
@@ -134,7 +147,10 @@ class GeometryFit:
 
     ``offset_s``: subtract from mocap stamps; ``ground_m``: ground height in the world frame the
     heights were given in [m]; ``rms_m``: residual RMS of the body height [m]; ``windows``:
-    windows used; ``damping_ratio_s``: fitted c / mean k [s].
+    windows used; ``damping_ratio_s``: fitted c / mean k [s]; ``height_t_s`` (mocap clock),
+    ``height_m``: the fitted body height on a 1 ms grid (same frame as the input heights, NaN
+    outside the windows), the noise-free height :func:`leg_contacts` can use;
+    ``dropped_windows``: windows left out as outliers.
     """
 
     offset_s: float
@@ -142,6 +158,9 @@ class GeometryFit:
     rms_m: float
     windows: int
     damping_ratio_s: float
+    height_t_s: FloatArray = dataclasses.field(default_factory=lambda: np.zeros(0), repr=False)
+    height_m: FloatArray = dataclasses.field(default_factory=lambda: np.zeros(0), repr=False)
+    dropped_windows: int = 0
 
 
 class _Body:
@@ -184,16 +203,46 @@ class _Body:
         self.zs = CubicSpline(self.tm, self.z)
         self.bs = CubicSpline(self.tm, self.b)
         self.xs = None if forward_m is None else CubicSpline(self.tm, x[o])
+        self._phi_key: Any = None
+        self._h_t = np.zeros(0)
+        self._h_z = np.zeros(0)
+        self._phi_cache = np.zeros((0, len(self.legs)))
         self.hx = np.array([geometry.hip_x_of(leg) for leg in self.legs])
 
+    def use_height(self, t_s: FloatArray, height_m: FloatArray) -> None:
+        """Use ``height_m`` at ``t_s`` (mocap clock) where finite instead of the spline."""
+        ok = np.isfinite(t_s) & np.isfinite(height_m)
+        self._h_t, self._h_z = np.asarray(t_s)[ok], np.asarray(height_m)[ok]
+
+    def height(self, tt: FloatArray) -> FloatArray:
+        """Body height at mocap-clock times ``tt``: the spline, or the fitted height."""
+        z = self.zs(tt)
+        if self._h_t.size:
+            i = np.clip(np.searchsorted(self._h_t, tt), 1, self._h_t.size - 1)
+            near = np.minimum(np.abs(self._h_t[i] - tt), np.abs(self._h_t[i - 1] - tt))
+            use = near <= 1.5e-3
+            z[use] = np.interp(tt[use], self._h_t, self._h_z)
+        return z
+
+    def hip_angles(self, tf: FloatArray) -> FloatArray:
+        """(n, L) hip angles at ``tf`` (cached for the last grid: the fits reuse one)."""
+        if self._phi_key is not tf:
+            self._phi_cache = self.phi(tf)
+            self._phi_key = tf
+        return self._phi_cache
+
     def gaps(self, tf: FloatArray, offset_s: float, ground_m: float) -> FloatArray:
-        """(n, L) hip height minus rest height [m] at proprio times ``tf``."""
-        z = self.zs(tf + offset_s) - ground_m
-        b = self.bs(tf + offset_s)
+        """(n, L) hip height minus rest height [m] at proprio times ``tf`` (+inf where the
+        mocap does not cover ``tf + offset_s``: no contact is assumed there)."""
+        tt = tf + offset_s
+        z = self.height(tt) - ground_m
+        b = self.bs(tt)
         hip = (z[:, None] - self.hx[None, :] * np.sin(b)[:, None]
                + self.geo.hip_z_m * np.cos(b)[:, None])
-        psi = self.phi(tf) + b[:, None] + self.geo.hip_zero_rad
-        return hip - rest_height_m(psi, self.geo.leg_radius_m)
+        psi = self.hip_angles(tf) + b[:, None] + self.geo.hip_zero_rad
+        gap = hip - rest_height_m(psi, self.geo.leg_radius_m)
+        gap[(tt < self.tm[0]) | (tt > self.tm[-1])] = np.inf
+        return gap
 
 
     def spoke_force(self, tf: FloatArray, offset_s: float, ground_m: float, tau_s: float,
@@ -212,7 +261,7 @@ class _Body:
         b = self.bs(tf + offset_s)
         x = self.xs(tf + offset_s)
         sb, cb = np.sin(b), np.cos(b)
-        psi = self.phi(tf) + b[:, None] + self.geo.hip_zero_rad
+        psi = self.hip_angles(tf) + b[:, None] + self.geo.hip_zero_rad
         psi = psi - 2 * np.pi * np.floor(psi / (2 * np.pi) + 0.5)
         r = self.geo.leg_radius_m
         roll = (psi >= 0) & (psi < np.pi)
@@ -301,42 +350,92 @@ def _force(body: _Body, tf: FloatArray, offset_s: float, ground_m: float, model:
     return pen.sum(axis=1)
 
 
-def _cost(body: _Body, masks: list[NDArray[np.bool_]], t_lo: float, t_hi: float,
+def _cost(body: _Body, masks: list[NDArray[np.bool_]], tf: FloatArray,
           offset_s: float, ground_m: float, *, model: str = 'linear', tau_s: float = 0.0,
-          step_s: float = 1e-3, full: bool = False) -> Any:
+          full: bool = False, per_window: bool = False) -> Any:
     """Mean squared residual of the per-window dynamics fit for one (offset, ground[, tau]).
 
     Per window: free height, vertical velocity and stiffness (over the mass); with the
-    ``'linear'`` model also one damping (the force's rate) shared by all windows.
+    ``'linear'`` model also one damping (the force's rate) shared by all windows. Each
+    window's coefficients are projected out in closed form (window means removed, 2 x 2 normal
+    equations of the contiguous samples summed with ``np.add.reduceat``), the shared one
+    solved after.
     """
-    tf = np.arange(t_lo - offset_s, t_hi - offset_s + step_s, step_s)
+    step_s = float(tf[1] - tf[0])
     pen = _force(body, tf, offset_s, ground_m, model, tau_s)
     i1 = np.concatenate([[0.0], np.cumsum(0.5 * (pen[1:] + pen[:-1])) * step_s])
     i2 = np.concatenate([[0.0], np.cumsum(0.5 * (i1[1:] + i1[:-1])) * step_s])
-    ts = body.tm - offset_s
-    y = body.z - ground_m + 0.5 * GRAVITY_M_S2 * (ts - ts[0]) ** 2
+    idx = [np.flatnonzero(k) for k in masks]
+    sel = np.concatenate(idx)  # windows are contiguous, in time order
+    sizes = np.array([i.size for i in idx])
+    bounds = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    ts = body.tm[sel] - offset_s
+    t0 = np.repeat(ts[bounds], sizes)
+
+    def wsum(v: FloatArray) -> FloatArray:
+        return np.add.reduceat(v, bounds)
+
+    def centred(v: FloatArray) -> FloatArray:
+        # the free height per window: remove each window's mean (exact, and well conditioned)
+        return v - np.repeat(wsum(v) / sizes, sizes)
+
+    # gravity's parabola from each window's start (the difference is linear in t: free)
+    y = centred(body.z[sel] + 0.5 * GRAVITY_M_S2 * (ts - t0) ** 2)
     a2 = np.interp(ts, tf, i2)
-    n_w = len(masks)
-    used = np.zeros(ts.size, dtype=bool)
-    a = np.zeros((ts.size, 3 * n_w + (model == 'linear')))
-    for w, k in enumerate(masks):
-        used |= k
-        a[k, 3 * w] = 1.0
-        a[k, 3 * w + 1] = ts[k] - ts[k][0]
-        a[k, 3 * w + 2] = a2[k]
-    if model == 'linear':
-        a[:, -1] = np.interp(ts, tf, i1)
-    a, y = a[used], y[used]
-    scale = np.maximum(np.abs(a).max(axis=0), 1e-300)
-    coef, *_ = np.linalg.lstsq(a / scale, y, rcond=None)
-    coef = coef / scale
-    r = y - a @ coef
-    mse = float(r @ r) / max(int(used.sum()), 1)
+    scale2 = max(float(np.max(np.abs(a2))), 1e-300)
+    cols = [centred(ts - t0), centred(a2 / scale2)]
+    s_col = centred(np.interp(ts, tf, i1)) if model == 'linear' else None
+    n_w = len(idx)
+    g = np.empty((n_w, 2, 2))
+    for r in range(2):
+        for c in range(r, 2):
+            g[:, r, c] = g[:, c, r] = wsum(cols[r] * cols[c])
+    gi = np.linalg.pinv(g, rcond=1e-12)
+    xy = np.stack([wsum(c * y) for c in cols], axis=1)
+    ypy = wsum(y * y) - np.einsum('wi,wij,wj->w', xy, gi, xy)
+    if per_window:
+        return np.maximum(ypy, 0.0) / sizes
+    sse = float(ypy.sum())
+    c_shared = 0.0
+    xs = np.zeros_like(xy)
+    if s_col is not None:
+        xs = np.stack([wsum(c * s_col) for c in cols], axis=1)
+        sps = wsum(s_col * s_col) - np.einsum('wi,wij,wj->w', xs, gi, xs)
+        spy = wsum(s_col * y) - np.einsum('wi,wij,wj->w', xs, gi, xy)
+        den = float(sps.sum())
+        if den > 0:
+            c_shared = float(spy.sum()) / den
+            sse -= c_shared * float(spy.sum())
+    mse = max(sse, 0.0) / max(sel.size, 1)
     if full:
-        k_mean = float(np.mean(coef[2:3 * n_w:3]))
-        ratio = (float(coef[-1]) / k_mean if k_mean > 0 else math.nan) \
-            if model == 'linear' else tau_s
-        return mse, int(used.sum()), ratio
+        beta = np.einsum('wij,wj->wi', gi, xy - c_shared * xs)
+        k = beta[:, 1] / scale2
+        k_mean = float(np.mean(k))
+        ratio = (c_shared / k_mean if k_mean > 0 else math.nan) if model == 'linear' else tau_s
+        # fitted height on the grid: each grid point belongs to the window whose first sample
+        # it follows (up to the next window's first sample or 1.5 sample steps after the last)
+        z_raw = body.z[sel] + 0.5 * GRAVITY_M_S2 * (ts - t0) ** 2
+        ybar = wsum(z_raw) / sizes
+        tbar = wsum(ts - t0) / sizes
+        a2bar = wsum(a2 / scale2) / sizes
+        s_raw = np.interp(ts, tf, i1)
+        sbar = wsum(s_raw) / sizes
+        first = ts[bounds]
+        last = ts[bounds + sizes - 1]
+        w = np.searchsorted(first, tf, side='right') - 1
+        ok = w >= 0
+        dt = float(np.median(np.diff(body.tm)))
+        ok[ok] &= tf[ok] <= last[w[ok]] + 1.5 * dt
+        wk = w[ok]
+        tt = tf[ok]
+        t0w = first[wk]
+        zf = (ybar[wk] + beta[wk, 0] * (tt - t0w - tbar[wk])
+              + beta[wk, 1] * (np.interp(tt, tf, i2) / scale2 - a2bar[wk])
+              + c_shared * (np.interp(tt, tf, i1) - sbar[wk])
+              - 0.5 * GRAVITY_M_S2 * (tt - t0w) ** 2)
+        height = np.full(tf.size, np.nan)
+        height[ok] = zf
+        return mse, int(sel.size), ratio, tf + offset_s, height
     return mse
 
 
@@ -349,9 +448,10 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
                       forward_m: ArrayLike | None = None,
                       initial_offset_s: float = 0.0, offset_range_s: float = 0.015,
                       ground_range_m: tuple[float, float] = (-0.05, 0.05),
-                      window_s: float = 0.3, min_windows: int = 3, windows: str = 'flight',
-                      model: str = 'clipped', tau_s: float = 0.008,
-                      fix_offset: bool = False) -> GeometryFit:
+                      window_s: float = 0.1, min_windows: int = 3, windows: str = 'flight',
+                      model: str = 'clipped', tau_s: float | None = None,
+                      fix_tau: bool | None = None, fix_offset: bool = False,
+                      outlier_factor: float = 2.0) -> GeometryFit:
     """Stream offset and ground height from the body's vertical dynamics (module docs).
 
     Parameters
@@ -385,13 +485,30 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
         ``tau`` times its rate, clipped at zero: a leg cannot pull; ``tau`` fitted from
         ``tau_s``), ``'spoke'`` (compression of the spoke to a pinned toe / rolling contact
         point, clipped likewise).
+    tau_s : float, optional
+        Leg damping over stiffness [s] (``'clipped'``, ``'spoke'``): the start of its fit, or
+        its value with ``fix_tau``; default ``geometry.leg_damping_time_s`` (fixed), or 5 ms
+        fitted when that is None.
+    fix_tau : bool, optional
+        Default: fixed when the damping time is known (given or in ``geometry``).
     fix_offset : bool
         Keep ``initial_offset_s`` (a known offset) and fit the ground height (and tau) only.
+    outlier_factor : float
+        Windows whose residual RMS exceeds this times the median window's (at the coarse
+        optimum) are dropped before the final fit (``GeometryFit.dropped_windows``).
 
     Returns
     -------
     GeometryFit
     """
+    if tau_s is None:
+        tau_s = geometry.leg_damping_time_s
+        if fix_tau is None:
+            fix_tau = tau_s is not None
+        if tau_s is None:
+            tau_s = 0.005
+    elif fix_tau is None:
+        fix_tau = False
     if model not in FIT_MODELS:
         raise SlipDataError(f'model must be one of {FIT_MODELS}, got {model!r}')
     if model == 'spoke' and forward_m is None:
@@ -411,24 +528,63 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
     if len(masks) < min_windows:
         raise SlipDataError(f'geometry fit: {len(masks)} gap-free mocap windows of {window_s} s '
                             f'overlap the hip angles, need >= {min_windows}')
-    tau_fit = model != 'linear'
+    tau_fit = model != 'linear' and not fix_tau
+    # one proprioception-time grid for every candidate offset (hip angles evaluated once);
+    # force before the mocap span is zero, and the integrals' start only adds per-window
+    # linear terms, which are free
+    reach = offset_range_s + 0.015
+    tf = np.arange(t_lo - initial_offset_s - reach, t_hi - initial_offset_s + reach, 1e-3)
 
     def f(d: float, g: float, tau: float = tau_s) -> float:
-        return _cost(body, masks, t_lo, t_hi, d, g, model=model, tau_s=max(tau, 0.0))
+        return _cost(body, masks, tf, d, g, model=model, tau_s=max(tau, 0.0))
 
-    # coarse: ground on 2 mm, offset on 2.5 ms steps
+    coarse_model = os.environ.get('SLIP_COARSE', '') or (model if fix_tau else 'linear')
+    coarse_step = float(os.environ.get('SLIP_COARSE_STEP', '5e-3'))
+
+    def f_coarse(d: float, g: float) -> float:
+        # with the damping time unknown, the linear model (damping a free linear coefficient)
+        return _cost(body, masks, tf, d, g, model=coarse_model, tau_s=tau_s)
+
+    def best_ground(d: float, lo: float, hi: float) -> tuple[float, float]:
+        r = minimize_scalar(lambda g: f_coarse(d, g), method='bounded', bounds=(lo, hi),
+                            options={'xatol': 3e-4})
+        return float(r.x), float(r.fun)
+
+    def coarse(d0: float, g_lo: float, g_hi: float) -> tuple[float, float]:
+        # for each offset on a coarse grid the best ground, then 1 ms steps around the best
+        d_b, g_b = d0, 0.5 * (g_lo + g_hi)
+        for step, half in ((coarse_step, offset_range_s), (1e-3, 5e-3)):
+            grid = d_b + np.arange(-half, half + 1e-9, step)
+            cand = [(d, *best_ground(d, g_lo, g_hi)) for d in grid]
+            d_b, g_b, _ = min(cand, key=lambda c: c[2])
+            g_lo, g_hi = g_b - 0.01, g_b + 0.01
+        return d_b, g_b
+
+    # coarse: the ground on a 2 mm grid at the initial offset, then the offset grid
     d_best = float(initial_offset_s)
     g_grid = np.arange(ground_range_m[0], ground_range_m[1] + 1e-9, 2e-3)
-    g_best = float(min(g_grid, key=lambda g: f(d_best, g)))
-    if not fix_offset:
-        d_grid = initial_offset_s + np.arange(-offset_range_s, offset_range_s + 1e-9, 2.5e-3)
-        d_best = float(min(d_grid, key=lambda d: f(d, g_best)))
-        g_best = float(min(g_best + np.arange(-4e-3, 4.01e-3, 1e-3),
-                           key=lambda g: f(d_best, g)))
-    if windows == 'flight':
-        fm = _flight_windows(body, t_lo, t_hi, d_best, g_best)
-        if len(fm) >= min_windows:
-            masks = fm
+    g_best = float(min(g_grid, key=lambda g: f_coarse(d_best, g)))
+    dropped = 0
+    for it in range(2):
+        if not fix_offset:
+            half_g = 0.015 if it == 0 else 0.01
+            lo, hi = g_best - half_g, g_best + half_g
+            d_best, g_best = coarse(initial_offset_s, lo, hi)
+        else:
+            g_best = best_ground(d_best, g_best - 5e-3, g_best + 5e-3)[0]
+        if it == 0 and windows == 'flight':
+            fm = _flight_windows(body, t_lo, t_hi, d_best, g_best)
+            if len(fm) >= min_windows:
+                masks = fm
+        # windows the model cannot follow (a foot sliding, the body touching the ground, a
+        # tracking glitch): RMS residual above outlier_factor x the median window's
+        msw = _cost(body, masks, tf, d_best, g_best, model=coarse_model, tau_s=tau_s,
+                    per_window=True)
+        good = msw <= outlier_factor ** 2 * float(np.median(msw))
+        if good.all() or good.sum() < min_windows:
+            break
+        masks = [k for k, ok in zip(masks, good) if ok]
+        dropped += int((~good).sum())
     # Nelder-Mead in ms, mm (and ms for tau)
     x0 = [d_best * 1e3, g_best * 1e3] + ([tau_s * 1e3] if tau_fit else [])
     free = [not fix_offset, True] + ([True] if tau_fit else [])
@@ -438,7 +594,13 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
         x = list(x0)
         for i, vi in zip(idx, v):
             x[i] = vi
-        return f(x[0] * 1e-3, x[1] * 1e-3, *(x[2:3] and [x[2] * 1e-3])) * 1e8
+        # stay near the coarse optimum (ms, mm) and keep the damping ratio physical
+        out = max(abs(x[0] - x0[0]) - 10.0, abs(x[1] - x0[1]) - 10.0, 0.0)
+        if tau_fit:
+            out = max(out, -x[2], x[2] - 50.0)
+        if out > 0:
+            return 1e6 * (1.0 + out)
+        return f(x[0] * 1e-3, x[1] * 1e-3, x[2] * 1e-3 if tau_fit else tau_s) * 1e8
 
     start = np.array([x0[i] for i in idx])
     simplex = [start] + [start + 2.0 * np.eye(len(idx))[i] for i in range(len(idx))]
@@ -449,22 +611,25 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
         x[i] = float(vi)
     d, g = x[0] * 1e-3, x[1] * 1e-3
     tau = max(x[2] * 1e-3, 0.0) if tau_fit else tau_s
-    mse, _, ratio = _cost(body, masks, t_lo, t_hi, d, g, model=model, tau_s=tau, full=True)
+    mse, _, ratio, h_t, h_z = _cost(body, masks, tf, d, g, model=model, tau_s=tau, full=True)
     return GeometryFit(offset_s=d, ground_m=g, rms_m=math.sqrt(mse), windows=len(masks),
-                       damping_ratio_s=ratio)
+                       damping_ratio_s=ratio, height_t_s=h_t, height_m=h_z,
+                       dropped_windows=dropped)
 
 
 def leg_contacts(geometry: LegGeometry, joint_names: tuple[str, ...], joint_t_s: ArrayLike,
                  joint_position: ArrayLike, joint_velocity: ArrayLike, mocap_t_s: ArrayLike,
                  height_m: ArrayLike, pitch_rad: ArrayLike, *, offset_s: float,
-                 ground_m: float, step_s: float = 5e-4
+                 ground_m: float, step_s: float = 5e-4, fit: GeometryFit | None = None
                  ) -> tuple[dict[str, FloatArray], FloatArray]:
     """Per-leg contact intervals where the hip is below the leg's rest height, (k, 2) [s].
 
     Times are in the proprioception clock, over the span the mocap (shifted by ``offset_s``)
     and the hip angles cover; edges are the interpolated zero crossings of hip height minus
     rest height. A contact cut by the span's ends or by a mocap gap is kept, clipped there.
-    Arguments as :func:`fit_ground_offset`.
+    Arguments as :func:`fit_ground_offset`; with ``fit`` (its result) the body height is the
+    fitted one (noise-free, ballistic in flight) where the fit covers it, else the spline
+    through the samples.
 
     Returns
     -------
@@ -476,6 +641,8 @@ def leg_contacts(geometry: LegGeometry, joint_names: tuple[str, ...], joint_t_s:
     """
     body = _Body(geometry, tuple(joint_names), joint_t_s, joint_position, joint_velocity,
                  mocap_t_s, height_m, pitch_rad)
+    if fit is not None and fit.height_m.size:
+        body.use_height(fit.height_t_s, fit.height_m)
     t0 = max(body.tm[0] - offset_s, body.t_j[0])
     t1 = min(body.tm[-1] - offset_s, body.t_j[-1])
     if t1 - t0 < 10 * step_s:
@@ -498,7 +665,8 @@ def leg_contacts(geometry: LegGeometry, joint_names: tuple[str, ...], joint_t_s:
         e = np.flatnonzero(on[1:] != on[:-1])
         # interpolate crossings of s where both samples are known, else take the sample time
         tc = tf[e + 1].astype(float)
-        both = known[e] & known[e + 1] & (s[e] != s[e + 1])
+        both = (known[e] & known[e + 1] & np.isfinite(s[e]) & np.isfinite(s[e + 1])
+                & (s[e] != s[e + 1]))
         tc[both] = tf[e[both]] + step_s * s[e[both]] / (s[e[both]] - s[e[both] + 1])
         starts = list(tc[on[e + 1]])
         ends = list(tc[~on[e + 1]])

@@ -21,6 +21,7 @@ from .fit import SlipFitResult, SlipFitter, SlipPositionFitter, Stance, validate
 from .geometry import LegGeometry, body_pitch_rad, fit_ground_offset, leg_contacts, single_support
 from .model import SlipModel
 from .proprio_edges import (
+    alternating_touchdowns,
     estimate_offset_contacts,
     estimate_offset_joint,
     refine_touchdowns,
@@ -129,11 +130,14 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
     fitted over all stances' body heights with the touchdowns fixed at the hip-effort onsets,
     :func:`estimate_offset_joint`; needs ``run.joint_effort``), ``'geometry'`` (offset and
     ground height fitted to the body's vertical dynamics with the legs' geometric contacts,
-    :func:`.geometry.fit_ground_offset`; needs ``geometry`` and ``run.joint_position``; started
-    from ``'joint'`` with efforts, else from ``'xcorr'``), ``'xcorr'`` (cross-correlate the
-    mocap vertical velocity with the tripod speed difference, minus ``offset_lag_s``, a
-    calibrated physical lag), or ``'auto'`` (``'geometry'`` when its inputs exist, else
-    ``'joint'`` when efforts are present, else ``'xcorr'``).
+    :func:`.geometry.fit_ground_offset`; needs ``geometry`` and ``run.joint_position``;
+    searched +-15 ms around the first of ``'contact'``, ``'joint'`` that accepts the run, or
+    +-60 ms around ``'xcorr'``; the start is ``RunResult.frame['offset_initial']``),
+    ``'xcorr'`` (cross-correlate the mocap vertical velocity with the tripod speed difference,
+    minus ``offset_lag_s``, a calibrated physical lag), or ``'auto'`` (``'geometry'`` when
+    its inputs exist, else the first of ``'contact'``, ``'joint'`` (with efforts), ``'xcorr'``
+    that accepts the run). The contact estimator's nominal stance is 3/4 of the median time
+    between alternating touchdowns (at most 0.12 s).
 
     ``edges``: ``'paper'`` (shifted clock edges, Section 3), ``'effort'`` (touchdown refined to
     the hip-effort onset, lift-off the paper's edge), ``'geometry'`` (single support from the
@@ -192,21 +196,42 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
     if effort is not None:
         touchdowns = {tp: tripod_touchdowns(names, tj, effort, TRIPODS[tp]) for tp in TRIPODS}
     method = offset_s if isinstance(offset_s, str) else 'given'
-    if method == 'auto':
-        method = 'geometry' if can_geo else ('joint' if effort is not None else 'xcorr')
-    init = 'joint' if effort is not None else 'xcorr'
-    first = init if method == 'geometry' else method
-    if first in ('contact', 'joint'):
-        if effort is None:
-            raise SlipDataError(f"offset {first!r} needs run.joint_effort")
-        if first == 'contact':
-            off, _ = estimate_offset_contacts(np.concatenate(list(touchdowns.values())),
-                                              tm[inside], pw[:, 2])
-        else:
-            off, _ = estimate_offset_joint(touchdowns, tm[inside], pw[:, 2])
-    elif first == 'xcorr':
+    td_all = (alternating_touchdowns(touchdowns)[0] if touchdowns else np.zeros(0))
+    # nominal stance for the contact estimator: 3/4 of the time between alternating
+    # touchdowns (at most 0.12 s), so that short stances of fast gaits fit their windows
+    stance_s = (float(min(0.12, 0.75 * np.median(np.diff(td_all)))) if td_all.size > 2
+                else 0.12)
+
+    def estimate(name: str) -> float:
+        if name == 'contact':
+            return estimate_offset_contacts(td_all, tm[inside], pw[:, 2], stance_s=stance_s)[0]
+        if name == 'joint':
+            return estimate_offset_joint(touchdowns, tm[inside], pw[:, 2])[0]
         vz = np.gradient(pm[:, 2], tm)
-        off = estimate_offset(tj, speed['left'] - speed['right'], tm, vz, lag_s=offset_lag_s)
+        return estimate_offset(tj, speed['left'] - speed['right'], tm, vz, lag_s=offset_lag_s)
+
+    if method in ('contact', 'joint') and effort is None:
+        raise SlipDataError(f"offset {method!r} needs run.joint_effort")
+    if method == 'auto' and can_geo:
+        method = 'geometry'
+    init = ''
+    if method in ('auto', 'geometry'):
+        # first estimate: the proprioceptive ones when efforts exist, else the
+        # cross-correlation; an estimator that refuses the run hands over to the next
+        chain = (['contact', 'joint'] if effort is not None else []) + ['xcorr']
+        for i, name in enumerate(chain):
+            try:
+                off = estimate(name)
+                init = name
+                break
+            except SlipDataError:
+                if i == len(chain) - 1:
+                    raise
+        if method == 'auto':
+            method = init
+        res.frame['offset_initial'] = init
+    elif method in ('contact', 'joint', 'xcorr'):
+        off = estimate(method)
     else:
         off = float(offset_s)
     geo_inputs: tuple[Any, ...] = ()
@@ -216,8 +241,8 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
         geo_inputs = (geometry, names, tj, position, np.asarray(run.joint_velocity, dtype=float),
                       tm[inside], pw[:, 2], pitch)
         gfit = fit_ground_offset(*geo_inputs, initial_offset_s=off,
-                                 offset_range_s=0.015 if init == 'joint' or method != 'geometry'
-                                 else 0.1, fix_offset=method != 'geometry')
+                                 offset_range_s=0.1 if init == 'xcorr' else 0.06,
+                                 fix_offset=method != 'geometry')
         off = gfit.offset_s
         res.ground_m = gfit.ground_m
         # the fitted ground is the frame's vertical translation: heights above the ground
@@ -245,14 +270,15 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
         res.shift_s[tp] = shift
         td, lo = edges_from_target(tgt_t + shift, tgt_v)
         windows[tp] = tripod_stance_windows(td, lo)
-        if edges == 'effort':
-            windows[tp], _ = refine_touchdowns(windows[tp], touchdowns[tp])
     stance_windows = single_tripod_stances(windows, res.shift_s)
     res.paper_windows = stance_windows
+    if edges == 'effort':
+        refined = {tp: refine_touchdowns(windows[tp], touchdowns[tp])[0] for tp in TRIPODS}
+        stance_windows = single_tripod_stances(refined, res.shift_s)
     if geo_inputs:
         # heights in geo_inputs are those before the ground was moved
         contacts, unknown = leg_contacts(*geo_inputs, offset_s=res.offset_s,
-                                         ground_m=res.ground_m)
+                                         ground_m=res.ground_m, fit=gfit)
         ss = single_support(contacts, TRIPODS, unknown)
         res.geometry_windows = sorted(
             (StanceWindow(float(a), float(b), tp, res.shift_s.get(tp, 0.0))

@@ -44,4 +44,13 @@ def test_slip_command_writes_schema_and_refuses_missing_topic(tmp_path):
     assert s['liftoff'] > s['touchdown']
     assert doc['gaits']['running']['stances'] == len(doc['stances'])
     assert len(doc['failed_bags']) == 1 and 'lacks topic' in doc['failed_bags'][0]['error']
+    # defaults: geometric edges and offset (the bag has hip angles), paper edges side by side
+    r = doc['runs'][0]
+    assert r['edges'] == 'geometry' and r['offset_method'] == 'geometry'
+    assert r['frame']['ground_source'] == 'geometry' and r['ground_m'] is not None
+    assert abs(r['offset_s'] - 0.025) <= 3e-3  # the simulator's default clock offset
+    assert len(r['paper_edges']) >= 5 and len(r['geometry_edges']) >= 5
+    geo_td = [e['touchdown'] for e in r['geometry_edges']]
+    for s in doc['stances']:  # fitted from the geometric windows (stance samples at 1 kHz)
+        assert min(abs(s['touchdown'] - t) for t in geo_td) <= 1e-3
     assert (out / 'fig9_nerr_vs_sr.png').is_file()
