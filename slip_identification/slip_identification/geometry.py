@@ -37,7 +37,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
 from dataclasses import dataclass
 from typing import Any
 
@@ -168,8 +167,7 @@ class _Body:
 
     def __init__(self, geometry: LegGeometry, joint_names: tuple[str, ...], joint_t_s: ArrayLike,
                  joint_position: ArrayLike, joint_velocity: ArrayLike, mocap_t_s: ArrayLike,
-                 height_m: ArrayLike, pitch_rad: ArrayLike,
-                 forward_m: ArrayLike | None = None) -> None:
+                 height_m: ArrayLike, pitch_rad: ArrayLike) -> None:
         self.geo = geometry
         tj = np.asarray(joint_t_s, dtype=float)
         q = np.asarray(joint_position, dtype=float)
@@ -191,9 +189,8 @@ class _Body:
         tm = np.asarray(mocap_t_s, dtype=float)
         z = np.asarray(height_m, dtype=float)
         b = np.asarray(pitch_rad, dtype=float)
-        x = np.zeros_like(z) if forward_m is None else np.asarray(forward_m, dtype=float)
-        ok = np.isfinite(tm) & np.isfinite(z) & np.isfinite(b) & np.isfinite(x)
-        tm, z, b, x = tm[ok], z[ok], b[ok], x[ok]
+        ok = np.isfinite(tm) & np.isfinite(z) & np.isfinite(b)
+        tm, z, b = tm[ok], z[ok], b[ok]
         o = np.argsort(tm)
         keep = np.concatenate([[True], np.diff(tm[o]) > 0])
         o = o[keep]
@@ -202,7 +199,6 @@ class _Body:
         self.tm, self.z, self.b = tm[o], z[o], b[o]
         self.zs = CubicSpline(self.tm, self.z)
         self.bs = CubicSpline(self.tm, self.b)
-        self.xs = None if forward_m is None else CubicSpline(self.tm, x[o])
         self._phi_key: Any = None
         self._h_t = np.zeros(0)
         self._h_z = np.zeros(0)
@@ -243,60 +239,6 @@ class _Body:
         gap = hip - rest_height_m(psi, self.geo.leg_radius_m)
         gap[(tt < self.tm[0]) | (tt > self.tm[-1])] = np.inf
         return gap
-
-
-    def spoke_force(self, tf: FloatArray, offset_s: float, ground_m: float, tau_s: float,
-                    *, max_contact_s: float = 0.6) -> FloatArray:
-        """Sum over legs of the vertical spoke force over the leg stiffness [m], shape (n,).
-
-        Per leg, from each geometric touchdown (hip height crosses the rest height) the contact
-        point is the toe (pinned) and, while the arc rolls, advances ``R`` per radian of shaft
-        rotation; the spoke compression ``rest length - |hip - contact point|`` plus ``tau_s``
-        times its rate, clipped at zero (a leg cannot pull), times the spoke's vertical
-        direction cosine; the contact ends when the compression vanishes.
-        """
-        assert self.xs is not None
-        step = float(tf[1] - tf[0])
-        z = self.zs(tf + offset_s) - ground_m
-        b = self.bs(tf + offset_s)
-        x = self.xs(tf + offset_s)
-        sb, cb = np.sin(b), np.cos(b)
-        psi = self.hip_angles(tf) + b[:, None] + self.geo.hip_zero_rad
-        psi = psi - 2 * np.pi * np.floor(psi / (2 * np.pi) + 0.5)
-        r = self.geo.leg_radius_m
-        roll = (psi >= 0) & (psi < np.pi)
-        c = np.cos(psi)
-        rest_h = np.where(roll, r * (1 + c), np.where(c > 0, 2 * r * c, -1.0))
-        rest_l = np.where(roll, 2 * r * np.cos(0.5 * psi), 2 * r)
-        rest_th = np.where(roll, 0.5 * psi, psi)
-        dpsi = np.diff(psi, axis=0, prepend=psi[:1])
-        droll = np.where(roll & (np.abs(dpsi) < np.pi), r * dpsi, 0.0)
-        out = np.zeros(tf.size)
-        n_max = int(max_contact_s / step)
-        for j in range(len(self.legs)):
-            hz = z - self.hx[j] * sb + self.geo.hip_z_m * cb
-            hxw = x + self.hx[j] * cb + self.geo.hip_z_m * sb
-            gap = hz - rest_h[:, j]
-            tds = np.flatnonzero((gap[:-1] > 0) & (gap[1:] <= 0)) + 1
-            last = -1
-            for a in tds:
-                if a <= last:
-                    continue
-                e = min(a + n_max, tf.size)
-                foot = hxw[a] - rest_l[a, j] * np.sin(rest_th[a, j]) + np.cumsum(
-                    droll[a:e, j]) - droll[a, j]
-                dx = hxw[a:e] - foot
-                ll = np.hypot(dx, hz[a:e])
-                comp = rest_l[a:e, j] - ll
-                stop = np.flatnonzero((comp < 0) | (hz[a:e] <= 0))
-                m = int(stop[0]) if stop.size else e - a
-                if m < 2:
-                    continue
-                cm = comp[:m]
-                f = np.maximum(cm + tau_s * np.gradient(cm, step), 0.0)
-                out[a:a + m] += f * hz[a:a + m] / ll[:m]
-                last = a + m
-        return out
 
 
 def _windows(tm: FloatArray, window_s: float) -> list[NDArray[np.bool_]]:
@@ -341,8 +283,6 @@ def _flight_windows(body: _Body, t_lo: float, t_hi: float, offset_s: float, grou
 def _force(body: _Body, tf: FloatArray, offset_s: float, ground_m: float, model: str,
            tau_s: float) -> FloatArray:
     """Vertical leg force over the leg stiffness [m] on the grid ``tf`` (see fit models)."""
-    if model == 'spoke':
-        return body.spoke_force(tf, offset_s, ground_m, tau_s)
     pen = np.maximum(-body.gaps(tf, offset_s, ground_m), 0.0)
     if model == 'clipped':
         rate = np.gradient(pen, float(tf[1] - tf[0]), axis=0)
@@ -439,13 +379,12 @@ def _cost(body: _Body, masks: list[NDArray[np.bool_]], tf: FloatArray,
     return mse
 
 
-FIT_MODELS = ('linear', 'clipped', 'spoke')
+FIT_MODELS = ('linear', 'clipped')
 
 
 def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint_t_s: ArrayLike,
                       joint_position: ArrayLike, joint_velocity: ArrayLike,
                       mocap_t_s: ArrayLike, height_m: ArrayLike, pitch_rad: ArrayLike, *,
-                      forward_m: ArrayLike | None = None,
                       initial_offset_s: float = 0.0, offset_range_s: float = 0.015,
                       ground_range_m: tuple[float, float] = (-0.05, 0.05),
                       window_s: float = 0.1, min_windows: int = 3, windows: str = 'flight',
@@ -467,8 +406,6 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
         Raw mocap stamps [s] (mocap clock).
     height_m, pitch_rad : array_like, shape (m,)
         COM height in a world frame whose ground height is unknown [m]; pitch [rad].
-    forward_m : array_like, shape (m,), optional
-        COM forward position in that frame [m] (needed by ``model='spoke'``).
     initial_offset_s : float
         Centre of the offset search [s] (e.g. the joint or contact estimate).
     offset_range_s : float
@@ -480,13 +417,13 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
         it (ballistic ends); ``'fixed'`` (or too few flights, e.g. gaits without aerial
         phases): consecutive windows of ``window_s``.
     model : str
-        Leg force over the stiffness: ``'linear'`` (sum of the legs' penetrations below their
-        rest heights plus one damping on its rate), ``'clipped'`` (per leg penetration plus
-        ``tau`` times its rate, clipped at zero: a leg cannot pull; ``tau`` fitted from
-        ``tau_s``), ``'spoke'`` (compression of the spoke to a pinned toe / rolling contact
-        point, clipped likewise).
+        Leg force over the stiffness: ``'clipped'`` (per leg penetration plus ``tau`` times
+        its rate, clipped at zero: a leg cannot pull) or ``'linear'`` (sum of the legs'
+        penetrations plus one free damping coefficient on its rate, shared by the windows).
+        A spoke model (compression towards a pinned toe / rolling contact point) was tried
+        and fitted worse on the simulator (feet slide, the leg bends).
     tau_s : float, optional
-        Leg damping over stiffness [s] (``'clipped'``, ``'spoke'``): the start of its fit, or
+        Leg damping over stiffness [s] (``'clipped'``): the start of its fit, or
         its value with ``fix_tau``; default ``geometry.leg_damping_time_s`` (fixed), or 5 ms
         fitted when that is None.
     fix_tau : bool, optional
@@ -511,10 +448,8 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
         fix_tau = False
     if model not in FIT_MODELS:
         raise SlipDataError(f'model must be one of {FIT_MODELS}, got {model!r}')
-    if model == 'spoke' and forward_m is None:
-        raise SlipDataError("model='spoke' needs forward_m (COM forward position)")
     body = _Body(geometry, tuple(joint_names), joint_t_s, joint_position, joint_velocity,
-                 mocap_t_s, height_m, pitch_rad, forward_m=forward_m)
+                 mocap_t_s, height_m, pitch_rad)
     masks = _windows(body.tm, window_s)
     lo_j, hi_j = body.t_j[0], body.t_j[-1]
     t_lo = max(body.tm[0], lo_j + initial_offset_s + offset_range_s + 0.02)
@@ -538,8 +473,10 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
     def f(d: float, g: float, tau: float = tau_s) -> float:
         return _cost(body, masks, tf, d, g, model=model, tau_s=max(tau, 0.0))
 
-    coarse_model = os.environ.get('SLIP_COARSE', '') or (model if fix_tau else 'linear')
-    coarse_step = float(os.environ.get('SLIP_COARSE_STEP', '5e-3'))
+    # coarse stage: the final model when the damping time is known, else the linear model
+    # (damping a free linear coefficient); 5 ms offset steps
+    coarse_model = model if fix_tau else 'linear'
+    coarse_step = 5e-3
 
     def f_coarse(d: float, g: float) -> float:
         # with the damping time unknown, the linear model (damping a free linear coefficient)

@@ -183,5 +183,3 @@ def test_fit_refuses_short_data_and_bad_model():
         fit_ground_offset(geo, names, tj, pos, vel, tm[:30], zm[:30], pitch[:30])
     with pytest.raises(SlipDataError, match='model must be'):
         fit_ground_offset(geo, names, tj, pos, vel, tm, zm, pitch, model='stiff')
-    with pytest.raises(SlipDataError, match='forward_m'):
-        fit_ground_offset(geo, names, tj, pos, vel, tm, zm, pitch, model='spoke')
