@@ -183,3 +183,38 @@ def test_fit_refuses_short_data_and_bad_model():
         fit_ground_offset(geo, names, tj, pos, vel, tm[:30], zm[:30], pitch[:30])
     with pytest.raises(SlipDataError, match='model must be'):
         fit_ground_offset(geo, names, tj, pos, vel, tm, zm, pitch, model='stiff')
+
+
+def test_pipeline_geometric_edges_known_offset_and_refusals():
+    edubot_sim = pytest.importorskip('hexapod_bench_drivers.edubot_sim')
+    import dataclasses
+
+    from slip_identification.pipeline import analyze_run, run_data_from_sim
+    from slip_identification.preprocess import Box
+
+    box = Box((-10.0, -10.0, -10.0), (10.0, 10.0, 10.0))
+    run = edubot_sim.simulate_edubot('running', duration_s=4.0, seed=4)
+    rd = run_data_from_sim(run)
+    off = run.truth['clock_offset_s']
+    geo = LegGeometry.from_params(run.params)
+    res = analyze_run(rd, box=box, offset_s=off, geometry=geo, position_fit=False)
+    assert res.edges == 'geometry' and res.offset_method == 'given' and res.offset_s == off
+    assert res.frame['ground_source'] == 'geometry'
+    # the simulator's ground plane under the path, seen from the data's frame: the fitted
+    # ground moved the frame's origin onto it, so the true COM height is the world height
+    assert len(res.fits) >= 8 and len(res.paper_windows) >= 8
+    z0 = np.array(run.truth['frame']['mocap_from_ground_translation_m'])
+    rot = np.array(run.truth['frame']['mocap_from_ground_rotation'])
+    origin = np.array(res.frame['origin_m'])
+    # the fitted ground passes within 2 mm of the true ground plane at the frame origin
+    assert abs(rot[:, 2] @ (origin - z0)) <= 2e-3
+    td = np.array([w.touchdown_s for w in res.geometry_windows])
+    for f in res.fits:
+        assert np.min(np.abs(td - f.touchdown_s)) <= 1e-3
+    # without a description: the paper's edges; without hip angles: refused
+    assert analyze_run(rd, box=box, offset_s=off, position_fit=False).edges == 'paper'
+    with pytest.raises(SlipDataError, match='joint_position'):
+        analyze_run(dataclasses.replace(rd, joint_position=None), box=box, offset_s=off,
+                    geometry=geo, edges='geometry')
+    with pytest.raises(SlipDataError, match='edges must be'):
+        analyze_run(rd, box=box, edges='rest')
