@@ -95,7 +95,7 @@ class LegGeometry:
     hip_z_m: float = 0.0
     leg_radius_m: float = 0.0525
     hip_zero_rad: float = 0.0
-    leg_damping_time_s: float | None = 11.6 / 3400.0
+    leg_damping_time_s: float | None = 12.9 / 3800.0
 
     @classmethod
     def from_params(cls, params: Any, *, with_damping: bool = True) -> LegGeometry:
