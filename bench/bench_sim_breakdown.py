@@ -15,11 +15,25 @@ largest possible saving from sharing the body weight over more stance legs: the 
 holding copper ``R (tau / k_t)^2`` of the stance joints (no friction helping to hold).
 
     .venv/bin/python bench/bench_sim_breakdown.py [--joints] [--servo NAME=VALUE ...] [--grid]
+        [--budget] [--candidates]
 
 ``--grid`` sweeps Coulomb and viscous friction, rotor inertia, friction smoothing and the
 compliance slope (40 valid AX-18A variants, about a minute) and prints, for each, the P_loss
 change of beta 0.7 and of the wave gait and the 0.6 m/s figures the issue bounds (P_in 35-80 W,
 efficiency <= 6 %).
+
+``--budget`` (with any ``--servo`` what-if, a few seconds) splits the two findings into their
+terms: the energy of one swing of one leg above standby against the swing duration, the robot's
+swing power, the realised stance copper against its holding bound, the stance joints' transmitted
+power ``sum |tau| |w|`` (the most that a load-proportional gear friction could dissipate in stance
+even at ``mu = 1``), the stance-copper factor that beta 0.7 would need to break even, the swing
+duration at which the gait's peak joint speed reaches the no-load speed, and beta 0.7 against
+0.5 from 0.1 to 0.26 m/s.
+
+``--candidates`` (about 10 s) prints both findings and every whole-robot band of the issue
+(standing, 0.6 m/s power and efficiency, efficiency at 0.1 m/s, CoT/M at 0.84 m/s, 500 g load
+sensitivity) for the calibrated servo and five physical variants (dither, datasheet no-load
+current, coreless rotor inertia, softer compliance slope).
 
 ``--servo`` replaces AX-18A constants for a what-if (for example
 ``--servo friction_smoothing_rad_s=0.2 --servo coulomb_friction_nm=0.1``).
@@ -43,8 +57,17 @@ TERMS = ('standby', 'copper', 'brake', 'coulomb', 'gear', 'viscous', 'kinetic', 
 JOINTS = ('coxa', 'femur', 'tibia')
 
 
-def breakdown(label: str, show_joints: bool = False, **kw) -> dict[str, float]:
-    """Simulate one clean run with the loss breakdown on; print and return its figures."""
+def breakdown(label: str, show_joints: bool = False, verbose: bool = True,
+              **kw) -> dict[str, float]:
+    """Simulate one clean run with the loss breakdown on; print and return its figures.
+
+    Returned keys: ``p_in_w``, ``p_out_w``, ``p_loss_w``, ``cot_per_mass``, ``hold_w`` (the
+    holding copper bound of the whole robot), ``t_swing_s``, ``period_s``, ``stance_legs``
+    (time mean), ``peak_speed_rad_s`` (commanded), ``w_max_rad_s`` (no-load speed at the
+    supply), ``transmitted_w`` (time mean of ``sum |tau| |w|`` over the stance joints: the most
+    that a load-proportional gear friction with ``mu = 1`` could dissipate in stance), and per
+    leg in each phase ``<phase>_<term>_w`` (``phase`` stance or swing) and ``<phase>_w``.
+    """
     cfg = RobotConfig(**kw)
     sim = RobotSimulator(cfg, effects=EffectSet.none())
     sim.servos.record_losses = True
@@ -75,16 +98,31 @@ def breakdown(label: str, show_joints: bool = False, **kw) -> dict[str, float]:
     r_ohm, kt = params.winding_resistance_ohm, params.torque_constant_nm_a
     hold = float((np.where(stance[keep][..., None], r_ohm * (tau[keep] / kt) ** 2, 0.0))
                  .sum(axis=(1, 2)).mean())
-    print(f'\n== {label}: T {period:.3f} s, T_swing {period * (1 - cfg.duty_factor):.3f} s, '
-          f'stance legs {stance[keep].sum(axis=1).mean():.2f}; P_in {p_in.mean():.2f} W, '
-          f'P_out {p_out:.3f} W, P_loss {loss:.2f} W, CoT/M {loss / (mass * speed):.2f} J/(m kg)')
-    print(f'   peak commanded joint speed {np.abs(qd[keep]).max():.1f} rad/s (no-load speed at '
-          f'{cfg.supply_voltage_v:.1f} V: {w_max:.1f}); holding copper bound '
-          f'sum R (tau/k_t)^2 over stance joints {hold:.2f} W')
+    qd_k, tau_k = qd[keep].reshape(len(p_in), -1), tau[keep].reshape(len(p_in), -1)
+    transmitted = float((np.abs(tau_k) * np.abs(qd_k) * st).sum(axis=1).mean())
+    out = {'p_in_w': float(p_in.mean()), 'p_out_w': p_out, 'p_loss_w': loss,
+           'cot_per_mass': loss / (mass * speed), 'hold_w': hold,
+           't_swing_s': period * (1 - cfg.duty_factor), 'period_s': period,
+           'stance_legs': float(stance[keep].sum(axis=1).mean()),
+           'peak_speed_rad_s': float(np.abs(qd[keep]).max()), 'w_max_rad_s': w_max,
+           'transmitted_w': transmitted}
+    if verbose:
+        print(f'\n== {label}: T {period:.3f} s, T_swing {out["t_swing_s"]:.3f} s, '
+              f'stance legs {out["stance_legs"]:.2f}; P_in {p_in.mean():.2f} W, '
+              f'P_out {p_out:.3f} W, P_loss {loss:.2f} W, CoT/M {loss / (mass * speed):.2f} '
+              'J/(m kg)')
+        print(f'   peak commanded joint speed {out["peak_speed_rad_s"]:.1f} rad/s (no-load speed '
+              f'at {cfg.supply_voltage_v:.1f} V: {w_max:.1f}); holding copper bound '
+              f'sum R (tau/k_t)^2 over stance joints {hold:.2f} W; stance sum |tau w| '
+              f'{transmitted:.2f} W')
     for name, mask in (('stance', st), ('swing', ~st)):
         per_leg = {term: float((terms[:, j] * mask).sum() / max(mask.sum(), 1) * 3)
                    for j, term in enumerate(TERMS)}
         total = sum(per_leg.values())
+        out[f'{name}_w'] = total
+        out.update({f'{name}_{term}_w': v for term, v in per_leg.items()})
+        if not verbose:
+            continue
         print(f'   {name:6s} ({mask.mean():.2f} of the time) one leg {total:5.2f} W: '
               + ' '.join(f'{term} {v:5.2f}' for term, v in per_leg.items()))
         if show_joints:
@@ -95,8 +133,7 @@ def breakdown(label: str, show_joints: bool = False, **kw) -> dict[str, float]:
                         for j, term in enumerate(TERMS)}
                 print(f'      {joint:5s} '
                       + ' '.join(f'{term} {v:5.2f}' for term, v in vals.items()))
-    return {'p_in_w': float(p_in.mean()), 'p_out_w': p_out, 'p_loss_w': loss,
-            'cot_per_mass': loss / (mass * speed), 'hold_w': hold}
+    return out
 
 
 @contextlib.contextmanager
@@ -161,6 +198,98 @@ def run_grid() -> None:
               f'{"" if ok else "  (outside the 0.6 m/s bands)"}', flush=True)
 
 
+CANDIDATES: tuple[tuple[str, dict[str, float]], ...] = (
+    ('calibrated (defaults)', {}),
+    ('dither 1 rad/s', dict(friction_smoothing_rad_s=1.0)),
+    ('datasheet no-load 0.2 A', dict(coulomb_friction_nm=0.07, viscous_friction_nm_s=0.01)),
+    ('no-load 0.2 A + dither', dict(coulomb_friction_nm=0.07, viscous_friction_nm_s=0.01,
+                                    friction_smoothing_rad_s=1.0)),
+    ('+ coreless rotor 0.4e-8', dict(coulomb_friction_nm=0.07, viscous_friction_nm_s=0.01,
+                                     friction_smoothing_rad_s=1.0, rotor_inertia_kgm2=0.4e-8)),
+    ('+ compliance slope 64', dict(coulomb_friction_nm=0.07, viscous_friction_nm_s=0.01,
+                                   friction_smoothing_rad_s=1.0, rotor_inertia_kgm2=0.4e-8,
+                                   compliance_slope_rad=64 * math.radians(0.29))),
+)
+
+
+def _standing_w() -> float:
+    cfg = RobotConfig(period_s=0.0)
+    tr = RobotSimulator(cfg, effects=EffectSet.none()).run(2.0)
+    return float(np.mean(tr.true_power_in_w[tr.t_s > 1.0]))
+
+
+def run_candidates() -> None:
+    """Both findings and every whole-robot band of the issue for a few physical variants."""
+    print('variant: no-load current, gear efficiency | P_loss change beta 0.7 (0.26 m/s), wave '
+          '(0.1 m/s, 0.5 kg) | standing P_in (8-20 W) | 0.6 m/s P_in (35-80 W), eta (<= 6 %) | '
+          'eta at 0.1 m/s (>= 0.5 %) | CoT/M at 0.84 m/s, 140 mm (25-50) | +0.5 kg at 0.3 m/s')
+    for name, changes in CANDIDATES:
+        with servo_overrides(changes):
+            p = ServoParams.by_name('ax18a')
+            b5 = _loss_w(speed_mps=0.26)[0]
+            b7 = _loss_w(speed_mps=0.26, duty_factor=0.7)[0]
+            tri = _loss_w(speed_mps=0.1, payload_kg=0.5)[0]
+            wave = _loss_w(speed_mps=0.1, payload_kg=0.5, gait='wave', duty_factor=0.83)[0]
+            _, p6, o6 = _loss_w(speed_mps=0.6)
+            _, p1, o1 = _loss_w(speed_mps=0.1)
+            l84 = _loss_w(speed_mps=0.84, step_length_m=0.14)[0]
+            light, heavy = _loss_w(speed_mps=0.3)[1], _loss_w(speed_mps=0.3, payload_kg=0.5)[1]
+            stand = _standing_w()
+        cot84 = l84 / (RobotConfig().total_mass_kg * 0.84)
+        bands = (8 <= stand <= 20 and 35 <= p6 <= 80 and o6 / p6 <= 0.06 and o1 / p1 >= 0.005
+                 and 25 <= cot84 <= 50)
+        print(f'{name:26s}: {p.no_load_current_a:.2f} A, {p.gear_efficiency:.2f} | '
+              f'{100 * (b7 / b5 - 1):+5.1f} %, {100 * (wave / tri - 1):+5.1f} % | {stand:4.1f} W | '
+              f'{p6:4.1f} W, {100 * o6 / p6:4.1f} % | {100 * o1 / p1:4.2f} % | {cot84:4.1f} | '
+              f'{heavy - light:+4.2f} W{"" if bands else "  (outside a band)"}', flush=True)
+
+
+def run_budget() -> None:
+    """Per-swing energy, stance sharing and transmitted stance power behind the two findings."""
+    runs = {
+        'tripod 0.1 m/s': dict(speed_mps=0.1),
+        'tripod 0.26 m/s': dict(speed_mps=0.26),
+        'beta 0.7 0.26 m/s': dict(speed_mps=0.26, duty_factor=0.7),
+        'tripod 0.1 m/s 0.5 kg': dict(speed_mps=0.1, payload_kg=0.5),
+        'wave 0.1 m/s 0.5 kg': dict(speed_mps=0.1, payload_kg=0.5, gait='wave',
+                                    duty_factor=0.83),
+        'tripod 0.6 m/s': dict(speed_mps=0.6),
+    }
+    res = {name: breakdown(name, verbose=False, **kw) for name, kw in runs.items()}
+    legs = RobotConfig().leg_count
+    print('run: T_swing s, peak commanded / no-load speed | one swing of one leg above standby '
+          'J | robot swing power above standby W | stance copper of the robot W (holding bound) '
+          '| stance sum |tau w| W')
+    for name, r in res.items():
+        e_swing = (r['swing_w'] - r['swing_standby_w']) * r['t_swing_s']
+        r['swing_robot_w'] = e_swing * legs / r['period_s']
+        r['stance_copper_robot_w'] = r['stance_copper_w'] * r['stance_legs']
+        print(f'{name:22s}: {r["t_swing_s"]:.3f} s, {r["peak_speed_rad_s"]:4.1f}/'
+              f'{r["w_max_rad_s"]:4.1f} rad/s | {e_swing:5.3f} J | {r["swing_robot_w"]:5.2f} W | '
+              f'{r["stance_copper_robot_w"]:5.2f} W ({r["hold_w"]:5.2f}) | '
+              f'{r["transmitted_w"]:.2f} W')
+    for base, var in (('tripod 0.26 m/s', 'beta 0.7 0.26 m/s'),
+                      ('tripod 0.1 m/s 0.5 kg', 'wave 0.1 m/s 0.5 kg')):
+        b, v = res[base], res[var]
+        d_loss = v['p_loss_w'] - b['p_loss_w']
+        d_cu = b['stance_copper_robot_w'] - v['stance_copper_robot_w']
+        parity = 1.0 + d_loss / d_cu if d_cu > 0 and d_loss > 0 else float('nan')
+        d_sw = v['swing_robot_w'] - b['swing_robot_w']
+        print(f'-> {var} vs {base}: P_loss {d_loss:+.2f} W = swing {d_sw:+.2f} W, stance copper '
+              f'{-d_cu:+.2f} W (holding bound {v["hold_w"] - b["hold_w"]:+.2f} W), P_out '
+              f'{v["p_out_w"] - b["p_out_w"]:+.2f} W (subtracted), rest '
+              f'{d_loss - d_sw + d_cu:+.2f} W; break-even needs the stance copper x{parity:.1f}')
+    r7 = res['beta 0.7 0.26 m/s']
+    print(f'-> the gait swing reaches the no-load speed at T_swing '
+          f'{r7["t_swing_s"] * r7["peak_speed_rad_s"] / r7["w_max_rad_s"]:.3f} s '
+          '(the paper: 0.16 s is the servo limit)')
+    row = []
+    for v in (0.1, 0.15, 0.2, 0.26):
+        b5, b7 = _loss_w(speed_mps=v)[0], _loss_w(speed_mps=v, duty_factor=0.7)[0]
+        row.append(f'{v:.2f} m/s {100 * (b7 / b5 - 1):+.1f} %')
+    print('-> P_loss change of beta 0.7 against 0.5: ' + ', '.join(row))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--joints', action='store_true', help='per-joint rows as well')
@@ -168,7 +297,17 @@ def main() -> None:
                         help='replace a ServoParams constant (repeatable)')
     parser.add_argument('--grid', action='store_true',
                         help='sweep servo constants instead (findings and 0.6 m/s bands)')
+    parser.add_argument('--candidates', action='store_true',
+                        help='findings and every whole-robot band for a few physical variants')
+    parser.add_argument('--budget', action='store_true',
+                        help='per-swing energy, stance sharing and transmitted stance power '
+                        '(with --servo what-ifs)')
     args = parser.parse_args()
+    if args.candidates:
+        start = time.perf_counter()
+        run_candidates()
+        print(f'\nwall time {time.perf_counter() - start:.1f} s')
+        return
     if args.grid:
         start = time.perf_counter()
         run_grid()
@@ -181,7 +320,10 @@ def main() -> None:
     if changes:
         print(f'servo constants replaced: {changes}')
     with servo_overrides(changes):
-        run_cases(args.joints)
+        if args.budget:
+            run_budget()
+        else:
+            run_cases(args.joints)
 
 
 def run_cases(show_joints: bool) -> None:
