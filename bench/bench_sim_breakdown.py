@@ -241,7 +241,8 @@ def run_candidates() -> None:
         print(f'{name:26s}: {p.no_load_current_a:.2f} A, {p.gear_efficiency:.2f} | '
               f'{100 * (b7 / b5 - 1):+5.1f} %, {100 * (wave / tri - 1):+5.1f} % | '
               f'{stand:4.1f} W | {p6:4.1f} W, {100 * o6 / p6:4.1f} % | {100 * o1 / p1:4.2f} % | '
-              f'{cot84:4.1f} | {heavy - light:+4.2f} W{"" if bands else "  (outside a band)"}', flush=True)
+              f'{cot84:4.1f} | {heavy - light:+4.2f} W'
+              f'{"" if bands else "  (outside a band)"}', flush=True)
 
 
 def run_budget() -> None:
