@@ -156,8 +156,10 @@ class GeometryFit:
     heights were given in [m]; ``rms_m``: residual RMS of the body height [m]; ``windows``:
     windows used; ``damping_ratio_s``: fitted c / mean k [s]; ``height_t_s`` (mocap clock),
     ``height_m``: the fitted body height on a 1 ms grid (same frame as the input heights, NaN
-    outside the windows), the noise-free height :func:`leg_contacts` can use;
-    ``dropped_windows``: windows left out as outliers.
+    outside the windows, above the tilted ground), the noise-free height :func:`leg_contacts`
+    can use; ``dropped_windows``: windows left out as outliers; ``tilt_rad``: the ground's
+    slope along +x in the given frame (fitted when x is given), the heights above it are
+    ``z - tilt_rad (x - tilt_x0_m)`` and the pitch from it ``pitch + tilt_rad``.
     """
 
     offset_s: float
@@ -168,6 +170,8 @@ class GeometryFit:
     height_t_s: FloatArray = dataclasses.field(default_factory=lambda: np.zeros(0), repr=False)
     height_m: FloatArray = dataclasses.field(default_factory=lambda: np.zeros(0), repr=False)
     dropped_windows: int = 0
+    tilt_rad: float = 0.0
+    tilt_x0_m: float = 0.0
 
 
 class _Body:
@@ -175,7 +179,8 @@ class _Body:
 
     def __init__(self, geometry: LegGeometry, joint_names: tuple[str, ...], joint_t_s: ArrayLike,
                  joint_position: ArrayLike, joint_velocity: ArrayLike, mocap_t_s: ArrayLike,
-                 height_m: ArrayLike, pitch_rad: ArrayLike) -> None:
+                 height_m: ArrayLike, pitch_rad: ArrayLike, x_m: ArrayLike | None = None
+                 ) -> None:
         self.geo = geometry
         tj = np.asarray(joint_t_s, dtype=float)
         q = np.asarray(joint_position, dtype=float)
@@ -197,21 +202,36 @@ class _Body:
         tm = np.asarray(mocap_t_s, dtype=float)
         z = np.asarray(height_m, dtype=float)
         b = np.asarray(pitch_rad, dtype=float)
-        ok = np.isfinite(tm) & np.isfinite(z) & np.isfinite(b)
-        tm, z, b = tm[ok], z[ok], b[ok]
+        x = np.zeros_like(z) if x_m is None else np.asarray(x_m, dtype=float)
+        if x.shape != z.shape:
+            raise SlipDataError(f'x_m has shape {x.shape}, expected that of height_m {z.shape}')
+        ok = np.isfinite(tm) & np.isfinite(z) & np.isfinite(b) & np.isfinite(x)
+        tm, z, b, x = tm[ok], z[ok], b[ok], x[ok]
         o = np.argsort(tm)
         keep = np.concatenate([[True], np.diff(tm[o]) > 0])
         o = o[keep]
         if o.size < 20:
             raise SlipDataError(f'geometry needs >= 20 mocap samples, got {o.size}')
-        self.tm, self.z, self.b = tm[o], z[o], b[o]
-        self.zs = CubicSpline(self.tm, self.z)
-        self.bs = CubicSpline(self.tm, self.b)
+        self.tm, self.z_raw, self.b_raw, self.x = tm[o], z[o], b[o], x[o]
+        self.x0 = float(np.mean(self.x))
+        self.tilt = math.nan
+        self.set_tilt(0.0)
         self._phi_key: Any = None
         self._h_t = np.zeros(0)
         self._h_z = np.zeros(0)
         self._phi_cache = np.zeros((0, len(self.legs)))
         self.hx = np.array([geometry.hip_x_of(leg) for leg in self.legs])
+
+    def set_tilt(self, tilt_rad: float) -> None:
+        """Ground rising along +x by ``tilt_rad`` in the given frame: heights above a level
+        ground are ``z - tilt (x - x0)``, pitch from the ground ``pitch + tilt``."""
+        if tilt_rad == self.tilt:
+            return
+        self.tilt = float(tilt_rad)
+        self.z = self.z_raw - self.tilt * (self.x - self.x0)
+        self.b = self.b_raw + self.tilt
+        self.zs = CubicSpline(self.tm, self.z)
+        self.bs = CubicSpline(self.tm, self.b)
 
     def use_height(self, t_s: FloatArray, height_m: FloatArray) -> None:
         """Use ``height_m`` at ``t_s`` (mocap clock) where finite instead of the spline."""
@@ -398,7 +418,9 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
                       window_s: float = 0.1, min_windows: int = 3, windows: str = 'flight',
                       model: str = 'clipped', tau_s: float | None = None,
                       fix_tau: bool | None = None, fix_offset: bool = False,
-                      outlier_factor: float = 2.0) -> GeometryFit:
+                      outlier_factor: float = 2.0, x_m: ArrayLike | None = None,
+                      fit_tilt: bool | None = None,
+                      tilt_range_rad: float = math.radians(0.6)) -> GeometryFit:
     """Stream offset and ground height from the body's vertical dynamics (module docs).
 
     Parameters
@@ -441,6 +463,16 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
     outlier_factor : float
         Windows whose residual RMS exceeds this times the median window's (at the coarse
         optimum) are dropped before the final fit (``GeometryFit.dropped_windows``).
+    x_m : array_like, shape (m,), optional
+        COM position along the travel direction [m] (same frame as the heights). With it the
+        ground's slope along x is fitted too (``fit_tilt``): a world frame levelled on the COM
+        path is tilted by the path's slope (a body height drifting over the run, a start-up
+        transient), which biases the front and rear hip heights against each other; the
+        contacts see the real ground.
+    fit_tilt : bool, optional
+        Default: True when ``x_m`` is given.
+    tilt_range_rad : float
+        Half-width of the coarse tilt scan [rad].
 
     Returns
     -------
@@ -456,8 +488,12 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
         fix_tau = False
     if model not in FIT_MODELS:
         raise SlipDataError(f'model must be one of {FIT_MODELS}, got {model!r}')
+    if fit_tilt is None:
+        fit_tilt = x_m is not None
+    if fit_tilt and x_m is None:
+        raise SlipDataError('fit_tilt needs x_m (COM positions along the travel direction)')
     body = _Body(geometry, tuple(joint_names), joint_t_s, joint_position, joint_velocity,
-                 mocap_t_s, height_m, pitch_rad)
+                 mocap_t_s, height_m, pitch_rad, x_m)
     masks = _windows(body.tm, window_s)
     lo_j, hi_j = body.t_j[0], body.t_j[-1]
     t_lo = max(body.tm[0], lo_j + initial_offset_s + offset_range_s + 0.02)
@@ -530,22 +566,41 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
             break
         masks = [k for k, ok in zip(masks, good) if ok]
         dropped += int((~good).sum())
-    # Nelder-Mead in ms, mm (and ms for tau)
-    x0 = [d_best * 1e3, g_best * 1e3] + ([tau_s * 1e3] if tau_fit else [])
-    free = [not fix_offset, True] + ([True] if tau_fit else [])
+    tilt_best = 0.0
+    if fit_tilt:
+        # the ground's slope: a scan at the coarse offset (best ground each), parabola refined
+        grid = np.linspace(-tilt_range_rad, tilt_range_rad, 7)
+        costs = []
+        for tl in grid:
+            body.set_tilt(float(tl))
+            costs.append(best_ground(d_best, g_best - 6e-3, g_best + 6e-3))
+        i = int(np.argmin([c[1] for c in costs]))
+        tilt_best, g_best = float(grid[i]), costs[i][0]
+        if 0 < i < grid.size - 1:
+            c0, c1, c2 = costs[i - 1][1], costs[i][1], costs[i + 1][1]
+            den = c0 - 2 * c1 + c2
+            if den > 0:
+                tilt_best += 0.5 * (c0 - c2) / den * float(grid[1] - grid[0])
+        body.set_tilt(tilt_best)
+        g_best = best_ground(d_best, g_best - 6e-3, g_best + 6e-3)[0]
+    # Nelder-Mead in ms, mm, mrad (tilt) and ms (tau)
+    x0 = [d_best * 1e3, g_best * 1e3, tilt_best * 1e3] + ([tau_s * 1e3] if tau_fit else [])
+    free = [not fix_offset, True, bool(fit_tilt)] + ([True] if tau_fit else [])
     idx = [i for i, fr in enumerate(free) if fr]
 
     def obj(v: FloatArray) -> float:
         x = list(x0)
         for i, vi in zip(idx, v):
             x[i] = vi
-        # stay near the coarse optimum (ms, mm) and keep the damping ratio physical
-        out = max(abs(x[0] - x0[0]) - 10.0, abs(x[1] - x0[1]) - 10.0, 0.0)
+        # stay near the coarse optimum (ms, mm, mrad) and keep the damping ratio physical
+        out = max(abs(x[0] - x0[0]) - 10.0, abs(x[1] - x0[1]) - 10.0,
+                  abs(x[2] - x0[2]) - 5.0, 0.0)
         if tau_fit:
-            out = max(out, -x[2], x[2] - 50.0)
+            out = max(out, -x[3], x[3] - 50.0)
         if out > 0:
             return 1e6 * (1.0 + out)
-        return f(x[0] * 1e-3, x[1] * 1e-3, x[2] * 1e-3 if tau_fit else tau_s) * 1e8
+        body.set_tilt(x[2] * 1e-3)
+        return f(x[0] * 1e-3, x[1] * 1e-3, x[3] * 1e-3 if tau_fit else tau_s) * 1e8
 
     start = np.array([x0[i] for i in idx])
     simplex = [start] + [start + 2.0 * np.eye(len(idx))[i] for i in range(len(idx))]
@@ -554,18 +609,20 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
     x = list(x0)
     for i, vi in zip(idx, res.x):
         x[i] = float(vi)
-    d, g = x[0] * 1e-3, x[1] * 1e-3
-    tau = max(x[2] * 1e-3, 0.0) if tau_fit else tau_s
+    d, g, tilt = x[0] * 1e-3, x[1] * 1e-3, x[2] * 1e-3
+    tau = max(x[3] * 1e-3, 0.0) if tau_fit else tau_s
+    body.set_tilt(tilt)
     mse, _, ratio, h_t, h_z = _cost(body, masks, tf, d, g, model=model, tau_s=tau, full=True)
     return GeometryFit(offset_s=d, ground_m=g, rms_m=math.sqrt(mse), windows=len(masks),
                        damping_ratio_s=ratio, height_t_s=h_t, height_m=h_z,
-                       dropped_windows=dropped)
+                       dropped_windows=dropped, tilt_rad=tilt, tilt_x0_m=body.x0)
 
 
 def leg_contacts(geometry: LegGeometry, joint_names: tuple[str, ...], joint_t_s: ArrayLike,
                  joint_position: ArrayLike, joint_velocity: ArrayLike, mocap_t_s: ArrayLike,
                  height_m: ArrayLike, pitch_rad: ArrayLike, *, offset_s: float,
-                 ground_m: float, step_s: float = 5e-4, fit: GeometryFit | None = None
+                 ground_m: float, step_s: float = 5e-4, fit: GeometryFit | None = None,
+                 x_m: ArrayLike | None = None, tilt_rad: float | None = None
                  ) -> tuple[dict[str, FloatArray], FloatArray]:
     """Per-leg contact intervals where the hip is below the leg's rest height, (k, 2) [s].
 
@@ -574,7 +631,8 @@ def leg_contacts(geometry: LegGeometry, joint_names: tuple[str, ...], joint_t_s:
     rest height. A contact cut by the span's ends or by a mocap gap is kept, clipped there.
     Arguments as :func:`fit_ground_offset`; with ``fit`` (its result) the body height is the
     fitted one (noise-free, ballistic in flight) where the fit covers it, else the spline
-    through the samples.
+    through the samples. ``tilt_rad`` (default: ``fit.tilt_rad``, else 0) is the ground's
+    slope along +x (:class:`GeometryFit`); a nonzero tilt needs ``x_m``.
 
     Returns
     -------
@@ -584,8 +642,15 @@ def leg_contacts(geometry: LegGeometry, joint_names: tuple[str, ...], joint_t_s:
         Intervals where contact is not known (before and after the span, mocap gaps) [s];
         :func:`single_support` drops pieces that touch them.
     """
+    if tilt_rad is None:
+        tilt_rad = fit.tilt_rad if fit is not None else 0.0
+    if tilt_rad != 0.0 and x_m is None:
+        raise SlipDataError(f'a ground tilt of {tilt_rad:.2e} rad needs x_m (COM positions)')
     body = _Body(geometry, tuple(joint_names), joint_t_s, joint_position, joint_velocity,
-                 mocap_t_s, height_m, pitch_rad)
+                 mocap_t_s, height_m, pitch_rad, x_m)
+    if fit is not None and fit.tilt_rad != 0.0:
+        body.x0 = fit.tilt_x0_m
+    body.set_tilt(float(tilt_rad))
     if fit is not None and fit.height_m.size:
         body.use_height(fit.height_t_s, fit.height_m)
     t0 = max(body.tm[0] - offset_s, body.t_j[0])

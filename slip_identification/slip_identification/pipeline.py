@@ -29,6 +29,7 @@ from .proprio_edges import (
 )
 from .preprocess import (
     Box,
+    WorldFrame,
     check_straight,
     estimate_offset,
     fit_world_frame,
@@ -106,6 +107,21 @@ def _tripod_mean(names: tuple[str, ...], values: FloatArray, tripod: str) -> Flo
     if not cols:
         raise SlipDataError(f'no {tripod} tripod hips ({TRIPODS[tripod]}_hip) in {names}')
     return np.asarray(values, dtype=float)[:, cols].mean(axis=1)
+
+
+def _tilted_frame(frame: WorldFrame, tilt_rad: float, x0_m: float, ground_m: float
+                  ) -> WorldFrame:
+    """``frame`` turned about its y axis so that a ground rising by ``tilt_rad`` along x is
+    level, and moved so that the ground (height ``ground_m`` at ``x = x0_m``) is at z = 0."""
+    r = np.asarray(frame.rotation, dtype=float)
+    xa = r[0] + tilt_rad * r[2]
+    n = r[2] - tilt_rad * r[0]
+    xa /= np.linalg.norm(xa)
+    n = n - (n @ xa) * xa
+    n /= np.linalg.norm(n)
+    rot = np.vstack([xa, np.cross(n, xa), n])
+    origin = np.asarray(frame.origin_m, dtype=float) + (ground_m - tilt_rad * x0_m) * n
+    return WorldFrame(rotation=rot, origin_m=origin)
 
 
 def _up_from_quats(q: FloatArray) -> FloatArray:
@@ -240,16 +256,18 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
         pitch = body_pitch_rad(frame.rotation, quats)
         geo_inputs = (geometry, names, tj, position, np.asarray(run.joint_velocity, dtype=float),
                       tm[inside], pw[:, 2], pitch)
+        geo_x = pw[:, 0].copy()
         gfit = fit_ground_offset(*geo_inputs, initial_offset_s=off,
                                  offset_range_s=0.1 if init == 'xcorr' else 0.06,
-                                 fix_offset=method != 'geometry')
+                                 fix_offset=method != 'geometry', x_m=geo_x)
         off = gfit.offset_s
         res.ground_m = gfit.ground_m
-        # the fitted ground is the frame's vertical translation: heights above the ground
-        frame = dataclasses.replace(frame, origin_m=frame.origin_m
-                                    + gfit.ground_m * frame.rotation[2])
-        pw = pw - np.array([0.0, 0.0, gfit.ground_m])
-        res.frame.update(origin_m=frame.origin_m.tolist(), ground_m=gfit.ground_m,
+        # the fitted ground is the frame's vertical translation and its slope along x a
+        # rotation about y: heights above the ground z - g - tilt (x - x0)
+        frame = _tilted_frame(frame, gfit.tilt_rad, gfit.tilt_x0_m, gfit.ground_m)
+        pw = frame.to_world(pm[inside])
+        res.frame.update(tilt_deg=math.degrees(frame.tilt_rad), rotation=frame.rotation.tolist(), origin_m=frame.origin_m.tolist(),
+                         ground_m=gfit.ground_m, ground_tilt_rad=gfit.tilt_rad,
                          ground_source='geometry', geometry_rms_m=gfit.rms_m)
     res.offset_s = off
     res.offset_method = method
@@ -278,7 +296,7 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
     if geo_inputs:
         # heights in geo_inputs are those before the ground was moved
         contacts, unknown = leg_contacts(*geo_inputs, offset_s=res.offset_s,
-                                         ground_m=res.ground_m, fit=gfit)
+                                         ground_m=res.ground_m, fit=gfit, x_m=geo_x)
         ss = single_support(contacts, TRIPODS, unknown)
         res.geometry_windows = sorted(
             (StanceWindow(float(a), float(b), tp, res.shift_s.get(tp, 0.0))

@@ -222,9 +222,9 @@ def _geometry_figures(run) -> dict:
     names = tuple(f'{leg}_hip' for leg in run.leg_names)
     args = (geo, names, run.t_s, run.hip_position_rad, run.hip_velocity_rad_s, run.mocap_t_s,
             pw[:, 2], pitch)
-    fit = fit_ground_offset(*args, initial_offset_s=0.0, offset_range_s=0.06)
+    fit = fit_ground_offset(*args, initial_offset_s=0.0, offset_range_s=0.06, x_m=pw[:, 0])
     contacts, unknown = leg_contacts(*args, offset_s=fit.offset_s, ground_m=fit.ground_m,
-                                     fit=fit)
+                                     fit=fit, x_m=pw[:, 0])
     ss = single_support(contacts, TRIPODS, unknown)
     e = []
     for tp, iv in ss.items():
