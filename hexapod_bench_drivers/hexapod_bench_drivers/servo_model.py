@@ -53,30 +53,50 @@ Physics, all quantities referred to the OUTPUT shaft (after the gearbox):
   (standby, copper, bridge braking, Coulomb, gear, viscous, rotor kinetic energy, load), which
   sum to the supply power; ``bench/bench_sim_breakdown.py`` prints it per gait phase and joint.
 
-Calibration against Brodoline et al.'s gait findings (measured with that benchmark; constants
-unchanged). With these constants the simulated AntBot reproduces the paper's whole-robot
-figures but not two of its gait findings: tripod beta 0.7 at 0.26 m/s loses +30 % more than
-beta 0.5 (paper: -10 %) and the wave gait (beta 0.83) at 0.1 m/s with 0.5 kg +14 % more than
-the tripod (paper: up to -8 %). The cause is the swing: a 0.165 s swing of the gait's tip
-spline needs 13.4 rad/s at the femur (0.205 s: 10.7 rad/s), beyond the no-load speed (10.0
-rad/s at 11.9 V), so the servos run at full duty and reverse against their own rotor inertia; a
-swinging leg then draws 15.7 W against 6.6 W in the 0.385 s swing of beta 0.5, while its energy
-per swing stays about the same (Coulomb friction is paid per radian), and beta 0.7 swings 1.4
-times as often at the same speed. Sharing the body weight over 4.2 instead of 3 stance legs can
-save at most the stance holding copper ``R (tau / k_t)^2``, 1.7 W for the whole robot against
-+10.6 W of swing power (P_loss +9.1 W). The same swing makes 0.6 m/s cost 64 W (the issue's
-35-80 W and efficiency <= 6 % bands need it), so no servo constant can make the 0.165 s swing
-cheap without breaking those bands (``bench_sim_breakdown.py --grid``, 40 variants: beta 0.7
-at best +0.9 % inside the bands, with a 0.5 A no-load current and a 37 degree compliance
-slope). Honest AX-class numbers make it worse: a no-load current of
-0.2 A (Coulomb 0.1 N m, viscous 0.008 N m s/rad instead of 0.24 and 0.02) gives beta 0.7 +42 %,
-wave +16 %, and 0.6 m/s only 44 W (efficiency 8.6 %). With ``friction_smoothing_rad_s = 0.2``
-the load sensitivity rises from +0.9 W to +2.0 W per 500 g at 0.3 m/s (paper: about +4 W) and
-the wave gait saves 0.5 % (beta 0.7 still +25 %); it stays off by default because the
-bench-fitted model then disagrees with the simulated robot on the wave gait (+25 %) and the
-worst robot prediction error grows to 6.7 %: the bench's force contact lasts ~0.7 of the cycle
-at beta 0.5, so its P_stance carries early-swing power, which Eq. 1 weights by beta and so
-overstates gaits with beta > 0.5.
+Calibration against Brodoline et al.'s gait findings (``bench/bench_sim_breakdown.py``, its
+``--budget`` and ``--candidates`` modes; constants unchanged). With these constants the
+simulated AntBot reproduces the paper's whole-robot figures (standing 10.7 W, 0.6 m/s 64 W at
+5.8 % efficiency, CoT/M 38.8 J/(m kg) at 0.84 m/s with 140 mm steps, +1.55 W per leg after
+10 min at 3 Hz with 500 g) but not two of its gait findings: tripod beta 0.7 at 0.26 m/s loses
++30 % more than beta 0.5 (paper: -10 %) and the wave gait (beta 0.83) at 0.1 m/s with 0.5 kg
++14 % more than the tripod (paper: up to -8 %).
+
+* At the same speed and 100 mm steps the stance lasts ``L / v`` whatever the duty factor, so the
+  only stance difference between the gaits is the load per stance leg, while the swings come
+  ``beta / (beta = 0.5)`` times as often and are shorter. Beta 0.7 wins only if the copper saved
+  by sharing the weight over 4.2 instead of 3 legs, at most ``(1 - 3 / 4.2)`` of the stance
+  holding copper ``R (tau / k_t)^2`` (4.3 W for the robot at 0.26 m/s: 1.7 W), outweighs the
+  extra swing power (+10.6 W: 1.84 J per 0.385 s swing of one leg, 2.29 J per 0.165 s swing).
+* The 0.165 s swing of the gait's tip spline asks 13.4 rad/s of the femur, beyond the no-load
+  speed (10.0 rad/s at 11.9 V): the spline peaks at about twice its mean speed and reaches the
+  servo's speed at a 0.22 s swing, where the paper's trajectory reaches it at 0.16 s. A
+  saturated swing lags and its end is paid in the next stance (stance copper 5.0 W at beta 0.7
+  against a 2.6 W holding bound).
+* A load-proportional gear friction cannot make the loaded stance carry a speed-dependent cost:
+  the stance joints transmit ``sum |tau| |w|`` = 0.13 W at 0.26 m/s and 0.30 W at 0.6 m/s (the
+  loaded femur is nearly still, the moving coxa carries no static torque), so even ``mu = 1``
+  would add under 0.3 W. The gear loss is already load-proportional here, ``(1 - eta) |k_e i|``,
+  and opposes the motion in both directions of the power flow (lifting: ``k_e i = (T + c + b w)
+  / eta``; back-driven lowering: ``(T - c - b w) / (2 - eta)``); the datasheet points bound
+  ``eta >= 0.71`` even with no friction at all (0.78 with a 0.2 A no-load current), so an output
+  efficiency of 0.5-0.7 under load is not compatible with the AX-18A datasheet.
+* Datasheet-honest no-load friction (0.2 A: Coulomb 0.07 N m, viscous 0.01 N m s/rad) with a
+  dithered friction (``friction_smoothing_rad_s = 1``: the motor carries the static load) and a
+  coreless rotor of 0.4e-8 kg m^2 gives the wave gait -0.4 % and beta 0.7 +18 %; the swing
+  energy still rises from 0.87 J (0.385 s) to 1.25 J (0.165 s), and beta 0.7 would break even
+  only with 5.1 times the stance copper. The same servo breaks the issue's bands: 0.6 m/s draws
+  38 W at 9.3 % efficiency, CoT/M 20.9 at 0.84 m/s, and the thermal rise is -1.0 W per leg (a
+  hot winding draws less current at full duty). The 0.6 m/s swings (0.167 s) are the same as
+  the beta 0.7 swings (0.165 s), so nothing in the servo can make the one expensive and the
+  other cheap; only the stance duration differs (0.167 s against 0.385 s), and the stance
+  transmits no power to dissipate.
+* ``friction_smoothing_rad_s = 1`` alone keeps every whole-robot band (64.9 W and 5.8 % at
+  0.6 m/s, CoT/M 39.4, standing 11.1 W, thermal +1.94 W per leg), makes the wave gait save
+  1.7 % on the simulated robot and raises the +500 g load sensitivity at 0.3 m/s from +0.9 W to
+  +2.8 W (paper: about +4 W), but the bench-fitted model then over-predicts the slow robot
+  (0.1 m/s +9.4 %, worst prediction error above the 6 % guard) and gives the wave +20 %; the
+  bench's force contact lasts 0.685 of the cycle at beta 0.5 (the tip spline needs 17 % of the
+  swing to lift 3 mm), which moves swing-end and standby energy into P_stance. It stays off.
 
 Sign convention: ``external_torque_nm`` is the torque the outside world applies ON the output
 shaft, positive in the joint's positive direction (gravity pulling a joint down gives a negative

@@ -187,16 +187,20 @@ def test_duty_factor_and_wave_findings_follow_the_simulator(model) -> None:
 
 
 @pytest.mark.xfail(strict=True, reason=(
-    'simulator physics, measured with bench/bench_sim_breakdown.py: the beta 0.7 swing at '
-    '0.26 m/s (0.165 s) and the wave swing at 0.1 m/s (0.205 s) ask for 13.4 and 10.7 rad/s '
-    'of joint speed, beyond the AX-18A no-load speed (10.0 rad/s at 11.9 V): the servos '
-    'saturate and reverse at full duty, and a swinging leg draws 15.7 W (wave 11.6 W) against '
-    '6.6 W (4.0 W) in the 0.385 s (1 s) swing of beta 0.5 -- the same swing that makes '
-    '0.6 m/s cost 64 W (86 % of the rise from 0.1 m/s is swing power). Sharing the weight '
-    'over more stance legs can save at most the holding copper R (tau/k_t)^2: 1.7 W for '
-    'beta 0.7 (+9.1 W of P_loss observed), 5.2 W for wave (+3.1 W observed; the gear '
-    'friction holds most of the stance load, so only ~1 W of it is realised). The simulated '
-    'robot loses +30 % (beta 0.7) and +14 % (wave); the fitted model +47 % and +41 %'))
+    'simulator physics, measured with bench/bench_sim_breakdown.py --budget/--candidates: at '
+    'one speed and step length the stance lasts L/v whatever the duty factor, so beta 0.7 can '
+    'only save the holding copper of sharing the weight over 4.2 instead of 3 legs (at most '
+    '1.7 W of 4.3 W at 0.26 m/s) while its swings come 1.4 times as often and are shorter: '
+    '2.29 J per 0.165 s swing of one leg against 1.84 J per 0.385 s swing, +10.6 W for the '
+    'robot (the 0.165 s swing of the gait spline asks 13.4 rad/s, beyond the 10.0 rad/s '
+    'no-load speed; the spline reaches that speed at a 0.22 s swing). A load-proportional '
+    'gear friction cannot move cost into the loaded stance: the stance joints transmit '
+    'sum |tau w| = 0.13 W (0.30 W at 0.6 m/s). Datasheet-honest no-load friction (0.2 A), a '
+    'coreless rotor and dithered friction give wave -0.4 % but beta 0.7 still +18 % (break-even '
+    'needs 5.1 times the stance copper), and break the 0.6 m/s efficiency, CoT/M and thermal '
+    'bands; dither alone (friction_smoothing_rad_s=1) gives wave -1.7 % on the robot but the '
+    'fitted model +20 % and a 9.4 % worst prediction error. With the calibrated servo the '
+    'simulated robot loses +30 % (beta 0.7) and +14 % (wave); the fitted model +47 % and +41 %'))
 def test_paper_direction_beta_and_wave(model) -> None:
     opm = OutputPowerModel()
     b5 = _at(sweep_curve(SweepSpec('b5', 'tripod', 6, 0.5), model, opm), 0.26)
