@@ -80,9 +80,11 @@ simulated AntBot reproduces the paper's whole-robot figures (standing 10.7 W, 0.
   / eta``; back-driven lowering: ``(T - c - b w) / (2 - eta)``); the datasheet points bound
   ``eta >= 0.71`` even with no friction at all (0.78 with a 0.2 A no-load current), so an output
   efficiency of 0.5-0.7 under load is not compatible with the AX-18A datasheet.
-* Datasheet-honest no-load friction (0.2 A: Coulomb 0.07 N m, viscous 0.01 N m s/rad) with a
+* Datasheet-honest no-load friction (0.2 A: Coulomb 0.07 N m, viscous 0.01 N m s/rad; the
+  ROBOTIS e-manual gives 0.18 A no-load for the 238:1 XL-320, none for the AX-18A) with a
   dithered friction (``friction_smoothing_rad_s = 1``: the motor carries the static load) and a
-  coreless rotor of 0.4e-8 kg m^2 gives the wave gait -0.4 % and beta 0.7 +18 %; the swing
+  lighter rotor (0.4e-8 kg m^2, a third of the calibrated value; the e-manual lists the AX-18A
+  motor as coreless, the AX-12A as cored) gives the wave gait -0.4 % and beta 0.7 +18 %; the swing
   energy still rises from 0.87 J (0.385 s) to 1.25 J (0.165 s), and beta 0.7 would break even
   only with 5.1 times the stance copper. The same servo breaks the issue's bands: 0.6 m/s draws
   38 W at 9.3 % efficiency, CoT/M 20.9 at 0.84 m/s, and the thermal rise is -1.0 W per leg (a
