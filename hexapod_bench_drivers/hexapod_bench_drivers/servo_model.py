@@ -69,9 +69,11 @@ simulated AntBot reproduces the paper's whole-robot figures (standing 10.7 W, 0.
   extra swing power (+10.6 W: 1.84 J per 0.385 s swing of one leg, 2.29 J per 0.165 s swing).
 * The 0.165 s swing of the gait's tip spline asks 13.4 rad/s of the femur, beyond the no-load
   speed (10.0 rad/s at 11.9 V): the spline peaks at about twice its mean speed and reaches the
-  servo's speed at a 0.22 s swing, where the paper's trajectory reaches it at 0.16 s. A
-  saturated swing lags and its end is paid in the next stance (stance copper 5.0 W at beta 0.7
-  against a 2.6 W holding bound).
+  servo's speed at a 0.22 s swing, where the paper's trajectory reaches it at 0.16 s (a
+  ``sin^2`` lift instead of the C2 spline only lowers the peak to 12.9 rad/s and beta 0.7 to
+  +28 %). The stance copper (5.0 W for the robot at beta 0.7, holding bound 2.6 W) is mostly
+  the coxa sweeping against the gear's no-load friction (0.69 of 1.19 W per stance leg; femur
+  0.16 W): load-independent, so every extra stance leg pays it.
 * A load-proportional gear friction cannot make the loaded stance carry a speed-dependent cost:
   the stance joints transmit ``sum |tau| |w|`` = 0.13 W at 0.26 m/s and 0.30 W at 0.6 m/s (the
   loaded femur is nearly still, the moving coxa carries no static torque), so even ``mu = 1``
