@@ -18,12 +18,22 @@ the mocap origin (the ground height) moves the rest length by centimetres (a fra
 from the first 0.15 s put the first online rest lengths 10-50 mm off the offline ones).
 Stances that end before the frame is ready are skipped with reason ``frame_not_ready``.
 
+Geometric edges (``geometry`` and ``ground_m`` given, hip angles passed to
+:meth:`OnlineSlip.add_joint_state`): the single-support windows come from the half-circle
+legs' contacts (:func:`.geometry.leg_contacts` over the last ``geometry_window_s`` of the
+buffer, heights above ``ground_m`` in the world frame: the buffered one, or ``world_frame``
+when given, e.g. an offline analysis' frame with its ground; the stream offset is
+``mocap_offset_s``) instead of the clock's target edges; a window is fitted once the mocap covers its lift-off (a piece that touches the buffer's
+newest sample is not yet finished; stances that end before the world frame is ready are not
+looked for). Without them (or without hip angles), the paper's target edges are used.
+
 Latency bookkeeping (simulated time, no wall clock): for every fit, ``latency_s`` records the
 time of the newest motion-capture sample (proprioception clock) minus the stance's lift-off.
 """
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from dataclasses import dataclass
 
@@ -31,10 +41,17 @@ import numpy as np
 
 from .errors import SlipError
 from .fit import SlipFitResult, SlipFitter, Stance, validate_stance
+from .geometry import LegGeometry, body_pitch_rad, leg_contacts, single_support
 from .model import SlipModel
 from .pipeline import TRIPODS, _tripod_mean, _up_from_quats
 from .preprocess import Box, WorldFrame, fit_world_frame, permissible_mask, sagittal_state
-from .stance import best_shift, edges_from_target, single_tripod_stances, tripod_stance_windows
+from .stance import (
+    StanceWindow,
+    best_shift,
+    edges_from_target,
+    single_tripod_stances,
+    tripod_stance_windows,
+)
 
 __all__ = ['OnlineSlip', 'OnlineSkip']
 
@@ -69,13 +86,31 @@ class OnlineSlip:
     frame_min_s : float
         In-box motion capture [s] needed before the first world frame (earlier stances are
         skipped, reason ``frame_not_ready``).
+    geometry : LegGeometry, optional
+        Robot description for the geometric edges (module docs); needs ``ground_m``.
+    ground_m : float, optional
+        Ground height in the world frame (its plane through the mocap origin) [m].
+    geometry_window_s : float
+        Buffer span [s] searched for geometric contacts on each step.
+    world_frame : WorldFrame, optional
+        A fixed world frame (e.g. the offline analysis' of an earlier run in the same
+        volume) instead of the one refitted from the buffer; ``ground_m`` is then in it.
     """
 
     def __init__(self, model: SlipModel | None = None, *, box: Box | None = None,
                  mocap_offset_s: float = 0.0, buffer_s: float = 3.0,
                  margin_s: float = 0.0, min_stance_s: float = 0.02,
                  shift_every_s: float = 0.25, frame_every_s: float = 1.0,
-                 frame_min_s: float = 0.5, spline_pad_s: float = 0.05) -> None:
+                 frame_min_s: float = 0.5, spline_pad_s: float = 0.05,
+                 geometry: LegGeometry | None = None, ground_m: float | None = None,
+                 geometry_window_s: float = 1.0,
+                 world_frame: WorldFrame | None = None) -> None:
+        if (geometry is None) != (ground_m is None):
+            raise SlipError('geometric edges need both geometry and ground_m (or neither)')
+        self.geometry = geometry
+        self.ground_m = ground_m
+        self.geometry_window_s = geometry_window_s
+        self._geo_since_s: float | None = None
         self.model = model if model is not None else SlipModel()
         self.box = box if box is not None else Box()
         self.mocap_offset_s = mocap_offset_s
@@ -83,7 +118,7 @@ class OnlineSlip:
         self.margin_s = margin_s
         self.min_stance_s = min_stance_s
         self.fitter = SlipFitter(self.model)
-        self._js: deque[tuple[float, np.ndarray]] = deque()
+        self._js: deque[tuple[float, np.ndarray, np.ndarray]] = deque()
         self._cmd: deque[tuple[float, np.ndarray]] = deque()
         self._mocap: deque[tuple[float, np.ndarray, np.ndarray]] = deque()
         self.names: tuple[str, ...] = ()
@@ -97,16 +132,27 @@ class OnlineSlip:
         self._first_inside_s: float | None = None
         self.spline_pad_s = spline_pad_s
         self._frame: tuple[float, WorldFrame] | None = None
+        self.world_frame = world_frame
+        if world_frame is not None:
+            self._frame = (math.inf, world_frame)
 
     def _trim(self, buf: deque, t: float) -> None:  # type: ignore[type-arg]
         while buf and buf[0][0] < t - self.buffer_s:
             buf.popleft()
 
-    def add_joint_state(self, t_s: float, names: tuple[str, ...], velocity: np.ndarray) -> None:
+    def add_joint_state(self, t_s: float, names: tuple[str, ...], velocity: np.ndarray,
+                        position: np.ndarray | None = None) -> None:
+        """One joint-state sample: speeds [rad/s] and, for the geometric edges, angles
+        [rad] (unwrapped)."""
         if self.names and names != self.names:
             raise SlipError(f'joint names changed: {names} != {self.names}')
         self.names = names
-        self._js.append((t_s, np.asarray(velocity, dtype=float)))
+        v = np.asarray(velocity, dtype=float)
+        q = np.full(v.shape, np.nan) if position is None or len(position) == 0 \
+            else np.asarray(position, dtype=float)
+        if q.shape != v.shape:
+            raise SlipError(f'joint position shape {q.shape} differs from velocity {v.shape}')
+        self._js.append((t_s, v, q))
         self._trim(self._js, t_s)
 
     def add_command(self, t_s: float, names: tuple[str, ...], velocity: np.ndarray) -> None:
@@ -133,7 +179,8 @@ class OnlineSlip:
         qm = np.array([x[2] for x in self._mocap])
         windows = {}
         shifts = {}
-        for tp in TRIPODS:
+        geo_windows = self._geometric_windows(tj, vj, tm, pm, qm)
+        for tp in ([] if geo_windows is not None else TRIPODS):
             target = _tripod_mean(self.names, vc, tp)
             cached = self._shift_cache.get(tp)
             if cached is not None and tj[-1] - cached[0] < self.shift_every_s:
@@ -145,7 +192,9 @@ class OnlineSlip:
             shifts[tp] = shift
             td, lo = edges_from_target(tc + shift, target)
             windows[tp] = tripod_stance_windows(td, lo)
-        ready = [w for w in single_tripod_stances(windows, shifts)
+        candidates = (geo_windows if geo_windows is not None
+                      else single_tripod_stances(windows, shifts))
+        ready = [w for w in candidates
                  if w.liftoff_s + self.margin_s <= tm[-1]
                  and not self._is_done(w.tripod, w.liftoff_s)
                  and w.touchdown_s >= max(tj[0], tm[0])]
@@ -194,11 +243,50 @@ class OnlineSlip:
             del self._done[:-64]
         return out
 
+    def _geometric_windows(self, tj: np.ndarray, vj: np.ndarray, tm: np.ndarray,
+                           pm: np.ndarray, qm: np.ndarray) -> list[StanceWindow] | None:
+        """Single-support windows from the legs' geometric contacts ending after the world
+        frame became ready (none before), or None (no geometry, no hip angles, too little
+        data: the target edges are used)."""
+        if self.geometry is None or self.ground_m is None:
+            return None
+        t0 = tj[-1] - self.geometry_window_s
+        sj = tj >= t0
+        q = np.array([x[2] for x in self._js])[sj]
+        if not np.all(np.isfinite(q)):
+            return None
+        inside = permissible_mask(pm, self.box)
+        if self._first_inside_s is None and np.any(inside):
+            self._first_inside_s = float(tm[np.argmax(inside)])
+        if self._frame is None and (self._first_inside_s is None
+                                    or tm[-1] - self._first_inside_s < self.frame_min_s):
+            return []  # stances ending before the frame is ready are not looked for
+        if self._geo_since_s is None:
+            self._geo_since_s = float(tm[-1])
+        sm = inside & (tm >= t0 - 0.05)
+        if sm.sum() < 20 or sj.sum() < 10:
+            return None
+        frame = self._world_frame(tm, pm, qm, inside)
+        z = frame.to_world(pm[sm])[:, 2]
+        pitch = body_pitch_rad(frame.rotation, qm[sm])
+        try:
+            contacts, unknown = leg_contacts(self.geometry, self.names, tj[sj], q, vj[sj],
+                                             tm[sm], z, pitch, offset_s=0.0,
+                                             ground_m=self.ground_m)
+        except SlipError:
+            return None
+        ss = single_support(contacts, TRIPODS, unknown)
+        return sorted((StanceWindow(float(a), float(b), tp, 0.0)
+                       for tp, iv in ss.items() for a, b in iv if b >= self._geo_since_s),
+                      key=lambda w: w.touchdown_s)
+
     def _world_frame(self, tm: np.ndarray, pm: np.ndarray, qm: np.ndarray,
                      inside: np.ndarray) -> WorldFrame:
         """The buffered world frame, refitted when ``frame_every_s`` of new mocap arrived."""
         young = (self._first_inside_s is not None and self._frame is not None
                  and self._frame[0] - self._first_inside_s < self.frame_every_s)
+        if self.world_frame is not None:
+            return self.world_frame
         if self._frame is None or young or tm[-1] - self._frame[0] >= self.frame_every_s:
             frame = fit_world_frame(pm[inside], up_mocap=_up_from_quats(qm[inside]))
             if self._frame is not None:

@@ -3,7 +3,9 @@
 Subscribes ``/joint_states`` and ``/joint_commands`` (hip speeds; the commanded speeds are the
 Buehler target), ``/mocap/body`` (PoseStamped); the science is in
 :class:`slip_identification.online.OnlineSlip`. Fits run on the first mocap message after a
-lift-off (plus ``margin`` seconds, default 0).
+lift-off (plus ``margin`` seconds, default 0). With a finite ``ground`` parameter the stance
+windows are the half-circle legs' geometric contacts (hip angles from ``/joint_states``
+positions; ``leg_radius``, ``hip_x`` describe the robot, EduBot by default).
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from hexapod_common.node_utils import RELIABLE_QOS, SENSOR_QOS, declare_params, 
 from hexapod_interfaces.msg import SlipFit
 
 from .fit import SlipFitResult
+from .geometry import LegGeometry
 from .model import SlipModel
 from .online import OnlineSlip
 from .preprocess import Box
@@ -46,6 +49,13 @@ class SlipParams:
     box: list[float] = param([-1.0, -0.5, -0.5, 1.0, 0.5, 0.5],
                              'permissible box in the mocap frame x0 y0 z0 x1 y1 z1 [m]',
                              read_only=True)
+    ground: float = param(math.nan, 'ground height in the world frame [m] (e.g. an offline '
+                          "analysis' ground_m); finite: geometric stance edges from the "
+                          "half-circle legs, NaN: the paper's clock edges", read_only=True)
+    leg_radius: float = param(LegGeometry.leg_radius_m, 'arc radius R of the half-circle '
+                              'leg [m] (geometric edges)', validate=_positive, read_only=True)
+    hip_x: list[float] = param(list(LegGeometry.hip_x_m), 'hip x front, middle, rear from '
+                               'the COM [m] (geometric edges)', read_only=True)
 
 
 def result_to_msg(r: SlipFitResult) -> SlipFit:
@@ -79,9 +89,16 @@ class SlipFitterNode(Node):
                          parameter_overrides=parameter_overrides, namespace=namespace, **kw)
         p = declare_params(self, SlipParams)
         b = list(p.box)
+        geo = None
+        if math.isfinite(p.ground):
+            if len(p.hip_x) != 3:
+                raise ValueError(f'hip_x must have 3 values (front, middle, rear), got {p.hip_x}')
+            geo = LegGeometry(hip_x_m=tuple(float(v) for v in p.hip_x),  # type: ignore[arg-type]
+                              leg_radius_m=p.leg_radius)
         self.core = OnlineSlip(SlipModel.from_name(p.model, mass_kg=p.mass),
                                box=Box(tuple(b[:3]), tuple(b[3:])),
-                               mocap_offset_s=p.mocap_offset, margin_s=p.margin)
+                               mocap_offset_s=p.mocap_offset, margin_s=p.margin,
+                               geometry=geo, ground_m=p.ground if geo is not None else None)
         self.pub = self.create_publisher(SlipFit, 'slip/fit', RELIABLE_QOS)
         self.create_subscription(JointState, 'joint_states', self._on_js, SENSOR_QOS)
         self.create_subscription(JointState, 'joint_commands', self._on_cmd, SENSOR_QOS)
@@ -97,8 +114,8 @@ class SlipFitterNode(Node):
             self.get_logger().warning(f'dropped message: {err}')
 
     def _on_js(self, msg: JointState) -> None:
-        self._guard(lambda m: (lambda s: self.core.add_joint_state(s.t_s, s.names, s.velocity))(
-            joint_state_from_msg(m)), msg)
+        self._guard(lambda m: (lambda s: self.core.add_joint_state(
+            s.t_s, s.names, s.velocity, s.position))(joint_state_from_msg(m)), msg)
 
     def _on_cmd(self, msg: JointState) -> None:
         self._guard(lambda m: (lambda s: self.core.add_command(s.t_s, s.names, s.velocity))(

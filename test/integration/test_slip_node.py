@@ -27,3 +27,22 @@ def test_node_builds_and_message_conversion():
     msg = result_to_msg(r)
     assert msg.stiffness == pytest.approx(2500.0, rel=5e-3)
     assert msg.converged is True and msg.samples == syn.stance.n_samples
+
+
+@pytest.mark.timeout(60)
+def test_node_geometric_edges_from_ground_parameter():
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    try:
+        node = SlipFitterNode(context=ctx, namespace='/slip_node_geo_test',
+                              parameter_overrides=[
+                                  rclpy.parameter.Parameter('ground', value=-0.012),
+                                  rclpy.parameter.Parameter('leg_radius', value=0.05)])
+        assert node.core.ground_m == pytest.approx(-0.012)
+        assert node.core.geometry is not None and node.core.geometry.leg_radius_m == 0.05
+        node.destroy_node()
+        plain = SlipFitterNode(context=ctx, namespace='/slip_node_geo_test2')
+        assert plain.core.geometry is None and plain.core.ground_m is None
+        plain.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)

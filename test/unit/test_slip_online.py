@@ -91,3 +91,49 @@ def test_online_fits_match_offline_pipeline(running, online):
     assert np.median(dk) < 0.25
     assert np.median(dl) < 0.01
     assert all(x.tripod == y.tripod for x, y in pairs)
+
+
+def test_online_geometric_edges_against_truth():
+    """With a robot description, a world frame and its ground height (here from the offline
+    geometric fit of the same run), OnlineSlip fits the legs' geometric single-support windows: edges within
+    5 ms of the simulator's, each fitted on the first mocap samples after its lift-off."""
+    from slip_identification.geometry import LegGeometry, body_pitch_rad, fit_ground_offset
+    from slip_identification.pipeline import _up_from_quats
+    from slip_identification.preprocess import fit_world_frame
+
+    run = edubot_sim.simulate_edubot('running', duration_s=3.5, seed=2)
+    off = run.truth['clock_offset_s']
+    names = tuple(f'{leg}_hip' for leg in run.leg_names)
+    geo = LegGeometry.from_params(run.params)
+    frame = fit_world_frame(run.mocap_position_m, up_mocap=_up_from_quats(run.mocap_quat_xyzw))
+    pw = frame.to_world(run.mocap_position_m)
+    ground = fit_ground_offset(geo, names, run.t_s, run.hip_position_rad,
+                               run.hip_velocity_rad_s, run.mocap_t_s, pw[:, 2],
+                               body_pitch_rad(frame.rotation, run.mocap_quat_xyzw),
+                               initial_offset_s=off, fix_offset=True).ground_m
+    core = OnlineSlip(box=BOX, mocap_offset_s=off, geometry=geo, ground_m=ground,
+                      world_frame=frame)
+    fits = []
+    for _, kind, i in events(run):
+        if kind == 0:
+            core.add_joint_state(float(run.t_s[i]), names, run.hip_velocity_rad_s[i],
+                                 run.hip_position_rad[i])
+            core.add_command(float(run.t_s[i]), names, run.target_velocity_rad_s[i])
+        else:
+            core.add_mocap(float(run.mocap_t_s[i]), run.mocap_position_m[i],
+                           run.mocap_quat_xyzw[i])
+            fits.extend(core.step())
+    assert len(fits) >= 6
+    err = []
+    for f in fits:
+        tr = np.array(run.truth['single_support'][f.tripod])
+        j = int(np.argmin(np.abs(tr[:, 0] - f.touchdown_s)))
+        err.append((f.touchdown_s - tr[j, 0], f.liftoff_s - tr[j, 1]))
+    err_ms = 1e3 * np.array(err)
+    lat_ms = 1e3 * np.array(core.latency_s)
+    print(f'online geometric edges: {len(fits)} stances, |error| max {np.abs(err_ms).max():.1f} '
+          f'ms, latency median {np.median(lat_ms):.1f} ms, max {lat_ms.max():.1f} ms')
+    assert np.mean(np.all(np.abs(err_ms) <= 5.0, axis=1)) >= 0.95
+    assert np.mean(lat_ms <= 20.0) >= 0.95
+    with pytest.raises(Exception, match='ground_m'):
+        OnlineSlip(box=BOX, geometry=geo)
