@@ -157,7 +157,8 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
                           offset_lag_s=options.get('offset_lag', 0.0),
                           edges=options.get('edges', 'paper'),
                           max_lateral_m=options.get('max_lateral', 0.05),
-                          position_fit=options.get('position_fit', True), geometry=geometry)
+                          position_fit=options.get('position_fit', True), geometry=geometry,
+                          steady_only=options.get('steady_only', False))
     except (SlipError, ValueError, OSError) as err:
         return {'bag': path, 'error': str(err)}
     stances = []
@@ -208,7 +209,8 @@ def run_command(args: argparse.Namespace) -> int:
                'offset_lag': args.offset_lag, 'max_lateral': args.max_lateral,
                'mass_kg': args.mass, 'model': args.model, 'position_fit': not args.no_position_fit,
                'box_lower': args.box[:3] if args.box else None,
-               'box_upper': args.box[3:] if args.box else None}
+               'box_upper': args.box[3:] if args.box else None,
+               'steady_only': args.steady_only}
     bags = [str(b) for b in args.bags]
     results: list[dict[str, Any]] = []
     if args.jobs > 1 and len(bags) > 1:
@@ -281,6 +283,9 @@ def add_cli(subparsers: Any) -> None:
     p.add_argument('--model', default='slip', help="'slip' or 'slip+leg_damping' etc.")
     p.add_argument('--no-position-fit', action='store_true',
                    help='skip the second estimator (initial state free)')
+    p.add_argument('--steady-only', action='store_true',
+                   help="skip stances before the steady state (reason 'transient'; the body "
+                        'pitch repeats from one clock period to the next)')
     p.set_defaults(func=run_command)
 
 

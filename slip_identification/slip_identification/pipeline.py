@@ -36,6 +36,7 @@ from .preprocess import (
     permissible_mask,
     sagittal_state,
 )
+from .steady import steady_start_s
 from .stance import (
     StanceWindow,
     best_shift,
@@ -137,7 +138,7 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                 offset_s: float | str = 0.0, offset_lag_s: float = 0.0,
                 max_lateral_m: float = 0.05, position_fit: bool = True,
                 min_stance_s: float = 0.02, edges: str = 'auto',
-                geometry: LegGeometry | None = None) -> RunResult:
+                geometry: LegGeometry | None = None, steady_only: bool = False) -> RunResult:
     """Preprocess one run, extract single-tripod stances, fit each (see module docs).
 
     ``offset_s``: seconds to subtract from mocap times, or a method to estimate it:
@@ -163,7 +164,13 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
     computed and kept in ``RunResult.paper_windows`` (side by side with
     ``geometry_windows``). With a geometric fit, the world frame's ground is moved to the
     fitted ground height (``RunResult.ground_m``, the frame's vertical translation); without
-    it the ground passes through the mocap origin.
+    it the ground passes through the mocap origin; its slope along the path is fitted too and
+    the frame turned by it (``RunResult.frame['ground_tilt_rad']``).
+
+    ``steady_only``: stances that begin before the steady state (:func:`.steady.steady_start_s`:
+    the body pitch repeats from one clock period to the next; the period from the paper's
+    touchdowns of one tripod) are skipped with reason ``'transient'``; the start is
+    ``RunResult.frame['steady_start_s']`` (proprioception clock).
     """
     if edges not in ('paper', 'effort', 'geometry', 'auto'):
         raise SlipDataError(f"edges must be 'paper', 'effort', 'geometry' or 'auto', "
@@ -304,13 +311,22 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
         if edges == 'geometry':
             stance_windows = res.geometry_windows
     t_in0, t_in1 = track.t_s[0], track.t_s[-1]
+    t_steady = -math.inf
+    if steady_only:
+        tds = np.asarray(windows['left'], dtype=float).reshape(-1, 2)[:, 0]
+        period = float(np.median(np.diff(tds))) if tds.size >= 3 else math.nan
+        t_steady = (steady_start_s(tm[inside], body_pitch_rad(frame.rotation, quats), period)
+                    if math.isfinite(period) else math.inf)
+        res.frame['steady_start_s'] = t_steady
     stances: list[Stance] = []
     for k, w in enumerate(stance_windows):
         label = f'{run.label}#{k}'
         if w.liftoff_s < t_in0 or w.touchdown_s > t_in1:
             continue  # outside the tracked part of the run: not a candidate
         reason = ''
-        if w.liftoff_s - w.touchdown_s < min_stance_s:
+        if w.touchdown_s < t_steady:
+            reason = 'transient'
+        elif w.liftoff_s - w.touchdown_s < min_stance_s:
             reason = 'too_short'
         t, x, rt, rxz, whole = track.window(w.touchdown_s, w.liftoff_s)
         if not reason and not whole:
