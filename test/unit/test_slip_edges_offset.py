@@ -2,9 +2,10 @@
 geometric (geometry.py) estimators against the simulator's truth.
 
 Figures printed (pytest -s). The issue's bars get one test each at the end (3 seeds x running,
-jogging, pace, walk): the ground height (frame translation) within 2 mm is met on all; the
-edges within 5 ms for 95 % of stances and the offset within 2 ms on running and jogging (pace
-and walk xfail). Figures in the bar tests' docstrings and xfail reasons.
+jogging, pace, walk; stances counted from the steady state on, slip_identification.steady):
+the ground height (frame translation) within 2 mm is met on all; the offset within 2 ms on
+running, jogging and pace (walk xfails); the edges within 5 ms for 95 % of stances on running
+and jogging (pace and walk xfail). Figures in the bar tests' docstrings and xfail reasons.
 
 Legacy estimators on the retuned simulator (0.105 m legs, stances of 35-70 ms, 60 % aerial):
 the contact estimator (effort onsets against ballistic body-height breaks, nominal stance now
@@ -267,7 +268,7 @@ def _edges_ok(f) -> float:
 
 def test_issue_bar_edges_within_5ms(bar_figures):
     """Touchdown and lift-off within 5 ms for >= 95 % of single-support stances (geometric
-    edges): running and jogging, 3 seeds each (100 % on each)."""
+    edges, steady state): running and jogging, 3 seeds each (100 % on each)."""
     for gait in ('running', 'jogging'):
         for seed in BAR_SEEDS:
             f = bar_figures[gait, seed]
@@ -275,11 +276,12 @@ def test_issue_bar_edges_within_5ms(bar_figures):
             assert _edges_ok(f) >= 0.95, (gait, seed, f['edges_ms'])
 
 
-@pytest.mark.xfail(reason='issue 7 bar not met on the slow gaits: pace 9-89 % (a start-up '
-                          'transient with extra contacts; the steady lift-off is 10-16 ms after '
-                          "the simulator's, whose spoke leans past its rest angle), walk "
-                          '20-40 % of stances within 5 ms (slow touchdowns: 0.2 mm of height '
-                          'or pitch error is several ms)', strict=False)
+@pytest.mark.xfail(reason='issue 7 bar not met on the slow gaits (steady state): pace 44 / '
+                          '100 / 67 %, walk 40 / 20 / 80 % of stances within 5 ms (seeds 1-3; '
+                          '61 % and 60 % over seeds 1-6). With the true body state the edges '
+                          'are within 0.5 ms: slow crossings make 0.1-0.3 mm of height or '
+                          'pitch error several ms; lightly loaded legs hover at the rest '
+                          'height', strict=False)
 def test_issue_bar_edges_within_5ms_slow_gaits(bar_figures):
     for gait in ('pace', 'walk'):
         for seed in BAR_SEEDS:
@@ -294,19 +296,19 @@ def test_issue_bar_ground_within_2mm(bar_figures):
 
 
 def test_issue_bar_offset_within_2ms(bar_figures):
-    """Stream offset within 2 ms on running and jogging, 3 seeds each (within 1.1 ms; leg
-    damping time from the robot description), searched from 0 +- 60 ms."""
-    for gait in ('running', 'jogging'):
+    """Stream offset within 2 ms on running, jogging and pace, 3 seeds each (within 1.0 ms;
+    leg damping time from the robot description; the ground's slope fitted with it), searched
+    from 0 +- 60 ms."""
+    for gait in ('running', 'jogging', 'pace'):
         for seed in BAR_SEEDS:
             f = bar_figures[gait, seed]
             assert abs(f['offset_ms']) <= 2.0, (gait, seed, f['offset_ms'])
 
 
-@pytest.mark.xfail(reason='issue 7 bar not met on pace (one seed +3.0 ms) and walk (one seed '
-                          '-4.3 ms): without flight phases the fit uses 0.1 s windows and its '
+@pytest.mark.xfail(reason='issue 7 bar not met on walk (seed 2: -4.3 ms; seeds 1, 3: -1.0 '
+                          'ms): without flight phases the fit uses 0.1 s windows and its '
                           'optimum is shallow', strict=False)
-def test_issue_bar_offset_within_2ms_pace_walk(bar_figures):
-    for gait in ('pace', 'walk'):
-        for seed in BAR_SEEDS:
-            f = bar_figures[gait, seed]
-            assert abs(f['offset_ms']) <= 2.0, (gait, seed, f['offset_ms'])
+def test_issue_bar_offset_within_2ms_walk(bar_figures):
+    for seed in BAR_SEEDS:
+        f = bar_figures['walk', seed]
+        assert abs(f['offset_ms']) <= 2.0, ('walk', seed, f['offset_ms'])
