@@ -28,14 +28,34 @@ integrated twice, dominate). The hip angles move fast in the fast phase, so cont
 and with it ``d`` -- is well determined; ``g`` is fixed by where contacts begin and end. With
 ``tau`` fitted, ``d`` is less certain: a damper advances the force like a clock shift.
 
+Ground slope: a world frame levelled on the COM path is tilted by the path's own slope (the
+body height drifting over the run: 0.07 deg on simulated walk; a start-up transient: 0.26 deg
+on pace), which raises the front hips against the rear ones; with the COM's x given,
+:func:`fit_ground_offset` fits that slope (``tilt_rad``) with the ground height and offset.
+
+Contact hysteresis: a leg that has lifted off lands again only after its lowest point has
+cleared the ground by ``LegGeometry.rearm_clearance_m`` (2 mm). A leaning leg can spring off
+(radial force gone) while its rest shape still reaches below the ground; without the
+hysteresis the crossing model reports it as landed again (extra contacts on simulated pace).
+With the simulator's true body state, rest-height crossings plus this hysteresis reproduce
+the leg contacts of simulated pace and walk (touchdowns within 0.2 ms, 89 % of pace lift-offs
+within 0.5 ms, the rest up to 45 ms late: lift-offs other than the radial force vanishing),
+so the legs' bending compliance is not modelled: the leaning spoke's late geometric lift-offs
+were mostly these re-contacts.
+
 Measured on simulated EduBot runs (4.5 s, default effects, seeds 1-3, offset searched from
-0 +- 60 ms; test/unit/test_slip_edges_offset.py, bench/bench_slip_geometry.py): ground height
-within 0.2 mm (running, jogging), 1.5 mm (pace, walk); offset within 1.1 ms on running and
-jogging, -4.3 .. +3.0 ms on pace and walk; single-support touchdown and lift-off within 5 ms
-for 100 % of running and jogging stances, 9-89 % on pace (a start-up transient with extra
-contacts; steady lift-off 10-16 ms after the simulator's, whose leg is back at rest length
-while the spoke leans past its rest angle) and 20-40 % on walk (slow touchdowns: 0.2 mm of
-height or pitch error is several ms).
+0 +- 60 ms, stances from the steady state on (:mod:`.steady`); test/unit/
+test_slip_edges_offset.py): ground height within 0.3 mm on all four gaits; offset within
+1.0 ms on running, jogging and pace, -1.0 / -4.3 / -1.0 ms on walk; single-support touchdown
+and lift-off within 5 ms for 100 % of running and jogging stances, pace 44 / 100 / 67 % (3
+steady stances on seeds 2-3) and walk 40 / 20 / 80 % (61 % and 60 % over seeds 1-6). With
+the simulator's true body state the same crossings are within 0.5 ms on pace and walk: their
+touchdowns and lift-offs are slow crossings, where 0.1-0.3 mm of height, ground or pitch
+error (mocap noise 0.2 mm and 0.8 mrad) is several ms, and lightly loaded legs hover at
+their rest height for long stretches. Tried and not kept: the pitch smoothed (local
+quadratic), the raw smoothed height instead of the fitted one, touchdowns refined to hip
+effort onsets, a ground correction from effort onsets, the vertical force weighted by the
+spoke's cos^2 (each helped one gait and hurt another over 6 seeds).
 
 Core module: numpy/scipy only (does not import the simulator: pass its parameters to
 :meth:`LegGeometry.from_params`).
