@@ -2,9 +2,9 @@
 simulated EduBot runs, against the proprioceptive baseline measured in the same run.
 
 Per gait (running, jogging, pace, walk) and seed: the offset error [ms] and ground-height error
-[mm] of the geometric fit (searched from 0 +- 60 ms, no prior offset), the share of
-single-support stances whose touchdown and lift-off are both within 5 ms of the simulator's
-truth, and the fit time; the baseline is the contact estimator (effort onsets against
+[mm] of the geometric fit (searched from 0 +- 60 ms, no prior offset; the ground's slope
+fitted too), the share of single-support stances (from the steady state on) whose touchdown
+and lift-off are both within 5 ms of the simulator's truth, and the fit time; the baseline is the contact estimator (effort onsets against
 body-height breaks), the paper's clock edges with the touchdown refined to the effort onset
 (at the true offset), and the ground at the mocap origin (no ground estimate). Prints the
 median absolute errors of both and their ratio.
@@ -30,6 +30,7 @@ from slip_identification.geometry import (
 )
 from slip_identification.pipeline import TRIPODS, _up_from_quats, analyze_run, run_data_from_sim
 from slip_identification.preprocess import Box, fit_world_frame
+from slip_identification.steady import steady_start_s
 
 BOX = Box((-10.0, -10.0, -10.0), (10.0, 10.0, 10.0))
 
@@ -63,12 +64,15 @@ def main() -> None:
                         run.hip_position_rad, run.hip_velocity_rad_s, run.mocap_t_s, pw[:, 2],
                         pitch)
             t0 = time.perf_counter()
-            fit = fit_ground_offset(*geo_args, initial_offset_s=0.0, offset_range_s=0.06)
+            fit = fit_ground_offset(*geo_args, initial_offset_s=0.0, offset_range_s=0.06,
+                                    x_m=pw[:, 0])
             contacts, unknown = leg_contacts(*geo_args, offset_s=fit.offset_s,
-                                             ground_m=fit.ground_m, fit=fit)
+                                             ground_m=fit.ground_m, fit=fit, x_m=pw[:, 0])
             ss = single_support(contacts, TRIPODS, unknown)
             t_geo = time.perf_counter() - t0
-            geo_edges = [(tp, a, b) for tp, iv in ss.items() for a, b in iv]
+            # steady state only (both estimators): the paper's runs
+            t_steady = steady_start_s(run.mocap_t_s, pitch, run.clock.period_s) - off
+            geo_edges = [(tp, a, b) for tp, iv in ss.items() for a, b in iv if a >= t_steady]
             # baseline, same run
             rd = run_data_from_sim(run)
             t0 = time.perf_counter()
@@ -79,7 +83,8 @@ def main() -> None:
                 base_off = float('nan')
             t_base = time.perf_counter() - t0
             eff = analyze_run(rd, box=BOX, offset_s=off, position_fit=False, edges='effort')
-            base_edges = [(f.tripod, f.touchdown_s, f.liftoff_s) for f in eff.fits]
+            base_edges = [(f.tripod, f.touchdown_s, f.liftoff_s) for f in eff.fits
+                          if f.touchdown_s >= t_steady]
             row = {
                 'gait': gait, 'seed': run.seed,
                 'geo_offset_ms': 1e3 * (fit.offset_s - off),
