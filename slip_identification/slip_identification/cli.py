@@ -21,14 +21,17 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
                 "speed_mps", "sr", "current_sign",
                 "frame": {"tilt_deg", "yaw_deg", "origin_m", "ground_source"
                           (geometry|mocap_origin), "ground_m", "geometry_rms_m",
-                          "offset_initial"},
+                          "offset_initial", "ground_tilt_rad" and "rotation" (geometry:
+                          the frame turned by the ground's fitted slope), "steady_start_s"
+                          (--steady-only)},
                 "ground_m" [m, fitted ground height in the path frame, null without it],
                 "paper_edges": [{"tripod", "touchdown", "liftoff"}],    # side by side:
                 "geometry_edges": [{"tripod", "touchdown", "liftoff"}], # single support
                 "stances", "skipped"}],
       "gaits": {"<gait>": {"stances", "nerr_mean", "nerr_std", "power_w_mean", ...}},  # Table 3
       "skipped": [{"bag", "label", "tripod", "touchdown", "liftoff", "reason"}],
-      "skipped_counts": {"<reason>": n},   # too_short, nan, mocap_gap, outside_volume, ...
+      "skipped_counts": {"<reason>": n},   # too_short, nan, mocap_gap, outside_volume,
+                                           # transient (--steady-only), ...
       "failed_bags": [{"bag", "error"}]    # e.g. a missing topic
     }
 
