@@ -30,3 +30,12 @@ def test_demo_runs_end_to_end(tmp_path):
     assert isinstance(batch['residuals'], dict), batch['residuals']
     assert (out / 'report.html').stat().st_size > 10_000
     assert (out / 'residuals' / 'residuals.json').is_file()
+    # SLIP step: quick settings simulate running and walk; the hidden 25 ms clock offset and
+    # the ground height are found, and walking has the larger SLIP-measure (Table 3)
+    slip = summary['slip']
+    assert set(slip['gaits']) == {'running', 'walk'}
+    for run in slip['runs']:
+        assert abs(run['offset_s'] - run['true_offset_s']) < 0.005
+        assert abs(run['ground_m'] - run['true_ground_m']) < 0.002
+    assert slip['gaits']['walk']['nerr_mean'] > slip['gaits']['running']['nerr_mean']
+    assert (out / 'slip' / 'slip.json').is_file()
