@@ -11,6 +11,7 @@ with efforts and ``/mocap/body`` are used when present).  A missing topic raises
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from collections.abc import Sequence
@@ -275,23 +276,65 @@ def read_robot_bag(path: str | Path, *, mass_kg: float, current_sign: str = 'aut
     windows = []
     gait = None
     has_effort = False
+    notes: list[str] = []
+    converters = {'/battery_state': battery_from_msg, '/gait/phase': gait_phase_from_msg,
+                  '/joint_states': joint_state_from_msg, '/mocap/body': pose_from_msg}
+    samples: list[tuple[float, int, str, Any]] = []
+    seen: dict[tuple[str, bytes], None] = {}
+    zero_stamps: dict[str, int] = {}
+    dropped: dict[str, list[str]] = {}
+    duplicates = 0
+    n_battery = 0
     with open_reader(path) as reader:
         _check_topics(reader, ROBOT_TOPICS, str(path))
         custom = _custom_data(reader)
         topics = ROBOT_TOPICS + ('/joint_states', '/mocap/body')
         for m in iter_messages(reader, topics):
             msg = reader.deserialize(m.data, m.msgtype)
-            if m.topic == '/battery_state':
-                windows.extend(acc.add_battery(battery_from_msg(msg)))
-            elif m.topic == '/gait/phase':
-                gait = gait_phase_from_msg(msg)
-                windows.extend(acc.add_gait_phase(gait))
-            elif m.topic == '/joint_states':
-                js = joint_state_from_msg(msg)
-                has_effort = has_effort or bool(js.effort.size)
-                acc.add_joint_state(js)
+            n_battery += m.topic == '/battery_state'
+            try:
+                sample = converters[m.topic](msg)
+            except (ValueError, IndexError) as err:  # a bad message is dropped, as live
+                dropped.setdefault(m.topic, []).append(str(err))
+                continue
+            if sample.t_s != 0.0:
+                # the same stamped message recorded twice (two recorders, a relay, a bridge)
+                key = (m.topic, m.data)
+                if key in seen:
+                    duplicates += 1
+                    continue
+                seen[key] = None
+                if len(seen) > 4096:  # duplicates arrive close together: keep recent ones
+                    del seen[next(iter(seen))]
             else:
-                acc.add_pose(pose_from_msg(msg))
+                # drivers that leave header.stamp at 0: the bag's receive time stands in
+                zero_stamps[m.topic] = zero_stamps.get(m.topic, 0) + 1
+                sample = dataclasses.replace(sample, t_s=1e-9 * m.stamp_ns)
+            samples.append((sample.t_s, len(samples), m.topic, sample))
+    bad_battery = dropped.get('/battery_state', [])
+    if bad_battery and len(bad_battery) == n_battery:
+        raise BagContentError(
+            f'bag {path}: no usable /battery_state message ({n_battery} of {n_battery} '
+            f'dropped, e.g. {bad_battery[0]}): input power needs both voltage and current')
+    for topic, errs in sorted(dropped.items()):
+        notes.append(f'{len(errs)} {topic} message(s) dropped: {errs[0]}')
+    for topic, n in sorted(zero_stamps.items()):
+        notes.append(f'{n} {topic} message(s) with a zero header stamp: bag receive time used')
+    if duplicates:
+        notes.append(f'{duplicates} duplicated message(s) ignored')
+    # header-stamp order (recorders store receive order; stamps may be a few ms out of order)
+    samples.sort(key=lambda s: (s[0], s[1]))
+    for _, _, topic, sample in samples:
+        if topic == '/battery_state':
+            windows.extend(acc.add_battery(sample))
+        elif topic == '/gait/phase':
+            gait = sample
+            windows.extend(acc.add_gait_phase(sample))
+        elif topic == '/joint_states':
+            has_effort = has_effort or bool(sample.effort.size)
+            acc.add_joint_state(sample)
+        else:
+            acc.add_pose(sample)
     if not windows or gait is None:
         raise BagContentError(
             f'bag {path}: no whole gait cycle with battery samples around it '
@@ -305,5 +348,6 @@ def read_robot_bag(path: str | Path, *, mass_kg: float, current_sign: str = 'aut
         power_in_w=avg([d.power_in_w for d in windows]),
         power_out_w=avg([d.power_out_w for d in windows]) if has_effort else math.nan,
         speed_mps=avg([d.speed_mps for d in windows]), gait=gait, payload_kg=payload,
-        current_sign=float(acc.sign_ or 0.0), extra={'custom_data': custom},
+        current_sign=float(acc.sign_ or 0.0),
+        extra={'custom_data': custom, 'notes': notes},
     )

@@ -167,6 +167,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         runs = []
         for path in args.robot:
             run_ = read_robot_bag(path, mass_kg=robot.mass_kg, current_sign=args.current_sign)
+            for note in run_.extra.get('notes', []):
+                doc.setdefault('warnings', []).append(f'{path}: {note}')
             payload = args.robot_payload if args.robot_payload is not None else \
                 (run_.payload_kg or 0.0)
             mass = robot.total_mass_kg(payload)
