@@ -3,13 +3,21 @@
 from __future__ import annotations
 
 import math
+import sqlite3
+from functools import lru_cache
+from io import StringIO
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from hexapod_common.bags import BagWriter, new_msg, stamp
+from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+from ruamel.yaml import YAML
 
-__all__ = ['write_mixed_bag']
+from hexapod_common.bags import BagWriter, find_msg_dir, new_msg, stamp
+
+__all__ = ['P0_W', 'PERIOD_S', 'downgrade_sqlite_bag', 'write_foreign_robot_bag', 'write_mixed_bag']
 
 LEGS = ('L1', 'L2', 'L3', 'R1', 'R2', 'R3')
 JOINTS = [f'{leg}_{j}' for leg in LEGS for j in ('coxa', 'femur', 'tibia')]
@@ -51,3 +59,172 @@ def write_mixed_bag(path: str | Path, n_messages: int, *, storage: str = 'mcap',
                 writer.write(topics[2], 'hexapod_interfaces/msg/GaitPhase', msg, t_ns)
             counts[topics[which]] += 1
     return counts
+
+
+# -- bags as other labs record them ------------------------------------------------------
+
+@lru_cache(maxsize=1)
+def _foreign_store() -> Any:
+    """Another lab's typestore: plain Jazzy plus only the GaitPhase it publishes."""
+    store = get_typestore(Stores.ROS2_JAZZY)
+    store.register(get_types_from_msg((find_msg_dir() / 'GaitPhase.msg').read_text(),
+                                      'hexapod_interfaces/msg/GaitPhase'))
+    return store
+
+
+#: truth of :func:`write_foreign_robot_bag`: mean battery power [W], its swing [W], battery
+#: voltage [V], gait period [s]
+P0_W, P_AMP_W, VOLT_V, PERIOD_S = 9.0, 1.5, 11.5, 2.0
+BAG_T0_S = 1_750_000_000.0
+NO_HASH = 'RIHS01_' + '0' * 64
+
+
+def _header(t_s: float) -> Any:
+    T = _foreign_store().types
+    ns = int(round(t_s * 1e9))
+    return T['std_msgs/msg/Header'](
+        stamp=T['builtin_interfaces/msg/Time'](sec=ns // 10**9, nanosec=ns % 10**9), frame_id='')
+
+
+def _wave(legs: int) -> tuple[list[str], list[float]]:
+    k = legs // 2
+    names = [f'L{i + 1}' for i in range(k)] + [f'R{i + 1}' for i in range(k)]
+    offsets = [((k - 1 - i) + side * k) / legs for side in range(2) for i in range(k)]
+    return names, offsets
+
+
+def _joint_power_w(t_s: float, n_joints: int) -> tuple[np.ndarray, np.ndarray]:
+    """Efforts [N m] and velocities [rad/s] of one joint sample (positive power varies)."""
+    phase = 2 * np.pi * (t_s / PERIOD_S + np.arange(n_joints) / 7)
+    return 0.3 + 0.1 * np.sin(phase), 0.6 * np.cos(phase)
+
+
+def write_foreign_robot_bag(path: str | Path, *, legs: int = 4, duration_s: float = 12.0,
+                      sign: float = -1.0, zero_stamps: bool = False, nan_current: bool = False,
+                      swap_every: int = 0, duplicate_every: int = 0, storage: str = 'sqlite3',
+                      msgdef: bool = True, unknown_topic: bool = False, seed: int = 0
+                      ) -> dict[str, Any]:
+    """A robot bag as another lab's ``ros2 bag record`` writes it: rosbags' own ``Writer``
+    (not :class:`~hexapod_common.bags.BagWriter`), sqlite3 or mcap, optionally without message
+    definitions; a wave gait on ``legs`` legs with the contract joint names, joint states and
+    ``/gait/phase`` at 50 Hz and ``/battery_state`` at 10 Hz with +-3 ms jittered stamps, the
+    battery power ``P0_W + P_AMP_W sin(2 pi t / PERIOD_S)``.
+
+    Driver quirks on request: ``sign`` +1 (current positive on discharge), ``zero_stamps``
+    (header stamps left 0), ``nan_current``, ``swap_every`` (receive order swapped every n
+    messages), ``duplicate_every`` (every n-th message recorded twice), ``unknown_topic`` (a
+    ``lab_msgs/msg/Thing`` topic no typestore knows). Returns ``{'joints': names, 'pout': (n, 2)
+    array of (stamp [s], positive joint power [W])}``.
+    """
+    STORE = _foreign_store()
+    T = STORE.types
+    rng = np.random.default_rng(seed)
+    names, offsets = _wave(legs)
+    duty = 1 - 1 / legs
+    joints = [f'{leg}_{j}' for leg in names for j in ('coxa', 'femur', 'tibia')]
+    msgs: list[tuple[float, str, str, object]] = []
+    pout = []
+    for t in np.arange(0.0, duration_s, 0.02):
+        ts = t + rng.uniform(-0.003, 0.003)
+        eff, vel = _joint_power_w(ts, len(joints))
+        pout.append((ts, float(np.sum(np.clip(eff * vel, 0, None)))))
+        msgs.append((ts, '/joint_states', 'sensor_msgs/msg/JointState',
+                     T['sensor_msgs/msg/JointState'](
+                         header=_header(0.0 if zero_stamps else ts), name=joints,
+                         position=0.1 * vel, velocity=vel, effort=eff)))
+        phase = (t / PERIOD_S) % 1.0
+        stance = np.array([((phase - o) % 1.0) < duty for o in offsets], bool)
+        msgs.append((ts + 5e-4, '/gait/phase', 'hexapod_interfaces/msg/GaitPhase',
+                     T['hexapod_interfaces/msg/GaitPhase'](
+                         header=_header(0.0 if zero_stamps else ts), gait='wave',
+                         period=PERIOD_S, duty_factor=duty, step_length=0.06, step_height=0.03,
+                         sweep_angle=0.0, leg_offset=0.0, cycle_phase=phase, leg_names=names,
+                         phase_offsets=np.array(offsets), in_stance=stance,
+                         supporting_legs=int(stance.sum()))))
+    for t in np.arange(0.0, duration_s, 0.1):
+        ts = t + rng.uniform(-0.003, 0.003)
+        power = P0_W + P_AMP_W * math.sin(2 * math.pi * ts / PERIOD_S)
+        current = math.nan if nan_current else math.copysign(power / VOLT_V, sign)
+        nan = math.nan
+        msgs.append((ts + 1e-3, '/battery_state', 'sensor_msgs/msg/BatteryState',
+                     T['sensor_msgs/msg/BatteryState'](
+                         header=_header(0.0 if zero_stamps else ts), voltage=VOLT_V,
+                         temperature=25.0, current=current, charge=nan, capacity=nan,
+                         design_capacity=nan, percentage=nan, power_supply_status=2,
+                         power_supply_health=0, power_supply_technology=0, present=True,
+                         cell_voltage=np.zeros(0, np.float32),
+                         cell_temperature=np.zeros(0, np.float32), location='',
+                         serial_number='')))
+    if unknown_topic:
+        msgs += [(t, '/lab/thing', 'lab_msgs/msg/Thing', None)
+                 for t in np.arange(0.0, duration_s, 0.5)]
+    msgs.sort(key=lambda x: x[0])
+    if swap_every:  # receive order differs from stamp order by a few ms
+        for i in range(0, len(msgs) - 1, swap_every):
+            msgs[i], msgs[i + 1] = msgs[i + 1], msgs[i]
+    if duplicate_every:
+        msgs = [m for i, x in enumerate(msgs)
+                for m in ((x, x) if i % duplicate_every == 0 else (x,))]
+    plugin = StoragePlugin.SQLITE3 if storage == 'sqlite3' else StoragePlugin.MCAP
+    with Writer(path, version=8, storage_plugin=plugin) as w:
+        conns = {}
+        for _, topic, typ, _ in msgs:
+            if topic in conns:
+                continue
+            if typ == 'lab_msgs/msg/Thing':
+                conns[topic] = w.add_connection(topic, typ, msgdef='' if not msgdef
+                                                else 'float64 x', rihs01=NO_HASH)
+            elif msgdef:
+                conns[topic] = w.add_connection(topic, typ, typestore=STORE)
+            else:
+                conns[topic] = w.add_connection(topic, typ, msgdef='', rihs01=NO_HASH)
+        for i, (ts, topic, typ, msg) in enumerate(msgs):
+            data = b'\x00\x01\x00\x00' + np.float64(1.0).tobytes() if msg is None else \
+                STORE.serialize_cdr(msg, typ)
+            w.write(conns[topic], int((BAG_T0_S + max(ts, 0.0) + 1e-9 * i) * 1e9), data)
+    pout_arr = np.array(pout)
+    return {'joints': joints, 'pout': pout_arr}
+
+
+QOS_YAML = (
+    '- history: 3\n  depth: 0\n  reliability: 1\n  durability: 2\n  deadline:\n'
+    '    sec: 2147483647\n    nsec: 4294967295\n  lifespan:\n    sec: 2147483647\n'
+    '    nsec: 4294967295\n  liveliness: 1\n  liveliness_lease_duration:\n'
+    '    sec: 2147483647\n    nsec: 4294967295\n  avoid_ros_namespace_conventions: false')
+
+
+def downgrade_sqlite_bag(path: str | Path, version: int) -> None:
+    """Turn a rosbags sqlite3 bag into what a Foxy/Galactic ``ros2 bag record`` leaves:
+    metadata ``version`` 4-6, no type hashes, QoS profiles as a YAML string, and a database
+    without the schema/metadata/message_definitions tables."""
+    path = Path(path)
+    yaml = YAML(typ='safe')
+    meta = yaml.load((path / 'metadata.yaml').read_text())
+    info = meta['rosbag2_bagfile_information']
+    info['version'] = version
+    info.pop('ros_distro', None)
+    if version < 6:
+        info.pop('custom_data', None)
+    if version < 5:
+        info.pop('files', None)
+    for topic in info['topics_with_message_count']:
+        topic['topic_metadata'].pop('type_description_hash', None)
+        topic['topic_metadata']['offered_qos_profiles'] = QOS_YAML
+    out = StringIO()
+    yaml.default_flow_style = False
+    yaml.dump(meta, out)
+    (path / 'metadata.yaml').write_text(out.getvalue())
+    for db in path.glob('*.db3'):
+        con = sqlite3.connect(db)
+        con.executescript('''
+          DROP TABLE IF EXISTS schema; DROP TABLE IF EXISTS metadata;
+          DROP TABLE IF EXISTS message_definitions;
+          CREATE TABLE topics2(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL,
+            serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL);
+          INSERT INTO topics2
+            SELECT id, name, type, serialization_format, offered_qos_profiles FROM topics;
+          DROP TABLE topics; ALTER TABLE topics2 RENAME TO topics;''')
+        con.execute('UPDATE topics SET offered_qos_profiles = ?', (QOS_YAML,))
+        con.commit()
+        con.execute('PRAGMA journal_mode=DELETE')
+        con.close()
