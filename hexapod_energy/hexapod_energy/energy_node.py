@@ -5,10 +5,15 @@ Subscribes ``/battery_state``, ``/gait/phase``, ``/joint_states`` and ``/mocap/b
 positive joint power (:mod:`hexapod_energy.dynamics`): from joint efforts when present, else from
 the Eq. 6 inverse-dynamics model of the gait on ``/gait/phase`` (``power_out_source``). The science
 is in :mod:`hexapod_energy.descriptors`.
+
+Times are header stamps. A message whose header stamp is zero (drivers that never fill it) is
+stamped with the node's clock on arrival instead (the bag time under replay), with one warning
+per topic, as the offline reader falls back to the bag's receive time.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -89,6 +94,7 @@ class EnergyMonitorNode(Node):
                                          RELIABLE_QOS)
         self.dropped = 0
         self._sign_logged = False
+        self._zero_stamp_topics: set[str] = set()
         self.create_subscription(BatteryState, 'battery_state', self._on_battery, SENSOR_QOS)
         self.create_subscription(GaitPhase, 'gait/phase', self._on_gait, SENSOR_QOS)
         self.create_subscription(JointState, 'joint_states', self._on_joints, SENSOR_QOS)
@@ -103,6 +109,16 @@ class EnergyMonitorNode(Node):
                                       throttle_duration_sec=5.0)
             return None
 
+    def _restamp(self, topic: str, sample: Any) -> Any:
+        """``sample`` stamped with the node's clock when its header stamp is zero."""
+        if sample.t_s != 0.0:
+            return sample
+        if topic not in self._zero_stamp_topics:
+            self._zero_stamp_topics.add(topic)
+            self.get_logger().warning(f'{topic} messages have zero header stamps: using the '
+                                      'arrival time on the node clock instead')
+        return dataclasses.replace(sample, t_s=self.get_clock().now().nanoseconds * 1e-9)
+
     def _publish(self, results: Sequence[Descriptors] | None) -> None:
         if self.core.sign_note_ and not self._sign_logged:
             self._sign_logged = True
@@ -114,19 +130,23 @@ class EnergyMonitorNode(Node):
 
     def _on_battery(self, msg: BatteryState) -> None:
         self._publish(self._guard('BatteryState',
-                                  lambda m: self.core.add_battery(battery_from_msg(m)), msg))
+                                  lambda m: self.core.add_battery(
+                                      self._restamp('battery_state', battery_from_msg(m))), msg))
 
     def _on_gait(self, msg: GaitPhase) -> None:
         self._publish(self._guard('GaitPhase',
-                                  lambda m: self.core.add_gait_phase(gait_phase_from_msg(m)),
+                                  lambda m: self.core.add_gait_phase(
+                                      self._restamp('gait/phase', gait_phase_from_msg(m))),
                                   msg))
 
     def _on_joints(self, msg: JointState) -> None:
-        self._guard('JointState', lambda m: self.core.add_joint_state(joint_state_from_msg(m)),
+        self._guard('JointState', lambda m: self.core.add_joint_state(
+                        self._restamp('joint_states', joint_state_from_msg(m))),
                     msg)
 
     def _on_pose(self, msg: PoseStamped) -> None:
-        self._guard('PoseStamped', lambda m: self.core.add_pose(pose_from_msg(m)), msg)
+        self._guard('PoseStamped', lambda m: self.core.add_pose(
+                        self._restamp('mocap/body', pose_from_msg(m))), msg)
 
 
 def main(args: Sequence[str] | None = None) -> int:

@@ -1,0 +1,108 @@
+"""``energy_monitor`` fed by another lab: its own publisher QoS, JointState name order that
+changes between messages, zero header stamps, and an old sqlite3 bag with an unknown type."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import rclpy
+from builtin_interfaces.msg import Time
+from harness import Collector, ros_env
+from hexapod_interfaces.msg import EnergeticDescriptors, GaitPhase
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import BatteryState, JointState
+
+from hexapod_common.replay import run_offline
+from hexapod_common.testbags import P0_W, downgrade_sqlite_bag, write_foreign_robot_bag
+from hexapod_energy.energy_node import EnergyMonitorNode
+
+P_AMP_W, VOLT_V, PERIOD_S = 1.5, 11.5, 2.0
+
+
+def _stamp(t_s: float) -> Time:
+    ns = int(round(t_s * 1e9))
+    return Time(sec=ns // 10**9, nanosec=ns % 10**9)
+
+
+def _pout_w(t_s: float, n: int) -> tuple[np.ndarray, np.ndarray]:
+    phase = 2 * np.pi * (t_s / PERIOD_S + np.arange(n) / 7)
+    return 0.3 + 0.1 * np.sin(phase), 0.6 * np.cos(phase)
+
+
+@pytest.mark.timeout(90)
+@pytest.mark.parametrize('reliability', [ReliabilityPolicy.BEST_EFFORT,
+                                         ReliabilityPolicy.RELIABLE],
+                         ids=['best_effort', 'reliable'])
+def test_outside_publisher_qos_and_shuffled_joint_names(reliability):
+    qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=reliability,
+                     durability=DurabilityPolicy.VOLATILE)
+    legs = ('L1', 'L2', 'R1', 'R2')
+    offsets = (0.75, 0.25, 0.5, 0.0)
+    joints = [f'{leg}_{j}' for leg in legs for j in ('coxa', 'femur', 'tibia')]
+    rng = np.random.default_rng(3)
+    t0 = 1000.0
+    with ros_env('outside_qos') as env:
+        env.make(EnergyMonitorNode, parameter_overrides=[Parameter('current_sign', value='auto'),
+                                                         Parameter('mass', value=2.0)])
+        out = Collector(env, EnergeticDescriptors, 'energy/descriptors')
+        lab = env.add(rclpy.create_node('other_lab_driver', context=env.context,
+                                        namespace=env.namespace))
+        pubs = {'battery': lab.create_publisher(BatteryState, 'battery_state', qos),
+                'gait': lab.create_publisher(GaitPhase, 'gait/phase', qos),
+                'joints': lab.create_publisher(JointState, 'joint_states', qos)}
+        assert env.spin_until(lambda: all(p.get_subscription_count() >= 1
+                                          for p in pubs.values()), 20)
+        truth = []
+        for k, t in enumerate(np.arange(0.0, 12.0, 0.02)):
+            ts = t0 + t
+            eff, vel = _pout_w(t, len(joints))
+            truth.append(float(np.sum(np.clip(eff * vel, 0, None))))
+            order = rng.permutation(len(joints))  # another driver: name order not fixed
+            js = JointState(name=[joints[i] for i in order], position=list(0.1 * vel[order]),
+                            velocity=list(vel[order]), effort=list(eff[order]))
+            js.header.stamp = _stamp(ts)
+            pubs['joints'].publish(js)
+            phase = float(t / PERIOD_S) % 1.0
+            stance = [bool(((phase - o) % 1.0) < 0.75) for o in offsets]
+            g = GaitPhase(gait='wave', period=PERIOD_S, duty_factor=0.75, step_length=0.06,
+                          step_height=0.03, cycle_phase=phase, leg_names=list(legs),
+                          phase_offsets=list(offsets), in_stance=stance,
+                          supporting_legs=sum(stance))
+            g.header.stamp = _stamp(ts)
+            pubs['gait'].publish(g)
+            if k % 5 == 0:
+                power = P0_W + P_AMP_W * math.sin(2 * math.pi * t / PERIOD_S)
+                b = BatteryState(voltage=VOLT_V, current=power / VOLT_V)  # positive: discharge
+                b.header.stamp = _stamp(ts)
+                pubs['battery'].publish(b)
+            for _ in range(3):
+                env.executor.spin_once(timeout_sec=0.0)
+        msgs = out.wait_for(env, 4, timeout_s=30)
+    for m in msgs:
+        assert m.window == pytest.approx(PERIOD_S, abs=0.03)
+        assert m.power_in == pytest.approx(P0_W, rel=0.01)
+        assert m.power_out == pytest.approx(float(np.mean(truth)), rel=0.05)
+
+
+@pytest.mark.timeout(90)
+def test_offline_foxy_bag_zero_stamps_unknown_type(tmp_path):
+    bag = tmp_path / 'foxy'
+    truth = write_foreign_robot_bag(bag, legs=8, zero_stamps=True, msgdef=False,
+                                    unknown_topic=True)
+    downgrade_sqlite_bag(bag, 4)
+    with ros_env('outside_offline') as env:
+        # the bag's topics are the contract's, so the node is not namespaced (offline only)
+        node = EnergyMonitorNode(context=env.context, parameter_overrides=[
+            Parameter('current_sign', value='ros'), Parameter('mass', value=2.0)])
+        env.nodes.append(node)
+        captured = run_offline([node], str(bag))
+        assert node.dropped == 0
+    msgs = captured['/energy/descriptors']
+    assert len(msgs) >= 4
+    for m in msgs:
+        assert m.window == pytest.approx(PERIOD_S, abs=0.03)
+        assert m.power_in == pytest.approx(P0_W, rel=3e-3)
+        assert m.power_out == pytest.approx(float(np.mean(truth['pout'][:, 1])), rel=0.05)
