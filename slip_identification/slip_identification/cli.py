@@ -27,7 +27,11 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
                 "ground_m" [m, fitted ground height in the path frame, null without it],
                 "paper_edges": [{"tripod", "touchdown", "liftoff"}],    # side by side:
                 "geometry_edges": [{"tripod", "touchdown", "liftoff"}], # single support
-                "stances", "skipped"}],
+                "stances", "skipped",
+                "notes": [str]}],   # input fallbacks: hip angles or efforts absent (paper
+                                    # edges / xcorr offset), no sample in the default box,
+                                    # no /gait/phase; "frame" also has "box": {"lower_m",
+                                    # "upper_m", "source" (given|default|tracked_samples)}
       "gaits": {"<gait>": {"stances", "nerr_mean", "nerr_std", "power_w_mean", ...}},  # Table 3
       "skipped": [{"bag", "label", "tripod", "touchdown", "liftoff", "reason"}],
       "skipped_counts": {"<reason>": n},   # too_short, nan, mocap_gap, outside_volume,
@@ -147,8 +151,10 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
     """Analyse one bag; returns a JSON-able dict (``error`` set when the bag is refused)."""
     try:
         run = read_run(path)
+        # no --box: the pipeline's default box, or every tracked sample when the mocap origin
+        # is not in the tracking volume (another lab's frame)
         box = Box(tuple(options['box_lower']), tuple(options['box_upper'])) \
-            if options.get('box_lower') else Box()
+            if options.get('box_lower') else None
         model = SlipModel.from_name(options.get('model', 'slip'),
                                     mass_kg=options.get('mass_kg', EDUBOT_MASS_KG))
         geometry = None
@@ -164,6 +170,9 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
                           steady_only=options.get('steady_only', False))
     except (SlipError, ValueError, OSError) as err:
         return {'bag': path, 'error': str(err)}
+    notes = list(res.notes)
+    if run.gait == 'unknown':
+        notes.append('no /gait/phase in the bag: the gait name is unknown')
     stances = []
     pos = {r.label: r for r in res.position_fits}
     for r in res.fits:
@@ -194,7 +203,7 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
                     'geometry_edges': [{'tripod': w.tripod, 'touchdown': w.touchdown_s,
                                         'liftoff': w.liftoff_s}
                                        for w in res.geometry_windows],
-                    'stances': len(stances), 'skipped': len(res.skipped)}}
+                    'stances': len(stances), 'skipped': len(res.skipped), 'notes': notes}}
 
 
 def run_command(args: argparse.Namespace) -> int:

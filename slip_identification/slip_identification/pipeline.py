@@ -101,6 +101,7 @@ class RunResult:
     ground_m: float = math.nan
     paper_windows: list[StanceWindow] = field(default_factory=list)
     geometry_windows: list[StanceWindow] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
 
 
 def _tripod_mean(names: tuple[str, ...], values: FloatArray, tripod: str) -> FloatArray:
@@ -132,6 +133,35 @@ def _up_from_quats(q: FloatArray) -> FloatArray:
     up = up[np.all(np.isfinite(up), axis=1)]
     m = up.mean(axis=0)
     return m / np.linalg.norm(m)
+
+
+def _resolve_box(pm: FloatArray, box: Box | None, res: RunResult) -> Box:
+    """The permissible box: ``box`` when given; by default the paper's 2 x 1 x 1 m box
+    around the mocap origin, or, when that holds under half of the finite samples (another
+    lab's mocap origin is not the middle of its tracking volume, and its axes need not be
+    the run's), the bounds of every finite sample (the mocap system reports only what it
+    tracks), with a note."""
+    if box is not None:
+        res.frame['box'] = {'lower_m': list(box.lower_m), 'upper_m': list(box.upper_m),
+                            'source': 'given'}
+        return box
+    box = Box()
+    finite = np.all(np.isfinite(pm), axis=1)
+    n_in = int(permissible_mask(pm, box).sum())
+    if finite.any() and n_in < 0.5 * finite.sum():
+        lo = np.min(pm[finite], axis=0) - 1e-6
+        hi = np.max(pm[finite], axis=0) + 1e-6
+        whole = Box(tuple(lo.tolist()), tuple(hi.tolist()))
+        res.notes.append(
+            f'{n_in} of {int(finite.sum())} mocap samples lie inside the default 2 x 1 x 1 m '
+            'box around the mocap origin: every tracked sample is used instead (give --box '
+            'to restrict the volume)')
+        res.frame['box'] = {'lower_m': list(whole.lower_m), 'upper_m': list(whole.upper_m),
+                            'source': 'tracked_samples'}
+        return whole
+    res.frame['box'] = {'lower_m': list(box.lower_m), 'upper_m': list(box.upper_m),
+                        'source': 'default'}
+    return box
 
 
 def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None = None,
@@ -188,6 +218,7 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                                  or not np.any(np.isfinite(position))):
         position = None
     can_geo = geometry is not None and position is not None
+    edges_asked = edges
     if edges == 'auto':
         edges = 'geometry' if can_geo else 'paper'
     if edges == 'effort' and effort is None:
@@ -196,14 +227,19 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
         raise SlipDataError("geometric edges/offset need a LegGeometry (geometry=...) and "
                             'run.joint_position shaped like joint_velocity')
     model = model if model is not None else SlipModel()
-    box = box if box is not None else Box()
     res = RunResult()
+    if edges_asked == 'auto' and not can_geo:
+        why = ('no leg geometry given' if geometry is None else
+               'the joint states carry no hip angles (JointState.position)')
+        res.notes.append(f"geometric stance edges unavailable ({why}): the paper's "
+                         'shifted-clock edges are used')
     names = tuple(run.joint_names)
     tj = np.asarray(run.joint_t_s, dtype=float)
     speed = {tp: _tripod_mean(names, run.joint_velocity, tp) for tp in TRIPODS}
     target = {tp: _tripod_mean(names, run.command_velocity, tp) for tp in TRIPODS}
     tm = np.asarray(run.mocap_t_s, dtype=float)
     pm = np.asarray(run.mocap_position_m, dtype=float)
+    box = _resolve_box(pm, box, res)
     inside = permissible_mask(pm, box)
     if inside.sum() < 10:
         raise SlipDataError(f'run {run.label!r}: {int(inside.sum())} mocap samples inside the '
@@ -213,8 +249,9 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
     frame = fit_world_frame(pm[inside], up_mocap=up)
     pw = frame.to_world(pm[inside])
     check_straight(pw, max_lateral_m=max_lateral_m)
-    res.frame = {'tilt_deg': math.degrees(frame.tilt_rad), 'yaw_deg': math.degrees(frame.yaw_rad),
-                 'origin_m': frame.origin_m.tolist(), 'ground_source': 'mocap_origin'}
+    res.frame.update({'tilt_deg': math.degrees(frame.tilt_rad),
+                      'yaw_deg': math.degrees(frame.yaw_rad),
+                      'origin_m': frame.origin_m.tolist(), 'ground_source': 'mocap_origin'})
     touchdowns: dict[str, FloatArray] = {}
     if effort is not None:
         touchdowns = {tp: tripod_touchdowns(names, tj, effort, TRIPODS[tp]) for tp in TRIPODS}
@@ -237,6 +274,9 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
         raise SlipDataError(f"offset {method!r} needs run.joint_effort")
     if method == 'auto' and can_geo:
         method = 'geometry'
+    if method in ('auto', 'geometry') and effort is None:
+        res.notes.append('the joint states carry no hip efforts: the first offset estimate is '
+                         "the cross-correlation ('xcorr')")
     init = ''
     if method in ('auto', 'geometry'):
         # first estimate: the proprioceptive ones when efforts exist, else the
@@ -264,9 +304,27 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
         geo_inputs = (geometry, names, tj, position, np.asarray(run.joint_velocity, dtype=float),
                       tm[inside], pw[:, 2], pitch)
         geo_x = pw[:, 0].copy()
+        off_range = 0.1 if init == 'xcorr' else 0.06
         gfit = fit_ground_offset(*geo_inputs, initial_offset_s=off,
-                                 offset_range_s=0.1 if init == 'xcorr' else 0.06,
+                                 offset_range_s=off_range,
                                  fix_offset=method != 'geometry', x_m=geo_x)
+        at_edge = (gfit.windows == 0 or abs(gfit.ground_m) > 0.04 or
+                   (method == 'geometry' and abs(gfit.offset_s - off) > 0.8 * off_range))
+        if at_edge:
+            # another lab's mocap origin need not be on the floor: the fit ran into the edge
+            # of its +-5 cm ground grid (or its offset range); search +-25 cm and keep the
+            # better fit
+            wide = fit_ground_offset(*geo_inputs, initial_offset_s=off,
+                                     offset_range_s=off_range, ground_range_m=(-0.25, 0.25),
+                                     fix_offset=method != 'geometry', x_m=geo_x)
+            if wide.rms_m < gfit.rms_m:
+                res.notes.append(
+                    f'the ground fit reached the edge of its +-5 cm range (ground '
+                    f'{gfit.ground_m:+.3f} m, offset {gfit.offset_s:+.3f} s, rms '
+                    f'{1e3 * gfit.rms_m:.2f} mm); searched +-25 cm: ground '
+                    f'{wide.ground_m:+.3f} m, offset {wide.offset_s:+.3f} s, rms '
+                    f'{1e3 * wide.rms_m:.2f} mm (the mocap origin is not on the floor)')
+                gfit = wide
         off = gfit.offset_s
         res.ground_m = gfit.ground_m
         # the fitted ground is the frame's vertical translation and its slope along x a

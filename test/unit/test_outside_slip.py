@@ -1,0 +1,151 @@
+"""``hexapod-analyze slip`` on an EduBot-like bag from another lab.
+
+The bag is written here with rosbags' ``Writer`` from a simulated run's *true* ground-frame
+body state (so the truth is exact): motion capture at 100 Hz instead of 120, in a lab frame
+with z up but the robot running at 35 deg yaw, 2.7 m from the origin (and, in one case, the
+origin 7 cm off the floor), the mocap clock 20 ms ahead; ``/joint_states`` without hip efforts
+(and, in one case, without hip angles); no ``/gait/phase``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+
+import numpy as np
+import pytest
+from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.typesys import Stores, get_typestore
+
+from slip_identification.cli import add_cli
+
+edubot_sim = pytest.importorskip('hexapod_bench_drivers.edubot_sim')
+
+STORE = get_typestore(Stores.ROS2_JAZZY)
+T = STORE.types
+MOCAP_OFFSET_S = 0.02
+
+
+@pytest.fixture(scope='module')
+def sim_run():
+    return edubot_sim.simulate_edubot('running', duration_s=4.0, seed=1)
+
+
+def _header(t_s: float, frame: str = ''):
+    ns = int(round(t_s * 1e9))
+    return T['std_msgs/msg/Header'](
+        stamp=T['builtin_interfaces/msg/Time'](sec=ns // 10**9, nanosec=ns % 10**9),
+        frame_id=frame)
+
+
+def _write(path, run, *, yaw_deg=35.0, shift_m=(2.4, -1.3, 0.0), rate_hz=100.0,
+           hip_angles=True, t0_s=500.0):
+    yaw = math.radians(yaw_deg)
+    rot = np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0],
+                    [0.0, 0.0, 1.0]])
+    tf, fs = run.fine_t_s, run.fine_state  # true [x, vx, z, vz, pitch] at 1 kHz
+    tn = np.arange(tf[0] + 0.3, tf[-1] - 0.3, 1.0 / rate_hz)
+    x, z, pitch = (np.interp(tn, tf, fs[:, i]) for i in (0, 2, 4))
+    pos = np.column_stack([x, np.zeros_like(x), z]) @ rot.T + np.asarray(shift_m)
+    # body attitude: pitch about the body y axis, then the lab's yaw about z
+    cy, sy, cp, sp = math.cos(yaw / 2), math.sin(yaw / 2), np.cos(pitch / 2), np.sin(pitch / 2)
+    quat = np.column_stack([-sy * sp, cy * sp, sy * cp, cy * cp])
+    names = [f'{leg}_hip' for leg in run.leg_names]
+    nan = math.nan
+    empty = np.zeros(0)
+    msgs = []
+    for k, t in enumerate(run.t_s):
+        ts = t0_s + t
+        msgs.append((ts, '/joint_states', 'sensor_msgs/msg/JointState',
+                     T['sensor_msgs/msg/JointState'](
+                         header=_header(ts), name=names,
+                         position=run.hip_position_rad[k] if hip_angles else empty,
+                         velocity=run.hip_velocity_rad_s[k], effort=empty)))
+        msgs.append((ts, '/joint_commands', 'sensor_msgs/msg/JointState',
+                     T['sensor_msgs/msg/JointState'](
+                         header=_header(ts), name=names, position=run.target_position_rad[k],
+                         velocity=run.target_velocity_rad_s[k], effort=empty)))
+        msgs.append((ts, '/battery_state', 'sensor_msgs/msg/BatteryState',
+                     T['sensor_msgs/msg/BatteryState'](
+                         header=_header(ts), voltage=float(run.battery_voltage_v[k]),
+                         temperature=nan, current=float(run.battery_current_a[k]), charge=nan,
+                         capacity=nan, design_capacity=nan, percentage=nan,
+                         power_supply_status=2, power_supply_health=0,
+                         power_supply_technology=0, present=True,
+                         cell_voltage=np.zeros(0, np.float32),
+                         cell_temperature=np.zeros(0, np.float32), location='',
+                         serial_number='')))
+    for k, t in enumerate(tn):
+        ts = t0_s + t + MOCAP_OFFSET_S
+        msgs.append((ts, '/mocap/body', 'geometry_msgs/msg/PoseStamped',
+                     T['geometry_msgs/msg/PoseStamped'](
+                         header=_header(ts, 'lab_world'), pose=T['geometry_msgs/msg/Pose'](
+                             position=T['geometry_msgs/msg/Point'](
+                                 x=pos[k, 0], y=pos[k, 1], z=pos[k, 2]),
+                             orientation=T['geometry_msgs/msg/Quaternion'](
+                                 x=quat[k, 0], y=quat[k, 1], z=quat[k, 2], w=quat[k, 3])))))
+    msgs.sort(key=lambda m: m[0])
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as w:
+        conns = {}
+        for _, topic, typ, _ in msgs:
+            if topic not in conns:
+                conns[topic] = w.add_connection(topic, typ, typestore=STORE)
+        for i, (ts, topic, typ, msg) in enumerate(msgs):
+            w.write(conns[topic], int(ts * 1e9) + i, STORE.serialize_cdr(msg, typ))
+    return path
+
+
+def _slip(tmp_path, bag, name):
+    ap = argparse.ArgumentParser()
+    sub = ap.add_subparsers(dest='command', required=True)
+    add_cli(sub)
+    args = ap.parse_args(['slip', str(bag), '--out', str(tmp_path / name)])
+    code = args.func(args)
+    return code, json.loads((tmp_path / name / 'slip.json').read_text())
+
+
+def _medians(doc):
+    return (float(np.median([s['stiffness'] for s in doc['stances']])),
+            float(np.median([s['rest_length'] for s in doc['stances']])))
+
+
+def test_other_lab_frame_100hz_no_efforts_no_gait_phase(tmp_path, sim_run):
+    ref = _write(tmp_path / 'ref', sim_run, yaw_deg=0.0, shift_m=(0.0, 0.0, 0.0))
+    lab = _write(tmp_path / 'lab', sim_run)
+    code_ref, doc_ref = _slip(tmp_path, ref, 'out_ref')
+    code, doc = _slip(tmp_path, lab, 'out_lab')
+    assert code == 0 and code_ref == 0 and not doc['failed_bags']
+    run = doc['runs'][0]
+    # the analysis does not depend on where the lab put its origin and axes
+    assert run['edges'] == 'geometry' and run['offset_method'] == 'geometry'
+    assert run['frame']['yaw_deg'] == pytest.approx(35.0, abs=0.05)
+    assert run['offset_s'] == pytest.approx(MOCAP_OFFSET_S, abs=2e-3)
+    assert run['ground_m'] == pytest.approx(0.0, abs=2e-3)
+    assert len(doc['stances']) == len(doc_ref['stances']) >= 10
+    np.testing.assert_allclose(_medians(doc), _medians(doc_ref), rtol=1e-3)
+    assert run['frame']['box']['source'] == 'tracked_samples'
+    notes = ' '.join(run['notes'])
+    assert 'default 2 x 1 x 1 m box' in notes and 'no hip efforts' in notes
+    assert 'no /gait/phase' in notes and doc['stances'][0]['gait'] == 'unknown'
+
+
+def test_mocap_origin_off_the_floor(tmp_path, sim_run):
+    bag = _write(tmp_path / 'lab', sim_run, shift_m=(2.4, -1.3, 0.07))
+    code, doc = _slip(tmp_path, bag, 'out')
+    assert code == 0
+    run = doc['runs'][0]
+    assert run['ground_m'] == pytest.approx(0.07, abs=2e-3)
+    assert run['offset_s'] == pytest.approx(MOCAP_OFFSET_S, abs=2e-3)
+    assert len(doc['stances']) >= 10
+    assert any('not on the floor' in n for n in run['notes'])
+
+
+def test_no_hip_angles_falls_back_to_paper_edges_with_note(tmp_path, sim_run):
+    bag = _write(tmp_path / 'lab', sim_run, hip_angles=False)
+    code, doc = _slip(tmp_path, bag, 'out')
+    assert code == 0
+    run = doc['runs'][0]
+    assert run['edges'] == 'paper' and run['offset_method'] == 'xcorr'
+    assert run['geometry_edges'] == [] and len(doc['stances']) >= 10
+    assert any("paper's shifted-clock edges" in n and 'hip angles' in n for n in run['notes'])
