@@ -17,7 +17,8 @@ from ruamel.yaml import YAML
 
 from hexapod_common.bags import BagWriter, find_msg_dir, new_msg, stamp
 
-__all__ = ['P0_W', 'PERIOD_S', 'downgrade_sqlite_bag', 'write_foreign_robot_bag', 'write_mixed_bag']
+__all__ = ['P0_W', 'PERIOD_S', 'downgrade_sqlite_bag', 'write_foreign_robot_bag',
+           'write_mixed_bag']
 
 LEGS = ('L1', 'L2', 'L3', 'R1', 'R2', 'R3')
 JOINTS = [f'{leg}_{j}' for leg in LEGS for j in ('coxa', 'femur', 'tibia')]

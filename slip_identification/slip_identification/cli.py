@@ -51,6 +51,7 @@ standard errors meet the accuracy and coverage bars: prefer it for k, l0, fx wit
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import multiprocessing
@@ -109,9 +110,12 @@ def read_run(path: str | Path) -> RunData:
                     gait = _gait_name(gait_phase_from_msg(msg))
             except ValueError:
                 continue  # a bad message is dropped, as the nodes do
+    if not js:
+        raise MissingTopicError(f'bag {path}: /joint_states has no usable message')
     names = js[0].names
-    js = [s for s in js if s.names == names and s.velocity.size == len(names)]
-    jc = [s for s in jc if s.names == names and s.velocity.size == len(names)]
+    # drivers need not keep one name order: every sample is put in the first one's order
+    js = [r for r in (_in_order(s, names) for s in js) if r.velocity.size == len(names)]
+    jc = [r for r in (_in_order(s, names) for s in jc) if r.velocity.size == len(names)]
     if not (js and jc and mo and bt):
         raise MissingTopicError(f'bag {path}: a required topic has no usable message')
     return RunData(
@@ -129,6 +133,21 @@ def read_run(path: str | Path) -> RunData:
                       if all(s.effort.size == len(names) for s in js) else None),
         joint_position=(np.array([s.position for s in js])
                         if all(s.position.size == len(names) for s in js) else None))
+
+
+def _in_order(sample: Any, names: tuple[str, ...]) -> Any:
+    """``sample`` (a JointStateSample) with its arrays in the order of ``names``; a sample
+    whose names are not a permutation of ``names`` comes back with empty velocities (dropped
+    by the caller)."""
+    if sample.names == names:
+        return sample
+    if len(sample.names) != len(names) or set(sample.names) != set(names):
+        return dataclasses.replace(sample, velocity=np.zeros(0))
+    idx = [sample.names.index(n) for n in names]
+    return dataclasses.replace(
+        sample, names=names,
+        **{f: getattr(sample, f)[idx] if getattr(sample, f).size == len(names)
+           else getattr(sample, f) for f in ('position', 'velocity', 'effort')})
 
 
 def _gait_name(phase: Any) -> str:

@@ -40,7 +40,7 @@ def _header(t_s: float, frame: str = ''):
 
 
 def _write(path, run, *, yaw_deg=35.0, shift_m=(2.4, -1.3, 0.0), rate_hz=100.0,
-           hip_angles=True, t0_s=500.0):
+           hip_angles=True, shuffle_names=False, t0_s=500.0):
     yaw = math.radians(yaw_deg)
     rot = np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0],
                     [0.0, 0.0, 1.0]])
@@ -55,17 +55,21 @@ def _write(path, run, *, yaw_deg=35.0, shift_m=(2.4, -1.3, 0.0), rate_hz=100.0,
     nan = math.nan
     empty = np.zeros(0)
     msgs = []
+    rng = np.random.default_rng(7)
     for k, t in enumerate(run.t_s):
         ts = t0_s + t
+        o = rng.permutation(len(names)) if shuffle_names else np.arange(len(names))
         msgs.append((ts, '/joint_states', 'sensor_msgs/msg/JointState',
                      T['sensor_msgs/msg/JointState'](
-                         header=_header(ts), name=names,
-                         position=run.hip_position_rad[k] if hip_angles else empty,
-                         velocity=run.hip_velocity_rad_s[k], effort=empty)))
+                         header=_header(ts), name=[names[i] for i in o],
+                         position=run.hip_position_rad[k][o] if hip_angles else empty,
+                         velocity=run.hip_velocity_rad_s[k][o], effort=empty)))
+        o = o[::-1] if shuffle_names else o  # commands in yet another order
         msgs.append((ts, '/joint_commands', 'sensor_msgs/msg/JointState',
                      T['sensor_msgs/msg/JointState'](
-                         header=_header(ts), name=names, position=run.target_position_rad[k],
-                         velocity=run.target_velocity_rad_s[k], effort=empty)))
+                         header=_header(ts), name=[names[i] for i in o],
+                         position=run.target_position_rad[k][o],
+                         velocity=run.target_velocity_rad_s[k][o], effort=empty)))
         msgs.append((ts, '/battery_state', 'sensor_msgs/msg/BatteryState',
                      T['sensor_msgs/msg/BatteryState'](
                          header=_header(ts), voltage=float(run.battery_voltage_v[k]),
@@ -130,8 +134,8 @@ def test_other_lab_frame_100hz_no_efforts_no_gait_phase(tmp_path, sim_run):
     assert 'no /gait/phase' in notes and doc['stances'][0]['gait'] == 'unknown'
 
 
-def test_mocap_origin_off_the_floor(tmp_path, sim_run):
-    bag = _write(tmp_path / 'lab', sim_run, shift_m=(2.4, -1.3, 0.07))
+def test_mocap_origin_off_the_floor_and_joint_name_order_changing(tmp_path, sim_run):
+    bag = _write(tmp_path / 'lab', sim_run, shift_m=(2.4, -1.3, 0.07), shuffle_names=True)
     code, doc = _slip(tmp_path, bag, 'out')
     assert code == 0
     run = doc['runs'][0]
