@@ -72,10 +72,17 @@ from .preprocess import Box
 __all__ = ['add_cli', 'analyze_bag', 'main', 'read_run']
 
 TOPICS = ('/joint_states', '/joint_commands', '/mocap/body', '/battery_state')
+#: without these no stance can be fitted; /battery_state only gives the run's power and SR
+REQUIRED_TOPICS = ('/joint_states', '/joint_commands', '/mocap/body')
 
 
 def read_run(path: str | Path) -> RunData:
-    """Read the four topics of one bag (and ``/gait/phase`` for the gait name)."""
+    """Read the four topics of one bag (and ``/gait/phase`` for the gait name).
+
+    ``/battery_state`` is optional (without usable samples, power and SR are null); a message
+    whose header stamp is zero takes the bag's receive time; input fallbacks are listed in
+    ``RunData.notes``.
+    """
     from hexapod_common.bags import iter_messages, open_reader, typestore
     from hexapod_common.conversions import (
         battery_from_msg,
@@ -90,34 +97,49 @@ def read_run(path: str | Path) -> RunData:
     mo: list[Any] = []
     bt: list[Any] = []
     gait = 'unknown'
+    zero: dict[str, int] = {}
+    dropped: dict[str, int] = {}
     with open_reader(path) as reader:
         present = {c.topic for c in reader.connections}
-        missing = [t for t in TOPICS if t not in present]
+        missing = [t for t in REQUIRED_TOPICS if t not in present]
         if missing:
-            raise MissingTopicError(f'bag {path} lacks topic(s) {missing}; needs {list(TOPICS)}')
+            raise MissingTopicError(f'bag {path} lacks topic(s) {missing}; needs '
+                                    f'{list(REQUIRED_TOPICS)} (and /battery_state for power)')
+        streams = {'/joint_states': (js, joint_state_from_msg),
+                   '/joint_commands': (jc, joint_state_from_msg),
+                   '/mocap/body': (mo, pose_from_msg), '/battery_state': (bt, battery_from_msg)}
         for m in iter_messages(reader, list(TOPICS) + ['/gait/phase']):
             msg = store.deserialize_cdr(m.data, m.msgtype)
             try:
-                if m.topic == '/joint_states':
-                    js.append(joint_state_from_msg(msg))
-                elif m.topic == '/joint_commands':
-                    jc.append(joint_state_from_msg(msg))
-                elif m.topic == '/mocap/body':
-                    mo.append(pose_from_msg(msg))
-                elif m.topic == '/battery_state':
-                    bt.append(battery_from_msg(msg))
-                elif gait == 'unknown':
-                    gait = _gait_name(gait_phase_from_msg(msg))
+                if m.topic == '/gait/phase':
+                    if gait == 'unknown':
+                        gait = _gait_name(gait_phase_from_msg(msg))
+                    continue
+                sample = streams[m.topic][1](msg)
             except ValueError:
+                dropped[m.topic] = dropped.get(m.topic, 0) + 1
                 continue  # a bad message is dropped, as the nodes do
+            if sample.t_s == 0.0:  # a driver that leaves header.stamp at 0
+                zero[m.topic] = zero.get(m.topic, 0) + 1
+                sample = dataclasses.replace(sample, t_s=1e-9 * m.stamp_ns)
+            streams[m.topic][0].append(sample)
+    notes = [f'{n} {t} message(s) with a zero header stamp: bag receive time used'
+             for t, n in sorted(zero.items())]
+    notes += [f'{n} {t} message(s) dropped (bad or NaN fields)'
+              for t, n in sorted(dropped.items())]
+    if not bt:
+        notes.append('no usable /battery_state message (absent, or NaN voltage/current): the '
+                     "run's power and specific resistance are null")
     if not js:
         raise MissingTopicError(f'bag {path}: /joint_states has no usable message')
     names = js[0].names
     # drivers need not keep one name order: every sample is put in the first one's order
     js = [r for r in (_in_order(s, names) for s in js) if r.velocity.size == len(names)]
     jc = [r for r in (_in_order(s, names) for s in jc) if r.velocity.size == len(names)]
-    if not (js and jc and mo and bt):
-        raise MissingTopicError(f'bag {path}: a required topic has no usable message')
+    for topic, samples in (('/joint_states', js), ('/joint_commands', jc), ('/mocap/body', mo)):
+        if not samples:
+            raise MissingTopicError(f'bag {path}: {topic} has no usable message (with '
+                                    'velocities for the first message\'s joint names)')
     return RunData(
         joint_names=names, joint_t_s=np.array([s.t_s for s in js]),
         joint_velocity=np.array([s.velocity for s in js]),
@@ -132,7 +154,8 @@ def read_run(path: str | Path) -> RunData:
         joint_effort=(np.array([s.effort for s in js])
                       if all(s.effort.size == len(names) for s in js) else None),
         joint_position=(np.array([s.position for s in js])
-                        if all(s.position.size == len(names) for s in js) else None))
+                        if all(s.position.size == len(names) for s in js) else None),
+        notes=tuple(notes))
 
 
 def _in_order(sample: Any, names: tuple[str, ...]) -> Any:
@@ -189,7 +212,7 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
                           steady_only=options.get('steady_only', False))
     except (SlipError, ValueError, OSError) as err:
         return {'bag': path, 'error': str(err)}
-    notes = list(res.notes)
+    notes = list(run.notes) + list(res.notes)
     if run.gait == 'unknown':
         notes.append('no /gait/phase in the bag: the gait name is unknown')
     stances = []

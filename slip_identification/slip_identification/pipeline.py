@@ -79,6 +79,7 @@ class RunData:
     label: str = ''
     joint_effort: FloatArray | None = None
     joint_position: FloatArray | None = None
+    notes: tuple[str, ...] = ()  # input fallbacks of the reader, reported in slip.json
 
 
 @dataclass

@@ -32,15 +32,16 @@ def sim_run():
     return edubot_sim.simulate_edubot('running', duration_s=4.0, seed=1)
 
 
-def _header(t_s: float, frame: str = ''):
-    ns = int(round(t_s * 1e9))
+def _header(t_s: float | None, frame: str = ''):
+    ns = 0 if t_s is None else int(round(t_s * 1e9))
     return T['std_msgs/msg/Header'](
         stamp=T['builtin_interfaces/msg/Time'](sec=ns // 10**9, nanosec=ns % 10**9),
         frame_id=frame)
 
 
 def _write(path, run, *, yaw_deg=35.0, shift_m=(2.4, -1.3, 0.0), rate_hz=100.0,
-           hip_angles=True, shuffle_names=False, t0_s=500.0):
+           hip_angles=True, shuffle_names=False, zero_stamps=False, nan_current=False,
+           t0_s=500.0):
     yaw = math.radians(yaw_deg)
     rot = np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0],
                     [0.0, 0.0, 1.0]])
@@ -56,24 +57,27 @@ def _write(path, run, *, yaw_deg=35.0, shift_m=(2.4, -1.3, 0.0), rate_hz=100.0,
     empty = np.zeros(0)
     msgs = []
     rng = np.random.default_rng(7)
+    hdr = (lambda t, frame='': _header(None, frame)) if zero_stamps else _header
     for k, t in enumerate(run.t_s):
         ts = t0_s + t
         o = rng.permutation(len(names)) if shuffle_names else np.arange(len(names))
         msgs.append((ts, '/joint_states', 'sensor_msgs/msg/JointState',
                      T['sensor_msgs/msg/JointState'](
-                         header=_header(ts), name=[names[i] for i in o],
+                         header=hdr(ts), name=[names[i] for i in o],
                          position=run.hip_position_rad[k][o] if hip_angles else empty,
                          velocity=run.hip_velocity_rad_s[k][o], effort=empty)))
         o = o[::-1] if shuffle_names else o  # commands in yet another order
         msgs.append((ts, '/joint_commands', 'sensor_msgs/msg/JointState',
                      T['sensor_msgs/msg/JointState'](
-                         header=_header(ts), name=[names[i] for i in o],
+                         header=hdr(ts), name=[names[i] for i in o],
                          position=run.target_position_rad[k][o],
                          velocity=run.target_velocity_rad_s[k][o], effort=empty)))
         msgs.append((ts, '/battery_state', 'sensor_msgs/msg/BatteryState',
                      T['sensor_msgs/msg/BatteryState'](
-                         header=_header(ts), voltage=float(run.battery_voltage_v[k]),
-                         temperature=nan, current=float(run.battery_current_a[k]), charge=nan,
+                         header=hdr(ts), voltage=float(run.battery_voltage_v[k]),
+                         temperature=nan,
+                         current=nan if nan_current else float(run.battery_current_a[k]),
+                         charge=nan,
                          capacity=nan, design_capacity=nan, percentage=nan,
                          power_supply_status=2, power_supply_health=0,
                          power_supply_technology=0, present=True,
@@ -84,7 +88,7 @@ def _write(path, run, *, yaw_deg=35.0, shift_m=(2.4, -1.3, 0.0), rate_hz=100.0,
         ts = t0_s + t + MOCAP_OFFSET_S
         msgs.append((ts, '/mocap/body', 'geometry_msgs/msg/PoseStamped',
                      T['geometry_msgs/msg/PoseStamped'](
-                         header=_header(ts, 'lab_world'), pose=T['geometry_msgs/msg/Pose'](
+                         header=hdr(ts, 'lab_world'), pose=T['geometry_msgs/msg/Pose'](
                              position=T['geometry_msgs/msg/Point'](
                                  x=pos[k, 0], y=pos[k, 1], z=pos[k, 2]),
                              orientation=T['geometry_msgs/msg/Quaternion'](
@@ -153,3 +157,18 @@ def test_no_hip_angles_falls_back_to_paper_edges_with_note(tmp_path, sim_run):
     assert run['edges'] == 'paper' and run['offset_method'] == 'xcorr'
     assert run['geometry_edges'] == [] and len(doc['stances']) >= 10
     assert any("paper's shifted-clock edges" in n and 'hip angles' in n for n in run['notes'])
+
+
+def test_zero_header_stamps_and_nan_battery_current(tmp_path, sim_run):
+    bag = _write(tmp_path / 'lab', sim_run, zero_stamps=True, nan_current=True)
+    code, doc = _slip(tmp_path, bag, 'out')
+    assert code == 0 and not doc['failed_bags']
+    run = doc['runs'][0]
+    # receive times equal the stamps in this bag: the same offset and ground as with stamps
+    assert run['offset_s'] == pytest.approx(MOCAP_OFFSET_S, abs=2e-3)
+    assert run['ground_m'] == pytest.approx(0.0, abs=2e-3)
+    assert len(doc['stances']) >= 10
+    assert run['power_w'] is None and run['sr'] is None
+    notes = ' '.join(run['notes'])
+    assert 'zero header stamp' in notes and '/mocap/body' in notes
+    assert 'no usable /battery_state' in notes
