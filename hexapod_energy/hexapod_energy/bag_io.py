@@ -7,6 +7,14 @@ Bench bags need ``/battery_state``, ``/bench/ground_force``, ``/bench/leg_tip`` 
 ``/bench/session``; robot bags need ``/battery_state`` and ``/gait/phase`` (``/joint_states``
 with efforts and ``/mocap/body`` are used when present).  A missing topic raises
 :class:`~hexapod_energy.errors.BagContentError` naming what is missing and what is there.
+
+Robot bags recorded by other tools (:func:`read_robot_bag`): a message whose header stamp is
+zero (drivers that never fill it) takes the bag's receive time; samples are fed in header-stamp
+order (recorders store arrival order, a few ms off); a stamped message recorded twice (same
+topic, same bytes) counts once; a bad message (NaN voltage or current, array lengths that
+disagree with the names) is dropped, and a bag whose every ``/battery_state`` message is
+dropped is refused (no input power without current). Each fallback is listed in
+``RobotRun.extra['notes']`` (``energy.json`` ``warnings``).
 """
 
 from __future__ import annotations
