@@ -103,7 +103,8 @@ def _joint_power_w(t_s: float, n_joints: int) -> tuple[np.ndarray, np.ndarray]:
 def write_foreign_robot_bag(path: str | Path, *, legs: int = 4, duration_s: float = 12.0,
                       sign: float = -1.0, zero_stamps: bool = False, nan_current: bool = False,
                       swap_every: int = 0, duplicate_every: int = 0, storage: str = 'sqlite3',
-                      msgdef: bool = True, unknown_topic: bool = False, seed: int = 0
+                      msgdef: bool = True, unknown_topic: bool = False, seed: int = 0,
+                      split_joints: bool = False
                       ) -> dict[str, Any]:
     """A robot bag as another lab's ``ros2 bag record`` writes it: rosbags' own ``Writer``
     (not :class:`~hexapod_common.bags.BagWriter`), sqlite3 or mcap, optionally without message
@@ -114,7 +115,9 @@ def write_foreign_robot_bag(path: str | Path, *, legs: int = 4, duration_s: floa
     Driver quirks on request: ``sign`` +1 (current positive on discharge), ``zero_stamps``
     (header stamps left 0), ``nan_current``, ``swap_every`` (receive order swapped every n
     messages), ``duplicate_every`` (every n-th message recorded twice), ``unknown_topic`` (a
-    ``lab_msgs/msg/Thing`` topic no typestore knows). Returns ``{'joints': names, 'pout': (n, 2)
+    ``lab_msgs/msg/Thing`` topic no typestore knows), ``split_joints`` (each sample's joints
+    in two JointState messages, one per side, as drivers with one servo bus per side publish
+    them). Returns ``{'joints': names, 'pout': (n, 2)
     array of (stamp [s], positive joint power [W])}``.
     """
     STORE = _foreign_store()
@@ -129,10 +132,16 @@ def write_foreign_robot_bag(path: str | Path, *, legs: int = 4, duration_s: floa
         ts = t + rng.uniform(-0.003, 0.003)
         eff, vel = _joint_power_w(ts, len(joints))
         pout.append((ts, float(np.sum(np.clip(eff * vel, 0, None)))))
-        msgs.append((ts, '/joint_states', 'sensor_msgs/msg/JointState',
-                     T['sensor_msgs/msg/JointState'](
-                         header=_header(0.0 if zero_stamps else ts), name=joints,
-                         position=0.1 * vel, velocity=vel, effort=eff)))
+        parts = [np.arange(len(joints))]
+        if split_joints:  # one message per side (one servo bus each), same stamp
+            half = len(joints) // 2
+            parts = [np.arange(half), np.arange(half, len(joints))]
+        for idx in parts:
+            msgs.append((ts, '/joint_states', 'sensor_msgs/msg/JointState',
+                         T['sensor_msgs/msg/JointState'](
+                             header=_header(0.0 if zero_stamps else ts),
+                             name=[joints[i] for i in idx], position=0.1 * vel[idx],
+                             velocity=vel[idx], effort=eff[idx])))
         phase = (t / PERIOD_S) % 1.0
         stance = np.array([((phase - o) % 1.0) < duty for o in offsets], bool)
         msgs.append((ts + 5e-4, '/gait/phase', 'hexapod_interfaces/msg/GaitPhase',

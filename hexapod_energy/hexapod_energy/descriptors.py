@@ -146,6 +146,21 @@ def resolve_current_sign(voltage_v: np.ndarray, current_a: np.ndarray, mode: str
     return -1.0 if median <= 0 else 1.0
 
 
+def _mean_joint_power_w(joint: list[tuple[float, tuple[str, ...], np.ndarray]]) -> float:
+    """Sum over joint names of each joint's mean positive power [W] (the mean over samples of
+    the per-sample sum when every sample has the same names)."""
+    names = joint[0][1]
+    if all(j[1] == names for j in joint):
+        return float(np.mean([float(np.sum(j[2])) for j in joint]))
+    sums: dict[str, float] = {}
+    counts: dict[str, int] = {}
+    for _, js_names, power in joint:
+        for name, p in zip(js_names, power):
+            sums[name] = sums.get(name, 0.0) + float(p)
+            counts[name] = counts.get(name, 0) + 1
+    return float(sum(sums[n] / counts[n] for n in sums))
+
+
 @dataclass
 class DescriptorAccumulator:
     """Collects samples and emits :class:`Descriptors` per window of whole gait cycles.
@@ -178,7 +193,9 @@ class DescriptorAccumulator:
     sign_note_: str = field(default='', init=False)
     _battery: list[tuple[float, float]] = field(default_factory=list, init=False)
     _pending_battery: list[BatterySample] = field(default_factory=list, init=False)
-    _joint: list[tuple[float, float]] = field(default_factory=list, init=False)
+    # (stamp, joint names, per-joint positive power [W]) of each JointState
+    _joint: list[tuple[float, tuple[str, ...], np.ndarray]] = field(default_factory=list,
+                                                                    init=False)
     _poses: list[tuple[float, float, float]] = field(default_factory=list, init=False)
     _boundaries: list[float] = field(default_factory=list, init=False)
     _gait: GaitPhaseSample | None = field(default=None, init=False)
@@ -222,10 +239,16 @@ class DescriptorAccumulator:
         return self._emit()
 
     def add_joint_state(self, sample: JointStateSample) -> None:
-        """Add joint efforts/velocities (ignored when effort or velocity is empty)."""
+        """Add joint efforts/velocities (ignored when effort or velocity is empty).
+
+        Drivers that publish a robot's joints in several JointState messages (one per servo
+        bus or leg) are handled: P_out is the sum over joint names of each joint's mean
+        positive power over the window.
+        """
         if sample.effort.size and sample.velocity.size == sample.effort.size:
-            self._joint.append((sample.t_s, joint_power_out_w(sample.effort,
-                                                              sample.velocity)))
+            power = np.clip(np.asarray(sample.effort, dtype=float) *
+                            np.asarray(sample.velocity, dtype=float), 0.0, None)
+            self._joint.append((sample.t_s, tuple(sample.names), power))
 
     def add_pose(self, sample: PoseSample) -> None:
         """Add a body pose (horizontal position used for the speed)."""
@@ -283,7 +306,7 @@ class DescriptorAccumulator:
         use_model = self.power_out_source == 'model' or \
             (self.power_out_source == 'auto' and not joint)
         if joint and self.power_out_source != 'model':
-            power_out = float(np.mean([j[1] for j in joint]))
+            power_out = _mean_joint_power_w(joint)
         elif use_model and self.power_out_model is not None and self._gait is not None:
             power_out = float(self.power_out_model(self._gait, self.mass_kg))
         else:

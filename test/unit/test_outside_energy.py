@@ -94,3 +94,13 @@ def test_replay_source_skips_unknown_type_once_in_foxy_bag(tmp_path):
             counts[m.topic] = counts.get(m.topic, 0) + 1
     assert counts == {'/joint_states': 600, '/gait/phase': 600, '/battery_state': 120}
     assert len(warnings) == 1 and '/lab/thing' in warnings[0]
+
+
+def test_joints_split_over_two_messages_per_sample(tmp_path):
+    whole = read_robot_bag(write_outside_bag(tmp_path / 'a') and tmp_path / 'a', mass_kg=2.0)
+    write_outside_bag(tmp_path / 'b', split_joints=True)
+    split = read_robot_bag(tmp_path / 'b', mass_kg=2.0)
+    # P_out is the sum over joints: a driver publishing one message per servo bus must not
+    # halve it (the mean over messages of each message's sum did)
+    np.testing.assert_allclose(split.power_out_w, whole.power_out_w, rtol=1e-12)
+    np.testing.assert_allclose(split.power_in_w, whole.power_in_w, rtol=1e-12)
