@@ -104,7 +104,7 @@ def write_foreign_robot_bag(path: str | Path, *, legs: int = 4, duration_s: floa
                       sign: float = -1.0, zero_stamps: bool = False, nan_current: bool = False,
                       swap_every: int = 0, duplicate_every: int = 0, storage: str = 'sqlite3',
                       msgdef: bool = True, unknown_topic: bool = False, seed: int = 0,
-                      split_joints: bool = False
+                      split_joints: bool = False, battery_clock_s: float = 0.0
                       ) -> dict[str, Any]:
     """A robot bag as another lab's ``ros2 bag record`` writes it: rosbags' own ``Writer``
     (not :class:`~hexapod_common.bags.BagWriter`), sqlite3 or mcap, optionally without message
@@ -117,7 +117,7 @@ def write_foreign_robot_bag(path: str | Path, *, legs: int = 4, duration_s: floa
     messages), ``duplicate_every`` (every n-th message recorded twice), ``unknown_topic`` (a
     ``lab_msgs/msg/Thing`` topic no typestore knows), ``split_joints`` (each sample's joints
     in two JointState messages, one per side, as drivers with one servo bus per side publish
-    them). Returns ``{'joints': names, 'pout': (n, 2)
+    them), ``battery_clock_s`` (battery stamps on another clock, this far ahead). Returns ``{'joints': names, 'pout': (n, 2)
     array of (stamp [s], positive joint power [W])}``.
     """
     STORE = _foreign_store()
@@ -158,7 +158,8 @@ def write_foreign_robot_bag(path: str | Path, *, legs: int = 4, duration_s: floa
         nan = math.nan
         msgs.append((ts + 1e-3, '/battery_state', 'sensor_msgs/msg/BatteryState',
                      T['sensor_msgs/msg/BatteryState'](
-                         header=_header(0.0 if zero_stamps else ts), voltage=VOLT_V,
+                         header=_header(0.0 if zero_stamps else ts + battery_clock_s),
+                         voltage=VOLT_V,
                          temperature=25.0, current=current, charge=nan, capacity=nan,
                          design_capacity=nan, percentage=nan, power_supply_status=2,
                          power_supply_health=0, power_supply_technology=0, present=True,

@@ -344,9 +344,18 @@ def read_robot_bag(path: str | Path, *, mass_kg: float, current_sign: str = 'aut
         else:
             acc.add_pose(sample)
     if not windows or gait is None:
+        spans = {}
+        for t_s, _, topic, _ in samples:
+            lo, hi = spans.get(topic, (t_s, t_s))
+            spans[topic] = (min(lo, t_s), max(hi, t_s))
+        hint = ''
+        bat, gph = spans.get('/battery_state'), spans.get('/gait/phase')
+        if bat and gph and (bat[1] < gph[0] or gph[1] < bat[0]):
+            hint = (f'; the stamps do not overlap: /battery_state {bat[0]:.3f}..{bat[1]:.3f} s, '
+                    f'/gait/phase {gph[0]:.3f}..{gph[1]:.3f} s (stamped on different clocks?)')
         raise BagContentError(
             f'bag {path}: no whole gait cycle with battery samples around it '
-            '(need /gait/phase wrapping at least twice and /battery_state across it)'
+            f'(need /gait/phase wrapping at least twice and /battery_state across it){hint}'
         )
     w = np.array([d.window_s for d in windows])
     avg = lambda xs: float(np.sum(w * np.array(xs)) / np.sum(w))  # noqa: E731

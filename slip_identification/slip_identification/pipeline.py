@@ -298,6 +298,13 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
         off = estimate(method)
     else:
         off = float(offset_s)
+    tj_span = (float(np.min(tj)), float(np.max(tj)))
+    tm_span = (float(np.min(tm[inside])) - off, float(np.max(tm[inside])) - off)
+    if tm_span[1] < tj_span[0] or tj_span[1] < tm_span[0]:
+        raise SlipDataError(
+            f'run {run.label!r}: motion capture ({tm_span[0]:.3f}..{tm_span[1]:.3f} s after the '
+            f'{off:+.3f} s offset) and joint states ({tj_span[0]:.3f}..{tj_span[1]:.3f} s) do '
+            'not overlap: stamped on different clocks? give the offset (--offset SECONDS)')
     geo_inputs: tuple[Any, ...] = ()
     if can_geo and (edges == 'geometry' or method == 'geometry'):
         assert geometry is not None and position is not None

@@ -104,3 +104,9 @@ def test_joints_split_over_two_messages_per_sample(tmp_path):
     # halve it (the mean over messages of each message's sum did)
     np.testing.assert_allclose(split.power_out_w, whole.power_out_w, rtol=1e-12)
     np.testing.assert_allclose(split.power_in_w, whole.power_in_w, rtol=1e-12)
+
+
+def test_battery_stamped_on_another_clock_is_refused_naming_it(tmp_path):
+    write_outside_bag(tmp_path / 'bag', battery_clock_s=5000.0)
+    with pytest.raises(BagContentError, match='different clocks'):
+        read_robot_bag(tmp_path / 'bag', mass_kg=2.0)

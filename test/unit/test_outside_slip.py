@@ -41,7 +41,7 @@ def _header(t_s: float | None, frame: str = ''):
 
 def _write(path, run, *, yaw_deg=35.0, shift_m=(2.4, -1.3, 0.0), rate_hz=100.0,
            hip_angles=True, shuffle_names=False, zero_stamps=False, nan_current=False,
-           t0_s=500.0):
+           mocap_clock_s=MOCAP_OFFSET_S, t0_s=500.0):
     yaw = math.radians(yaw_deg)
     rot = np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0],
                     [0.0, 0.0, 1.0]])
@@ -85,7 +85,7 @@ def _write(path, run, *, yaw_deg=35.0, shift_m=(2.4, -1.3, 0.0), rate_hz=100.0,
                          cell_temperature=np.zeros(0, np.float32), location='',
                          serial_number='')))
     for k, t in enumerate(tn):
-        ts = t0_s + t + MOCAP_OFFSET_S
+        ts = t0_s + t + mocap_clock_s
         msgs.append((ts, '/mocap/body', 'geometry_msgs/msg/PoseStamped',
                      T['geometry_msgs/msg/PoseStamped'](
                          header=hdr(ts, 'lab_world'), pose=T['geometry_msgs/msg/Pose'](
@@ -104,11 +104,11 @@ def _write(path, run, *, yaw_deg=35.0, shift_m=(2.4, -1.3, 0.0), rate_hz=100.0,
     return path
 
 
-def _slip(tmp_path, bag, name):
+def _slip(tmp_path, bag, name, *extra):
     ap = argparse.ArgumentParser()
     sub = ap.add_subparsers(dest='command', required=True)
     add_cli(sub)
-    args = ap.parse_args(['slip', str(bag), '--out', str(tmp_path / name)])
+    args = ap.parse_args(['slip', str(bag), '--out', str(tmp_path / name), *extra])
     code = args.func(args)
     return code, json.loads((tmp_path / name / 'slip.json').read_text())
 
@@ -172,3 +172,16 @@ def test_zero_header_stamps_and_nan_battery_current(tmp_path, sim_run):
     notes = ' '.join(run['notes'])
     assert 'zero header stamp' in notes and '/mocap/body' in notes
     assert 'no usable /battery_state' in notes
+
+
+def test_mocap_on_another_clock_refused_in_one_line(tmp_path, sim_run):
+    bag = _write(tmp_path / 'lab', sim_run, mocap_clock_s=-400.0)
+    code, doc = _slip(tmp_path, bag, 'out')
+    assert code == 1 and not doc['stances']
+    err = doc['failed_bags'][0]['error']
+    assert '\n' not in err and 'overlap' in err
+    # with the offset given (wrongly) the refusal names the clocks
+    code, doc = _slip(tmp_path, bag, 'out2', '--offset', '0.02')
+    assert code == 1 and not doc['stances']
+    err = doc['failed_bags'][0]['error']
+    assert '\n' not in err and 'different clocks' in err
