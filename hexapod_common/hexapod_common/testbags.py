@@ -10,15 +10,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from ruamel.yaml import YAML
 
 from hexapod_common.bags import BagWriter, find_msg_dir, new_msg, stamp
 
-__all__ = ['P0_W', 'PERIOD_S', 'downgrade_sqlite_bag', 'write_foreign_robot_bag',
-           'write_mixed_bag']
+__all__ = ['P0_W', 'PERIOD_S', 'downgrade_sqlite_bag', 'foreign_typestore',
+           'write_foreign_robot_bag', 'write_mixed_bag']
 
 LEGS = ('L1', 'L2', 'L3', 'R1', 'R2', 'R3')
 JOINTS = [f'{leg}_{j}' for leg in LEGS for j in ('coxa', 'femur', 'tibia')]
@@ -65,11 +64,12 @@ def write_mixed_bag(path: str | Path, n_messages: int, *, storage: str = 'mcap',
 # -- bags as other labs record them ------------------------------------------------------
 
 @lru_cache(maxsize=1)
-def _foreign_store() -> Any:
-    """Another lab's typestore: plain Jazzy plus only the GaitPhase it publishes."""
+def foreign_typestore() -> Any:
+    """Another lab's typestore: plain Jazzy plus the GaitPhase and BenchSession it publishes."""
     store = get_typestore(Stores.ROS2_JAZZY)
-    store.register(get_types_from_msg((find_msg_dir() / 'GaitPhase.msg').read_text(),
-                                      'hexapod_interfaces/msg/GaitPhase'))
+    for name in ('GaitPhase', 'BenchSession'):
+        store.register(get_types_from_msg((find_msg_dir() / f'{name}.msg').read_text(),
+                                          f'hexapod_interfaces/msg/{name}'))
     return store
 
 
@@ -81,7 +81,7 @@ NO_HASH = 'RIHS01_' + '0' * 64
 
 
 def _header(t_s: float) -> Any:
-    T = _foreign_store().types
+    T = foreign_typestore().types
     ns = int(round(t_s * 1e9))
     return T['std_msgs/msg/Header'](
         stamp=T['builtin_interfaces/msg/Time'](sec=ns // 10**9, nanosec=ns % 10**9), frame_id='')
@@ -120,7 +120,7 @@ def write_foreign_robot_bag(path: str | Path, *, legs: int = 4, duration_s: floa
     them), ``battery_clock_s`` (battery stamps on another clock, this far ahead). Returns ``{'joints': names, 'pout': (n, 2)
     array of (stamp [s], positive joint power [W])}``.
     """
-    STORE = _foreign_store()
+    STORE = foreign_typestore()
     T = STORE.types
     rng = np.random.default_rng(seed)
     names, offsets = _wave(legs)

@@ -101,10 +101,15 @@ class BenchData:
     tip_t_s: np.ndarray
     tip_z_m: np.ndarray
     sessions: list[dict[str, Any]] = field(default_factory=list)  # stamp-ordered messages
+    notes: list[str] = field(default_factory=list)  # input fallbacks (dropped messages)
 
 
 def read_bench_bag(path: str | Path) -> BenchData:
-    """Read one bench bag's streams."""
+    """Read one bench bag's streams.
+
+    A bad message (NaN voltage or current, a NaN force or tip height) is dropped and counted
+    in ``notes``; a topic left without messages raises :class:`BagContentError`.
+    """
     from hexapod_common.bags import iter_messages, open_reader
     from hexapod_common.conversions import (
         battery_from_msg,
@@ -117,19 +122,29 @@ def read_bench_bag(path: str | Path) -> BenchData:
     frc: list[tuple[float, float]] = []
     tip: list[tuple[float, float]] = []
     ses: list[dict[str, Any]] = []
+    dropped: dict[str, list[str]] = {}
     with open_reader(path) as reader:
         _check_topics(reader, BENCH_TOPICS, str(path))
         for m in iter_messages(reader, BENCH_TOPICS):
             msg = reader.deserialize(m.data, m.msgtype)
             if m.topic == '/battery_state':
-                b = battery_from_msg(msg)
+                try:
+                    b = battery_from_msg(msg)
+                except ValueError as err:  # a bad message is dropped, as live
+                    dropped.setdefault(m.topic, []).append(str(err))
+                    continue
                 bat.append((b.t_s, b.voltage_v, b.current_a))
-            elif m.topic == '/bench/ground_force':
-                w = wrench_from_msg(msg)
-                frc.append((w.t_s, float(w.force_n[2])))
-            elif m.topic == '/bench/leg_tip':
-                p = point_from_msg(msg)
-                tip.append((p.t_s, float(p.point_m[2])))
+            elif m.topic in ('/bench/ground_force', '/bench/leg_tip'):
+                if m.topic == '/bench/ground_force':
+                    w = wrench_from_msg(msg)
+                    row = (w.t_s, float(w.force_n[2]))
+                else:
+                    p = point_from_msg(msg)
+                    row = (p.t_s, float(p.point_m[2]))
+                if not math.isfinite(row[1]):
+                    dropped.setdefault(m.topic, []).append(f'non-finite value {row[1]}')
+                    continue
+                (frc if m.topic == '/bench/ground_force' else tip).append(row)
             else:
                 ses.append({
                     't_s': stamp_to_s(msg.header.stamp),
@@ -143,13 +158,17 @@ def read_bench_bag(path: str | Path) -> BenchData:
     for name, rows in (('/battery_state', bat), ('/bench/ground_force', frc),
                        ('/bench/leg_tip', tip), ('/bench/session', ses)):
         if not rows:
-            raise BagContentError(f'bag {path}: topic {name} has no messages')
+            why = (f' ({len(dropped[name])} dropped, e.g. {dropped[name][0]}' +
+                   ('; input power needs both voltage and current)'
+                    if name == '/battery_state' else ')')) if name in dropped else ''
+            raise BagContentError(f'bag {path}: topic {name} has no usable messages{why}')
+    notes = [f'{len(e)} {t} message(s) dropped: {e[0]}' for t, e in sorted(dropped.items())]
     b_arr = np.array(sorted(bat))
     f_arr = np.array(sorted(frc))
     t_arr = np.array(sorted(tip))
     ses.sort(key=lambda s: s['t_s'])
     return BenchData(str(path), b_arr[:, 0], b_arr[:, 1], b_arr[:, 2], f_arr[:, 0],
-                     f_arr[:, 1], t_arr[:, 0], t_arr[:, 1], ses)
+                     f_arr[:, 1], t_arr[:, 0], t_arr[:, 1], ses, notes)
 
 
 def _walking_segments(sessions: list[dict[str, Any]], t_end_s: float
@@ -236,7 +255,7 @@ def bench_phase_samples(
             load_kg=s['load_kg'], frequency_hz=s['frequency_hz'],
             duty_factor=s['duty_factor'] if s['duty_factor'] > 0 else 0.5))
     diag = {'bag': data.path, 'force_offset_s': offset, 'current_sign': sign,
-            'sessions': len(samples)}
+            'sessions': len(samples), 'notes': list(data.notes)}
     return samples, diag
 
 

@@ -15,7 +15,7 @@ plots, PNG + SVG) and the Fig. 7D power map; ``--recommend`` -> minimum-CoT/M ga
     {
       "schema": "hexapod_energy.energy/1",
       "bench": {"bags": [...], "diagnostics": [{"bag", "force_offset_s", "current_sign",
-                "sessions"}], "fit": {"spans", "chosen": {"stance", "swing"},
+                "sessions", "notes" (dropped messages)}], "fit": {"spans", "chosen": {"stance", "swing"},
                 "cv_rmse_w": {"stance": {"lowess", "poly"}, "swing": {...}},
                 "fit_rmse_w": {"stance", "swing"}, "basal_power_w": {"<load kg>": W},
                 "sessions": [PhaseSample fields]}},

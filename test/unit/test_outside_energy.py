@@ -110,3 +110,65 @@ def test_battery_stamped_on_another_clock_is_refused_naming_it(tmp_path):
     write_outside_bag(tmp_path / 'bag', battery_clock_s=5000.0)
     with pytest.raises(BagContentError, match='different clocks'):
         read_robot_bag(tmp_path / 'bag', mass_kg=2.0)
+
+
+def _bench_bag(path, *, nan_every: int) -> None:
+    """A short bench bag written with rosbags' Writer; every ``nan_every``-th battery current
+    is NaN (a power meter's glitch)."""
+    import math
+
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    from hexapod_common.testbags import foreign_typestore
+
+    store = foreign_typestore()
+    T = store.types
+
+    def header(t):
+        ns = int(round(t * 1e9))
+        return T['std_msgs/msg/Header'](stamp=T['builtin_interfaces/msg/Time'](
+            sec=ns // 10**9, nanosec=ns % 10**9), frame_id='')
+
+    nan = math.nan
+    msgs = [(100.0, '/bench/session', 'hexapod_interfaces/msg/BenchSession',
+             T['hexapod_interfaces/msg/BenchSession'](
+                 header=header(100.0), session_id='s0', state='walking', load_mass=0.1,
+                 frequency=1.0, duty_factor=0.5, step_length=0.1, step_height=0.04))]
+    for k, t in enumerate(np.arange(100.0, 102.0, 0.01)):
+        cur = nan if k % nan_every == 0 else -0.5
+        msgs.append((t, '/battery_state', 'sensor_msgs/msg/BatteryState',
+                     T['sensor_msgs/msg/BatteryState'](
+                         header=header(t), voltage=12.0, temperature=nan, current=cur,
+                         charge=nan, capacity=nan, design_capacity=nan, percentage=nan,
+                         power_supply_status=2, power_supply_health=0,
+                         power_supply_technology=0, present=True,
+                         cell_voltage=np.zeros(0, np.float32),
+                         cell_temperature=np.zeros(0, np.float32), location='',
+                         serial_number='')))
+        msgs.append((t, '/bench/ground_force', 'geometry_msgs/msg/WrenchStamped',
+                     T['geometry_msgs/msg/WrenchStamped'](
+                         header=header(t), wrench=T['geometry_msgs/msg/Wrench'](
+                             force=T['geometry_msgs/msg/Vector3'](x=0.0, y=0.0, z=2.0),
+                             torque=T['geometry_msgs/msg/Vector3'](x=0.0, y=0.0, z=0.0)))))
+        msgs.append((t, '/bench/leg_tip', 'geometry_msgs/msg/PointStamped',
+                     T['geometry_msgs/msg/PointStamped'](
+                         header=header(t), point=T['geometry_msgs/msg/Point'](
+                             x=0.0, y=0.0, z=0.0))))
+    with Writer(path, version=8, storage_plugin=StoragePlugin.SQLITE3) as w:
+        conns = {}
+        for i, (t, topic, typ, msg) in enumerate(sorted(msgs, key=lambda m: m[0])):
+            if topic not in conns:
+                conns[topic] = w.add_connection(topic, typ, typestore=store)
+            w.write(conns[topic], int(t * 1e9) + i, store.serialize_cdr(msg, typ))
+
+
+def test_bench_bag_battery_glitches_dropped_and_all_nan_refused(tmp_path):
+    from hexapod_energy.bag_io import read_bench_bag
+
+    _bench_bag(tmp_path / 'glitch', nan_every=10)
+    data = read_bench_bag(tmp_path / 'glitch')
+    assert data.battery_a.size == 180 and np.all(np.isfinite(data.battery_a))
+    assert any('20 /battery_state' in n for n in data.notes)
+    _bench_bag(tmp_path / 'nan', nan_every=1)
+    with pytest.raises(BagContentError, match='voltage and current'):
+        read_bench_bag(tmp_path / 'nan')
