@@ -27,6 +27,8 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
                 "ground_m" [m, fitted ground height in the path frame, null without it],
                 "paper_edges": [{"tripod", "touchdown", "liftoff"}],    # side by side:
                 "geometry_edges": [{"tripod", "touchdown", "liftoff"}], # single support
+                "geometry": LegGeometry fields used (--leg-radius, --hip-x, --hip-z,
+                            --hip-zero override the EduBot's) or null (--geometry none),
                 "stances", "skipped",
                 "notes": [str]}],   # input fallbacks: hip angles or efforts absent (paper
                                     # edges / xcorr offset), no sample in the default box,
@@ -63,7 +65,7 @@ from typing import Any
 import numpy as np
 
 from .energetics import gait_table, plot_figures
-from .errors import MissingTopicError, SlipError
+from .errors import MissingTopicError, SlipDataError, SlipError
 from .model import EDUBOT_MASS_KG, SlipModel
 from .geometry import LegGeometry
 from .pipeline import RunData, analyze_run
@@ -202,8 +204,10 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
         geometry = None
         if options.get('geometry', 'edubot') == 'edubot':
             tau = options.get('leg_damping_time', 'default')
-            geometry = (LegGeometry() if tau == 'default'
-                        else LegGeometry(leg_damping_time_s=tau))
+            overrides = dict(options.get('geometry_overrides') or {})
+            if tau != 'default':
+                overrides['leg_damping_time_s'] = tau
+            geometry = LegGeometry(**overrides)
         res = analyze_run(run, model=model, box=box, offset_s=options.get('offset', 0.0),
                           offset_lag_s=options.get('offset_lag', 0.0),
                           edges=options.get('edges', 'paper'),
@@ -245,7 +249,27 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
                     'geometry_edges': [{'tripod': w.tripod, 'touchdown': w.touchdown_s,
                                         'liftoff': w.liftoff_s}
                                        for w in res.geometry_windows],
+                    'geometry': None if geometry is None else dataclasses.asdict(geometry),
                     'stances': len(stances), 'skipped': len(res.skipped), 'notes': notes}}
+
+
+def _geometry_overrides(args: argparse.Namespace) -> dict[str, Any]:
+    """LegGeometry fields given on the command line (another RHex-class robot's legs)."""
+    out: dict[str, Any] = {}
+    if getattr(args, 'leg_radius', None) is not None:
+        if not args.leg_radius > 0:
+            raise SlipDataError(f'--leg-radius must be > 0 m, got {args.leg_radius}')
+        out['leg_radius_m'] = float(args.leg_radius)
+    if getattr(args, 'hip_x', None) is not None:
+        front, middle, rear = (float(v) for v in args.hip_x)
+        if not front > middle > rear:
+            raise SlipDataError(f'--hip-x expects front > middle > rear [m], got {args.hip_x}')
+        out['hip_x_m'] = (front, middle, rear)
+    if getattr(args, 'hip_z', None) is not None:
+        out['hip_z_m'] = float(args.hip_z)
+    if getattr(args, 'hip_zero', None) is not None:
+        out['hip_zero_rad'] = float(args.hip_zero)
+    return out
 
 
 def run_command(args: argparse.Namespace) -> int:
@@ -257,6 +281,7 @@ def run_command(args: argparse.Namespace) -> int:
     methods = ('auto', 'contact', 'joint', 'xcorr', 'geometry')
     options = {'offset': args.offset if args.offset in methods else float(args.offset),
                'edges': args.edges, 'geometry': args.geometry,
+               'geometry_overrides': _geometry_overrides(args),
                'leg_damping_time': (None if args.leg_damping_time in ('fit', 'none')
                                     else 'default' if args.leg_damping_time == 'default'
                                     else float(args.leg_damping_time)),
@@ -323,7 +348,16 @@ def add_cli(subparsers: Any) -> None:
                         "paper's edges are always in runs[].paper_edges)")
     p.add_argument('--geometry', choices=('edubot', 'none'), default='edubot',
                    help="robot description for the geometric edges/offset: 'edubot' "
-                        '(slip_identification.geometry.LegGeometry defaults) or none')
+                        '(slip_identification.geometry.LegGeometry defaults, fields overridden by '
+                        '--leg-radius/--hip-x/--hip-z/--hip-zero for another robot) or none')
+    p.add_argument('--leg-radius', type=float, default=None, metavar='M',
+                   help='half-circle leg arc radius R [m] (hip-to-toe chord 2R; EduBot 0.0525)')
+    p.add_argument('--hip-x', type=float, nargs=3, default=None, metavar=('FRONT', 'MIDDLE', 'REAR'),
+                   help='hip positions along the body axis from the COM [m] (EduBot 0.2 0 -0.2)')
+    p.add_argument('--hip-z', type=float, default=None, metavar='M',
+                   help='hip height above the tracked body point [m] (EduBot 0)')
+    p.add_argument('--hip-zero', type=float, default=None, metavar='RAD',
+                   help='leg angle from the body\'s downward axis at hip angle 0 [rad] (EduBot 0)')
     p.add_argument('--leg-damping-time', default='default',
                    help="leg radial damping over stiffness [s] for the geometric fit, 'fit' "
                         "to fit it, or 'default' (the EduBot description's)")
