@@ -234,7 +234,8 @@ def _say_slip(slip: dict[str, Any]) -> None:
              f'{mm(r["true_ground_m"])}), {r["stances"]} stances')
     _say('   gait      stances  nerr mean       P [W]         v [m/s]       SR           '
          '(Table 3 in brackets)')
-    for gait, row in slip['gaits'].items():
+    order = {g: k for k, g in enumerate(TABLE3)}
+    for gait, row in sorted(slip['gaits'].items(), key=lambda kv: order.get(kv[0], 99)):
         ref = TABLE3.get(gait, (math.nan,) * 3)
         _say(f'   {gait:8s} {int(row.get("stances", 0)):6d}   {row.get("nerr_mean", math.nan):.3f} '
              f'({ref[0]:.3f})  {row.get("power_w_mean", math.nan):5.1f} ({ref[1]:5.1f})  '
