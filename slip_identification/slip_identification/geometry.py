@@ -75,6 +75,7 @@ from scipy.optimize import minimize, minimize_scalar
 from scipy.signal import savgol_filter
 
 from .errors import SlipDataError
+from .stance import longest_free_segment
 
 __all__ = [
     'GeometryFit',
@@ -791,20 +792,9 @@ def single_support(contacts: dict[str, FloatArray], tripods: dict[str, tuple[str
         others = _union([v for k, v in on.items() if k != tp])
         pieces = []
         for a, b in iv:
-            segs = [(a, b)]
-            for c, d in others:
-                nxt = []
-                for s0, s1 in segs:
-                    if d <= s0 or c >= s1:
-                        nxt.append((s0, s1))
-                        continue
-                    if c > s0:
-                        nxt.append((s0, c))
-                    if d < s1:
-                        nxt.append((d, s1))
-                segs = nxt
-            if segs:
-                s0, s1 = max(segs, key=lambda x: x[1] - x[0])
+            longest = longest_free_segment(a, b, others)
+            if longest is not None:
+                s0, s1 = longest
                 if not np.any((unk[:, 0] <= s1 + guard_s) & (unk[:, 1] >= s0 - guard_s)):
                     pieces.append((s0, s1))
         out[tp] = np.array(pieces, dtype=float).reshape(-1, 2)

@@ -25,6 +25,7 @@ __all__ = [
     'StanceWindow',
     'best_shift',
     'edges_from_target',
+    'longest_free_segment',
     'single_tripod_stances',
     'tripod_stance_windows',
 ]
@@ -115,6 +116,26 @@ def tripod_stance_windows(touchdown_s: ArrayLike, liftoff_s: ArrayLike) -> Float
     return np.array(out, dtype=float).reshape(-1, 2)
 
 
+def longest_free_segment(a: float, b: float, others: ArrayLike
+                         ) -> tuple[float, float] | None:
+    """Longest part of the interval ``[a, b]`` not covered by any of ``others`` (shape (k, 2)),
+    or None when it is covered entirely (single support: this tripod down, the other not)."""
+    segs = [(float(a), float(b))]
+    for c, d in np.asarray(others, dtype=float).reshape(-1, 2):
+        nxt = []
+        for s0, s1 in segs:
+            if d <= s0 or c >= s1:
+                nxt.append((s0, s1))
+                continue
+            if c > s0:
+                nxt.append((s0, c))
+            if d < s1:
+                nxt.append((d, s1))
+        segs = nxt
+    return max(segs, key=lambda x: x[1] - x[0]) if segs else None
+
+
+
 def single_tripod_stances(windows: dict[str, FloatArray], shifts: dict[str, float] | None = None,
                           *, min_duration_s: float = 0.0) -> list[StanceWindow]:
     """Single-tripod parts of each tripod's stance windows (the other tripod off the ground).
@@ -132,21 +153,10 @@ def single_tripod_stances(windows: dict[str, FloatArray], shifts: dict[str, floa
         others = np.concatenate([v for k, v in windows.items() if k != tripod] or
                                 [np.zeros((0, 2))])
         for a, b in np.asarray(w).reshape(-1, 2):
-            segs = [(a, b)]
-            for c, d in others:
-                nxt = []
-                for s0, s1 in segs:
-                    if d <= s0 or c >= s1:
-                        nxt.append((s0, s1))
-                        continue
-                    if c > s0:
-                        nxt.append((s0, c))
-                    if d < s1:
-                        nxt.append((d, s1))
-                segs = nxt
-            if not segs:
+            longest = longest_free_segment(a, b, others)
+            if longest is None:
                 continue
-            s0, s1 = max(segs, key=lambda x: x[1] - x[0])
+            s0, s1 = longest
             if s1 - s0 > min_duration_s:
                 out.append(StanceWindow(float(s0), float(s1), tripod, shifts.get(tripod, 0.0)))
     out.sort(key=lambda s: s.touchdown_s)
