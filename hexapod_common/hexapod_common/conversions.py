@@ -21,6 +21,7 @@ __all__ = [
     'WrenchSample',
     'PointSample',
     'battery_from_msg',
+    'current_sign_factor',
     'gait_phase_from_msg',
     'joint_state_from_msg',
     'point_from_msg',
@@ -30,6 +31,25 @@ __all__ = [
     's_to_stamp',
     'wrench_from_msg',
 ]
+
+
+def current_sign_factor(voltage_v: Any, current_a: Any, mode: str) -> float:
+    """Factor s such that input power P_in = s * V * I.
+
+    ``mode``: ``'ros'`` (sensor_msgs/BatteryState: current negative while discharging, s = -1),
+    ``'positive_discharge'`` (s = +1, some drivers) or ``'auto'`` (the sign that makes the
+    median V * I over the finite samples a positive input power; the median, so that a few
+    regenerative or glitch samples do not decide it). Raises ValueError on another mode.
+    """
+    if mode == 'ros':
+        return -1.0
+    if mode == 'positive_discharge':
+        return 1.0
+    if mode != 'auto':
+        raise ValueError(f'current sign must be ros, positive_discharge or auto, got {mode!r}')
+    vi = np.asarray(voltage_v, dtype=float) * np.asarray(current_a, dtype=float)
+    vi = vi[np.isfinite(vi)]
+    return -1.0 if vi.size == 0 or float(np.median(vi)) <= 0 else 1.0
 
 
 def stamp_to_s(stamp: Any) -> float:

@@ -37,6 +37,7 @@ from hexapod_common.conversions import (
     GaitPhaseSample,
     JointStateSample,
     PoseSample,
+    current_sign_factor,
 )
 
 __all__ = [
@@ -134,16 +135,10 @@ def joint_power_out_w(effort_nm: np.ndarray, velocity_rad_s: np.ndarray) -> floa
 def resolve_current_sign(voltage_v: np.ndarray, current_a: np.ndarray, mode: str) -> float:
     """Factor s such that P_in = s * V * I: -1 for ROS convention, +1 for positive discharge.
 
-    ``auto`` picks the sign that makes the median input power positive.
+    ``auto`` picks the sign that makes the median input power positive
+    (:func:`hexapod_common.conversions.current_sign_factor`).
     """
-    if mode == 'ros':
-        return -1.0
-    if mode == 'positive_discharge':
-        return 1.0
-    if mode != 'auto':
-        raise ValueError(f'current_sign must be ros, positive_discharge or auto, got {mode!r}')
-    median = float(np.median(np.asarray(voltage_v) * np.asarray(current_a)))
-    return -1.0 if median <= 0 else 1.0
+    return current_sign_factor(voltage_v, current_a, mode)
 
 
 def _mean_joint_power_w(joint: list[tuple[float, tuple[str, ...], np.ndarray]]) -> float:

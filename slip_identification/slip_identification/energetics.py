@@ -9,6 +9,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
+from hexapod_common.conversions import current_sign_factor
+
 from .errors import SlipDataError
 from .model import GRAVITY_MPS2
 
@@ -20,22 +22,23 @@ def battery_power_w(voltage_v: ArrayLike, current_a: ArrayLike, *, sign: str = '
     """Mean input power [W] and the current sign convention used.
 
     ``sign``: ``'ros'`` (current negative when discharging, P = -V I), ``'positive_discharge'``
-    (P = V I) or ``'auto'`` (whichever makes the mean power positive).
+    (P = V I) or ``'auto'`` (the sign that makes the median V I a positive input power, as the
+    energy analysis decides it: :func:`hexapod_common.conversions.current_sign_factor`).
     """
     v = np.asarray(voltage_v, dtype=float)
     i = np.asarray(current_a, dtype=float)
     ok = np.isfinite(v) & np.isfinite(i)
     if not ok.any():
         raise SlipDataError('battery power needs finite voltage and current samples')
-    vi = float(np.mean(v[ok] * i[ok]))
-    if sign == 'auto':
-        sign = 'ros' if vi < 0 else 'positive_discharge'
-    if sign not in ('ros', 'positive_discharge'):
-        raise SlipDataError(f"sign must be 'ros', 'positive_discharge' or 'auto', got {sign!r}")
-    p = -vi if sign == 'ros' else vi
+    try:
+        factor = current_sign_factor(v[ok], i[ok], sign)
+    except ValueError as err:
+        raise SlipDataError(str(err)) from None
+    name = 'ros' if factor < 0 else 'positive_discharge'
+    p = factor * float(np.mean(v[ok] * i[ok]))
     if p < 0:
-        raise SlipDataError(f'input power is negative ({p:.2f} W) with sign={sign!r}')
-    return p, sign
+        raise SlipDataError(f'input power is negative ({p:.2f} W) with sign={name!r}')
+    return p, name
 
 
 def specific_resistance(power_w: float, mass_kg: float, speed_mps: float,
