@@ -155,15 +155,26 @@ def _sim_loss_w(**kw) -> float:
     return float(np.mean(p_in - p_out))
 
 
-def test_duty_factor_and_wave_findings_follow_the_simulator(model) -> None:
+@pytest.fixture(scope='module')
+def findings(model) -> dict[str, dict[str, float]]:
+    """The fitted model at the paper's two comparisons: tripod beta 0.5 / 0.7 at 0.26 m/s
+    (no payload), tripod beta 0.5 / wave beta 0.83 at 0.1 m/s with 0.5 kg."""
+    opm = OutputPowerModel()
+    pay = (0.0, 0.5)
+    return {
+        'b5': _at(sweep_curve(SweepSpec('b5', 'tripod', 6, 0.5), model, opm), 0.26),
+        'b7': _at(sweep_curve(SweepSpec('b7', 'tripod', 6, 0.7), model, opm), 0.26),
+        'tri': _at(sweep_curve(SweepSpec('t', 'tripod', 6, 0.5), model, opm, payloads_kg=pay),
+                   0.1, 1),
+        'wave': _at(sweep_curve(SweepSpec('w', 'wave', 6, 0.83), model, opm, payloads_kg=pay),
+                    0.1, 1),
+    }
+
+
+def test_duty_factor_and_wave_findings_follow_the_simulator(findings) -> None:
     """beta 0.7 vs 0.5 at 0.26 m/s and wave vs tripod at 0.1 m/s with 0.5 kg: the fitted model
     and the simulated robot agree on the direction of the power-loss change."""
-    opm = OutputPowerModel()
-    b5 = _at(sweep_curve(SweepSpec('b5', 'tripod', 6, 0.5), model, opm), 0.26)
-    b7 = _at(sweep_curve(SweepSpec('b7', 'tripod', 6, 0.7), model, opm), 0.26)
-    pay = (0.0, 0.5)
-    tri = _at(sweep_curve(SweepSpec('t', 'tripod', 6, 0.5), model, opm, payloads_kg=pay), 0.1, 1)
-    wave = _at(sweep_curve(SweepSpec('w', 'wave', 6, 0.83), model, opm, payloads_kg=pay), 0.1, 1)
+    b5, b7, tri, wave = (findings[k] for k in ('b5', 'b7', 'tri', 'wave'))
     sim_b5 = _sim_loss_w(speed_mps=0.26, duty_factor=0.5)
     sim_b7 = _sim_loss_w(speed_mps=0.26, duty_factor=0.7)
     sim_tri = _sim_loss_w(speed_mps=0.1, payload_kg=0.5)
@@ -201,13 +212,8 @@ def test_duty_factor_and_wave_findings_follow_the_simulator(model) -> None:
     'bands; dither alone (friction_smoothing_rad_s=1) gives wave -1.7 % on the robot but the '
     'fitted model +20 % and a 9.4 % worst prediction error. With the calibrated servo the '
     'simulated robot loses +30 % (beta 0.7) and +14 % (wave); the fitted model +47 % and +41 %'))
-def test_paper_direction_beta_and_wave(model) -> None:
-    opm = OutputPowerModel()
-    b5 = _at(sweep_curve(SweepSpec('b5', 'tripod', 6, 0.5), model, opm), 0.26)
-    b7 = _at(sweep_curve(SweepSpec('b7', 'tripod', 6, 0.7), model, opm), 0.26)
-    pay = (0.0, 0.5)
-    tri = _at(sweep_curve(SweepSpec('t', 'tripod', 6, 0.5), model, opm, payloads_kg=pay), 0.1, 1)
-    wave = _at(sweep_curve(SweepSpec('w', 'wave', 6, 0.83), model, opm, payloads_kg=pay), 0.1, 1)
+def test_paper_direction_beta_and_wave(findings) -> None:
+    b5, b7, tri, wave = (findings[k] for k in ('b5', 'b7', 'tri', 'wave'))
     # the paper: about -10 % energy loss (beta 0.7) and up to -8 % CoT/M (wave, under load)
     assert b7['cot_per_mass'] < b5['cot_per_mass']
     assert wave['cot_per_mass'] < tri['cot_per_mass']
