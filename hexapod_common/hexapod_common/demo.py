@@ -303,7 +303,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     pe = batch.get('prediction_error') or {}
     if pe:
         _say(f'   single-leg prediction vs measured robot P_in: RMSE '
-             f'{pe.get("rmse_w", math.nan):.2f} W, bias {pe.get("bias_w", math.nan):+.2f} W')
+             f'{pe.get("rmse_w", math.nan):.2f} W, bias (predicted - measured) '
+             f'{pe.get("bias_w", math.nan):+.2f} W')
     res = batch.get('residuals')
     if isinstance(res, dict):
         held = res.get('heldout') or {}
