@@ -68,6 +68,7 @@ from .energetics import gait_table, plot_figures
 from .errors import MissingTopicError, SlipDataError, SlipError
 from .model import EDUBOT_MASS_KG, SlipModel
 from .geometry import LegGeometry
+from .joints import assemble_joint_frames
 from .pipeline import RunData, analyze_run
 from .preprocess import Box
 
@@ -134,29 +135,41 @@ def read_run(path: str | Path) -> RunData:
                      "run's power and specific resistance are null")
     if not js:
         raise MissingTopicError(f'bag {path}: /joint_states has no usable message')
-    names = js[0].names
-    # drivers need not keep one name order: every sample is put in the first one's order
-    js = [r for r in (_in_order(s, names) for s in js) if r.velocity.size == len(names)]
-    jc = [r for r in (_in_order(s, names) for s in jc) if r.velocity.size == len(names)]
-    for topic, samples in (('/joint_states', js), ('/joint_commands', jc), ('/mocap/body', mo)):
-        if not samples:
+    try:
+        joints = assemble_joint_frames(js)
+    except SlipDataError as err:
+        raise MissingTopicError(f'bag {path}: {err}') from err
+    names = joints.names
+    if joints.note:
+        notes.append(joints.note)
+    if all(len(s.names) == len(names) and set(s.names) == set(names) for s in jc):
+        # drivers need not keep one name order: every sample is put in the joints' order
+        jc = [r for r in (_in_order(s, names) for s in jc) if r.velocity.size == len(names)]
+        command_t_s = np.array([s.t_s for s in jc])
+        command_velocity = np.array([s.velocity for s in jc])
+    elif jc:  # commands split over several messages too
+        try:
+            cmd = assemble_joint_frames(jc, required=names)
+        except SlipDataError as err:
+            raise MissingTopicError(f'bag {path}: /joint_commands: {err}') from err
+        command_t_s = cmd.t_s
+        command_velocity = cmd.velocity[:, [cmd.names.index(n) for n in names]]
+        notes.append(f'/joint_commands: {cmd.note}')
+    for topic, n in (('/joint_states', joints.t_s.size), ('/joint_commands', len(jc)),
+                     ('/mocap/body', len(mo))):
+        if not n:
             raise MissingTopicError(f'bag {path}: {topic} has no usable message (with '
-                                    'velocities for the first message\'s joint names)')
+                                    'velocities for the joint names of /joint_states)')
     return RunData(
-        joint_names=names, joint_t_s=np.array([s.t_s for s in js]),
-        joint_velocity=np.array([s.velocity for s in js]),
-        command_t_s=np.array([s.t_s for s in jc]),
-        command_velocity=np.array([s.velocity for s in jc]),
+        joint_names=names, joint_t_s=joints.t_s, joint_velocity=joints.velocity,
+        command_t_s=command_t_s, command_velocity=command_velocity,
         mocap_t_s=np.array([s.t_s for s in mo]),
         mocap_position_m=np.array([s.position_m for s in mo]),
         mocap_quat_xyzw=np.array([s.orientation_xyzw for s in mo]),
         battery_t_s=np.array([s.t_s for s in bt]),
         battery_voltage_v=np.array([s.voltage_v for s in bt]),
         battery_current_a=np.array([s.current_a for s in bt]), gait=gait, label=str(path),
-        joint_effort=(np.array([s.effort for s in js])
-                      if all(s.effort.size == len(names) for s in js) else None),
-        joint_position=(np.array([s.position for s in js])
-                        if all(s.position.size == len(names) for s in js) else None),
+        joint_effort=joints.effort, joint_position=joints.position,
         notes=tuple(notes))
 
 

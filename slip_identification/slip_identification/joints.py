@@ -1,0 +1,440 @@
+"""Full joint frames from JointState messages split over several name groups (numpy only).
+
+Many robots publish one ``sensor_msgs/JointState`` per servo bus or per leg (hips L1-L3 in
+one message and R1-R3 in another, or one message per joint, each with its own stamp, possibly
+at slightly different rates). The SLIP analysis needs every hip at one time, so:
+
+- :func:`assemble_joint_frames` (offline, vectorised): samples are grouped by name set; when
+  every sample carries the same name set (in any order) the frames are the samples themselves,
+  put in the first sample's name order (the fast path: bit-identical to reading full frames).
+  Otherwise each joint's series (all samples naming it, in stamp order; at an equal stamp the
+  later message wins, so joints named by two groups take the most recent value) is linearly
+  interpolated onto the stamps of the densest group inside the span every joint covers (never
+  extrapolated); a frame that falls in a gap of any joint longer than ``max_gap_periods`` of
+  that joint's median period is dropped. Name sets that never cover the joint set (the
+  contract's ``L1..Lk``/``R1..Rk`` legs for every joint suffix seen, plus ``required``) raise
+  :class:`~slip_identification.errors.SlipDataError` naming the missing joints.
+- :class:`JointFrameAssembler` (online, O(J) per message with J joints, no growth with time):
+  the same rule incrementally. Full frames pass straight through; with split messages it first
+  learns the joint set (until the union is complete and every joint has been seen twice) and
+  the densest group, then emits a frame at each of that group's stamps as soon as every
+  joint has a sample at or after it (a delay of at most one period of the slowest group).
+
+Joint names follow DESIGN section 4: ``<leg>_<joint>`` with legs ``L1..Lk`` and ``R1..Rk``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+from collections import deque
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .errors import SlipDataError
+
+__all__ = [
+    'AssembledJoints',
+    'JointFrame',
+    'JointFrameAssembler',
+    'assemble_joint_frames',
+    'missing_joints',
+]
+
+_LEG_JOINT = re.compile(r'^([LR])(\d+)_(\w+)$')
+
+
+def missing_joints(names: Sequence[str], required: Sequence[str] = ()) -> list[str]:
+    """Joints the contract expects beside ``names`` that are absent.
+
+    For every joint suffix seen (``hip``, ``coxa``...), legs ``L1..Lk`` and ``R1..Rk`` with
+    ``k`` the largest leg number seen; plus ``required``. Names outside the contract's
+    pattern expect nothing.
+
+    Parameters
+    ----------
+    names : sequence of str
+        Joint names seen.
+    required : sequence of str
+        Names the consumer needs in any case.
+
+    Returns
+    -------
+    list of str
+        Missing names, sorted.
+    """
+    have = set(names)
+    legs: dict[str, int] = {}
+    for n in have:
+        m = _LEG_JOINT.match(n)
+        if m:
+            legs[m.group(3)] = max(legs.get(m.group(3), 0), int(m.group(2)))
+    expected = {f'{side}{i}_{suffix}' for suffix, k in legs.items()
+                for side in 'LR' for i in range(1, k + 1)}
+    expected.update(required)
+    return sorted(expected - have)
+
+
+@dataclass(frozen=True)
+class AssembledJoints:
+    """Full joint frames.
+
+    ``names`` (J,); ``t_s`` (n,) [s]; ``velocity`` (n, J) [rad/s]; ``position`` (n, J) [rad]
+    or None (some sample lacks it); ``effort`` (n, J) [N m] or None; ``groups`` the number of
+    distinct name sets (1: full frames); ``rate_hz`` the median frame rate; ``dropped`` frames
+    dropped in gaps; ``note`` a line for ``RunData.notes`` ('' for full frames).
+    """
+
+    names: tuple[str, ...]
+    t_s: np.ndarray
+    velocity: np.ndarray
+    position: np.ndarray | None
+    effort: np.ndarray | None
+    groups: int
+    rate_hz: float
+    dropped: int = 0
+    note: str = ''
+
+
+def _field_ok(samples: Sequence[Any], field: str) -> bool:
+    return all(getattr(s, field).size == len(s.names) for s in samples)
+
+
+def _fast_path(samples: Sequence[Any]) -> AssembledJoints:
+    """Every sample has the first one's name set: reorder into its order (no resampling)."""
+    names = tuple(samples[0].names)
+    rows = []
+    for s in samples:
+        if s.velocity.size != len(names):
+            continue  # no velocities: dropped, as before splitting was handled
+        if tuple(s.names) != names:
+            s = _reorder(s, names, [s.names.index(n) for n in names])
+        rows.append(s)
+    if not rows:
+        raise SlipDataError(f'no JointState sample has velocities for {list(names)}')
+    t = np.array([s.t_s for s in rows])
+    dt = np.diff(t)
+    rate = float(1.0 / np.median(dt)) if dt.size and np.median(dt) > 0 else float('nan')
+    return AssembledJoints(
+        names=names, t_s=t, velocity=np.array([s.velocity for s in rows]),
+        position=np.array([s.position for s in rows]) if _field_ok(rows, 'position') else None,
+        effort=np.array([s.effort for s in rows]) if _field_ok(rows, 'effort') else None,
+        groups=1, rate_hz=rate)
+
+
+def _reorder(s: Any, names: tuple[str, ...], idx: list[int]) -> Any:
+    return dataclasses.replace(
+        s, names=names, **{f: getattr(s, f)[idx] for f in ('position', 'velocity', 'effort')
+                           if getattr(s, f).size == len(names)})
+
+
+def assemble_joint_frames(samples: Sequence[Any], *, required: Sequence[str] = (),
+                          max_gap_periods: float = 5.0) -> AssembledJoints:
+    """Full frames from JointState samples that may each carry a subset of the joints.
+
+    Parameters
+    ----------
+    samples : sequence of JointStateSample-like
+        Objects with ``t_s`` [s], ``names``, ``position``, ``velocity``, ``effort`` (arrays
+        with one entry per name, or empty), in arrival order. Samples without velocities are
+        dropped.
+    required : sequence of str
+        Joint names that must be present in any case.
+    max_gap_periods : float
+        A frame whose bracketing samples of some joint are further apart than this many of
+        that joint's median sample periods is dropped (no interpolation over dropouts).
+
+    Returns
+    -------
+    AssembledJoints
+
+    Raises
+    ------
+    SlipDataError
+        No samples, name sets that never cover the joint set (the message names the missing
+        joints), or groups whose stamps never overlap.
+    """
+    if not samples:
+        raise SlipDataError('no JointState sample to assemble')
+    first = set(samples[0].names)
+    if all(len(s.names) == len(first) and set(s.names) == first for s in samples):
+        missing = missing_joints(tuple(first), required)
+        if missing:
+            raise SlipDataError(f'/joint_states never names joint(s) {missing}: every message '
+                                f'names {sorted(first)} only (the joint set is legs L1..Lk and '
+                                'R1..Rk for every joint)')
+        return _fast_path(samples)
+    usable = [s for s in samples if s.velocity.size == len(s.names) and len(s.names)]
+    # group by name set, in order of first appearance; joint order: first appearance
+    groups: dict[frozenset[str], list[float]] = {}
+    order: dict[str, None] = {}
+    for s in usable:
+        groups.setdefault(frozenset(s.names), []).append(s.t_s)
+        order.update(dict.fromkeys(s.names))
+    names = tuple(order)
+    missing = missing_joints(names, required)
+    if missing:
+        sets = sorted(sorted(g) for g in groups)
+        raise SlipDataError(
+            f'/joint_states never names joint(s) {missing}: its {len(groups)} name group(s) '
+            f'{sets} do not cover the joint set (legs L1..Lk and R1..Rk for every joint)')
+    has_pos = all(s.position.size == len(s.names) for s in usable)
+    has_eff = all(s.effort.size == len(s.names) for s in usable)
+    # one series per joint: every sample naming it, stamp order, the later message winning
+    # at an equal stamp
+    col = {n: j for j, n in enumerate(names)}
+    per_t: list[list[float]] = [[] for _ in names]
+    per_k: list[list[int]] = [[] for _ in names]
+    per_v: list[list[float]] = [[] for _ in names]
+    per_q: list[list[float]] = [[] for _ in names]
+    per_e: list[list[float]] = [[] for _ in names]
+    for k, s in enumerate(usable):
+        for i, n in enumerate(s.names):
+            j = col[n]
+            per_t[j].append(s.t_s)
+            per_k[j].append(k)
+            per_v[j].append(float(s.velocity[i]))
+            if has_pos:
+                per_q[j].append(float(s.position[i]))
+            if has_eff:
+                per_e[j].append(float(s.effort[i]))
+    series = []
+    for j in range(len(names)):
+        t = np.asarray(per_t[j])
+        o = np.lexsort((np.asarray(per_k[j]), t))
+        t = t[o]
+        keep = np.append(t[1:] > t[:-1], True)  # the last of equal stamps (most recent)
+        sel = o[keep]
+        series.append((t[keep], np.asarray(per_v[j])[sel],
+                       np.unwrap(np.asarray(per_q[j])[sel]) if has_pos else None,
+                       np.asarray(per_e[j])[sel] if has_eff else None))
+    lo = max(s[0][0] for s in series)
+    hi = min(s[0][-1] for s in series)
+    if not hi > lo:
+        raise SlipDataError(f'/joint_states name groups never overlap in time (common span '
+                            f'{lo:.3f}..{hi:.3f} s): cannot assemble full frames')
+    # the densest group's stamps inside the common span are the time base
+    base = None
+    for ts in groups.values():
+        t = np.unique(np.asarray(ts))
+        t = t[(t >= lo) & (t <= hi)]
+        if base is None or t.size > base.size:
+            base = t
+    assert base is not None
+    ok = np.ones(base.size, dtype=bool)
+    vel = np.empty((base.size, len(names)))
+    pos = np.empty((base.size, len(names))) if has_pos else None
+    eff = np.empty((base.size, len(names))) if has_eff else None
+    for j, (t, v, q, e) in enumerate(series):
+        dt = np.diff(t)
+        if dt.size:
+            i = np.clip(np.searchsorted(t, base, side='right'), 1, t.size - 1)
+            ok &= (t[i] - t[i - 1] <= max_gap_periods * float(np.median(dt))) | (base == t[i - 1])
+        vel[:, j] = np.interp(base, t, v)
+        if pos is not None and q is not None:
+            pos[:, j] = np.interp(base, t, q)
+        if eff is not None and e is not None:
+            eff[:, j] = np.interp(base, t, e)
+    base = base[ok]
+    dt = np.diff(base)
+    rate = float(1.0 / np.median(dt)) if dt.size else float('nan')
+    note = (f'joint states split over {len(groups)} name groups: assembled at {rate:.0f} Hz '
+            f'({base.size} frames, linear interpolation onto the densest group\'s stamps'
+            + (f', {int((~ok).sum())} frame(s) in joint gaps dropped' if (~ok).any() else '')
+            + ')')
+    return AssembledJoints(names=names, t_s=base, velocity=vel[ok],
+                           position=None if pos is None else pos[ok],
+                           effort=None if eff is None else eff[ok], groups=len(groups),
+                           rate_hz=rate, dropped=int((~ok).sum()), note=note)
+
+
+@dataclass(frozen=True)
+class JointFrame:
+    """One full frame: ``t_s`` [s], ``names`` (J,), ``velocity`` (J,) [rad/s], ``position``
+    (J,) [rad] or None, ``effort`` (J,) [N m] or None."""
+
+    t_s: float
+    names: tuple[str, ...]
+    velocity: np.ndarray
+    position: np.ndarray | None
+    effort: np.ndarray | None = None
+
+
+class JointFrameAssembler:
+    """Online assembly of full frames, O(J) per message (J joints).
+
+    Parameters
+    ----------
+    required : sequence of str
+        Joint names that must be present in any case.
+    history : int
+        Samples kept per joint (bounds memory; pending frames older than a joint's oldest
+        kept sample are dropped, never extrapolated).
+    learn_repeats : int
+        In split mode, samples of every joint needed before the joint set and the densest
+        group are fixed; if the set is still incomplete then, :meth:`add` raises once.
+
+    Attributes
+    ----------
+    names : tuple of str
+        The joint set once known (empty before).
+    groups : int
+        Distinct name sets seen (1: full frames).
+    dropped : int
+        Pending frames dropped (a joint's data too old or out of order).
+    """
+
+    def __init__(self, *, required: Sequence[str] = (), history: int = 16,
+                 learn_repeats: int = 2) -> None:
+        self.required = tuple(required)
+        self.history = history
+        self.learn_repeats = learn_repeats
+        self.names: tuple[str, ...] = ()
+        self.groups = 0
+        self.dropped = 0
+        self._split = False
+        self._reported = False
+        self._perm: dict[tuple[str, ...], np.ndarray] = {}
+        # learning (split mode): name sets -> counts, per-joint counts, buffered messages
+        self._sets: dict[frozenset[str], int] = {}
+        self._counts: dict[str, int] = {}
+        self._order: dict[str, None] = {}
+        self._learn: list[tuple[float, tuple[str, ...], np.ndarray, np.ndarray | None]] = []
+        self._clock: frozenset[str] | None = None
+        self._hist: list[deque[tuple[float, float, float]]] = []
+        self._col: dict[str, int] = {}
+        self._pending: deque[float] = deque()
+        self._has_pos = True
+
+    @property
+    def split(self) -> bool:
+        """True once the messages are known to be split over several name groups."""
+        return self._split
+
+    def add(self, t_s: float, names: Sequence[str], velocity: np.ndarray,
+            position: np.ndarray | None = None) -> list[JointFrame]:
+        """One JointState message; returns the frames completed by it (possibly none).
+
+        Raises
+        ------
+        SlipDataError
+            Array lengths disagree with the names, a name outside the learned joint set, or
+            (once) a joint set that stays incomplete.
+        """
+        names = tuple(names)
+        v = np.asarray(velocity, dtype=float)
+        q = None if position is None or len(position) == 0 else np.asarray(position, float)
+        if v.size != len(names) or (q is not None and q.size != v.size):
+            raise SlipDataError(f'JointState with {len(names)} names has {v.size} velocities '
+                                f'and {0 if q is None else q.size} positions')
+        if not self._split:
+            if names == self.names:
+                return [JointFrame(t_s, names, v, q)]
+            if self.names:
+                perm = self._perm.get(names)
+                if perm is None:
+                    if len(names) != len(self.names) or set(names) != set(self.names):
+                        raise SlipDataError(f'JointState names {list(names)} are not the '
+                                            f'joint set {list(self.names)}')
+                    perm = np.array([names.index(n) for n in self.names])
+                    self._perm[names] = perm
+                return [JointFrame(t_s, self.names, v[perm], None if q is None else q[perm])]
+            if not self._sets and not missing_joints(names, self.required):
+                self.names = names  # a complete first message: full frames
+                self.groups = 1
+                return [JointFrame(t_s, names, v, q)]
+            return self._learning(t_s, names, v, q)
+        return self._push(t_s, names, v, q, emit=True)
+
+    # -- split mode --------------------------------------------------------------------
+    def _learning(self, t_s: float, names: tuple[str, ...], v: np.ndarray,
+                  q: np.ndarray | None) -> list[JointFrame]:
+        key = frozenset(names)
+        self._sets[key] = self._sets.get(key, 0) + 1
+        self._order.update(dict.fromkeys(names))
+        for n in names:
+            self._counts[n] = self._counts.get(n, 0) + 1
+        self._learn.append((t_s, names, v, q))
+        if len(self._learn) > 64 * max(1, len(self._order)):
+            del self._learn[0]
+        if min(self._counts.values()) < self.learn_repeats:
+            return []
+        union = tuple(self._order)
+        missing = missing_joints(union, self.required)
+        if missing:
+            if self._reported:
+                return []
+            self._reported = True
+            raise SlipDataError(f'joint states never name joint(s) {missing} (name groups '
+                                f'{sorted(sorted(g) for g in self._sets)})')
+        self._split = True
+        self.names = union
+        self.groups = len(self._sets)
+        self._col = {n: j for j, n in enumerate(union)}
+        self._clock = max(self._sets, key=lambda k: self._sets[k])  # first seen on ties
+        self._hist = [deque(maxlen=self.history) for _ in union]
+        self._has_pos = all(x[3] is not None for x in self._learn)
+        out: list[JointFrame] = []
+        for x in self._learn:
+            out.extend(self._push(*x, emit=True))
+        self._learn.clear()
+        return out
+
+    def _push(self, t_s: float, names: tuple[str, ...], v: np.ndarray,
+              q: np.ndarray | None, *, emit: bool) -> list[JointFrame]:
+        for i, n in enumerate(names):
+            j = self._col.get(n)
+            if j is None:
+                raise SlipDataError(f'joint {n!r} is not in the assembled joint set '
+                                    f'{list(self.names)}')
+            h = self._hist[j]
+            qi = float(q[i]) if q is not None else float('nan')
+            if h and t_s < h[-1][0]:
+                self.dropped += 1  # out of order for this joint: dropped
+                continue
+            if h and t_s == h[-1][0]:
+                h.pop()  # the most recent value wins at an equal stamp
+            if h and q is not None and np.isfinite(h[-1][2]):
+                d = qi - h[-1][2]
+                qi = h[-1][2] + d - 2 * math.pi * round(d / (2 * math.pi))  # unwrapped
+            h.append((t_s, float(v[i]), qi))
+        if frozenset(names) == self._clock:
+            self._pending.append(t_s)
+        out: list[JointFrame] = []
+        while self._pending:
+            tp = self._pending[0]
+            if any(not h or h[-1][0] < tp for h in self._hist):
+                break  # some joint has no sample at or after tp yet
+            self._pending.popleft()
+            frame = self._interp(tp)
+            if frame is None:
+                self.dropped += 1
+            else:
+                out.append(frame)
+        return out
+
+    def _interp(self, tp: float) -> JointFrame | None:
+        vel = np.empty(len(self.names))
+        pos = np.empty(len(self.names)) if self._has_pos else None
+        for j, h in enumerate(self._hist):
+            if h[0][0] > tp:
+                return None  # never extrapolate
+            k = len(h) - 1
+            while k > 0 and h[k - 1][0] >= tp:
+                k -= 1
+            t1, v1, q1 = h[k]
+            if t1 == tp or k == 0:
+                vel[j] = v1
+                if pos is not None:
+                    pos[j] = q1
+                continue
+            t0, v0, q0 = h[k - 1]
+            w = (tp - t0) / (t1 - t0)
+            vel[j] = v0 + w * (v1 - v0)
+            if pos is not None:
+                pos[j] = q0 + w * (q1 - q0)
+        return JointFrame(tp, self.names, vel, pos)
