@@ -39,9 +39,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import SlipError
+from .errors import SlipDataError, SlipError
 from .fit import SlipFitResult, SlipFitter, Stance, validate_stance
 from .geometry import LegGeometry, body_pitch_rad, leg_contacts, single_support
+from .joints import JointFrameAssembler, missing_joints
 from .model import SlipModel
 from .pipeline import TRIPODS, _tripod_mean, _up_from_quats
 from .preprocess import Box, WorldFrame, fit_world_frame, permissible_mask, sagittal_state
@@ -122,6 +123,10 @@ class OnlineSlip:
         self._cmd: deque[tuple[float, np.ndarray]] = deque()
         self._mocap: deque[tuple[float, np.ndarray, np.ndarray]] = deque()
         self.names: tuple[str, ...] = ()
+        self._joints = JointFrameAssembler()
+        self._cmd_joints = JointFrameAssembler()
+        self._cmd_perm: dict[tuple[str, ...], np.ndarray] = {}
+        self._early_cmd_names: tuple[str, ...] | None = None
         self._done: list[tuple[str, float]] = []
         self.skipped: list[OnlineSkip] = []
         self.latency_s: list[float] = []
@@ -142,11 +147,20 @@ class OnlineSlip:
 
     def add_joint_state(self, t_s: float, names: tuple[str, ...], velocity: np.ndarray,
                         position: np.ndarray | None = None) -> None:
-        """One joint-state sample: speeds [rad/s] and, for the geometric edges, angles
-        [rad] (unwrapped)."""
-        if self.names and names != self.names:
-            raise SlipError(f'joint names changed: {names} != {self.names}')
-        self.names = names
+        """One joint-state message: speeds [rad/s] and, for the geometric edges, angles
+        [rad] (unwrapped). A message may carry a subset of the joints (one per servo bus or
+        per joint): full frames are assembled by :class:`.joints.JointFrameAssembler`
+        (O(J) per message); a message naming every joint is used as it is."""
+        if names == self.names and not self._joints.split:  # full frames: the hot path
+            self._append_js(t_s, velocity, position)
+            return
+        for fr in self._joints.add(t_s, names, velocity, position):
+            if not self.names:
+                self._set_names(fr.names)
+            self._append_js(fr.t_s, fr.velocity, fr.position)
+
+    def _append_js(self, t_s: float, velocity: np.ndarray,
+                   position: np.ndarray | None) -> None:
         v = np.asarray(velocity, dtype=float)
         q = np.full(v.shape, np.nan) if position is None or len(position) == 0 \
             else np.asarray(position, dtype=float)
@@ -155,11 +169,37 @@ class OnlineSlip:
         self._js.append((t_s, v, q))
         self._trim(self._js, t_s)
 
+    def _set_names(self, names: tuple[str, ...]) -> None:
+        """Fix the joint set; commands buffered before it in another order are reordered."""
+        self.names = names
+        early = self._early_cmd_names
+        if early and early != names and set(early) == set(names):
+            idx = np.array([early.index(n) for n in names])
+            self._cmd = deque((t, v[idx]) for t, v in self._cmd)
+
     def add_command(self, t_s: float, names: tuple[str, ...], velocity: np.ndarray) -> None:
-        if self.names and names != self.names:
-            raise SlipError(f'command joint names {names} differ from {self.names}')
-        self._cmd.append((t_s, np.asarray(velocity, dtype=float)))
-        self._trim(self._cmd, t_s)
+        """One command message (target speeds [rad/s]); split messages are assembled and
+        put in the joint states' name order."""
+        if names == self.names or not self.names and names == self._early_cmd_names \
+                or not self.names and self._early_cmd_names is None \
+                and not missing_joints(names):
+            if not self.names:
+                self._early_cmd_names = names
+            self._cmd.append((t_s, np.asarray(velocity, dtype=float)))
+            self._trim(self._cmd, t_s)
+            return
+        for fr in self._cmd_joints.add(t_s, names, velocity):
+            if not self.names:
+                continue  # the joint set is not known yet
+            perm = self._cmd_perm.get(fr.names)
+            if perm is None:
+                if set(fr.names) != set(self.names):
+                    raise SlipDataError(f'command joint names {fr.names} differ from '
+                                        f'{self.names}')
+                perm = np.array([fr.names.index(n) for n in self.names])
+                self._cmd_perm[fr.names] = perm
+            self._cmd.append((fr.t_s, fr.velocity[perm]))
+            self._trim(self._cmd, fr.t_s)
 
     def add_mocap(self, t_s: float, position_m: np.ndarray, quat_xyzw: np.ndarray) -> None:
         self._mocap.append((t_s - self.mocap_offset_s, np.asarray(position_m, dtype=float),
