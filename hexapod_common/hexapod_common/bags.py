@@ -337,10 +337,12 @@ class OpenedReader(AnyReader):
     """An AnyReader that is already open; ``with`` just closes it at the end.
 
     ``topic_alias`` maps recorded topic -> analysed topic for the connections renamed by
-    :meth:`apply_remap` (``connections`` then carry the analysed names).
+    :meth:`apply_remap` (``connections`` then carry the analysed names). ``notes`` lists how
+    the input was read when it was not an ordinary bag (mcap files without metadata.yaml).
     """
 
     topic_alias: dict[str, str]
+    notes: list[str]
 
     def apply_remap(self, remap: dict[str, str], namespace: str = '') -> None:
         """Rename connections: explicit ``remap`` first, then strip ``namespace``.
@@ -413,15 +415,25 @@ def open_reader(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[str]]
     remapping of the ``HEXAPOD_BAG_REMAP`` environment variable applies (see module doc).
     """
     items = [paths] if isinstance(paths, (str, os.PathLike)) else list(paths)
-    resolved = [Path(p) for p in items]
-    for p in resolved:
+    resolved: list[Path] = []
+    notes: list[str] = []
+    for p in (Path(x) for x in items):
         if not p.exists():
             raise BagNotFoundError(f'no such bag: {p}')
         if p.is_dir() and not (p / 'metadata.yaml').is_file():
-            storage = sorted(x.name for x in p.glob('*') if x.suffix in ('.mcap', '.db3'))
-            hint = f' (storage files {storage} but no metadata.yaml: the recording was cut ' \
-                   'before its first split closed or was copied incompletely)' if storage else ''
+            mcaps = sorted(p.glob('*.mcap'))
+            if mcaps:
+                # mcap files carry their own schemas and channels: read them without the
+                # rosbag2 metadata (lost in a copy, or a recording killed before it was written)
+                resolved.extend(mcaps)
+                notes.append(f'{p}: no metadata.yaml; read its {len(mcaps)} mcap file(s) '
+                             'directly')
+                continue
+            storage = sorted(x.name for x in p.glob('*.db3'))
+            hint = f' (sqlite3 files {storage} but no metadata.yaml: recreate it with ' \
+                   '`ros2 bag reindex`)' if storage else ''
             raise BagReadError(f'not a rosbag2 bag (no metadata.yaml): {p}{hint}')
+        resolved.append(p)
     try:
         reader = OpenedReader(resolved, default_typestore=typestore())
         reader.open()
@@ -430,6 +442,7 @@ def open_reader(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[str]]
         where = ', '.join(str(p) for p in resolved)
         raise BagReadError(f'cannot read bag {where}: {msg}') from err
     reader.topic_alias = {}
+    reader.notes = notes
     if remap is None and namespace is None:
         remap, namespace = _remap_from_env()
     if remap or namespace:

@@ -62,6 +62,31 @@ def test_reader_errors_are_typed_and_name_the_path(tmp_path):
         open_reader(tmp_path / 'plain')
 
 
+def test_mcap_files_without_metadata_are_read_with_a_note(tmp_path):
+    """A recording whose metadata.yaml was lost (copied without it, or killed before rosbag2
+    wrote it): the mcap splits carry their own schemas, so every message is still read; sqlite3
+    splits cannot be read without it and are refused with the fix named."""
+    bag = tmp_path / 'b'
+    with BagWriter(bag, storage='mcap', split_every_s=0.0) as writer:
+        for k in range(5):
+            msg = new_msg('sensor_msgs/msg/BatteryState', header=stamp(k * 10**7),
+                          voltage=12.0, current=-1.0 - k)
+            writer.write('/battery_state', 'sensor_msgs/msg/BatteryState', msg, k * 10**7)
+    (bag / 'metadata.yaml').unlink()
+    with open_reader(bag) as reader:
+        currents = [battery_from_msg(reader.deserialize(m.data, m.msgtype)).current_a
+                    for m in iter_messages(reader)]
+        assert reader.notes and 'no metadata.yaml' in reader.notes[0]
+    assert currents == [-1.0 - k for k in range(5)]
+    db = tmp_path / 'd'
+    with BagWriter(db, storage='sqlite3') as writer:
+        writer.write('/battery_state', 'sensor_msgs/msg/BatteryState',
+                     new_msg('sensor_msgs/msg/BatteryState', voltage=12.0), 1)
+    (db / 'metadata.yaml').unlink()
+    with pytest.raises(BagReadError, match='ros2 bag reindex'):
+        open_reader(db)
+
+
 def test_new_msg_fills_defaults_and_rejects_unknown_fields():
     msg = new_msg('sensor_msgs/msg/JointState', name=['a'], position=[1.5])
     assert msg.position.dtype == np.float64 and msg.velocity.size == 0
