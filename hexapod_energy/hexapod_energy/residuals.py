@@ -38,13 +38,17 @@ __all__ = [
     'ResidualDataError',
     'ResidualRun',
     'SampleView',
+    'SupplyResistanceDrive',
     'build_windows',
     'energy_loop_document',
     'estimate_stream_lag_s',
     'fit_bench_model',
     'predict_run_w',
     'read_residual_run',
+    'residual_catalogue',
     'run_energy_loop',
+    'saturated_drive_count',
+    'source_voltage_v',
     'split_mask',
 ]
 
@@ -61,6 +65,9 @@ class ResidualRun:
     ``power_w``, ``cycle_phase``, ``period_s``, ``duty_factor``, ``step_length_m``,
     ``in_stance`` (n, legs), ``supporting`` (n,) int, ``temp_sum_c`` (n,) sum of the servo
     temperatures (nan without ``/servo_status``), ``lag_s`` estimated battery clock offset.
+    ``joint_abs_effort``: joint name -> (stamps [s], |effort|) from ``/joint_states`` (the
+    drive's duty for PWM servos; its plateau marks a saturated drive, see
+    :func:`saturated_drive_count`).
     """
 
     name: str
@@ -84,6 +91,7 @@ class ResidualRun:
     predicted_w: np.ndarray | None = None
     joint_t_s: np.ndarray | None = None
     joint_features: np.ndarray | None = None
+    joint_abs_effort: dict[str, tuple[np.ndarray, np.ndarray]] | None = None
 
     def realigned(self, offset_s: float) -> ResidualRun:
         """A copy whose battery streams are read at ``stamp = t + offset_s`` (the monitor's
@@ -132,6 +140,7 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto') -> Residu
     from hexapod_energy.descriptors import resolve_current_sign
 
     bat, gp, temps, mech = [], [], [], []
+    per_joint: dict[str, list[tuple[float, float]]] = {}
     with open_reader(path) as reader:
         present = sorted({c.topic for c in reader.connections})
         for topic in ('/battery_state', '/gait/phase'):
@@ -155,6 +164,9 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto') -> Residu
                 js = joint_state_from_msg(msg)
                 if js.effort.size == js.velocity.size and js.effort.size:
                     mech.append((js.t_s, *joint_features(js.effort, js.velocity)))
+                if js.effort.size == len(js.names):
+                    for name, e in zip(js.names, np.abs(js.effort)):
+                        per_joint.setdefault(name, []).append((js.t_s, float(e)))
     if len(bat) < 10:
         raise BagContentError(f'robot bag {path}: /battery_state has {len(bat)} messages, '
                               'need at least 10')
@@ -193,6 +205,12 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto') -> Residu
     if len(mech) > 20:
         mm = np.array(sorted(mech))
         run.joint_t_s, run.joint_features = mm[:, 0], mm[:, 1:]
+    if per_joint and all(len(v) > 20 for v in per_joint.values()):
+        run.joint_abs_effort = {}
+        for name, v in per_joint.items():
+            a = np.array(sorted(v))
+            ok = np.isfinite(a[:, 1])
+            run.joint_abs_effort[name] = (a[ok, 0], a[ok, 1])
     return run
 
 
@@ -406,12 +424,58 @@ def _lagged_slope(runs: Sequence[ResidualRun]) -> tuple[float, float]:
     return -slope, se
 
 
+def saturated_drive_count(runs: Sequence[ResidualRun], *, min_samples: int = 20
+                          ) -> list[np.ndarray]:
+    """Number of joints whose drive is saturated at each battery stamp, one (n,) array per run.
+
+    A PWM servo reports its effort as the drive duty times a constant (AX/MX ``present load``),
+    so a saturated drive (duty at its limit) is a plateau: the largest ``|effort|`` of all
+    joints and runs, repeated. The plateau counts when at least ``min_samples`` joint samples sit
+    within 1e-6 (relative) of that largest value; otherwise nothing is saturated (zeros; also
+    without ``/joint_states`` efforts). Every joint is assumed to share the same limit (one
+    servo type, the same torque limit).
+    """
+    out = [np.zeros(r.t_s.shape) for r in runs]
+    if not runs or any(not r.joint_abs_effort for r in runs):
+        return out
+    top = max(float(np.max(e)) if e.size else 0.0
+              for r in runs for _, e in r.joint_abs_effort.values())  # type: ignore[union-attr]
+    if not top > 0.0:
+        return out
+    thr = top * (1.0 - 1e-6)
+    hits = sum(int(np.sum(e >= thr)) for r in runs
+               for _, e in r.joint_abs_effort.values())  # type: ignore[union-attr]
+    if hits < min_samples:
+        return out
+    for k, r in enumerate(runs):
+        for tj, e in r.joint_abs_effort.values():  # type: ignore[union-attr]
+            if tj.size:
+                out[k] += np.interp(r.t_s, tj, (e >= thr).astype(float))
+    return out
+
+
+def source_voltage_v(run: ResidualRun, resistance_ohm: float) -> float:
+    """The run's source voltage behind the series resistance [V]: mean of ``V[k] + R I[k-1]``
+    (the monitored voltage of a sample follows the previous sample's current)."""
+    if run.t_s.size < 2:
+        return float(np.mean(run.voltage_v))
+    return float(np.mean(run.voltage_v[1:] + resistance_ohm * run.current_a[:-1]))
+
+
 def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = None,
                   settle_s: float = 1.0) -> WindowTable:
-    """Half-cycle windows of every run (runs must carry ``predicted_w``)."""
+    """Half-cycle windows of every run (runs must carry ``predicted_w``).
+
+    ``extra`` holds the supply-resistance regressors (window means): ``supply_dv_v`` the
+    voltage sag ``V - V_s`` [V] and ``supply_sat_v2`` the saturated drives' ``n_sat (V^2 -
+    V_s^2)`` [V^2] (see :class:`SupplyResistanceDrive`)."""
     cols: dict[str, list[Any]] = {k: [] for k in (
         'run', 't_s', 'duration_s', 'measured_w', 'predicted_w', 'step_frequency_hz',
         'speed_mps', 'current_sq_a2', 'temp_excess_k', 'stance_fraction')}
+    extra: dict[str, list[float]] = {'supply_dv_v': [], 'supply_sat_v2': [],
+                                     'saturated_drives': []}
+    slope, se = _lagged_slope(runs)
+    sat_counts = saturated_drive_count(runs)
     for ri, r in enumerate(runs):
         assert r.predicted_w is not None
         keep = r.t_s >= r.t_s[0] + settle_s
@@ -429,10 +493,14 @@ def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = Non
         per = np.where(r.period_s > 0, r.period_s, np.inf)
         freq = np.where(r.period_s > 0, 1.0 / per, 0.0)
         speed = np.where(r.period_s > 0, r.step_length_m / (r.duty_factor * per), 0.0)
+        v_s = source_voltage_v(r, max(slope, 0.0))
         sub = {
             'measured_w': r.power_w, 'predicted_w': r.predicted_w, 'step_frequency_hz': freq,
             'speed_mps': speed, 'current_sq_a2': r.current_a ** 2, 'temp_excess_k': texcess,
         }
+        sub_extra = {'supply_dv_v': r.voltage_v - v_s,
+                     'supply_sat_v2': sat_counts[ri] * (r.voltage_v ** 2 - v_s ** 2),
+                     'saturated_drives': sat_counts[ri]}
         for w in np.unique(inv[full]):
             m = inv == w
             m &= full
@@ -444,15 +512,17 @@ def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = Non
             cols['duration_s'].append(float(tw[-1] - tw[0]))
             for k, arr in sub.items():
                 cols[k].append(float(np.mean(arr[keep][m])))
+            for k, arr in sub_extra.items():
+                extra[k].append(float(np.mean(arr[keep][m])))
             cols['stance_fraction'].append(r.in_stance[keep][m].mean(axis=0))
     if not cols['run']:
         raise ResidualDataError('robot bags give no complete half-cycle window after the '
                                 f'first {settle_s} s; record longer runs')
     arrays = {k: np.array(v) for k, v in cols.items()}
     arrays['run'] = arrays['run'].astype(int)
-    slope, se = _lagged_slope(runs)
     return WindowTable(**arrays, leg_names=runs[0].leg_names, supply_slope_ohm=slope,
-                       supply_slope_stderr_ohm=se)
+                       supply_slope_stderr_ohm=se,
+                       extra={k: np.array(v) for k, v in extra.items()})
 
 
 def split_mask(table: WindowTable, *, block_s: float = 2.0, every: int = 3) -> np.ndarray:
@@ -482,6 +552,65 @@ def _bic(sse: float, n: int, k: int) -> float:
     return n * math.log(max(sse, 1e-300) / n) + k * math.log(n)
 
 
+class SupplyResistanceDrive(EnergyEffect):
+    """Series resistance before the monitor, with the power change its voltage sag causes in
+    PWM servos: ``P += I_c (V - V_s) + G n_sat (V^2 - V_s^2)`` (both terms <= 0).
+
+    The monitored voltage is ``V = V_s - R I``; ``resistance_ohm`` is the lagged V-I slope
+    (exact, from the monitor's two channels) and ``V_s`` each run's source voltage
+    (:func:`source_voltage_v`). The cable's own ``R I^2`` is outside the monitor, and a PWM
+    servo that follows its command draws ``u V i`` with ``u V = i R_w + k_e w``: the same power
+    at any supply voltage. What the sag changes is
+
+    * the constant-current loads (the servos' controller electronics): ``I_c (V - V_s)``,
+      ``electronics_current_a`` = ``I_c`` [A];
+    * the saturated drives (duty at its limit, an ``|effort|`` plateau on ``/joint_states``,
+      :func:`saturated_drive_count`), whose current ``(V - k_e w) / R_w`` the voltage sets: a
+      servo saturated at ``V`` would draw ``V_s (V_s - k_e w) / R_w`` at the source voltage if
+      it stayed saturated at the same speed, so ``(V^2 - V_s^2) / R_w`` to first order less
+      (the ``k_e w (V - V_s)`` part is small against ``V + V_s``);
+      ``saturated_conductance_s`` = ``G`` [S], the fitted ``1 / R_w``. It comes out below the
+      winding conductance (0.05 against 0.18 S for the AX-18A in the simulator): at the
+      higher voltage part of those samples would not be saturated, so the sag costs them less.
+
+    Without saturated samples only the first term is fitted. The earlier regressor ``-I^2``
+    carried both terms with one coefficient; the saturation term rises far faster with speed
+    than ``I^2`` (0.35 ohm: -0.9 W at 0.15 m/s, -11 W at 0.6 m/s where 3 of 18 drives saturate),
+    so step frequency was added after it to bend it.
+    """
+
+    name, unit = 'supply_resistance', 'ohm'
+
+    def applicable(self, table: WindowTable) -> bool:
+        r, se = table.supply_slope_ohm, table.supply_slope_stderr_ohm
+        return bool(r > 4.0 * se and r > 0.005 and 'supply_dv_v' in table.extra)
+
+    def _has_saturation(self, table: WindowTable) -> bool:
+        return bool(np.ptp(table.extra['supply_sat_v2']) > 0.0)
+
+    def columns(self, table: WindowTable) -> np.ndarray:
+        cols = [table.extra['supply_dv_v']]
+        if self._has_saturation(table):
+            cols.append(table.extra['supply_sat_v2'])
+        return np.column_stack(cols)
+
+    def params(self, coef, stderr, table):  # type: ignore[no-untyped-def]
+        p = {'resistance_ohm': table.supply_slope_ohm,
+             'electronics_current_a': float(coef[0]),
+             'saturated_conductance_s': float(coef[1]) if coef.size > 1 else 0.0}
+        e = {'resistance_ohm': table.supply_slope_stderr_ohm,
+             'electronics_current_a': float(stderr[0]),
+             'saturated_conductance_s': float(stderr[1]) if coef.size > 1 else 0.0}
+        return p, e
+
+
+def residual_catalogue(leg_names: tuple[str, ...] = ()) -> list[EnergyEffect]:
+    """The loop's candidates: :func:`default_catalogue` with ``supply_resistance`` modelled by
+    :class:`SupplyResistanceDrive` (voltage sag of electronics and saturated drives)."""
+    return [SupplyResistanceDrive() if e.name == 'supply_resistance' else e
+            for e in default_catalogue(leg_names)]
+
+
 @dataclass
 class EffectSelection:
     """Forward selection of catalogue effects on a residual (settings in ``__init__``).
@@ -489,7 +618,7 @@ class EffectSelection:
     Parameters
     ----------
     catalogue : list of EnergyEffect, optional
-        Candidates (default :func:`default_catalogue` with the table's legs).
+        Candidates (default :func:`residual_catalogue` with the table's legs).
     min_delta_bic : float
         A candidate must lower the training BIC by more than this.
     min_improvement : float
@@ -545,7 +674,7 @@ class EffectSelection:
         """Select effects on ``table`` with held-out mask ``held``."""
         train = ~held
         cat = self.catalogue if self.catalogue is not None else \
-            default_catalogue(table.leg_names)
+            residual_catalogue(table.leg_names)
         cands = [e for e in cat if e.applicable(table)]
         y = table.residual_w
         selected: list[EnergyEffect] = []
