@@ -210,3 +210,35 @@ def point_from_msg(msg: Any) -> PointSample:
     """Convert a PointStamped."""
     p = msg.point
     return PointSample(stamp_to_s(msg.header.stamp), np.array([p.x, p.y, p.z], dtype=float))
+
+
+@dataclass(frozen=True)
+class OdometrySample:
+    """``nav_msgs/Odometry``: pose of ``child_frame_id`` in ``frame_id`` (position [m],
+    orientation quaternion (x, y, z, w)) and twist in ``child_frame_id`` (linear [m/s],
+    angular [rad/s])."""
+
+    t_s: float
+    frame_id: str
+    child_frame_id: str
+    position_m: np.ndarray
+    orientation_xyzw: np.ndarray
+    linear_velocity_mps: np.ndarray
+    angular_velocity_rad_s: np.ndarray
+
+
+def odometry_from_msg(msg: Any) -> OdometrySample:
+    """Convert a nav_msgs/Odometry; a non-finite position raises ValueError."""
+    p, q = msg.pose.pose.position, msg.pose.pose.orientation
+    v, w = msg.twist.twist.linear, msg.twist.twist.angular
+    position = np.array([p.x, p.y, p.z], dtype=float)
+    if not np.all(np.isfinite(position)):
+        raise ValueError(f'Odometry with a non-finite position {position.tolist()}')
+    return OdometrySample(stamp_to_s(msg.header.stamp), str(msg.header.frame_id),
+                          str(msg.child_frame_id), position,
+                          np.array([q.x, q.y, q.z, q.w], dtype=float),
+                          np.array([v.x, v.y, v.z], dtype=float),
+                          np.array([w.x, w.y, w.z], dtype=float))
+
+
+__all__ += ['OdometrySample', 'odometry_from_msg']

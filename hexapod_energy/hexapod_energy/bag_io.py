@@ -8,7 +8,8 @@ Bench bags need ``/battery_state``, ``/bench/ground_force``, ``/bench/leg_tip`` 
 with efforts and ``/mocap/body`` are used when present).  A missing topic raises
 :class:`~hexapod_energy.errors.BagContentError` naming what is missing and what is there.
 
-Robot bags recorded by other tools (:func:`read_robot_bag`): a message whose header stamp is
+Bench bags (:func:`read_bench_bag`) take the same zero-stamp fallback on every topic they
+read. Robot bags recorded by other tools (:func:`read_robot_bag`): a message whose header stamp is
 zero (drivers that never fill it) takes the bag's receive time; samples are fed in header-stamp
 order (recorders store arrival order, a few ms off); a stamped message recorded twice (same
 topic, same bytes) counts once; a bad message (NaN voltage or current, array lengths that
@@ -44,6 +45,9 @@ __all__ = [
 
 BENCH_TOPICS = ('/battery_state', '/bench/ground_force', '/bench/leg_tip', '/bench/session')
 ROBOT_TOPICS = ('/battery_state', '/gait/phase')
+#: fraction of a gait cycle by which a bench session may fall short of a whole cycle count
+#: and still count it (stamp jitter); the window is then clipped at the session's end
+CYCLE_TOLERANCE = 0.02
 
 
 def _check_topics(reader: Any, required: Sequence[str], path: str) -> None:
@@ -108,7 +112,9 @@ def read_bench_bag(path: str | Path) -> BenchData:
     """Read one bench bag's streams.
 
     A bad message (NaN voltage or current, a NaN force or tip height) is dropped and counted
-    in ``notes``; a topic left without messages raises :class:`BagContentError`.
+    in ``notes``; a topic left without messages raises :class:`BagContentError`. A message
+    whose header stamp is zero (drivers that never fill it) takes the bag's receive time,
+    counted per topic in ``notes`` (``energy.json`` ``bench.diagnostics[].notes``).
     """
     from hexapod_common.bags import iter_messages, open_reader
     from hexapod_common.conversions import (
@@ -123,6 +129,15 @@ def read_bench_bag(path: str | Path) -> BenchData:
     tip: list[tuple[float, float]] = []
     ses: list[dict[str, Any]] = []
     dropped: dict[str, list[str]] = {}
+    zero_stamps: dict[str, int] = {}
+
+    def stamped(t_s: float, m: Any) -> float:
+        # drivers that leave header.stamp at 0: the bag's receive time stands in
+        if t_s != 0.0:
+            return t_s
+        zero_stamps[m.topic] = zero_stamps.get(m.topic, 0) + 1
+        return 1e-9 * m.stamp_ns
+
     with open_reader(path) as reader:
         _check_topics(reader, BENCH_TOPICS, str(path))
         for m in iter_messages(reader, BENCH_TOPICS):
@@ -133,21 +148,21 @@ def read_bench_bag(path: str | Path) -> BenchData:
                 except ValueError as err:  # a bad message is dropped, as live
                     dropped.setdefault(m.topic, []).append(str(err))
                     continue
-                bat.append((b.t_s, b.voltage_v, b.current_a))
+                bat.append((stamped(b.t_s, m), b.voltage_v, b.current_a))
             elif m.topic in ('/bench/ground_force', '/bench/leg_tip'):
                 if m.topic == '/bench/ground_force':
                     w = wrench_from_msg(msg)
-                    row = (w.t_s, float(w.force_n[2]))
+                    row = (stamped(w.t_s, m), float(w.force_n[2]))
                 else:
                     p = point_from_msg(msg)
-                    row = (p.t_s, float(p.point_m[2]))
+                    row = (stamped(p.t_s, m), float(p.point_m[2]))
                 if not math.isfinite(row[1]):
                     dropped.setdefault(m.topic, []).append(f'non-finite value {row[1]}')
                     continue
                 (frc if m.topic == '/bench/ground_force' else tip).append(row)
             else:
                 ses.append({
-                    't_s': stamp_to_s(msg.header.stamp),
+                    't_s': stamped(stamp_to_s(msg.header.stamp), m),
                     'session_id': str(msg.session_id),
                     'state': str(msg.state),
                     'load_kg': float(msg.load_mass),
@@ -163,6 +178,8 @@ def read_bench_bag(path: str | Path) -> BenchData:
                     if name == '/battery_state' else ')')) if name in dropped else ''
             raise BagContentError(f'bag {path}: topic {name} has no usable messages{why}')
     notes = [f'{len(e)} {t} message(s) dropped: {e[0]}' for t, e in sorted(dropped.items())]
+    notes += [f'{n} {t} message(s) with a zero header stamp: bag receive time used'
+              for t, n in sorted(zero_stamps.items())]
     b_arr = np.array(sorted(bat))
     f_arr = np.array(sorted(frc))
     t_arr = np.array(sorted(tip))
@@ -235,10 +252,13 @@ def bench_phase_samples(
         if f > 0 and (t1 - t0) * f >= 1.0:
             # whole gait cycles only (the walk starts at cycle phase 0 when the session enters
             # 'walking'): a fractional cycle weights one phase more than the other
-            a = t0 + math.ceil((a - t0) * f - 1e-9) / f
-            if t1 - a < 1.0 / f:
+            # Session stamps a few ms off (receive times standing in for zero stamps, clock
+            # jitter) must not drop a whole cycle: within CYCLE_TOLERANCE of a cycle the
+            # count is rounded up and the window clipped at the session's end
+            a = t0 + math.ceil((a - t0) * f - CYCLE_TOLERANCE) / f
+            if t1 - a < (1.0 - CYCLE_TOLERANCE) / f:
                 a = t0
-            t1 = a + math.floor((t1 - a) * f + 1e-9) / f
+            t1 = min(t1, a + math.floor((t1 - a) * f + CYCLE_TOLERANCE) / f)
         pm = (data.battery_t_s >= a) & (data.battery_t_s < t1)
         tm = (data.tip_t_s >= a) & (data.tip_t_s < t1)
         if not pm.any():
@@ -286,26 +306,48 @@ class RobotRun:
 
 
 def read_robot_bag(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
-                   cycles: int = 1) -> RobotRun:
+                   cycles: int = 1, speed_mps: float | None = None,
+                   cycle_source: str = 'auto') -> RobotRun:
     """Whole-gait-cycle averages of one robot bag, computed by the same accumulator as the
-    ``energy_monitor`` node (so live and offline numbers agree)."""
+    ``energy_monitor`` node (so live and offline numbers agree).
+
+    Bags without ``/gait/phase`` (robots running their own gait code): the cycles come from the
+    joint positions (:mod:`hexapod_energy.cycles`; ``cycle_source`` ``auto`` does this when the
+    bag has no ``/gait/phase``, ``joints`` always); the speed from ``/mocap/body``, else
+    ``/odom`` (nav_msgs/Odometry, position differenced in the odometry frame), else
+    ``speed_mps``, else NaN; P_out from the joint efforts, else NaN. ``gait`` is then None and
+    ``extra`` holds ``cycle_source``, ``speed_source``, ``period_s`` (mean window length /
+    ``cycles``), ``leg_names`` (from the joint names ``<leg>_<joint>``) and a note for each
+    fallback. Bags with ``/gait/phase`` are read exactly as before.
+    """
     from hexapod_common.bags import iter_messages, open_reader
     from hexapod_common.conversions import (
         battery_from_msg,
         gait_phase_from_msg,
         joint_state_from_msg,
+        odometry_from_msg,
         pose_from_msg,
     )
 
     from hexapod_energy.descriptors import DescriptorAccumulator
 
-    acc = DescriptorAccumulator(mass_kg=mass_kg, cycles=cycles, current_sign=current_sign)
+    if cycle_source not in ('auto', 'gait_phase', 'joints'):
+        raise ValueError(f'cycle_source must be auto, gait_phase or joints, got {cycle_source!r}')
+    with open_reader(path) as reader:
+        present = {c.topic for c in reader.connections}
+    if cycle_source == 'auto':
+        cycle_source = 'gait_phase' if '/gait/phase' in present else 'joints'
+    required = ROBOT_TOPICS if cycle_source == 'gait_phase' else ('/battery_state',
+                                                                    '/joint_states')
+    acc = DescriptorAccumulator(mass_kg=mass_kg, cycles=cycles, current_sign=current_sign,
+                                cycle_source=cycle_source, speed_mps=speed_mps or 0.0)
     windows = []
     gait = None
     has_effort = False
     notes: list[str] = []
     converters = {'/battery_state': battery_from_msg, '/gait/phase': gait_phase_from_msg,
-                  '/joint_states': joint_state_from_msg, '/mocap/body': pose_from_msg}
+                  '/joint_states': joint_state_from_msg, '/mocap/body': pose_from_msg,
+                  '/odom': odometry_from_msg}
     samples: list[tuple[float, int, str, Any]] = []
     seen: dict[tuple[str, bytes], None] = {}
     zero_stamps: dict[str, int] = {}
@@ -313,9 +355,9 @@ def read_robot_bag(path: str | Path, *, mass_kg: float, current_sign: str = 'aut
     duplicates = 0
     n_battery = 0
     with open_reader(path) as reader:
-        _check_topics(reader, ROBOT_TOPICS, str(path))
+        _check_topics(reader, required, str(path))
         custom = _custom_data(reader)
-        topics = ROBOT_TOPICS + ('/joint_states', '/mocap/body')
+        topics = ROBOT_TOPICS + ('/joint_states', '/mocap/body', '/odom')
         for m in iter_messages(reader, topics):
             msg = reader.deserialize(m.data, m.msgtype)
             n_battery += m.topic == '/battery_state'
@@ -359,9 +401,14 @@ def read_robot_bag(path: str | Path, *, mass_kg: float, current_sign: str = 'aut
             windows.extend(acc.add_gait_phase(sample))
         elif topic == '/joint_states':
             has_effort = has_effort or bool(sample.effort.size)
-            acc.add_joint_state(sample)
+            windows.extend(acc.add_joint_state(sample) or ())
+        elif topic == '/odom':
+            acc.add_odometry(sample)
         else:
             acc.add_pose(sample)
+    if cycle_source == 'joints':
+        return _joint_cycle_run(path, acc, windows, samples, notes, custom, has_effort,
+                                speed_mps, gait)
     if not windows or gait is None:
         spans = {}
         for t_s, _, topic, _ in samples:
@@ -385,5 +432,64 @@ def read_robot_bag(path: str | Path, *, mass_kg: float, current_sign: str = 'aut
         power_out_w=avg([d.power_out_w for d in windows]) if has_effort else math.nan,
         speed_mps=avg([d.speed_mps for d in windows]), gait=gait, payload_kg=payload,
         current_sign=float(acc.sign_ or 0.0),
-        extra={'custom_data': custom, 'notes': notes},
+        extra={'custom_data': custom, 'notes': notes, 'cycle_source': 'gait_phase',
+               'speed_source': '+'.join(sorted({d.speed_source for d in windows})),
+               'windows': list(windows)},
+    )
+
+
+def _joint_cycle_run(path: str | Path, acc: Any, windows: list[Any],
+                     samples: list[tuple[float, int, str, Any]], notes: list[str],
+                     custom: dict[str, str], has_effort: bool, speed_mps: float | None,
+                     gait: Any) -> RobotRun:
+    """:class:`RobotRun` of a bag read on joint-derived cycles (see :func:`read_robot_bag`)."""
+    tracker = acc.tracker_
+    if not windows:
+        est = tracker.estimate_ if tracker is not None else None
+        why = f'last estimate: {est.status}' + (f', autocorrelation peak {est.peak:.2f}'
+                                                 if est is not None and
+                                                 math.isfinite(est.peak) else '') \
+            if est is not None else 'no joint positions'
+        raise BagContentError(
+            f'bag {path}: no whole gait cycle found from the joint positions ({why}; need a '
+            'periodic gait, autocorrelation peak >= 0.5, over at least 3 periods, with '
+            '/battery_state across it) and no /gait/phase to take the cycles from')
+    notes.append('no /gait/phase: cycle boundaries from the joint positions (step period '
+                 'by autocorrelation, hexapod_energy.cycles)')
+    names = sorted({n for _, _, topic, smp in samples if topic == '/joint_states'
+                    for n in smp.names})
+    legs = sorted({n.rsplit('_', 1)[0] for n in names if '_' in n})
+    sources = sorted({d.speed_source for d in windows})
+    speed_source = sources[0] if len(sources) == 1 else '+'.join(sources)
+    if speed_source == 'odometry':
+        notes.append('speed from /odom (nav_msgs/Odometry position differenced over each '
+                     'window, odometry frame)')
+    elif speed_source == 'given':
+        notes.append(f'speed {speed_mps} m/s as given (no /mocap/body or /odom)')
+    elif 'none' in sources:
+        n_none = sum(d.speed_source == 'none' for d in windows)
+        notes.append('speed unknown (no /mocap/body, /odom or given speed) in '
+                     f'{n_none} of {len(windows)} window(s): ' +
+                     ('speed, cost of transport and specific resistance null'
+                      if n_none == len(windows) else 'speed averaged over the others'))
+    if not has_effort:
+        notes.append('no joint efforts: P_out unknown (the Eq. 6 model needs the gait '
+                     'schedule)')
+    w = np.array([d.window_s for d in windows])
+    avg = lambda xs: float(np.sum(w * np.array(xs)) / np.sum(w))  # noqa: E731
+    speeds = np.array([d.speed_mps for d in windows])
+    known = np.isfinite(speeds)
+    speed = float(np.sum(w[known] * speeds[known]) / np.sum(w[known])) if known.any() \
+        else math.nan
+    return RobotRun(
+        path=str(path), windows=len(windows), window_s=float(w.sum()),
+        power_in_w=avg([d.power_in_w for d in windows]),
+        power_out_w=avg([d.power_out_w for d in windows]) if has_effort else math.nan,
+        speed_mps=speed, gait=gait,
+        payload_kg=_find_number(custom, ('payload_kg', 'payload')),
+        current_sign=float(acc.sign_ or 0.0),
+        extra={'custom_data': custom, 'notes': notes, 'cycle_source': 'joints',
+               'speed_source': speed_source, 'period_s': float(w.sum()) / len(windows) /
+               max(windows[0].cycles, 1), 'leg_names': legs, 'joint_names': names,
+               'windows': list(windows)},
     )

@@ -4,11 +4,21 @@ Usage::
 
     hexapod-analyze energy --bench BAG [BAG ...] [--robot BAG [BAG ...]] --out DIR
                            [--sweep] [--recommend --speed V --payload KG]
+                           [--robot-speed V] [--gait NAME --duty-factor B --step-length M]
 
 Steps: bench bags -> per-session phase powers -> surface fits (LOWESS vs polynomial by k-fold
 CV); robot bags -> measured whole-cycle P_in, P_out (joint efforts, else the Eq. 6 model), speed
 -> Eq. 1 prediction for the same gait and mass; ``--sweep`` -> Fig. 3 sweeps (four-quadrant
 plots, PNG + SVG) and the Fig. 7D power map; ``--recommend`` -> minimum-CoT/M gait.
+
+Robot bags without ``/gait/phase`` (another lab's robot running its own gait code: only
+``/joint_states`` and ``/battery_state``, maybe ``/odom`` or ``/mocap/body``): the whole cycles
+come from the joint positions (step period by autocorrelation, :mod:`hexapod_energy.cycles`);
+the speed from ``/mocap/body``, else ``/odom`` (nav_msgs/Odometry), else ``--robot-speed V``,
+else null; P_out from the joint efforts, else null (the Eq. 6 model needs the gait); the Eq. 1
+prediction needs the gait: ``--gait NAME --duty-factor B --step-length M`` describe it (leg count
+from the joint names, period from the joints), else the run has no prediction and is left out
+of ``prediction_error``. Every such fallback is listed in the run's ``notes``.
 
 ``energy.json`` schema (version 1; keys are a contract, units in the names or below)::
 
@@ -26,8 +36,10 @@ plots, PNG + SVG) and the Fig. 7D power map; ``--recommend`` -> minimum-CoT/M ga
                       --power-out), "power_out_effort_w" (nan/null without efforts),
                       "power_out_model_w", "efficiency", "speed" [m/s],
                       "cost_of_transport" [J/m], "specific_cost_of_transport" [J/(m kg)],
-                      "specific_resistance"}],
-      "prediction_error": {"runs", "rmse_w", "mae_w", "bias_w" (mean predicted - measured),
+                      "specific_resistance", "cycle_source" ("gait_phase" | "joints"),
+                      "speed_source" (mocap | odometry | gait_schedule | given | none),
+                      "notes" [str] (this run's input fallbacks)}],
+      "prediction_error": {"runs" (runs with a prediction), "rmse_w", "mae_w", "bias_w" (mean predicted - measured),
                            "mean_power_w", "relative_rmse", "max_abs_relative"},
       "sweeps": {"<sweep name>": [SweepCurve.to_dict()]},     # with --sweep
       "power_map": {"speeds_mps", "payloads_kg", "power_out_w" (n_speed x n_payload),
@@ -93,6 +105,17 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
                    help='P_out source: joint effort x velocity (positive part), the Eq. 6 '
                         'inverse-dynamics model, or auto (default: effort when the bag has '
                         'efforts and they give P_out < P_in, else the model, with a warning)')
+    p.add_argument('--robot-speed', type=float, default=None, metavar='V',
+                   help='speed of robot runs that have no /gait/phase, /mocap/body or /odom '
+                        '[m/s] (default: unknown, CoT and specific resistance null)')
+    p.add_argument('--gait', default=None, metavar='NAME',
+                   help='gait of robot runs without /gait/phase, for the Eq. 1 prediction and '
+                        'the P_out model (hexapod_gait name: tripod, alternating, wave, ripple, '
+                        'tetrapod; period from the joints, leg count from the joint names)')
+    p.add_argument('--duty-factor', type=float, default=None, metavar='B',
+                   help='duty factor of robot runs without /gait/phase (with --gait)')
+    p.add_argument('--step-length', type=float, default=None, metavar='M',
+                   help='step length of robot runs without /gait/phase [m] (with --gait)')
     p.add_argument('--folds', type=int, default=5, help='k of the k-fold CV (default 5)')
     p.add_argument('--no-progress', action='store_true', help='hide the progress bar')
 
@@ -144,6 +167,13 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
 
     if args.recommend and (args.speed is None or args.speed <= 0):
         raise EnergyError('--recommend needs --speed V with V > 0 [m/s]')
+    given_gait = [getattr(args, k, None) for k in ('gait', 'duty_factor', 'step_length')]
+    if any(v is not None for v in given_gait) and any(v is None for v in given_gait):
+        raise EnergyError('--gait, --duty-factor and --step-length go together (the gait of '
+                          'robot runs without /gait/phase)')
+    robot_speed = getattr(args, 'robot_speed', None)
+    if robot_speed is not None and not (math.isfinite(robot_speed) and robot_speed > 0):
+        raise EnergyError(f'--robot-speed must be > 0 m/s, got {robot_speed}')
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     robot = RobotSpec(mass_kg=args.robot_mass)
@@ -166,22 +196,26 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         opm = OutputPowerModel(robot=robot)
         runs = []
         for path in args.robot:
-            run_ = read_robot_bag(path, mass_kg=robot.mass_kg, current_sign=args.current_sign)
-            for note in run_.extra.get('notes', []):
-                doc.setdefault('warnings', []).append(f'{path}: {note}')
+            run_ = read_robot_bag(path, mass_kg=robot.mass_kg, current_sign=args.current_sign,
+                                  speed_mps=robot_speed)
+            notes = list(run_.extra.get('notes', []))
             payload = args.robot_payload if args.robot_payload is not None else \
                 (run_.payload_kg or 0.0)
             mass = robot.total_mass_kg(payload)
-            gait = gait_from_sample(run_.gait)
-            predicted = float(predict_power_in_w(model, gait, total_mass_kg=mass,
-                                                 leg_mass_kg=robot.leg_mass_kg,
-                                                 swing_load=args.swing_load,
-                                                 load_offset_kg=args.load_offset))
-            try:
-                p_model = float(opm.power_out_w(gait, payload_kg=payload))
-            except (ValueError, ImportError) as err:
-                p_model = math.nan
-                doc.setdefault('warnings', []).append(f'{path}: no P_out model: {err}')
+            gait = gait_from_sample(run_.gait) if run_.gait is not None else \
+                _given_gait(args, run_, notes)
+            predicted = p_model = math.nan
+            if gait is not None:
+                predicted = float(predict_power_in_w(model, gait, total_mass_kg=mass,
+                                                     leg_mass_kg=robot.leg_mass_kg,
+                                                     swing_load=args.swing_load,
+                                                     load_offset_kg=args.load_offset))
+                try:
+                    p_model = float(opm.power_out_w(gait, payload_kg=payload))
+                except (ValueError, ImportError) as err:
+                    doc.setdefault('warnings', []).append(f'{path}: no P_out model: {err}')
+            for note in notes:
+                doc.setdefault('warnings', []).append(f'{path}: {note}')
             effort_ok = math.isfinite(run_.power_out_w) and args.power_out != 'model'
             if effort_ok and args.power_out == 'auto' and run_.power_out_w >= run_.power_in_w:
                 effort_ok = False
@@ -194,14 +228,19 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             elif math.isfinite(p_model):
                 p_out, source = p_model, 'model'
             else:
-                p_out, source = 0.0, 'none'
+                # without a gait (no /gait/phase, no --gait) P_out is unknown, not 0
+                p_out, source = (0.0 if run_.gait is not None else math.nan), 'none'
             # the accumulator used robot.mass_kg; descriptors are recomputed with the payload
             d = descriptors(power_in_w=run_.power_in_w, power_out_w=p_out, mass_kg=mass,
                             speed_mps=run_.speed_mps)
+            legs = run_.extra.get('leg_names', [])
             runs.append({
-                'bag': str(path), 'gait': gait.name, 'leg_count': gait.leg_count,
-                'duty_factor': gait.duty_factor, 'period_s': gait.period_s,
-                'step_length_m': gait.step_length_m, 'payload_kg': payload, 'mass_kg': mass,
+                'bag': str(path), 'gait': gait.name if gait else None,
+                'leg_count': gait.leg_count if gait else (len(legs) or None),
+                'duty_factor': gait.duty_factor if gait else None,
+                'period_s': gait.period_s if gait else run_.extra.get('period_s'),
+                'step_length_m': gait.step_length_m if gait else None,
+                'payload_kg': payload, 'mass_kg': mass,
                 'windows': run_.windows, 'window_s': run_.window_s,
                 'measured_power_in_w': run_.power_in_w, 'predicted_power_in_w': predicted,
                 'residual_w': run_.power_in_w - predicted,
@@ -211,9 +250,13 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 'cost_of_transport': d.cost_of_transport_j_per_m,
                 'specific_cost_of_transport': d.specific_cost_of_transport_j_per_m_kg,
                 'specific_resistance': d.specific_resistance,
+                'cycle_source': run_.extra.get('cycle_source', 'gait_phase'),
+                'speed_source': run_.extra.get('speed_source', ''),
+                'notes': notes,
             })
             bar.update(1)
         doc['robot_runs'] = runs
+        runs = [r for r in runs if math.isfinite(r['predicted_power_in_w'])]
         if runs:
             meas = np.array([r['measured_power_in_w'] for r in runs])
             pred = np.array([r['predicted_power_in_w'] for r in runs])
@@ -243,6 +286,32 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         bar.close()
     (out / 'energy.json').write_text(json.dumps(_jsonable(doc), indent=1))
     return doc
+
+
+def _given_gait(args: argparse.Namespace, run_: Any, notes: list[str]) -> Any:
+    """GaitPattern of a run without /gait/phase from --gait/--duty-factor/--step-length, the
+    period found from the joints and the leg count from the joint names; None (noted) without
+    them."""
+    from hexapod_gait.gait import make_gait
+
+    name = getattr(args, 'gait', None)
+    if name is None:
+        notes.append('no /gait/phase and no --gait/--duty-factor/--step-length: no Eq. 1 '
+                     'prediction and no P_out model for this run')
+        return None
+    legs = len(run_.extra.get('leg_names', []))
+    if name == 'tripod' and legs != 6:
+        name = 'alternating'
+    try:
+        gait = make_gait(name, leg_count=legs, duty_factor=args.duty_factor,
+                         period_s=run_.extra['period_s'], step_length_m=args.step_length)
+    except (ValueError, KeyError) as err:
+        raise EnergyError(f'--gait {args.gait} for {run_.path} ({legs} legs from the joint '
+                          f'names): {err}') from err
+    notes.append(f'gait {gait.name} (beta {gait.duty_factor}, step {gait.step_length_m} m) as '
+                 f'given, {legs} legs from the joint names, period {gait.period_s:.4f} s from '
+                 'the joints')
+    return gait
 
 
 def _sweep(doc: dict[str, Any], model: Any, opm: Any, out: Path, bar: Any,

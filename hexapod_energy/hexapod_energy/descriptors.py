@@ -14,13 +14,25 @@ DESIGN §4:
   ``/joint_states`` carries them, else from ``power_out_model(gait, mass)`` when one is given
   (:func:`model_power_out`), else 0.
 - ``speed`` [m/s]: from motion capture when poses cover the window (horizontal displacement /
-  window), else the gait schedule's step_length / (beta T).
+  window), else the gait schedule's step_length / (beta T), else from odometry
+  (``nav_msgs/Odometry`` positions, differenced the same way in the odometry frame), else a
+  given constant
+  ``speed_mps``; with none of these the speed is 0 on the gait-schedule path (as before) and
+  NaN on the joint path (unknown: CoT and specific resistance NaN).
 - ``power_loss = power_in - power_out``, ``efficiency = power_out / power_in``,
   ``cost_of_transport = power_loss / speed``, ``specific_cost_of_transport = power_loss /
   (mass * speed)``, ``specific_resistance = power_in / (mass * g * speed)``.
 
 Windows are decided by stamps, not arrival order: a window closes only once a battery sample
 past its end has arrived, so live streams and replayed bags give identical numbers.
+
+Cycle boundaries (``cycle_source``): ``gait_phase`` takes them from the wraps of the
+``/gait/phase`` cycle phase; ``joints`` from the joint positions alone
+(:class:`hexapod_energy.cycles.JointCycleTracker`), for robots whose gait code publishes no
+``/gait/phase``; ``auto`` feeds the joint tracker until the first ``/gait/phase`` sample arrives
+and from then on uses the gait schedule only (joint-derived boundaries not yet consumed are
+dropped). On the joint path, without joint efforts P_out is NaN (the Eq. 6 model needs the
+gait schedule), with a warning.
 """
 
 from __future__ import annotations
@@ -36,9 +48,11 @@ from hexapod_common.conversions import (
     BatterySample,
     GaitPhaseSample,
     JointStateSample,
+    OdometrySample,
     PoseSample,
     current_sign_factor,
 )
+from hexapod_energy.cycles import CycleSettings, JointCycleTracker
 
 __all__ = [
     'G_MPS2',
@@ -71,11 +85,14 @@ class Descriptors:
     specific_resistance: float
     cycles: int = 1
     warnings: tuple[str, ...] = ()
+    speed_source: str = ''   # mocap, odometry, gait_schedule, given, none
+    cycle_source: str = ''   # gait_phase or joints
 
 
 def descriptors_from_powers(*, power_in_w: float, power_out_w: float, speed_mps: float,
                             mass_kg: float, window_s: float = 0.0, t_end_s: float = 0.0,
-                            cycles: int = 1, warnings: tuple[str, ...] = ()) -> Descriptors:
+                            cycles: int = 1, warnings: tuple[str, ...] = (),
+                            speed_source: str = '', cycle_source: str = '') -> Descriptors:
     """All descriptors from mean powers, speed and mass (NaN where undefined, e.g. v = 0)."""
     loss = power_in_w - power_out_w
     eff = power_out_w / power_in_w if power_in_w > 0 else math.nan
@@ -86,7 +103,8 @@ def descriptors_from_powers(*, power_in_w: float, power_out_w: float, speed_mps:
         cost_of_transport_j_per_m=loss / speed_mps if speed_mps > 0 else math.nan,
         specific_cost_of_transport=loss / (mass_kg * speed_mps) if moving else math.nan,
         specific_resistance=power_in_w / (mass_kg * G_MPS2 * speed_mps) if moving else math.nan,
-        cycles=cycles, warnings=warnings)
+        cycles=cycles, warnings=warnings, speed_source=speed_source,
+        cycle_source=cycle_source)
 
 
 def gait_from_sample(sample: GaitPhaseSample) -> Any:
@@ -176,6 +194,13 @@ class DescriptorAccumulator:
         ``auto`` (joint efforts when the window has any, else the model, else 0), ``effort``
         (efforts only, 0 without) or ``model`` (the model only; for drivers whose effort is not
         a torque, such as the AX series' PWM load).
+    cycle_source
+        ``gait_phase``, ``joints`` or ``auto`` (see the module docstring).
+    speed_mps
+        Constant speed [m/s] used when neither motion capture, odometry nor a gait schedule
+        gives one; 0 = unknown.
+    cycle_settings
+        Settings of the joint-derived cycles.
     """
 
     mass_kg: float
@@ -184,6 +209,9 @@ class DescriptorAccumulator:
     auto_samples: int = 20
     power_out_model: Callable[[GaitPhaseSample, float], float] | None = None
     power_out_source: str = 'auto'
+    cycle_source: str = 'gait_phase'
+    speed_mps: float = 0.0
+    cycle_settings: CycleSettings = field(default_factory=CycleSettings)
     sign_: float | None = field(default=None, init=False)
     sign_note_: str = field(default='', init=False)
     _battery: list[tuple[float, float]] = field(default_factory=list, init=False)
@@ -196,6 +224,9 @@ class DescriptorAccumulator:
     _gait: GaitPhaseSample | None = field(default=None, init=False)
     _last_phase: tuple[float, float] | None = field(default=None, init=False)
     _window_start: float | None = field(default=None, init=False)
+    _odom: list[tuple[float, float, float]] = field(default_factory=list, init=False)
+    _tracker: JointCycleTracker | None = field(default=None, init=False)
+    _seen_gait: bool = field(default=False, init=False)
 
     def __post_init__(self) -> None:
         if self.mass_kg <= 0:
@@ -205,6 +236,13 @@ class DescriptorAccumulator:
         if self.power_out_source not in ('auto', 'effort', 'model'):
             raise ValueError('power_out_source must be auto, effort or model, got '
                              f'{self.power_out_source!r}')
+        if self.cycle_source not in ('auto', 'gait_phase', 'joints'):
+            raise ValueError('cycle_source must be auto, gait_phase or joints, got '
+                             f'{self.cycle_source!r}')
+        if not (math.isfinite(self.speed_mps) and self.speed_mps >= 0):
+            raise ValueError(f'speed_mps must be finite and >= 0, got {self.speed_mps}')
+        if self.cycle_source != 'gait_phase':
+            self._tracker = JointCycleTracker(self.cycle_settings)
         if self.current_sign != 'auto':
             self.sign_ = resolve_current_sign(np.zeros(1), np.zeros(1), self.current_sign)
 
@@ -233,8 +271,19 @@ class DescriptorAccumulator:
         self._battery.append((sample.t_s, self.sign_ * sample.voltage_v * sample.current_a))
         return self._emit()
 
-    def add_joint_state(self, sample: JointStateSample) -> None:
-        """Add joint efforts/velocities (ignored when effort or velocity is empty).
+    @property
+    def joint_cycles_(self) -> bool:
+        """Whether the windows come from the joint-derived cycles (no /gait/phase used)."""
+        return self._tracker is not None and not self._seen_gait
+
+    @property
+    def tracker_(self) -> JointCycleTracker | None:
+        """The joint cycle tracker (None on the gait-schedule path)."""
+        return self._tracker
+
+    def add_joint_state(self, sample: JointStateSample) -> list[Descriptors]:
+        """Add joint efforts/velocities (ignored when effort or velocity is empty) and, on the
+        joint path, positions; returns the windows the new cycle boundaries complete.
 
         Drivers that publish a robot's joints in several JointState messages (one per servo
         bus or leg) are handled: P_out is the sum over joint names of each joint's mean
@@ -244,6 +293,23 @@ class DescriptorAccumulator:
             power = np.clip(np.asarray(sample.effort, dtype=float) *
                             np.asarray(sample.velocity, dtype=float), 0.0, None)
             self._joint.append((sample.t_s, tuple(sample.names), power))
+        if not self.joint_cycles_:
+            return []
+        assert self._tracker is not None
+        evaluations = self._tracker.evaluations_
+        new = self._tracker.add(sample.t_s, sample.names, sample.position)
+        if not new:
+            if self._tracker.evaluations_ != evaluations and self._window_start is None and \
+                    not self._boundaries and self._tracker.origin_s is not None:
+                self._trim(self._tracker.origin_s)  # nothing pending: drop unneeded data
+            return []
+        self._boundaries.extend(new)
+        return self._emit()
+
+    def add_odometry(self, sample: OdometrySample) -> None:
+        """Add an odometry pose (horizontal position in the odometry frame, for the speed)."""
+        self._odom.append((sample.t_s, float(sample.position_m[0]),
+                           float(sample.position_m[1])))
 
     def add_pose(self, sample: PoseSample) -> None:
         """Add a body pose (horizontal position used for the speed)."""
@@ -252,6 +318,15 @@ class DescriptorAccumulator:
 
     def add_gait_phase(self, sample: GaitPhaseSample) -> list[Descriptors]:
         """Add a gait schedule sample; a wrap of the cycle phase marks a cycle boundary."""
+        if self.cycle_source == 'joints':
+            self._gait = sample
+            return []
+        if not self._seen_gait:
+            self._seen_gait = True
+            if self._tracker is not None:  # auto: the schedule takes over from the joints
+                self._tracker = None
+                self._boundaries = []
+                self._window_start = None
         self._gait = sample
         if self._last_phase is not None:
             t_prev, phase_prev = self._last_phase
@@ -272,8 +347,16 @@ class DescriptorAccumulator:
                 if not self._boundaries:
                     return out
                 self._window_start = self._boundaries.pop(0)
+                if math.isnan(self._window_start):  # a break of the joint-derived cycles
+                    self._window_start = None
+                    continue
             if len(self._boundaries) < self.cycles or not self._battery:
                 return out
+            breaks = [k for k, b in enumerate(self._boundaries[:self.cycles]) if math.isnan(b)]
+            if breaks:  # no window spans a break in the joint-derived cycles
+                self._window_start = None
+                del self._boundaries[:breaks[0] + 1]
+                continue
             t0, t1 = self._window_start, self._boundaries[self.cycles - 1]
             if self._battery[-1][0] < t1 or self._battery[0][0] > t0:
                 if self._battery[0][0] > t0:  # window starts before the first battery sample
@@ -300,28 +383,48 @@ class DescriptorAccumulator:
         joint = [j for j in self._joint if t0 <= j[0] < t1]
         use_model = self.power_out_source == 'model' or \
             (self.power_out_source == 'auto' and not joint)
+        joint_path = self.joint_cycles_
         if joint and self.power_out_source != 'model':
             power_out = _mean_joint_power_w(joint)
         elif use_model and self.power_out_model is not None and self._gait is not None:
             power_out = float(self.power_out_model(self._gait, self.mass_kg))
+        elif joint_path:
+            warnings.append(('no joint efforts in the window'
+                             if self.power_out_source != 'model' else 'power_out_source is model')
+                            + ': P_out unknown (NaN); the Eq. 6 model needs the gait schedule '
+                            '(/gait/phase)')
+            power_out = math.nan
         else:
             if self.power_out_source == 'model':
                 warnings.append('power_out_source is model but no model or gait schedule: '
                                 'P_out = 0')
             power_out = 0.0
-        speed = self._speed(t0, t1)
+        speed, speed_source = self._speed_and_source(t0, t1)
         return descriptors_from_powers(power_in_w=power_in, power_out_w=power_out,
                                        speed_mps=speed, mass_kg=self.mass_kg,
                                        window_s=t1 - t0, t_end_s=t1, cycles=self.cycles,
-                                       warnings=tuple(warnings))
+                                       warnings=tuple(warnings), speed_source=speed_source,
+                                       cycle_source='joints' if joint_path else 'gait_phase')
 
     def _speed(self, t0: float, t1: float) -> float:
-        poses = sorted(p for p in self._poses if t0 <= p[0] <= t1)
-        if len(poses) >= 2 and poses[0][0] - t0 < 0.1 * (t1 - t0) and \
-                t1 - poses[-1][0] < 0.1 * (t1 - t0):
-            dx, dy = poses[-1][1] - poses[0][1], poses[-1][2] - poses[0][2]
-            return math.hypot(dx, dy) / (poses[-1][0] - poses[0][0])
-        return self._gait.speed_mps if self._gait is not None else 0.0
+        """Speed [m/s] over the window."""
+        return self._speed_and_source(t0, t1)[0]
+
+    def _speed_and_source(self, t0: float, t1: float) -> tuple[float, str]:
+        """Speed [m/s] over the window and its source."""
+        for source, track in (('mocap', self._poses), ('odometry', self._odom)):
+            if source == 'odometry' and self._gait is not None:
+                # the schedule ranks before odometry, so bags and live runs with /gait/phase
+                # give the numbers they always gave
+                return self._gait.speed_mps, 'gait_schedule'
+            poses = sorted(p for p in track if t0 <= p[0] <= t1)
+            if len(poses) >= 2 and poses[0][0] - t0 < 0.1 * (t1 - t0) and \
+                    t1 - poses[-1][0] < 0.1 * (t1 - t0):
+                dx, dy = poses[-1][1] - poses[0][1], poses[-1][2] - poses[0][2]
+                return math.hypot(dx, dy) / (poses[-1][0] - poses[0][0]), source
+        if self.speed_mps > 0:
+            return self.speed_mps, 'given'
+        return (math.nan if self.joint_cycles_ else 0.0), 'none'
 
     def _trim(self, t: float) -> None:
         keep_from = t - 1.0
@@ -330,3 +433,4 @@ class DescriptorAccumulator:
             [b for b in self._battery if b[0] > t]
         self._joint = [j for j in self._joint if j[0] >= keep_from]
         self._poses = [p for p in self._poses if p[0] >= keep_from]
+        self._odom = [p for p in self._odom if p[0] >= keep_from]

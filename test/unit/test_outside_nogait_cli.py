@@ -1,0 +1,76 @@
+"""``hexapod-analyze energy --robot BAG`` on another lab's bag without ``/gait/phase``: the
+run is analysed on joint-derived cycles; the prediction needs ``--gait --duty-factor
+--step-length``; the speed falls back to ``--robot-speed``; every fallback is in the run's
+``notes``."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from test_energy_cli import _write_bench, _write_robot
+from test_outside_nogait_bag import simulated_run, write_lab_bag
+
+from hexapod_energy.cli import main
+
+
+@pytest.fixture(scope='module')
+def bags(tmp_path_factory):
+    root = tmp_path_factory.mktemp('nogait_cli')
+    _write_bench(root / 'bench')
+    _write_robot(root / 'robot_gait', 0.5)
+    trace = simulated_run(duration_s=10.0)
+    write_lab_bag(root / 'lab_odom', trace)
+    write_lab_bag(root / 'lab_bare', trace, odom=False)
+    return root
+
+
+def _run(root, out, *extra):
+    code = main(['--bench', str(root / 'bench'), '--robot', *extra, '--out', str(out),
+                 '--no-progress'])
+    assert code == 0
+    return json.loads((out / 'energy.json').read_text())
+
+
+def test_gait_given_gives_a_prediction(bags, tmp_path):
+    doc = _run(bags, tmp_path / 'o', str(bags / 'lab_odom'), str(bags / 'robot_gait'),
+               '--gait', 'tripod', '--duty-factor', '0.5', '--step-length', '0.1')
+    lab, ref = doc['robot_runs']
+    assert lab['cycle_source'] == 'joints' and ref['cycle_source'] == 'gait_phase'
+    assert lab['gait'] == 'tripod' and lab['leg_count'] == 6
+    np.testing.assert_allclose(lab['period_s'], 2 / 3, rtol=0.01)
+    assert lab['predicted_power_in_w'] > 0 and lab['speed_source'] == 'odometry'
+    np.testing.assert_allclose(lab['speed'], 0.3, rtol=0.02)
+    assert lab['power_out_source'] == 'effort'
+    assert doc['prediction_error']['runs'] == 2
+    assert any('as given' in n for n in lab['notes'])
+
+
+def test_without_gait_no_prediction_and_given_speed(bags, tmp_path):
+    doc = _run(bags, tmp_path / 'o', str(bags / 'lab_bare'), str(bags / 'robot_gait'),
+               '--robot-speed', '0.25')
+    lab, ref = doc['robot_runs']
+    assert lab['predicted_power_in_w'] is None and lab['residual_w'] is None
+    assert lab['gait'] is None and lab['leg_count'] == 6
+    assert lab['speed'] == 0.25 and lab['speed_source'] == 'given'
+    assert lab['specific_resistance'] > 0 and lab['efficiency'] > 0
+    assert doc['prediction_error']['runs'] == 1  # the run with a prediction only
+    notes = ' '.join(lab['notes'])
+    assert 'no Eq. 1 prediction' in notes and 'no /gait/phase' in notes
+    assert ref['speed'] == pytest.approx(0.4)  # gait runs keep the schedule's speed
+
+
+def test_without_any_speed_source_nulls(bags, tmp_path):
+    doc = _run(bags, tmp_path / 'o', str(bags / 'lab_bare'))
+    lab = doc['robot_runs'][0]
+    assert lab['speed'] is None and lab['specific_resistance'] is None
+    assert lab['cost_of_transport'] is None and lab['measured_power_in_w'] > 0
+    assert 'prediction_error' not in doc
+    assert any('speed unknown' in n for n in lab['notes'])
+
+
+def test_partial_gait_options_refused(bags, tmp_path, capsys):
+    code = main(['--bench', str(bags / 'bench'), '--robot', str(bags / 'lab_bare'),
+                 '--gait', 'tripod', '--out', str(tmp_path / 'o'), '--no-progress'])
+    assert code == 2 and '--duty-factor' in capsys.readouterr().err
