@@ -6,6 +6,15 @@ positive joint power (:mod:`hexapod_energy.dynamics`): from joint efforts when p
 the Eq. 6 inverse-dynamics model of the gait on ``/gait/phase`` (``power_out_source``). The science
 is in :mod:`hexapod_energy.descriptors`.
 
+Cycle boundaries (``cycle_source``): ``auto`` (default) takes them from ``/gait/phase`` as soon
+as its messages arrive and, until then (a robot running its own gait code publishes none), from
+the joint positions (:mod:`hexapod_energy.cycles`: the step period by autocorrelation,
+re-estimated every 0.5 s over the last 10 periods, fed one JointState at a time); ``gait_phase``
+and ``joints`` force one source. Speed: ``/mocap/body``, else the gait schedule, else ``odom``
+(nav_msgs/Odometry, position differenced over the window in the odometry frame), else the
+parameter ``speed`` (0 = unknown: speed, CoT and specific resistance NaN). On the joint path
+without joint efforts P_out is NaN (the Eq. 6 model needs the gait schedule).
+
 Times are header stamps. A message whose header stamp is zero (drivers that never fill it) is
 stamped with the node's clock on arrival instead (the bag time under replay), with one warning
 per topic, as the offline reader falls back to the bag's receive time.
@@ -20,6 +29,7 @@ from typing import Any
 
 from geometry_msgs.msg import PoseStamped
 from hexapod_interfaces.msg import EnergeticDescriptors, GaitPhase
+from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from sensor_msgs.msg import BatteryState, JointState
 
@@ -27,6 +37,7 @@ from hexapod_common.conversions import (
     battery_from_msg,
     gait_phase_from_msg,
     joint_state_from_msg,
+    odometry_from_msg,
     pose_from_msg,
     s_to_stamp,
 )
@@ -56,6 +67,15 @@ class EnergyParams:
                               '(payload = mass - robot_mass)',
                               validate=lambda v: None if v > 0 else 'must be > 0',
                               read_only=True)
+    cycle_source: str = param(
+        'auto', 'gait cycle boundaries from: auto (/gait/phase when its messages arrive, else '
+        'the joint positions), gait_phase, or joints (robots without /gait/phase)',
+        validate=lambda v: None if v in ('auto', 'gait_phase', 'joints')
+        else 'expected auto, gait_phase or joints', read_only=True)
+    speed: float = param(0.0, 'robot speed [m/s] used when no /mocap/body, gait schedule or '
+                         'odom gives one; 0 = unknown (speed-based descriptors NaN)',
+                         validate=lambda v: None if v >= 0 else 'must be >= 0',
+                         read_only=True)
 
 
 def descriptors_to_msg(d: Descriptors, msg: Any = None) -> EnergeticDescriptors:
@@ -89,7 +109,8 @@ class EnergyMonitorNode(Node):
                                     robot_mass_kg=p.robot_mass)
         self.core = DescriptorAccumulator(mass_kg=p.mass, cycles=p.cycles,
                                           current_sign=p.current_sign, power_out_model=model,
-                                          power_out_source=p.power_out_source)
+                                          power_out_source=p.power_out_source,
+                                          cycle_source=p.cycle_source, speed_mps=p.speed)
         self.pub = self.create_publisher(EnergeticDescriptors, 'energy/descriptors',
                                          RELIABLE_QOS)
         self.dropped = 0
@@ -99,6 +120,7 @@ class EnergyMonitorNode(Node):
         self.create_subscription(GaitPhase, 'gait/phase', self._on_gait, SENSOR_QOS)
         self.create_subscription(JointState, 'joint_states', self._on_joints, SENSOR_QOS)
         self.create_subscription(PoseStamped, 'mocap/body', self._on_pose, SENSOR_QOS)
+        self.create_subscription(Odometry, 'odom', self._on_odom, SENSOR_QOS)
 
     def _guard(self, what: str, fn: Any, msg: Any) -> Any:
         try:
@@ -140,9 +162,13 @@ class EnergyMonitorNode(Node):
                                   msg))
 
     def _on_joints(self, msg: JointState) -> None:
-        self._guard('JointState', lambda m: self.core.add_joint_state(
-                        self._restamp('joint_states', joint_state_from_msg(m))),
-                    msg)
+        self._publish(self._guard('JointState', lambda m: self.core.add_joint_state(
+                                      self._restamp('joint_states', joint_state_from_msg(m))),
+                                  msg))
+
+    def _on_odom(self, msg: Odometry) -> None:
+        self._guard('Odometry', lambda m: self.core.add_odometry(
+                        self._restamp('odom', odometry_from_msg(m))), msg)
 
     def _on_pose(self, msg: PoseStamped) -> None:
         self._guard('PoseStamped', lambda m: self.core.add_pose(
