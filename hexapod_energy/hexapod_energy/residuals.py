@@ -623,6 +623,9 @@ class EffectSelection:
         A candidate must lower the training BIC by more than this.
     min_improvement : float
         ... and the held-out RMSE by more than this fraction of the current one.
+    max_collinearity : float
+        A later effect whose fitted contribution correlates with the earlier effects' by at
+        least this (absolute) is reported as collinear with them (not removed).
 
     Fitted attributes
     -----------------
@@ -630,11 +633,15 @@ class EffectSelection:
     coef_ : (k,) coefficients of the selected effects' columns
     candidates_ : list of dict (name, heldout_rmse, delta_bic, selected, params, stderr)
     rmse_heldout_before_, rmse_heldout_after_ : float [W]
+    collinearity_ : list of dict (name, earlier, correlation, collinear), one per effect added
+        after the first: its fitted contribution against the earlier effects' (selection is
+        not changed by it; the report says when the runs cannot tell them apart)
     """
 
     catalogue: list[EnergyEffect] | None = None
     min_delta_bic: float = 10.0
     min_improvement: float = 0.05
+    max_collinearity: float = 0.9
     history_: list[dict[str, Any]] = field(default_factory=list, repr=False)
 
     def _fit(self, effects: Sequence[EnergyEffect], table: WindowTable, train: np.ndarray
@@ -735,7 +742,29 @@ class EffectSelection:
         self.rmse_heldout_before_ = rmse0
         self.rmse_heldout_after_ = float(np.sqrt(np.mean((y[held] - term[held]) ** 2)))
         self.final_params_ = self._params(selected, coef, se, table)
+        self.collinearity_ = self._collinearity(selected, coef, table)
         return self
+
+    def _collinearity(self, selected: Sequence[EnergyEffect], coef: np.ndarray,
+                      table: WindowTable) -> list[dict[str, Any]]:
+        """For each effect added after the first: the correlation of its regressor (its fitted
+        contribution) with the fitted contribution of the effects added before it, over all
+        windows. ``|r| >= max_collinearity`` means the runs cannot tell the two apart: the later
+        effect may only bend the earlier effect's model where that model is approximate."""
+        terms, i = [], 0
+        for e in selected:
+            x = e.columns(table)
+            terms.append(x @ coef[i:i + x.shape[1]])
+            i += x.shape[1]
+        out: list[dict[str, Any]] = []
+        for k in range(1, len(selected)):
+            a, b = terms[k], np.sum(terms[:k], axis=0)
+            r = float(np.corrcoef(a, b)[0, 1]) if np.std(a) > 0 and np.std(b) > 0 else 0.0
+            out.append({'name': selected[k].name,
+                        'earlier': [e.name for e in selected[:k]],
+                        'correlation': r,
+                        'collinear': bool(abs(r) >= self.max_collinearity)})
+        return out
 
 
 def energy_loop_document(table: WindowTable, sel: EffectSelection,
@@ -751,6 +780,13 @@ def energy_loop_document(table: WindowTable, sel: EffectSelection,
     candidates = list(sel.candidates_)
     added_params = [{'name': e.name, 'params': p, 'stderr': s}
                     for e, (p, s) in zip(sel.selected_, sel.final_params_)]
+    for a, c in zip(added_params[1:], getattr(sel, 'collinearity_', [])):
+        a['collinearity'] = {'with': c['earlier'], 'correlation': c['correlation'],
+                             'collinear': c['collinear']}
+        if c['collinear']:
+            a['note'] = (f"its contribution follows that of {', '.join(c['earlier'])} "
+                         f"(r = {c['correlation']:+.2f}): these runs cannot tell them apart; it "
+                         'may only correct the earlier model where that model is approximate')
     if view is not None:
         candidates = [c for c in candidates if c['name'] != 'time_offset'] + [view.record()]
         if view.selected_:
@@ -803,17 +839,28 @@ def summary_text(doc: dict[str, Any]) -> str:
                             f'{unit}).')
         return intro + ('No candidate effect lowered the held-out error significantly, so none '
                         f"was added (held-out RMSE {h['rmse_before']:.3g} {unit}).")
-    parts = []
+    parts, doubts = [], []
     for a in doc.get('added_params', []):
         if a['name'] == 'time_offset':
             continue
         ps = ', '.join(f'{k} = {v:.4g} +/- {a["stderr"].get(k, float("nan")):.2g}'
                        if isinstance(v, float) else f'{k} = {v}'
                        for k, v in a['params'].items() if k != 'same_stance_as')
-        parts.append(f"{a['name']} ({ps})")
-    return intro + (f"The model missed {' and '.join(parts)}; adding "
-                    f"{'it' if len(parts) == 1 else 'them'} reduced held-out error from "
-                    f"{h['rmse_before']:.3g} to {h['rmse_after']:.3g} {unit}.")
+        coll = a.get('collinearity') or {}
+        if coll.get('collinear'):
+            earlier = ' and '.join(coll['with'])
+            doubts.append((a['name'],
+                           f"The loop also added {a['name']} ({ps}) after {earlier}, but its "
+                           f"contribution follows {earlier}'s (r = {coll['correlation']:+.2f}): "
+                           'these runs cannot tell a separate effect from a correction of '
+                           f"{earlier}'s model."))
+        else:
+            parts.append(f"{a['name']} ({ps})")
+    with_ = f" (with {' and '.join(n for n, _ in doubts)}, below)" if doubts else ''
+    out = intro + (f"The model missed {' and '.join(parts)}; adding "
+                   f"{'it' if len(parts) == 1 else 'them'}{with_} reduced held-out error from "
+                   f"{h['rmse_before']:.3g} to {h['rmse_after']:.3g} {unit}.")
+    return ' '.join([out] + [d for _, d in doubts])
 
 
 def _bench_temperature_c(bench_bags: Sequence[str | Path]) -> float | None:

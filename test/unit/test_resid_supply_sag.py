@@ -91,6 +91,36 @@ def test_no_saturation_plateau_without_repeated_maximum():
         temp_sum_c=np.full(101, np.nan), servo_count=1, leg_names=('L1',),
         phase_offsets=(0.0,), gait='tripod',
         joint_abs_effort={'j': (t, np.abs(np.sin(7 * t)))})
-    assert np.all(R.saturated_drive_count([run]) [0] == 0.0)
+    assert np.all(R.saturated_drive_count([run])[0] == 0.0)
     run.joint_abs_effort = {'j': (t, np.minimum(np.abs(np.sin(7 * t)) * 1.5, 1.0))}
     assert R.saturated_drive_count([run])[0].sum() >= 20
+
+
+def test_a_stand_in_after_the_old_i2_model_is_reported_as_collinear(bench, sag):
+    """With the earlier ``-I^2`` model of the supply (``default_catalogue``) the loop adds
+    kinematic_error second; the report says it follows supply_resistance's contribution
+    instead of claiming the model missed it."""
+    from hexapod_energy.effects_catalogue import default_catalogue
+
+    runs, _ = sag
+    table = R.build_windows(runs, temp_ref_c=bench['temp_ref_c'])
+    held = R.split_mask(table)
+    sel = R.EffectSelection(catalogue=default_catalogue(table.leg_names)).fit(table, held)
+    assert [e.name for e in sel.selected_] == ['supply_resistance', 'kinematic_error']
+    (c,) = sel.collinearity_
+    assert c['collinear'] and abs(c['correlation']) > 0.9 and c['earlier'] == ['supply_resistance']
+    doc = R.energy_loop_document(table, sel, held)
+    a = doc['added_params'][1]
+    assert a['collinearity']['collinear'] and 'cannot tell' in a['note']
+    assert 'The model missed supply_resistance (' in doc['summary']
+    assert 'The loop also added kinematic_error' in doc['summary']
+    assert 'cannot tell a separate effect' in doc['summary']
+
+
+def test_two_independent_effects_are_not_called_collinear(bench, tmp_path):
+    """A real second effect with its own regressor (a leg's stance) is reported as missed."""
+    doc = loop(bench, robot_runs(tmp_path, ['kinematic_error=3', 'leg_anomaly=L2:2']))
+    assert set(doc['effects_added'][:2]) == {'kinematic_error', 'leg_anomaly'}
+    leg = next(a for a in doc['added_params'] if a['name'] == 'leg_anomaly')
+    assert leg.get('collinearity', {}).get('collinear') in (None, False)
+    assert 'leg_anomaly (' in doc['summary'].split(';')[0]
