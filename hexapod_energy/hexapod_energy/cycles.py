@@ -17,7 +17,10 @@ Period estimate (:func:`estimate_period`)
     taken for T), refined by parabolic interpolation through its three samples and then by a
     least-squares line through the refined peaks near every multiple m T that fits in half the
     span (a lag measured m times longer is m times more precise). The periodicity is weak when
-    the peak is below ``min_peak`` (0.5): no period.
+    the peak is below ``min_peak`` (0.5): no period. As the span's autocorrelation reacts to a
+    stop only once the stop fills much of the span, the last period must also repeat the one
+    before it (correlation >= ``min_peak``, RMS within a factor 2 of each other and at least
+    0.32 of the span's), else no period.
 
 Cycle boundaries (:class:`JointCycleTracker`)
     Streaming: positions arrive one JointState at a time and are interpolated onto the grid as
@@ -27,9 +30,10 @@ Cycle boundaries (:class:`JointCycleTracker`)
     cycles are laid from the first joint sample: b_0 = t_first, b_(k+1) = b_k + T, where a
     cycle [b_k, b_k + T] is laid, with the estimate T of the first evaluation at or after its
     end, once that evaluation's time reaches b_k + T. A change of step frequency is followed
-    within about one span. When the periodicity is lost (the robot stops, or moves
-    irregularly), the chain of cycles ends (a NaN boundary marks the break) and a new chain
-    starts from the time the periodicity was last found missing.
+    within about one span. When the periodicity is lost (the robot stops, changes gait, or
+    moves irregularly), the chain of cycles ends (a NaN boundary marks the break) and a new
+    chain starts from the time the periodicity was last found missing, estimated only on data
+    after that time (so once 3 periods of it exist).
 
     Cost per message: O(joints) for the grid, plus one FFT of the span (``J`` joints x
     ``span / grid_dt_s`` samples) every ``hop_s``: amortised O(J log n) with n the span
@@ -114,7 +118,9 @@ class PeriodEstimate:
 
     ``period_s`` is NaN when no period is claimed; ``status`` says why: ``periodic``,
     ``standing`` (every joint still), ``weak`` (peak below ``min_peak`` with data enough to
-    see every allowed period) or ``short`` (no peak yet, too little data to decide).
+    see every allowed period), ``changed`` (the last period does not repeat the one before it:
+    correlation below ``min_peak``, RMS ratio outside 0.5-2 or RMS below 0.32 of the span's:
+    the robot stopped or changed its gait) or ``short`` (no peak yet, too little data to decide).
     """
 
     period_s: float
@@ -209,6 +215,17 @@ def estimate_period(grid: FloatArray, settings: CycleSettings | None = None) -> 
         m += 1
     m_arr, l_arr = np.array(ms), np.array(ls)
     period = float(np.sum(m_arr * l_arr) / np.sum(m_arr * m_arr)) * dt
+    # the span's autocorrelation lags behind a stop: the last period must repeat the one
+    # before it, in shape and in size
+    k = int(round(period / dt))
+    a = z[n - k:] - z[n - k:].mean(axis=0)
+    b = z[n - 2 * k:n - k] - z[n - 2 * k:n - k].mean(axis=0)
+    saa, sbb = float(np.sum(a * a)), float(np.sum(b * b))
+    recent = float(np.sum(a * b)) / math.sqrt(saa * sbb) if saa > 0 and sbb > 0 else 0.0
+    # mean squares of the unit-variance signals: a still stretch has ~0 (rounding only)
+    ms_a, ms_b = saa / a.size, sbb / b.size
+    if recent < s.min_peak or min(ms_a, ms_b) < 0.1 or not 0.25 <= ms_a / ms_b <= 4.0:
+        return PeriodEstimate(math.nan, min(peak, recent), 'changed', int(active.sum()))
     return PeriodEstimate(period, peak, 'periodic', int(active.sum()))
 
 
@@ -250,6 +267,7 @@ class JointCycleTracker:
     _k_eval: int = field(default=0, init=False)
     _chain_last: float | None = field(default=None, init=False)
     _origin: float | None = field(default=None, init=False)
+    _chain_start: float = field(default=math.nan, init=False)
 
     @property
     def origin_s(self) -> float | None:
@@ -346,6 +364,10 @@ class JointCycleTracker:
         if math.isfinite(self.period_s_):
             span_s = min(s.max_span_s, s.span_periods * self.period_s_)
         n = min(self._count, int(round(span_s / s.grid_dt_s)) + 1)
+        # never across a stop: only data since the current chain (or attempt) began
+        start = self._chain_start if self._chain_last is not None else self._origin
+        assert start is not None
+        n = min(n, int(math.floor((t_eval - start) / s.grid_dt_s + 1e-9)) + 1)
         est = estimate_period(self._buf[self._count - n:self._count], s)
         self.estimate_ = est
         self.evaluations_ += 1
@@ -364,7 +386,7 @@ class JointCycleTracker:
             assert self._origin is not None
             if self._origin + est.period_s > t_eval + 1e-9:
                 return out
-            self._chain_last = self._origin
+            self._chain_last = self._chain_start = self._origin
             out.append(self._origin)
         while self._chain_last + est.period_s <= t_eval + 1e-9:
             self._chain_last += est.period_s
