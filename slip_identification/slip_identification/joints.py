@@ -348,7 +348,7 @@ class JointFrameAssembler:
                 self.groups = 1
                 return [JointFrame(t_s, names, v, q)]
             return self._learning(t_s, names, v, q)
-        return self._push(t_s, names, v, q, emit=True)
+        return self._push(t_s, names, v, q)
 
     # -- split mode --------------------------------------------------------------------
     def _learning(self, t_s: float, names: tuple[str, ...], v: np.ndarray,
@@ -380,12 +380,12 @@ class JointFrameAssembler:
         self._has_pos = all(x[3] is not None for x in self._learn)
         out: list[JointFrame] = []
         for x in self._learn:
-            out.extend(self._push(*x, emit=True))
+            out.extend(self._push(*x))
         self._learn.clear()
         return out
 
     def _push(self, t_s: float, names: tuple[str, ...], v: np.ndarray,
-              q: np.ndarray | None, *, emit: bool) -> list[JointFrame]:
+              q: np.ndarray | None) -> list[JointFrame]:
         for i, n in enumerate(names):
             j = self._col.get(n)
             if j is None:
