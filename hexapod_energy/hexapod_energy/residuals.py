@@ -8,10 +8,14 @@
    stance apart from the other's (a leg's anomaly shows).
 2. **Trace.** Every candidate of :mod:`hexapod_energy.effects_catalogue` is fitted on the
    residual of a training split (time blocks of each run: every third block held out),
-   coefficients bounded to their physical sign (``scipy.optimize.lsq_linear``).
+   coefficients bounded to their physical sign (``scipy.optimize.lsq_linear``);
+   ``supply_resistance`` is modelled here by :class:`SupplyResistanceDrive` (the voltage sag's
+   effect on the servos' electronics and saturated drives, not ``-I^2``).
 3. **Add.** Forward selection: the candidate with the lowest held-out RMSE is added if its BIC
    on the training windows falls by more than ``min_delta_bic`` and its held-out RMSE by more
-   than ``min_improvement`` of the current one; repeat until nothing passes.
+   than ``min_improvement`` of the current one; repeat until nothing passes. An effect added
+   after others whose fitted contribution follows theirs (``|r| >= 0.9``) is reported as
+   collinear: the runs cannot tell it from a correction of the earlier effects' models.
 4. **Report.** :func:`energy_loop_document` gives the ``residuals.json`` content.
 
 The analysis never reads the simulator's effect metadata. Core functions take arrays; the
@@ -431,9 +435,10 @@ def saturated_drive_count(runs: Sequence[ResidualRun], *, min_samples: int = 20
     A PWM servo reports its effort as the drive duty times a constant (AX/MX ``present load``),
     so a saturated drive (duty at its limit) is a plateau: the largest ``|effort|`` of all
     joints and runs, repeated. The plateau counts when at least ``min_samples`` joint samples sit
-    within 1e-6 (relative) of that largest value; otherwise nothing is saturated (zeros; also
-    without ``/joint_states`` efforts). Every joint is assumed to share the same limit (one
-    servo type, the same torque limit).
+    within 1e-6 (relative) of that largest value, and at least twice as many as in the 3 %
+    below it (a pile-up, not the top step of a quantised effort); otherwise nothing is
+    saturated (zeros; also without ``/joint_states`` efforts). Every joint is assumed to share
+    the same limit (one servo type, the same torque limit).
     """
     out = [np.zeros(r.t_s.shape) for r in runs]
     if not runs or any(not r.joint_abs_effort for r in runs):
@@ -443,9 +448,13 @@ def saturated_drive_count(runs: Sequence[ResidualRun], *, min_samples: int = 20
     if not top > 0.0:
         return out
     thr = top * (1.0 - 1e-6)
-    hits = sum(int(np.sum(e >= thr)) for r in runs
-               for _, e in r.joint_abs_effort.values())  # type: ignore[union-attr]
-    if hits < min_samples:
+    efforts = [e for r in runs
+               for _, e in r.joint_abs_effort.values()]  # type: ignore[union-attr]
+    hits = sum(int(np.sum(e >= thr)) for e in efforts)
+    # a clipped drive piles up at its limit; a quantised but unclipped effort (an AX's 1/1023
+    # steps) does not: its top value is no more common than the 3 % just below it
+    below = sum(int(np.sum((e >= 0.97 * top) & (e < thr))) for e in efforts)
+    if hits < min_samples or hits < 2 * below:
         return out
     for k, r in enumerate(runs):
         for tj, e in r.joint_abs_effort.values():  # type: ignore[union-attr]

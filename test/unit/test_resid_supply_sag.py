@@ -124,3 +124,19 @@ def test_two_independent_effects_are_not_called_collinear(bench, tmp_path):
     leg = next(a for a in doc['added_params'] if a['name'] == 'leg_anomaly')
     assert leg.get('collinearity', {}).get('collinear') in (None, False)
     assert 'leg_anomaly (' in doc['summary'].split(';')[0]
+
+
+def test_quantised_unclipped_effort_is_not_a_plateau():
+    """An AX-like effort in 1/1023 steps that never reaches its limit repeats its top step,
+    but no more often than the steps just below it: no saturated samples."""
+    t = np.linspace(0.0, 10.0, 1001)
+    e = np.round(np.abs(np.sin(3 * t)) * 0.6 * 1023) / 1023
+    run = R.ResidualRun(
+        name='x', t_s=t, voltage_v=np.full(t.size, 12.0), current_a=np.ones(t.size),
+        power_w=np.full(t.size, 12.0), cycle_phase=t % 1.0, period_s=np.ones(t.size),
+        duty_factor=np.full(t.size, 0.5), step_length_m=np.full(t.size, 0.1),
+        in_stance=np.ones((t.size, 1), bool), supporting=np.ones(t.size, int),
+        temp_sum_c=np.full(t.size, np.nan), servo_count=1, leg_names=('L1',),
+        phase_offsets=(0.0,), gait='tripod', joint_abs_effort={'j': (t, e)})
+    assert np.sum(e >= e.max()) >= 20           # the top step does repeat
+    assert np.all(R.saturated_drive_count([run])[0] == 0.0)
