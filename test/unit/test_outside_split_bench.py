@@ -2,10 +2,11 @@
 
 A simulated bench plan (``hexapod_bench_drivers.bench_sim``) is written into a bag and
 rewritten with rosbags' own ``Writer`` with every header stamp of the four bench topics set to
-zero and their receive times late by 1-3 ms per topic, +-0.5 ms jitter. The bag receive times then stand in (as for robot and SLIP bags): the phase powers must
-equal the original's within 1 %, with a note per topic in the diagnostics that
-``energy.json`` carries (``bench.diagnostics[].notes``). Before, every sample was at t = 0:
-the sessions collapsed and the bag gave no phase powers.
+zero and their receive times late by 1-3 ms per topic, +-0.5 ms jitter. The bag receive times
+then stand in (as for robot and SLIP bags): the phase powers must equal the original's within
+1 %, with a note per topic in the diagnostics that ``energy.json`` carries
+(``bench.diagnostics[].notes``). Before, every sample was at t = 0: the sessions collapsed and
+the bag gave no phase powers.
 """
 
 from __future__ import annotations

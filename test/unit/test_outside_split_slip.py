@@ -3,8 +3,9 @@
 A simulated EduBot bag (``hexapod_bench_drivers.edubot_bag``) is rewritten with rosbags' own
 ``Writer``: its ``/joint_states`` become two messages per sample (hips L1-L3 and R1-R3, one
 per servo bus), or six single-joint messages with jittered stamps (each joint's own read
-time, +-0.4 ms). Before the assembler, ``read_run`` kept only messages naming the first
-message's joints and the run lost half its legs (a refusal or wrong tripods). The assembled
+time, +-0.4 ms; the commands split likewise). Before the assembler, ``read_run`` kept only
+messages naming the first message's joints and the run lost half its legs (a refusal or wrong
+tripods). The assembled
 runs must give the unsplit run's stances (touchdown and lift-off within 2 ms, same count
 +-1) and stiffness medians within 2 %.
 """
@@ -33,13 +34,14 @@ def bags(tmp_path_factory):
     return {'ref': ref,
             'two': _rewrite(ref, root / 'two', [(0, 1, 2), (3, 4, 5)], jitter_s=0.0),
             'six': _rewrite(ref, root / 'six', [(i,) for i in (3, 0, 4, 1, 5, 2)],
-                            jitter_s=4e-4),
+                            jitter_s=4e-4, topics=('/joint_states', '/joint_commands')),
             'left_only': _rewrite(ref, root / 'left_only', [(0, 1, 2)], jitter_s=0.0)}
 
 
-def _rewrite(src, dst, groups, *, jitter_s: float, seed: int = 5):
-    """Copy bag ``src`` to ``dst`` with each /joint_states message split into ``groups``
-    (tuples of column indices), each part stamped with its own jitter."""
+def _rewrite(src, dst, groups, *, jitter_s: float, seed: int = 5,
+             topics=('/joint_states',)):
+    """Copy bag ``src`` to ``dst`` with each message of ``topics`` (JointState) split into
+    ``groups`` (tuples of column indices), each part stamped with its own jitter."""
     from hexapod_common.bags import open_reader, typestore
 
     store = typestore()
@@ -50,7 +52,7 @@ def _rewrite(src, dst, groups, *, jitter_s: float, seed: int = 5):
         for c in reader.connections:
             conns[c.topic] = w.add_connection(c.topic, c.msgtype, typestore=store)
         for conn, t_ns, data in reader.messages():
-            if conn.topic != '/joint_states':
+            if conn.topic not in topics:
                 w.write(conns[conn.topic], t_ns, data)
                 continue
             msg = store.deserialize_cdr(data, JS)
@@ -62,8 +64,10 @@ def _rewrite(src, dst, groups, *, jitter_s: float, seed: int = 5):
                     header=store.types['std_msgs/msg/Header'](
                         stamp=store.types['builtin_interfaces/msg/Time'](
                             sec=ns // 10**9, nanosec=ns % 10**9), frame_id=''),
-                    name=[msg.name[i] for i in idx], position=msg.position[idx],
-                    velocity=msg.velocity[idx], effort=msg.effort[idx])
+                    name=[msg.name[i] for i in idx],
+                    position=msg.position[idx] if len(msg.position) else msg.position,
+                    velocity=msg.velocity[idx],
+                    effort=msg.effort[idx] if len(msg.effort) else msg.effort)
                 w.write(conns[conn.topic], t_ns, store.serialize_cdr(part, JS))
     return dst
 
@@ -95,6 +99,9 @@ def test_read_run_assembles_split_frames(bags):
         assert note and f'split over {groups} name groups: assembled at 100 Hz' in note[0]
         assert run.joint_t_s.size >= ref.joint_t_s.size - 2
         assert run.joint_effort is not None and run.joint_position is not None
+        assert run.command_velocity.shape[1] == 6
+    notes = read_run(bags['six']).notes
+    assert any('/joint_commands: joint states split over 6' in n for n in notes)
     # same stamps on both buses: the frames are the reference's own samples
     run = read_run(bags['two'])
     cols = [run.joint_names.index(n) for n in ref.joint_names]
