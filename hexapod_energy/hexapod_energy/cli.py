@@ -39,7 +39,8 @@ of ``prediction_error``. Every such fallback is listed in the run's ``notes``.
                       "specific_resistance", "cycle_source" ("gait_phase" | "joints"),
                       "speed_source" (mocap | odometry | gait_schedule | given | none),
                       "notes" [str] (this run's input fallbacks)}],
-      "prediction_error": {"runs" (runs with a prediction), "rmse_w", "mae_w", "bias_w" (mean predicted - measured),
+      "prediction_error": {"runs" (runs with a prediction), "rmse_w", "mae_w",
+                           "bias_w" (mean predicted - measured),
                            "mean_power_w", "relative_rmse", "max_abs_relative"},
       "sweeps": {"<sweep name>": [SweepCurve.to_dict()]},     # with --sweep
       "power_map": {"speeds_mps", "payloads_kg", "power_out_w" (n_speed x n_payload),
