@@ -33,8 +33,8 @@ def _header(T: Any, t_s: float, frame: str = '') -> Any:
 
 
 def write_lab_bag(path: Path, trace: Any, *, gait_phase: bool = False, odom: bool = True,
-                  effort: bool = True, battery_every: int = 2, storage: str = 'sqlite3'
-                  ) -> None:
+                  effort: bool = True, battery_every: int = 2, storage: str = 'sqlite3',
+                  mocap: bool = False) -> None:
     """The simulated run as another lab records it: /joint_states (100 Hz, efforts optional),
     /battery_state (every ``battery_every``-th sample), /odom at 50 Hz (position v t plus a
     surge once per step), and /gait/phase only when asked (the reference)."""
@@ -76,6 +76,14 @@ def write_lab_bag(path: Path, trace: Any, *, gait_phase: bool = False, odom: boo
                                                                covariance=np.zeros(36)),
                 twist=T['geometry_msgs/msg/TwistWithCovariance'](twist=twist,
                                                                  covariance=np.zeros(36)))))
+        if mocap and k % 2 == 1:  # 50 Hz, the robot walking along the mocap frame's y
+            y = speed * t + (WOBBLE_M * math.sin(2 * math.pi * t / period) if period else 0)
+            msgs.append((t + 2e-4, '/mocap/body', 'geometry_msgs/msg/PoseStamped',
+                         T['geometry_msgs/msg/PoseStamped'](
+                             header=_header(T, t, 'mocap'), pose=T['geometry_msgs/msg/Pose'](
+                                 position=T['geometry_msgs/msg/Point'](x=0.5, y=y, z=0.1),
+                                 orientation=T['geometry_msgs/msg/Quaternion'](
+                                     x=0.0, y=0.0, z=0.0, w=1.0)))))
         if gait_phase:
             stance = np.asarray(trace.in_stance[k], bool)
             msgs.append((t + 3e-4, '/gait/phase', 'hexapod_interfaces/msg/GaitPhase',
@@ -166,3 +174,34 @@ def test_gait_phase_bag_unchanged_by_odom_and_auto(tmp_path, tripod_run):
     assert a.windows == b.windows and a.power_in_w == b.power_in_w
     assert a.speed_mps == b.speed_mps and a.extra['cycle_source'] == 'gait_phase'
     assert a.extra['speed_source'] == 'gait_schedule'
+
+
+def test_mocap_speed_ranks_before_odometry(tmp_path, tripod_run):
+    write_lab_bag(tmp_path / 'lab', tripod_run, mocap=True, storage='mcap')
+    run = read_robot_bag(tmp_path / 'lab', mass_kg=2.183)
+    assert run.extra['speed_source'] == 'mocap' and run.windows >= 8
+    np.testing.assert_allclose(run.speed_mps, 0.3, rtol=0.02)
+
+
+def test_auto_on_a_gait_phase_stream_equals_the_gait_phase_path(tripod_run):
+    """Live ``auto`` (joints fed until /gait/phase arrives) gives the gait-phase numbers."""
+    from hexapod_common.conversions import BatterySample, GaitPhaseSample, JointStateSample
+    from hexapod_energy.descriptors import DescriptorAccumulator
+
+    tr = tripod_run
+    results = {}
+    for source in ('auto', 'gait_phase'):
+        acc = DescriptorAccumulator(mass_kg=2.183, cycle_source=source)
+        out = []
+        for k, t in enumerate(tr.t_s):
+            out += acc.add_joint_state(JointStateSample(
+                t, tr.joint_names, tr.position_rad[k], tr.velocity_rad_s[k], tr.effort_nm[k]))
+            out += acc.add_battery(BatterySample(t, tr.battery_voltage_v[k],
+                                                 tr.battery_current_a[k], 25.0))
+            stance = np.asarray(tr.in_stance[k], bool)
+            out += acc.add_gait_phase(GaitPhaseSample(
+                t, 'tripod', float(tr.period_s[k]), 0.5, 0.1, 0.04, 0.0, 0.0,
+                float(tr.cycle_phase[k]), tr.leg_names, np.array(tr.phase_offsets), stance,
+                int(stance.sum())))
+        results[source] = [(d.t_end_s, d.power_in_w, d.power_out_w, d.speed_mps) for d in out]
+    assert len(results['auto']) >= 8 and results['auto'] == results['gait_phase']
