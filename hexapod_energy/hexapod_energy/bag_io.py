@@ -339,8 +339,10 @@ def read_robot_bag(path: str | Path, *, mass_kg: float, current_sign: str = 'aut
         cycle_source = 'gait_phase' if '/gait/phase' in present else 'joints'
     required = ROBOT_TOPICS if cycle_source == 'gait_phase' else ('/battery_state',
                                                                     '/joint_states')
+    # raw effort P_out per window: the command decides effort against model per run
     acc = DescriptorAccumulator(mass_kg=mass_kg, cycles=cycles, current_sign=current_sign,
-                                cycle_source=cycle_source, speed_mps=speed_mps or 0.0)
+                                power_out_source='effort', cycle_source=cycle_source,
+                                speed_mps=speed_mps or 0.0)
     windows = []
     gait = None
     has_effort = False

@@ -69,7 +69,7 @@ from typing import Any
 
 import numpy as np
 
-from hexapod_energy.descriptors import gait_from_sample
+from hexapod_energy.descriptors import gait_from_sample, implausible_effort_power
 from hexapod_energy.errors import EnergyError
 
 __all__ = ['add_cli', 'build_parser', 'gait_from_sample', 'main', 'run']
@@ -129,6 +129,15 @@ def add_cli(subparsers: Any) -> argparse.ArgumentParser:
     _add_arguments(p)
     p.set_defaults(func=_handler)
     return p
+
+
+def _net_joint_power_w(run_: Any) -> float:
+    """Window-weighted mean net (signed) joint power of a robot run [W] (NaN without)."""
+    wins = [d for d in run_.extra.get('windows', ()) if math.isfinite(d.joint_power_net_w)]
+    if not wins:
+        return math.nan
+    w = np.array([d.window_s for d in wins])
+    return float(np.sum(w * np.array([d.joint_power_net_w for d in wins])) / np.sum(w))
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -218,12 +227,13 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             for note in notes:
                 doc.setdefault('warnings', []).append(f'{path}: {note}')
             effort_ok = math.isfinite(run_.power_out_w) and args.power_out != 'model'
-            if effort_ok and args.power_out == 'auto' and run_.power_out_w >= run_.power_in_w:
+            why = implausible_effort_power(run_.power_out_w, run_.power_in_w,
+                                           _net_joint_power_w(run_))
+            if effort_ok and args.power_out == 'auto' and why:
                 effort_ok = False
                 doc.setdefault('warnings', []).append(
-                    f'{path}: P_out from joint efforts ({run_.power_out_w:.3f} W) is not below '
-                    f'P_in ({run_.power_in_w:.3f} W): efforts are not joint torques (AX-series '
-                    'servos report PWM load); using the model')
+                    f'{path}: {why}; ' + ('using the model' if math.isfinite(p_model)
+                                          else 'P_out unknown'))
             if effort_ok:
                 p_out, source = run_.power_out_w, 'effort'
             elif math.isfinite(p_model):

@@ -12,7 +12,16 @@ DESIGN §4:
   ``sum_i max(tau_i * qdot_i, 0)``: positive joint work only, the definition of
   :mod:`hexapod_energy.dynamics` (servos do not regenerate), from the joint efforts when
   ``/joint_states`` carries them, else from ``power_out_model(gait, mass)`` when one is given
-  (:func:`model_power_out`), else 0.
+  (:func:`model_power_out`), else 0. With ``power_out_source='auto'`` the efforts must also
+  behave like joint torques (:func:`implausible_effort_power`): their P_out below P_in, and
+  some negative joint work (a walking robot's joints absorb energy every cycle: lowering legs,
+  braking swings; the net joint power is a small part of the positive one). Servos without
+  torque sensing report something else as effort: the AX series' present load is the PWM
+  duty, which carries the back-EMF and so always has the velocity's sign. On the simulated
+  AntBot such efforts give net / positive joint power 1.000 and P_out 7.1 W at 0.15 m/s and
+  21.7 W at 0.3 m/s, where the joints deliver 0.20 W and 0.83 W (true torques: net / positive
+  -0.05 to 0.09 over 0.1-0.6 m/s and duty factors 0.5-0.7). Refused efforts give way to the
+  model when there is one (else P_out is NaN), with a warning naming the figures.
 - ``speed`` [m/s]: from motion capture when poses cover the window (horizontal displacement /
   window), else the gait schedule's step_length / (beta T), else from odometry
   (``nav_msgs/Odometry`` positions, differenced the same way in the odometry frame), else a
@@ -56,16 +65,22 @@ from hexapod_energy.cycles import CycleSettings, JointCycleTracker
 
 __all__ = [
     'G_MPS2',
+    'EFFORT_MAX_NET_FRACTION',
     'DescriptorAccumulator',
     'Descriptors',
     'descriptors_from_powers',
     'gait_from_sample',
     'model_power_out',
+    'implausible_effort_power',
     'joint_power_out_w',
     'resolve_current_sign',
 ]
 
 G_MPS2 = 9.81
+
+#: ``power_out_source='auto'`` refuses efforts whose net joint power is at least this fraction
+#: of their positive joint power (no negative work: a duty signal, not a torque).
+EFFORT_MAX_NET_FRACTION = 0.9
 
 
 @dataclass(frozen=True)
@@ -87,12 +102,15 @@ class Descriptors:
     warnings: tuple[str, ...] = ()
     speed_source: str = ''   # mocap, odometry, gait_schedule, given, none
     cycle_source: str = ''   # gait_phase or joints
+    #: mean net (signed) joint power from the efforts [W]; NaN without efforts
+    joint_power_net_w: float = math.nan
 
 
 def descriptors_from_powers(*, power_in_w: float, power_out_w: float, speed_mps: float,
                             mass_kg: float, window_s: float = 0.0, t_end_s: float = 0.0,
                             cycles: int = 1, warnings: tuple[str, ...] = (),
-                            speed_source: str = '', cycle_source: str = '') -> Descriptors:
+                            speed_source: str = '', cycle_source: str = '',
+                            joint_power_net_w: float = math.nan) -> Descriptors:
     """All descriptors from mean powers, speed and mass (NaN where undefined, e.g. v = 0)."""
     loss = power_in_w - power_out_w
     eff = power_out_w / power_in_w if power_in_w > 0 else math.nan
@@ -104,7 +122,7 @@ def descriptors_from_powers(*, power_in_w: float, power_out_w: float, speed_mps:
         specific_cost_of_transport=loss / (mass_kg * speed_mps) if moving else math.nan,
         specific_resistance=power_in_w / (mass_kg * G_MPS2 * speed_mps) if moving else math.nan,
         cycles=cycles, warnings=warnings, speed_source=speed_source,
-        cycle_source=cycle_source)
+        cycle_source=cycle_source, joint_power_net_w=joint_power_net_w)
 
 
 def gait_from_sample(sample: GaitPhaseSample) -> Any:
@@ -145,6 +163,26 @@ def model_power_out(output_power: Any, *, robot_mass_kg: float
     return power_out_w
 
 
+def implausible_effort_power(effort_w: float, power_in_w: float, net_w: float) -> str:
+    """Why a P_out from joint efforts cannot be the joints' output power ('' if it can).
+
+    ``effort_w`` is the mean positive joint power from the efforts, ``net_w`` the mean signed
+    one. The positive power must stay below the input power, and the joints must do some
+    negative work: ``net_w < EFFORT_MAX_NET_FRACTION * effort_w``.
+    """
+    if not (math.isfinite(effort_w) and effort_w > 0.0):
+        return ''
+    if math.isfinite(power_in_w) and effort_w >= power_in_w:
+        return (f'P_out from joint efforts ({effort_w:.3f} W) is not below P_in '
+                f'({power_in_w:.3f} W): the efforts are not joint torques (AX-series servos '
+                'report PWM load)')
+    if math.isfinite(net_w) and net_w >= EFFORT_MAX_NET_FRACTION * effort_w:
+        return (f'the joint efforts never do negative work (net / positive joint power '
+                f'{net_w / effort_w:.3f}, P_out {effort_w:.3f} W): a drive duty that follows '
+                'the velocity (AX-series PWM load), not a torque')
+    return ''
+
+
 def joint_power_out_w(effort_nm: np.ndarray, velocity_rad_s: np.ndarray) -> float:
     """Instantaneous output power of one joint sample, ``sum_i max(tau_i qdot_i, 0)`` [W]."""
     return float(np.sum(np.clip(np.asarray(effort_nm) * np.asarray(velocity_rad_s), 0.0, None)))
@@ -159,16 +197,21 @@ def resolve_current_sign(voltage_v: np.ndarray, current_a: np.ndarray, mode: str
     return current_sign_factor(voltage_v, current_a, mode)
 
 
-def _mean_joint_power_w(joint: list[tuple[float, tuple[str, ...], np.ndarray]]) -> float:
-    """Sum over joint names of each joint's mean positive power [W] (the mean over samples of
-    the per-sample sum when every sample has the same names)."""
+def _mean_joint_power_w(joint: list[tuple[float, tuple[str, ...], np.ndarray]], *,
+                        signed: bool = False) -> float:
+    """Sum over joint names of each joint's mean positive (or, ``signed``, net) power [W] (the
+    mean over samples of the per-sample sum when every sample has the same names); ``joint``
+    holds each sample's signed ``effort * velocity``."""
+    def part(power: np.ndarray) -> np.ndarray:
+        return power if signed else np.clip(power, 0.0, None)
+
     names = joint[0][1]
     if all(j[1] == names for j in joint):
-        return float(np.mean([float(np.sum(j[2])) for j in joint]))
+        return float(np.mean([float(np.sum(part(j[2]))) for j in joint]))
     sums: dict[str, float] = {}
     counts: dict[str, int] = {}
     for _, js_names, power in joint:
-        for name, p in zip(js_names, power):
+        for name, p in zip(js_names, part(power)):
             sums[name] = sums.get(name, 0.0) + float(p)
             counts[name] = counts.get(name, 0) + 1
     return float(sum(sums[n] / counts[n] for n in sums))
@@ -290,8 +333,8 @@ class DescriptorAccumulator:
         positive power over the window.
         """
         if sample.effort.size and sample.velocity.size == sample.effort.size:
-            power = np.clip(np.asarray(sample.effort, dtype=float) *
-                            np.asarray(sample.velocity, dtype=float), 0.0, None)
+            power = np.asarray(sample.effort, dtype=float) * np.asarray(sample.velocity,
+                                                                        dtype=float)
             self._joint.append((sample.t_s, tuple(sample.names), power))
         if not self.joint_cycles_:
             return []
@@ -384,8 +427,17 @@ class DescriptorAccumulator:
         use_model = self.power_out_source == 'model' or \
             (self.power_out_source == 'auto' and not joint)
         joint_path = self.joint_cycles_
+        has_model = self.power_out_model is not None and self._gait is not None
+        net = _mean_joint_power_w(joint, signed=True) if joint else math.nan
         if joint and self.power_out_source != 'model':
             power_out = _mean_joint_power_w(joint)
+            why = (implausible_effort_power(power_out, power_in, net)
+                   if self.power_out_source == 'auto' else '')
+            if why:
+                warnings.append(why + ('; P_out from the Eq. 6 model' if has_model else
+                                       '; P_out unknown (NaN)'))
+                power_out = (float(self.power_out_model(self._gait, self.mass_kg))
+                             if has_model else math.nan)
         elif use_model and self.power_out_model is not None and self._gait is not None:
             power_out = float(self.power_out_model(self._gait, self.mass_kg))
         elif joint_path:
@@ -404,7 +456,8 @@ class DescriptorAccumulator:
                                        speed_mps=speed, mass_kg=self.mass_kg,
                                        window_s=t1 - t0, t_end_s=t1, cycles=self.cycles,
                                        warnings=tuple(warnings), speed_source=speed_source,
-                                       cycle_source='joints' if joint_path else 'gait_phase')
+                                       cycle_source='joints' if joint_path else 'gait_phase',
+                                       joint_power_net_w=net)
 
     def _speed(self, t0: float, t1: float) -> float:
         """Speed [m/s] over the window."""

@@ -86,7 +86,7 @@ def read_run(path: str | Path) -> RunData:
     whose header stamp is zero takes the bag's receive time; input fallbacks are listed in
     ``RunData.notes``.
     """
-    from hexapod_common.bags import iter_messages, open_reader, typestore
+    from hexapod_common.bags import iter_messages, open_reader
     from hexapod_common.conversions import (
         battery_from_msg,
         gait_phase_from_msg,
@@ -94,7 +94,6 @@ def read_run(path: str | Path) -> RunData:
         pose_from_msg,
     )
 
-    store = typestore()
     js: list[Any] = []
     jc: list[Any] = []
     mo: list[Any] = []
@@ -112,7 +111,8 @@ def read_run(path: str | Path) -> RunData:
                    '/joint_commands': (jc, joint_state_from_msg),
                    '/mocap/body': (mo, pose_from_msg), '/battery_state': (bt, battery_from_msg)}
         for m in iter_messages(reader, list(TOPICS) + ['/gait/phase']):
-            msg = store.deserialize_cdr(m.data, m.msgtype)
+            # the reader's own deserializer: rosbag2 CDR, or ROS 1 bags through AnyReader
+            msg = reader.deserialize(m.data, m.msgtype)
             try:
                 if m.topic == '/gait/phase':
                     if gait == 'unknown':

@@ -90,9 +90,10 @@ def test_live_sim_descriptors_equal_offline(tmp_path) -> None:
     assert len(replayed['model']) >= len(live)
     for a, b in zip(live, replayed['model']):
         _same(a, b)
-    # efforts are present in the bag: auto takes them (AX load x stall torque, not a torque:
-    # many times the model's positive joint power), with the same P_in windows
+    # efforts are present in the bag, but they are AX load x stall torque, not torques: many
+    # times the model's positive joint power, so auto refuses them and takes the model (same
+    # windows, same numbers as 'model')
     auto = replayed['auto']
     assert [b.power_in for b in auto] == [b.power_in for b in replayed['model']]
-    assert all(b.power_out > 3 * expected for b in auto)
-    print(f'  auto (effort) P_out {[round(b.power_out, 3) for b in auto]} W')
+    assert [b.power_out for b in auto] == [b.power_out for b in replayed['model']]
+    print(f'  auto P_out {[round(b.power_out, 3) for b in auto]} W (efforts refused)')

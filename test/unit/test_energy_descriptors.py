@@ -86,3 +86,48 @@ def test_efforts_win_in_auto_and_lose_in_model_mode(opm) -> None:
 def test_bad_power_out_source_is_named() -> None:
     with pytest.raises(ValueError, match='power_out_source'):
         DescriptorAccumulator(mass_kg=1.0, power_out_source='torque')
+
+
+def test_auto_refuses_efforts_that_never_do_negative_work(opm) -> None:
+    """AX-series 'effort' is the PWM duty times the stall torque: it carries the back-EMF, so it
+    always has the velocity's sign and its effort x velocity is never negative (net / positive
+    1.000 on the simulated AntBot, 7.1 W where the joints deliver 0.20 W). 'auto' then takes
+    the Eq. 6 model and says why; 'effort' still reports the efforts as asked. Torques of a
+    cyclic gait do negative work too and are kept."""
+    model = model_power_out(opm, robot_mass_kg=ROBOT_KG)
+    expected = opm.power_out_w(gait_from_sample(_gait(0.0)), payload_kg=0.0)
+
+    def feed(acc: DescriptorAccumulator, duty_like: bool, amp: float = 1.0) -> list:
+        out = []
+        for k in range(400):
+            t = 0.01 * k
+            vel = np.array([np.cos(2 * np.pi * t / 0.8), np.sin(2 * np.pi * t / 0.8)])
+            # a torque: a gravity-like offset plus a spring-like part (in quadrature with the
+            # velocity), so the joint does positive and negative work over the cycle
+            quad = np.array([np.sin(2 * np.pi * t / 0.8), -np.cos(2 * np.pi * t / 0.8)])
+            eff = amp * (vel if duty_like else 0.3 + 0.5 * quad)
+            out += acc.add_gait_phase(_gait(t))
+            acc.add_joint_state(JointStateSample(t, ('a', 'b'), np.zeros(2), vel, eff))
+            out += acc.add_battery(BatterySample(t, 12.0, -2.5, 25.0))
+        return out
+
+    torque = feed(DescriptorAccumulator(mass_kg=ROBOT_KG, power_out_model=model), False)
+    assert len(torque) >= 3
+    phi = np.linspace(0.0, 2 * np.pi, 100001)
+    positive = 2 * np.mean(np.clip((0.3 + 0.5 * np.sin(phi)) * np.cos(phi), 0.0, None))
+    for d in torque:
+        assert not d.warnings
+        assert d.power_out_w == pytest.approx(positive, rel=0.02)
+        assert abs(d.joint_power_net_w) < 0.05 * d.power_out_w
+    auto = feed(DescriptorAccumulator(mass_kg=ROBOT_KG, power_out_model=model), True)
+    for d in auto:
+        assert d.power_out_w == pytest.approx(expected, rel=1e-12)
+        assert any('never do negative work' in w for w in d.warnings)
+        assert d.joint_power_net_w == pytest.approx(1.0, rel=0.05)  # 2 x mean(v^2) = 1 W
+    forced = feed(DescriptorAccumulator(mass_kg=ROBOT_KG, power_out_model=model,
+                                        power_out_source='effort'), True)
+    assert all(d.power_out_w == pytest.approx(1.0, rel=0.05) for d in forced)
+    # above the input power (30 W here) and no model to fall back on: unknown, not 60+ W
+    no_model = feed(DescriptorAccumulator(mass_kg=ROBOT_KG), False, amp=200.0)
+    assert all(np.isnan(d.power_out_w) for d in no_model)
+    assert all(any('not below P_in' in w for w in d.warnings) for d in no_model)

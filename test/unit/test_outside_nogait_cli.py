@@ -42,7 +42,11 @@ def test_gait_given_gives_a_prediction(bags, tmp_path):
     np.testing.assert_allclose(lab['period_s'], 2 / 3, rtol=0.01)
     assert lab['predicted_power_in_w'] > 0 and lab['speed_source'] == 'odometry'
     np.testing.assert_allclose(lab['speed'], 0.3, rtol=0.02)
-    assert lab['power_out_source'] == 'effort'
+    # the simulated AX servos report PWM load as effort (never negative work): 'auto' refuses
+    # it and, the gait being given, uses the inverse-dynamics model, with a warning
+    assert lab['power_out_source'] == 'model'
+    assert lab['power_out_effort_w'] > 3 * lab['power_out_model_w'] > 0
+    assert any('never do negative work' in w for w in doc['warnings'])
     assert doc['prediction_error']['runs'] == 2
     assert any('as given' in n for n in lab['notes'])
 
@@ -54,7 +58,11 @@ def test_without_gait_no_prediction_and_given_speed(bags, tmp_path):
     assert lab['predicted_power_in_w'] is None and lab['residual_w'] is None
     assert lab['gait'] is None and lab['leg_count'] == 6
     assert lab['speed'] == 0.25 and lab['speed_source'] == 'given'
-    assert lab['specific_resistance'] > 0 and lab['efficiency'] > 0
+    assert lab['specific_resistance'] > 0
+    # its efforts are the simulated AX servos' PWM load (never negative work): refused, and
+    # without a gait there is no model to fall back on, so P_out and efficiency are unknown
+    assert lab['efficiency'] is None and lab['power_out_effort_w'] > 0
+    assert any('never do negative work' in w for w in doc['warnings'])
     assert doc['prediction_error']['runs'] == 1  # the run with a prediction only
     notes = ' '.join(lab['notes'])
     assert 'no Eq. 1 prediction' in notes and 'no /gait/phase' in notes
