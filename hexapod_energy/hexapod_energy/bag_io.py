@@ -359,6 +359,7 @@ def read_robot_bag(path: str | Path, *, mass_kg: float, current_sign: str = 'aut
     with open_reader(path) as reader:
         _check_topics(reader, required, str(path))
         custom = _custom_data(reader)
+        notes.extend(getattr(reader, 'notes', ()))  # e.g. mcap files without metadata.yaml
         topics = ROBOT_TOPICS + ('/joint_states', '/mocap/body', '/odom')
         for m in iter_messages(reader, topics):
             msg = reader.deserialize(m.data, m.msgtype)

@@ -102,6 +102,7 @@ def read_run(path: str | Path) -> RunData:
     zero: dict[str, int] = {}
     dropped: dict[str, int] = {}
     with open_reader(path) as reader:
+        reader_notes = list(getattr(reader, 'notes', ()))  # e.g. mcap without metadata.yaml
         present = {c.topic for c in reader.connections}
         missing = [t for t in REQUIRED_TOPICS if t not in present]
         if missing:
@@ -126,8 +127,9 @@ def read_run(path: str | Path) -> RunData:
                 zero[m.topic] = zero.get(m.topic, 0) + 1
                 sample = dataclasses.replace(sample, t_s=1e-9 * m.stamp_ns)
             streams[m.topic][0].append(sample)
-    notes = [f'{n} {t} message(s) with a zero header stamp: bag receive time used'
-             for t, n in sorted(zero.items())]
+    notes = reader_notes + [
+        f'{n} {t} message(s) with a zero header stamp: bag receive time used'
+        for t, n in sorted(zero.items())]
     notes += [f'{n} {t} message(s) dropped (bad or NaN fields)'
               for t, n in sorted(dropped.items())]
     if not bt:
