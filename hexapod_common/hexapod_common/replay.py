@@ -12,18 +12,24 @@ Two ways to push a bag through nodes:
 - :func:`run_offline` feeds the messages straight into the subscription callbacks of nodes in
   one process, deterministically, and captures what they publish: offline analysis runs the
   very nodes that run live, so their numbers are equal.
+
+Both read rosbag2 bags (raw CDR, passed on untouched) and ROS 1 ``.bag`` files: a ROS 1 bag's
+messages are converted to ROS 2 CDR on the fly (:class:`hexapod_common.ros1.Ros1ToCdr`: fields
+copied by name, ``header.seq`` dropped); ROS 1 types with no ROS 2 counterpart are skipped with
+one warning, like unknown types of rosbag2 bags.
 """
 
 from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 from hexapod_common.bags import BagMessage, iter_messages, open_reader
 from hexapod_common.errors import UnknownTypeError
+from hexapod_common.ros1 import Ros1ToCdr
 from hexapod_common.ros_types import ros_message_class
 
 __all__ = ['ReplayOptions', 'ReplaySource', 'run_offline']
@@ -48,7 +54,12 @@ class ReplayOptions:
 
 
 class ReplaySource:
-    """Bag messages to replay, filtered, windowed and typed; unknown types skipped once each."""
+    """Bag messages to replay, filtered, windowed and typed; unknown types skipped once each.
+
+    Messages are yielded with ROS 2 CDR bytes: a rosbag2 bag's as recorded, a ROS 1 bag's
+    converted (``ros1`` is then the :class:`Ros1ToCdr` in use; ``dropped`` counts per topic the
+    ROS 1 messages that could not be converted, each topic warned once).
+    """
 
     def __init__(self, bag: str | Sequence[str], options: ReplayOptions = ReplayOptions(),
                  warn: Callable[[str], None] | None = None) -> None:
@@ -59,6 +70,8 @@ class ReplaySource:
         self.end_ns = self.reader.end_time
         self.types: dict[str, Any] = {}
         self.skipped: dict[str, str] = {}
+        self.ros1 = None if self.reader.is2 else Ros1ToCdr(self.reader)
+        self.dropped: dict[str, int] = {}
         wanted = set(options.topics)
         for conn in self.reader.connections:
             if wanted and conn.topic not in wanted:
@@ -66,7 +79,10 @@ class ReplaySource:
             if conn.topic in self.types or conn.topic in self.skipped:
                 continue
             try:
-                self.types[conn.topic] = ros_message_class(conn.msgtype)
+                cls = ros_message_class(conn.msgtype)
+                if self.ros1 is not None:
+                    self.ros1.converter(conn.msgtype)
+                self.types[conn.topic] = cls
             except UnknownTypeError as err:
                 self.skipped[conn.topic] = str(err)
                 self.warn(f'skipping topic {conn.topic}: {err}')
@@ -83,7 +99,27 @@ class ReplaySource:
         start = self.start_ns + int(self.options.start_offset_s * 1e9)
         stop = self.start_ns + int(self.options.end_offset_s * 1e9) + 1 \
             if self.options.end_offset_s > 0 else None
-        return iter_messages(self.reader, topics=list(self.types), start_ns=start, stop_ns=stop)
+        raw = iter_messages(self.reader, topics=list(self.types), start_ns=start, stop_ns=stop)
+        return raw if self.ros1 is None else self._from_ros1(raw)
+
+    def _from_ros1(self, raw: Iterable[BagMessage]) -> Iterator[BagMessage]:
+        """ROS 1 messages re-encoded as ROS 2 CDR; one that cannot be is dropped (counted)."""
+        assert self.ros1 is not None
+        convs: dict[str, Callable[[bytes], bytes]] = {}
+        for item in raw:
+            conv = convs.get(item.msgtype)
+            if conv is None:
+                conv = convs[item.msgtype] = self.ros1.converter(item.msgtype)
+            try:
+                data = conv(item.data)
+            except Exception as err:  # rosbags raises several types for a bad message
+                n = self.dropped.get(item.topic, 0)
+                self.dropped[item.topic] = n + 1
+                if n == 0:
+                    self.warn(f'dropping {item.topic} message(s) that cannot be converted from '
+                              f'ROS 1 ({item.msgtype}): {err}')
+                continue
+            yield BagMessage(item.topic, item.msgtype, item.stamp_ns, data)
 
     def close(self) -> None:
         self.reader.close()

@@ -1,5 +1,8 @@
 """``bag_replay``: publish a recorded bag's raw messages and ``/clock``, losing none.
 
+A ROS 1 ``.bag`` is accepted too: its messages are converted to ROS 2 CDR on the fly
+(``hexapod_common.ros1``); ROS 1 types with no ROS 2 counterpart are skipped with one warning.
+
 Usage: ``bag_replay BAG [--rate R] [--topics T ...] [--remap FROM:=TO ...] [--start S]
 [--end S] [--no-clock] [--wait-subscribers N]``. Rate 0 (default) is as fast as possible.
 """
@@ -130,7 +133,7 @@ class BagReplayNode(Node):
 
 def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog='bag_replay', description=__doc__.split('\n')[0])
-    parser.add_argument('bag', help='rosbag2 bag folder (mcap or sqlite3)')
+    parser.add_argument('bag', help='rosbag2 bag folder (mcap or sqlite3) or ROS 1 .bag file')
     parser.add_argument('--rate', type=float, default=0.0,
                         help='1 = real time, N = N times real time, 0 = as fast as possible')
     parser.add_argument('--topics', nargs='*', default=[], help='only these topics')
