@@ -135,7 +135,8 @@ def read_bench_bag(path: str | Path) -> BenchData:
         # drivers that leave header.stamp at 0: the bag's receive time stands in
         if t_s != 0.0:
             return t_s
-        zero_stamps[m.topic] = zero_stamps.get(m.topic, 0) + 1
+        if m.stamp_ns != 0:  # stamp 0 at bag time 0: a clock starting at 0, nothing to note
+            zero_stamps[m.topic] = zero_stamps.get(m.topic, 0) + 1
         return 1e-9 * m.stamp_ns
 
     with open_reader(path) as reader:
@@ -380,7 +381,9 @@ def read_robot_bag(path: str | Path, *, mass_kg: float, current_sign: str = 'aut
                     del seen[next(iter(seen))]
             else:
                 # drivers that leave header.stamp at 0: the bag's receive time stands in
-                zero_stamps[m.topic] = zero_stamps.get(m.topic, 0) + 1
+                # (a stamp of 0 received at bag time 0 is a clock that starts at 0: no note)
+                if m.stamp_ns != 0:
+                    zero_stamps[m.topic] = zero_stamps.get(m.topic, 0) + 1
                 sample = dataclasses.replace(sample, t_s=1e-9 * m.stamp_ns)
             samples.append((sample.t_s, len(samples), m.topic, sample))
     bad_battery = dropped.get('/battery_state', [])

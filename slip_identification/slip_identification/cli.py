@@ -124,7 +124,8 @@ def read_run(path: str | Path) -> RunData:
                 dropped[m.topic] = dropped.get(m.topic, 0) + 1
                 continue  # a bad message is dropped, as the nodes do
             if sample.t_s == 0.0:  # a driver that leaves header.stamp at 0
-                zero[m.topic] = zero.get(m.topic, 0) + 1
+                if m.stamp_ns != 0:  # (stamp 0 at bag time 0: a clock starting at 0)
+                    zero[m.topic] = zero.get(m.topic, 0) + 1
                 sample = dataclasses.replace(sample, t_s=1e-9 * m.stamp_ns)
             streams[m.topic][0].append(sample)
     notes = reader_notes + [
