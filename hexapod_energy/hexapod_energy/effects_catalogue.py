@@ -111,9 +111,13 @@ class WindowTable:
         kw = {k: getattr(self, k)[mask] for k in (
             'run', 't_s', 'duration_s', 'measured_w', 'predicted_w', 'step_frequency_hz',
             'speed_mps', 'current_sq_a2', 'temp_excess_k', 'stance_fraction')}
+        n = self.t_s.shape[0]
+        # per-window arrays in ``extra`` (first axis n) are cut too; run-level entries are kept
+        extra = {k: (v[mask] if isinstance(v, np.ndarray) and v.ndim and v.shape[0] == n
+                     else v) for k, v in self.extra.items()}
         return WindowTable(**kw, leg_names=self.leg_names, supply_slope_ohm=self.supply_slope_ohm,
                            supply_slope_stderr_ohm=self.supply_slope_stderr_ohm,
-                           extra=self.extra)
+                           extra=extra)
 
 
 class EnergyEffect:
