@@ -2,7 +2,7 @@
 
 Usage::
 
-    hexapod-analyze energy --bench BAG [BAG ...] [--robot BAG [BAG ...]] --out DIR
+    hexapod-analyze energy [--bench BAG [BAG ...]] [--robot BAG [BAG ...]] --out DIR
                            [--sweep] [--recommend --speed V --payload KG]
                            [--robot-speed V] [--gait NAME --duty-factor B --step-length M]
 
@@ -10,6 +10,10 @@ Steps: bench bags -> per-session phase powers -> surface fits (LOWESS vs polynom
 CV); robot bags -> measured whole-cycle P_in, P_out (joint efforts, else the Eq. 6 model), speed
 -> Eq. 1 prediction for the same gait and mass; ``--sweep`` -> Fig. 3 sweeps (four-quadrant
 plots, PNG + SVG) and the Fig. 7D power map; ``--recommend`` -> minimum-CoT/M gait.
+
+Without ``--bench`` (a robot but no single-leg bench) the robot runs get their measured
+descriptors only: ``bench`` and every ``predicted_power_in_w`` are null and
+``prediction_error`` is absent; ``--sweep`` and ``--recommend`` need the bench surfaces.
 
 Robot bags without ``/gait/phase`` (another lab's robot running its own gait code: only
 ``/joint_states`` and ``/battery_state``, maybe ``/odom`` or ``/mocap/body``): the whole cycles
@@ -76,8 +80,9 @@ __all__ = ['add_cli', 'build_parser', 'gait_from_sample', 'main', 'run']
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument('--bench', nargs='+', required=True, metavar='BAG',
-                   help='bench bags (MiMiC-Ant single-leg sessions)')
+    p.add_argument('--bench', nargs='*', default=[], metavar='BAG',
+                   help='bench bags (MiMiC-Ant single-leg sessions); without them robot runs '
+                        'get their measured descriptors but no Eq. 1 prediction')
     p.add_argument('--robot', nargs='*', default=[], metavar='BAG',
                    help='robot bags to compare with the Eq. 1 prediction')
     p.add_argument('--out', required=True, metavar='DIR', help='output folder')
@@ -177,6 +182,10 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
 
     if args.recommend and (args.speed is None or args.speed <= 0):
         raise EnergyError('--recommend needs --speed V with V > 0 [m/s]')
+    if not args.bench and not args.robot:
+        raise EnergyError('nothing to analyse: give --bench BAG... and/or --robot BAG...')
+    if not args.bench and (args.sweep or args.recommend):
+        raise EnergyError('--sweep and --recommend need the bench surfaces: give --bench BAG...')
     given_gait = [getattr(args, k, None) for k in ('gait', 'duty_factor', 'step_length')]
     if any(v is not None for v in given_gait) and any(v is None for v in given_gait):
         raise EnergyError('--gait, --duty-factor and --step-length go together (the gait of '
@@ -199,9 +208,10 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             samples.extend(s)
             diags.append(d)
             bar.update(1)
-        model = SingleLegModel(folds=args.folds).fit(samples)
+        model = SingleLegModel(folds=args.folds).fit(samples) if args.bench else None
         bar.update(1)
-        doc['bench'] = {'bags': list(args.bench), 'diagnostics': diags, 'fit': model.summary()}
+        doc['bench'] = ({'bags': list(args.bench), 'diagnostics': diags,
+                         'fit': model.summary()} if model is not None else None)
 
         opm = OutputPowerModel(robot=robot)
         runs = []
@@ -215,11 +225,14 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             gait = gait_from_sample(run_.gait) if run_.gait is not None else \
                 _given_gait(args, run_, notes)
             predicted = p_model = math.nan
-            if gait is not None:
+            if gait is not None and model is None:
+                notes.append('no bench bags (--bench): no Eq. 1 prediction')
+            if gait is not None and model is not None:
                 predicted = float(predict_power_in_w(model, gait, total_mass_kg=mass,
                                                      leg_mass_kg=robot.leg_mass_kg,
                                                      swing_load=args.swing_load,
                                                      load_offset_kg=args.load_offset))
+            if gait is not None:
                 try:
                     p_model = float(opm.power_out_w(gait, payload_kg=payload))
                 except (ValueError, ImportError) as err:

@@ -133,3 +133,26 @@ def test_recommend_needs_speed(bags, tmp_path, capsys) -> None:
                  '--no-progress'])
     assert code == 2
     assert '--speed' in capsys.readouterr().err
+
+
+def test_robot_bags_without_a_bench(bags, tmp_path, capsys) -> None:
+    """A robot and no single-leg bench (most labs): measured descriptors, no prediction;
+    the sweeps and the recommendation, which need the bench surfaces, are refused by name."""
+    root, truth = bags
+    out = tmp_path / 'o'
+    code = main(['--robot', str(root / 'robot0'), '--out', str(out), '--no-progress'])
+    assert code == 0
+    saved = json.loads((out / 'energy.json').read_text())
+    assert saved['bench'] is None and 'prediction_error' not in saved
+    (r,) = saved['robot_runs']
+    assert r['measured_power_in_w'] == pytest.approx(truth[0], rel=1e-6)
+    assert r['predicted_power_in_w'] is None
+    assert r['power_out_source'] == 'model' and r['efficiency'] > 0
+    assert r['specific_resistance'] > 0
+    assert any('no bench bags' in n for n in r['notes'])
+    for extra in (['--sweep'], ['--recommend', '--speed', '0.2']):
+        code = main(['--robot', str(root / 'robot0'), '--out', str(tmp_path / 's'),
+                     '--no-progress', *extra])
+        assert code == 2 and 'need the bench surfaces' in capsys.readouterr().err
+    assert main(['--out', str(tmp_path / 'n'), '--no-progress']) == 2
+    assert 'nothing to analyse' in capsys.readouterr().err
