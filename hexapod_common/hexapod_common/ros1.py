@@ -16,6 +16,14 @@ plus ``hexapod_interfaces``) by copying fields by name, recursively, and seriali
 - nested messages whose definition is the same in both (``Time``, ``Point``, ``Twist`` ...) are
   passed through untouched, so the copy costs little beyond the decode and the encode.
 
+Fast path: a type whose ROS 1 wire format is the ROS 2 one (the same field types in the same
+order, recursively, ``std_msgs/Header`` differing only by ``seq``; field names may differ) is
+converted byte by byte with rosbags' ``Typestore.ros1_to_cdr`` on the ROS 2 definition, which
+skips ``header.seq`` (JointState, BatteryState, PoseStamped, Odometry, CameraInfo ...); the
+result is the same bytes as the decode-copy-encode path (tested). Measured on 100k JointState
+messages of 18 joints (best of 3 on a shared 2-core machine): byte path 32,000 msg/s,
+decode-copy-encode 23,000 msg/s.
+
 Converters are built once per message type and cached in the :class:`Ros1ToCdr` instance. A type
 not in the ROS 2 typestore raises :class:`~hexapod_common.errors.UnknownTypeError` when its
 converter is asked for; the replay skips such topics with one warning, as it does for unknown
@@ -74,6 +82,36 @@ class _Builder:
         self.dst = dst_store
         self.plans: dict[tuple[str, str], Convert] = {}
         self.same: dict[tuple[str, str], bool] = {}
+        self.wire: dict[tuple[str, str], bool] = {}
+
+    def same_wire(self, src_type: str, dst_type: str) -> bool:
+        """Whether the ROS 1 bytes of ``src_type`` read as ``dst_type`` field for field
+        (``Typestore.ros1_to_cdr`` then converts them): same field types in the same order,
+        recursively, names ignored; ``std_msgs/msg/Header`` may differ by ``seq`` only."""
+        key = (src_type, dst_type)
+        if key not in self.wire:
+            self.wire[key] = False  # cycle guard
+            sf = list(self.src.fielddefs[src_type][1])
+            df = list(self.dst.fielddefs[dst_type][1])
+            if dst_type == 'std_msgs/msg/Header':
+                if not (src_type == dst_type and sf and sf[0][0] == 'seq'
+                        and int(sf[0][1][0]) == _BASE and sf[0][1][1][0] == 'uint32'):
+                    return False
+                sf = sf[1:]
+            self.wire[key] = len(sf) == len(df) and all(
+                self._same_wire_node(snode, dnode) for (_, snode), (_, dnode) in zip(sf, df))
+        return self.wire[key]
+
+    def _same_wire_node(self, s: tuple[Any, Any], d: tuple[Any, Any]) -> bool:
+        sk, dk = int(s[0]), int(d[0])
+        if sk != dk:
+            return False
+        if sk == _BASE:
+            return s[1] == d[1]
+        if sk == _NAME:
+            return s[1] in self.src.fielddefs and d[1] in self.dst.fielddefs and \
+                self.same_wire(s[1], d[1])
+        return s[1][1] == d[1][1] and self._same_wire_node(s[1][0], d[1][0])
 
     def identical(self, src_type: str, dst_type: str) -> bool:
         """Whether both definitions have the same fields, recursively (pass-through)."""
@@ -183,14 +221,20 @@ class Ros1ToCdr:
     store
         The ROS 2 typestore to serialise with (default: :func:`hexapod_common.bags.typestore`).
 
+    byte_path
+        Convert types of the same wire format byte by byte (default; ``False`` forces the
+        decode-copy-encode path, for tests and measurements).
+
     ``converter(msgtype)`` builds (once) and returns ``bytes -> bytes`` for a type, raising
     :class:`UnknownTypeError` for a type with no ROS 2 counterpart; ``convert(data, msgtype)``
-    is the same in one call; ``to_ros2(data, msgtype)`` returns the rosbags ROS 2 message.
+    is the same in one call; ``to_ros2(data, msgtype)`` returns the rosbags ROS 2 message;
+    ``fast(msgtype)`` tells whether the type takes the byte path.
     """
 
-    def __init__(self, reader: Any, store: Any = None) -> None:
+    def __init__(self, reader: Any, store: Any = None, *, byte_path: bool = True) -> None:
         from hexapod_common.bags import typestore
 
+        self.byte_path = byte_path
         self.reader = reader
         self.store = store if store is not None else typestore()
         self._builder = _Builder(reader.typestore, self.store)
@@ -214,7 +258,13 @@ class Ros1ToCdr:
     def converter(self, msgtype: str) -> Callable[[bytes], bytes]:
         """The cached ``ROS 1 bytes -> ROS 2 CDR bytes`` function of ``msgtype``."""
         func = self._bytes.get(msgtype)
-        if func is None:
+        if func is None and self.fast(msgtype):
+            bitcvt = self.store.ros1_to_cdr
+
+            def func(data: bytes, _t: str = msgtype) -> bytes:
+                return bytes(bitcvt(data, _t))
+            self._bytes[msgtype] = func
+        elif func is None:
             conv = self._message(msgtype)
             decode = self.reader.typestore.deserialize_ros1
             encode = self.store.serialize_cdr
@@ -223,6 +273,11 @@ class Ros1ToCdr:
                 return bytes(encode(conv(decode(data, _t)), _t))
             self._bytes[msgtype] = func
         return func
+
+    def fast(self, msgtype: str) -> bool:
+        """Whether ``msgtype`` is converted byte by byte (same wire format, see module doc)."""
+        self._message(msgtype)  # UnknownTypeError for a type without a ROS 2 counterpart
+        return self.byte_path and self._builder.same_wire(msgtype, msgtype)
 
     def convert(self, data: bytes, msgtype: str) -> bytes:
         """ROS 2 CDR bytes of one ROS 1 message."""
