@@ -39,7 +39,7 @@ import numpy as np
 
 from hexapod_common.errors import UnknownTypeError
 
-__all__ = ['Ros1ToCdr', 'message_converter']
+__all__ = ['Ros1ToCdr']
 
 _NUMPY_DTYPES = {
     'bool': np.bool_, 'byte': np.uint8, 'char': np.uint8, 'int8': np.int8, 'uint8': np.uint8,
@@ -196,20 +196,6 @@ class _Builder:
         return None
 
 
-def message_converter(src_store: Any, dst_store: Any, msgtype: str) -> Convert:
-    """Converter of a decoded ROS 1 message of ``msgtype`` (``src_store``'s definition) to a
-    ROS 2 message of the same type in ``dst_store``.
-
-    Raises :class:`UnknownTypeError` when ``dst_store`` does not know ``msgtype``.
-    """
-    if msgtype not in dst_store.fielddefs:
-        raise UnknownTypeError(f'ROS 1 message type {msgtype!r} has no ROS 2 counterpart in '
-                               'the Jazzy typestore or hexapod_interfaces')
-    if msgtype not in src_store.fielddefs:
-        raise UnknownTypeError(f'ROS 1 message type {msgtype!r} has no definition in the bag')
-    return _Builder(src_store, dst_store).message(msgtype, msgtype)
-
-
 class Ros1ToCdr:
     """ROS 1 raw bytes of an open ROS 1 bag reader -> ROS 2 CDR bytes, per message type.
 
@@ -220,7 +206,6 @@ class Ros1ToCdr:
         the bag's ROS 1 definitions.
     store
         The ROS 2 typestore to serialise with (default: :func:`hexapod_common.bags.typestore`).
-
     byte_path
         Convert types of the same wire format byte by byte (default; ``False`` forces the
         decode-copy-encode path, for tests and measurements).
@@ -258,20 +243,23 @@ class Ros1ToCdr:
     def converter(self, msgtype: str) -> Callable[[bytes], bytes]:
         """The cached ``ROS 1 bytes -> ROS 2 CDR bytes`` function of ``msgtype``."""
         func = self._bytes.get(msgtype)
-        if func is None and self.fast(msgtype):
+        if func is not None:
+            return func
+        if self.fast(msgtype):
             bitcvt = self.store.ros1_to_cdr
 
-            def func(data: bytes, _t: str = msgtype) -> bytes:
+            def byte_path(data: bytes, _t: str = msgtype) -> bytes:
                 return bytes(bitcvt(data, _t))
-            self._bytes[msgtype] = func
-        elif func is None:
+            func = byte_path
+        else:
             conv = self._message(msgtype)
             decode = self.reader.typestore.deserialize_ros1
             encode = self.store.serialize_cdr
 
-            def func(data: bytes, _t: str = msgtype) -> bytes:
+            def object_path(data: bytes, _t: str = msgtype) -> bytes:
                 return bytes(encode(conv(decode(data, _t)), _t))
-            self._bytes[msgtype] = func
+            func = object_path
+        self._bytes[msgtype] = func
         return func
 
     def fast(self, msgtype: str) -> bool:

@@ -163,3 +163,30 @@ def test_bag_replay_delivers_every_ros1_message_with_its_values(twins, tmp_path)
         assert a.pose.pose.orientation.w == 1.0
         assert a.twist.twist.linear.x == b.twist.twist.linear.x
         np.testing.assert_array_equal(a.pose.covariance, b.pose.covariance)
+
+
+@pytest.mark.timeout(60)
+def test_a_ros1_message_that_cannot_be_converted_is_dropped_with_one_warning(twins, tmp_path):
+    """Two cut JointState messages in the middle of a ROS 1 bag: the replay source drops them,
+    warns once, counts them, and yields every other message in order."""
+    bag = tmp_path / 'cut.bag'
+    with open_reader(twins[1]) as reader, Ros1Writer(bag) as writer:
+        conns: dict[str, Any] = {}
+        cut = 0
+        for k, m in enumerate(iter_messages(reader, list(TOPICS))):
+            if m.topic not in conns:
+                conns[m.topic] = writer.add_connection(m.topic, m.msgtype, typestore=ROS1)
+            data = m.data
+            if m.topic == '/joint_states' and k in (300, 301, 302, 303, 304, 305) and cut < 2:
+                data, cut = data[:len(data) // 2], cut + 1
+            writer.write(conns[m.topic], m.stamp_ns, data)
+        total = reader.message_count
+    warnings: list[str] = []
+    with ReplaySource(str(bag), warn=warnings.append) as source:
+        items = list(source.messages())
+        dropped = dict(source.dropped)
+    assert dropped == {'/joint_states': 2}
+    assert len(warnings) == 1 and '/joint_states' in warnings[0]
+    assert len(items) == total - 2
+    stamps = [m.stamp_ns for m in items]
+    assert stamps == sorted(stamps)
