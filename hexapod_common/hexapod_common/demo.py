@@ -169,7 +169,34 @@ def batch_analysis(out: Path, hidden: str, quick: bool) -> dict[str, Any]:
     res = run_energy_loop([bench], robots, out / 'residuals', load_offset_kg=float(leg_mass))
     result['residuals'] = {k: res.get(k) for k in ('baseline', 'effects_added', 'final',
                                                    'heldout', 'added_params', 'summary')}
+    result['other_lab'] = other_lab_check(out, robots[1], bench, energy['robot_runs'][1],
+                                          leg_mass)
     return result
+
+
+def other_lab_check(out: Path, robot_bag: Path, bench: Path, reference: dict[str, Any],
+                    leg_mass: str) -> dict[str, Any]:
+    """The 0.3 m/s run as a lab with its own gait code records it (``ros2 bag record
+    /joint_states /battery_state``: no ``/gait/phase``) -> ``hexapod-analyze energy`` with the
+    gait described on the command line; its figures against the full bag's."""
+    from hexapod_common.bags import BagWriter, iter_messages, open_reader
+    from hexapod_energy.cli import main as energy_main
+
+    lab = out / 'other_lab_robot'
+    with open_reader(robot_bag) as reader, BagWriter(lab) as writer:
+        for m in iter_messages(reader, ['/joint_states', '/battery_state']):
+            writer.write(m.topic, m.msgtype, m.data, m.stamp_ns)
+    rc = energy_main(['--bench', str(bench), '--robot', str(lab), '--out',
+                      str(out / 'other_lab'), '--no-progress', '--load-offset', leg_mass,
+                      '--robot-speed', f"{reference['speed']:.6g}", '--gait', 'tripod',
+                      '--duty-factor', '0.5', '--step-length', '0.1'])
+    if rc:
+        raise RuntimeError(f'hexapod-analyze energy on the no-/gait/phase bag failed ({rc})')
+    run = json.loads((out / 'other_lab' / 'energy.json').read_text())['robot_runs'][0]
+    return {'period_s': run['period_s'], 'reference_period_s': reference['period_s'],
+            'power_in_w': run['measured_power_in_w'],
+            'reference_power_in_w': reference['measured_power_in_w'],
+            'power_out_source': run['power_out_source'], 'cycle_source': run['cycle_source']}
 
 
 #: Komsuoglu et al. Table 3: gait -> (nerr mean, P [W], v [m/s]); SR = P / (m g v), m 3.31 kg.
@@ -305,6 +332,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         _say(f'   single-leg prediction vs measured robot P_in: RMSE '
              f'{pe.get("rmse_w", math.nan):.2f} W, bias (predicted - measured) '
              f'{pe.get("bias_w", math.nan):+.2f} W')
+    lab = batch.get('other_lab')
+    if lab:
+        _say(f"   the 0.3 m/s run as a lab with its own gait code records it (joint states and"
+             f" battery only, no /gait/phase): period from the joints {lab['period_s']:.4f} s"
+             f" (schedule {lab['reference_period_s']:.4f} s), P_in {lab['power_in_w']:.2f} W"
+             f" (with the schedule {lab['reference_power_in_w']:.2f} W)")
     res = batch.get('residuals')
     if isinstance(res, dict):
         held = res.get('heldout') or {}

@@ -28,6 +28,13 @@ def test_demo_runs_end_to_end(tmp_path):
     batch = summary['batch']
     assert batch['prediction_error']['rmse_w'] > 0
     assert isinstance(batch['residuals'], dict), batch['residuals']
+    # the hidden supply resistance is found alone (no stand-in effect added after it)
+    assert batch['residuals']['effects_added'] == ['supply_resistance']
+    # the same run without /gait/phase: cycles from the joints, the same input power
+    lab = batch['other_lab']
+    assert lab['cycle_source'] == 'joints'
+    assert lab['period_s'] == pytest.approx(lab['reference_period_s'], rel=0.01)
+    assert lab['power_in_w'] == pytest.approx(lab['reference_power_in_w'], rel=0.01)
     assert (out / 'report.html').stat().st_size > 10_000
     assert (out / 'residuals' / 'residuals.json').is_file()
     # SLIP step: quick settings simulate running and walk; the hidden 25 ms clock offset and
