@@ -75,8 +75,9 @@ from .preprocess import Box
 __all__ = ['add_cli', 'analyze_bag', 'main', 'read_run']
 
 TOPICS = ('/joint_states', '/joint_commands', '/mocap/body', '/battery_state')
-#: without these no stance can be fitted; /battery_state only gives the run's power and SR
-REQUIRED_TOPICS = ('/joint_states', '/joint_commands', '/mocap/body')
+#: without these no stance can be fitted; /battery_state only gives the run's power and SR;
+#: /joint_commands (the Buehler clock's target speeds) only the paper's shifted-clock edges
+REQUIRED_TOPICS = ('/joint_states', '/mocap/body')
 
 
 def read_run(path: str | Path) -> RunData:
@@ -145,7 +146,12 @@ def read_run(path: str | Path) -> RunData:
     names = joints.names
     if joints.note:
         notes.append(joints.note)
-    if all(len(s.names) == len(names) and set(s.names) == set(names) for s in jc):
+    if not jc:
+        command_t_s, command_velocity = np.zeros(0), np.zeros((0, len(names)))
+        notes.append('no usable /joint_commands (the Buehler clock\'s target speeds): the '
+                     "paper's shifted-clock edges are not available, stance edges from the "
+                     'leg geometry only')
+    elif all(len(s.names) == len(names) and set(s.names) == set(names) for s in jc):
         # drivers need not keep one name order: every sample is put in the joints' order
         jc = [r for r in (_in_order(s, names) for s in jc) if r.velocity.size == len(names)]
         command_t_s = np.array([s.t_s for s in jc])
@@ -158,8 +164,7 @@ def read_run(path: str | Path) -> RunData:
         command_t_s = cmd.t_s
         command_velocity = cmd.velocity[:, [cmd.names.index(n) for n in names]]
         notes.append(f'/joint_commands: {cmd.note}')
-    for topic, n in (('/joint_states', joints.t_s.size), ('/joint_commands', len(jc)),
-                     ('/mocap/body', len(mo))):
+    for topic, n in (('/joint_states', joints.t_s.size), ('/mocap/body', len(mo))):
         if not n:
             raise MissingTopicError(f'bag {path}: {topic} has no usable message (with '
                                     'velocities for the joint names of /joint_states)')
@@ -368,7 +373,8 @@ def add_cli(subparsers: Any) -> None:
                         '--leg-radius/--hip-x/--hip-z/--hip-zero for another robot) or none')
     p.add_argument('--leg-radius', type=float, default=None, metavar='M',
                    help='half-circle leg arc radius R [m] (hip-to-toe chord 2R; EduBot 0.0525)')
-    p.add_argument('--hip-x', type=float, nargs=3, default=None, metavar=('FRONT', 'MIDDLE', 'REAR'),
+    p.add_argument('--hip-x', type=float, nargs=3, default=None,
+                   metavar=('FRONT', 'MIDDLE', 'REAR'),
                    help='hip positions along the body axis from the COM [m] (EduBot 0.2 0 -0.2)')
     p.add_argument('--hip-z', type=float, default=None, metavar='M',
                    help='hip height above the tracked body point [m] (EduBot 0)')

@@ -219,9 +219,17 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                                  or not np.any(np.isfinite(position))):
         position = None
     can_geo = geometry is not None and position is not None
+    has_clock = np.asarray(run.command_t_s).size >= 2
     edges_asked = edges
     if edges == 'auto':
         edges = 'geometry' if can_geo else 'paper'
+    if not has_clock and edges in ('paper', 'effort'):
+        refined = ' (refined by efforts)' if edges == 'effort' else ''
+        raise SlipDataError(
+            f"run {run.label!r}: no joint commands (the Buehler clock's target speeds, "
+            f"/joint_commands), so the paper's edges{refined} cannot be found; "
+            + ('use the geometric edges' if can_geo else 'geometric edges need hip angles '
+               '(JointState.position) and a leg geometry'))
     if edges == 'effort' and effort is None:
         raise SlipDataError("edges='effort' needs run.joint_effort shaped like joint_velocity")
     if (edges == 'geometry' or offset_s == 'geometry') and not can_geo:
@@ -237,7 +245,8 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
     names = tuple(run.joint_names)
     tj = np.asarray(run.joint_t_s, dtype=float)
     speed = {tp: _tripod_mean(names, run.joint_velocity, tp) for tp in TRIPODS}
-    target = {tp: _tripod_mean(names, run.command_velocity, tp) for tp in TRIPODS}
+    target = ({tp: _tripod_mean(names, run.command_velocity, tp) for tp in TRIPODS}
+              if has_clock else {})
     tm = np.asarray(run.mocap_t_s, dtype=float)
     pm = np.asarray(run.mocap_position_m, dtype=float)
     box = _resolve_box(pm, box, res)
@@ -339,7 +348,8 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
         # rotation about y: heights above the ground z - g - tilt (x - x0)
         frame = _tilted_frame(frame, gfit.tilt_rad, gfit.tilt_x0_m, gfit.ground_m)
         pw = frame.to_world(pm[inside])
-        res.frame.update(tilt_deg=math.degrees(frame.tilt_rad), rotation=frame.rotation.tolist(), origin_m=frame.origin_m.tolist(),
+        res.frame.update(tilt_deg=math.degrees(frame.tilt_rad), rotation=frame.rotation.tolist(),
+                         origin_m=frame.origin_m.tolist(),
                          ground_m=gfit.ground_m, ground_tilt_rad=gfit.tilt_rad,
                          ground_source='geometry', geometry_rms_m=gfit.rms_m)
     res.offset_s = off
@@ -350,7 +360,7 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
     # stance extraction: the paper's windows always (reported side by side)
     windows = {}
     tc = np.asarray(run.command_t_s, dtype=float)
-    for tp in TRIPODS:
+    for tp in (TRIPODS if has_clock else ()):
         tgt_t, tgt_v = tc, target[tp]
 
         def tgt(t: FloatArray, tgt_t: FloatArray = tgt_t, tgt_v: FloatArray = tgt_v
@@ -361,7 +371,7 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
         res.shift_s[tp] = shift
         td, lo = edges_from_target(tgt_t + shift, tgt_v)
         windows[tp] = tripod_stance_windows(td, lo)
-    stance_windows = single_tripod_stances(windows, res.shift_s)
+    stance_windows = single_tripod_stances(windows, res.shift_s) if has_clock else []
     res.paper_windows = stance_windows
     if edges == 'effort':
         refined = {tp: refine_touchdowns(windows[tp], touchdowns[tp])[0] for tp in TRIPODS}
@@ -379,7 +389,8 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
     t_in0, t_in1 = track.t_s[0], track.t_s[-1]
     t_steady = -math.inf
     if steady_only:
-        tds = np.asarray(windows['left'], dtype=float).reshape(-1, 2)[:, 0]
+        tds = (np.asarray(windows['left'], dtype=float).reshape(-1, 2)[:, 0] if has_clock else
+               np.array([w.touchdown_s for w in stance_windows if w.tripod == 'left']))
         period = float(np.median(np.diff(tds))) if tds.size >= 3 else math.nan
         t_steady = (steady_start_s(tm[inside], body_pitch_rad(frame.rotation, quats), period)
                     if math.isfinite(period) else math.inf)
