@@ -208,18 +208,23 @@ class OnlineSlip:
 
     def step(self) -> list[SlipFitResult]:
         """Fit every newly completed stance; returns the new fits (possibly empty)."""
-        if len(self._js) < 50 or len(self._cmd) < 50 or len(self._mocap) < 20:
+        # the clock's commands are needed only for the paper's edges: geometric edges work
+        # from hip angles and motion capture alone
+        if len(self._js) < 50 or len(self._mocap) < 20 or \
+                (self.geometry is None and len(self._cmd) < 50):
             return []
         tj = np.array([x[0] for x in self._js])
         vj = np.array([x[1] for x in self._js])
-        tc = np.array([x[0] for x in self._cmd])
-        vc = np.array([x[1] for x in self._cmd])
         tm = np.array([x[0] for x in self._mocap])
         pm = np.array([x[1] for x in self._mocap])
         qm = np.array([x[2] for x in self._mocap])
         windows = {}
         shifts = {}
         geo_windows = self._geometric_windows(tj, vj, tm, pm, qm)
+        if geo_windows is None and len(self._cmd) < 50:
+            return []
+        tc = np.array([x[0] for x in self._cmd])
+        vc = np.array([x[1] for x in self._cmd])
         for tp in ([] if geo_windows is not None else TRIPODS):
             target = _tripod_mean(self.names, vc, tp)
             cached = self._shift_cache.get(tp)

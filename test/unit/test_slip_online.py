@@ -111,19 +111,28 @@ def test_online_geometric_edges_against_truth():
                                run.hip_velocity_rad_s, run.mocap_t_s, pw[:, 2],
                                body_pitch_rad(frame.rotation, run.mocap_quat_xyzw),
                                initial_offset_s=off, fix_offset=True).ground_m
-    core = OnlineSlip(box=BOX, mocap_offset_s=off, geometry=geo, ground_m=ground,
-                      world_frame=frame)
-    fits = []
-    for _, kind, i in events(run):
-        if kind == 0:
-            core.add_joint_state(float(run.t_s[i]), names, run.hip_velocity_rad_s[i],
-                                 run.hip_position_rad[i])
-            core.add_command(float(run.t_s[i]), names, run.target_velocity_rad_s[i])
-        else:
-            core.add_mocap(float(run.mocap_t_s[i]), run.mocap_position_m[i],
-                           run.mocap_quat_xyzw[i])
-            fits.extend(core.step())
+    def feed(commands: bool):
+        core = OnlineSlip(box=BOX, mocap_offset_s=off, geometry=geo, ground_m=ground,
+                          world_frame=frame)
+        fits = []
+        for _, kind, i in events(run):
+            if kind == 0:
+                core.add_joint_state(float(run.t_s[i]), names, run.hip_velocity_rad_s[i],
+                                     run.hip_position_rad[i])
+                if commands:
+                    core.add_command(float(run.t_s[i]), names, run.target_velocity_rad_s[i])
+            else:
+                core.add_mocap(float(run.mocap_t_s[i]), run.mocap_position_m[i],
+                               run.mocap_quat_xyzw[i])
+                fits.extend(core.step())
+        return core, fits
+
+    core, fits = feed(commands=True)
     assert len(fits) >= 6
+    # the geometric edges need no clock commands (a robot that does not publish them)
+    _, bare = feed(commands=False)
+    assert [(f.touchdown_s, f.liftoff_s, f.params) for f in bare] == \
+        [(f.touchdown_s, f.liftoff_s, f.params) for f in fits]
     err = []
     for f in fits:
         tr = np.array(run.truth['single_support'][f.tripod])
