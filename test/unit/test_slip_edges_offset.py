@@ -278,10 +278,14 @@ def test_issue_bar_edges_within_5ms(bar_figures):
 
 @pytest.mark.xfail(reason='issue 7 bar not met on the slow gaits (steady state): pace 44 / '
                           '100 / 67 %, walk 40 / 20 / 80 % of stances within 5 ms (seeds 1-3; '
-                          '61 % and 60 % over seeds 1-6). With the true body state the edges '
+                          '60 % and 60 % over seeds 1-6). With the true body state the edges '
                           'are within 0.5 ms: slow crossings make 0.1-0.3 mm of height or '
                           'pitch error several ms; lightly loaded legs hover at the rest '
-                          'height', strict=False)
+                          'height. Pace starts early (seeds 1, 5, 6): its single support '
+                          'starts at the other rear leg\'s lift-off (80 mm/s), and the fitted '
+                          'ground is 0.3-0.4 mm low (height noise in the force model, '
+                          'geometry.py docs); with the true ground 90 % over seeds 1-6',
+                   strict=False)
 def test_issue_bar_edges_within_5ms_slow_gaits(bar_figures):
     for gait in ('pace', 'walk'):
         for seed in BAR_SEEDS:
