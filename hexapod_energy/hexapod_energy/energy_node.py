@@ -115,6 +115,7 @@ class EnergyMonitorNode(Node):
                                          RELIABLE_QOS)
         self.dropped = 0
         self._sign_logged = False
+        self._warned: dict[str, int] = {}  # warning kind -> windows seen with it
         self._zero_stamp_topics: set[str] = set()
         self.create_subscription(BatteryState, 'battery_state', self._on_battery, SENSOR_QOS)
         self.create_subscription(GaitPhase, 'gait/phase', self._on_gait, SENSOR_QOS)
@@ -147,7 +148,13 @@ class EnergyMonitorNode(Node):
             self.get_logger().info(self.core.sign_note_)
         for d in results or ():
             for warning in d.warnings:
-                self.get_logger().warning(warning)
+                # a condition that holds for every window (e.g. AX efforts refused) is logged
+                # on its 1st, 10th, 100th ... window, not once per gait cycle
+                kind = warning.split('(')[0][:60]
+                n = self._warned[kind] = self._warned.get(kind, 0) + 1
+                if n == 1 or n in (10, 100, 1000) or n % 10000 == 0:
+                    self.get_logger().warning(warning if n == 1 else
+                                              f'{warning} [{n} windows so far]')
             self.pub.publish(descriptors_to_msg(d))
 
     def _on_battery(self, msg: BatteryState) -> None:
