@@ -21,44 +21,11 @@ import rclpy
 
 from hexapod_common.replay import ReplayOptions
 from hexapod_common.replay_node import BagReplayNode, use_replay_profile
+from hexapod_common.testbags import MIXED_TYPES as TYPES
+from hexapod_common.testbags import RAW_COUNT_RECEIVER as RECEIVER
 from hexapod_common.testbags import write_mixed_bag
 
 use_replay_profile()  # before any ROS context of this process
-
-TYPES = {'/joint_states': 'sensor_msgs/msg/JointState',
-         '/battery_state': 'sensor_msgs/msg/BatteryState',
-         '/gait/phase': 'hexapod_interfaces/msg/GaitPhase'}
-
-RECEIVER = """
-import json, sys, time
-import rclpy
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-from hexapod_common.ros_types import ros_message_class
-ns, total, depth = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
-types = json.loads(sys.argv[4])
-rclpy.init()
-node = rclpy.create_node('bench_receiver')
-qos = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE) \\
-    if depth == 0 else QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE)
-counts = dict.fromkeys(types, 0)
-last = [None]
-for topic, msgtype in types.items():
-    def cb(_m, _t=topic):
-        counts[_t] += 1
-        last[0] = time.monotonic()
-    node.create_subscription(ros_message_class(msgtype), ns + topic, cb, qos, raw=True)
-ex = SingleThreadedExecutor()
-ex.add_node(node)
-print('ready', flush=True)
-deadline = time.monotonic() + 300
-while sum(counts.values()) < total and time.monotonic() < deadline:
-    ex.spin_once(timeout_sec=0.05)
-    if last[0] is not None and time.monotonic() - last[0] > 3.0:
-        break  # the sender is done (the baseline loses messages)
-print(json.dumps(counts), flush=True)
-"""
-
 
 def run(bag: Path, expected: dict[str, int], flow_control: bool) -> tuple[float, dict]:
     ns = f'/bench_replay_{os.getpid()}_{int(flow_control)}'

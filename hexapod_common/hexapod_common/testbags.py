@@ -16,11 +16,51 @@ from ruamel.yaml import YAML
 
 from hexapod_common.bags import BagWriter, find_msg_dir, new_msg, stamp
 
-__all__ = ['P0_W', 'PERIOD_S', 'downgrade_sqlite_bag', 'foreign_typestore',
-           'write_foreign_robot_bag', 'write_mixed_bag']
+__all__ = ['MIXED_TYPES', 'P0_W', 'PERIOD_S', 'RAW_COUNT_RECEIVER', 'downgrade_sqlite_bag',
+           'foreign_typestore', 'write_foreign_robot_bag', 'write_mixed_bag']
 
 LEGS = ('L1', 'L2', 'L3', 'R1', 'R2', 'R3')
 JOINTS = [f'{leg}_{j}' for leg in LEGS for j in ('coxa', 'femur', 'tibia')]
+
+
+#: topics and types of :func:`write_mixed_bag`
+MIXED_TYPES = {'/joint_states': 'sensor_msgs/msg/JointState',
+               '/battery_state': 'sensor_msgs/msg/BatteryState',
+               '/gait/phase': 'hexapod_interfaces/msg/GaitPhase'}
+
+#: A receiver for replay tests and benchmarks, run as ``python -c RAW_COUNT_RECEIVER NS TOTAL
+#: DEPTH TYPES_JSON`` in its own process: reliable subscriptions (KEEP_ALL when DEPTH is 0) to
+#: NS + each topic, prints ``ready``, counts raw messages until TOTAL arrive (or 3 s pass
+#: without one after the first, or 300 s in all) and prints the counts per topic as JSON.
+RAW_COUNT_RECEIVER = """
+import json, sys, time
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from hexapod_common.ros_types import ros_message_class
+ns, total, depth = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+types = json.loads(sys.argv[4])
+rclpy.init()
+node = rclpy.create_node('raw_count_receiver')
+qos = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE) \\
+    if depth == 0 else QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE)
+counts = dict.fromkeys(types, 0)
+last = [None]
+for topic, msgtype in types.items():
+    def cb(_m, _t=topic):
+        counts[_t] += 1
+        last[0] = time.monotonic()
+    node.create_subscription(ros_message_class(msgtype), ns + topic, cb, qos, raw=True)
+ex = SingleThreadedExecutor()
+ex.add_node(node)
+print('ready', flush=True)
+deadline = time.monotonic() + 300
+while sum(counts.values()) < total and time.monotonic() < deadline:
+    ex.spin_once(timeout_sec=0.05)
+    if last[0] is not None and time.monotonic() - last[0] > 3.0:
+        break  # the sender is done (a lossy sender never reaches the total)
+print(json.dumps(counts), flush=True)
+"""
 
 
 def write_mixed_bag(path: str | Path, n_messages: int, *, storage: str = 'mcap',

@@ -7,39 +7,11 @@ from harness import ros_env
 
 from hexapod_common.replay import ReplayOptions
 from hexapod_common.replay_node import BagReplayNode, use_replay_profile
+from hexapod_common.testbags import MIXED_TYPES as TYPES
+from hexapod_common.testbags import RAW_COUNT_RECEIVER as RECEIVER
 from hexapod_common.testbags import write_mixed_bag
 
 use_replay_profile()  # before any ROS context of this process
-
-TYPES = {'/joint_states': 'sensor_msgs/msg/JointState',
-         '/battery_state': 'sensor_msgs/msg/BatteryState',
-         '/gait/phase': 'hexapod_interfaces/msg/GaitPhase'}
-
-
-RECEIVER = """
-import json, sys, time
-import rclpy
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-from hexapod_common.ros_types import ros_message_class
-ns, total = sys.argv[1], int(sys.argv[2])
-types = json.loads(sys.argv[3])
-rclpy.init()
-node = rclpy.create_node('receiver')
-qos = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
-counts = dict.fromkeys(types, 0)
-for topic, msgtype in types.items():
-    def cb(_m, _t=topic):
-        counts[_t] += 1
-    node.create_subscription(ros_message_class(msgtype), ns + topic, cb, qos, raw=True)
-ex = SingleThreadedExecutor()
-ex.add_node(node)
-print('ready', flush=True)
-deadline = time.monotonic() + 200
-while sum(counts.values()) < total and time.monotonic() < deadline:
-    ex.spin_once(timeout_sec=0.05)
-print(json.dumps(counts), flush=True)
-"""
 
 
 @pytest.mark.timeout(240)
@@ -54,7 +26,8 @@ def test_100k_mixed_messages_none_dropped(tmp_path):
     with ros_env('replay') as env:
         ns = env.namespace
         receiver = subprocess.Popen(
-            [sys.executable, '-c', RECEIVER, ns, str(sum(recorded.values())), json.dumps(TYPES)],
+            [sys.executable, '-c', RECEIVER, ns, str(sum(recorded.values())), '0',
+             json.dumps(TYPES)],
             stdout=subprocess.PIPE, text=True)
         try:
             assert receiver.stdout.readline().strip() == 'ready'
