@@ -51,6 +51,8 @@ of ``prediction_error``. Every such fallback is listed in the run's ``notes``.
                     "seconds"},                               # with --sweep
       "recommendation": Recommendation.to_dict(),             # with --recommend
       "warnings": [str],                                      # when any
+      "failed_bags": [{"bag", "error"}],   # robot bags refused (the others are analysed;
+                                           # all refused: exit 2)
       "plots": [relative paths]
     }
 
@@ -175,6 +177,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     """Carry out the analysis; returns the ``energy.json`` document (also written)."""
     from tqdm import tqdm
 
+    from hexapod_common.errors import HexapodError
+
     from hexapod_energy.bag_io import bench_phase_samples, read_bench_bag, read_robot_bag
     from hexapod_energy.metrics import descriptors
     from hexapod_energy.prediction import OutputPowerModel, RobotSpec, predict_power_in_w
@@ -215,9 +219,18 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
 
         opm = OutputPowerModel(robot=robot)
         runs = []
+        failed: list[dict[str, str]] = []
         for path in args.robot:
-            run_ = read_robot_bag(path, mass_kg=robot.mass_kg, current_sign=args.current_sign,
-                                  speed_mps=robot_speed)
+            try:
+                run_ = read_robot_bag(path, mass_kg=robot.mass_kg,
+                                      current_sign=args.current_sign, speed_mps=robot_speed)
+            except (EnergyError, HexapodError, ValueError) as err:
+                # one unreadable robot bag does not lose the others: refused by name (as
+                # ``slip`` does); every one refused is an error
+                failed.append({'bag': str(path), 'error': str(err)})
+                print(f'hexapod-analyze energy: refused {path}: {err}', file=sys.stderr)
+                bar.update(1)
+                continue
             notes = list(run_.extra.get('notes', []))
             payload = args.robot_payload if args.robot_payload is not None else \
                 (run_.payload_kg or 0.0)
@@ -279,7 +292,12 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 'notes': notes,
             })
             bar.update(1)
+        if args.robot and len(failed) == len(args.robot):
+            raise EnergyError('every robot bag was refused: ' + '; '.join(
+                f['error'] for f in failed))
         doc['robot_runs'] = runs
+        if failed:
+            doc['failed_bags'] = failed
         runs = [r for r in runs if math.isfinite(r['predicted_power_in_w'])]
         if runs:
             meas = np.array([r['measured_power_in_w'] for r in runs])

@@ -156,3 +156,22 @@ def test_robot_bags_without_a_bench(bags, tmp_path, capsys) -> None:
         assert code == 2 and 'need the bench surfaces' in capsys.readouterr().err
     assert main(['--out', str(tmp_path / 'n'), '--no-progress']) == 2
     assert 'nothing to analyse' in capsys.readouterr().err
+
+
+def test_a_bad_robot_bag_does_not_lose_the_others(bags, tmp_path, capsys) -> None:
+    """Twenty robot bags and one of them broken: the good ones are analysed, the bad one is
+    refused by name in ``failed_bags`` and on stderr (as ``slip`` does); all bad: exit 2."""
+    root, truth = bags
+    out = tmp_path / 'o'
+    bad = root / 'bench'  # a bench bag has no /gait/phase or joint states to take cycles from
+    code = main(['--robot', str(root / 'robot0'), str(bad), '--out', str(out),
+                 '--no-progress'])
+    assert code == 0
+    saved = json.loads((out / 'energy.json').read_text())
+    (r,) = saved['robot_runs']
+    assert r['measured_power_in_w'] == pytest.approx(truth[0], rel=1e-6)
+    (f,) = saved['failed_bags']
+    assert f['bag'] == str(bad) and f['error']
+    assert f'refused {bad}' in capsys.readouterr().err
+    code = main(['--robot', str(bad), '--out', str(tmp_path / 'p'), '--no-progress'])
+    assert code == 2 and 'every robot bag was refused' in capsys.readouterr().err
