@@ -330,23 +330,19 @@ def read_robot_bag(path: str | Path, *, mass_kg: float, current_sign: str = 'aut
         pose_from_msg,
     )
 
-    from hexapod_energy.descriptors import DescriptorAccumulator
+    from hexapod_energy.descriptors import POSITION_POWER_NOTE, DescriptorAccumulator
 
     if cycle_source not in ('auto', 'gait_phase', 'joints'):
         raise ValueError(f'cycle_source must be auto, gait_phase or joints, got {cycle_source!r}')
     with open_reader(path) as reader:
         present = {c.topic for c in reader.connections}
-    if cycle_source == 'auto':
+    auto_cycles = cycle_source == 'auto'
+    if auto_cycles:
         cycle_source = 'gait_phase' if '/gait/phase' in present else 'joints'
     required = ROBOT_TOPICS if cycle_source == 'gait_phase' else ('/battery_state',
                                                                     '/joint_states')
-    # raw effort P_out per window: the command decides effort against model per run
-    acc = DescriptorAccumulator(mass_kg=mass_kg, cycles=cycles, current_sign=current_sign,
-                                power_out_source='effort', cycle_source=cycle_source,
-                                speed_mps=speed_mps or 0.0)
     windows = []
     gait = None
-    has_effort = False
     notes: list[str] = []
     converters = {'/battery_state': battery_from_msg, '/gait/phase': gait_phase_from_msg,
                   '/joint_states': joint_state_from_msg, '/mocap/body': pose_from_msg,
@@ -397,6 +393,23 @@ def read_robot_bag(path: str | Path, *, mass_kg: float, current_sign: str = 'aut
         notes.append(f'{n} {topic} message(s) with a zero header stamp: bag receive time used')
     if duplicates:
         notes.append(f'{duplicates} duplicated message(s) ignored')
+    n_gait = sum(1 for smp in samples if smp[2] == '/gait/phase')
+    if auto_cycles and cycle_source == 'gait_phase' and n_gait == 0:
+        # an advertised but silent /gait/phase (``ros2 bag record -a``): the joints decide
+        n_bad = len(dropped.get('/gait/phase', []))
+        if not any(smp[2] == '/joint_states' for smp in samples):
+            raise BagContentError(
+                f'bag {path}: /gait/phase has no ' + ('usable ' if n_bad else '') +
+                'messages and /joint_states none either: no gait cycles to average over')
+        cycle_source = 'joints'
+        notes.append('/gait/phase recorded but ' +
+                     (f'none of its {n_bad} message(s) usable' if n_bad else
+                      'without messages') +
+                     ': cycle boundaries from the joint positions')
+    # raw effort P_out per window: the command decides effort against model per run
+    acc = DescriptorAccumulator(mass_kg=mass_kg, cycles=cycles, current_sign=current_sign,
+                                power_out_source='effort', cycle_source=cycle_source,
+                                speed_mps=speed_mps or 0.0)
     # header-stamp order (recorders store receive order; stamps may be a few ms out of order)
     samples.sort(key=lambda s: (s[0], s[1]))
     for _, _, topic, sample in samples:
@@ -406,12 +419,16 @@ def read_robot_bag(path: str | Path, *, mass_kg: float, current_sign: str = 'aut
             gait = sample
             windows.extend(acc.add_gait_phase(sample))
         elif topic == '/joint_states':
-            has_effort = has_effort or bool(sample.effort.size)
             windows.extend(acc.add_joint_state(sample) or ())
         elif topic == '/odom':
             acc.add_odometry(sample)
         else:
             acc.add_pose(sample)
+    # efforts count only when they gave a joint power (with velocities, or without them
+    # from position differences); efforts alone leave P_out unknown, not 0 W
+    has_effort = acc.joint_power_samples_ > 0
+    if any(POSITION_POWER_NOTE in d.warnings for d in windows):
+        notes.append(POSITION_POWER_NOTE)
     if cycle_source == 'joints':
         return _joint_cycle_run(path, acc, windows, samples, notes, custom, has_effort,
                                 speed_mps, gait)
@@ -479,8 +496,8 @@ def _joint_cycle_run(path: str | Path, acc: Any, windows: list[Any],
                      ('speed, cost of transport and specific resistance null'
                       if n_none == len(windows) else 'speed averaged over the others'))
     if not has_effort:
-        notes.append('no joint efforts: P_out unknown (the Eq. 6 model needs the gait '
-                     'schedule)')
+        notes.append('no joint efforts (or efforts without velocities and positions): P_out '
+                     'unknown (the Eq. 6 model needs the gait schedule)')
     w = np.array([d.window_s for d in windows])
     avg = lambda xs: float(np.sum(w * np.array(xs)) / np.sum(w))  # noqa: E731
     speeds = np.array([d.speed_mps for d in windows])

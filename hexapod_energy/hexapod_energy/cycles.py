@@ -57,8 +57,10 @@ __all__ = [
     'CycleSettings',
     'JointCycleTracker',
     'PeriodEstimate',
+    'detrend_linear',
     'estimate_period',
     'resample_uniform',
+    'unwrap_near',
 ]
 
 FloatArray = NDArray[np.float64]
@@ -142,6 +144,29 @@ def resample_uniform(t_s: FloatArray, positions: FloatArray, dt_s: float) -> Flo
     return np.column_stack([np.interp(grid, t, x[:, j]) for j in range(x.shape[1])])
 
 
+def detrend_linear(x: FloatArray) -> FloatArray:
+    """``x`` (n, J) minus each column's least-squares line in the sample index: a joint that
+    turns continuously (a RHex-class hip, unwrapped: a ramp of 2 pi per cycle plus a periodic
+    part) keeps only its periodic part; a periodic joint loses its mean (and the small slope
+    a span of not quite whole periods fits)."""
+    x = np.asarray(x, dtype=float)
+    n = x.shape[0]
+    tc = np.arange(n, dtype=float) - 0.5 * (n - 1)
+    den = float(np.dot(tc, tc))
+    slope = (tc @ x) / den if den > 0 else np.zeros(x.shape[1:])
+    return x - x.mean(axis=0) - np.multiply.outer(tc, slope)
+
+
+def unwrap_near(q_rad: float, last_rad: float) -> float:
+    """The 2 pi representative of ``q_rad`` nearest ``last_rad`` when they differ by more
+    than pi (a joint reported wrapped into [-pi, pi) or [0, 2 pi) that crossed the cut),
+    else ``q_rad`` unchanged."""
+    d = q_rad - last_rad
+    if abs(d) <= math.pi:
+        return q_rad
+    return q_rad - 2.0 * math.pi * round(d / (2.0 * math.pi))
+
+
 def _parabola(r: FloatArray, k: int) -> tuple[float, float]:
     """Vertex (lag, height) of the parabola through r[k-1], r[k], r[k+1]."""
     a, b, c = r[k - 1], r[k], r[k + 1]
@@ -173,7 +198,7 @@ def estimate_period(grid: FloatArray, settings: CycleSettings | None = None) -> 
     dt = s.grid_dt_s
     if n < 8:
         return PeriodEstimate(math.nan, math.nan, 'short', 0)
-    x = x - x.mean(axis=0)
+    x = detrend_linear(x)
     std = x.std(axis=0)
     active = std > s.min_amplitude_rad
     if not active.any():
@@ -288,7 +313,8 @@ class JointCycleTracker:
                 self._latest.append(float(q))
                 self._add_column(float(q))
             else:
-                self._latest[self._names[name]] = float(q)
+                j = self._names[name]
+                self._latest[j] = unwrap_near(float(q), self._latest[j])
         if not self._latest:
             return []
         if self._row_t is None or t_s <= self._row_t:

@@ -61,11 +61,12 @@ from hexapod_common.conversions import (
     PoseSample,
     current_sign_factor,
 )
-from hexapod_energy.cycles import CycleSettings, JointCycleTracker
+from hexapod_energy.cycles import CycleSettings, JointCycleTracker, unwrap_near
 
 __all__ = [
     'G_MPS2',
     'EFFORT_MAX_NET_FRACTION',
+    'POSITION_POWER_NOTE',
     'DescriptorAccumulator',
     'Descriptors',
     'descriptors_from_powers',
@@ -77,6 +78,10 @@ __all__ = [
 ]
 
 G_MPS2 = 9.81
+
+#: warning of a window whose joint power came from position differences (no velocities)
+POSITION_POWER_NOTE = ('no joint velocities: joint power from position differences '
+                       '(trapezoid effort x position step per joint and sample interval)')
 
 #: ``power_out_source='auto'`` refuses efforts whose net joint power is at least this fraction
 #: of their positive joint power (no negative work: a duty signal, not a torque).
@@ -197,7 +202,7 @@ def resolve_current_sign(voltage_v: np.ndarray, current_a: np.ndarray, mode: str
     return current_sign_factor(voltage_v, current_a, mode)
 
 
-def _mean_joint_power_w(joint: list[tuple[float, tuple[str, ...], np.ndarray]], *,
+def _mean_joint_power_w(joint: list[tuple[float, tuple[str, ...], np.ndarray, bool]], *,
                         signed: bool = False) -> float:
     """Sum over joint names of each joint's mean positive (or, ``signed``, net) power [W] (the
     mean over samples of the per-sample sum when every sample has the same names); ``joint``
@@ -210,7 +215,7 @@ def _mean_joint_power_w(joint: list[tuple[float, tuple[str, ...], np.ndarray]], 
         return float(np.mean([float(np.sum(part(j[2]))) for j in joint]))
     sums: dict[str, float] = {}
     counts: dict[str, int] = {}
-    for _, js_names, power in joint:
+    for _, js_names, power, _ in joint:
         for name, p in zip(js_names, part(power)):
             sums[name] = sums.get(name, 0.0) + float(p)
             counts[name] = counts.get(name, 0) + 1
@@ -259,9 +264,10 @@ class DescriptorAccumulator:
     sign_note_: str = field(default='', init=False)
     _battery: list[tuple[float, float]] = field(default_factory=list, init=False)
     _pending_battery: list[BatterySample] = field(default_factory=list, init=False)
-    # (stamp, joint names, per-joint positive power [W]) of each JointState
-    _joint: list[tuple[float, tuple[str, ...], np.ndarray]] = field(default_factory=list,
-                                                                    init=False)
+    # (stamp, joint names, per-joint signed power [W], from position differences) of each
+    # JointState
+    _joint: list[tuple[float, tuple[str, ...], np.ndarray, bool]] = field(
+        default_factory=list, init=False)
     _poses: list[tuple[float, float, float]] = field(default_factory=list, init=False)
     _boundaries: list[float] = field(default_factory=list, init=False)
     _gait: GaitPhaseSample | None = field(default=None, init=False)
@@ -270,6 +276,11 @@ class DescriptorAccumulator:
     _odom: list[tuple[float, float, float]] = field(default_factory=list, init=False)
     _tracker: JointCycleTracker | None = field(default=None, init=False)
     _seen_gait: bool = field(default=False, init=False)
+    #: joint samples that gave a joint power (from velocities or position differences)
+    joint_power_samples_: int = field(default=0, init=False)
+    # per joint name: (stamp, position, effort) of its last sample (velocity-less drivers)
+    _last_joint: dict[str, tuple[float, float, float]] = field(default_factory=dict,
+                                                                init=False)
 
     def __post_init__(self) -> None:
         if self.mass_kg <= 0:
@@ -335,7 +346,10 @@ class DescriptorAccumulator:
         if sample.effort.size and sample.velocity.size == sample.effort.size:
             power = np.asarray(sample.effort, dtype=float) * np.asarray(sample.velocity,
                                                                         dtype=float)
-            self._joint.append((sample.t_s, tuple(sample.names), power))
+            self._joint.append((sample.t_s, tuple(sample.names), power, False))
+            self.joint_power_samples_ += 1
+        elif sample.effort.size and sample.position.size == sample.effort.size:
+            self._add_position_power(sample)
         if not self.joint_cycles_:
             return []
         assert self._tracker is not None
@@ -348,6 +362,35 @@ class DescriptorAccumulator:
             return []
         self._boundaries.extend(new)
         return self._emit()
+
+    def _add_position_power(self, sample: JointStateSample) -> None:
+        """Joint power without velocities: per joint name, the trapezoid work
+        ``0.5 (tau_(k-1) + tau_k) (q_k - q_(k-1))`` over the interval since that joint's
+        previous sample, divided by its length, stamped at the interval's midpoint (the
+        position step taken as the 2 pi representative nearest 0 when it exceeds pi)."""
+        names: list[str] = []
+        power: list[float] = []
+        mids: list[float] = []
+        t = float(sample.t_s)
+        for name, q, tau in zip(sample.names, np.asarray(sample.position, dtype=float),
+                                np.asarray(sample.effort, dtype=float)):
+            if not (math.isfinite(q) and math.isfinite(tau)):
+                continue
+            prev = self._last_joint.get(name)
+            if prev is not None and t <= prev[0]:
+                continue  # a stale or repeated sample: keep the newer one
+            self._last_joint[name] = (t, float(q), float(tau))
+            if prev is None:
+                continue
+            t0, q0, tau0 = prev
+            dq = unwrap_near(float(q), q0) - q0
+            names.append(name)
+            power.append(0.5 * (tau0 + float(tau)) * dq / (t - t0))
+            mids.append(0.5 * (t0 + t))
+        if names:
+            # one entry per sample; its stamp is the midpoint of its joints' intervals
+            self._joint.append((float(np.mean(mids)), tuple(names), np.array(power), True))
+            self.joint_power_samples_ += 1
 
     def add_odometry(self, sample: OdometrySample) -> None:
         """Add an odometry pose (horizontal position in the odometry frame, for the speed)."""
@@ -431,6 +474,8 @@ class DescriptorAccumulator:
         net = _mean_joint_power_w(joint, signed=True) if joint else math.nan
         if joint and self.power_out_source != 'model':
             power_out = _mean_joint_power_w(joint)
+            if any(j[3] for j in joint):
+                warnings.append(POSITION_POWER_NOTE)
             why = (implausible_effort_power(power_out, power_in, net)
                    if self.power_out_source == 'auto' else '')
             if why:
