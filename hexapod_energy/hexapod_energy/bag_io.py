@@ -16,6 +16,15 @@ topic, same bytes) counts once; a bad message (NaN voltage or current, array len
 disagree with the names) is dropped, and a bag whose every ``/battery_state`` message is
 dropped is refused (no input power without current). Each fallback is listed in
 ``RobotRun.extra['notes']`` (``energy.json`` ``warnings``).
+
+Which cycles (``cycle_source='auto'``) is decided from the topics that have messages, counted
+while reading: a ``/gait/phase`` connection without any (usable) message, as ``ros2 bag record
+-a`` leaves for an advertised but silent topic, does not count; the cycles then come from the
+joint positions, with the note ``/gait/phase recorded but without messages: cycle boundaries
+from the joint positions``. ``/joint_states`` efforts count (``has_effort``, P_out not NaN) only
+when they gave a joint power: with velocities, or without them from position differences
+(:mod:`hexapod_energy.descriptors`, note :data:`~hexapod_energy.descriptors.POSITION_POWER_NOTE`);
+efforts alone leave P_out unknown (NaN), never 0 W.
 """
 
 from __future__ import annotations
@@ -319,7 +328,8 @@ def read_robot_bag(path: str | Path, *, mass_kg: float, current_sign: str = 'aut
     ``speed_mps``, else NaN; P_out from the joint efforts, else NaN. ``gait`` is then None and
     ``extra`` holds ``cycle_source``, ``speed_source``, ``period_s`` (mean window length /
     ``cycles``), ``leg_names`` (from the joint names ``<leg>_<joint>``) and a note for each
-    fallback. Bags with ``/gait/phase`` are read exactly as before.
+    fallback. Bags with ``/gait/phase`` messages are read exactly as before; a ``/gait/phase``
+    connection without messages counts as none (``auto``), with a note.
     """
     from hexapod_common.bags import iter_messages, open_reader
     from hexapod_common.conversions import (

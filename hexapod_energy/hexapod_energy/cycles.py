@@ -4,11 +4,24 @@ Robots of other labs run their own gait code and publish no ``/gait/phase``; the
 positions still repeat once per step period. This module estimates that period and lays whole
 cycles from it, so the energy descriptors (means over whole cycles) work on such robots.
 
+Continuous-rotation joints (RHex-class hips)
+    A hip that turns one revolution per cycle is reported either unwrapped (an ever-growing
+    angle: a ramp of 2 pi per cycle plus a periodic part) or wrapped into [-pi, pi) or
+    [0, 2 pi) (a sawtooth that jumps by 2 pi once per cycle). The tracker unwraps each joint
+    online (:func:`unwrap_near`: when a joint's new value differs from its last by more than
+    pi, the 2 pi representative nearest the last value is taken; no joint of a legged robot
+    moves by pi in one sample), so both reports become the same ramp; the period estimate
+    removes a least-squares line per joint (:func:`detrend_linear`), not only the mean, so the
+    ramp plus a periodic part is periodic. On simulated EduBot runs (Buehler clock, running,
+    jogging, pace, walk; test ``test_outside_joints_energy.py``) the period is within 0.11 %
+    of the clock's, unwrapped and wrapped alike (wrapped == unwrapped to rounding).
+
 Period estimate (:func:`estimate_period`)
     The positions of every joint, resampled on a uniform grid of ``grid_dt_s``, are made
-    mean-free and divided by their standard deviation (joints that move less than
-    ``min_amplitude_rad`` RMS are left out; when every joint is that still, the robot is
-    standing and no period is claimed). The normalised autocorrelation, summed over joints,
+    free of their least-squares line (mean and slope) and divided by their standard deviation
+    (joints that move less than ``min_amplitude_rad`` RMS about that line are left out; when
+    every joint is that still, the robot is standing and no period is claimed). The
+    normalised autocorrelation, summed over joints,
 
         r(k) = sum_j sum_t z_j(t) z_j(t + k) / ((n - k) * J),    r(0) = 1,
 
@@ -41,7 +54,7 @@ Cycle boundaries (:class:`JointCycleTracker`)
 
 Accuracy (tests ``test_outside_nogait_cycles.py``): on simulated AntBot runs (tripod and wave,
 4, 6 and 8 legs, 0.1 to 0.6 m/s) the period is within 1 % of the gait's (typically 0.1 %);
-standing runs and white noise give no period.
+standing runs and white noise give no period. EduBot runs: see above.
 """
 
 from __future__ import annotations
@@ -263,7 +276,8 @@ class JointCycleTracker:
     marking the end of a chain of cycles (no window may span it).
 
     Joints are matched by name; a joint first seen later is back-filled with its first value.
-    Several JointState messages with the same stamp (one per servo bus) make one row.
+    Several JointState messages with the same stamp (one per servo bus) make one row. Each
+    joint is unwrapped online (:func:`unwrap_near`), so wrapped continuous joints work.
 
     Attributes (fitted state)
     -------------------------
