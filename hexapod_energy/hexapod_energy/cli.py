@@ -21,8 +21,8 @@ come from the joint positions (step period by autocorrelation, :mod:`hexapod_ene
 the speed from ``/mocap/body``, else ``/odom`` (nav_msgs/Odometry), else ``--robot-speed V``,
 else null; P_out from the joint efforts, else null (the Eq. 6 model needs the gait); the Eq. 1
 prediction needs the gait: ``--gait NAME --duty-factor B --step-length M`` describe it (leg count
-from the joint names, period from the joints), else the run has no prediction and is left out
-of ``prediction_error``. Every such fallback is listed in the run's ``notes``.
+from joint names that follow ``L1..Lk``/``R1..Rk`` + ``_<joint>``, else ``--legs N``; period from
+the joints), else the run has no prediction and is left out of ``prediction_error``. Every such fallback is listed in the run's ``notes``.
 
 ``energy.json`` schema (version 1; keys are a contract, units in the names or below)::
 
@@ -67,6 +67,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import sys
 import time
 from collections.abc import Sequence
@@ -79,6 +80,21 @@ from hexapod_energy.descriptors import gait_from_sample, implausible_effort_powe
 from hexapod_energy.errors import EnergyError
 
 __all__ = ['add_cli', 'build_parser', 'gait_from_sample', 'main', 'run']
+
+
+_CONTRACT_JOINT = re.compile(r'^([LR])(\d+)_\w+$')
+
+
+def _leg_count(args: argparse.Namespace, run_: Any) -> int | None:
+    """Legs of a run without /gait/phase: ``--legs``, else counted from joint names that
+    follow the contract (``L1..Lk``/``R1..Rk`` + ``_<joint>``), else None."""
+    if getattr(args, 'legs', None):
+        return int(args.legs)
+    names = list(run_.extra.get('joint_names', []))
+    matches = [_CONTRACT_JOINT.match(n) for n in names]
+    if not names or not all(matches):
+        return None
+    return len({m.group(1) + m.group(2) for m in matches if m})
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
@@ -124,6 +140,9 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
                    help='duty factor of robot runs without /gait/phase (with --gait)')
     p.add_argument('--step-length', type=float, default=None, metavar='M',
                    help='step length of robot runs without /gait/phase [m] (with --gait)')
+    p.add_argument('--legs', type=int, default=None, metavar='N',
+                   help='leg count of robot runs without /gait/phase whose joint names do not '
+                        'follow L1..Lk/R1..Rk_<joint> (with --gait; default: from the names)')
     p.add_argument('--folds', type=int, default=5, help='k of the k-fold CV (default 5)')
     p.add_argument('--no-progress', action='store_true', help='hide the progress bar')
 
@@ -270,10 +289,10 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             # the accumulator used robot.mass_kg; descriptors are recomputed with the payload
             d = descriptors(power_in_w=run_.power_in_w, power_out_w=p_out, mass_kg=mass,
                             speed_mps=run_.speed_mps)
-            legs = run_.extra.get('leg_names', [])
+            legs = _leg_count(args, run_) if run_.gait is None else None
             runs.append({
                 'bag': str(path), 'gait': gait.name if gait else None,
-                'leg_count': gait.leg_count if gait else (len(legs) or None),
+                'leg_count': gait.leg_count if gait else legs,
                 'duty_factor': gait.duty_factor if gait else None,
                 'period_s': gait.period_s if gait else run_.extra.get('period_s'),
                 'step_length_m': gait.step_length_m if gait else None,
@@ -341,17 +360,27 @@ def _given_gait(args: argparse.Namespace, run_: Any, notes: list[str]) -> Any:
         notes.append('no /gait/phase and no --gait/--duty-factor/--step-length: no Eq. 1 '
                      'prediction and no P_out model for this run')
         return None
-    legs = len(run_.extra.get('leg_names', []))
+    legs = _leg_count(args, run_)
+    if legs is None:
+        names = list(run_.extra.get('joint_names', []))
+        raise EnergyError(
+            f'--gait {args.gait} for {run_.path}: the joint names ({", ".join(names[:4])}'
+            f'{", ..." if len(names) > 4 else ""}) do not follow the contract\'s '
+            '<leg>_<joint> with legs L1..Lk, R1..Rk (DESIGN section 4), so the leg count is '
+            'unknown: give --legs N')
     if name == 'tripod' and legs != 6:
         name = 'alternating'
     try:
         gait = make_gait(name, leg_count=legs, duty_factor=args.duty_factor,
                          period_s=run_.extra['period_s'], step_length_m=args.step_length)
     except (ValueError, KeyError) as err:
-        raise EnergyError(f'--gait {args.gait} for {run_.path} ({legs} legs from the joint '
-                          f'names): {err}') from err
+        source = 'given by --legs' if getattr(args, 'legs', None) else 'from the joint names'
+        raise EnergyError(f'--gait {args.gait} for {run_.path} ({legs} legs {source}): '
+                          f'{err}') from err
     notes.append(f'gait {gait.name} (beta {gait.duty_factor}, step {gait.step_length_m} m) as '
-                 f'given, {legs} legs from the joint names, period {gait.period_s:.4f} s from '
+                 f'given, {legs} legs '
+                 f'{"given by --legs" if getattr(args, "legs", None) else "from the joint names"}'
+                 f', period {gait.period_s:.4f} s from '
                  'the joints')
     return gait
 

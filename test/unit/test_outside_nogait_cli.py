@@ -82,3 +82,36 @@ def test_partial_gait_options_refused(bags, tmp_path, capsys):
     code = main(['--bench', str(bags / 'bench'), '--robot', str(bags / 'lab_bare'),
                  '--gait', 'tripod', '--out', str(tmp_path / 'o'), '--no-progress'])
     assert code == 2 and '--duty-factor' in capsys.readouterr().err
+
+
+def test_joint_names_outside_the_contract_need_legs(tmp_path, capsys):
+    """PhantomX-style names (``j_c1_lf``, ``j_thigh_lf``...) say nothing the contract can read
+    about the leg count: with ``--gait`` the run is refused naming ``--legs``; with
+    ``--legs 6`` it gets the same prediction as the contract-named twin."""
+    import dataclasses
+
+    trace = simulated_run(duration_s=10.0)
+    side = {'L': 'l', 'R': 'r'}
+    where = {'1': 'f', '2': 'm', '3': 'r'}
+    part = {'coxa': 'c1', 'femur': 'thigh', 'tibia': 'tibia'}
+    names = tuple(f'j_{part[n.split("_")[1]]}_{side[n[0]]}{where[n[1]]}'
+                  for n in trace.joint_names)
+    write_lab_bag(tmp_path / 'phantomx', dataclasses.replace(trace, joint_names=names))
+    write_lab_bag(tmp_path / 'contract', trace)
+    _write_bench(tmp_path / 'bench')
+    gait = ['--gait', 'tripod', '--duty-factor', '0.5', '--step-length', '0.1']
+    code = main(['--bench', str(tmp_path / 'bench'), '--robot', str(tmp_path / 'phantomx'),
+                 *gait, '--out', str(tmp_path / 'o'), '--no-progress'])
+    err = capsys.readouterr().err
+    assert code == 2 and '--legs' in err and 'j_c1_lf' in err
+    doc = _run(tmp_path, tmp_path / 'p', str(tmp_path / 'phantomx'),
+               str(tmp_path / 'contract'), *gait, '--legs', '6')
+    lab, ref = doc['robot_runs']
+    assert lab['leg_count'] == ref['leg_count'] == 6
+    np.testing.assert_allclose(lab['predicted_power_in_w'], ref['predicted_power_in_w'],
+                               rtol=1e-9)
+    assert any('given by --legs' in n for n in lab['notes'])
+    # without --gait the names are not needed: measured descriptors, leg count unknown
+    doc = _run(tmp_path, tmp_path / 'q', str(tmp_path / 'phantomx'))
+    assert doc['robot_runs'][0]['leg_count'] is None
+    assert doc['robot_runs'][0]['measured_power_in_w'] > 0
