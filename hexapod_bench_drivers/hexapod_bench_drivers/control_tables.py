@@ -1,15 +1,55 @@
 """Dynamixel control tables as data: addresses, sizes, unit conversions, error bits.
 
-Four models are described, from the ROBOTIS e-Manual:
+Models, each figure from its ROBOTIS e-Manual page (https://emanual.robotis.com/docs/en/dxl/ +
+``page``): protocol ``P``, model number, ticks over degrees, centre tick, velocity unit [rpm],
+stall torque [N m], stall current [A] and no-load speed [rpm] at the rated voltage ``V``,
+Present Current unit ``I mA`` (``-``: the model reports Present Load, 0.1 %), Temperature Limit
+default ``T`` [degC]:
 
-=========  ========  ============  =============================================
-model      protocol  model number  notes
-=========  ========  ============  =============================================
-AX-12A     1.0       12            1024 ticks over 300 deg, 0.111 rpm, 1.5 N m
-AX-18A     1.0       18            1024 ticks over 300 deg, 0.111 rpm, 1.8 N m
-XL430-W250 2.0       1060          4096 ticks over 360 deg, 0.229 rpm, 1.5 N m
-XM430-W350 2.0       1020          as XL430, Present Current (2.69 mA) at 126
-=========  ========  ============  =============================================
+===========  =  ======  =========  ======  =====  =====  ====  =====  ==  ====  ==  ============
+model        P  number  ticks/deg  centre  rpm/u  N m    A     rpm    V   I mA  T   page
+===========  =  ======  =========  ======  =====  =====  ====  =====  ==  ====  ==  ============
+AX-12A       1  12      1024/300   512     0.111  1.5    1.5   59     12  -     70  ax/ax-12a
+AX-18A       1  18      1024/300   512     0.111  1.8    2.2   97     12  -     75  ax/ax-18a
+AX-12W       1  300     1024/300   512     0.111  0.2    1.4   54(1)  12  -     70  ax/ax-12w
+MX-28        1  29      4096/360   2048    0.114  2.5    1.4   55     12  -     80  mx/mx-28
+MX-64        1  310     4096/360   2048    0.114  6.0    4.1   63     12  (2)   80  mx/mx-64
+MX-106       1  320     4096/360   2048    0.114  8.4    5.2   45     12  (2)   80  mx/mx-106
+MX-28(2.0)   2  30      4096/360   2048    0.229  2.5    1.4   55     12  -     80  mx/mx-28-2
+MX-64(2.0)   2  311     4096/360   2048    0.229  6.0    4.1   63     12  3.36  80  mx/mx-64-2
+MX-106(2.0)  2  321     4096/360   2048    0.229  8.4    5.2   45     12  3.36  80  mx/mx-106-2
+XL430-W250   2  1060    4096/360   2048    0.229  1.5    1.4   61     12  -     72  x/xl430-w250
+XM430-W350   2  1020    4096/360   2048    0.229  4.1    2.3   46     12  2.69  80  x/xm430-w350
+XM430-W210   2  1030    4096/360   2048    0.229  3.0    2.3   77     12  2.69  80  x/xm430-w210
+XH430-W210   2  1010    4096/360   2048    0.229  2.5    1.3   50     12  2.69  80  x/xh430-w210
+XH430-W350   2  1000    4096/360   2048    0.229  3.4    1.3   30     12  2.69  80  x/xh430-w350
+XC430-W150   2  1070    4096/360   2048    0.229  1.6    1.4   106    12  -     80  x/xc430-w150
+XC430-W240   2  1080    4096/360   2048    0.229  1.9    1.4   70     12  -     80  x/xc430-w240
+XM540-W150   2  1130    4096/360   2048    0.229  7.3    4.4   53     12  2.69  80  x/xm540-w150
+XM540-W270   2  1120    4096/360   2048    0.229  10.6   4.4   30     12  2.69  80  x/xm540-w270
+XL330-M077   2  1190    4096/360   2048    0.229  0.215  1.47  383    5   1.0   70  x/xl330-m077
+XL330-M288   2  1200    4096/360   2048    0.229  0.52   1.47  103    5   1.0   70  x/xl330-m288
+===========  =  ======  =========  ======  =====  =====  ====  =====  ==  ====  ==  ============
+
+(1) AX-12W: 54 rpm in joint mode (the driver's mode; 470 rpm in wheel mode), velocity unit as
+    AX-12A (the page shares the AX Moving Speed description).
+(2) MX-64/MX-106 on Protocol 1.0 have a Current register (68, RW, 2048 = 0 A, 4.5 mA per unit,
+    ``p1_current_unit_a``); the driver still reads Present Load there (one 8-byte block), the
+    emulator fills Current too. XH430 stall figures are for the 12 V W-variants (the V-variants
+    are 24 V servos with a different current unit and are not listed). XC430 and MX-28(2.0) sense
+    no current (Present Load, 0.1 %); XL330 is a 5 V servo (Present Current, 1 mA).
+    XL330 operating range: -5..+70 degC on the rendered page (-5..+60 in the e-Manual's source
+    data); its Temperature Limit default is 70. MX Present Speed reads 'about 0.11 rpm' on the
+    page, with the example 300 -> 34.33 rpm (0.1144 rpm): the Moving Speed unit 0.114 is used.
+
+Protocol 1.0 MX servos use the AX addresses for everything the driver touches (Torque Enable 24,
+Goal Position 30, Moving Speed 32, the present block 36..43), but addresses 26-28 are D/I/P gains
+(not compliance margins/slopes), positions span 4096 ticks over 360 deg about 2048, and speeds
+count 0.114 rpm. Nothing here writes 26-29 on any model (the emulator writes only power-on
+defaults). Protocol 2.0 MX(2.0) firmware uses the X-series addresses.
+
+Not described (outside the list that was checked): XL-320, RX/EX, DX, Pro, P, Y, XH540, XW,
+XD, XC330, MX-12W and the XH430-V (24 V) variants; they are refused by model number.
 
 Conventions: positions are radians about the servo's centre tick (512 or 2048), counter-clockwise
 positive as the servo counts. Protocol 1.0 speed and load carry their direction in bit 10
@@ -26,8 +66,25 @@ from types import MappingProxyType
 
 __all__ = [
     'ControlTableError',
+    'ALL_MODELS',
     'AX12A',
+    'AX12W',
     'AX18A',
+    'MX28',
+    'MX28_2',
+    'MX64',
+    'MX64_2',
+    'MX106',
+    'MX106_2',
+    'XC430_W150',
+    'XC430_W240',
+    'XH430_W210',
+    'XH430_W350',
+    'XL330_M077',
+    'XL330_M288',
+    'XM430_W210',
+    'XM540_W150',
+    'XM540_W270',
     'MODELS_BY_NUMBER',
     'MODELS_BY_NAME',
     'P1_ERROR_BITS',
@@ -42,6 +99,8 @@ __all__ = [
     'ERROR_OVERHEATING',
     'ERROR_OVERLOAD',
     'decode_error_flags',
+    'known_model_names',
+    'table_by_name',
     'table_for_model',
 ]
 
@@ -97,33 +156,36 @@ class Register:
     default: int = 0
 
 
-def _p1_registers(model_number: int, temperature_limit_c: int) -> dict[str, Register]:
+def _p1_registers(model_number: int, temperature_limit_c: int, *, mx: bool = False,
+                  current: bool = False, max_voltage_limit: int = 140,
+                  compliance_margin: int = 1, compliance_slope: int = 32,
+                  punch: int = 32) -> dict[str, Register]:
+    """Protocol 1.0 table: AX layout, or MX (``mx``) with PID gains at 26-28 and 4096 ticks.
+
+    ``current``: MX-64/MX-106 Current (68), Torque Control Mode Enable (70), Goal Torque (71).
+    """
     r = Register
-    return {
+    regs = {
         'model_number': r(0, 2, default=model_number),
         'firmware_version': r(2, 1, default=24),
         'id': r(3, 1, True, default=1),
         'baud_rate': r(4, 1, True, default=1),
         'return_delay_time': r(5, 1, True, default=0),
         'cw_angle_limit': r(6, 2, True, default=0),
-        'ccw_angle_limit': r(8, 2, True, default=1023),
+        'ccw_angle_limit': r(8, 2, True, default=4095 if mx else 1023),
         'temperature_limit': r(11, 1, True, default=temperature_limit_c),
         'min_voltage_limit': r(12, 1, True, default=60),
-        'max_voltage_limit': r(13, 1, True, default=140),
+        'max_voltage_limit': r(13, 1, True, default=max_voltage_limit),
         'max_torque': r(14, 2, True, default=1023),
         'status_return_level': r(16, 1, True, default=2),
         'alarm_led': r(17, 1, True, default=36),
         'shutdown': r(18, 1, True, default=36),
         'torque_enable': r(24, 1, True),
         'led': r(25, 1, True),
-        'cw_compliance_margin': r(26, 1, True, default=1),
-        'ccw_compliance_margin': r(27, 1, True, default=1),
-        'cw_compliance_slope': r(28, 1, True, default=32),
-        'ccw_compliance_slope': r(29, 1, True, default=32),
-        'goal_position': r(30, 2, True, default=512),
+        'goal_position': r(30, 2, True, default=2048 if mx else 512),
         'moving_speed': r(32, 2, True),
         'torque_limit': r(34, 2, True, default=1023),
-        'present_position': r(36, 2, default=512),
+        'present_position': r(36, 2, default=2048 if mx else 512),
         'present_speed': r(38, 2),
         'present_load': r(40, 2),
         'present_voltage': r(42, 1, default=120),
@@ -131,12 +193,39 @@ def _p1_registers(model_number: int, temperature_limit_c: int) -> dict[str, Regi
         'registered': r(44, 1),
         'moving': r(46, 1),
         'lock': r(47, 1, True),
-        'punch': r(48, 2, True, default=32),
+        'punch': r(48, 2, True, default=punch),
     }
+    if mx:
+        regs.update({
+            'multi_turn_offset': r(20, 2, True),
+            'resolution_divider': r(22, 1, True, default=1),
+            'd_gain': r(26, 1, True, default=0),
+            'i_gain': r(27, 1, True, default=0),
+            'p_gain': r(28, 1, True, default=32),
+            'realtime_tick': r(50, 2),
+            'goal_acceleration': r(73, 1, True),
+        })
+        if current:
+            regs.update({
+                'current': r(68, 2, True, default=2048),
+                'torque_control_mode_enable': r(70, 1, True),
+                'goal_torque': r(71, 2, True),
+            })
+    else:
+        regs.update({
+            'cw_compliance_margin': r(26, 1, True, default=compliance_margin),
+            'ccw_compliance_margin': r(27, 1, True, default=compliance_margin),
+            'cw_compliance_slope': r(28, 1, True, default=compliance_slope),
+            'ccw_compliance_slope': r(29, 1, True, default=compliance_slope),
+        })
+    return regs
 
 
-def _p2_registers(model_number: int, temperature_limit_c: int,
-                  current_sensing: bool) -> dict[str, Register]:
+def _p2_registers(model_number: int, temperature_limit_c: int, current_sensing: bool, *,
+                  max_voltage_limit: int = 140, min_voltage_limit: int = 60,
+                  current_limit: int = 1193, velocity_limit: int = 265, shutdown: int = 52,
+                  position_p_gain: int = 640) -> dict[str, Register]:
+    """Protocol 2.0 table (X series and MX(2.0)): the items the driver and emulator use."""
     r = Register
     regs = {
         'model_number': r(0, 2, default=model_number),
@@ -149,19 +238,19 @@ def _p2_registers(model_number: int, temperature_limit_c: int,
         'operating_mode': r(11, 1, True, default=3),
         'homing_offset': r(20, 4, True, True),
         'temperature_limit': r(31, 1, True, default=temperature_limit_c),
-        'max_voltage_limit': r(32, 2, True, default=140),
-        'min_voltage_limit': r(34, 2, True, default=60),
+        'max_voltage_limit': r(32, 2, True, default=max_voltage_limit),
+        'min_voltage_limit': r(34, 2, True, default=min_voltage_limit),
         'pwm_limit': r(36, 2, True, default=885),
-        'velocity_limit': r(44, 4, True, default=265),
+        'velocity_limit': r(44, 4, True, default=velocity_limit),
         'max_position_limit': r(48, 4, True, default=4095),
         'min_position_limit': r(52, 4, True, default=0),
-        'shutdown': r(63, 1, True, default=52),
+        'shutdown': r(63, 1, True, default=shutdown),
         'torque_enable': r(64, 1, True),
         'led': r(65, 1, True),
         'status_return_level': r(68, 1, True, default=2),
         'registered_instruction': r(69, 1),
         'hardware_error_status': r(70, 1),
-        'position_p_gain': r(84, 2, True, default=640),
+        'position_p_gain': r(84, 2, True, default=position_p_gain),
         'goal_pwm': r(100, 2, True, True, default=885),
         'goal_velocity': r(104, 4, True, True),
         'profile_acceleration': r(108, 4, True),
@@ -179,7 +268,7 @@ def _p2_registers(model_number: int, temperature_limit_c: int,
         'present_temperature': r(146, 1, default=26),
     }
     if current_sensing:
-        regs['current_limit'] = r(38, 2, True, default=1193)
+        regs['current_limit'] = r(38, 2, True, default=current_limit)
         regs['goal_current'] = r(102, 2, True, True)
         regs['present_current'] = r(126, 2, signed=True)
     else:
@@ -229,9 +318,19 @@ class ControlTable:
     velocity_unit_rpm : float
         One speed unit [rpm] (0.111 or 0.229).
     stall_torque_nm, stall_current_a : float
-        At 12 V; effort estimate = load fraction * stall torque.
+        At ``rated_voltage_v``; effort estimate = load fraction * stall torque.
     no_load_speed_rad_s : float
-        At 12 V.
+        At ``rated_voltage_v``.
+    current_unit_a : float
+        One Present Current unit [A] (Protocol 2.0 models that sense current), else 0.
+    read_names : tuple of str
+        The registers of one present-state read (their span is ``read_block``).
+    rated_voltage_v : float
+        Supply voltage of the datasheet figures [V] (12, or 5 for XL330).
+    p1_current_unit_a : float
+        Protocol 1.0 MX-64/MX-106 Current (68) unit [A] (value 2048 = 0 A), else 0.
+    page : str
+        e-Manual page of the model (the source of every figure).
     """
 
     model_name: str
@@ -247,6 +346,9 @@ class ControlTable:
     no_load_speed_rad_s: float
     current_unit_a: float = 0.0
     read_names: tuple[str, ...] = field(default=())
+    rated_voltage_v: float = 12.0
+    p1_current_unit_a: float = 0.0
+    page: str = ''
 
     # --- registers -------------------------------------------------------------------------
     def reg(self, name: str) -> Register:
@@ -307,8 +409,10 @@ class ControlTable:
     # --- unit conversions ------------------------------------------------------------------
     @property
     def rad_per_tick(self) -> float:
-        return self.position_span_rad / (self.ticks_per_span - 1 if self.protocol == 1
-                                         else self.ticks_per_span)
+        """A 300 deg span (AX) has its end ticks 0 and 1023 at both ends; a full turn wraps."""
+        full_turn = self.position_span_rad >= 2.0 * math.pi - 1e-9
+        return self.position_span_rad / (self.ticks_per_span if full_turn
+                                         else self.ticks_per_span - 1)
 
     @property
     def max_tick(self) -> int:
@@ -378,6 +482,18 @@ class ControlTable:
             return units | (0x400 if fraction < 0 else 0)
         return units if fraction >= 0 else -units
 
+    def p1_current_to_a(self, raw: int) -> float:
+        """Protocol 1.0 MX-64/106 Current (68) -> A (2048 = 0 A); ControlTableError elsewhere."""
+        if not self.p1_current_unit_a:
+            raise ControlTableError(f'{self.model_name} has no Protocol 1.0 Current register')
+        return (int(raw) - 2048) * self.p1_current_unit_a
+
+    def a_to_p1_current(self, current_a: float) -> int:
+        """A -> Protocol 1.0 Current (68) raw value, clipped to 0..4095 (emulator use)."""
+        if not self.p1_current_unit_a:
+            raise ControlTableError(f'{self.model_name} has no Protocol 1.0 Current register')
+        return max(0, min(4095, 2048 + int(round(current_a / self.p1_current_unit_a))))
+
     @staticmethod
     def voltage_to_v(raw: int) -> float:
         """Present (Input) Voltage, 0.1 V units -> V."""
@@ -403,55 +519,144 @@ class ControlTable:
         )
 
 
+_EMANUAL = 'https://emanual.robotis.com/docs/en/dxl/'
+_P1_READ = ('present_position', 'present_speed', 'present_load', 'present_voltage',
+            'present_temperature')
+
+
 def _p1_table(name: str, number: int, stall_nm: float, stall_a: float, no_load_rpm: float,
-              temp_limit_c: int) -> ControlTable:
+              temp_limit_c: int, *, page: str, mx: bool = False, current: bool = False,
+              **register_defaults: int) -> ControlTable:
     return ControlTable(
         model_name=name, model_number=number, protocol=1,
-        registers=MappingProxyType(_p1_registers(number, temp_limit_c)),
-        ticks_per_span=1024, position_span_rad=math.radians(300.0), center_tick=512,
-        velocity_unit_rpm=0.111, stall_torque_nm=stall_nm, stall_current_a=stall_a,
-        no_load_speed_rad_s=no_load_rpm * RPM_TO_RAD_S,
-        read_names=('present_position', 'present_speed', 'present_load', 'present_voltage',
-                    'present_temperature'),
+        registers=MappingProxyType(_p1_registers(number, temp_limit_c, mx=mx, current=current,
+                                                 **register_defaults)),
+        ticks_per_span=4096 if mx else 1024,
+        position_span_rad=2.0 * math.pi if mx else math.radians(300.0),
+        center_tick=2048 if mx else 512,
+        velocity_unit_rpm=0.114 if mx else 0.111, stall_torque_nm=stall_nm,
+        stall_current_a=stall_a, no_load_speed_rad_s=no_load_rpm * RPM_TO_RAD_S,
+        read_names=_P1_READ, p1_current_unit_a=0.0045 if current else 0.0,
+        page=_EMANUAL + page,
     )
 
 
 def _p2_table(name: str, number: int, stall_nm: float, stall_a: float, no_load_rpm: float,
-              temp_limit_c: int, current_sensing: bool) -> ControlTable:
+              temp_limit_c: int, current_sensing: bool, *, page: str,
+              current_unit_a: float = 0.00269, rated_voltage_v: float = 12.0,
+              **register_defaults: int) -> ControlTable:
     return ControlTable(
         model_name=name, model_number=number, protocol=2,
-        registers=MappingProxyType(_p2_registers(number, temp_limit_c, current_sensing)),
+        registers=MappingProxyType(_p2_registers(number, temp_limit_c, current_sensing,
+                                                 **register_defaults)),
         ticks_per_span=4096, position_span_rad=2.0 * math.pi, center_tick=2048,
         velocity_unit_rpm=0.229, stall_torque_nm=stall_nm, stall_current_a=stall_a,
         no_load_speed_rad_s=no_load_rpm * RPM_TO_RAD_S,
-        current_unit_a=0.00269 if current_sensing else 0.0,
+        current_unit_a=current_unit_a if current_sensing else 0.0,
         read_names=('present_current' if current_sensing else 'present_load',
                     'present_velocity', 'present_position', 'present_input_voltage',
                     'present_temperature'),
+        rated_voltage_v=rated_voltage_v, page=_EMANUAL + page,
     )
 
 
-# Datasheet figures at 12 V (e-Manual): stall torque, stall current, no-load speed.
-AX12A = _p1_table('AX-12A', 12, 1.5, 1.5, 59.0, 70)
-AX18A = _p1_table('AX-18A', 18, 1.8, 2.2, 97.0, 75)
-XL430 = _p2_table('XL430-W250', 1060, 1.5, 1.4, 61.0, 72, current_sensing=False)
-XM430 = _p2_table('XM430-W350', 1020, 4.1, 2.3, 46.0, 80, current_sensing=True)
+# Datasheet figures (e-Manual, see the module table): stall torque [N m], stall current [A] and
+# no-load speed [rpm] at the rated voltage, Temperature Limit default [degC]; register defaults
+# (voltage, current and velocity limits) from each model's control table.
+_X12V = dict(max_voltage_limit=160, min_voltage_limit=95)
+AX12A = _p1_table('AX-12A', 12, 1.5, 1.5, 59.0, 70, page='ax/ax-12a/')
+AX18A = _p1_table('AX-18A', 18, 1.8, 2.2, 97.0, 75, page='ax/ax-18a/')
+AX12W = _p1_table('AX-12W', 300, 0.2, 1.4, 54.0, 70, page='ax/ax-12w/', compliance_margin=4,
+                  compliance_slope=64)
+MX28 = _p1_table('MX-28', 29, 2.5, 1.4, 55.0, 80, page='mx/mx-28/', mx=True,
+                 max_voltage_limit=160, punch=0)
+MX64 = _p1_table('MX-64', 310, 6.0, 4.1, 63.0, 80, page='mx/mx-64/', mx=True, current=True,
+                 max_voltage_limit=240, punch=0)
+MX106 = _p1_table('MX-106', 320, 8.4, 5.2, 45.0, 80, page='mx/mx-106/', mx=True, current=True,
+                  max_voltage_limit=160, punch=0)
+MX28_2 = _p2_table('MX-28(2.0)', 30, 2.5, 1.4, 55.0, 80, False, page='mx/mx-28-2/',
+                   velocity_limit=380, position_p_gain=850, **_X12V)
+MX64_2 = _p2_table('MX-64(2.0)', 311, 6.0, 4.1, 63.0, 80, True, page='mx/mx-64-2/',
+                   current_unit_a=0.00336, current_limit=1941, velocity_limit=435,
+                   position_p_gain=850, **_X12V)
+MX106_2 = _p2_table('MX-106(2.0)', 321, 8.4, 5.2, 45.0, 80, True, page='mx/mx-106-2/',
+                    current_unit_a=0.00336, current_limit=2047, velocity_limit=360,
+                    position_p_gain=850, **_X12V)
+XL430 = _p2_table('XL430-W250', 1060, 1.5, 1.4, 61.0, 72, current_sensing=False,
+                  page='x/xl430-w250/')
+XM430 = _p2_table('XM430-W350', 1020, 4.1, 2.3, 46.0, 80, current_sensing=True,
+                  page='x/xm430-w350/')
+XM430_W210 = _p2_table('XM430-W210', 1030, 3.0, 2.3, 77.0, 80, True, page='x/xm430-w210/',
+                       current_limit=1193, velocity_limit=330, position_p_gain=800, **_X12V)
+XH430_W210 = _p2_table('XH430-W210', 1010, 2.5, 1.3, 50.0, 80, True, page='x/xh430-w210/',
+                       current_limit=648, velocity_limit=360, position_p_gain=900, **_X12V)
+XH430_W350 = _p2_table('XH430-W350', 1000, 3.4, 1.3, 30.0, 80, True, page='x/xh430-w350/',
+                       current_limit=648, velocity_limit=130, position_p_gain=900, **_X12V)
+XC430_W150 = _p2_table('XC430-W150', 1070, 1.6, 1.4, 106.0, 80, False, page='x/xc430-w150/',
+                       max_voltage_limit=160, min_voltage_limit=60, velocity_limit=460,
+                       position_p_gain=460)
+XC430_W240 = _p2_table('XC430-W240', 1080, 1.9, 1.4, 70.0, 80, False, page='x/xc430-w240/',
+                       max_voltage_limit=160, min_voltage_limit=60, velocity_limit=306,
+                       position_p_gain=700)
+XM540_W150 = _p2_table('XM540-W150', 1130, 7.3, 4.4, 53.0, 80, True, page='x/xm540-w150/',
+                       current_limit=2047, velocity_limit=230, position_p_gain=800, **_X12V)
+XM540_W270 = _p2_table('XM540-W270', 1120, 10.6, 4.4, 30.0, 80, True, page='x/xm540-w270/',
+                       current_limit=2047, velocity_limit=128, position_p_gain=800, **_X12V)
+XL330_M077 = _p2_table('XL330-M077', 1190, 0.215, 1.47, 383.0, 70, True, page='x/xl330-m077/',
+                       current_unit_a=0.001, rated_voltage_v=5.0, max_voltage_limit=70,
+                       min_voltage_limit=35, current_limit=1750, velocity_limit=1620,
+                       shutdown=53, position_p_gain=400)
+XL330_M288 = _p2_table('XL330-M288', 1200, 0.52, 1.47, 103.0, 70, True, page='x/xl330-m288/',
+                       current_unit_a=0.001, rated_voltage_v=5.0, max_voltage_limit=70,
+                       min_voltage_limit=35, current_limit=1750, velocity_limit=445,
+                       shutdown=53, position_p_gain=400)
+
+ALL_MODELS: tuple[ControlTable, ...] = (
+    AX12A, AX18A, AX12W, MX28, MX64, MX106, MX28_2, MX64_2, MX106_2, XL430, XM430, XM430_W210,
+    XH430_W210, XH430_W350, XC430_W150, XC430_W240, XM540_W150, XM540_W270, XL330_M077,
+    XL330_M288)
 
 MODELS_BY_NUMBER: Mapping[tuple[int, int], ControlTable] = MappingProxyType({
-    (t.protocol, t.model_number): t for t in (AX12A, AX18A, XL430, XM430)})
+    (t.protocol, t.model_number): t for t in ALL_MODELS})
+
+
+def _name_key(name: str) -> str:
+    """'MX-28(2.0)' -> 'mx28_2', 'XM430-W210' -> 'xm430w210', 'ax18a' -> 'ax18a'."""
+    key = name.lower().replace('(2.0)', '_2').replace('2.0', '_2')
+    return ''.join(c for c in key if c.isalnum() or c == '_').replace('__', '_')
+
+
+#: Lower-case keys without dashes ('ax18a', 'mx28', 'mx28_2', 'xm430w210'); 'xl430' and 'xm430'
+#: (the W250 and W350) are kept as short names.
 MODELS_BY_NAME: Mapping[str, ControlTable] = MappingProxyType({
-    'ax12a': AX12A, 'ax18a': AX18A, 'xl430': XL430, 'xm430': XM430})
+    **{_name_key(t.model_name): t for t in ALL_MODELS}, 'xl430': XL430, 'xm430': XM430})
+
+
+def table_by_name(name: str) -> ControlTable:
+    """A model by name, case and dashes ignored: 'MX-28', 'mx28', 'MX-28(2.0)', 'mx28_2'."""
+    try:
+        return MODELS_BY_NAME[_name_key(name)]
+    except KeyError:
+        raise ControlTableError(
+            f'model {name!r}: expected one of {", ".join(t.model_name for t in ALL_MODELS)}'
+        ) from None
+
+
+def known_model_names(protocol: int | None = None) -> str:
+    """Names of the described models (of one protocol if given), comma separated."""
+    return ', '.join(t.model_name for t in ALL_MODELS
+                     if protocol is None or t.protocol == int(protocol))
 
 
 def table_for_model(protocol: int, model_number: int) -> ControlTable:
-    """The control table of a pinged model; ControlTableError lists the known ones."""
+    """The control table of a pinged model; ControlTableError names the known models."""
     try:
         return MODELS_BY_NUMBER[(int(protocol), int(model_number))]
     except KeyError:
-        known = ', '.join(f'{t.model_name} (P{p}, {n})' for (p, n), t in MODELS_BY_NUMBER.items())
         raise ControlTableError(
-            f'unknown Dynamixel model number {model_number} on protocol {protocol}; '
-            f'expected one of {known}') from None
+            f'unknown Dynamixel model number {model_number} on Protocol {int(protocol)}.0; '
+            f'known on Protocol 1.0: {known_model_names(1)}; '
+            f'on Protocol 2.0: {known_model_names(2)}') from None
 
 
 def decode_error_flags(protocol: int, flags: int) -> tuple[str, ...]:

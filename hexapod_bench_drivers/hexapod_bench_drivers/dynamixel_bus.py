@@ -26,7 +26,15 @@ and sleeps in ``select`` instead of spinning, which frees the CPU (and the GIL f
 emulator).
 
 Effort is an estimate: load fraction (Present Load, or Present Current over stall current) times
-the datasheet stall torque at 12 V; these servos measure no torque.
+the datasheet stall torque at the rated voltage (12 V; 5 V for XL330); these servos measure no
+torque.
+
+Models: each servo's control table comes from the model number it reports
+(:func:`hexapod_bench_drivers.control_tables.table_for_model`: AX, MX on Protocol 1.0, MX(2.0)
+and X series on 2.0), so one Protocol 1.0 bus may mix AX-18A and MX-28. A servo of an unknown
+model is left out of the cycle; if no servo is usable, :class:`BusError` carries the refusal,
+which names the known models. Only Torque Enable, Goal Position and Moving Speed / Profile
+Velocity are ever written (never the AX compliance or MX gain registers at 26-29).
 """
 
 from __future__ import annotations
@@ -220,6 +228,7 @@ class _Servo:
     health: ServoHealth
     table: ControlTable | None = None
     last_probe_cycle: int = field(default=-10**9)
+    refusal: str = ''   # why an answering servo's model was refused (names the known models)
 
 
 class DynamixelBus:
@@ -231,7 +240,7 @@ class DynamixelBus:
         Serial device or emulator pty.
     joints : sequence of JointConfig
     protocol : int
-        1 (AX) or 2 (XL/XM).
+        1 (AX, MX) or 2 (X series, MX(2.0) firmware).
     baud_rate : int
         One of the SDK's rates (1 000 000 default).
     timeout_margin_ms : float
@@ -288,6 +297,10 @@ class DynamixelBus:
             self._ping(s)
         if not any(s.table is not None for s in self.servos):
             self.close()
+            refused = [f'id {s.joint.servo_id}: {s.refusal}' for s in self.servos if s.refusal]
+            if refused:
+                raise BusError(f'port {self.port.getPortName()!r}: no servo of a known model; '
+                               + '; '.join(refused))
             raise BusError(f'port {self.port.getPortName()!r}: no servo answered a Protocol '
                            f'{self.protocol}.0 ping; expected IDs '
                            f'{[s.joint.servo_id for s in self.servos]}')
@@ -310,8 +323,9 @@ class DynamixelBus:
             if result == COMM_SUCCESS:
                 try:
                     s.table = table_for_model(self.protocol, model)
-                except ControlTableError:
+                except ControlTableError as err:
                     s.health.model = f'unsupported model {model}'
+                    s.refusal = str(err)
                     return False
                 s.health.model = s.table.model_name
                 s.health.silent = False

@@ -20,8 +20,15 @@ Physics: :class:`hexapod_bench_drivers.servo_model.ServoModel` when importable (
 electromechanical model), else :class:`FirstOrderServo`, a first-order stand-in. Either sits
 behind :class:`ServoPhysics`. Moving Speed / Profile Velocity limit the goal the physics tracks.
 
+Models: every ControlTable of :mod:`hexapod_bench_drivers.control_tables` (AX-12A/18A/12W and
+MX-28/64/106 on Protocol 1.0; MX(2.0), XL430, XM430, XH430, XC430, XM540, XL330 on 2.0), mixed
+models on one bus allowed (:meth:`ServoBusEmulator.of_models`). Present Load or Present Current
+(and the Protocol 1.0 MX-64/106 Current register) follow the model's table; the emulator writes
+only power-on defaults to gain or compliance registers.
+
 Run standalone: ``python -m hexapod_bench_drivers.servo_bus_emulator --model ax18a --ids 1-18``
-prints the port name and serves until interrupted.
+(``--model MX-28``, ``--model xm430w210``, ...) prints the port name and serves until
+interrupted.
 """
 
 from __future__ import annotations
@@ -48,7 +55,9 @@ from hexapod_bench_drivers.control_tables import (
     ERROR_OVERHEATING,
     MODELS_BY_NAME,
     ControlTable,
+    ControlTableError,
     Register,
+    table_by_name,
 )
 
 __all__ = [
@@ -205,8 +214,9 @@ class FirstOrderServo:
 
     velocity = clip((goal - position) / time_constant_s, +-v_max) with v_max falling linearly with
     the external torque from the no-load speed to 0 at stall, and capped by
-    ``moving_speed_rad_s`` (0 = no cap); load = external torque / stall torque. The temperature
-    stays at its initial value. Same call shape as ServoModel.
+    ``moving_speed_rad_s`` (0 = no cap); load = external torque / stall torque. Stall torque and
+    no-load speed scale with supply voltage / the table's rated voltage (12 V, or 5 V for XL330).
+    The temperature stays at its initial value. Same call shape as ServoModel.
     """
 
     def __init__(self, table: ControlTable, *, count: int = 1,
@@ -227,9 +237,10 @@ class FirstOrderServo:
              supply_voltage_v: Any = 12.0) -> ServoStepOutput:
         goal = np.broadcast_to(np.asarray(goal_position_rad, float), (self.count,))
         volts = np.broadcast_to(np.asarray(supply_voltage_v, float), (self.count,))
-        stall = self.table.stall_torque_nm * volts / 12.0
+        scale = volts / self.table.rated_voltage_v
+        stall = self.table.stall_torque_nm * scale
         load = np.asarray(external_torque_nm, float) / stall
-        v_max = self.table.no_load_speed_rad_s * volts / 12.0 * np.maximum(0.0, 1.0 - abs(load))
+        v_max = self.table.no_load_speed_rad_s * scale * np.maximum(0.0, 1.0 - abs(load))
         v_max = np.where(self.moving_speed_rad_s > 0,
                          np.minimum(v_max, self.moving_speed_rad_s), v_max)
         step = (goal - self.position_rad) * (1.0 - math.exp(-dt_s / self.time_constant_s))
@@ -383,6 +394,7 @@ class _Group:
         self.r_moving = r['moving']
         self.r_shutdown = r['shutdown']
         self.r_hw = r.get('hardware_error_status')
+        self.r_p1_current = r.get('current')   # MX-64/MX-106 on Protocol 1.0 (2048 = 0 A)
 
     def step(self, dt_s: float, supply_voltage_v: float) -> None:
         """Advance the physics by ``dt_s`` and write the present-value registers."""
@@ -418,6 +430,8 @@ class _Group:
                                    -32768, 32767).astype(int).tolist()
             else:
                 load_raw = np.clip(np.rint(load * 1000), -1000, 1000).astype(int).tolist()
+        p1_current = ([t.a_to_p1_current(f * t.stall_current_a) for f in load.tolist()]
+                      if self.r_p1_current is not None else None)
         temp = np.clip(np.rint(np.asarray(out.temperature_c, dtype=float)), 0, 255).astype(
             int).tolist()
         moving = (np.abs(vel) > 0.05).tolist()
@@ -434,6 +448,8 @@ class _Group:
             _put(m, self.r_pos, pos[k])
             _put(m, self.r_speed, vel_raw[k])
             _put(m, self.r_load, load_raw[k])
+            if p1_current is not None:
+                _put(m, self.r_p1_current, p1_current[k])
             _put(m, self.r_volt, volt)
             _put(m, self.r_temp, temperature)
             _put(m, self.r_moving, int(moving[k]))
@@ -454,9 +470,10 @@ class ServoBusEmulator:
     Parameters
     ----------
     servos : sequence of EmulatedServo
-        All of one protocol, unique IDs.
-    supply_voltage_v : float
-        Bus supply [V].
+        All of one protocol, unique IDs; models may be mixed (AX-18A and MX-28 on one 1.0 bus).
+    supply_voltage_v : float, optional
+        Bus supply [V]; default the servos' rated voltage (12 V, 5 V for XL330; 12 V if they
+        differ).
     clock : callable, optional
         Monotonic time source [s] for the physics (default ``time.monotonic``).
     min_step_s : float
@@ -469,7 +486,7 @@ class ServoBusEmulator:
     are at most that old (4 ms default: one physics step costs ~0.4 ms for 18 servos).
     """
 
-    def __init__(self, servos: Sequence[EmulatedServo], *, supply_voltage_v: float = 12.0,
+    def __init__(self, servos: Sequence[EmulatedServo], *, supply_voltage_v: float | None = None,
                  clock: Callable[[], float] = time.monotonic, min_step_s: float = 4e-3,
                  prefer_model: bool = True) -> None:
         if not servos:
@@ -482,7 +499,13 @@ class ServoBusEmulator:
             raise ValueError(f'servos: expected unique IDs in 0..252, got {ids}')
         self.protocol = protocols.pop()
         self.servos = {s.servo_id: s for s in servos}
+        if supply_voltage_v is None:
+            rated = {s.table.rated_voltage_v for s in servos}
+            supply_voltage_v = rated.pop() if len(rated) == 1 else 12.0
         self.supply_voltage_v = float(supply_voltage_v)
+        volt_raw = max(0, min(255, int(round(self.supply_voltage_v * 10))))
+        for s in servos:   # the supply is seen before the first physics step
+            s.set('present_voltage' if s.protocol == 1 else 'present_input_voltage', volt_raw)
         self.clock = clock
         self.lock = threading.RLock()
         self.min_step_s = float(min_step_s)
@@ -501,14 +524,31 @@ class ServoBusEmulator:
         self._thread: threading.Thread | None = None
 
     @classmethod
-    def of_model(cls, model: str, ids: Iterable[int], **kw: Any) -> ServoBusEmulator:
-        """Servos of one model (``ax12a``, ``ax18a``, ``xl430``, ``xm430``) at ``ids``."""
-        try:
-            table = MODELS_BY_NAME[model.lower()]
-        except KeyError:
-            raise ValueError(f'model: expected one of {sorted(MODELS_BY_NAME)}, '
-                             f'got {model!r}') from None
+    def of_model(cls, model: str | ControlTable, ids: Iterable[int],
+                 **kw: Any) -> ServoBusEmulator:
+        """Servos of one model at ``ids``: a ControlTable, or a name (``ax18a``, ``MX-28``,
+        ``mx64_2``, ``XM430-W210``, ...; see control_tables.MODELS_BY_NAME)."""
+        if isinstance(model, ControlTable):
+            table = model
+        else:
+            try:
+                table = table_by_name(model)
+            except ControlTableError as err:
+                raise ValueError(f'model: {err}') from None
         return cls([EmulatedServo(i, table) for i in ids], **kw)
+
+    @classmethod
+    def of_models(cls, servos: Iterable[tuple[int, str | ControlTable]],
+                  **kw: Any) -> ServoBusEmulator:
+        """A mixed bus: ``[(id, model), ...]``, models as in :meth:`of_model` (one protocol)."""
+        out = []
+        for servo_id, model in servos:
+            try:
+                table = model if isinstance(model, ControlTable) else table_by_name(model)
+            except ControlTableError as err:
+                raise ValueError(f'model of id {servo_id}: {err}') from None
+            out.append(EmulatedServo(servo_id, table))
+        return cls(out, **kw)
 
     # lifecycle
     def start(self) -> ServoBusEmulator:
@@ -790,15 +830,16 @@ def _parse_ids(text: str) -> list[int]:
 
 @contextmanager
 def emulator_process(model: str, ids: Iterable[int], *,
-                     supply_voltage_v: float = 12.0) -> Iterator[str]:
+                     supply_voltage_v: float | None = None) -> Iterator[str]:
     """Run an emulated bus in a child process (own interpreter, own GIL); yields the port name.
 
     Real servos do not share the driver's CPU time; this is the fair set-up for benchmarks.
     """
     ids_text = ','.join(str(i) for i in ids)
+    volts = [] if supply_voltage_v is None else ['--supply-voltage', str(supply_voltage_v)]
     proc = subprocess.Popen(
         [sys.executable, '-m', 'hexapod_bench_drivers.servo_bus_emulator', '--model', model,
-         '--ids', ids_text, '--supply-voltage', str(supply_voltage_v)],
+         '--ids', ids_text, *volts],
         stdout=subprocess.PIPE, text=True)
     try:
         assert proc.stdout is not None
@@ -818,9 +859,12 @@ def emulator_process(model: str, ids: Iterable[int], *,
 def main(argv: Sequence[str] | None = None) -> int:
     """Serve an emulated bus on a pty until interrupted; prints the port name first."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
-    parser.add_argument('--model', default='ax18a', choices=sorted(MODELS_BY_NAME))
+    parser.add_argument('--model', default='ax18a',
+                        help=f'model name, one of {", ".join(sorted(MODELS_BY_NAME))} '
+                             '(case and dashes ignored: MX-28, MX-64(2.0), XM430-W210)')
     parser.add_argument('--ids', default='1-18', help='IDs, e.g. 1-18 or 1,2,5')
-    parser.add_argument('--supply-voltage', type=float, default=12.0)
+    parser.add_argument('--supply-voltage', type=float, default=None,
+                        help='bus supply [V]; default the model\'s rated voltage')
     args = parser.parse_args(argv)
     with ServoBusEmulator.of_model(args.model, _parse_ids(args.ids),
                                    supply_voltage_v=args.supply_voltage) as emu:
