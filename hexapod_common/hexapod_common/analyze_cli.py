@@ -10,6 +10,11 @@ Subcommands (each documents its options with ``--help``):
 Bags recorded under other topic names: ``hexapod-analyze --namespace /antbot energy ...`` reads
 ``/antbot/joint_states`` as ``/joint_states`` (and so on), ``--remap /power:=/battery_state``
 renames one topic; both go before the command name and apply to every bag read.
+
+Joint names outside the contract (``L1..Lk``/``R1..Rk`` legs, ``<leg>_hip``, ``<leg>_coxa``...):
+``hexapod-analyze --joint-map hip_0:=L1_hip hip_1:=L2_hip ... slip BAG ...`` reads each recorded
+name as its contract name (names not listed pass unchanged;
+:mod:`hexapod_common.conversions`).
 """
 
 from __future__ import annotations
@@ -22,6 +27,7 @@ import sys
 from collections.abc import Sequence
 
 from hexapod_common.bags import REMAP_ENV, parse_remap
+from hexapod_common.conversions import JOINT_MAP_ENV, parse_joint_map
 
 __all__ = ['build_parser', 'main']
 
@@ -38,12 +44,17 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog='hexapod-analyze', description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument('--remap', nargs='+', default=[], metavar='FROM:=TO',
+    parser.add_argument('--remap', action='extend', nargs=1, default=[], metavar='FROM:=TO',
                         help='read recorded topic FROM as TO (e.g. /robot/power:=/battery_state);'
-                        ' before the command name')
+                        ' before the command name; several FROM:=TO may follow')
     parser.add_argument('--namespace', default='', metavar='NS',
                         help='strip this prefix from recorded topics (a bag recorded under '
                         '/antbot/joint_states etc.); before the command name')
+    parser.add_argument('--joint-map', action='extend', nargs=1, default=[],
+                        metavar='FROM:=TO',
+                        help='read recorded joint name FROM as the contract name TO (e.g. '
+                        'hip_0:=L1_hip, j_c1_lf:=L1_coxa); before the command name; several '
+                        'FROM:=TO may follow')
     sub = parser.add_subparsers(dest='command', metavar='COMMAND')
     for name, module in PROVIDERS.items():
         try:
@@ -59,13 +70,44 @@ def _unavailable(err: Exception) -> int:
     return 2
 
 
+_MAPPING_OPTIONS = ('--remap', '--joint-map')
+
+
+def _spell_out_mappings(argv: Sequence[str]) -> list[str]:
+    """``--remap A:=B C:=D energy ...`` -> ``--remap A:=B --remap C:=D energy ...``.
+
+    The mapping options take any number of FROM:=TO items; a greedy ``nargs='+'`` would also
+    swallow the command name and its arguments, so the items (tokens holding ``:=``) are
+    spelled out one option each before parsing. A malformed first item is kept for the option
+    to refuse.
+    """
+    out: list[str] = []
+    items = iter(list(argv))
+    for tok in items:
+        if tok not in _MAPPING_OPTIONS:
+            out.append(tok)
+            continue
+        first = next(items, None)
+        if first is None:
+            out.append(tok)
+            break
+        out += [tok, first]
+        for nxt in items:
+            if ':=' in nxt and not nxt.startswith('-'):
+                out += [tok, nxt]
+            else:
+                out.append(nxt)
+                break
+    return out
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(_spell_out_mappings(sys.argv[1:] if argv is None else argv))
     if not getattr(args, 'func', None):
         parser.print_help()
         return 2
-    saved = os.environ.get(REMAP_ENV)
+    saved = {k: os.environ.get(k) for k in (REMAP_ENV, JOINT_MAP_ENV)}
     if args.remap or args.namespace:
         # every bag reader of this process and of its workers (--jobs) reads the contract names
         try:
@@ -73,13 +115,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         except ValueError as err:
             parser.error(str(err))
         os.environ[REMAP_ENV] = json.dumps({'remap': remap, 'namespace': args.namespace})
+    if args.joint_map:
+        try:
+            os.environ[JOINT_MAP_ENV] = json.dumps(parse_joint_map(args.joint_map))
+        except ValueError as err:
+            parser.error(str(err))
     try:
         return _run(args)
     finally:
-        if saved is None:
-            os.environ.pop(REMAP_ENV, None)
-        else:
-            os.environ[REMAP_ENV] = saved
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -2,12 +2,22 @@
 
 Only attribute access and ``np.asarray``, so each converter serves rclpy messages (live) and
 rosbags-decoded messages (offline) alike. Times are float seconds from ``header.stamp``.
+
+Joint names outside the contract (DESIGN section 4: ``L1..Lk``/``R1..Rk`` legs, ``<leg>_hip``,
+``<leg>_coxa``...), e.g. a PhantomX's ``j_c1_lf`` or a RHex's ``hip_0``, are renamed by
+:func:`joint_state_from_msg` through a process-wide joint map: the environment variable
+``HEXAPOD_JOINT_MAP`` (JSON ``{"recorded name": "contract name"}``), set by
+``hexapod-analyze --joint-map FROM:=TO ...`` (and inherited by its ``--jobs`` workers; a live
+node started with the variable set reads the same names). Names not in the map pass unchanged.
 """
 
 from __future__ import annotations
 
+import json
 import math
+import os
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -15,6 +25,7 @@ import numpy as np
 __all__ = [
     'BatterySample',
     'GaitPhaseSample',
+    'JOINT_MAP_ENV',
     'JointStateSample',
     'PoseSample',
     'ServoStatusSample',
@@ -23,7 +34,9 @@ __all__ = [
     'battery_from_msg',
     'current_sign_factor',
     'gait_phase_from_msg',
+    'joint_map',
     'joint_state_from_msg',
+    'parse_joint_map',
     'point_from_msg',
     'pose_from_msg',
     'servo_status_from_msg',
@@ -77,9 +90,59 @@ class JointStateSample:
     effort: np.ndarray
 
 
+#: Environment variable holding the process-wide joint-name map (JSON object, see module doc).
+JOINT_MAP_ENV = 'HEXAPOD_JOINT_MAP'
+
+
+def parse_joint_map(items: Any) -> dict[str, str]:
+    """``['hip_0:=L1_hip', ...]`` -> ``{'hip_0': 'L1_hip', ...}``; ValueError on a malformed
+    item, a name mapped twice or two names mapped to one."""
+    out: dict[str, str] = {}
+    for item in items:
+        src, sep, dst = str(item).partition(':=')
+        if not sep or not src.strip() or not dst.strip():
+            raise ValueError(f'a joint map item is FROM:=TO (recorded joint name := contract '
+                             f'name, e.g. hip_0:=L1_hip), got {item!r}')
+        src, dst = src.strip(), dst.strip()
+        if src in out and out[src] != dst:
+            raise ValueError(f'joint {src!r} mapped twice ({out[src]!r}, {dst!r})')
+        out[src] = dst
+    targets = list(out.values())
+    dup = sorted({t for t in targets if targets.count(t) > 1})
+    if dup:
+        raise ValueError(f'joint map sends several names to {dup}')
+    return out
+
+
+@lru_cache(maxsize=8)
+def _joint_map_from(text: str) -> tuple[tuple[str, str], ...]:
+    try:
+        doc = json.loads(text)
+        if not isinstance(doc, dict):
+            raise ValueError('not an object')
+        pairs = parse_joint_map([f'{k}:={v}' for k, v in doc.items()])
+    except ValueError as err:
+        raise ValueError(f'{JOINT_MAP_ENV} is not a JSON object of joint names '
+                         f'{{"recorded": "contract"}}: {err}') from None
+    return tuple(pairs.items())
+
+
+def joint_map() -> dict[str, str]:
+    """The process-wide joint-name map (empty when ``HEXAPOD_JOINT_MAP`` is unset)."""
+    text = os.environ.get(JOINT_MAP_ENV, '')
+    return dict(_joint_map_from(text)) if text else {}
+
+
 def joint_state_from_msg(msg: Any) -> JointStateSample:
-    """Convert a JointState; raises ValueError when array lengths disagree with the names."""
+    """Convert a JointState; raises ValueError when array lengths disagree with the names.
+
+    Names are renamed through the process-wide joint map (module doc) when it is set.
+    """
     names = tuple(msg.name)
+    text = os.environ.get(JOINT_MAP_ENV)
+    if text:
+        mapping = dict(_joint_map_from(text))
+        names = tuple(mapping.get(n, n) for n in names)
     arrays = []
     for field in ('position', 'velocity', 'effort'):
         arr = np.asarray(getattr(msg, field), dtype=float)

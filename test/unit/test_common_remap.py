@@ -101,3 +101,56 @@ def test_analyze_energy_on_a_namespaced_robot_bag(tmp_path: Path, monkeypatch) -
                                                                          rel=1e-12)
     with pytest.raises(SystemExit):
         analyze_main(['--remap', 'no-separator', 'energy', '--bench', 'x', '--out', 'y'])
+
+    # the README's form: several FROM:=TO items right before the command name (a greedy
+    # nargs='+' used to swallow the command and its bags: "invalid choice")
+    ren_bag = tmp_path / 'robot_ren'
+    with open_reader(tmp_path / 'robot') as r, BagWriter(ren_bag) as w:
+        for m in iter_messages(r):
+            w.write({'/battery_state': '/lab/power', '/gait/phase': '/lab/gait'}.get(
+                m.topic, m.topic), m.msgtype, m.data, m.stamp_ns)
+    rc = analyze_main(['--remap', '/lab/power:=/battery_state', '/lab/gait:=/gait/phase',
+                       'energy', '--robot', str(ren_bag), '--out', str(tmp_path / 'out2'),
+                       '--no-progress'])
+    assert rc == 0
+    doc = json.loads((tmp_path / 'out2' / 'energy.json').read_text())
+    assert doc['robot_runs'][0]['measured_power_in_w'] == pytest.approx(plain.power_in_w,
+                                                                         rel=1e-12)
+
+
+def test_spelled_out_mapping_options() -> None:
+    from hexapod_common.analyze_cli import _spell_out_mappings
+
+    assert _spell_out_mappings(['--remap', 'a:=b', 'c:=d', 'energy', '--robot', 'x:=y']) == [
+        '--remap', 'a:=b', '--remap', 'c:=d', 'energy', '--robot', 'x:=y']
+    assert _spell_out_mappings(['--joint-map', 'h0:=L1_hip', '--namespace', 'n', 'slip']) == [
+        '--joint-map', 'h0:=L1_hip', '--namespace', 'n', 'slip']
+    assert _spell_out_mappings(['--remap', 'bad', 'energy']) == ['--remap', 'bad', 'energy']
+
+
+def test_joint_map_renames_joint_states(monkeypatch) -> None:
+    """``HEXAPOD_JOINT_MAP`` (``hexapod-analyze --joint-map``): recorded joint names read as the
+    contract's; unlisted names pass; malformed maps are refused by name."""
+    from hexapod_common.conversions import (
+        JOINT_MAP_ENV,
+        joint_map,
+        joint_state_from_msg,
+        parse_joint_map,
+    )
+
+    msg = new_msg('sensor_msgs/msg/JointState', header=stamp(0), name=['hip_0', 'hip_1', 'x'],
+                  position=[0.1, 0.2, 0.3], velocity=[], effort=[])
+    monkeypatch.delenv(JOINT_MAP_ENV, raising=False)
+    assert joint_state_from_msg(msg).names == ('hip_0', 'hip_1', 'x') and joint_map() == {}
+    monkeypatch.setenv(JOINT_MAP_ENV, json.dumps({'hip_0': 'L1_hip', 'hip_1': 'L2_hip'}))
+    sample = joint_state_from_msg(msg)
+    assert sample.names == ('L1_hip', 'L2_hip', 'x')
+    assert list(sample.position) == [0.1, 0.2, 0.3]
+    for bad in (['hip_0'], ['a:=L1_hip', 'b:=L1_hip'], ['a:=x', 'a:=y'], [':=L1_hip']):
+        with pytest.raises(ValueError):
+            parse_joint_map(bad)
+    monkeypatch.setenv(JOINT_MAP_ENV, '[1, 2]')
+    with pytest.raises(ValueError, match=JOINT_MAP_ENV):
+        joint_state_from_msg(msg)
+    with pytest.raises(SystemExit):
+        analyze_main(['--joint-map', 'a:=L1_hip', 'b:=L1_hip', 'slip', 'x', '--out', 'y'])

@@ -115,3 +115,15 @@ def test_joint_names_outside_the_contract_need_legs(tmp_path, capsys):
     doc = _run(tmp_path, tmp_path / 'q', str(tmp_path / 'phantomx'))
     assert doc['robot_runs'][0]['leg_count'] is None
     assert doc['robot_runs'][0]['measured_power_in_w'] > 0
+    # or the names are mapped to the contract's (hexapod-analyze --joint-map): legs from names
+    from hexapod_common.analyze_cli import main as analyze_main
+
+    jmap = [f'{a}:={b}' for a, b in zip(names, trace.joint_names)]
+    rc = analyze_main(['--joint-map', *jmap, 'energy', '--bench', str(tmp_path / 'bench'),
+                       '--robot', str(tmp_path / 'phantomx'), *gait, '--out',
+                       str(tmp_path / 'r'), '--no-progress'])
+    assert rc == 0
+    mapped = json.loads((tmp_path / 'r' / 'energy.json').read_text())['robot_runs'][0]
+    assert mapped['leg_count'] == 6
+    np.testing.assert_allclose(mapped['predicted_power_in_w'], ref['predicted_power_in_w'],
+                               rtol=1e-9)
