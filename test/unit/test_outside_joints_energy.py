@@ -12,6 +12,7 @@ still refuse them.
 from __future__ import annotations
 
 import functools
+import json
 import math
 from pathlib import Path
 from typing import Any
@@ -24,9 +25,11 @@ from rosbags.rosbag2 import Writer
 from hexapod_bench_drivers.edubot_bag import write_run
 from hexapod_bench_drivers.edubot_sim import simulate_edubot
 from hexapod_bench_drivers.robot_sim import RobotConfig, simulate_robot
+from hexapod_bench_drivers.sim_bag import write_trace
 from hexapod_common.bags import typestore
 from hexapod_common.conversions import BatterySample, GaitPhaseSample, JointStateSample
 from hexapod_energy.bag_io import read_robot_bag
+from hexapod_energy.cli import main
 from hexapod_energy.cycles import (
     JointCycleTracker,
     detrend_linear,
@@ -280,3 +283,27 @@ def test_silent_gait_phase_connection_falls_back_to_joints(running_bag):
     # asked for explicitly, the schedule is still required
     with pytest.raises(BagContentError, match='/gait/phase'):
         read_robot_bag(root / 'silent', mass_kg=MASS_KG, cycle_source='gait_phase')
+
+
+def test_cli_velocityless_antbot_bag(tmp_path):
+    """``hexapod-analyze energy --robot BAG`` on a velocity-less AntBot bag (AX PWM efforts):
+    ``--power-out effort`` reports the position-difference P_out (was 0 W) with the note;
+    ``auto`` still refuses the PWM efforts for the model."""
+    trace = simulate_robot(8.0, RobotConfig(speed_mps=0.3), seed=2)
+    write_trace(trace, tmp_path / 'rb')
+    rewrite(tmp_path / 'rb', tmp_path / 'rb_nov', fields=('velocity',))
+    docs = {}
+    for name, mode in (('rb', 'effort'), ('rb_nov', 'effort'), ('rb_nov', 'auto')):
+        out = tmp_path / f'{name}_{mode}'
+        assert main(['--robot', str(tmp_path / name), '--out', str(out), '--power-out', mode,
+                     '--no-progress']) == 0
+        docs[name, mode] = json.loads((out / 'energy.json').read_text())
+    ref = docs['rb', 'effort']['robot_runs'][0]
+    nov = docs['rb_nov', 'effort']['robot_runs'][0]
+    assert nov['power_out_source'] == 'effort' and POSITION_POWER_NOTE in nov['notes']
+    # 21.69 W from velocities, 23.09 W from positions: the measured position carries the
+    # servo's compliance under load and 0.0051 rad steps, the velocity the motor's speed
+    np.testing.assert_allclose(nov['power_out_w'], ref['power_out_w'], rtol=0.10)
+    auto = docs['rb_nov', 'auto']
+    assert auto['robot_runs'][0]['power_out_source'] == 'model'
+    assert any('never do negative work' in w for w in auto['warnings'])
