@@ -144,8 +144,8 @@ def read_run(path: str | Path) -> RunData:
     except SlipDataError as err:
         raise MissingTopicError(f'bag {path}: {err}') from err
     names = joints.names
-    if joints.note:
-        notes.append(joints.note)
+    # split over name groups, hip angles unwrapped, velocities derived from positions
+    notes.extend(joints.notes)
     if not jc:
         command_t_s, command_velocity = np.zeros(0), np.zeros((0, len(names)))
         notes.append('no usable /joint_commands (the Buehler clock\'s target speeds): the '

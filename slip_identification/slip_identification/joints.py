@@ -20,6 +20,26 @@ at slightly different rates). The SLIP analysis needs every hip at one time, so:
   the densest group, then emits a frame at each of that group's stamps as soon as every
   joint has a sample at or after it (a delay of at most one period of the slowest group).
 
+Two more habits of other labs' drivers are undone on both paths:
+
+- **Wrapped angles.** Continuously rotating (RHex-class) hips are often logged wrapped into
+  ``[-pi, pi)`` or ``[0, 2 pi)``. Each joint's positions are unwrapped in time
+  (:func:`unwrap_positions`: every sample takes the ``2 pi`` representative nearest the
+  joint's previous finite sample; online the same rule incrementally per joint), before any
+  interpolation or spline. The first sample keeps its branch, so the result may differ from
+  the robot's own count of turns by a multiple of ``2 pi`` (the leg geometry is periodic).
+  Undoing a wrap adds a note (:func:`wrap_note`). A joint that truly turns by more than
+  ``pi`` between two samples (a dropout at speed) cannot be told from a wrap.
+- **No velocities.** When no sample carries velocities but positions are there, the speeds
+  are derived from the unwrapped positions (:func:`derive_velocity`: NumPy's second-order
+  central differences on the stamps, one-sided at the ends; no lag, unlike a backward
+  difference, which lags by half a sample period), with the note :data:`DERIVED_NOTE`.
+  Online the same central difference needs the next sample: frames come out one joint-state
+  period late (10 ms at 100 Hz; :data:`DERIVED_NOTE_ONLINE`). Samples with positions but no
+  velocities among samples with velocities are still dropped (as before).
+
+Full-frame bags that carry velocities and no wrapped angles give bit-identical frames.
+
 Joint names follow DESIGN section 4: ``<leg>_<joint>`` with legs ``L1..Lk`` and ``R1..Rk``.
 """
 
@@ -38,14 +58,116 @@ import numpy as np
 from .errors import SlipDataError
 
 __all__ = [
+    'DERIVED_NOTE',
+    'DERIVED_NOTE_ONLINE',
     'AssembledJoints',
     'JointFrame',
     'JointFrameAssembler',
     'assemble_joint_frames',
+    'derive_velocity',
     'missing_joints',
+    'unwrap_positions',
+    'wrap_note',
 ]
 
 _LEG_JOINT = re.compile(r'^([LR])(\d+)_(\w+)$')
+_TWO_PI = 2.0 * math.pi
+
+#: note when the joint speeds are derived from the positions (offline)
+DERIVED_NOTE = ('no joint velocities: from position differences (central differences of the '
+                'unwrapped angles on their stamps, one-sided at the ends)')
+#: the same, online (one frame of extra latency)
+DERIVED_NOTE_ONLINE = ('no joint velocities: from position differences (central differences '
+                       'of the unwrapped angles, each frame one joint-state period late)')
+
+
+def unwrap_positions(position_rad: np.ndarray) -> tuple[np.ndarray, int]:
+    """Unwrap joint angles in time, per column.
+
+    Every finite sample takes the ``2 pi`` representative nearest the previous finite sample
+    of its column (NaN samples are skipped and stay NaN); the first keeps its value.
+
+    Parameters
+    ----------
+    position_rad : ndarray, shape (n,) or (n, J)
+        Angles [rad] in time order (rows).
+
+    Returns
+    -------
+    position_rad : ndarray, same shape
+        Unwrapped angles [rad]; the input object itself when no jump was undone (bit-identical).
+    wraps : int
+        Number of ``2 pi`` jumps undone (over all columns).
+    """
+    q = np.asarray(position_rad, dtype=float)
+    if q.shape[0] < 2:
+        return q, 0
+    d = np.diff(q, axis=0)
+    big = np.abs(d) > math.pi  # NaN compares False
+    if not np.any(big) and np.all(np.isfinite(q)):
+        return q, 0
+    out = q.copy()
+    cols = [out] if q.ndim == 1 else [out[:, j] for j in range(q.shape[1])]
+    wraps = 0
+    for c in cols:  # views into out
+        ok = np.isfinite(c)
+        x = c[ok]
+        if x.size < 2:
+            continue
+        k = np.round(np.diff(x) / _TWO_PI)
+        if np.any(k != 0):
+            wraps += int(np.abs(k).sum())
+            c[ok] = x - _TWO_PI * np.concatenate([[0.0], np.cumsum(k)])
+    return (out, wraps) if wraps else (q, 0)
+
+
+def wrap_note(position_rad: np.ndarray, wraps: int, names: Sequence[str]) -> str:
+    """The note for ``wraps`` undone jumps; ``position_rad`` the wrapped angles (their range
+    names the convention)."""
+    q = np.asarray(position_rad, dtype=float)
+    q = q[np.isfinite(q)]
+    if q.size and q.min() >= -math.pi - 1e-9 and q.max() <= math.pi + 1e-9:
+        where = 'at +-pi'
+    elif q.size and q.min() >= -1e-9 and q.max() <= _TWO_PI + 1e-9:
+        where = 'into [0, 2 pi)'
+    else:
+        where = 'by 2 pi'
+    what = 'hip' if names and all(str(n).endswith('_hip') for n in names) else 'joint'
+    return (f'{what} angles wrapped {where}: unwrapped ({wraps} jump(s) of 2 pi undone, each '
+            "sample the 2 pi representative nearest the joint's previous one)")
+
+
+def derive_velocity(t_s: np.ndarray, position_rad: np.ndarray) -> np.ndarray:
+    """Joint speeds from unwrapped angles: central differences on the stamps.
+
+    ``np.gradient`` (second order on uneven stamps, first order one-sided at both ends),
+    which has no lag. Samples at a repeated stamp take the speed of the last of them.
+
+    Parameters
+    ----------
+    t_s : ndarray, shape (n,)
+        Stamps [s] (any order).
+    position_rad : ndarray, shape (n,) or (n, J)
+        Unwrapped angles [rad].
+
+    Returns
+    -------
+    ndarray, same shape as ``position_rad``
+        Speeds [rad/s]; NaN when fewer than two distinct stamps.
+    """
+    t = np.asarray(t_s, dtype=float)
+    q = np.asarray(position_rad, dtype=float)
+    o = np.argsort(t, kind='stable')
+    ts = t[o]
+    last = np.append(ts[1:] > ts[:-1], True)  # the last of equal stamps
+    tu, qu = ts[last], q[o][last]
+    if tu.size < 2:
+        return np.full(q.shape, np.nan)
+    vu = np.gradient(qu, tu, axis=0)
+    if tu.size == t.size and np.all(o == np.arange(t.size)):
+        return vu
+    idx = np.searchsorted(tu, t)  # every stamp is in tu
+    return vu[idx]
 
 
 def missing_joints(names: Sequence[str], required: Sequence[str] = ()) -> list[str]:
@@ -86,7 +208,10 @@ class AssembledJoints:
     ``names`` (J,); ``t_s`` (n,) [s]; ``velocity`` (n, J) [rad/s]; ``position`` (n, J) [rad]
     or None (some sample lacks it); ``effort`` (n, J) [N m] or None; ``groups`` the number of
     distinct name sets (1: full frames); ``rate_hz`` the median frame rate; ``dropped`` frames
-    dropped in gaps; ``note`` a line for ``RunData.notes`` ('' for full frames).
+    dropped in gaps; ``note`` the split line for ``RunData.notes`` ('' for full frames);
+    ``notes`` every line for ``RunData.notes`` (the split one, angles unwrapped, velocities
+    derived); ``wraps`` the ``2 pi`` jumps undone; ``derived`` True when the velocities come
+    from position differences.
     """
 
     names: tuple[str, ...]
@@ -98,6 +223,15 @@ class AssembledJoints:
     rate_hz: float
     dropped: int = 0
     note: str = ''
+    notes: tuple[str, ...] = ()
+    wraps: int = 0
+    derived: bool = False
+
+
+def _derive_mode(samples: Sequence[Any]) -> bool:
+    """No sample carries velocities, and some carry positions."""
+    return all(s.velocity.size == 0 for s in samples) and \
+        any(len(s.names) and s.position.size == len(s.names) for s in samples)
 
 
 def _field_ok(samples: Sequence[Any], field: str) -> bool:
@@ -107,23 +241,39 @@ def _field_ok(samples: Sequence[Any], field: str) -> bool:
 def _fast_path(samples: Sequence[Any]) -> AssembledJoints:
     """Every sample has the first one's name set: reorder into its order (no resampling)."""
     names = tuple(samples[0].names)
+    derive = _derive_mode(samples)
+    field = 'position' if derive else 'velocity'
     rows = []
     for s in samples:
-        if s.velocity.size != len(names):
-            continue  # no velocities: dropped, as before splitting was handled
+        if getattr(s, field).size != len(names):
+            continue  # no velocities (no positions to derive them): dropped, as before
         if tuple(s.names) != names:
             s = _reorder(s, names, [s.names.index(n) for n in names])
         rows.append(s)
     if not rows:
-        raise SlipDataError(f'no JointState sample has velocities for {list(names)}')
+        raise SlipDataError(f'no JointState sample has velocities (or positions to derive '
+                            f'them from) for {list(names)}')
     t = np.array([s.t_s for s in rows])
     dt = np.diff(t)
     rate = float(1.0 / np.median(dt)) if dt.size and np.median(dt) > 0 else float('nan')
+    pos = np.array([s.position for s in rows]) if _field_ok(rows, 'position') else None
+    notes: list[str] = []
+    wraps = 0
+    if pos is not None:
+        raw = pos
+        pos, wraps = unwrap_positions(raw)
+        if wraps:
+            notes.append(wrap_note(raw, wraps, names))
+    if derive:
+        assert pos is not None
+        vel = derive_velocity(t, pos)
+        notes.append(DERIVED_NOTE)
+    else:
+        vel = np.array([s.velocity for s in rows])
     return AssembledJoints(
-        names=names, t_s=t, velocity=np.array([s.velocity for s in rows]),
-        position=np.array([s.position for s in rows]) if _field_ok(rows, 'position') else None,
+        names=names, t_s=t, velocity=vel, position=pos,
         effort=np.array([s.effort for s in rows]) if _field_ok(rows, 'effort') else None,
-        groups=1, rate_hz=rate)
+        groups=1, rate_hz=rate, notes=tuple(notes), wraps=wraps, derived=derive)
 
 
 def _reorder(s: Any, names: tuple[str, ...], idx: list[int]) -> Any:
@@ -141,7 +291,8 @@ def assemble_joint_frames(samples: Sequence[Any], *, required: Sequence[str] = (
     samples : sequence of JointStateSample-like
         Objects with ``t_s`` [s], ``names``, ``position``, ``velocity``, ``effort`` (arrays
         with one entry per name, or empty), in arrival order. Samples without velocities are
-        dropped.
+        dropped, unless no sample has velocities: then they are derived from the positions
+        (module docs). Positions are unwrapped per joint in time.
     required : sequence of str
         Joint names that must be present in any case.
     max_gap_periods : float
@@ -168,7 +319,9 @@ def assemble_joint_frames(samples: Sequence[Any], *, required: Sequence[str] = (
                                 f'names {sorted(first)} only (the joint set is legs L1..Lk and '
                                 'R1..Rk for every joint)')
         return _fast_path(samples)
-    usable = [s for s in samples if s.velocity.size == len(s.names) and len(s.names)]
+    derive = _derive_mode(samples)
+    field = 'position' if derive else 'velocity'
+    usable = [s for s in samples if getattr(s, field).size == len(s.names) and len(s.names)]
     # group by name set, in order of first appearance; joint order: first appearance
     groups: dict[frozenset[str], list[float]] = {}
     order: dict[str, None] = {}
@@ -197,21 +350,32 @@ def assemble_joint_frames(samples: Sequence[Any], *, required: Sequence[str] = (
             j = col[n]
             per_t[j].append(s.t_s)
             per_k[j].append(k)
-            per_v[j].append(float(s.velocity[i]))
+            if not derive:
+                per_v[j].append(float(s.velocity[i]))
             if has_pos:
                 per_q[j].append(float(s.position[i]))
             if has_eff:
                 per_e[j].append(float(s.effort[i]))
     series = []
+    wraps = 0
+    raw_q: list[np.ndarray] = []
     for j in range(len(names)):
         t = np.asarray(per_t[j])
         o = np.lexsort((np.asarray(per_k[j]), t))
         t = t[o]
         keep = np.append(t[1:] > t[:-1], True)  # the last of equal stamps (most recent)
         sel = o[keep]
-        series.append((t[keep], np.asarray(per_v[j])[sel],
-                       np.unwrap(np.asarray(per_q[j])[sel]) if has_pos else None,
-                       np.asarray(per_e[j])[sel] if has_eff else None))
+        q = None
+        if has_pos:
+            raw_q.append(np.asarray(per_q[j])[sel])
+            q, w = unwrap_positions(raw_q[-1])
+            wraps += w
+        if derive:
+            assert q is not None
+            v = derive_velocity(t[keep], q)
+        else:
+            v = np.asarray(per_v[j])[sel]
+        series.append((t[keep], v, q, np.asarray(per_e[j])[sel] if has_eff else None))
     lo = max(s[0][0] for s in series)
     hi = min(s[0][-1] for s in series)
     if not hi > lo:
@@ -246,10 +410,16 @@ def assemble_joint_frames(samples: Sequence[Any], *, required: Sequence[str] = (
             f'({base.size} frames, linear interpolation onto the densest group\'s stamps'
             + (f', {int((~ok).sum())} frame(s) in joint gaps dropped' if (~ok).any() else '')
             + ')')
+    notes = [note]
+    if wraps:
+        notes.append(wrap_note(np.concatenate(raw_q), wraps, names))
+    if derive:
+        notes.append(DERIVED_NOTE)
     return AssembledJoints(names=names, t_s=base, velocity=vel[ok],
                            position=None if pos is None else pos[ok],
                            effort=None if eff is None else eff[ok], groups=len(groups),
-                           rate_hz=rate, dropped=int((~ok).sum()), note=note)
+                           rate_hz=rate, dropped=int((~ok).sum()), note=note,
+                           notes=tuple(notes), wraps=wraps, derived=derive)
 
 
 @dataclass(frozen=True)
@@ -264,8 +434,35 @@ class JointFrame:
     effort: np.ndarray | None = None
 
 
+def _central(prev: tuple[float, np.ndarray] | None, mid: tuple[float, np.ndarray],
+             nxt: tuple[float, np.ndarray]) -> np.ndarray:
+    """Speed at ``mid`` from its neighbours ((t_s, q) pairs): ``np.gradient``'s second-order
+    formula on uneven stamps, or the forward difference without ``prev`` (the first sample)."""
+    t1, q1 = mid
+    t2, q2 = nxt
+    if prev is None:
+        return (q2 - q1) / (t2 - t1)
+    t0, q0 = prev
+    hs, hd = t1 - t0, t2 - t1
+    return (-hd / (hs * (hs + hd)) * q0 + (hd - hs) / (hs * hd) * q1
+            + hs / (hd * (hs + hd)) * q2)
+
+
+def _online_wrap_note(names: Sequence[str]) -> str:
+    what = 'hip' if names and all(str(n).endswith('_hip') for n in names) else 'joint'
+    return (f'{what} angles wrapped (jumps of 2 pi between samples): unwrapped (each sample '
+            "the 2 pi representative nearest the joint's previous one)")
+
+
 class JointFrameAssembler:
     """Online assembly of full frames, O(J) per message (J joints).
+
+    Positions are unwrapped per joint (each sample the ``2 pi`` representative nearest the
+    joint's previous one; :attr:`wraps` counts the jumps undone). When the first message has
+    positions but no velocities, every message's velocities are derived from the positions by
+    central differences (module docs): each frame is returned one sample later (full frames:
+    when the next message arrives; split messages: when every joint has a sample after the
+    frame's stamp), its speed from the samples before and after it.
 
     Parameters
     ----------
@@ -285,7 +482,14 @@ class JointFrameAssembler:
     groups : int
         Distinct name sets seen (1: full frames).
     dropped : int
-        Pending frames dropped (a joint's data too old or out of order).
+        Pending frames dropped (a joint's data too old or out of order; in derived mode also
+        full frames out of stamp order).
+    wraps : int
+        ``2 pi`` jumps undone.
+    derived : bool
+        True when the velocities are derived from the positions.
+    notes : list of str
+        One line per input fallback (angles unwrapped, velocities derived), each added once.
     """
 
     def __init__(self, *, required: Sequence[str] = (), history: int = 16,
@@ -309,6 +513,22 @@ class JointFrameAssembler:
         self._col: dict[str, int] = {}
         self._pending: deque[float] = deque()
         self._has_pos = True
+        self.wraps = 0
+        self.notes: list[str] = []
+        self._derive: bool | None = None  # decided by the first message
+        self._last_q: np.ndarray | None = None  # full frames: last unwrapped angles
+        self._mid: tuple[float, np.ndarray] | None = None  # derived: frame awaiting its next
+        self._prev: tuple[float, np.ndarray] | None = None  # derived: the frame before it
+
+    @property
+    def derived(self) -> bool:
+        """True when the velocities are derived from the positions."""
+        return bool(self._derive)
+
+    def _wrapped(self, n: int) -> None:
+        if n and not self.wraps:
+            self.notes.append(_online_wrap_note(self.names))
+        self.wraps += n
 
     @property
     def split(self) -> bool:
@@ -328,12 +548,22 @@ class JointFrameAssembler:
         names = tuple(names)
         v = np.asarray(velocity, dtype=float)
         q = None if position is None or len(position) == 0 else np.asarray(position, float)
+        if self._derive is None:  # the first message decides: no velocities, positions
+            self._derive = v.size == 0 and q is not None and len(names) > 0
+            if self._derive:
+                self.notes.append(DERIVED_NOTE_ONLINE)
+        if self._derive:
+            if q is None or q.size != len(names):
+                raise SlipDataError(f'JointState with {len(names)} names has '
+                                    f'{0 if q is None else q.size} positions (velocities are '
+                                    'derived from the positions: every message needs them)')
+            v = np.full(len(names), np.nan)
         if v.size != len(names) or (q is not None and q.size != v.size):
             raise SlipDataError(f'JointState with {len(names)} names has {v.size} velocities '
                                 f'and {0 if q is None else q.size} positions')
         if not self._split:
             if names == self.names:
-                return [JointFrame(t_s, names, v, q)]
+                return self._full(t_s, v, q)
             if self.names:
                 perm = self._perm.get(names)
                 if perm is None:
@@ -342,13 +572,46 @@ class JointFrameAssembler:
                                             f'joint set {list(self.names)}')
                     perm = np.array([names.index(n) for n in self.names])
                     self._perm[names] = perm
-                return [JointFrame(t_s, self.names, v[perm], None if q is None else q[perm])]
+                return self._full(t_s, v[perm], None if q is None else q[perm])
             if not self._sets and not missing_joints(names, self.required):
                 self.names = names  # a complete first message: full frames
                 self.groups = 1
-                return [JointFrame(t_s, names, v, q)]
+                return self._full(t_s, v, q)
             return self._learning(t_s, names, v, q)
         return self._push(t_s, names, v, q)
+
+    # -- full frames -------------------------------------------------------------------
+    def _full(self, t_s: float, v: np.ndarray, q: np.ndarray | None) -> list[JointFrame]:
+        """One full frame in the joint order: angles unwrapped; in derived mode the
+        previous frame is returned with its central-difference speed."""
+        mid = self._mid
+        if self._derive and mid is not None and t_s < mid[0]:
+            self.dropped += 1  # out of stamp order: no speed can be formed
+            return []
+        if q is not None:
+            last = self._last_q
+            if last is not None:
+                d = q - last
+                if np.any(np.abs(d) > math.pi):  # NaN compares False
+                    k = np.round(d / _TWO_PI)
+                    k[~np.isfinite(k)] = 0.0
+                    q = q - _TWO_PI * k
+                    self._wrapped(int(np.abs(k).sum()))
+                self._last_q = np.where(np.isfinite(q), q, last)
+            else:
+                self._last_q = q.copy()
+        if not self._derive:
+            return [JointFrame(t_s, self.names, v, q)]
+        assert q is not None
+        if mid is not None and t_s == mid[0]:
+            self._mid = (t_s, q)  # the most recent message wins at an equal stamp
+            return []
+        self._mid = (t_s, q)
+        if mid is None:
+            return []
+        speed = _central(self._prev, mid, (t_s, q))
+        self._prev = mid
+        return [JointFrame(mid[0], self.names, speed, mid[1])]
 
     # -- split mode --------------------------------------------------------------------
     def _learning(self, t_s: float, names: tuple[str, ...], v: np.ndarray,
@@ -398,17 +661,26 @@ class JointFrameAssembler:
                 continue
             if h and t_s == h[-1][0]:
                 h.pop()  # the most recent value wins at an equal stamp
-            if h and q is not None and np.isfinite(h[-1][2]):
-                d = qi - h[-1][2]
-                qi = h[-1][2] + d - 2 * math.pi * round(d / (2 * math.pi))  # unwrapped
-            h.append((t_s, float(v[i]), qi))
+            if h and q is not None and np.isfinite(h[-1][2]) and np.isfinite(qi):
+                k = round((qi - h[-1][2]) / _TWO_PI)
+                if k:
+                    qi -= _TWO_PI * k  # unwrapped: the representative nearest the last one
+                    self._wrapped(abs(k))
+            vi = float(v[i])
+            if self._derive and h:
+                # the previous sample's speed, now that its next neighbour is here
+                t1, _, q1 = h[-1]
+                prev = (h[-2][0], h[-2][2]) if len(h) >= 2 else None
+                h[-1] = (t1, float(_central(prev, (t1, q1), (t_s, qi))), q1)
+            h.append((t_s, vi, qi))
         if frozenset(names) == self._clock:
             self._pending.append(t_s)
         out: list[JointFrame] = []
+        last = -2 if self._derive else -1  # derived: the newest sample has no speed yet
         while self._pending:
             tp = self._pending[0]
-            if any(not h or h[-1][0] < tp for h in self._hist):
-                break  # some joint has no sample at or after tp yet
+            if any(len(h) < -last or h[last][0] < tp for h in self._hist):
+                break  # some joint has no sample (with a speed) at or after tp yet
             self._pending.popleft()
             frame = self._interp(tp)
             if frame is None:
@@ -423,7 +695,7 @@ class JointFrameAssembler:
         for j, h in enumerate(self._hist):
             if h[0][0] > tp:
                 return None  # never extrapolate
-            k = len(h) - 1
+            k = len(h) - (2 if self._derive else 1)  # derived: the newest has no speed
             while k > 0 and h[k - 1][0] >= tp:
                 k -= 1
             t1, v1, q1 = h[k]

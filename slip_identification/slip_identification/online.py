@@ -27,6 +27,13 @@ when given, e.g. an offline analysis' frame with its ground; the stream offset i
 newest sample is not yet finished; stances that end before the world frame is ready are not
 looked for). Without them (or without hip angles), the paper's target edges are used.
 
+Other labs' joint states (:class:`.joints.JointFrameAssembler`): messages split over name
+groups are assembled, wrapped hip angles are unwrapped per joint as they arrive, and a driver
+that publishes positions without velocities gets central-difference speeds, each joint frame
+one joint-state period late (10 ms at 100 Hz: the fits, which wait for the motion capture
+after lift-off, see at most that much extra latency); :attr:`OnlineSlip.notes` lists what was
+done.
+
 Latency bookkeeping (simulated time, no wall clock): for every fit, ``latency_s`` records the
 time of the newest motion-capture sample (proprioception clock) minus the stance's lift-off.
 """
@@ -145,15 +152,22 @@ class OnlineSlip:
         while buf and buf[0][0] < t - self.buffer_s:
             buf.popleft()
 
+    @property
+    def notes(self) -> list[str]:
+        """Input fallbacks so far (hip angles unwrapped, velocities derived), one line each
+        (the assembler's list: read only)."""
+        return self._joints.notes
+
     def add_joint_state(self, t_s: float, names: tuple[str, ...], velocity: np.ndarray,
                         position: np.ndarray | None = None) -> None:
         """One joint-state message: speeds [rad/s] and, for the geometric edges, angles
-        [rad] (unwrapped). A message may carry a subset of the joints (one per servo bus or
-        per joint): full frames are assembled by :class:`.joints.JointFrameAssembler`
-        (O(J) per message); a message naming every joint is used as it is."""
-        if names == self.names and not self._joints.split:  # full frames: the hot path
-            self._append_js(t_s, velocity, position)
-            return
+        [rad]. Every message goes through :class:`.joints.JointFrameAssembler` (O(J)): a
+        message may carry a subset of the joints (one per servo bus or per joint; full frames
+        are assembled); angles wrapped into ``[-pi, pi)`` or ``[0, 2 pi)`` are unwrapped per
+        joint; without velocities (an empty ``velocity``, positions given) the speeds are
+        central differences of the angles and each frame enters one joint-state period
+        later (10 ms at 100 Hz). A full message with velocities and no wrap is used as it
+        is."""
         for fr in self._joints.add(t_s, names, velocity, position):
             if not self.names:
                 self._set_names(fr.names)

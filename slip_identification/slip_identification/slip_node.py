@@ -5,7 +5,10 @@ Buehler target), ``/mocap/body`` (PoseStamped); the science is in
 :class:`slip_identification.online.OnlineSlip`. Fits run on the first mocap message after a
 lift-off (plus ``margin`` seconds, default 0). With a finite ``ground`` parameter the stance
 windows are the half-circle legs' geometric contacts (hip angles from ``/joint_states``
-positions; ``leg_radius``, ``hip_x`` describe the robot, EduBot by default).
+positions; ``leg_radius``, ``hip_x`` describe the robot, EduBot by default). Joint states
+split over several messages, hip angles wrapped into ``[-pi, pi)`` or ``[0, 2 pi)``, and
+positions without velocities (speeds from central differences, one joint-state period of
+extra latency) are handled by the core; each such fallback is logged once (info).
 """
 
 from __future__ import annotations
@@ -105,6 +108,7 @@ class SlipFitterNode(Node):
         self.create_subscription(PoseStamped, 'mocap/body', self._on_mocap, SENSOR_QOS)
         self.published = 0
         self.received = 0
+        self._notes_logged = 0
 
     def _guard(self, fn: Any, msg: Any) -> None:
         self.received += 1
@@ -114,8 +118,15 @@ class SlipFitterNode(Node):
             self.get_logger().warning(f'dropped message: {err}')
 
     def _on_js(self, msg: JointState) -> None:
-        self._guard(lambda m: (lambda s: self.core.add_joint_state(
-            s.t_s, s.names, s.velocity, s.position))(joint_state_from_msg(m)), msg)
+        self._guard(self._joint_state, msg)
+
+    def _joint_state(self, msg: JointState) -> None:
+        s = joint_state_from_msg(msg)
+        self.core.add_joint_state(s.t_s, s.names, s.velocity, s.position)
+        notes = self.core.notes
+        while self._notes_logged < len(notes):  # each input fallback logged once
+            self.get_logger().info(notes[self._notes_logged])
+            self._notes_logged += 1
 
     def _on_cmd(self, msg: JointState) -> None:
         self._guard(lambda m: (lambda s: self.core.add_command(s.t_s, s.names, s.velocity))(
