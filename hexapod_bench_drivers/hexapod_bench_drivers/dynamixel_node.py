@@ -51,7 +51,9 @@ class DynamixelDriverParams:
 
     port: str = param('/dev/ttyUSB0', 'Serial device of the bus (or the emulator pty).')
     baud_rate: int = param(1_000_000, 'Baud rate, one of the dynamixel_sdk rates.')
-    protocol: int = param(1, 'Dynamixel protocol: 1 (AX-12A/AX-18A) or 2 (XL430/XM430).',
+    protocol: int = param(1, 'Dynamixel protocol: 1 (AX series, MX on Protocol 1.0 firmware) '
+                          'or 2 (X series, MX(2.0)); models are detected by ping '
+                          '(control_tables.ALL_MODELS).',
                           validate=lambda v: None if v in (1, 2) else 'expected 1 or 2')
     joints_file: str = param('', 'YAML joint map: joints: {name: {id, direction, offset_rad}}.',
                              validate=lambda v: None if v else 'expected a YAML file path')
