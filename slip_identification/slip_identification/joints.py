@@ -517,6 +517,7 @@ class JointFrameAssembler:
         self.notes: list[str] = []
         self._derive: bool | None = None  # decided by the first message
         self._last_q: np.ndarray | None = None  # full frames: last unwrapped angles
+        self._turns: np.ndarray | None = None  # 2 pi turns undone so far, per joint
         self._mid: tuple[float, np.ndarray] | None = None  # derived: frame awaiting its next
         self._prev: tuple[float, np.ndarray] | None = None  # derived: the frame before it
 
@@ -593,10 +594,12 @@ class JointFrameAssembler:
             if last is not None:
                 d = q - last
                 if np.any(np.abs(d) > math.pi):  # NaN compares False
-                    k = np.round(d / _TWO_PI)
+                    k = np.round(d / _TWO_PI)  # turns undone so far, per joint
                     k[~np.isfinite(k)] = 0.0
                     q = q - _TWO_PI * k
-                    self._wrapped(int(np.abs(k).sum()))
+                    turns = self._turns if self._turns is not None else np.zeros(k.size)
+                    self._wrapped(int(np.abs(k - turns).sum()))
+                    self._turns = k
                 self._last_q = np.where(np.isfinite(q), q, last)
             else:
                 self._last_q = q.copy()
@@ -662,10 +665,14 @@ class JointFrameAssembler:
             if h and t_s == h[-1][0]:
                 h.pop()  # the most recent value wins at an equal stamp
             if h and q is not None and np.isfinite(h[-1][2]) and np.isfinite(qi):
-                k = round((qi - h[-1][2]) / _TWO_PI)
+                k = round((qi - h[-1][2]) / _TWO_PI)  # turns undone so far
                 if k:
                     qi -= _TWO_PI * k  # unwrapped: the representative nearest the last one
-                    self._wrapped(abs(k))
+                if self._turns is None:
+                    self._turns = np.zeros(len(self.names))
+                if k != self._turns[j]:
+                    self._wrapped(abs(k - int(self._turns[j])))
+                    self._turns[j] = k
             vi = float(v[i])
             if self._derive and h:
                 # the previous sample's speed, now that its next neighbour is here
