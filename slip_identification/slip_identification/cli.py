@@ -31,7 +31,9 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
                             --hip-zero override the EduBot's) or null (--geometry none),
                 "stances", "skipped",
                 "notes": [str]}],   # input fallbacks: hip angles or efforts absent (paper
-                                    # edges / xcorr offset), no sample in the default box,
+                                    # edges / xcorr offset), hip angles wrapped (unwrapped),
+                                    # no joint velocities (from position differences),
+                                    # no sample in the default box,
                                     # no /gait/phase; "frame" also has "box": {"lower_m",
                                     # "upper_m", "source" (given|default|tracked_samples)}
       "gaits": {"<gait>": {"stances", "nerr_mean", "nerr_std", "power_w_mean", ...}},  # Table 3
@@ -85,7 +87,10 @@ def read_run(path: str | Path) -> RunData:
 
     ``/battery_state`` is optional (without usable samples, power and SR are null); a message
     whose header stamp is zero takes the bag's receive time; input fallbacks are listed in
-    ``RunData.notes``.
+    ``RunData.notes``. ``/joint_states`` goes through :func:`.joints.assemble_joint_frames`:
+    messages split over name groups are assembled, hip angles wrapped into ``[-pi, pi)`` or
+    ``[0, 2 pi)`` are unwrapped per joint, and positions without any velocities give
+    central-difference speeds (each noted).
     """
     from hexapod_common.bags import iter_messages, open_reader
     from hexapod_common.conversions import (
