@@ -48,6 +48,7 @@ __all__ = [
     'BenchData',
     'RobotRun',
     'bench_phase_samples',
+    'force_sign_factor',
     'read_bench_bag',
     'read_robot_bag',
 ]
@@ -224,12 +225,18 @@ def bench_phase_samples(
     settle_s: float = 1.0,
     force_threshold_n: float | None = None,
     height_margin_m: float = 0.01,
+    force_sign: str = 'auto',
 ) -> tuple[list[PhaseSample], dict[str, Any]]:
     """Per-session phase powers of one bench bag, and diagnostics.
 
     The force stream is shifted by the median over walking sessions, weighted by each session's
     number of cycles, of the cross-correlation offset (:func:`align_offset_s`); the first
     ``settle_s`` of each walking segment is skipped.
+
+    ``force_sign``: the contract's ``force.z`` is the treadmill's normal force, positive in
+    compression; many load cells report compression negative. ``positive`` takes the force as
+    recorded, ``negative`` negates it, ``auto`` (default) decides from the data
+    (:func:`force_sign_factor`) and notes a flip in ``diag['notes']``.
     """
     from hexapod_energy.descriptors import resolve_current_sign
 
@@ -239,6 +246,12 @@ def bench_phase_samples(
     segments = _walking_segments(data.sessions, t_end)
     if not segments:
         raise BagContentError(f'bag {data.path}: /bench/session never reports state walking')
+    notes = list(data.notes)
+    f_sign, why = force_sign_factor(data, segments, force_sign)
+    if why:
+        notes.append(why)
+    if f_sign < 0:
+        data = dataclasses.replace(data, force_z_n=-data.force_z_n)
     offsets, cycles = [], []
     for s, t0, t1 in segments:
         f = s['frequency_hz']
@@ -285,8 +298,45 @@ def bench_phase_samples(
             load_kg=s['load_kg'], frequency_hz=s['frequency_hz'],
             duty_factor=s['duty_factor'] if s['duty_factor'] > 0 else 0.5))
     diag = {'bag': data.path, 'force_offset_s': offset, 'current_sign': sign,
-            'sessions': len(samples), 'notes': list(data.notes)}
+            'force_sign': f_sign, 'sessions': len(samples), 'notes': notes}
     return samples, diag
+
+
+def force_sign_factor(data: BenchData, segments: list[tuple[dict[str, Any], float, float]],
+                      mode: str = 'auto') -> tuple[float, str]:
+    """Factor (+1 or -1) that makes the bench's normal force positive in compression, and a
+    note ('' when nothing needs saying).
+
+    ``auto``: a leg standing still (a 0 Hz session) carries its load on the treadmill all the
+    time, a walking leg only in stance, so under the same load the static session's mean force
+    lies above the walking sessions' when compression is positive, below when it is negative,
+    whatever the sensor's zero offset. The sign is the median over loads that have both; with
+    no static session the force is taken as recorded (noted).
+    """
+    if mode == 'positive':
+        return 1.0, ''
+    if mode == 'negative':
+        return -1.0, 'force sign negative as given: force.z negated'
+    if mode != 'auto':
+        raise ValueError(f'force sign must be auto, positive or negative, got {mode!r}')
+    static: dict[float, list[float]] = {}
+    walking: dict[float, list[float]] = {}
+    for s, t0, t1 in segments:
+        m = (data.force_t_s >= t0) & (data.force_t_s < t1)
+        if m.sum() < 4:
+            continue
+        load = round(float(s['load_kg']), 4)
+        (static if s['frequency_hz'] <= 0 else walking).setdefault(load, []).append(
+            float(np.mean(data.force_z_n[m])))
+    diffs = [np.mean(static[k]) - np.mean(walking[k]) for k in static if k in walking]
+    if not diffs:
+        return 1.0, ('force sign not checked (no 0 Hz session with a walking session of the '
+                     'same load): force.z taken as positive in compression')
+    if float(np.median(diffs)) < 0:
+        return -1.0, ('bench force negative in compression (static sessions below walking '
+                      'ones under the same load): force.z negated (--force-sign positive keeps '
+                      'it as recorded)')
+    return 1.0, ''
 
 
 def _weighted_median(values: np.ndarray, weights: np.ndarray) -> float:
@@ -340,7 +390,11 @@ def read_robot_bag(path: str | Path, *, mass_kg: float, current_sign: str = 'aut
         pose_from_msg,
     )
 
-    from hexapod_energy.descriptors import POSITION_POWER_NOTE, DescriptorAccumulator
+    from hexapod_energy.descriptors import (
+        POSITION_POWER_NOTE,
+        SLOW_BATTERY_NOTE,
+        DescriptorAccumulator,
+    )
 
     if cycle_source not in ('auto', 'gait_phase', 'joints'):
         raise ValueError(f'cycle_source must be auto, gait_phase or joints, got {cycle_source!r}')
@@ -439,6 +493,9 @@ def read_robot_bag(path: str | Path, *, mass_kg: float, current_sign: str = 'aut
     has_effort = acc.joint_power_samples_ > 0
     if any(POSITION_POWER_NOTE in d.warnings for d in windows):
         notes.append(POSITION_POWER_NOTE)
+    n_slow = sum(SLOW_BATTERY_NOTE in d.warnings for d in windows)
+    if n_slow:
+        notes.append(f'{SLOW_BATTERY_NOTE} ({n_slow} of {len(windows)} window(s))')
     if cycle_source == 'joints':
         return _joint_cycle_run(path, acc, windows, samples, notes, custom, has_effort,
                                 speed_mps, gait)

@@ -29,6 +29,7 @@ the joints), else the run has no prediction and is left out of ``prediction_erro
     {
       "schema": "hexapod_energy.energy/1",
       "bench": {"bags": [...], "diagnostics": [{"bag", "force_offset_s", "current_sign",
+                "force_sign" (+1, or -1: force.z negated, see --force-sign),
                 "sessions", "notes" (dropped messages)}], "fit": {"spans", "chosen": {"stance", "swing"},
                 "cv_rmse_w": {"stance": {"lowess", "poly"}, "swing": {...}},
                 "fit_rmse_w": {"stance", "swing"}, "basal_power_w": {"<load kg>": W},
@@ -119,6 +120,9 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
                         'else 0)')
     p.add_argument('--current-sign', choices=('ros', 'positive_discharge', 'auto'),
                    default='auto', help='battery current sign convention (default auto)')
+    p.add_argument('--force-sign', choices=('auto', 'positive', 'negative'), default='auto',
+                   help='sign of the bench force in compression (default auto: decided from '
+                        'the 0 Hz sessions against the walking ones, a flip noted)')
     p.add_argument('--swing-load', choices=('zero', 'carried'), default='zero',
                    help='load of a swinging leg in Eq. 1 (default zero)')
     p.add_argument('--load-offset', type=float, default=0.0, metavar='KG',
@@ -227,7 +231,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     try:
         samples, diags = [], []
         for path in args.bench:
-            s, d = bench_phase_samples(read_bench_bag(path), current_sign=args.current_sign)
+            s, d = bench_phase_samples(read_bench_bag(path), current_sign=args.current_sign,
+                                       force_sign=getattr(args, 'force_sign', 'auto'))
             samples.extend(s)
             diags.append(d)
             bar.update(1)

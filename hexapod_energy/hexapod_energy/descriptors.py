@@ -75,6 +75,9 @@ from hexapod_common.conversions import (
 from hexapod_energy.cycles import CycleSettings, JointCycleTracker, unwrap_near
 
 __all__ = [
+    'AUTO_UNANIMOUS_SAMPLES',
+    'MIN_BATTERY_SAMPLES_PER_WINDOW',
+    'SLOW_BATTERY_NOTE',
     'G_MPS2',
     'EFFORT_MAX_NET_FRACTION',
     'POSITION_POWER_NOTE',
@@ -90,6 +93,13 @@ __all__ = [
 
 G_MPS2 = 9.81
 
+#: least battery samples inside a window for its P_in to be trusted without a warning
+MIN_BATTERY_SAMPLES_PER_WINDOW = 4
+#: warning of a window whose P_in rests on fewer battery samples than that
+SLOW_BATTERY_NOTE = (f'battery sampled slower than the gait: some windows hold fewer than '
+                     f'{MIN_BATTERY_SAMPLES_PER_WINDOW} /battery_state samples, so their P_in is '
+                     'interpolated between samples taken at a few gait phases (aliasing with the '
+                     'gait possible; a monitor that averages its current is fine)')
 #: warning of a window whose joint power came from position differences (no velocities)
 POSITION_POWER_NOTE = ('no joint velocities: joint power from position differences '
                        '(trapezoid effort x position step per joint and sample interval)')
@@ -233,6 +243,10 @@ def _mean_joint_power_w(joint: list[tuple[float, tuple[str, ...], np.ndarray, bo
     return float(sum(sums[n] / counts[n] for n in sums))
 
 
+#: ``auto`` current sign: samples that decide it at once when their V * I all share a sign.
+AUTO_UNANIMOUS_SAMPLES = 3
+
+
 @dataclass
 class DescriptorAccumulator:
     """Collects samples and emits :class:`Descriptors` per window of whole gait cycles.
@@ -246,7 +260,10 @@ class DescriptorAccumulator:
     current_sign
         ``ros``, ``positive_discharge`` or ``auto`` (see module docstring).
     auto_samples
-        Battery samples used to decide the sign in ``auto`` mode.
+        Battery samples used to decide the sign in ``auto`` mode (the median of V * I); the
+        sign is decided sooner, after ``AUTO_UNANIMOUS_SAMPLES`` samples, when every V * I so
+        far has the same sign (a 1 Hz battery monitor would otherwise hold back a short run's
+        first 20 s, or the whole of a 12 s run).
     power_out_model
         Optional ``f(gait_sample, mass_kg) -> W`` (e.g. :func:`model_power_out`).
     power_out_source
@@ -316,10 +333,13 @@ class DescriptorAccumulator:
         """Add one battery sample; returns the windows this sample completes."""
         if self.sign_ is None:
             self._pending_battery.append(sample)
-            if len(self._pending_battery) < self.auto_samples:
-                return []
             v = np.array([s.voltage_v for s in self._pending_battery])
             i = np.array([s.current_a for s in self._pending_battery])
+            vi = v * i
+            unanimous = len(vi) >= AUTO_UNANIMOUS_SAMPLES and (bool(np.all(vi > 0)) or
+                                                               bool(np.all(vi < 0)))
+            if len(self._pending_battery) < self.auto_samples and not unanimous:
+                return []
             self.sign_ = resolve_current_sign(v, i, 'auto')
             self.sign_note_ = ('current sign auto-detected: ' +
                                ('ROS convention (negative while discharging)'
@@ -475,6 +495,8 @@ class DescriptorAccumulator:
         t, p = t[order], p[order]
         grid = np.concatenate(([t0], t[(t > t0) & (t < t1)], [t1]))
         power_in = float(np.trapezoid(np.interp(grid, t, p), grid) / (t1 - t0))
+        if grid.size - 2 < MIN_BATTERY_SAMPLES_PER_WINDOW:
+            warnings.append(SLOW_BATTERY_NOTE)
         if power_in < 0:
             warnings.append(f'negative mean input power {power_in:.3f} W: check the battery '
                             'current sign convention (parameter current_sign)')
