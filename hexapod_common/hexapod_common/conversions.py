@@ -26,6 +26,7 @@ __all__ = [
     'BatterySample',
     'GaitPhaseSample',
     'JOINT_MAP_ENV',
+    'MOCAP_TYPES',
     'JointStateSample',
     'PoseSample',
     'ServoStatusSample',
@@ -237,9 +238,33 @@ class PoseSample:
     orientation_xyzw: np.ndarray
 
 
+#: message types a motion-capture bridge publishes a body pose as (``/mocap/body``), by the
+#: short names of the nodes' ``mocap_type`` parameter: PoseStamped (the contract; vrpn, mocap
+#: bridges), TransformStamped (vicon_bridge), PoseWithCovarianceStamped, Odometry (bridges that
+#: publish a rigid body as odometry)
+MOCAP_TYPES = {
+    'PoseStamped': 'geometry_msgs/msg/PoseStamped',
+    'TransformStamped': 'geometry_msgs/msg/TransformStamped',
+    'PoseWithCovarianceStamped': 'geometry_msgs/msg/PoseWithCovarianceStamped',
+    'Odometry': 'nav_msgs/msg/Odometry',
+}
+
+
 def pose_from_msg(msg: Any) -> PoseSample:
-    """Convert a PoseStamped."""
-    p, q = msg.pose.position, msg.pose.orientation
+    """Convert a body pose: a PoseStamped (the contract), or the same pose as another
+    motion-capture bridge publishes it (:data:`MOCAP_TYPES`): TransformStamped
+    (``transform.translation/rotation``), PoseWithCovarianceStamped or Odometry
+    (``pose.pose``). Raises ValueError for anything else."""
+    if hasattr(msg, 'transform'):
+        p, q = msg.transform.translation, msg.transform.rotation
+    else:
+        pose = getattr(msg, 'pose', None)
+        if pose is not None and hasattr(pose, 'pose'):  # with covariance / odometry
+            pose = pose.pose
+        if pose is None or not hasattr(pose, 'position'):
+            raise ValueError(f'{type(msg).__name__} is not a body pose (expected one of '
+                             f'{", ".join(MOCAP_TYPES)})')
+        p, q = pose.position, pose.orientation
     return PoseSample(stamp_to_s(msg.header.stamp), str(msg.header.frame_id),
                       np.array([p.x, p.y, p.z], dtype=float),
                       np.array([q.x, q.y, q.z, q.w], dtype=float))

@@ -28,6 +28,7 @@ __all__ = [
     'RELIABLE_QOS',
     'SENSOR_QOS',
     'declare_params',
+    'mocap_msg_class',
     'param',
     'params_from_overrides',
     'run_node',
@@ -188,3 +189,17 @@ def run_node(node_factory: Callable[..., Any], args: Sequence[str] | None = None
             node.destroy_node()
         rclpy.try_shutdown()
     return 0
+
+
+def mocap_msg_class(name: str) -> Any:
+    """The rclpy message class of a ``mocap_type`` parameter value
+    (:data:`hexapod_common.conversions.MOCAP_TYPES`: PoseStamped, TransformStamped,
+    PoseWithCovarianceStamped, Odometry); ValueError on another name."""
+    import importlib
+
+    from hexapod_common.conversions import MOCAP_TYPES
+
+    if name not in MOCAP_TYPES:
+        raise ValueError(f'mocap_type must be one of {", ".join(MOCAP_TYPES)}, got {name!r}')
+    pkg, _, cls = MOCAP_TYPES[name].split('/')
+    return getattr(importlib.import_module(f'{pkg}.msg'), cls)

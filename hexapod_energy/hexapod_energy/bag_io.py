@@ -516,12 +516,19 @@ def read_robot_bag(path: str | Path, *, mass_kg: float, current_sign: str = 'aut
     w = np.array([d.window_s for d in windows])
     avg = lambda xs: float(np.sum(w * np.array(xs)) / np.sum(w))  # noqa: E731
     payload = _find_number(custom, ('payload_kg', 'payload'))
+    n_none = sum(d.speed_source == 'none' for d in windows)
+    if n_none:
+        notes.append(f'speed unknown in {n_none} of {len(windows)} window(s) (a clock-driven '
+                     'gait schedule, /gait/phase step length 0, and no /mocap/body, /odom or '
+                     'given speed there): ' + ('speed, cost of transport and specific '
+                                               'resistance null' if n_none == len(windows)
+                                               else 'speed averaged over the others'))
     return RobotRun(
         path=str(path), windows=len(windows), window_s=float(w.sum()),
         power_in_w=avg([d.power_in_w for d in windows]),
         power_out_w=avg([d.power_out_w for d in windows]) if has_effort else math.nan,
-        speed_mps=avg([d.speed_mps for d in windows]), gait=gait, payload_kg=payload,
-        current_sign=float(acc.sign_ or 0.0),
+        speed_mps=_known_mean(w, [d.speed_mps for d in windows]), gait=gait,
+        payload_kg=payload, current_sign=float(acc.sign_ or 0.0),
         extra={'custom_data': custom, 'notes': notes, 'cycle_source': 'gait_phase',
                'speed_source': '+'.join(sorted({d.speed_source for d in windows})),
                'windows': list(windows)},
@@ -583,3 +590,10 @@ def _joint_cycle_run(path: str | Path, acc: Any, windows: list[Any],
                max(windows[0].cycles, 1), 'leg_names': legs, 'joint_names': names,
                'windows': list(windows)},
     )
+
+
+def _known_mean(weights: np.ndarray, values: list[float]) -> float:
+    """Weighted mean of the finite ``values`` (NaN when none is)."""
+    v = np.asarray(values, dtype=float)
+    ok = np.isfinite(v)
+    return float(np.sum(weights[ok] * v[ok]) / np.sum(weights[ok])) if ok.any() else math.nan

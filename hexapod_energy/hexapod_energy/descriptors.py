@@ -543,11 +543,20 @@ class DescriptorAccumulator:
         return self._speed_and_source(t0, t1)[0]
 
     def _speed_and_source(self, t0: float, t1: float) -> tuple[float, str]:
-        """Speed [m/s] over the window and its source."""
+        """Speed [m/s] over the window and its source.
+
+        A clock-driven schedule (the Buehler clock of RHex-class robots: step length 0 while
+        the legs turn, so ``speed_mps`` 0) does not know the speed: it is not taken as 0 m/s
+        (which used to average the EduBot's 0.88 m/s with zeros outside the mocap volume);
+        odometry, the given speed, or unknown (NaN) stand in for it.
+        """
+        schedule = self._gait is not None and (self._gait.speed_mps > 0 or
+                                               self._gait.period_s <= 0)
         for source, track in (('mocap', self._poses), ('odometry', self._odom)):
-            if source == 'odometry' and self._gait is not None:
+            if source == 'odometry' and schedule:
                 # the schedule ranks before odometry, so bags and live runs with /gait/phase
                 # give the numbers they always gave
+                assert self._gait is not None
                 return self._gait.speed_mps, 'gait_schedule'
             poses = sorted(p for p in track if t0 <= p[0] <= t1)
             if len(poses) >= 2 and poses[0][0] - t0 < 0.1 * (t1 - t0) and \
@@ -556,7 +565,7 @@ class DescriptorAccumulator:
                 return math.hypot(dx, dy) / (poses[-1][0] - poses[0][0]), source
         if self.speed_mps > 0:
             return self.speed_mps, 'given'
-        return (math.nan if self.joint_cycles_ else 0.0), 'none'
+        return (math.nan if self.joint_cycles_ or self._gait is not None else 0.0), 'none'
 
     def _trim(self, t: float) -> None:
         keep_from = t - 1.0

@@ -34,6 +34,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import BatteryState, JointState
 
 from hexapod_common.conversions import (
+    MOCAP_TYPES,
     battery_from_msg,
     gait_phase_from_msg,
     joint_state_from_msg,
@@ -41,7 +42,14 @@ from hexapod_common.conversions import (
     pose_from_msg,
     s_to_stamp,
 )
-from hexapod_common.node_utils import RELIABLE_QOS, SENSOR_QOS, declare_params, param, run_node
+from hexapod_common.node_utils import (
+    RELIABLE_QOS,
+    SENSOR_QOS,
+    declare_params,
+    mocap_msg_class,
+    param,
+    run_node,
+)
 from hexapod_energy.descriptors import DescriptorAccumulator, Descriptors, model_power_out
 from hexapod_energy.prediction import OutputPowerModel, RobotSpec
 
@@ -76,6 +84,11 @@ class EnergyParams:
                          'odom gives one; 0 = unknown (speed-based descriptors NaN)',
                          validate=lambda v: None if v >= 0 else 'must be >= 0',
                          read_only=True)
+    mocap_type: str = param(
+        'PoseStamped', 'message type of mocap/body: PoseStamped (the contract), '
+        'TransformStamped (vicon_bridge), PoseWithCovarianceStamped or Odometry',
+        validate=lambda v: None if v in MOCAP_TYPES else f'expected one of {list(MOCAP_TYPES)}',
+        read_only=True)
 
 
 def descriptors_to_msg(d: Descriptors, msg: Any = None) -> EnergeticDescriptors:
@@ -120,7 +133,8 @@ class EnergyMonitorNode(Node):
         self.create_subscription(BatteryState, 'battery_state', self._on_battery, SENSOR_QOS)
         self.create_subscription(GaitPhase, 'gait/phase', self._on_gait, SENSOR_QOS)
         self.create_subscription(JointState, 'joint_states', self._on_joints, SENSOR_QOS)
-        self.create_subscription(PoseStamped, 'mocap/body', self._on_pose, SENSOR_QOS)
+        self.create_subscription(mocap_msg_class(p.mocap_type), 'mocap/body', self._on_pose,
+                                 SENSOR_QOS)
         self.create_subscription(Odometry, 'odom', self._on_odom, SENSOR_QOS)
 
     def _guard(self, what: str, fn: Any, msg: Any) -> Any:

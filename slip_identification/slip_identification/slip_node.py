@@ -1,11 +1,12 @@
 """``slip_fitter`` node: one ``SlipFit`` on ``/slip/fit`` for every stance as soon as it ends.
 
 Subscribes ``/joint_states`` and ``/joint_commands`` (hip speeds; the commanded speeds are the
-Buehler target), ``/mocap/body`` (PoseStamped); the science is in
-:class:`slip_identification.online.OnlineSlip`. Fits run on the first mocap message after a
-lift-off (plus ``margin`` seconds, default 0). With a finite ``ground`` parameter the stance
-windows are the half-circle legs' geometric contacts (hip angles from ``/joint_states``
-positions; ``leg_radius``, ``hip_x`` describe the robot, EduBot by default). Joint states
+Buehler target), ``/mocap/body`` (PoseStamped, or the type named by the ``mocap_type``
+parameter); the science is in :class:`slip_identification.online.OnlineSlip`. Fits run on the
+first mocap message after a lift-off (plus ``margin`` seconds, default 0). With a finite
+``ground`` parameter the stance windows are the half-circle legs' geometric contacts (hip
+angles from ``/joint_states`` positions; ``leg_radius``, ``hip_x`` describe the robot, EduBot by
+default). Joint states
 split over several messages, hip angles wrapped into ``[-pi, pi)`` or ``[0, 2 pi)``, and
 positions without velocities (speeds from central differences, one joint-state period of
 extra latency) are handled by the core; each such fallback is logged once (info).
@@ -21,8 +22,20 @@ from geometry_msgs.msg import PoseStamped
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
-from hexapod_common.conversions import joint_state_from_msg, pose_from_msg, s_to_stamp
-from hexapod_common.node_utils import RELIABLE_QOS, SENSOR_QOS, declare_params, param, run_node
+from hexapod_common.conversions import (
+    MOCAP_TYPES,
+    joint_state_from_msg,
+    pose_from_msg,
+    s_to_stamp,
+)
+from hexapod_common.node_utils import (
+    RELIABLE_QOS,
+    SENSOR_QOS,
+    declare_params,
+    mocap_msg_class,
+    param,
+    run_node,
+)
 from hexapod_interfaces.msg import SlipFit
 
 from .fit import SlipFitResult
@@ -59,6 +72,11 @@ class SlipParams:
                               'leg [m] (geometric edges)', validate=_positive, read_only=True)
     hip_x: list[float] = param(list(LegGeometry.hip_x_m), 'hip x front, middle, rear from '
                                'the COM [m] (geometric edges)', read_only=True)
+    mocap_type: str = param(
+        'PoseStamped', 'message type of mocap/body: PoseStamped (the contract), '
+        'TransformStamped (vicon_bridge), PoseWithCovarianceStamped or Odometry',
+        validate=lambda v: None if v in MOCAP_TYPES else f'expected one of {list(MOCAP_TYPES)}',
+        read_only=True)
 
 
 def result_to_msg(r: SlipFitResult) -> SlipFit:
@@ -105,7 +123,8 @@ class SlipFitterNode(Node):
         self.pub = self.create_publisher(SlipFit, 'slip/fit', RELIABLE_QOS)
         self.create_subscription(JointState, 'joint_states', self._on_js, SENSOR_QOS)
         self.create_subscription(JointState, 'joint_commands', self._on_cmd, SENSOR_QOS)
-        self.create_subscription(PoseStamped, 'mocap/body', self._on_mocap, SENSOR_QOS)
+        self.create_subscription(mocap_msg_class(p.mocap_type), 'mocap/body', self._on_mocap,
+                                 SENSOR_QOS)
         self.published = 0
         self.received = 0
         self._notes_logged = 0

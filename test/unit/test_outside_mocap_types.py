@@ -1,0 +1,105 @@
+"""Motion capture as other bridges publish it, and clock-driven gaits' unknown speed.
+
+- ``/mocap/body`` as ``geometry_msgs/TransformStamped`` (vicon_bridge), ``PoseWithCovarianceStamped``
+  or ``nav_msgs/Odometry``: read like the contract's PoseStamped (before: an AttributeError
+  on ``msg.pose``, so such bags gave no mocap at all); the live nodes take ``mocap_type``.
+- A Buehler-clock ``/gait/phase`` (RHex class: step length 0) does not know the robot's speed.
+  ``energy`` took it as 0 m/s outside the mocap volume and averaged it with the mocap speed
+  (EduBot running: 0.36 m/s reported against 0.88 m/s measured); those windows are now of
+  unknown speed and the run's speed is the mocap windows'.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+
+from hexapod_common.bags import BagWriter, iter_messages, new_msg, open_reader
+from hexapod_common.conversions import MOCAP_TYPES, pose_from_msg
+
+Q = dict(x=0.0, y=0.0, z=0.38268343236508984, w=0.9238795325112867)
+
+
+def _pose(msgtype: str):
+    hdr = new_msg('std_msgs/msg/Header', stamp=new_msg('builtin_interfaces/msg/Time', sec=3,
+                                                        nanosec=500_000_000), frame_id='world')
+    pos = dict(x=1.0, y=2.0, z=0.1)
+    if msgtype.endswith('TransformStamped'):
+        return new_msg(msgtype, header=hdr, child_frame_id='body', transform=new_msg(
+            'geometry_msgs/msg/Transform',
+            translation=new_msg('geometry_msgs/msg/Vector3', **pos),
+            rotation=new_msg('geometry_msgs/msg/Quaternion', **Q)))
+    pose = new_msg('geometry_msgs/msg/Pose', position=new_msg('geometry_msgs/msg/Point', **pos),
+                   orientation=new_msg('geometry_msgs/msg/Quaternion', **Q))
+    if msgtype.endswith('PoseStamped'):
+        return new_msg(msgtype, header=hdr, pose=pose)
+    wc = new_msg('geometry_msgs/msg/PoseWithCovariance', pose=pose)
+    if msgtype.endswith('Odometry'):
+        return new_msg(msgtype, header=hdr, child_frame_id='body', pose=wc)
+    return new_msg(msgtype, header=hdr, pose=wc)
+
+
+@pytest.mark.parametrize('msgtype', sorted(MOCAP_TYPES.values()))
+def test_every_mocap_type_gives_the_same_pose(msgtype):
+    s = pose_from_msg(_pose(msgtype))
+    assert s.t_s == 3.5 and s.frame_id == 'world'
+    assert list(s.position_m) == [1.0, 2.0, 0.1]
+    assert list(s.orientation_xyzw) == [Q['x'], Q['y'], Q['z'], Q['w']]
+
+
+def test_a_non_pose_is_refused():
+    msg = new_msg('sensor_msgs/msg/BatteryState')
+    with pytest.raises(ValueError, match='not a body pose'):
+        pose_from_msg(msg)
+
+
+@pytest.fixture(scope='module')
+def edubot_bags(tmp_path_factory):
+    edubot_bag = pytest.importorskip('hexapod_bench_drivers.edubot_bag')
+    root = tmp_path_factory.mktemp('mocap_types')
+    edubot_bag.write_edubot_bag(root / 'ed', 'running', duration_s=6.0, seed=1)
+    with open_reader(root / 'ed') as r, BagWriter(root / 'vicon') as w:
+        for m in iter_messages(r):
+            if m.topic != '/mocap/body':
+                w.write(m.topic, m.msgtype, m.data, m.stamp_ns)
+                continue
+            msg = r.deserialize(m.data, m.msgtype)
+            p, q = msg.pose.position, msg.pose.orientation
+            tf = new_msg('geometry_msgs/msg/TransformStamped', header=msg.header,
+                         child_frame_id='edubot', transform=new_msg(
+                             'geometry_msgs/msg/Transform', translation=new_msg(
+                                 'geometry_msgs/msg/Vector3', x=p.x, y=p.y, z=p.z),
+                             rotation=q))
+            w.write(m.topic, 'geometry_msgs/msg/TransformStamped', tf, m.stamp_ns)
+    return root
+
+
+def test_vicon_bridge_transforms_give_the_same_slip_fits(edubot_bags: Path, tmp_path):
+    from slip_identification.cli import analyze_bag
+
+    opts = {'edges': 'auto'}
+    a = analyze_bag(str(edubot_bags / 'ed'), opts)
+    b = analyze_bag(str(edubot_bags / 'vicon'), opts)
+    assert 'error' not in a and 'error' not in b
+    assert len(a['stances']) == len(b['stances']) >= 10
+    for x, y in zip(a['stances'], b['stances']):
+        assert (x['touchdown'], x['liftoff'], x['stiffness']) == \
+            (y['touchdown'], y['liftoff'], y['stiffness'])
+
+
+def test_clock_gait_speed_is_not_zero(edubot_bags: Path):
+    from hexapod_energy.bag_io import read_robot_bag
+
+    for name in ('ed', 'vicon'):
+        run = read_robot_bag(edubot_bags / name, mass_kg=3.31)
+        assert run.gait.step_length_m == 0.0          # the Buehler clock's schedule
+        sources = {d.speed_source for d in run.extra['windows']}
+        assert sources == {'mocap', 'none'}
+        mocap = [d.speed_mps for d in run.extra['windows'] if d.speed_source == 'mocap']
+        assert run.speed_mps == pytest.approx(sum(mocap) / len(mocap), rel=0.02)
+        assert 0.7 < run.speed_mps < 1.1               # EduBot running, not ~0.36 m/s
+        assert all(math.isnan(d.speed_mps) for d in run.extra['windows']
+                   if d.speed_source == 'none')
+        assert any('speed unknown in' in n for n in run.extra['notes'])
