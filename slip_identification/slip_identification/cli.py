@@ -70,7 +70,7 @@ from .energetics import gait_table, plot_figures
 from .errors import MissingTopicError, SlipDataError, SlipError
 from .model import EDUBOT_MASS_KG, SlipModel
 from .geometry import LegGeometry
-from .joints import assemble_joint_frames
+from .joints import assemble_joint_frames, rotation_signs
 from .pipeline import RunData, analyze_run
 from .preprocess import Box
 
@@ -151,6 +151,18 @@ def read_run(path: str | Path) -> RunData:
     names = joints.names
     # split over name groups, hip angles unwrapped, velocities derived from positions
     notes.extend(joints.notes)
+    signs = rotation_signs(joints.position) if joints.position is not None else \
+        np.ones(len(names))
+    if (signs < 0).any():
+        joints = dataclasses.replace(
+            joints, position=joints.position * signs, velocity=joints.velocity * signs,
+            effort=joints.effort * signs if joints.effort is not None else None)
+        flipped = [n for n, sg in zip(names, signs) if sg < 0]
+        order = [f'{side}{k}_hip' for side in 'LR' for k in (1, 2, 3)]
+        online = [float(signs[names.index(n)]) if n in names else 1.0 for n in order]
+        notes.append(f'{", ".join(flipped)} turn backwards over the run (net rotation below '
+                     '-pi: motors mounted mirrored?): their angles, speeds, efforts and commanded '
+                     f'speeds are negated (online: slip_fitter -p hip_signs:={online})')
     if not jc:
         command_t_s, command_velocity = np.zeros(0), np.zeros((0, len(names)))
         notes.append('no usable /joint_commands (the Buehler clock\'s target speeds): the '
@@ -169,6 +181,8 @@ def read_run(path: str | Path) -> RunData:
         command_t_s = cmd.t_s
         command_velocity = cmd.velocity[:, [cmd.names.index(n) for n in names]]
         notes.append(f'/joint_commands: {cmd.note}')
+    if (signs < 0).any() and command_velocity.size:
+        command_velocity = command_velocity * signs
     for topic, n in (('/joint_states', joints.t_s.size), ('/mocap/body', len(mo))):
         if not n:
             raise MissingTopicError(f'bag {path}: {topic} has no usable message (with '

@@ -72,6 +72,7 @@ __all__ = [
     'assemble_joint_frames',
     'derive_velocity',
     'missing_joints',
+    'rotation_signs',
     'unwrap_positions',
     'wrap_note',
 ]
@@ -85,6 +86,37 @@ DERIVED_NOTE = ('no joint velocities: from position differences (central differe
 #: the same, online (one frame of extra latency)
 DERIVED_NOTE_ONLINE = ('no joint velocities: from position differences (central differences '
                        'of the unwrapped angles, each frame one joint-state period late)')
+
+
+def rotation_signs(position_rad: np.ndarray) -> np.ndarray:
+    """Per joint, -1 for a joint that turns continuously backwards over the run, else +1.
+
+    RHex-class hips turn one way while the robot walks forward, and the contract counts that
+    way positive. Drivers of robots whose right-side motors are mounted mirrored (or a whole
+    robot wired the other way) report some hips turning negatively; taken as they are, the
+    SLIP analysis silently fits wrong edges (an EduBot run with its right hips negated: offset
+    30.7 ms instead of 25.4, stiffness off by up to 39 %). A joint whose net rotation over the
+    run (last minus first finite unwrapped angle) is below -pi is reported -1; joints that do not
+    turn continuously (|net| <= pi, e.g. a 3-DOF leg's) are +1.
+
+    Parameters
+    ----------
+    position_rad : (n, J) array
+        Unwrapped joint angles [rad] in time order (NaN allowed).
+
+    Returns
+    -------
+    (J,) array of +1.0 / -1.0
+    """
+    q = np.asarray(position_rad, dtype=float)
+    if q.ndim == 1:
+        q = q[:, None]
+    out = np.ones(q.shape[1])
+    for j in range(q.shape[1]):
+        finite = q[np.isfinite(q[:, j]), j]
+        if finite.size >= 2 and finite[-1] - finite[0] < -math.pi:
+            out[j] = -1.0
+    return out
 
 
 def unwrap_positions(position_rad: np.ndarray) -> tuple[np.ndarray, int]:

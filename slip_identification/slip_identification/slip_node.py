@@ -14,10 +14,12 @@ extra latency) are handled by the core; each such fallback is logged once (info)
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
 from geometry_msgs.msg import PoseStamped
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
@@ -72,6 +74,12 @@ class SlipParams:
                               'leg [m] (geometric edges)', validate=_positive, read_only=True)
     hip_x: list[float] = param(list(LegGeometry.hip_x_m), 'hip x front, middle, rear from '
                                'the COM [m] (geometric edges)', read_only=True)
+    hip_signs: list[float] = param(
+        [1.0] * 6, 'sign of each hip angle, L1 L2 L3 R1 R2 R3 (-1: the motor is mounted '
+        'mirrored and reports forward rotation negative; the offline slip analysis detects it '
+        'and prints the value to use here)',
+        validate=lambda v: None if len(v) == 6 and all(x in (1.0, -1.0) for x in v)
+        else 'expected 6 values, each 1 or -1', read_only=True)
     mocap_type: str = param(
         'PoseStamped', 'message type of mocap/body: PoseStamped (the contract), '
         'TransformStamped (vicon_bridge), PoseWithCovarianceStamped or Odometry',
@@ -125,6 +133,8 @@ class SlipFitterNode(Node):
         self.create_subscription(JointState, 'joint_commands', self._on_cmd, SENSOR_QOS)
         self.create_subscription(mocap_msg_class(p.mocap_type), 'mocap/body', self._on_mocap,
                                  SENSOR_QOS)
+        order = [f'{side}{k}_hip' for side in 'LR' for k in (1, 2, 3)]
+        self._hip_sign = {n: -1.0 for n, v in zip(order, p.hip_signs) if v < 0}
         self.published = 0
         self.received = 0
         self._notes_logged = 0
@@ -139,8 +149,17 @@ class SlipFitterNode(Node):
     def _on_js(self, msg: JointState) -> None:
         self._guard(self._joint_state, msg)
 
+    def _signed(self, s: Any) -> Any:
+        """A JointStateSample with the mirrored hips' values negated (``hip_signs``)."""
+        if not self._hip_sign:
+            return s
+        k = np.array([self._hip_sign.get(n, 1.0) for n in s.names])
+        return dataclasses.replace(s, **{f: getattr(s, f) * k if getattr(s, f).size == k.size
+                                         else getattr(s, f)
+                                         for f in ('position', 'velocity', 'effort')})
+
     def _joint_state(self, msg: JointState) -> None:
-        s = joint_state_from_msg(msg)
+        s = self._signed(joint_state_from_msg(msg))
         self.core.add_joint_state(s.t_s, s.names, s.velocity, s.position)
         notes = self.core.notes
         while self._notes_logged < len(notes):  # each input fallback logged once
@@ -149,7 +168,7 @@ class SlipFitterNode(Node):
 
     def _on_cmd(self, msg: JointState) -> None:
         self._guard(lambda m: (lambda s: self.core.add_command(s.t_s, s.names, s.velocity))(
-            joint_state_from_msg(m)), msg)
+            self._signed(joint_state_from_msg(m))), msg)
 
     def _on_mocap(self, msg: PoseStamped) -> None:
         self._guard(self._mocap_and_fit, msg)

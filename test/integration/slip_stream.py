@@ -76,13 +76,13 @@ def core_fits(msgs: list[tuple[str, Any]], offset_s: float) -> tuple[OnlineSlip,
     return core, fits
 
 
-def node_fits(prefix: str, msgs: list[tuple[str, Any]], offset_s: float, n_expected: int
-              ) -> tuple[dict[str, int], list[Any]]:
+def node_fits(prefix: str, msgs: list[tuple[str, Any]], offset_s: float, n_expected: int,
+              params: tuple[Parameter, ...] = ()) -> tuple[dict[str, int], list[Any]]:
     """Publish ``msgs`` in order into a fresh ``slip_fitter`` (each taken before the next) and
     collect ``n_expected`` fits; returns the node's counters and the fits."""
     with ros_env(prefix) as env:
         node = env.make(SlipFitterNode, parameter_overrides=[
-            Parameter('mocap_offset', value=offset_s), Parameter('box', value=BOX)])
+            Parameter('mocap_offset', value=offset_s), Parameter('box', value=BOX), *params])
         fits = Collector(env, SlipFit, 'slip/fit')
         src = env.add(rclpy.create_node(f'{prefix}_src', context=env.context,
                                         namespace=env.namespace))
