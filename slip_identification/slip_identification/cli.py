@@ -71,7 +71,7 @@ from .errors import MissingTopicError, SlipDataError, SlipError
 from .model import EDUBOT_MASS_KG, SlipModel
 from .geometry import LegGeometry
 from .joints import assemble_joint_frames, rotation_signs
-from .pipeline import RunData, analyze_run
+from .pipeline import RunData, analyze_run, rotate_body
 from .preprocess import Box
 
 __all__ = ['add_cli', 'analyze_bag', 'main', 'read_run']
@@ -235,6 +235,12 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
     """Analyse one bag; returns a JSON-able dict (``error`` set when the bag is refused)."""
     try:
         run = read_run(path)
+        body_up = options.get('body_up', 'z')
+        if body_up != 'z':
+            run = dataclasses.replace(
+                run, mocap_quat_xyzw=rotate_body(run.mocap_quat_xyzw, body_up),
+                notes=run.notes + (f'body orientation re-expressed with the rigid body\'s '
+                                   f'{body_up} axis as up (--body-up)',))
         # no --box: the pipeline's default box, or every tracked sample when the mocap origin
         # is not in the tracking volume (another lab's frame)
         box = Box(tuple(options['box_lower']), tuple(options['box_upper'])) \
@@ -329,7 +335,7 @@ def run_command(args: argparse.Namespace) -> int:
                'mass_kg': args.mass, 'model': args.model, 'position_fit': not args.no_position_fit,
                'box_lower': args.box[:3] if args.box else None,
                'box_upper': args.box[3:] if args.box else None,
-               'steady_only': args.steady_only}
+               'steady_only': args.steady_only, 'body_up': args.body_up}
     bags = [str(b) for b in args.bags]
     results: list[dict[str, Any]] = []
     if args.jobs > 1 and len(bags) > 1:
@@ -386,6 +392,10 @@ def add_cli(subparsers: Any) -> None:
                         "support), the paper's shifted clock edges, touchdown refined to the "
                         "hip-effort onset; 'auto': geometry when possible, else paper (the "
                         "paper's edges are always in runs[].paper_edges)")
+    p.add_argument('--body-up', choices=('z', 'x', 'y', '-x', '-y', '-z'), default='z',
+                   help="the motion-capture rigid body's axis that points up (default z; the "
+                        'rigid body\'s forward axis does not matter: the pitch is the up axis\'s '
+                        'tilt towards the run)')
     p.add_argument('--geometry', choices=('edubot', 'none'), default='edubot',
                    help="robot description for the geometric edges/offset: 'edubot' "
                         '(slip_identification.geometry.LegGeometry defaults, fields overridden by '

@@ -190,13 +190,22 @@ def body_pitch_rad(world_rotation: ArrayLike, quat_xyzw: ArrayLike) -> FloatArra
     """Body pitch (REP-103, nose down positive) in a world frame, shape (n,).
 
     ``world_rotation`` (3, 3): rows are the world axes in the mocap frame
-    (:class:`.preprocess.WorldFrame`); ``quat_xyzw`` (n, 4) body orientations in the mocap frame.
+    (:class:`.preprocess.WorldFrame`, x along the run); ``quat_xyzw`` (n, 4) body orientations
+    in the mocap frame.
+
+    The pitch is the tilt of the body's up axis (its z) towards the run's direction,
+    ``atan2(z_b . x_w, z_b . z_w)``: it does not depend on where the rigid body's x axis points
+    in the horizontal plane. A motion-capture rigid body is often defined with its axes as the
+    robot stood when it was created (OptiTrack), so its x need not be the robot's forward; the
+    pitch from the body x axis made such runs' single supports meaningless (an EduBot run with
+    the body frame turned 90 deg about z: 213 stances too short, none fitted). For a body
+    frame with x forward the two agree (a rotation about the lateral axis moves both alike).
     """
     q = np.atleast_2d(np.asarray(quat_xyzw, dtype=float))
     x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    bx = np.column_stack([1 - 2 * (y * y + z * z), 2 * (x * y + z * w), 2 * (x * z - y * w)])
-    bw = bx @ np.asarray(world_rotation, dtype=float).T
-    return np.arctan2(-bw[:, 2], bw[:, 0])
+    bz = np.column_stack([2 * (x * z + y * w), 2 * (y * z - x * w), 1 - 2 * (x * x + y * y)])
+    bw = bz @ np.asarray(world_rotation, dtype=float).T
+    return np.arctan2(bw[:, 0], bw[:, 2])
 
 
 @dataclass(frozen=True)

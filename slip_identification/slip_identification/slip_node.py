@@ -44,6 +44,7 @@ from .fit import SlipFitResult
 from .geometry import LegGeometry
 from .model import SlipModel
 from .online import OnlineSlip
+from .pipeline import rotate_body
 from .preprocess import Box
 
 __all__ = ['SlipFitterNode', 'SlipParams', 'main', 'result_to_msg']
@@ -80,6 +81,11 @@ class SlipParams:
         'and prints the value to use here)',
         validate=lambda v: None if len(v) == 6 and all(x in (1.0, -1.0) for x in v)
         else 'expected 6 values, each 1 or -1', read_only=True)
+    body_up: str = param(
+        'z', "the motion-capture rigid body's axis that points up (z, x, y, -x, -y, -z; the "
+        'offline slip analysis names it when the rigid body is defined otherwise)',
+        validate=lambda v: None if v in ('z', 'x', 'y', '-x', '-y', '-z')
+        else 'expected z, x, y, -x, -y or -z', read_only=True)
     mocap_type: str = param(
         'PoseStamped', 'message type of mocap/body: PoseStamped (the contract), '
         'TransformStamped (vicon_bridge), PoseWithCovarianceStamped or Odometry',
@@ -135,6 +141,7 @@ class SlipFitterNode(Node):
                                  SENSOR_QOS)
         order = [f'{side}{k}_hip' for side in 'LR' for k in (1, 2, 3)]
         self._hip_sign = {n: -1.0 for n, v in zip(order, p.hip_signs) if v < 0}
+        self._body_up = p.body_up
         self.published = 0
         self.received = 0
         self._notes_logged = 0
@@ -175,7 +182,9 @@ class SlipFitterNode(Node):
 
     def _mocap_and_fit(self, msg: PoseStamped) -> None:
         s = pose_from_msg(msg)
-        self.core.add_mocap(s.t_s, s.position_m, s.orientation_xyzw)
+        q = s.orientation_xyzw if self._body_up == 'z' else \
+            rotate_body(s.orientation_xyzw, self._body_up)[0]
+        self.core.add_mocap(s.t_s, s.position_m, q)
         for r in self.core.step():
             self.pub.publish(result_to_msg(r))
             self.published += 1
