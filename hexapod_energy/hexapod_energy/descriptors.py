@@ -296,7 +296,7 @@ class DescriptorAccumulator:
     # JointState
     _joint: list[tuple[float, tuple[str, ...], np.ndarray, bool]] = field(
         default_factory=list, init=False)
-    _poses: list[tuple[float, float, float]] = field(default_factory=list, init=False)
+    _poses: list[tuple[float, float, float, float]] = field(default_factory=list, init=False)
     _boundaries: list[float] = field(default_factory=list, init=False)
     _gait: GaitPhaseSample | None = field(default=None, init=False)
     _last_phase: tuple[float, float] | None = field(default=None, init=False)
@@ -430,9 +430,15 @@ class DescriptorAccumulator:
                            float(sample.position_m[1])))
 
     def add_pose(self, sample: PoseSample) -> None:
-        """Add a body pose (horizontal position used for the speed)."""
-        self._poses.append((sample.t_s, float(sample.position_m[0]),
-                            float(sample.position_m[1])))
+        """Add a body pose (position used for the speed).
+
+        The speed is the body's displacement over whole gait cycles in all three axes: the
+        height returns to itself after a whole cycle, so this is the horizontal speed in any
+        motion-capture frame, z-up (Vicon, ROS) or y-up (OptiTrack), where the x-y distance
+        read only part of a y-up frame's travel.
+        """
+        p = sample.position_m
+        self._poses.append((sample.t_s, float(p[0]), float(p[1]), float(p[2])))
 
     def add_gait_phase(self, sample: GaitPhaseSample) -> list[Descriptors]:
         """Add a gait schedule sample; a wrap of the cycle phase marks a cycle boundary."""
@@ -561,8 +567,8 @@ class DescriptorAccumulator:
             poses = sorted(p for p in track if t0 <= p[0] <= t1)
             if len(poses) >= 2 and poses[0][0] - t0 < 0.1 * (t1 - t0) and \
                     t1 - poses[-1][0] < 0.1 * (t1 - t0):
-                dx, dy = poses[-1][1] - poses[0][1], poses[-1][2] - poses[0][2]
-                return math.hypot(dx, dy) / (poses[-1][0] - poses[0][0]), source
+                d = [b - a for a, b in zip(poses[0][1:], poses[-1][1:])]
+                return math.hypot(*d) / (poses[-1][0] - poses[0][0]), source
         if self.speed_mps > 0:
             return self.speed_mps, 'given'
         return (math.nan if self.joint_cycles_ or self._gait is not None else 0.0), 'none'
