@@ -345,8 +345,14 @@ def _smooth_segments(t: FloatArray, y: FloatArray, n: int) -> FloatArray:
 
 
 def _windows(tm: FloatArray, window_s: float) -> list[NDArray[np.bool_]]:
-    """Masks of consecutive windows of ``window_s`` over gap-free mocap segments."""
+    """Masks of consecutive windows of ``window_s`` over gap-free mocap segments.
+
+    A window holds at least 8 samples: with motion capture slower than 120 Hz (60 Hz: 6
+    samples in 0.1 s) the windows are lengthened to 9 sample intervals instead of all being
+    dropped.
+    """
     dt = float(np.median(np.diff(tm)))
+    window_s = max(window_s, 9.0 * dt)
     breaks = np.flatnonzero(np.diff(tm) > 2.5 * dt)
     starts = np.concatenate([[0], breaks + 1])
     ends = np.concatenate([breaks + 1, [tm.size]])

@@ -74,12 +74,14 @@ def test_each_fault_counted_others_served(model, protocol, n):
     ids = list(range(1, n + 1))
     silent, corrupt, flagged, late = ids[0], ids[1], ids[2], ids[-1]
     with ServoBusEmulator.of_model(model, ids) as emu, \
-            DynamixelBus(emu.port_name, _joints(n), protocol=protocol, timeout_margin_ms=20.0,
+            DynamixelBus(emu.port_name, _joints(n), protocol=protocol, timeout_margin_ms=80.0,
                          retries=1, silent_after=3, probe_interval_cycles=5) as bus:
+        # (an 80 ms margin: a loaded machine delays the emulator thread's replies by tens of
+        # ms, which a 20 ms margin turned into extra timeouts and a failed cycle)
         emu.inject(silent, 'no_answer')
         emu.inject(corrupt, 'bad_checksum', count=1)
         emu.inject(flagged, 'error_bits', error_bits=0x20)      # overload
-        emu.inject(late, 'late_reply', count=1, delay_s=0.030)  # 1.5 x the deadline
+        emu.inject(late, 'late_reply', count=1, delay_s=0.120)  # 1.5 x the deadline
         results = [bus.poll() for _ in range(12)]
         h = {x.servo_id: x for x in bus.health()}
         assert h[silent].silent and h[silent].timeouts >= 3 and h[silent].reads_ok == 0
