@@ -247,6 +247,13 @@ def bench_phase_samples(
     if not segments:
         raise BagContentError(f'bag {data.path}: /bench/session never reports state walking')
     notes = list(data.notes)
+    tip_span = float(np.subtract(*np.nanpercentile(data.tip_z_m, [95, 5]))) \
+        if data.tip_z_m.size else 0.0
+    if tip_span > 1.0:
+        raise BagContentError(
+            f'bag {data.path}: /bench/leg_tip z spans {tip_span:.1f} between its 5th and 95th '
+            'percentiles, far beyond a leg\'s stroke: the positions look like millimetres '
+            '(the contract is metres, REP-103)')
     f_sign, why = force_sign_factor(data, segments, force_sign)
     if why:
         notes.append(why)

@@ -98,3 +98,11 @@ def test_force_sign_unchecked_without_a_static_session(bench):
     assert any('force sign not checked' in n for n in diag['notes'])
     with pytest.raises(ValueError, match='force sign'):
         bench_phase_samples(bench, force_sign='up')
+
+
+def test_leg_tip_in_millimetres_is_refused(bench):
+    from hexapod_energy.errors import BagContentError
+
+    mm = dataclasses.replace(bench, tip_z_m=1000.0 * bench.tip_z_m)
+    with pytest.raises(BagContentError, match='millimetres'):
+        bench_phase_samples(mm)
