@@ -235,8 +235,8 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
     """Analyse one bag; returns a JSON-able dict (``error`` set when the bag is refused)."""
     try:
         run = read_run(path)
-        body_up = options.get('body_up', 'z')
-        if body_up != 'z':
+        body_up = options.get('body_up', 'auto')
+        if body_up not in ('auto', 'z'):
             run = dataclasses.replace(
                 run, mocap_quat_xyzw=rotate_body(run.mocap_quat_xyzw, body_up),
                 notes=run.notes + (f'body orientation re-expressed with the rigid body\'s '
@@ -259,7 +259,8 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
                           edges=options.get('edges', 'paper'),
                           max_lateral_m=options.get('max_lateral', 0.05),
                           position_fit=options.get('position_fit', True), geometry=geometry,
-                          steady_only=options.get('steady_only', False))
+                          steady_only=options.get('steady_only', False),
+                          check_body_up=body_up == 'auto')
     except (SlipError, ValueError, OSError) as err:
         return {'bag': path, 'error': str(err)}
     notes = list(run.notes) + list(res.notes)
@@ -392,10 +393,13 @@ def add_cli(subparsers: Any) -> None:
                         "support), the paper's shifted clock edges, touchdown refined to the "
                         "hip-effort onset; 'auto': geometry when possible, else paper (the "
                         "paper's edges are always in runs[].paper_edges)")
-    p.add_argument('--body-up', choices=('z', 'x', 'y', '-x', '-y', '-z'), default='z',
-                   help="the motion-capture rigid body's axis that points up (default z; the "
-                        'rigid body\'s forward axis does not matter: the pitch is the up axis\'s '
-                        'tilt towards the run)')
+    p.add_argument('--body-up', choices=('auto', 'z', 'x', 'y', '-x', '-y', '-z'),
+                   default='auto',
+                   help="the motion-capture rigid body's axis that points up (default auto: z, "
+                        'and a run whose COM bounces across z rather than along it is refused '
+                        'naming the up axis; z: z without that check). The rigid body\'s '
+                        'forward axis does not matter: the pitch is the up axis\'s tilt towards '
+                        'the run')
     p.add_argument('--geometry', choices=('edubot', 'none'), default='edubot',
                    help="robot description for the geometric edges/offset: 'edubot' "
                         '(slip_identification.geometry.LegGeometry defaults, fields overridden by '

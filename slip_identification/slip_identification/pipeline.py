@@ -187,7 +187,8 @@ def _check_body_up(pm: FloatArray, up: FloatArray, label: str, t_s: FloatArray |
         f'run {label!r}: the COM bounces across the body\'s z axis, not along it '
         f'({np.std(av):.1f} m/s^2 RMS perpendicular to the travel and to the body z, '
         f'{np.std(au):.1f} along the body z): the rigid body\'s z is not the robot\'s up; its '
-        f'{axis} axis points up: --body-up {axis} (slip_fitter -p body_up:={axis})')
+        f'{axis} axis points up: --body-up {axis} (slip_fitter -p body_up:={axis}); '
+        '--body-up z keeps the z axis (a robot that sways more than it bounces)')
 
 
 def body_up_rotation(axis: str) -> FloatArray:
@@ -261,8 +262,12 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                 offset_s: float | str = 0.0, offset_lag_s: float = 0.0,
                 max_lateral_m: float = 0.05, position_fit: bool = True,
                 min_stance_s: float = 0.02, edges: str = 'auto',
-                geometry: LegGeometry | None = None, steady_only: bool = False) -> RunResult:
+                geometry: LegGeometry | None = None, steady_only: bool = False,
+                check_body_up: bool = True) -> RunResult:
     """Preprocess one run, extract single-tripod stances, fit each (see module docs).
+
+    ``check_body_up``: refuse a run whose body z axis does not look like the robot's up
+    (:func:`_check_body_up`); False when the user has said which body axis is up.
 
     ``offset_s``: seconds to subtract from mocap times, or a method to estimate it:
     ``'contact'`` (touchdowns from hip-effort onsets against touchdowns from the body height,
@@ -348,7 +353,8 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                             'permissible box, need >= 10')
     quats = np.asarray(run.mocap_quat_xyzw, dtype=float)[inside]
     up = _up_from_quats(quats)
-    _check_body_up(pm[inside], up, run.label, tm[inside], quats)
+    if check_body_up:
+        _check_body_up(pm[inside], up, run.label, tm[inside], quats)
     frame = fit_world_frame(pm[inside], up_mocap=up)
     pw = frame.to_world(pm[inside])
     check_straight(pw, max_lateral_m=max_lateral_m)
