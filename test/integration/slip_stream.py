@@ -27,7 +27,8 @@ from slip_identification.slip_node import SlipFitterNode
 
 from harness import Collector, ros_env
 
-__all__ = ['BOX', 'assert_same_fits', 'core_fits', 'events', 'js_msg', 'node_fits', 'pose_msg']
+__all__ = ['BOX', 'assert_same_fits', 'core_fits', 'events', 'js_msg', 'mocap_msg', 'node_fits',
+           'pose_msg']
 
 #: a box holding every mocap sample
 BOX = [-10.0, -10.0, -10.0, 10.0, 10.0, 10.0]
@@ -50,6 +51,11 @@ def pose_msg(t_s: float, p: Any, q: Any) -> PoseStamped:
     (m.pose.orientation.x, m.pose.orientation.y, m.pose.orientation.z,
      m.pose.orientation.w) = (float(v) for v in q)
     return m
+
+
+def mocap_msg(run: Any, i: int) -> tuple[str, PoseStamped]:
+    """``('mocap', PoseStamped)`` of the run's ``i``-th motion-capture sample."""
+    return 'mocap', pose_msg(run.mocap_t_s[i], run.mocap_position_m[i], run.mocap_quat_xyzw[i])
 
 
 def events(run: Any) -> list[tuple[float, int, int]]:

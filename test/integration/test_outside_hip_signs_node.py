@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 from rclpy.parameter import Parameter
 
-from slip_stream import assert_same_fits, core_fits, events, js_msg, node_fits, pose_msg
+from slip_stream import assert_same_fits, core_fits, events, js_msg, mocap_msg, node_fits
 
 edubot_sim = pytest.importorskip('hexapod_bench_drivers.edubot_sim')
 
@@ -18,8 +18,7 @@ def _messages(run, sign):
     out = []
     for _, kind, i in events(run):
         if kind == 1:
-            out.append(('mocap', pose_msg(run.mocap_t_s[i], run.mocap_position_m[i],
-                                          run.mocap_quat_xyzw[i])))
+            out.append(mocap_msg(run, i))
             continue
         t = float(run.t_s[i])
         out.append(('js', js_msg(names, t, k * run.hip_position_rad[i],
