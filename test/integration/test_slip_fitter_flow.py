@@ -25,18 +25,9 @@ from slip_identification.preprocess import Box
 from slip_identification.slip_node import SlipFitterNode
 
 from harness import Collector, ros_env
+from slip_stream import BOX, events, pose_msg
 
 edubot_sim = pytest.importorskip('hexapod_bench_drivers.edubot_sim')
-
-BOX = [-10.0, -10.0, -10.0, 10.0, 10.0, 10.0]
-
-
-def _events(run):
-    off = run.truth['clock_offset_s']
-    ev = [(float(t), 0, i) for i, t in enumerate(run.t_s)]
-    ev += [(float(t) - off, 1, i) for i, t in enumerate(run.mocap_t_s)]
-    ev.sort()
-    return ev
 
 
 def _js(names, t_s, velocity):
@@ -45,16 +36,6 @@ def _js(names, t_s, velocity):
     m.name = list(names)
     m.position = [0.0] * len(names)
     m.velocity = [float(v) for v in velocity]
-    return m
-
-
-def _pose(t_s, p, q):
-    m = PoseStamped()
-    m.header.stamp.sec, m.header.stamp.nanosec = s_to_stamp(t_s)
-    m.header.frame_id = 'mocap'
-    m.pose.position.x, m.pose.position.y, m.pose.position.z = (float(v) for v in p)
-    (m.pose.orientation.x, m.pose.orientation.y, m.pose.orientation.z,
-     m.pose.orientation.w) = (float(v) for v in q)
     return m
 
 
@@ -67,13 +48,13 @@ def test_slip_fitter_publishes_core_fits_for_a_simulated_run():
     # the reference: the core fed directly with the same (stamp-rounded) values
     core = OnlineSlip(box=Box(tuple(BOX[:3]), tuple(BOX[3:])), mocap_offset_s=off)
     expected = []
-    for _, kind, i in _events(run):
+    for _, kind, i in events(run):
         if kind == 0:
             t = stamp_to_s(_js(names, run.t_s[i], []).header.stamp)
             core.add_joint_state(t, names, run.hip_velocity_rad_s[i])
             core.add_command(t, names, run.target_velocity_rad_s[i])
         else:
-            t = stamp_to_s(_pose(run.mocap_t_s[i], [0, 0, 0], [0, 0, 0, 1]).header.stamp)
+            t = stamp_to_s(pose_msg(run.mocap_t_s[i], [0, 0, 0], [0, 0, 0, 1]).header.stamp)
             core.add_mocap(t, run.mocap_position_m[i], run.mocap_quat_xyzw[i])
             expected.extend(core.step())
     assert len(expected) >= 8
@@ -92,12 +73,12 @@ def test_slip_fitter_publishes_core_fits_for_a_simulated_run():
                               and pub_mo.get_subscription_count() > 0
                               and pub_cmd.get_subscription_count() > 0, 20.0)
         sent = 0
-        for _, kind, i in _events(run):
+        for _, kind, i in events(run):
             if kind == 0:
                 pubs = [(pub_js, _js(names, run.t_s[i], run.hip_velocity_rad_s[i])),
                         (pub_cmd, _js(names, run.t_s[i], run.target_velocity_rad_s[i]))]
             else:
-                pubs = [(pub_mo, _pose(run.mocap_t_s[i], run.mocap_position_m[i],
+                pubs = [(pub_mo, pose_msg(run.mocap_t_s[i], run.mocap_position_m[i],
                                        run.mocap_quat_xyzw[i]))]
             for pub, msg in pubs:
                 pub.publish(msg)
