@@ -21,6 +21,8 @@ supply_resistance   -I^2 [A^2], only when V falls with I          ``resistance_o
                                                                   ``power_coefficient_ohm``
 speed_friction      DRIVE_LOSS_FACTOR * v^2 [m^2/s^2]              ``c_n_s_per_m`` [N s/m]
 leg_anomaly         fraction of the window leg j is in stance     ``power_w`` [W], ``leg``
+carried_mass        dP_pred/dM, the bench model's mass            ``mass_kg`` [kg]
+                    sensitivity (undeclared payload)
 time_offset         (realignment, see :mod:`residuals`)           ``offset_s`` [s]
 model_offset        1, coefficient <= 0 (opt-in, not default)     ``offset_w`` [W]
 =================== ============================================ =============================
@@ -46,6 +48,7 @@ import numpy as np
 __all__ = [
     'DRIVE_LOSS_FACTOR',
     'BasalPower',
+    'CarriedMass',
     'EnergyEffect',
     'KinematicError',
     'LegAnomaly',
@@ -277,6 +280,31 @@ class LegAnomaly(EnergyEffect):
                 {'power_w': float(stderr[0])})
 
 
+class CarriedMass(EnergyEffect):
+    """The robot carries more than it was declared to (an undeclared payload, a heavier
+    battery, cables): ``P += mass_kg * dP_pred/dM`` [kg].
+
+    The regressor is the bench model's own sensitivity to the robot's mass, window by window
+    (``extra['mass_slope_w_per_kg']``: the central difference of the Eq. 1 prediction at the
+    declared mass, :func:`hexapod_energy.residuals.mass_slope_w_per_kg`), so the extra power
+    follows the gait as the bench says a heavier body would: more where fewer legs carry it.
+    First order in the extra mass: the bench's stance power is convex in load, so a large
+    undeclared mass is over-estimated (simulated AntBot: +0.5 kg reads +0.55 kg).
+    """
+
+    name, unit = 'carried_mass', 'kg'
+
+    def applicable(self, table: WindowTable) -> bool:
+        x = table.extra.get('mass_slope_w_per_kg')
+        return bool(x is not None and np.all(np.isfinite(x)) and np.any(x > 0))
+
+    def columns(self, table: WindowTable) -> np.ndarray:
+        return np.asarray(table.extra['mass_slope_w_per_kg'])[:, None]
+
+    def params(self, coef, stderr, table):  # type: ignore[no-untyped-def]
+        return {'mass_kg': float(coef[0])}, {'mass_kg': float(stderr[0])}
+
+
 class TimeOffset(EnergyEffect):
     """Clock offset of ``/battery_state`` against the other streams [s].
 
@@ -306,7 +334,7 @@ def default_catalogue(leg_names: tuple[str, ...] = ()) -> list[EnergyEffect]:
     physical effect of the robot; a caller who wants the transfer bias fitted adds it.
     """
     effects: list[EnergyEffect] = [BasalPower(), ThermalDrift(), KinematicError(),
-                                   SupplyResistance(), SpeedFriction()]
+                                   SupplyResistance(), SpeedFriction(), CarriedMass()]
     effects += [LegAnomaly(leg_index=j, leg=n) for j, n in enumerate(leg_names)]
     effects.append(TimeOffset())
     return effects

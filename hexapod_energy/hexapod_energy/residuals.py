@@ -93,6 +93,7 @@ class ResidualRun:
     lag_s: float = 0.0
     lag_stderr_s: float = math.nan
     predicted_w: np.ndarray | None = None
+    mass_slope_w_per_kg: np.ndarray | None = None
     joint_t_s: np.ndarray | None = None
     joint_features: np.ndarray | None = None
     joint_abs_effort: dict[str, tuple[np.ndarray, np.ndarray]] | None = None
@@ -388,6 +389,25 @@ def predict_run_w(run: ResidualRun, model: Any, *, total_mass_kg: float,
     return out
 
 
+#: half-width of the central difference of :func:`mass_slope_w_per_kg` [kg]
+MASS_STEP_KG = 0.1
+
+
+def mass_slope_w_per_kg(run: ResidualRun, model: Any, *, total_mass_kg: float,
+                        leg_mass_kg: float, load_offset_kg: float = 0.0) -> np.ndarray:
+    """Per-sample derivative of the Eq. 1 prediction with respect to the robot's total mass
+    [W/kg], (n,): the central difference of :func:`predict_run_w` over +-
+    :data:`MASS_STEP_KG` (the regressor of :class:`CarriedMass`)."""
+    kw = {'leg_mass_kg': leg_mass_kg, 'load_offset_kg': load_offset_kg}
+    hi = predict_run_w(run, model, total_mass_kg=total_mass_kg + MASS_STEP_KG, **kw)
+    lo = predict_run_w(run, model, total_mass_kg=max(total_mass_kg - MASS_STEP_KG,
+                                                     leg_mass_kg * run.in_stance.shape[1]),
+                       **kw)
+    span = total_mass_kg + MASS_STEP_KG - max(total_mass_kg - MASS_STEP_KG,
+                                              leg_mass_kg * run.in_stance.shape[1])
+    return (hi - lo) / span
+
+
 #: LOWESS spans the bench model of the loop chooses from, per phase, by cross-validation
 BENCH_SPANS = (0.3, 0.4, 0.5, 0.6, 0.8, 0.9)
 
@@ -483,6 +503,9 @@ def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = Non
         'speed_mps', 'current_sq_a2', 'temp_excess_k', 'stance_fraction')}
     extra: dict[str, list[float]] = {'supply_dv_v': [], 'supply_sat_v2': [],
                                      'saturated_drives': []}
+    with_slope = all(r.mass_slope_w_per_kg is not None for r in runs)
+    if with_slope:
+        extra['mass_slope_w_per_kg'] = []
     slope, se = _lagged_slope(runs)
     sat_counts = saturated_drive_count(runs)
     for ri, r in enumerate(runs):
@@ -510,6 +533,8 @@ def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = Non
         sub_extra = {'supply_dv_v': r.voltage_v - v_s,
                      'supply_sat_v2': sat_counts[ri] * (r.voltage_v ** 2 - v_s ** 2),
                      'saturated_drives': sat_counts[ri]}
+        if with_slope:
+            sub_extra['mass_slope_w_per_kg'] = r.mass_slope_w_per_kg
         for w in np.unique(inv[full]):
             m = inv == w
             m &= full
@@ -635,6 +660,12 @@ class EffectSelection:
     max_collinearity : float
         A later effect whose fitted contribution correlates with the earlier effects' by at
         least this (absolute) is reported as collinear with them (not removed).
+    alternative_share : float
+        Another candidate that passes both thresholds in the round an effect is added, and
+        removes at least this share of the held-out error the added effect removes, is
+        reported as an alternative explanation of the same residual (``alternatives_``): the
+        runs cannot tell the two apart (an undeclared payload and a kinematic error both grow
+        with step frequency on tripod runs alone).
 
     Fitted attributes
     -----------------
@@ -642,6 +673,8 @@ class EffectSelection:
     coef_ : (k,) coefficients of the selected effects' columns
     candidates_ : list of dict (name, heldout_rmse, delta_bic, selected, params, stderr)
     rmse_heldout_before_, rmse_heldout_after_ : float [W]
+    alternatives_ : dict name -> list of dict (name, heldout_rmse, params, stderr, share), per
+        added effect the other candidates that explained its round's residual nearly as well
     collinearity_ : list of dict (name, earlier, correlation, collinear), one per effect added
         after the first: its fitted contribution against the earlier effects' (selection is
         not changed by it; the report says when the runs cannot tell them apart)
@@ -651,6 +684,7 @@ class EffectSelection:
     min_delta_bic: float = 10.0
     min_improvement: float = 0.05
     max_collinearity: float = 0.9
+    alternative_share: float = 0.9
     history_: list[dict[str, Any]] = field(default_factory=list, repr=False)
 
     def _fit(self, effects: Sequence[EnergyEffect], table: WindowTable, train: np.ndarray
@@ -699,8 +733,10 @@ class EffectSelection:
         rmse0 = float(np.sqrt(np.mean((y[held] - term0[held]) ** 2)))
         cur_rmse, cur_bic = rmse0, _bic(sse, n, 0)
         records: dict[int, dict[str, Any]] = {}
+        alternatives: dict[str, list[dict[str, Any]]] = {}
         while True:
             best: tuple[float, int, float] | None = None
+            passing: dict[int, dict[str, Any]] = {}
             for ci, e in enumerate(cands):
                 if e in selected:
                     continue
@@ -717,11 +753,27 @@ class EffectSelection:
                 # for the leg candidates keep the best leg
                 records[ci] = rec if prev is None or not prev['selected'] else prev
                 ok = dbic < -self.min_delta_bic and rmse < cur_rmse * (1 - self.min_improvement)
+                if ok:
+                    passing[ci] = rec
                 if ok and (best is None or rmse < best[0]):
                     best = (rmse, ci, dbic)
             if best is None:
                 break
             rmse, ci, dbic = best
+            gain = cur_rmse - rmse
+            alts: dict[str, dict[str, Any]] = {}
+            for cj, rec in passing.items():
+                share = (cur_rmse - rec['heldout_rmse']) / gain if gain > 0 else 0.0
+                name = cands[cj].name
+                if cj == ci or name == cands[ci].name or share < self.alternative_share:
+                    continue
+                if name not in alts or rec['heldout_rmse'] < alts[name]['heldout_rmse']:
+                    alts[name] = {'name': name, 'heldout_rmse': rec['heldout_rmse'],
+                                  'params': rec['params'], 'stderr': rec['stderr'],
+                                  'share': float(share)}
+            if alts:
+                alternatives[cands[ci].name] = sorted(alts.values(),
+                                                      key=lambda a: a['heldout_rmse'])
             selected.append(cands[ci])
             records[ci]['selected'] = True
             cur_rmse, cur_bic = rmse, cur_bic + dbic
@@ -744,6 +796,7 @@ class EffectSelection:
                             'note': 'not applicable to these bags (regressor absent or '
                                     'constant)'})
         self.selected_ = selected
+        self.alternatives_ = alternatives
         self.coef_ = coef
         self.stderr_ = se
         self.term_w_ = term
@@ -789,6 +842,10 @@ def energy_loop_document(table: WindowTable, sel: EffectSelection,
     candidates = list(sel.candidates_)
     added_params = [{'name': e.name, 'params': p, 'stderr': s}
                     for e, (p, s) in zip(sel.selected_, sel.final_params_)]
+    for a in added_params:
+        alts = getattr(sel, 'alternatives_', {}).get(a['name'])
+        if alts:
+            a['alternatives'] = alts
     for a, c in zip(added_params[1:], getattr(sel, 'collinearity_', [])):
         a['collinearity'] = {'with': c['earlier'], 'correlation': c['correlation'],
                              'collinear': c['collinear']}
@@ -848,13 +905,22 @@ def summary_text(doc: dict[str, Any]) -> str:
                             f'{unit}).')
         return intro + ('No candidate effect lowered the held-out error significantly, so none '
                         f"was added (held-out RMSE {h['rmse_before']:.3g} {unit}).")
-    parts, doubts = [], []
+    def fmt(params: dict[str, Any], stderr: dict[str, Any]) -> str:
+        return ', '.join(f'{k} = {v:.4g} +/- {stderr.get(k, float("nan")):.2g}'
+                         if isinstance(v, float) else f'{k} = {v}'
+                         for k, v in params.items() if k != 'same_stance_as')
+
+    parts, doubts, others = [], [], []
     for a in doc.get('added_params', []):
         if a['name'] == 'time_offset':
             continue
-        ps = ', '.join(f'{k} = {v:.4g} +/- {a["stderr"].get(k, float("nan")):.2g}'
-                       if isinstance(v, float) else f'{k} = {v}'
-                       for k, v in a['params'].items() if k != 'same_stance_as')
+        ps = fmt(a['params'], a['stderr'])
+        if a.get('alternatives'):
+            alt = ' or '.join(f"{x['name']} ({fmt(x['params'], x['stderr'])}; held-out "
+                              f"{x['heldout_rmse']:.3g} {unit})" for x in a['alternatives'])
+            others.append(f"The same residual is explained nearly as well by {alt}: these runs "
+                          f"cannot tell it from {a['name']}; runs that differ in what the two "
+                          'depend on (gait, duty factor, load, standing) would.')
         coll = a.get('collinearity') or {}
         if coll.get('collinear'):
             earlier = ' and '.join(coll['with'])
@@ -869,7 +935,7 @@ def summary_text(doc: dict[str, Any]) -> str:
     out = intro + (f"The model missed {' and '.join(parts)}; adding "
                    f"{'it' if len(parts) == 1 else 'them'}{with_} reduced held-out error from "
                    f"{h['rmse_before']:.3g} to {h['rmse_after']:.3g} {unit}.")
-    return ' '.join([out] + [d for _, d in doubts])
+    return ' '.join([out] + [d for _, d in doubts] + others)
 
 
 def _bench_temperature_c(bench_bags: Sequence[str | Path]) -> float | None:
@@ -932,10 +998,14 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
     from hexapod_energy.prediction import RobotSpec
 
     spec = (robot_spec_cls or RobotSpec)(mass_kg=robot_mass_kg)
+    total_kg = spec.total_mass_kg(payload_kg)
     for r in runs:
-        r.predicted_w = predict_run_w(r, model, total_mass_kg=spec.total_mass_kg(payload_kg),
+        r.predicted_w = predict_run_w(r, model, total_mass_kg=total_kg,
                                       leg_mass_kg=spec.leg_mass_kg,
                                       load_offset_kg=load_offset_kg)
+        r.mass_slope_w_per_kg = mass_slope_w_per_kg(r, model, total_mass_kg=total_kg,
+                                                    leg_mass_kg=spec.leg_mass_kg,
+                                                    load_offset_kg=load_offset_kg)
     view = None
     if all(r.joint_features is not None for r in runs):
         try:

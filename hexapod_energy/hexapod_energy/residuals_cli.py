@@ -16,7 +16,16 @@ SLIP, SLIP + leg damping and SLIP + hip torque (:mod:`slip_identification.residu
     {"model": "energy"|"slip", "unit": "W"|"nerr", "baseline": {"rmse", "mae", "bias"},
      "candidates": [{"name", "heldout_rmse", "delta_bic", "selected", "params", "stderr"}],
      "effects_added": [names in order], "final": {"rmse", "mae", "bias"},
-     "heldout": {"rmse_before", "rmse_after"}, "summary": "plain words", "plots": [...], ...}
+     "heldout": {"rmse_before", "rmse_after"}, "summary": "plain words", "plots": [...],
+     "added_params": [{"name", "params", "stderr", "alternatives"?: [{"name", "heldout_rmse",
+                       "params", "stderr", "share"}], "collinearity"?: {...}}], ...}
+
+``alternatives`` (energy): other candidates that explained the same residual nearly as well
+(at least 90 % of the held-out error the added effect removed): the runs cannot tell them
+apart, and the summary says so. Energy candidates: ``basal_power``, ``thermal_drift``,
+``kinematic_error``, ``supply_resistance``, ``speed_friction``, ``carried_mass`` (an undeclared
+payload, in kg, from the bench model's own mass sensitivity), ``leg_anomaly`` (per leg) and
+``time_offset`` (:mod:`hexapod_energy.effects_catalogue`).
 
 Energy residuals are measured minus predicted ``P_in`` per half gait cycle [W] (``bias`` is
 their mean); SLIP residuals are the per-stance nerr. Exit codes: 0 success, 2 bad input (missing
