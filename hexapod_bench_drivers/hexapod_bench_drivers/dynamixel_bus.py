@@ -4,7 +4,9 @@ What it does, per cycle (:meth:`DynamixelBus.poll`):
 
 1. Reads present position, speed, load, voltage and temperature of every servo in one block per
    servo: a Sync Read on Protocol 2.0 (one instruction, every servo answers in turn), single
-   READs on Protocol 1.0 (AX servos have neither Sync Read nor Bulk Read).
+   READs on Protocol 1.0 (AX servos have neither Sync Read nor Bulk Read), and on a Protocol
+   2.0 bus that answers single READs but never a Sync Read (given up after
+   :data:`SYNC_READ_GIVE_UP` cycles, noted once).
 2. Counts every timeout, corrupt reply (checksum/CRC) and retry per servo; a servo that fails
    ``silent_after`` cycles in a row is marked silent, dropped from the cycle (so it no longer
    costs a timeout per cycle) and probed again every ``probe_interval_cycles``.
@@ -146,6 +148,10 @@ def load_joint_map(path: str | Path) -> tuple[JointConfig, ...]:
     return parse_joint_map(data or {})
 
 
+#: cycles in a row with single READs answered but no Sync Read before the bus stops trying it
+SYNC_READ_GIVE_UP = 3
+
+
 class FastPortHandler(PortHandler):
     """PortHandler with a short reply deadline that sleeps in ``select`` rather than spinning.
 
@@ -278,6 +284,12 @@ class DynamixelBus:
         self._by_id = {s.joint.servo_id: s for s in self.servos}
         self._by_name = {s.joint.name: s for s in self.servos}
         self.cycle = 0
+        #: Protocol 2.0: read with Sync Read; cleared (see :meth:`read_all`) on a bus whose
+        #: servos answer single READs but never a Sync Read
+        self.sync_read = self.protocol == 2
+        self._sync_unanswered = 0
+        #: one-line events of the bus a node should log once (drained by :meth:`take_notes`)
+        self.notes: list[str] = []
         self.aborted = False
         self.abort_reason = ''
         self.is_open = False
@@ -420,19 +432,21 @@ class DynamixelBus:
         self.cycle += 1
         active = self._active()
         raw: dict[int, tuple[list[int], int]] = {}
-        if self.protocol == 2 and active:
+        synced = self.protocol == 2 and self.sync_read and bool(active)
+        if synced:
             blocks: dict[tuple[int, int], list[_Servo]] = {}
             for s in active:
                 assert s.table is not None
                 blocks.setdefault(s.table.read_block, []).append(s)
             for (start, length), group in blocks.items():
                 raw.update(self._sync_read(group, start, length))
+        sync_answered = bool(raw)
         for s in active:
             sid = s.joint.servo_id
             assert s.table is not None
             if sid in raw:
                 continue
-            if self.protocol == 2:
+            if synced:
                 # The sync reply was lost or corrupt: this is a retry.
                 if self.retries == 0:
                     continue
@@ -443,6 +457,8 @@ class DynamixelBus:
                 data, err = self._read_single(s, *s.table.read_block, attempts=attempts)
             if data is not None:
                 raw[sid] = (data, err)
+        if synced:
+            self._note_sync_support(sync_answered, single_answered=bool(raw))
         readings = []
         for s in self.servos:
             sid = s.joint.servo_id
@@ -474,6 +490,26 @@ class DynamixelBus:
                 load_fraction=j.direction * st.load_fraction,
                 voltage_v=st.voltage_v, temperature_c=st.temperature_c, error_flags=flags))
         return tuple(readings)
+
+    def _note_sync_support(self, sync_answered: bool, single_answered: bool) -> None:
+        """A bus whose servos answer single READs but no Sync Read for
+        :data:`SYNC_READ_GIVE_UP` cycles in a row (an adapter or emulator without the
+        instruction, firmware that lacks it) is read servo by servo from then on, noted once:
+        each cycle would otherwise wait out a Sync Read deadline first."""
+        if sync_answered or not single_answered:
+            self._sync_unanswered = 0
+            return
+        self._sync_unanswered += 1
+        if self._sync_unanswered >= SYNC_READ_GIVE_UP:
+            self.sync_read = False
+            self.notes.append(
+                f'no servo answered Sync Read in {SYNC_READ_GIVE_UP} cycles in a row while '
+                'single READs were answered: reading the servos one by one from now on')
+
+    def take_notes(self) -> list[str]:
+        """The bus events noted since the last call (each returned once)."""
+        out, self.notes = self.notes, []
+        return out
 
     def poll(self) -> PollResult:
         """read_all() then the temperature safety check (torque off and abort)."""

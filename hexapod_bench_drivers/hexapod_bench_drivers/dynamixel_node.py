@@ -109,6 +109,8 @@ class DynamixelDriverNode(Node):
     # --- callbacks -------------------------------------------------------------------------
     def _on_timer(self) -> None:
         self._publish(self.bus.poll())
+        for note in self.bus.take_notes():
+            self.get_logger().warning(note)
 
     def _on_command(self, msg: JointState) -> None:
         try:

@@ -33,10 +33,14 @@ the joints), else the run has no prediction and is left out of ``prediction_erro
                 "sessions", "notes" (dropped messages)}], "fit": {"spans", "chosen": {"stance", "swing"},
                 "cv_rmse_w": {"stance": {"lowess", "poly"}, "swing": {...}},
                 "fit_rmse_w": {"stance", "swing"}, "basal_power_w": {"<load kg>": W},
+                "domain": {"stance"|"swing": {"rate_hz": [lo, hi], "load_kg": [lo, hi]}}
+                (the sessions' range; rate = 1 / T_phase),
                 "sessions": [PhaseSample fields]}},
       "robot_runs": [{"bag", "gait", "leg_count", "duty_factor", "period_s", "step_length_m",
                       "payload_kg", "mass_kg", "windows", "window_s",
                       "measured_power_in_w", "predicted_power_in_w", "residual_w",
+                      "prediction_outside_bench" [str] (where Eq. 1 read the surfaces
+                      beyond the bench's sessions; empty inside; also a warning),
                       "power_out_w", "power_out_source" ("effort" | "model" | "none";
                       --power-out), "power_out_effort_w" (nan/null without efforts),
                       "power_out_model_w", "efficiency", "speed" [m/s],
@@ -47,10 +51,13 @@ the joints), else the run has no prediction and is left out of ``prediction_erro
       "prediction_error": {"runs" (runs with a prediction), "rmse_w", "mae_w",
                            "bias_w" (mean predicted - measured),
                            "mean_power_w", "relative_rmse", "max_abs_relative"},
-      "sweeps": {"<sweep name>": [SweepCurve.to_dict()]},     # with --sweep
+      "sweeps": {"<sweep name>": [SweepCurve.to_dict()]},     # with --sweep; each curve's
+                  # "outside_bench" (n_speed x n_payload bool) marks extrapolated points
+                  # (dotted in the plots), "outside_bench_reasons" says how
       "power_map": {"speeds_mps", "payloads_kg", "power_out_w" (n_speed x n_payload),
                     "seconds"},                               # with --sweep
-      "recommendation": Recommendation.to_dict(),             # with --recommend
+      "recommendation": Recommendation.to_dict(),             # with --recommend; only
+                  # configurations inside the bench's domain unless none is ("note")
       "warnings": [str],                                      # when any
       "failed_bags": [{"bag", "error"}],   # robot bags refused (the others are analysed;
                                            # all refused: exit 2)
@@ -204,7 +211,12 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
 
     from hexapod_energy.bag_io import bench_phase_samples, read_bench_bag, read_robot_bag
     from hexapod_energy.metrics import descriptors
-    from hexapod_energy.prediction import OutputPowerModel, RobotSpec, predict_power_in_w
+    from hexapod_energy.prediction import (
+        OutputPowerModel,
+        RobotSpec,
+        bench_domain_check,
+        predict_power_in_w,
+    )
     from hexapod_energy.single_leg import SingleLegModel
 
     if args.recommend and (args.speed is None or args.speed <= 0):
@@ -264,11 +276,19 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             predicted = p_model = math.nan
             if gait is not None and model is None:
                 notes.append('no bench bags (--bench): no Eq. 1 prediction')
+            outside: list[str] = []
             if gait is not None and model is not None:
                 predicted = float(predict_power_in_w(model, gait, total_mass_kg=mass,
                                                      leg_mass_kg=robot.leg_mass_kg,
                                                      swing_load=args.swing_load,
                                                      load_offset_kg=args.load_offset))
+                outside = bench_domain_check(model, gait, total_mass_kg=mass,
+                                             leg_mass_kg=robot.leg_mass_kg,
+                                             swing_load=args.swing_load,
+                                             load_offset_kg=args.load_offset)[0]
+                if outside:
+                    notes.append('the Eq. 1 prediction extrapolates the bench surfaces: ' +
+                                 '; '.join(outside))
             if gait is not None:
                 try:
                     p_model = float(opm.power_out_w(gait, payload_kg=payload))
@@ -305,6 +325,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 'windows': run_.windows, 'window_s': run_.window_s,
                 'measured_power_in_w': run_.power_in_w, 'predicted_power_in_w': predicted,
                 'residual_w': run_.power_in_w - predicted,
+                'prediction_outside_bench': outside,
                 'power_out_w': p_out, 'power_out_source': source, 'power_out_model_w': p_model,
                 'power_out_effort_w': run_.power_out_w,
                 'efficiency': d.efficiency, 'speed': d.speed_mps,
@@ -347,6 +368,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             rec = recommend_gait(model, opm, speed_mps=args.speed, payload_kg=args.payload,
                                  load_offset_kg=args.load_offset)
             doc['recommendation'] = rec.to_dict()
+            if rec.note:
+                doc.setdefault('warnings', []).append(f'recommendation: {rec.note}')
             bar.update(1)
     finally:
         bar.close()

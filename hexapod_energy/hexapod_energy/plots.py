@@ -55,15 +55,24 @@ def four_quadrant_plot(
         v = np.repeat(curve.speeds_mps[:, None], m, axis=1)
         eta = curve.efficiency * 100.0
         p_out, cot = curve.power_out_w, curve.cot_per_mass
+        out = curve.outside_bench[:, 0] if curve.outside_bench is not None else \
+            np.zeros(len(curve.speeds_mps), bool)
         for ax, x, y in ((ax1, v, p_out), (ax2, eta, p_out), (ax3, eta, cot), (ax4, v, cot)):
             _band(ax, x, y, col)
-            ax.plot(x[:, 0], y[:, 0], color=col, label=curve.spec.label if ax is ax1 else None)
+            # solid where the bench's sessions cover the point, dotted where Eq. 1 extrapolates
+            inside = np.where(out, np.nan, y[:, 0])
+            ax.plot(x[:, 0], inside, color=col, label=curve.spec.label if ax is ax1 else None)
+            if out.any():
+                edge = out | np.convolve(out, [1, 1, 1], 'same').astype(bool)
+                ax.plot(x[:, 0], np.where(edge, y[:, 0], np.nan), ':', color=col)
         pts = curve.optimal_points()
         for key, color in _MARKERS.items():
             i = int(np.argmin(np.abs(curve.speeds_mps - pts[key]['speed_mps'])))
             for ax, x, y in ((ax1, v, p_out), (ax2, eta, p_out), (ax3, eta, cot),
                              (ax4, v, cot)):
                 ax.plot(x[i, 0], y[i, 0], 'x', color=color, markersize=8, mew=2)
+    if any(c.outside_bench is not None and c.outside_bench[:, 0].any() for c in curves):
+        ax1.plot([], [], ':', color='0.3', label='outside the bench (extrapolated)')
     ax2.invert_xaxis()
     ax3.invert_yaxis()
     ax1.set_ylabel('')

@@ -41,6 +41,7 @@ __all__ = [
     'OutputPowerModel',
     'PhasePowerModel',
     'RobotSpec',
+    'bench_domain_check',
     'carried_mass_profile_kg',
     'phase_path',
     'predict_power_in_w',
@@ -150,6 +151,45 @@ def predict_power_in_w(
             term += (n_legs - big_l) * model.p_swing_w(t_sw, m_sw)
         total += w * term
     return float(total[0]) if scalar else total
+
+
+def bench_domain_check(
+    model: Any,
+    gait: Any,
+    *,
+    total_mass_kg: float,
+    leg_mass_kg: float = ANTBOT_LEG_SPEC.leg_mass_kg,
+    periods_s: ArrayLike | None = None,
+    swing_load: Literal['zero', 'carried'] = 'zero',
+    load_offset_kg: float = 0.0,
+) -> list[list[str]]:
+    """Where :func:`predict_power_in_w` reads the surfaces outside the bench's sessions.
+
+    One list of reasons per period (``gait.period_s``, or each of ``periods_s``): the stance
+    and swing durations and every stance load ``m_c(L) - offset`` of the support profile, each
+    checked with ``model.outside_domain``; empty lists when all is inside. A model without
+    ``outside_domain`` (not a fitted :class:`~hexapod_energy.single_leg.SingleLegModel`) is
+    never flagged.
+    """
+    periods = np.atleast_1d(np.asarray(gait.period_s if periods_s is None else periods_s,
+                                       dtype=float))
+    check = getattr(model, 'outside_domain', None)
+    if check is None:
+        return [[] for _ in periods]
+    _, supporting = gait.support_profile()
+    loads = sorted({max(float(_carried(total_mass_kg, leg_mass_kg, np.array([big_l]))[0]) -
+                        float(load_offset_kg), 0.0) for big_l in supporting if big_l > 0}) \
+        or [0.0]
+    swing_loads = loads if swing_load == 'carried' else [0.0]
+    beta = gait.duty_factor
+    out = []
+    for period in periods:
+        t_st, t_sw = beta * period, (1.0 - beta) * period
+        reasons = check('stance', t_st, loads[0]) + check('swing', t_sw, swing_loads[0])
+        for m in loads[1:]:
+            reasons += [r for r in check('stance', t_st, m) if 'load' in r]
+        out.append(list(dict.fromkeys(reasons)))
+    return out
 
 
 def carried_mass_profile_kg(

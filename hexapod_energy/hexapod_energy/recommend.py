@@ -5,7 +5,9 @@ Candidates: every gait name in ``gaits`` x duty factor in ``duty_factors`` x ste
 target speed (``T = step_length / (beta v)``) satisfies the actuator limits
 (:func:`hexapod_gait.feasibility.check_feasible`), the body is always supported
 (``min L(t) >= min_supporting_legs``) and its leg path is reachable.  The one with the lowest
-``CoT/M = (P_in - P_out) / (M v)`` wins; the saving is reported against the default gait
+``CoT/M = (P_in - P_out) / (M v)`` among those whose phase durations and loads lie within the
+bench's sessions wins (configurations that would extrapolate the surfaces are counted in
+``outside_bench`` and only used, with a note, when no other is feasible); the saving is reported against the default gait
 (tripod/alternating, beta 0.5, 100 mm) at the same speed and payload, when that one is feasible.
 """
 
@@ -18,7 +20,12 @@ from typing import Any
 import numpy as np
 
 from hexapod_energy.errors import InvalidInputError
-from hexapod_energy.prediction import OutputPowerModel, PhasePowerModel, predict_power_in_w
+from hexapod_energy.prediction import (
+    OutputPowerModel,
+    PhasePowerModel,
+    bench_domain_check,
+    predict_power_in_w,
+)
 
 __all__ = ['Candidate', 'Recommendation', 'recommend_gait']
 
@@ -36,6 +43,7 @@ class Candidate:
     power_out_w: float
     efficiency: float
     specific_cost_of_transport: float
+    outside_bench: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -49,9 +57,13 @@ class Recommendation:
     saving_fraction: float | None  # 1 - CoT/M(best) / CoT/M(default)
     evaluated: int
     rejected: int
+    outside_bench: int = 0
+    note: str = ''
 
     def to_dict(self) -> dict[str, Any]:
         return {
+            'outside_bench': self.outside_bench,
+            'note': self.note,
             'speed_mps': self.speed_mps,
             'payload_kg': self.payload_kg,
             'best': asdict(self.best),
@@ -82,10 +94,13 @@ def _evaluate(
                                         leg_mass_kg=output_power.robot.leg_mass_kg,
                                         load_offset_kg=load_offset_kg))
         p_out = float(output_power.power_out_w(gait, payload_kg=payload))
+        outside = bench_domain_check(phase_power, gait, total_mass_kg=total,
+                                     leg_mass_kg=output_power.robot.leg_mass_kg,
+                                     load_offset_kg=load_offset_kg)[0]
     except ValueError:  # infeasible, invalid gait or unreachable path: not a candidate
         return None
     return Candidate(name, legs, beta, step_m, period, p_in, p_out, p_out / p_in,
-                     (p_in - p_out) / (total * speed))
+                     (p_in - p_out) / (total * speed), tuple(outside))
 
 
 def recommend_gait(
@@ -116,7 +131,8 @@ def recommend_gait(
     lim = ANTBOT_LIMITS if limits is None else limits
     min_sup = min(min_supporting_legs, leg_count // 2)
     best: Candidate | None = None
-    evaluated = rejected = 0
+    best_outside: Candidate | None = None
+    evaluated = rejected = outside = 0
     for name in gaits:
         if name == 'tetrapod' and leg_count != 6:
             continue
@@ -129,9 +145,23 @@ def recommend_gait(
                     rejected += 1
                     continue
                 evaluated += 1
-                if best is None or cand.specific_cost_of_transport < \
+                if cand.outside_bench:
+                    outside += 1
+                    if best_outside is None or cand.specific_cost_of_transport < \
+                            best_outside.specific_cost_of_transport:
+                        best_outside = cand
+                elif best is None or cand.specific_cost_of_transport < \
                         best.specific_cost_of_transport:
                     best = cand
+    note = ''
+    if best is None and best_outside is not None:
+        best = best_outside
+        note = ('every feasible configuration reads the bench surfaces outside their sessions '
+                f'({"; ".join(best.outside_bench)}): the recommendation is an extrapolation; '
+                'measure the bench at these phase durations and loads')
+    elif outside:
+        note = (f'{outside} feasible configurations read the bench surfaces outside their '
+                'sessions and were not considered (their predicted power is an extrapolation)')
     if best is None:
         raise InvalidInputError(
             f'no feasible gait reaches {speed_mps} m/s within the actuator limits '
@@ -141,4 +171,5 @@ def recommend_gait(
                         phase_power, output_power, lim, min_sup, load_offset_kg)
     saving = None if default is None else \
         1.0 - best.specific_cost_of_transport / default.specific_cost_of_transport
-    return Recommendation(speed_mps, payload_kg, best, default, saving, evaluated, rejected)
+    return Recommendation(speed_mps, payload_kg, best, default, saving, evaluated, rejected,
+                          outside, note)

@@ -52,6 +52,14 @@ __all__ = [
 ]
 
 
+#: a prediction is outside a surface's measured domain when its phase duration lies beyond
+#: the sessions' shortest or longest by more than this fraction of it, or its load beyond
+#: their range by more than this fraction of the range's width (a local-linear
+#: surface carried that little further is still its own slope; AntBot's tripod with the paper's
+#: load convention carries 0.562 kg per stance leg against the bench's largest 0.515 kg load,
+#: 9 % of the range beyond it)
+DOMAIN_TOLERANCE = 0.10
+
 # ----------------------------------------------------------------------------- phase split
 
 
@@ -447,6 +455,9 @@ class SingleLegModel:
     cv_rmse_w_ : {'stance': {kind: rmse}, 'swing': {...}}  [W]
     fit_rmse_w_ : {'stance': rmse, 'swing': rmse}  in-sample [W]
     basal_power_w_ : {load_kg: mean power of its 0 Hz session}  [W]
+    domain_ : {'stance'|'swing': {'rate_hz': (lo, hi), 'load_kg': (lo, hi)}}, the measured
+        range of each surface's sessions (``rate = 1 / T_phase``); :meth:`outside_domain`
+        says how far a prediction reaches beyond it
     """
 
     spans: tuple[float, float] = (0.8, 0.9)
@@ -474,6 +485,7 @@ class SingleLegModel:
         cols = PhaseSamples.from_samples(samples)
         self.samples_ = list(samples)
         self._fits = {}
+        self.domain_: dict[str, dict[str, tuple[float, float]]] = {}
         moving = cols.frequency_hz > 0
         for phase, rate, y, keep in (
             ('stance', cols.stance_rate_hz, cols.p_stance_w,
@@ -482,6 +494,8 @@ class SingleLegModel:
         ):
             x = np.stack([rate, cols.load_kg], axis=1)[keep]
             y = y[keep]
+            self.domain_[phase] = {'rate_hz': (float(x[:, 0].min()), float(x[:, 0].max())),
+                                   'load_kg': (float(x[:, 1].min()), float(x[:, 1].max()))}
             cv = {
                 kind: cross_validated_rmse(
                     self._factory(kind, phase), x, y, folds=self.folds, seed=self.seed
@@ -531,6 +545,33 @@ class SingleLegModel:
         """Average swing power [W] for swing durations [s] and loads [kg] (broadcast)."""
         return self._predict('swing', t_swing_s, load_kg)
 
+    def outside_domain(self, phase: str, t_phase_s: float, load_kg: float) -> list[str]:
+        """What of ``(T_phase, load)`` lies beyond the bench's measured range of ``phase``,
+        in words (empty when inside; :data:`DOMAIN_TOLERANCE` says how far beyond counts).
+
+        The surfaces are local fits in ``1 / T_phase`` and load: outside the sessions' range
+        they extrapolate linearly (LOWESS) or by their polynomial, which the cross-validation
+        never tested.
+        """
+        dom = self._domain(phase)
+        out = []
+        rate = 1.0 / t_phase_s if t_phase_s > 0 else math.inf
+        lo, hi = dom['rate_hz']
+        if rate < lo / (1.0 + DOMAIN_TOLERANCE) or rate > hi * (1.0 + DOMAIN_TOLERANCE):
+            slow = 1.0 / lo if lo > 0 else math.inf
+            out.append(f'{phase} {t_phase_s:.3g} s outside the bench\'s '
+                       f'{1.0 / hi:.3g}-{slow:.3g} s')
+        lo, hi = dom['load_kg']
+        tol = DOMAIN_TOLERANCE * max(hi - lo, 1e-9)
+        if load_kg < lo - tol or load_kg > hi + tol:
+            out.append(f'{phase} load {load_kg:.3g} kg outside the bench\'s '
+                       f'{lo:.3g}-{hi:.3g} kg')
+        return out
+
+    def _domain(self, phase: str) -> dict[str, tuple[float, float]]:
+        self._fit(phase)
+        return self.domain_[phase]
+
     def basal_power_at_w(self, load_kg: float) -> float:
         """Basal power interpolated over the 0 Hz sessions' loads [W] (nan without any)."""
         if not self.basal_power_w_:
@@ -546,6 +587,7 @@ class SingleLegModel:
             'cv_rmse_w': self.cv_rmse_w_,
             'fit_rmse_w': self.fit_rmse_w_,
             'basal_power_w': {f'{k:.3f}': v for k, v in self.basal_power_w_.items()},
+            'domain': {p: {k: list(v) for k, v in d.items()} for p, d in self.domain_.items()},
             'sessions': [asdict(s) for s in self.samples_],
         }
 

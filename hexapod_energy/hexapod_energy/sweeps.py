@@ -20,7 +20,12 @@ import numpy as np
 
 from hexapod_energy.errors import InvalidInputError
 from hexapod_energy.metrics import G_MPS2
-from hexapod_energy.prediction import OutputPowerModel, PhasePowerModel, predict_power_in_w
+from hexapod_energy.prediction import (
+    OutputPowerModel,
+    PhasePowerModel,
+    bench_domain_check,
+    predict_power_in_w,
+)
 
 __all__ = [
     'DEFAULT_PAYLOADS_KG',
@@ -80,6 +85,9 @@ class SweepCurve:
     mass_kg : (m,)          total robot mass per payload [kg]
     power_in_w, power_out_w, efficiency, cot_per_mass, specific_resistance : (k, m)
         ``cot_per_mass`` = CoT/M [J/(m kg)].
+    outside_bench : (k, m) bool, optional
+        Points whose ``P_in`` reads the bench surfaces outside their sessions' range
+        (:func:`~hexapod_energy.prediction.bench_domain_check`); ``outside_reasons`` says how.
     """
 
     spec: SweepSpec
@@ -91,6 +99,8 @@ class SweepCurve:
     efficiency: np.ndarray
     cot_per_mass: np.ndarray
     specific_resistance: np.ndarray
+    outside_bench: np.ndarray | None = None
+    outside_reasons: tuple[str, ...] = ()
 
     def optimal_points(self, payload_index: int = 0) -> dict[str, dict[str, float]]:
         """Operating points at one payload: ``max_power_out``, ``min_cot_per_mass``,
@@ -104,6 +114,8 @@ class SweepCurve:
         ):
             i = int(pick(arr))
             out[key] = {'speed_mps': float(self.speeds_mps[i]), 'value': float(arr[i])}
+            if self.outside_bench is not None:
+                out[key]['outside_bench'] = bool(self.outside_bench[i, j])
         return out
 
     @property
@@ -128,6 +140,9 @@ class SweepCurve:
             'optimal_points': self.optimal_points(),
             'min_efficiency': self.min_efficiency,
             'max_speed_mps': float(self.speeds_mps[-1]),
+            'outside_bench': None if self.outside_bench is None else
+            self.outside_bench.tolist(),
+            'outside_bench_reasons': list(self.outside_reasons),
         }
 
 
@@ -175,13 +190,30 @@ def sweep_curve(
         ],
         axis=1,
     )
+    checks = [bench_domain_check(phase_power, gait, total_mass_kg=float(m),
+                                 leg_mass_kg=output_power.robot.leg_mass_kg, periods_s=periods,
+                                 load_offset_kg=load_offset_kg) for m in mass]
+    outside = np.array([[bool(c[i]) for c in checks] for i in range(periods.size)])
+    reasons = tuple(dict.fromkeys(r for c in checks for rs in c for r in rs))
     p_out = np.asarray(output_power.power_out_w(gait, payload_kg=payloads, periods_s=periods))
     v = speeds[:, None]
     with np.errstate(divide='ignore', invalid='ignore'):
         eff = p_out / p_in
         cot_m = (p_in - p_out) / (mass[None, :] * v)
         sr = p_in / (mass[None, :] * G_MPS2 * v)
-    return SweepCurve(spec, speeds, payloads, mass, p_in, p_out, eff, cot_m, sr)
+    return SweepCurve(spec, speeds, payloads, mass, p_in, p_out, eff, cot_m, sr, outside,
+                      _summarise_reasons(reasons))
+
+
+def _summarise_reasons(reasons: Sequence[str]) -> tuple[str, ...]:
+    """One line per kind of reason (stance/swing duration, stance load): the extreme."""
+    kinds: dict[str, list[str]] = {}
+    for r in reasons:
+        kinds.setdefault(' '.join(r.split()[:2]) if ' load ' in r else r.split()[0], []).append(r)
+    out = []
+    for rs in kinds.values():
+        out.append(rs[0] if len(rs) == 1 else f'{rs[0]} (and {len(rs) - 1} more like it)')
+    return tuple(out)
 
 
 def run_standard_sweeps(

@@ -141,3 +141,43 @@ def test_joint_map_yaml(tmp_path):
         parse_joint_map({'joints': {'a': {'id': 1}, 'b': {'id': 1}}})
     with pytest.raises(JointMapError, match='direction 2'):
         parse_joint_map({'joints': {'a': {'id': 1, 'direction': 2}}})
+
+
+def test_a_bus_without_sync_read_is_read_servo_by_servo():
+    """An adapter, emulator or firmware that never answers Sync Read (single READs work):
+    every servo is still read from the first cycle (the sync miss is retried singly), and after
+    three such cycles the bus stops sending Sync Read, noted once."""
+    from hexapod_bench_drivers.dynamixel_bus import SYNC_READ_GIVE_UP
+    from hexapod_bench_drivers.servo_bus_emulator import INST_SYNC_READ
+
+    class NoSyncRead(ServoBusEmulator):
+        def _handle(self, pkt):
+            return [] if pkt.instruction == INST_SYNC_READ else super()._handle(pkt)
+
+    emu = NoSyncRead.of_model('xl430', range(1, 5))
+    with emu, DynamixelBus(emu.port_name, _joints(4), protocol=2,
+                           timeout_margin_ms=10.0) as bus:
+        for cycle in range(SYNC_READ_GIVE_UP + 3):
+            result = bus.poll()
+            assert [r.ok for r in result.readings] == [True] * 4
+            assert bus.sync_read == (cycle < SYNC_READ_GIVE_UP - 1)
+        [note] = bus.take_notes()
+        assert 'Sync Read' in note and bus.take_notes() == []
+        before = emu.packets_received
+        bus.poll()
+        assert emu.packets_received - before == 4      # four READs, no Sync Read
+
+
+def test_a_bus_that_answers_sync_read_keeps_it():
+    with ServoBusEmulator.of_model('xl430', range(1, 5)) as emu, \
+            DynamixelBus(emu.port_name, _joints(4), protocol=2,
+                         timeout_margin_ms=10.0) as bus:
+        for _ in range(SYNC_CYCLES):
+            assert all(r.ok for r in bus.poll().readings)
+        assert bus.sync_read and bus.take_notes() == []
+        before = emu.packets_received
+        bus.poll()
+        assert emu.packets_received - before == 1      # one Sync Read for all four
+
+
+SYNC_CYCLES = 6

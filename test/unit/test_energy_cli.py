@@ -119,6 +119,24 @@ def test_energy_json_prediction_and_schema(bags) -> None:
     assert saved['prediction_error']['relative_rmse'] < 0.02
 
 
+def test_a_run_slower_than_the_bench_is_flagged(bags, tmp_path) -> None:
+    """The bench walked at 0.5-3 Hz (phases 0.167-1 s): a run at a 3 s period (1.5 s
+    phases) is predicted by extrapolating both surfaces, which the run and a warning say; the
+    runs inside the bench's range carry no reason."""
+    root, _ = bags
+    _write_robot(tmp_path / 'slow', 3.0)
+    doc = run(build_parser().parse_args([
+        '--bench', str(root / 'bench'), '--robot', str(root / 'robot1'), str(tmp_path / 'slow'),
+        '--out', str(tmp_path / 'out'), '--no-progress']))
+    inside, slow = doc['robot_runs']
+    assert inside['prediction_outside_bench'] == []
+    assert [r.split(' outside')[0] for r in slow['prediction_outside_bench']] == \
+        ['stance 1.5 s', 'swing 1.5 s']
+    assert any('extrapolates the bench surfaces' in w and 'slow' in w
+               for w in doc['warnings'])
+    assert doc['bench']['fit']['domain']['stance']['rate_hz'] == [1.0, 6.0]
+
+
 def test_missing_topic_is_named(bags, tmp_path, capsys) -> None:
     root, _ = bags
     code = main(['--bench', str(root / 'robot0'), '--out', str(tmp_path / 'o'), '--no-progress'])

@@ -126,3 +126,45 @@ def test_errors() -> None:
         SingleLegModel().fit(_plan()[:3])
     with pytest.raises(InvalidInputError, match='span'):
         Lowess2D(0.0)
+
+
+def test_domain_is_the_sessions_range_and_outside_is_named() -> None:
+    """Walking sessions 0.4-3 Hz at beta 0.5 (phases 0.167-1.25 s), loads 0-0.515 kg: a
+    prediction inside reads no reason, a slower stance, a faster swing or a heavier load each
+    name the quantity and the bench's range."""
+    model = SingleLegModel().fit(_plan())
+    assert model.domain_['stance'] == {'rate_hz': (0.8, 6.0), 'load_kg': (0.0, 0.515)}
+    assert model.outside_domain('stance', 0.5, 0.3) == []
+    assert model.outside_domain('stance', 1.35, 0.3) == []       # within 10 % of 1.25 s
+    [slow] = model.outside_domain('stance', 2.0, 0.3)
+    assert slow.startswith('stance 2 s outside') and '0.167-1.25 s' in slow
+    [fast] = model.outside_domain('swing', 0.1, 0.0)
+    assert fast.startswith('swing 0.1 s outside')
+    [heavy] = model.outside_domain('stance', 0.5, 0.8)
+    assert heavy == "stance load 0.8 kg outside the bench's 0-0.515 kg"
+    assert model.summary()['domain']['swing']['rate_hz'] == [0.8, 6.0]
+
+
+def test_bench_domain_check_of_gaits() -> None:
+    """Eq. 1 reads the stance surface at beta T and every carried load of L(t), the swing
+    surface at (1 - beta) T: a tripod inside the bench's range is clean; the wave gait at
+    0.05 m/s (stance 2 s) and a four-legged robot's 2-leg support (heavier legs) are not."""
+    from hexapod_gait.gait import make_gait
+
+    from hexapod_energy.prediction import bench_domain_check
+
+    model = SingleLegModel().fit(_plan())
+    tripod = make_gait('tripod', duty_factor=0.5, period_s=1.0)
+    assert bench_domain_check(model, tripod, total_mass_kg=1.5, leg_mass_kg=0.166) == [[]]
+    slow = bench_domain_check(model, tripod, total_mass_kg=1.5, leg_mass_kg=0.166,
+                              periods_s=[1.0, 4.0])
+    assert slow[0] == [] and any(r.startswith('stance 2 s') for r in slow[1])
+    quad = make_gait('alternating', leg_count=4, duty_factor=0.5, period_s=1.0)
+    [reasons] = bench_domain_check(model, quad, total_mass_kg=1.5, leg_mass_kg=0.166)
+    assert reasons and all('load' in r for r in reasons)       # (1.5 - 0.33) / 2 = 0.58 kg
+
+    class Analytic:   # not a fitted SingleLegModel: never flagged
+        def p_stance_w(self, t, m):
+            return np.ones_like(t)
+
+    assert bench_domain_check(Analytic(), quad, total_mass_kg=1.5) == [[]]

@@ -85,3 +85,51 @@ def test_recommendation_beats_or_equals_default(opm) -> None:
 def test_recommendation_refuses_unreachable_speed(opm) -> None:
     with pytest.raises(InvalidInputError, match='no feasible gait'):
         recommend_gait(Phase(), opm, speed_mps=5.0, gaits=('alternating',))
+
+
+@pytest.fixture(scope='module')
+def bench_model():
+    """The analytic phase powers measured on a bench at 1-3 Hz (phases 0.167-0.5 s), loads
+    0-0.6 kg: a fitted SingleLegModel that knows its sessions' range."""
+    from hexapod_energy.single_leg import PhaseSample, SingleLegModel
+
+    ph, rows = Phase(), []
+    for load in (0.0, 0.2, 0.4, 0.6):
+        for f in (0.0, 1.0, 1.5, 2.0, 2.5, 3.0):
+            t = np.inf if f == 0 else 0.5 / f
+            p_st = float(ph.p_stance_w(t if f else 1e9, load))
+            p_sw = float(ph.p_swing_w(t if f else 1e9, 0.0))
+            rows.append(PhaseSample(f'{load}-{f}', load, f, 0.5, t, t, p_st, p_sw,
+                                    0.5 * (p_st + p_sw), 0.5, 100))
+    return SingleLegModel().fit(rows)
+
+
+def test_sweep_points_outside_the_bench_are_flagged_and_drawn(opm, bench_model,
+                                                               tmp_path) -> None:
+    curve = sweep_curve(SweepSpec('t', 'tripod', 6, 0.5), bench_model, opm, n_speeds=12,
+                        payloads_kg=(0.0, 0.5), load_offset_kg=0.166)
+    t_stance = 0.1 / curve.speeds_mps
+    # bench stances 0.167-0.5 s; outside beyond 10 % of the longest: T above 0.55 s
+    slow = 1.0 / t_stance < 2.0 / 1.1
+    assert curve.outside_bench[:, 0].tolist() == slow.tolist()
+    assert slow[0] and not slow[-1]
+    assert any(r.startswith('stance ') for r in curve.outside_reasons)
+    d = curve.to_dict()
+    assert d['outside_bench'] == curve.outside_bench.tolist()
+    assert 'outside_bench' in d['optimal_points']['min_cot_per_mass']
+    paths = four_quadrant_plot([curve], tmp_path / 'fq')
+    assert all(p.stat().st_size > 5000 for p in paths)
+
+
+def test_recommendation_stays_inside_the_bench(opm, bench_model) -> None:
+    """At 0.15 m/s only configurations whose phases the bench measured compete (the others'
+    P_in is an extrapolation); at 0.05 m/s none is measured: the best is returned with a note
+    saying it is an extrapolation."""
+    rec = recommend_gait(bench_model, opm, speed_mps=0.15, payload_kg=0.2,
+                         gaits=('alternating', 'wave'), load_offset_kg=0.166)
+    assert rec.best.outside_bench == ()
+    assert rec.outside_bench > 0 and 'were not considered' in rec.note
+    assert rec.to_dict()['outside_bench'] == rec.outside_bench
+    slow = recommend_gait(bench_model, opm, speed_mps=0.05, gaits=('alternating',),
+                          step_lengths_m=(0.1,), load_offset_kg=0.166)
+    assert slow.best.outside_bench and 'extrapolation' in slow.note
