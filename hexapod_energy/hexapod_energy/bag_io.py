@@ -46,10 +46,13 @@ __all__ = [
     'BENCH_TOPICS',
     'ROBOT_TOPICS',
     'BenchData',
+    'BenchSessionSpec',
     'RobotRun',
     'bench_phase_samples',
     'force_sign_factor',
+    'merge_bench_data',
     'read_bench_bag',
+    'read_bench_sessions_file',
     'read_robot_bag',
 ]
 
@@ -118,8 +121,98 @@ class BenchData:
     notes: list[str] = field(default_factory=list)  # input fallbacks (dropped messages)
 
 
-def read_bench_bag(path: str | Path) -> BenchData:
+@dataclass(frozen=True)
+class BenchSessionSpec:
+    """The session of a bench bag recorded without ``/bench/session`` (another lab's bench:
+    one bag per session, its load written down by the operator).
+
+    ``frequency_hz`` None: from ``/gait/phase`` (its period) when the bag has it, else from the
+    leg tip's height (its step period; a tip that stays within 3 mm is a 0 Hz session).
+    ``duty_factor`` None: 0.5 (the phases are split from the force and the tip anyway).
+    """
+
+    load_kg: float
+    frequency_hz: float | None = None
+    duty_factor: float | None = None
+    step_length_m: float | None = None
+
+
+def read_bench_sessions_file(path: str | Path) -> dict[str, BenchSessionSpec]:
+    """Bench bags and their sessions from a CSV file: a header with ``bag`` and ``load_kg``
+    and optionally ``frequency_hz``, ``duty_factor``, ``step_length_m`` (an empty cell is
+    unknown), one row per bag. Relative bag paths are taken from the file's folder (or, when
+    not found there, the working directory). Returns ``{bag path: spec}`` in file order."""
+    import csv
+
+    src = Path(path)
+    try:
+        text = src.read_text()
+    except OSError as err:
+        raise BagContentError(f'bench sessions file {path}: cannot read: {err}') from err
+    rows = list(csv.DictReader(line for line in text.splitlines()
+                               if line.strip() and not line.lstrip().startswith('#')))
+    if not rows or not {'bag', 'load_kg'} <= set(rows[0]):
+        raise BagContentError(f'bench sessions file {path}: expected a CSV header with bag and '
+                              'load_kg (optional: frequency_hz, duty_factor, step_length_m)')
+    out: dict[str, BenchSessionSpec] = {}
+    for i, row in enumerate(rows, start=2):
+        def num(key: str, required: bool = False) -> float | None:
+            cell = (row.get(key) or '').strip()
+            if not cell:
+                if required:
+                    raise BagContentError(f'bench sessions file {path}, line {i}: {key} is '
+                                          'empty')
+                return None
+            try:
+                value = float(cell)
+            except ValueError:
+                raise BagContentError(f'bench sessions file {path}, line {i}: {key} = '
+                                      f'{cell!r} is not a number') from None
+            if not math.isfinite(value) or value < 0:
+                raise BagContentError(f'bench sessions file {path}, line {i}: {key} = '
+                                      f'{cell!r}: expected a finite value >= 0')
+            return value
+
+        bag = (row.get('bag') or '').strip()
+        if not bag:
+            raise BagContentError(f'bench sessions file {path}, line {i}: bag is empty')
+        where = src.parent / bag
+        bag_path = str(where if where.exists() or Path(bag).is_absolute() else Path(bag))
+        load = num('load_kg', required=True)
+        assert load is not None
+        beta = num('duty_factor')
+        if beta is not None and not 0.0 < beta < 1.0:
+            raise BagContentError(f'bench sessions file {path}, line {i}: duty_factor = '
+                                  f'{beta}: expected 0 < beta < 1')
+        out[bag_path] = BenchSessionSpec(load, num('frequency_hz'), beta, num('step_length_m'))
+    return out
+
+
+def _tip_frequency_hz(t_s: np.ndarray, z_m: np.ndarray) -> tuple[float, str]:
+    """Step frequency of a bench session from its leg tip's height: 0 when the tip stays
+    within 3 mm (5-95 percentiles), else the autocorrelation period (:mod:`.cycles`);
+    NaN and the reason when no period is clear."""
+    from hexapod_energy.cycles import CycleSettings, estimate_period, resample_uniform
+
+    if z_m.size < 10:
+        return math.nan, 'too few leg tip samples'
+    span = float(np.subtract(*np.percentile(z_m, [95, 5])))
+    if span < 0.003:
+        return 0.0, f'the leg tip stays within {span * 1e3:.1f} mm'
+    settings = CycleSettings(grid_dt_s=0.01, min_amplitude_rad=1e-4, max_period_s=4.0,
+                             max_span_s=max(40.0, float(t_s[-1] - t_s[0])))
+    est = estimate_period(resample_uniform(t_s, z_m[:, None], 0.01), settings)
+    if not est.periodic:
+        return math.nan, f'the leg tip height shows no clear period ({est.status})'
+    return 1.0 / est.period_s, f'leg tip period {est.period_s:.4g} s'
+
+
+def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None) -> BenchData:
     """Read one bench bag's streams.
+
+    ``session``: the bag has no ``/bench/session`` (:class:`BenchSessionSpec`, from
+    ``energy --bench-sessions``); the whole bag is one walking session (noted). A bag that
+    records ``/bench/session`` and is given a ``session`` too is refused (which one holds?).
 
     A bad message (NaN voltage or current, a NaN force or tip height) is dropped and counted
     in ``notes``; a topic left without messages raises :class:`BagContentError`. A message
@@ -149,10 +242,27 @@ def read_bench_bag(path: str | Path) -> BenchData:
             zero_stamps[m.topic] = zero_stamps.get(m.topic, 0) + 1
         return 1e-9 * m.stamp_ns
 
+    periods: list[float] = []
     with open_reader(path) as reader:
-        _check_topics(reader, BENCH_TOPICS, str(path))
-        for m in iter_messages(reader, BENCH_TOPICS):
+        if session is None:
+            _check_topics(reader, BENCH_TOPICS, str(path))
+            topics: tuple[str, ...] = BENCH_TOPICS
+        else:
+            _check_topics(reader, BENCH_TOPICS[:3], str(path))
+            if any(c.topic == '/bench/session' and c.msgcount > 0
+                   for c in reader.connections):
+                raise BagContentError(
+                    f'bag {path} records /bench/session and is in the bench sessions file '
+                    'too: give it with --bench alone (its own sessions) or drop its '
+                    '/bench/session')
+            topics = BENCH_TOPICS[:3] + (('/gait/phase',) if any(
+                c.topic == '/gait/phase' for c in reader.connections) else ())
+        for m in iter_messages(reader, topics):
             msg = reader.deserialize(m.data, m.msgtype)
+            if m.topic == '/gait/phase':
+                period = float(msg.period)
+                periods.append(period if math.isfinite(period) and period > 0 else 0.0)
+                continue
             if m.topic == '/battery_state':
                 try:
                     b = battery_from_msg(msg)
@@ -181,6 +291,9 @@ def read_bench_bag(path: str | Path) -> BenchData:
                     'duty_factor': float(msg.duty_factor),
                     'step_length_m': float(msg.step_length),
                 })
+    notes_out: list[str] = []
+    if session is not None:
+        ses = _session_from_spec(path, session, bat, frc, tip, periods, notes_out)
     for name, rows in (('/battery_state', bat), ('/bench/ground_force', frc),
                        ('/bench/leg_tip', tip), ('/bench/session', ses)):
         if not rows:
@@ -191,12 +304,71 @@ def read_bench_bag(path: str | Path) -> BenchData:
     notes = [f'{len(e)} {t} message(s) dropped: {e[0]}' for t, e in sorted(dropped.items())]
     notes += [f'{n} {t} message(s) with a zero header stamp: bag receive time used'
               for t, n in sorted(zero_stamps.items())]
+    notes += notes_out
     b_arr = np.array(sorted(bat))
     f_arr = np.array(sorted(frc))
     t_arr = np.array(sorted(tip))
     ses.sort(key=lambda s: s['t_s'])
     return BenchData(str(path), b_arr[:, 0], b_arr[:, 1], b_arr[:, 2], f_arr[:, 0],
                      f_arr[:, 1], t_arr[:, 0], t_arr[:, 1], ses, notes)
+
+
+def _session_from_spec(path: str | Path, spec: BenchSessionSpec,
+                       bat: list[tuple[float, float, float]], frc: list[tuple[float, float]],
+                       tip: list[tuple[float, float]], periods: list[float],
+                       notes: list[str]) -> list[dict[str, Any]]:
+    """The one walking session of a bag without ``/bench/session`` (see
+    :class:`BenchSessionSpec`); its frequency's source goes into ``notes``."""
+    if not (bat and frc and tip):
+        return []   # the caller names the empty topic
+    if spec.frequency_hz is not None:
+        freq, source = spec.frequency_hz, 'the sessions file'
+    elif periods:
+        period = float(np.median(periods))
+        freq = 1.0 / period if period > 0 else 0.0
+        source = '/gait/phase'
+    else:
+        t_tip = np.array(sorted(tip))
+        freq, source = _tip_frequency_hz(t_tip[:, 0], t_tip[:, 1])
+        if not math.isfinite(freq):
+            raise BagContentError(
+                f'bag {path}: no step frequency: {source}; give frequency_hz in the bench '
+                'sessions file')
+    t0 = min(min(b[0] for b in bat), min(f[0] for f in frc), min(p[0] for p in tip))
+    # the session ends one battery sample after the last one (windows are [start, end))
+    t_bat = np.sort(np.array([b[0] for b in bat]))
+    step = float(np.median(np.diff(t_bat))) if t_bat.size > 1 else 0.0
+    t_end = max(float(t_bat[-1]), max(f[0] for f in frc), max(p[0] for p in tip)) + step
+    notes.append(f'no /bench/session: the whole bag is one session, load {spec.load_kg:g} kg '
+                 f'(sessions file), {freq:.4g} Hz (from {source})')
+    return [{'t_s': t0, 'session_id': Path(path).name, 'state': 'walking',
+             'load_kg': spec.load_kg, 'frequency_hz': freq,
+             'duty_factor': spec.duty_factor or 0.0,
+             'step_length_m': spec.step_length_m or 0.0},
+            {'t_s': t_end, 'session_id': Path(path).name, 'state': 'end'}]
+
+
+def merge_bench_data(datas: Sequence[BenchData]) -> BenchData | None:
+    """One-session bench bags (``--bench-sessions``) as one bench: their streams and sessions
+    in time order, so that the force clock offset and the force sign are estimated over every
+    session together (as for a bag that records them all). None when two bags overlap in time
+    (their clocks cannot be one bench's): the bags are then analysed one by one."""
+    if not datas:
+        return None
+    spans = sorted((float(d.battery_t_s[0]), float(d.sessions[-1]['t_s']), i)
+                   for i, d in enumerate(datas))
+    if any(b[0] < a[1] for a, b in zip(spans, spans[1:])):
+        return None
+    order = [i for _, _, i in spans]
+
+    def cat(name: str) -> np.ndarray:
+        return np.concatenate([getattr(datas[i], name) for i in order])
+
+    notes = [f'{Path(datas[i].path).name}: {n}' for i in order for n in datas[i].notes]
+    return BenchData(', '.join(datas[i].path for i in order), cat('battery_t_s'),
+                     cat('battery_v'), cat('battery_a'), cat('force_t_s'), cat('force_z_n'),
+                     cat('tip_t_s'), cat('tip_z_m'),
+                     [s for i in order for s in datas[i].sessions], notes)
 
 
 def _walking_segments(sessions: list[dict[str, Any]], t_end_s: float

@@ -11,6 +11,11 @@ CV); robot bags -> measured whole-cycle P_in, P_out (joint efforts, else the Eq.
 -> Eq. 1 prediction for the same gait and mass; ``--sweep`` -> Fig. 3 sweeps (four-quadrant
 plots, PNG + SVG) and the Fig. 7D power map; ``--recommend`` -> minimum-CoT/M gait.
 
+Bench bags recorded without ``/bench/session`` (another lab's bench, one bag per session) are
+given with ``--bench-sessions CSV`` (columns ``bag,load_kg[,frequency_hz,duty_factor,
+step_length_m]``, :func:`hexapod_energy.bag_io.read_bench_sessions_file`); they are read as one
+bench when their times do not overlap (:func:`hexapod_energy.bag_io.merge_bench_data`).
+
 Without ``--bench`` (a robot but no single-leg bench) the robot runs get their measured
 descriptors only: ``bench`` and every ``predicted_power_in_w`` are null and
 ``prediction_error`` is absent; ``--sweep`` and ``--recommend`` need the bench surfaces.
@@ -109,6 +114,10 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--bench', nargs='*', default=[], metavar='BAG',
                    help='bench bags (MiMiC-Ant single-leg sessions); without them robot runs '
                         'get their measured descriptors but no Eq. 1 prediction')
+    p.add_argument('--bench-sessions', default=None, metavar='CSV',
+                   help='bench bags recorded without /bench/session (one bag per session): a '
+                        'CSV with columns bag,load_kg[,frequency_hz,duty_factor,step_length_m]; '
+                        'an empty frequency comes from /gait/phase or the leg tip\'s period')
     p.add_argument('--robot', nargs='*', default=[], metavar='BAG',
                    help='robot bags to compare with the Eq. 1 prediction')
     p.add_argument('--out', required=True, metavar='DIR', help='output folder')
@@ -209,7 +218,13 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
 
     from hexapod_common.errors import HexapodError
 
-    from hexapod_energy.bag_io import bench_phase_samples, read_bench_bag, read_robot_bag
+    from hexapod_energy.bag_io import (
+        bench_phase_samples,
+        merge_bench_data,
+        read_bench_bag,
+        read_bench_sessions_file,
+        read_robot_bag,
+    )
     from hexapod_energy.metrics import descriptors
     from hexapod_energy.prediction import (
         OutputPowerModel,
@@ -221,9 +236,12 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
 
     if args.recommend and (args.speed is None or args.speed <= 0):
         raise EnergyError('--recommend needs --speed V with V > 0 [m/s]')
-    if not args.bench and not args.robot:
+    specs = read_bench_sessions_file(args.bench_sessions) \
+        if getattr(args, 'bench_sessions', None) else {}
+    bench_bags = [(str(b), None) for b in args.bench] + list(specs.items())
+    if not bench_bags and not args.robot:
         raise EnergyError('nothing to analyse: give --bench BAG... and/or --robot BAG...')
-    if not args.bench and (args.sweep or args.recommend):
+    if not bench_bags and (args.sweep or args.recommend):
         raise EnergyError('--sweep and --recommend need the bench surfaces: give --bench BAG...')
     given_gait = [getattr(args, k, None) for k in ('gait', 'duty_factor', 'step_length')]
     if any(v is not None for v in given_gait) and any(v is None for v in given_gait):
@@ -235,22 +253,34 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     robot = RobotSpec(mass_kg=args.robot_mass)
-    n_steps = len(args.bench) + len(args.robot) + 1 + (16 if args.sweep else 0) + \
+    n_steps = len(bench_bags) + len(args.robot) + 1 + (16 if args.sweep else 0) + \
         (1 if args.recommend else 0)
     bar = tqdm(total=n_steps, desc='energy', unit='step', disable=args.no_progress,
                file=sys.stderr)
     doc: dict[str, Any] = {'schema': 'hexapod_energy.energy/1', 'plots': []}
     try:
         samples, diags = [], []
-        for path in args.bench:
-            s, d = bench_phase_samples(read_bench_bag(path), current_sign=args.current_sign,
+        one_session = []
+        for path, spec in bench_bags:
+            data = read_bench_bag(path, spec)
+            bar.update(1)
+            if spec is not None:
+                one_session.append(data)
+                continue
+            s, d = bench_phase_samples(data, current_sign=args.current_sign,
                                        force_sign=getattr(args, 'force_sign', 'auto'))
             samples.extend(s)
             diags.append(d)
-            bar.update(1)
-        model = SingleLegModel(folds=args.folds).fit(samples) if args.bench else None
+        # bags of one session each: one bench (force offset and sign from every session)
+        merged = merge_bench_data(one_session)
+        for data in [merged] if merged is not None else one_session:
+            s, d = bench_phase_samples(data, current_sign=args.current_sign,
+                                       force_sign=getattr(args, 'force_sign', 'auto'))
+            samples.extend(s)
+            diags.append(d)
+        model = SingleLegModel(folds=args.folds).fit(samples) if bench_bags else None
         bar.update(1)
-        doc['bench'] = ({'bags': list(args.bench), 'diagnostics': diags,
+        doc['bench'] = ({'bags': [b for b, _ in bench_bags], 'diagnostics': diags,
                          'fit': model.summary()} if model is not None else None)
 
         opm = OutputPowerModel(robot=robot)

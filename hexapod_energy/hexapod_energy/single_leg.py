@@ -496,12 +496,20 @@ class SingleLegModel:
             y = y[keep]
             self.domain_[phase] = {'rate_hz': (float(x[:, 0].min()), float(x[:, 0].max())),
                                    'load_kg': (float(x[:, 1].min()), float(x[:, 1].max()))}
-            cv = {
-                kind: cross_validated_rmse(
-                    self._factory(kind, phase), x, y, folds=self.folds, seed=self.seed
-                )
-                for kind in self.candidates
-            }
+            # a candidate with more coefficients than a small bench's folds hold sessions
+            # (poly3: 10) cannot compete: its CV error is infinite, the others decide
+            cv, why = {}, []
+            for kind in self.candidates:
+                try:
+                    cv[kind] = cross_validated_rmse(self._factory(kind, phase), x, y,
+                                                    folds=self.folds, seed=self.seed)
+                except FitError as err:
+                    cv[kind] = math.inf
+                    why.append(f'{kind}: {err}')
+            if all(math.isinf(v) for v in cv.values()):
+                raise FitError(f'{phase} surface: {len(y)} walking sessions are too few for '
+                               f'every candidate ({"; ".join(why)}); the bench plan needs more '
+                               'loads x frequencies')
             best = min(cv, key=cv.__getitem__)
             model = self._factory(best, phase)().fit(x, y)
             fit_rmse = float(np.sqrt(np.mean((model.predict(x) - y) ** 2)))

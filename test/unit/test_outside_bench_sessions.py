@@ -1,0 +1,130 @@
+"""Bench bags recorded without /bench/session (another lab's bench: one bag per session, the
+load written down): `energy --bench-sessions CSV` analyses them like our sessions.
+
+Each simulated session is cut to its walking interval and its /bench/session (and, in one
+variant, /gait/phase) dropped; the phase powers must equal those of the original bag, with the
+frequency taken from /gait/phase or, without it, from the leg tip's period."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rosbags.highlevel import AnyReader
+from rosbags.rosbag2 import Writer
+
+from hexapod_bench_drivers.bench_sim import BenchPlan, simulate_bench
+from hexapod_bench_drivers.sim_bag import write_trace
+from hexapod_common.bags import typestore
+from hexapod_energy.bag_io import (
+    BenchSessionSpec,
+    bench_phase_samples,
+    merge_bench_data,
+    read_bench_bag,
+    read_bench_sessions_file,
+)
+from hexapod_energy.cli import main
+from hexapod_energy.errors import BagContentError
+
+LOADS = (0.0, 0.3)
+FREQS = (0.0, 1.0, 1.5, 2.0, 2.5)
+
+
+def _walking_bags(src: Path, root: Path, *, drop_gait: bool) -> list[tuple[Path, float, float]]:
+    """One bag per walking session of ``src`` (its stamps only), without /bench/session."""
+    store = typestore()
+    with AnyReader([src], default_typestore=store) as r:
+        sessions = []
+        for c, t, raw in r.messages([c for c in r.connections if c.topic == '/bench/session']):
+            m = r.deserialize(raw, c.msgtype)
+            sessions.append((t, m.state, m.session_id, m.load_mass, m.frequency))
+        spans, cur = [], None
+        for t, state, sid, load, freq in sessions + [(2**63, 'end', '', 0, 0)]:
+            if cur is not None and (state != 'walking' or sid != cur[1]):
+                spans.append((cur[0], t, cur[2], cur[3]))
+                cur = None
+            if state == 'walking' and cur is None:
+                cur = (t, sid, load, freq)
+        out = []
+        drop = {'/bench/session'} | ({'/gait/phase'} if drop_gait else set())
+        for i, (t0, t1, load, freq) in enumerate(spans):
+            dst = root / f's{i}'
+            with Writer(dst, version=8) as w:
+                conns = {c.id: w.add_connection(c.topic, c.msgtype, typestore=store)
+                         for c in r.connections if c.topic not in drop}
+                for c, t, raw in r.messages([c for c in r.connections
+                                             if c.topic not in drop]):
+                    if t0 <= t < t1:
+                        w.write(conns[c.id], t, raw)
+            out.append((dst, float(load), float(freq)))
+    return out
+
+
+@pytest.fixture(scope='module')
+def bench(tmp_path_factory):
+    root = tmp_path_factory.mktemp('bench')
+    plan = BenchPlan(loads_kg=LOADS, frequencies_hz=FREQS, walk_s=5.0)
+    write_trace(simulate_bench(plan, seed=4), root / 'orig')
+    ref, _ = bench_phase_samples(read_bench_bag(root / 'orig'))
+    return root, {(s.load_kg, s.frequency_hz): s for s in ref}
+
+
+@pytest.mark.parametrize('drop_gait', [False, True], ids=['gait_phase', 'tip_period'])
+def test_one_bag_per_session_gives_the_sessions_phase_powers(bench, tmp_path, drop_gait):
+    """Merged (one bench: the force offset and sign from every session) the one-session bags
+    give the original's phase powers; each frequency's source is noted."""
+    root, ref = bench
+    bags = _walking_bags(root / 'orig', tmp_path, drop_gait=drop_gait)
+    datas = [read_bench_bag(bag, BenchSessionSpec(load_kg=load)) for bag, load, _ in bags]
+    for d, (_, _, freq) in zip(datas, bags):
+        [note] = [n for n in d.notes if n.startswith('no /bench/session')]
+        source = '/gait/phase' if not drop_gait else \
+            'leg tip period' if freq else 'the leg tip stays within'
+        assert f'from {source}' in note
+    samples, diag = bench_phase_samples(merge_bench_data(datas))
+    assert len(samples) == len(ref)
+    for s in samples:
+        r = min((r for k, r in ref.items() if k[0] == s.load_kg),
+                key=lambda r: abs(r.frequency_hz - s.frequency_hz))
+        assert s.frequency_hz == pytest.approx(r.frequency_hz, rel=2e-3, abs=1e-12)
+        # the leg tip's period is within 0.1 % of the schedule's: the whole-cycle window moves
+        np.testing.assert_allclose([s.p_stance_w, s.p_swing_w], [r.p_stance_w, r.p_swing_w],
+                                   rtol=5e-3 if drop_gait else 2e-3)
+    assert not any('force sign not checked' in n for n in diag['notes'])
+
+
+def test_cli_reads_the_sessions_file_and_fits(bench, tmp_path):
+    root, ref = bench
+    bags = _walking_bags(root / 'orig', tmp_path, drop_gait=True)
+    csv = tmp_path / 'sessions.csv'
+    lines = ['# one row per bag; empty frequency: from the bag', 'bag,load_kg,frequency_hz']
+    lines += [f'{b.name},{load},' for b, load, _ in bags]
+    csv.write_text('\n'.join(lines) + '\n')
+    assert main(['--bench-sessions', str(csv), '--out', str(tmp_path / 'out'),
+                 '--no-progress']) == 0
+    doc = json.loads((tmp_path / 'out' / 'energy.json').read_text())
+    got = {(s['load_kg'], round(s['frequency_hz'], 2)): s
+           for s in doc['bench']['fit']['sessions']}
+    assert set(got) == {(k[0], k[1]) for k in ref}
+    assert doc['bench']['bags'] == [str(b) for b, _, _ in bags]
+
+
+def test_sessions_file_errors_name_the_line(tmp_path):
+    bad = tmp_path / 'a.csv'
+    bad.write_text('bag,load\nx,0.1\n')
+    with pytest.raises(BagContentError, match='bag and load_kg'):
+        read_bench_sessions_file(bad)
+    bad.write_text('bag,load_kg\nx,heavy\n')
+    with pytest.raises(BagContentError, match='line 2: load_kg'):
+        read_bench_sessions_file(bad)
+    bad.write_text('bag,load_kg,duty_factor\nx,0.1,1.5\n')
+    with pytest.raises(BagContentError, match='duty_factor'):
+        read_bench_sessions_file(bad)
+
+
+def test_a_bag_with_its_own_sessions_is_not_also_in_the_file(bench):
+    root, _ = bench
+    with pytest.raises(BagContentError, match='records /bench/session'):
+        read_bench_bag(root / 'orig', BenchSessionSpec(load_kg=0.1))
