@@ -279,11 +279,31 @@ class WrenchSample:
     torque_nm: np.ndarray
 
 
+def _stamp_or_zero(msg: Any) -> float:
+    """The header stamp [s], 0 for a message without a header (std_msgs scalars: the
+    reader stands the bag's receive time in for it)."""
+    header = getattr(msg, 'header', None)
+    return stamp_to_s(header.stamp) if header is not None else 0.0
+
+
 def wrench_from_msg(msg: Any) -> WrenchSample:
-    """Convert a WrenchStamped."""
-    f, m = msg.wrench.force, msg.wrench.torque
-    return WrenchSample(stamp_to_s(msg.header.stamp), np.array([f.x, f.y, f.z], dtype=float),
-                        np.array([m.x, m.y, m.z], dtype=float))
+    """Convert a bench force: a WrenchStamped (the contract; F/T sensor drivers), or a load
+    cell's normal force as a ``geometry_msgs/Vector3Stamped`` (the force vector) or a
+    ``std_msgs/Float32``/``Float64`` (the normal force, as ``force.z``; no header: stamp 0).
+    Raises ValueError for anything else."""
+    zero = np.zeros(3)
+    if hasattr(msg, 'wrench'):
+        f, m = msg.wrench.force, msg.wrench.torque
+        return WrenchSample(stamp_to_s(msg.header.stamp),
+                            np.array([f.x, f.y, f.z], dtype=float),
+                            np.array([m.x, m.y, m.z], dtype=float))
+    if hasattr(msg, 'vector'):
+        v = msg.vector
+        return WrenchSample(_stamp_or_zero(msg), np.array([v.x, v.y, v.z], dtype=float), zero)
+    if hasattr(msg, 'data') and np.ndim(msg.data) == 0:
+        return WrenchSample(0.0, np.array([0.0, 0.0, float(msg.data)]), zero)
+    raise ValueError(f'{type(msg).__name__} is not a force (expected WrenchStamped, '
+                     'Vector3Stamped, Float32 or Float64)')
 
 
 @dataclass(frozen=True)
@@ -295,8 +315,21 @@ class PointSample:
 
 
 def point_from_msg(msg: Any) -> PointSample:
-    """Convert a PointStamped."""
-    p = msg.point
+    """Convert a tracked point: a PointStamped (the contract; a single marker), or the
+    position of a PoseStamped, TransformStamped, PoseWithCovarianceStamped, Odometry (a rigid
+    body on the leg tip) or Vector3Stamped. Raises ValueError for anything else."""
+    if hasattr(msg, 'point'):
+        p = msg.point
+    elif hasattr(msg, 'vector'):
+        p = msg.vector
+    else:
+        try:
+            p = pose_from_msg(msg)
+        except ValueError:
+            raise ValueError(f'{type(msg).__name__} is not a point (expected PointStamped, '
+                             'PoseStamped, TransformStamped, PoseWithCovarianceStamped, '
+                             'Odometry or Vector3Stamped)') from None
+        return PointSample(p.t_s, p.position_m)
     return PointSample(stamp_to_s(msg.header.stamp), np.array([p.x, p.y, p.z], dtype=float))
 
 

@@ -243,6 +243,7 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None) ->
         return 1e-9 * m.stamp_ns
 
     periods: list[float] = []
+    no_header: dict[str, int] = {}
     with open_reader(path) as reader:
         if session is None:
             _check_topics(reader, BENCH_TOPICS, str(path))
@@ -271,11 +272,24 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None) ->
                     continue
                 bat.append((stamped(b.t_s, m), b.voltage_v, b.current_a))
             elif m.topic in ('/bench/ground_force', '/bench/leg_tip'):
+                if not hasattr(msg, 'header'):   # a std_msgs scalar: receive time, noted
+                    no_header[m.topic] = no_header.get(m.topic, 0) + 1
+                    msg_t = 1e-9 * m.stamp_ns
+                else:
+                    msg_t = None
+                try:
+                    sample = (wrench_from_msg(msg) if m.topic == '/bench/ground_force'
+                              else point_from_msg(msg))
+                except ValueError as err:
+                    raise BagContentError(f'bag {path}: {m.topic} as {m.msgtype}: {err}') \
+                        from None
+                if msg_t is not None:
+                    sample = dataclasses.replace(sample, t_s=msg_t)
                 if m.topic == '/bench/ground_force':
-                    w = wrench_from_msg(msg)
+                    w = sample
                     row = (stamped(w.t_s, m), float(w.force_n[2]))
                 else:
-                    p = point_from_msg(msg)
+                    p = sample
                     row = (stamped(p.t_s, m), float(p.point_m[2]))
                 if not math.isfinite(row[1]):
                     dropped.setdefault(m.topic, []).append(f'non-finite value {row[1]}')
@@ -304,6 +318,8 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None) ->
     notes = [f'{len(e)} {t} message(s) dropped: {e[0]}' for t, e in sorted(dropped.items())]
     notes += [f'{n} {t} message(s) with a zero header stamp: bag receive time used'
               for t, n in sorted(zero_stamps.items())]
+    notes += [f'{t}: {n} message(s) without a header: bag receive time used'
+              for t, n in sorted(no_header.items())]
     notes += notes_out
     b_arr = np.array(sorted(bat))
     f_arr = np.array(sorted(frc))

@@ -128,3 +128,47 @@ def test_a_bag_with_its_own_sessions_is_not_also_in_the_file(bench):
     root, _ = bench
     with pytest.raises(BagContentError, match='records /bench/session'):
         read_bench_bag(root / 'orig', BenchSessionSpec(load_kg=0.1))
+
+
+def _retype(src: Path, dst: Path) -> Path:
+    """The leg tip as a rigid body (PoseStamped) and the force as a load cell's bare
+    std_msgs/Float64 (no header: the bag's receive time, which the simulator writes equal to
+    the stamp)."""
+    from hexapod_common.bags import new_msg
+
+    store = typestore()
+    types = {'/bench/leg_tip': 'geometry_msgs/msg/PoseStamped',
+             '/bench/ground_force': 'std_msgs/msg/Float64'}
+    with AnyReader([src], default_typestore=store) as r, Writer(dst, version=8) as w:
+        conns = {c.id: w.add_connection(c.topic, types.get(c.topic, c.msgtype), typestore=store)
+                 for c in r.connections}
+        for c, t, raw in r.messages():
+            if c.topic in types:
+                m = r.deserialize(raw, c.msgtype)
+                if c.topic == '/bench/leg_tip':
+                    out = new_msg(types[c.topic], header=m.header, pose=new_msg(
+                        'geometry_msgs/msg/Pose', position=new_msg(
+                            'geometry_msgs/msg/Point', x=m.point.x, y=m.point.y, z=m.point.z)))
+                else:
+                    assert t == m.header.stamp.sec * 10**9 + m.header.stamp.nanosec
+                    out = new_msg(types[c.topic], data=float(m.wrench.force.z))
+                raw = store.serialize_cdr(out, types[c.topic])
+            w.write(conns[c.id], t, raw)
+    return dst
+
+
+def test_tip_as_pose_and_force_as_bare_float_give_the_same_sessions(bench, tmp_path):
+    root, ref = bench
+    data = read_bench_bag(_retype(root / 'orig', tmp_path / 'retyped'))
+    samples, diag = bench_phase_samples(data)
+    assert [(s.p_stance_w, s.p_swing_w) for s in samples] == \
+        [(ref[(s.load_kg, s.frequency_hz)].p_stance_w, ref[(s.load_kg, s.frequency_hz)].p_swing_w)
+         for s in samples]
+    assert any('/bench/ground_force' in n and 'without a header' in n for n in diag['notes'])
+
+
+def test_a_force_of_another_type_is_named(bench, tmp_path):
+    from hexapod_common.conversions import wrench_from_msg
+
+    with pytest.raises(ValueError, match='is not a force'):
+        wrench_from_msg(object())
