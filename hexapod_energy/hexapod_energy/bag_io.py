@@ -146,11 +146,17 @@ def read_bench_sessions_file(path: str | Path) -> dict[str, BenchSessionSpec]:
 
     src = Path(path)
     try:
-        text = src.read_text()
-    except OSError as err:
+        text = src.read_text(encoding='utf-8-sig')   # a spreadsheet's byte-order mark
+    except (OSError, UnicodeDecodeError) as err:
         raise BagContentError(f'bench sessions file {path}: cannot read: {err}') from err
-    rows = list(csv.DictReader(line for line in text.splitlines()
-                               if line.strip() and not line.lstrip().startswith('#')))
+    lines = [line for line in text.splitlines()
+             if line.strip() and not line.lstrip().startswith('#')]
+    # comma, or the semicolon / tab a spreadsheet in another locale writes
+    delimiter = max((',', ';', '\t'), key=lambda d: lines[0].count(d)) if lines else ','
+    reader = csv.DictReader(lines, delimiter=delimiter)
+    if reader.fieldnames:
+        reader.fieldnames = [f.strip().lower() for f in reader.fieldnames]
+    rows = list(reader)
     if not rows or not {'bag', 'load_kg'} <= set(rows[0]):
         raise BagContentError(f'bench sessions file {path}: expected a CSV header with bag and '
                               'load_kg (optional: frequency_hz, duty_factor, step_length_m)')

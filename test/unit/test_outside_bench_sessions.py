@@ -111,6 +111,18 @@ def test_cli_reads_the_sessions_file_and_fits(bench, tmp_path):
     assert doc['bench']['bags'] == [str(b) for b, _, _ in bags]
 
 
+def test_sessions_file_from_a_spreadsheet(tmp_path):
+    """A byte-order mark, semicolons, CRLF line ends and capitalised headers (a spreadsheet
+    saved in another locale) read like the plain CSV; relative paths from the file's folder."""
+    (tmp_path / 'runs' / 'l1').mkdir(parents=True)   # beside the file; l2 is not
+    f = tmp_path / 'runs' / 's.csv'
+    f.write_bytes('\ufeffBag; Load_kg; frequency_hz\r\nl1; 0.2; 1.5\r\nl2;0;\r\n'
+                  .encode('utf-8'))
+    got = read_bench_sessions_file(f)
+    assert got == {str(tmp_path / 'runs' / 'l1'): BenchSessionSpec(0.2, 1.5),
+                   'l2': BenchSessionSpec(0.0)}
+
+
 def test_sessions_file_errors_name_the_line(tmp_path):
     bad = tmp_path / 'a.csv'
     bad.write_text('bag,load\nx,0.1\n')
