@@ -54,6 +54,7 @@ __all__ = [
     'read_bench_bag',
     'read_bench_sessions_file',
     'read_robot_bag',
+    'read_robot_segments',
 ]
 
 BENCH_TOPICS = ('/battery_state', '/bench/ground_force', '/bench/leg_tip', '/bench/session')
@@ -568,7 +569,7 @@ class RobotRun:
 
 def read_robot_bag(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
                    cycles: int = 1, speed_mps: float | None = None,
-                   cycle_source: str = 'auto') -> RobotRun:
+                   cycle_source: str = 'auto', segment: int | None = None) -> RobotRun:
     """Whole-gait-cycle averages of one robot bag, computed by the same accumulator as the
     ``energy_monitor`` node (so live and offline numbers agree).
 
@@ -581,7 +582,25 @@ def read_robot_bag(path: str | Path, *, mass_kg: float, current_sign: str = 'aut
     ``cycles``), ``leg_names`` (from the joint names ``<leg>_<joint>``) and a note for each
     fallback. Bags with ``/gait/phase`` messages are read exactly as before; a ``/gait/phase``
     connection without messages counts as none (``auto``), with a note.
+
+    Schedules: a bag whose ``/gait/phase`` changes schedule (a speed sweep, a gait switch, a
+    stop) holds several runs. Windows are grouped by the walking schedule in force over them
+    (windows across a change, and standing, are left out, noted); ``segment`` picks one
+    (0-based, in time order; default the one with the most windows) and ``extra['segment']``
+    says which (``index``, ``of``, ``t_start_s``, ``t_end_s``); ``gait`` is that schedule's.
+    :func:`read_robot_segments` reads every one.
     """
+    out = _read_robot(path, mass_kg=mass_kg, current_sign=current_sign, cycles=cycles,
+                      speed_mps=speed_mps, cycle_source=cycle_source, segment=segment)
+    assert isinstance(out, RobotRun)
+    return out
+
+
+def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
+                cycles: int = 1, speed_mps: float | None = None,
+                cycle_source: str = 'auto', segment: int | None = None,
+                all_segments: bool = False) -> RobotRun | list[RobotRun]:
+    """Body of :func:`read_robot_bag` and :func:`read_robot_segments`."""
     from hexapod_common.bags import iter_messages, open_reader
     from hexapod_common.conversions import (
         battery_from_msg,
@@ -677,11 +696,15 @@ def read_robot_bag(path: str | Path, *, mass_kg: float, current_sign: str = 'aut
                                 speed_mps=speed_mps or 0.0)
     # header-stamp order (recorders store receive order; stamps may be a few ms out of order)
     samples.sort(key=lambda s: (s[0], s[1]))
+    changes: list[tuple[float, tuple[Any, ...], Any]] = []   # schedule changes on /gait/phase
     for _, _, topic, sample in samples:
         if topic == '/battery_state':
             windows.extend(acc.add_battery(sample))
         elif topic == '/gait/phase':
             gait = sample
+            key = _schedule_key(sample)
+            if not changes or changes[-1][1] != key:
+                changes.append((sample.t_s, key, sample))
             windows.extend(acc.add_gait_phase(sample))
         elif topic == '/joint_states':
             windows.extend(acc.add_joint_state(sample) or ())
@@ -698,8 +721,10 @@ def read_robot_bag(path: str | Path, *, mass_kg: float, current_sign: str = 'aut
     if n_slow:
         notes.append(f'{SLOW_BATTERY_NOTE} ({n_slow} of {len(windows)} window(s))')
     if cycle_source == 'joints':
-        return _joint_cycle_run(path, acc, windows, samples, notes, custom, has_effort,
-                                speed_mps, gait)
+        run = _joint_cycle_run(path, acc, windows, samples, notes, custom, has_effort,
+                               speed_mps, gait)
+        return [run] if all_segments else run
+    all_windows = list(windows)
     if not windows or gait is None:
         spans = {}
         for t_s, _, topic, _ in samples:
@@ -714,26 +739,109 @@ def read_robot_bag(path: str | Path, *, mass_kg: float, current_sign: str = 'aut
             f'bag {path}: no whole gait cycle with battery samples around it '
             f'(need /gait/phase wrapping at least twice and /battery_state across it){hint}'
         )
-    w = np.array([d.window_s for d in windows])
-    avg = lambda xs: float(np.sum(w * np.array(xs)) / np.sum(w))  # noqa: E731
+    segments = _schedule_segments(windows, changes)
+    if not segments:
+        raise BagContentError(f'bag {path}: no whole gait cycle under one walking schedule '
+                              '(the schedule on /gait/phase changes within every cycle, or '
+                              'the robot stands)')
+    n_mixed = sum(1 for d in all_windows if _window_schedule(d, changes) is None)
+    if n_mixed:
+        notes.append(f'{n_mixed} window(s) spanning a schedule change (or standing) left out')
     payload = _find_number(custom, ('payload_kg', 'payload'))
-    n_none = sum(d.speed_source == 'none' for d in windows)
-    if n_none:
-        notes.append(f'speed unknown in {n_none} of {len(windows)} window(s) (a clock-driven '
-                     'gait schedule, /gait/phase step length 0, and no /mocap/body, /odom or '
-                     'given speed there): ' + ('speed, cost of transport and specific '
-                                               'resistance null' if n_none == len(windows)
-                                               else 'speed averaged over the others'))
-    return RobotRun(
-        path=str(path), windows=len(windows), window_s=float(w.sum()),
-        power_in_w=avg([d.power_in_w for d in windows]),
-        power_out_w=avg([d.power_out_w for d in windows]) if has_effort else math.nan,
-        speed_mps=_known_mean(w, [d.speed_mps for d in windows]), gait=gait,
-        payload_kg=payload, current_sign=float(acc.sign_ or 0.0),
-        extra={'custom_data': custom, 'notes': notes, 'cycle_source': 'gait_phase',
-               'speed_source': '+'.join(sorted({d.speed_source for d in windows})),
-               'windows': list(windows)},
-    )
+
+    def run_of(k: int) -> RobotRun:
+        gait_k, t_seg0, _, wins = segments[k]
+        seg_notes = list(notes)
+        if len(segments) > 1:
+            seg_notes.append(f'{len(segments)} walking schedules in this bag: this run is '
+                             f'schedule {k + 1} ({_schedule_label(gait_k)}, {len(wins)} '
+                             f'window(s) from {t_seg0:.2f} s); each is its own run')
+        w = np.array([d.window_s for d in wins])
+        avg = lambda xs: float(np.sum(w * np.array(xs)) / np.sum(w))  # noqa: E731
+        n_none = sum(d.speed_source == 'none' for d in wins)
+        if n_none:
+            seg_notes.append(
+                f'speed unknown in {n_none} of {len(wins)} window(s) (a clock-driven gait '
+                'schedule, /gait/phase step length 0, and no /mocap/body, /odom or given speed '
+                'there): ' + ('speed, cost of transport and specific resistance null'
+                              if n_none == len(wins) else 'speed averaged over the others'))
+        return RobotRun(
+            path=str(path), windows=len(wins), window_s=float(w.sum()),
+            power_in_w=avg([d.power_in_w for d in wins]),
+            power_out_w=avg([d.power_out_w for d in wins]) if has_effort else math.nan,
+            speed_mps=_known_mean(w, [d.speed_mps for d in wins]), gait=gait_k,
+            payload_kg=payload, current_sign=float(acc.sign_ or 0.0),
+            extra={'custom_data': custom, 'notes': seg_notes, 'cycle_source': 'gait_phase',
+                   'speed_source': '+'.join(sorted({d.speed_source for d in wins})),
+                   'windows': list(wins),
+                   'segment': {'index': k, 'of': len(segments), 't_start_s': t_seg0,
+                               't_end_s': float(wins[-1].t_end_s)}},
+        )
+
+    if all_segments:
+        return [run_of(k) for k in range(len(segments))]
+    if segment is None:
+        segment = max(range(len(segments)), key=lambda k: segments[k][2])
+    if not 0 <= segment < len(segments):
+        raise ValueError(f'segment {segment}: this bag has {len(segments)} walking schedule(s)')
+    return run_of(segment)
+
+
+def read_robot_segments(path: str | Path, **kw: Any) -> list[RobotRun]:
+    """Every walking schedule of a robot bag as its own :class:`RobotRun`, in time order, from
+    one reading (one run for a bag under a single schedule, or read on joint-derived cycles);
+    ``kw`` as :func:`read_robot_bag`."""
+    out = _read_robot(path, all_segments=True, **kw)
+    assert isinstance(out, list)
+    return out
+
+
+def _schedule_key(g: Any) -> tuple[Any, ...]:
+    """What makes two /gait/phase samples the same walking schedule (not the phase)."""
+    return (g.gait, tuple(g.leg_names), tuple(np.round(np.asarray(g.phase_offsets, float), 6)),
+            round(float(g.duty_factor), 6), round(float(g.period_s), 6),
+            round(float(g.step_length_m), 6), round(float(g.step_height_m), 6))
+
+
+def _schedule_label(g: Any) -> str:
+    return (f'{g.gait}, beta {g.duty_factor:g}, period {g.period_s:.4g} s, step '
+            f'{g.step_length_m:g} m')
+
+
+def _window_schedule(d: Any, changes: list[tuple[float, tuple[Any, ...], Any]]) -> Any:
+    """The /gait/phase sample of the one walking schedule in force over window ``d``, None
+    when the schedule changes inside it or is standing (period 0)."""
+    t0, t1 = d.t_end_s - d.window_s, d.t_end_s
+    times = [c[0] for c in changes]
+    k0 = int(np.searchsorted(times, t0 + 1e-9, side='right')) - 1
+    k1 = int(np.searchsorted(times, t1 - 1e-9, side='right')) - 1
+    if k0 < 0:
+        k0 = 0
+    if any(changes[k][1] != changes[k0][1] for k in range(k0, k1 + 1)):
+        return None
+    g = changes[k0][2]
+    return g if g.period_s > 0 else None
+
+
+def _schedule_segments(windows: list[Any], changes: list[tuple[float, tuple[Any, ...], Any]]
+                       ) -> list[tuple[Any, float, int, list[Any]]]:
+    """Consecutive windows under one walking schedule: ``(gait sample, start [s], window
+    count, windows)`` in time order; a schedule met again later is a new segment."""
+    out: list[tuple[Any, float, int, list[Any]]] = []
+    last_key = None
+    for d in windows:
+        g = _window_schedule(d, changes)
+        if g is None:
+            last_key = None
+            continue
+        key = _schedule_key(g)
+        if key != last_key:
+            out.append((g, float(d.t_end_s - d.window_s), 0, []))
+            last_key = key
+        gs, t0, n, ws = out[-1]
+        ws.append(d)
+        out[-1] = (gs, t0, n + 1, ws)
+    return out
 
 
 def _joint_cycle_run(path: str | Path, acc: Any, windows: list[Any],

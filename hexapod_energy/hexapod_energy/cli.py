@@ -52,7 +52,10 @@ the joints), else the run has no prediction and is left out of ``prediction_erro
                       "cost_of_transport" [J/m], "specific_cost_of_transport" [J/(m kg)],
                       "specific_resistance", "cycle_source" ("gait_phase" | "joints"),
                       "speed_source" (mocap | odometry | gait_schedule | given | none),
-                      "notes" [str] (this run's input fallbacks)}],
+                      "notes" [str] (this run's input fallbacks),
+                      "segment": {"index", "of", "t_start_s", "t_end_s"} (a bag whose
+                      /gait/phase changes walking schedule gives one run per schedule;
+                      null on joint-derived cycles)}],
       "prediction_error": {"runs" (runs with a prediction), "rmse_w", "mae_w",
                            "bias_w" (mean predicted - measured),
                            "mean_power_w", "relative_rmse", "max_abs_relative"},
@@ -223,7 +226,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         merge_bench_data,
         read_bench_bag,
         read_bench_sessions_file,
-        read_robot_bag,
+        read_robot_segments,
     )
     from hexapod_energy.metrics import descriptors
     from hexapod_energy.prediction import (
@@ -288,8 +291,11 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         failed: list[dict[str, str]] = []
         for path in args.robot:
             try:
-                run_ = read_robot_bag(path, mass_kg=robot.mass_kg,
-                                      current_sign=args.current_sign, speed_mps=robot_speed)
+                # a bag whose /gait/phase changes schedule (speed sweep, gait switch, stop)
+                # holds one run per walking schedule
+                segments = read_robot_segments(path, mass_kg=robot.mass_kg,
+                                               current_sign=args.current_sign,
+                                               speed_mps=robot_speed)
             except (EnergyError, HexapodError, ValueError) as err:
                 # one unreadable robot bag does not lose the others: refused by name (as
                 # ``slip`` does); every one refused is an error
@@ -297,75 +303,77 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 print(f'hexapod-analyze energy: refused {path}: {err}', file=sys.stderr)
                 bar.update(1)
                 continue
-            notes = list(run_.extra.get('notes', []))
-            payload = args.robot_payload if args.robot_payload is not None else \
-                (run_.payload_kg or 0.0)
-            mass = robot.total_mass_kg(payload)
-            gait = gait_from_sample(run_.gait) if run_.gait is not None else \
-                _given_gait(args, run_, notes)
-            predicted = p_model = math.nan
-            if gait is not None and model is None:
-                notes.append('no bench bags (--bench): no Eq. 1 prediction')
-            outside: list[str] = []
-            if gait is not None and model is not None:
-                predicted = float(predict_power_in_w(model, gait, total_mass_kg=mass,
-                                                     leg_mass_kg=robot.leg_mass_kg,
-                                                     swing_load=args.swing_load,
-                                                     load_offset_kg=args.load_offset))
-                outside = bench_domain_check(model, gait, total_mass_kg=mass,
-                                             leg_mass_kg=robot.leg_mass_kg,
-                                             swing_load=args.swing_load,
-                                             load_offset_kg=args.load_offset)[0]
-                if outside:
-                    notes.append('the Eq. 1 prediction extrapolates the bench surfaces: ' +
-                                 '; '.join(outside))
-            if gait is not None:
-                try:
-                    p_model = float(opm.power_out_w(gait, payload_kg=payload))
-                except (ValueError, ImportError) as err:
-                    doc.setdefault('warnings', []).append(f'{path}: no P_out model: {err}')
-            for note in notes:
-                doc.setdefault('warnings', []).append(f'{path}: {note}')
-            effort_ok = math.isfinite(run_.power_out_w) and args.power_out != 'model'
-            why = implausible_effort_power(run_.power_out_w, run_.power_in_w,
-                                           _net_joint_power_w(run_))
-            if effort_ok and args.power_out == 'auto' and why:
-                effort_ok = False
-                doc.setdefault('warnings', []).append(
-                    f'{path}: {why}; ' + ('using the model' if math.isfinite(p_model)
-                                          else 'P_out unknown'))
-            if effort_ok:
-                p_out, source = run_.power_out_w, 'effort'
-            elif math.isfinite(p_model):
-                p_out, source = p_model, 'model'
-            else:
-                # without a gait (no /gait/phase, no --gait) P_out is unknown, not 0
-                p_out, source = (0.0 if run_.gait is not None else math.nan), 'none'
-            # the accumulator used robot.mass_kg; descriptors are recomputed with the payload
-            d = descriptors(power_in_w=run_.power_in_w, power_out_w=p_out, mass_kg=mass,
-                            speed_mps=run_.speed_mps)
-            legs = _leg_count(args, run_) if run_.gait is None else None
-            runs.append({
-                'bag': str(path), 'gait': gait.name if gait else None,
-                'leg_count': gait.leg_count if gait else legs,
-                'duty_factor': gait.duty_factor if gait else None,
-                'period_s': gait.period_s if gait else run_.extra.get('period_s'),
-                'step_length_m': gait.step_length_m if gait else None,
-                'payload_kg': payload, 'mass_kg': mass,
-                'windows': run_.windows, 'window_s': run_.window_s,
-                'measured_power_in_w': run_.power_in_w, 'predicted_power_in_w': predicted,
-                'residual_w': run_.power_in_w - predicted,
-                'prediction_outside_bench': outside,
-                'power_out_w': p_out, 'power_out_source': source, 'power_out_model_w': p_model,
-                'power_out_effort_w': run_.power_out_w,
-                'efficiency': d.efficiency, 'speed': d.speed_mps,
-                'cost_of_transport': d.cost_of_transport_j_per_m,
-                'specific_cost_of_transport': d.specific_cost_of_transport_j_per_m_kg,
-                'specific_resistance': d.specific_resistance,
-                'cycle_source': run_.extra.get('cycle_source', 'gait_phase'),
-                'speed_source': run_.extra.get('speed_source', ''),
-                'notes': notes,
-            })
+            for run_ in segments:
+                notes = list(run_.extra.get('notes', []))
+                payload = args.robot_payload if args.robot_payload is not None else \
+                    (run_.payload_kg or 0.0)
+                mass = robot.total_mass_kg(payload)
+                gait = gait_from_sample(run_.gait) if run_.gait is not None else \
+                    _given_gait(args, run_, notes)
+                predicted = p_model = math.nan
+                if gait is not None and model is None:
+                    notes.append('no bench bags (--bench): no Eq. 1 prediction')
+                outside: list[str] = []
+                if gait is not None and model is not None:
+                    predicted = float(predict_power_in_w(model, gait, total_mass_kg=mass,
+                                                         leg_mass_kg=robot.leg_mass_kg,
+                                                         swing_load=args.swing_load,
+                                                         load_offset_kg=args.load_offset))
+                    outside = bench_domain_check(model, gait, total_mass_kg=mass,
+                                                 leg_mass_kg=robot.leg_mass_kg,
+                                                 swing_load=args.swing_load,
+                                                 load_offset_kg=args.load_offset)[0]
+                    if outside:
+                        notes.append('the Eq. 1 prediction extrapolates the bench surfaces: ' +
+                                     '; '.join(outside))
+                if gait is not None:
+                    try:
+                        p_model = float(opm.power_out_w(gait, payload_kg=payload))
+                    except (ValueError, ImportError) as err:
+                        doc.setdefault('warnings', []).append(f'{path}: no P_out model: {err}')
+                for note in notes:
+                    doc.setdefault('warnings', []).append(f'{path}: {note}')
+                effort_ok = math.isfinite(run_.power_out_w) and args.power_out != 'model'
+                why = implausible_effort_power(run_.power_out_w, run_.power_in_w,
+                                               _net_joint_power_w(run_))
+                if effort_ok and args.power_out == 'auto' and why:
+                    effort_ok = False
+                    doc.setdefault('warnings', []).append(
+                        f'{path}: {why}; ' + ('using the model' if math.isfinite(p_model)
+                                              else 'P_out unknown'))
+                if effort_ok:
+                    p_out, source = run_.power_out_w, 'effort'
+                elif math.isfinite(p_model):
+                    p_out, source = p_model, 'model'
+                else:
+                    # without a gait (no /gait/phase, no --gait) P_out is unknown, not 0
+                    p_out, source = (0.0 if run_.gait is not None else math.nan), 'none'
+                # the accumulator used robot.mass_kg; descriptors are recomputed with the payload
+                d = descriptors(power_in_w=run_.power_in_w, power_out_w=p_out, mass_kg=mass,
+                                speed_mps=run_.speed_mps)
+                legs = _leg_count(args, run_) if run_.gait is None else None
+                runs.append({
+                    'bag': str(path), 'gait': gait.name if gait else None,
+                    'leg_count': gait.leg_count if gait else legs,
+                    'duty_factor': gait.duty_factor if gait else None,
+                    'period_s': gait.period_s if gait else run_.extra.get('period_s'),
+                    'step_length_m': gait.step_length_m if gait else None,
+                    'payload_kg': payload, 'mass_kg': mass,
+                    'windows': run_.windows, 'window_s': run_.window_s,
+                    'measured_power_in_w': run_.power_in_w, 'predicted_power_in_w': predicted,
+                    'residual_w': run_.power_in_w - predicted,
+                    'prediction_outside_bench': outside,
+                    'power_out_w': p_out, 'power_out_source': source, 'power_out_model_w': p_model,
+                    'power_out_effort_w': run_.power_out_w,
+                    'efficiency': d.efficiency, 'speed': d.speed_mps,
+                    'cost_of_transport': d.cost_of_transport_j_per_m,
+                    'specific_cost_of_transport': d.specific_cost_of_transport_j_per_m_kg,
+                    'specific_resistance': d.specific_resistance,
+                    'cycle_source': run_.extra.get('cycle_source', 'gait_phase'),
+                    'speed_source': run_.extra.get('speed_source', ''),
+                    'notes': notes,
+                    'segment': run_.extra.get('segment'),
+                })
             bar.update(1)
         if args.robot and len(failed) == len(args.robot):
             raise EnergyError('every robot bag was refused: ' + '; '.join(
