@@ -721,9 +721,15 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
     if n_slow:
         notes.append(f'{SLOW_BATTERY_NOTE} ({n_slow} of {len(windows)} window(s))')
     if cycle_source == 'joints':
-        run = _joint_cycle_run(path, acc, windows, samples, notes, custom, has_effort,
-                               speed_mps, gait)
-        return [run] if all_segments else run
+        runs = _joint_cycle_runs(path, acc, windows, samples, notes, custom, has_effort,
+                                 speed_mps, gait)
+        if all_segments:
+            return runs
+        if segment is None:
+            segment = max(range(len(runs)), key=lambda k: runs[k].windows)
+        if not 0 <= segment < len(runs):
+            raise ValueError(f'segment {segment}: this bag has {len(runs)} step period(s)')
+        return runs[segment]
     all_windows = list(windows)
     if not windows or gait is None:
         spans = {}
@@ -844,11 +850,12 @@ def _schedule_segments(windows: list[Any], changes: list[tuple[float, tuple[Any,
     return out
 
 
-def _joint_cycle_run(path: str | Path, acc: Any, windows: list[Any],
-                     samples: list[tuple[float, int, str, Any]], notes: list[str],
-                     custom: dict[str, str], has_effort: bool, speed_mps: float | None,
-                     gait: Any) -> RobotRun:
-    """:class:`RobotRun` of a bag read on joint-derived cycles (see :func:`read_robot_bag`)."""
+def _joint_cycle_runs(path: str | Path, acc: Any, windows: list[Any],
+                      samples: list[tuple[float, int, str, Any]], notes: list[str],
+                      custom: dict[str, str], has_effort: bool, speed_mps: float | None,
+                      gait: Any) -> list[RobotRun]:
+    """:class:`RobotRun` of each step period of a bag read on joint-derived cycles (see
+    :func:`read_robot_bag`), in time order."""
     tracker = acc.tracker_
     if not windows:
         est = tracker.estimate_ if tracker is not None else None
@@ -881,24 +888,65 @@ def _joint_cycle_run(path: str | Path, acc: Any, windows: list[Any],
     if not has_effort:
         notes.append('no joint efforts (or efforts without velocities and positions): P_out '
                      'unknown (the Eq. 6 model needs the gait schedule)')
-    w = np.array([d.window_s for d in windows])
-    avg = lambda xs: float(np.sum(w * np.array(xs)) / np.sum(w))  # noqa: E731
-    speeds = np.array([d.speed_mps for d in windows])
-    known = np.isfinite(speeds)
-    speed = float(np.sum(w[known] * speeds[known]) / np.sum(w[known])) if known.any() \
-        else math.nan
-    return RobotRun(
-        path=str(path), windows=len(windows), window_s=float(w.sum()),
-        power_in_w=avg([d.power_in_w for d in windows]),
-        power_out_w=avg([d.power_out_w for d in windows]) if has_effort else math.nan,
-        speed_mps=speed, gait=gait,
-        payload_kg=_find_number(custom, ('payload_kg', 'payload')),
-        current_sign=float(acc.sign_ or 0.0),
-        extra={'custom_data': custom, 'notes': notes, 'cycle_source': 'joints',
-               'speed_source': speed_source, 'period_s': float(w.sum()) / len(windows) /
-               max(windows[0].cycles, 1), 'leg_names': legs, 'joint_names': names,
-               'windows': list(windows)},
-    )
+    groups = _period_groups(windows)
+    # a transition's odd window or two is not a run of its own
+    short = [g for g in groups if len(g) < MIN_PERIOD_WINDOWS]
+    if short and len(short) < len(groups):
+        groups = [g for g in groups if len(g) >= MIN_PERIOD_WINDOWS]
+        notes.append(f'{sum(map(len, short))} window(s) between step periods left out')
+
+    def run_of(k: int) -> RobotRun:
+        wins = groups[k]
+        seg_notes = list(notes)
+        w = np.array([d.window_s for d in wins])
+        period = float(w.sum()) / len(wins) / max(wins[0].cycles, 1)
+        if len(groups) > 1:
+            seg_notes.append(f'{len(groups)} step periods in this bag (the joints\' period '
+                             f'changed by more than {PERIOD_CHANGE:.0%}): this run is number '
+                             f'{k + 1} of {len(groups)} ({period:.4g} s, {len(wins)} window(s) '
+                             f'from {wins[0].t_end_s - wins[0].window_s:.2f} s); each is its '
+                             'own run')
+        avg = lambda xs: float(np.sum(w * np.array(xs)) / np.sum(w))  # noqa: E731
+        speeds = np.array([d.speed_mps for d in wins])
+        known = np.isfinite(speeds)
+        speed = float(np.sum(w[known] * speeds[known]) / np.sum(w[known])) if known.any() \
+            else math.nan
+        return RobotRun(
+            path=str(path), windows=len(wins), window_s=float(w.sum()),
+            power_in_w=avg([d.power_in_w for d in wins]),
+            power_out_w=avg([d.power_out_w for d in wins]) if has_effort else math.nan,
+            speed_mps=speed, gait=gait,
+            payload_kg=_find_number(custom, ('payload_kg', 'payload')),
+            current_sign=float(acc.sign_ or 0.0),
+            extra={'custom_data': custom, 'notes': seg_notes, 'cycle_source': 'joints',
+                   'speed_source': speed_source, 'period_s': period, 'leg_names': legs,
+                   'joint_names': names, 'windows': list(wins),
+                   'segment': {'index': k, 'of': len(groups),
+                               't_start_s': float(wins[0].t_end_s - wins[0].window_s),
+                               't_end_s': float(wins[-1].t_end_s)}},
+        )
+
+    return [run_of(k) for k in range(len(groups))]
+
+
+#: relative change of the joint-derived step period that starts a new run
+PERIOD_CHANGE = 0.10
+#: fewest windows of one step period that make a run when the bag has longer ones
+MIN_PERIOD_WINDOWS = 3
+
+
+def _period_groups(windows: list[Any]) -> list[list[Any]]:
+    """Consecutive joint-cycle windows of one step period: a window whose length differs from
+    the median of the current group by more than :data:`PERIOD_CHANGE` starts a new one."""
+    groups: list[list[Any]] = []
+    for d in windows:
+        if groups:
+            ref = float(np.median([x.window_s for x in groups[-1]]))
+            if abs(d.window_s - ref) <= PERIOD_CHANGE * ref:
+                groups[-1].append(d)
+                continue
+        groups.append([d])
+    return groups
 
 
 def _known_mean(weights: np.ndarray, values: list[float]) -> float:

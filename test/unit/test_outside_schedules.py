@@ -99,3 +99,23 @@ def test_energy_reports_one_run_per_schedule(bags, tmp_path):
     assert doc['prediction_error']['runs'] == 2
     for r in runs:
         assert abs(r['residual_w']) < 0.05 * r['measured_power_in_w']
+
+
+def test_without_gait_phase_each_step_period_is_a_run(bags, tmp_path):
+    """The same sweep recorded by a lab with its own gait code (no /gait/phase): the
+    joint-derived step period changes from 1 s to 0.5 s; each period is its own run, with the
+    power of the run recorded alone (within 1 %: joint-derived window edges)."""
+    store = typestore()
+    src, dst = bags / 'sweep', tmp_path / 'nogait'
+    with AnyReader([src], default_typestore=store) as r, Writer(dst, version=8) as w:
+        conns = {c.id: w.add_connection(c.topic, c.msgtype, typestore=store)
+                 for c in r.connections if c.topic != '/gait/phase'}
+        for c, t, raw in r.messages():
+            if c.id in conns:
+                w.write(conns[c.id], t, raw)
+    runs = read_robot_segments(dst, mass_kg=MASS)
+    assert [round(r.extra['period_s'], 2) for r in runs] == [1.0, 0.5]
+    alone = [read_robot_bag(bags / n, mass_kg=MASS) for n in ('slow', 'fast')]
+    for r, a in zip(runs, alone):
+        assert r.power_in_w == pytest.approx(a.power_in_w, rel=0.01)
+        assert r.extra['segment']['of'] == 2
