@@ -17,7 +17,7 @@ from typing import Any
 __all__ = ['add_cli', 'write_report']
 
 HEADLINES = {
-    'energy.json': ('prediction_error',),
+    'energy.json': ('prediction_error', 'failed_bags'),
     'residuals.json': ('model', 'unit', 'baseline', 'effects_added', 'final', 'heldout',
                        'summary'),
     'slip.json': ('gait_table', 'table', 'counts', 'skipped'),
@@ -57,6 +57,11 @@ def write_report(out_dir: str | Path) -> Path:
             for key in ('paragraph', 'summary'):
                 if isinstance(data.get(key), str):
                     parts.append(f'<p><b>{html.escape(data[key])}</b></p>')
+            if path.name == 'energy.json':
+                parts.extend(_energy_runs(data))
+            if isinstance(data.get('warnings'), list) and data['warnings']:
+                parts.append('<p>Warnings:</p><ul>' + ''.join(
+                    f'<li>{html.escape(str(w))}</li>' for w in data['warnings']) + '</ul>')
             keys = HEADLINES.get(path.name) or list(data)[:8]
             rows = [f'<tr><th>{html.escape(k)}</th><td><pre>{_fmt(data[k])}</pre></td></tr>'
                     for k in keys if k in data]
@@ -74,6 +79,54 @@ def write_report(out_dir: str | Path) -> Path:
     target = out / 'report.html'
     target.write_text('\n'.join(parts), encoding='utf-8')
     return target
+
+
+#: columns of the energy runs table: heading, key, format
+_RUN_COLUMNS = (
+    ('bag', 'bag', '{}'), ('gait', 'gait', '{}'), ('period [s]', 'period_s', '{:.3g}'),
+    ('speed [m/s]', 'speed', '{:.3f}'), ('P_in [W]', 'measured_power_in_w', '{:.2f}'),
+    ('predicted [W]', 'predicted_power_in_w', '{:.2f}'), ('P_out [W]', 'power_out_w', '{:.3f}'),
+    ('eta [%]', 'efficiency', '{:.2%}'), ('CoT/M [J/(m kg)]', 'specific_cost_of_transport',
+                                          '{:.1f}'),
+    ('SR', 'specific_resistance', '{:.2f}'))
+
+
+def _cell(value: Any, fmt: str) -> str:
+    if value is None:
+        return '-'
+    try:
+        text = fmt.format(value)
+    except (ValueError, TypeError):
+        text = str(value)
+    return html.escape(text.replace('%', '') if fmt.endswith('%}') else text)
+
+
+def _energy_runs(data: dict[str, Any]) -> list[str]:
+    """One row per robot run (a bag, or one walking schedule of it), marking runs whose
+    prediction extrapolates the bench."""
+    runs = data.get('robot_runs')
+    if not isinstance(runs, list) or not runs:
+        return []
+    head = ''.join(f'<th>{html.escape(h)}</th>' for h, _, _ in _RUN_COLUMNS)
+    rows = []
+    for r in runs:
+        cells = []
+        for _, key, fmt in _RUN_COLUMNS:
+            value = r.get(key)
+            if key == 'bag':
+                seg = r.get('segment') or {}
+                value = Path(str(value)).name + (f' [{seg["index"] + 1}/{seg["of"]}]'
+                                                 if seg.get('of', 1) > 1 else '')
+            if key == 'predicted_power_in_w' and r.get('prediction_outside_bench'):
+                cells.append(f'<td title="{html.escape("; ".join(r["prediction_outside_bench"]))}"'
+                             f'>{_cell(value, fmt)}*</td>')
+                continue
+            cells.append(f'<td>{_cell(value, fmt)}</td>')
+        rows.append('<tr>' + ''.join(cells) + '</tr>')
+    note = ('<p>* the prediction extrapolates the bench surfaces (see the run\'s '
+            'prediction_outside_bench)</p>' if any(r.get('prediction_outside_bench')
+                                                  for r in runs) else '')
+    return ['<table><tr>' + head + '</tr>' + ''.join(rows) + '</table>' + note]
 
 
 def _handler(args: argparse.Namespace) -> int:
