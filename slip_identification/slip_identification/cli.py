@@ -8,14 +8,16 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
       "estimator": "paper",   # which estimator the top-level stance values come from
       "mass_kg": 3.31,
       "stances": [            # one per fitted single-tripod stance (paper's estimator)
-        {"bag", "gait", "tripod", "touchdown", "liftoff" [s, proprioception clock],
+        {"bag", "gait" (on /gait/phase at the touchdown), "tripod",
+         "touchdown", "liftoff" [s, proprioception clock],
          "stiffness" [N/m], "rest_length" [m], "foot_x" [m, world frame],
          "stiffness_stderr", "rest_length_stderr", "foot_x_stderr",
          "nerr", "converged", "samples", "iterations",
          "position_fit": {same parameter and stderr keys, "nerr", "converged"} or null,
          "power_w", "speed_mps", "sr"}     # the run's values, as in the paper
       ],
-      "runs": [{"bag", "gait", "offset_s",
+      "runs": [{"bag", "gait" (the first), "gaits" (every gait on /gait/phase, in order),
+                "offset_s",
                 "offset_method" (given|geometry|contact|joint|xcorr),
                 "edges" (geometry|paper|effort), "shift_s": {"left", "right"}, "power_w",
                 "speed_mps", "sr", "current_sign",
@@ -105,6 +107,7 @@ def read_run(path: str | Path) -> RunData:
     mo: list[Any] = []
     bt: list[Any] = []
     gait = 'unknown'
+    changes: list[tuple[float, str]] = []
     zero: dict[str, int] = {}
     dropped: dict[str, int] = {}
     with open_reader(path) as reader:
@@ -122,8 +125,12 @@ def read_run(path: str | Path) -> RunData:
             msg = reader.deserialize(m.data, m.msgtype)
             try:
                 if m.topic == '/gait/phase':
+                    phase = gait_phase_from_msg(msg)
+                    name = _gait_name(phase)
                     if gait == 'unknown':
-                        gait = _gait_name(gait_phase_from_msg(msg))
+                        gait = name
+                    if not changes or changes[-1][1] != name:
+                        changes.append((phase.t_s or 1e-9 * m.stamp_ns, name))
                     continue
                 sample = streams[m.topic][1](msg)
             except ValueError:
@@ -197,7 +204,7 @@ def read_run(path: str | Path) -> RunData:
         battery_voltage_v=np.array([s.voltage_v for s in bt]),
         battery_current_a=np.array([s.current_a for s in bt]), gait=gait, label=str(path),
         joint_effort=joints.effort, joint_position=joints.position,
-        notes=tuple(notes))
+        notes=tuple(notes), gait_changes=tuple(changes))
 
 
 def _in_order(sample: Any, names: tuple[str, ...]) -> Any:
@@ -266,10 +273,17 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
     notes = list(run.notes) + list(res.notes)
     if run.gait == 'unknown':
         notes.append('no /gait/phase in the bag: the gait name is unknown')
+    gaits = list(dict.fromkeys(g for _, g in run.gait_changes))
+    if len(gaits) > 1:
+        notes.append(f'the gait changes in this bag ({" -> ".join(gaits)}): each stance is '
+                     'labelled with the gait at its touchdown; power, speed and specific '
+                     'resistance are over the whole bag (record one gait per bag for '
+                     'Table 3)')
     stances = []
     pos = {r.label: r for r in res.position_fits}
     for r in res.fits:
-        d: dict[str, Any] = {'bag': path, 'gait': run.gait, 'tripod': r.tripod,
+        d: dict[str, Any] = {'bag': path, 'gait': run.gait_at(r.touchdown_s),
+                             'tripod': r.tripod,
                              'touchdown': r.touchdown_s, 'liftoff': r.liftoff_s}
         for k, v in r.params.items():
             d[k] = _f(v)
@@ -285,7 +299,9 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
         stances.append(d)
     return {'bag': path, 'gait': run.gait, 'stances': stances,
             'skipped': [{'bag': path, **s} for s in res.skipped],
-            'run': {'bag': path, 'gait': run.gait, 'offset_s': res.offset_s,
+            'run': {'bag': path, 'gait': run.gait,
+                    'gaits': list(dict.fromkeys(g for _, g in run.gait_changes)) or [run.gait],
+                    'offset_s': res.offset_s,
                     'offset_method': res.offset_method, 'edges': res.edges,
                     'shift_s': res.shift_s, 'power_w': _f(res.power_w),
                     'speed_mps': _f(res.speed_mps), 'sr': _f(res.sr),

@@ -81,6 +81,17 @@ class RunData:
     joint_effort: FloatArray | None = None
     joint_position: FloatArray | None = None
     notes: tuple[str, ...] = ()  # input fallbacks of the reader, reported in slip.json
+    #: ``(t [s], gait name)`` at each change of the gait on ``/gait/phase`` (first included)
+    gait_changes: tuple[tuple[float, str], ...] = ()
+
+    def gait_at(self, t_s: float) -> str:
+        """The gait on ``/gait/phase`` at proprioception time ``t_s`` (``gait`` without
+        changes recorded)."""
+        name = self.gait_changes[0][1] if self.gait_changes else self.gait
+        for t, g in self.gait_changes:
+            if t <= t_s:
+                name = g
+        return name
 
 
 @dataclass

@@ -119,3 +119,23 @@ def test_without_gait_phase_each_step_period_is_a_run(bags, tmp_path):
     for r, a in zip(runs, alone):
         assert r.power_in_w == pytest.approx(a.power_in_w, rel=0.01)
         assert r.extra['segment']['of'] == 2
+
+
+def test_slip_labels_each_stance_with_the_gait_at_its_touchdown(tmp_path):
+    """A RHex bag that switches gait (running, then walk): the reader keeps every change of
+    /gait/phase and a stance takes the gait in force at its touchdown."""
+    from hexapod_bench_drivers.edubot_bag import write_run
+    from hexapod_bench_drivers.edubot_sim import simulate_edubot
+    from slip_identification.cli import read_run
+
+    parts = []
+    for gait in ('running', 'walk'):
+        write_run(tmp_path / gait, simulate_edubot(gait, duration_s=2.0, seed=1))
+        parts.append(tmp_path / gait)
+    run = read_run(concat(tmp_path / 'switch', parts))
+    assert [g for _, g in run.gait_changes] == ['running', 'walk']
+    t_switch = run.gait_changes[1][0]
+    assert run.gait == 'running'
+    assert run.gait_at(t_switch - 0.5) == 'running' and run.gait_at(t_switch + 0.5) == 'walk'
+    single = read_run(parts[0])
+    assert [g for _, g in single.gait_changes] == ['running']
