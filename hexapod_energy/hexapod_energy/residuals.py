@@ -97,6 +97,7 @@ class ResidualRun:
     joint_t_s: np.ndarray | None = None
     joint_features: np.ndarray | None = None
     joint_abs_effort: dict[str, tuple[np.ndarray, np.ndarray]] | None = None
+    notes: list[str] = field(default_factory=list)   # input fallbacks (no /gait/phase)
 
     def realigned(self, offset_s: float) -> ResidualRun:
         """A copy whose battery streams are read at ``stamp = t + offset_s`` (the monitor's
@@ -131,9 +132,70 @@ def estimate_stream_lag_s(t_power_s: np.ndarray, power_w: np.ndarray, t_ref_s: n
     return float(lags[int(np.argmax(scores))])
 
 
-def read_residual_run(path: str | Path, *, current_sign: str = 'auto') -> ResidualRun:
-    """Read one robot bag: ``/battery_state`` and ``/gait/phase`` (required), ``/servo_status``
-    and ``/joint_states`` (optional: thermal regressor, stream lag)."""
+@dataclass(frozen=True)
+class GivenGait:
+    """The gait of robot bags without ``/gait/phase`` (another lab's gait code), as
+    ``energy --gait --duty-factor --step-length [--legs]`` gives it; the period and the cycles
+    come from the joint positions (:mod:`hexapod_energy.cycles`)."""
+
+    name: str
+    duty_factor: float
+    step_length_m: float
+    leg_count: int | None = None   # None: from joint names L1..Lk/R1..Rk_<joint>
+
+
+def _joint_schedule(path: str | Path, t: np.ndarray, given: GivenGait
+                    ) -> tuple[np.ndarray, dict[str, np.ndarray], Any, list[str]]:
+    """Per-sample gait columns at stamps ``t`` of a bag without ``/gait/phase``: the
+    joint-derived cycles (every walking period of the bag) and the given gait. Returns the mask
+    of samples inside a cycle, the columns (``cycle_phase`` from the cycle start, ``period_s``,
+    ``in_stance``), the gait and notes."""
+    import re
+
+    from hexapod_gait.gait import make_gait
+
+    from hexapod_energy.bag_io import read_robot_segments
+
+    runs = read_robot_segments(path, mass_kg=1.0, cycle_source='joints')
+    names = list(runs[0].extra.get('joint_names', []))
+    legs = given.leg_count
+    if legs is None:
+        found = [re.match(r'^([LR])(\d+)_\w+$', n) for n in names]
+        if not names or not all(found):
+            raise ResidualDataError(
+                f'robot bag {path}: the joint names ({", ".join(names[:4])}'
+                f'{", ..." if len(names) > 4 else ""}) do not follow L1..Lk/R1..Rk_<joint>, so '
+                'the leg count is unknown: give --legs N (or --joint-map)')
+        legs = len({m.group(1) + m.group(2) for m in found if m})
+    name = 'alternating' if given.name == 'tripod' and legs != 6 else given.name
+    try:
+        gait = make_gait(name, leg_count=legs, duty_factor=given.duty_factor,
+                         step_length_m=given.step_length_m)
+    except ValueError as err:
+        raise ResidualDataError(f'--gait {given.name} ({legs} legs): {err}') from err
+    edges = sorted((d.t_end_s - d.window_s, d.t_end_s) for r in runs
+                   for d in r.extra['windows'])
+    starts = np.array([e[0] for e in edges])
+    ends = np.array([e[1] for e in edges])
+    k = np.clip(np.searchsorted(starts, t, side='right') - 1, 0, len(edges) - 1)
+    inside = (t >= starts[k]) & (t < ends[k])
+    period = ends[k] - starts[k]
+    phase = np.where(inside, (t - starts[k]) / period, 0.0)
+    offsets = np.asarray(gait.phase_offsets, float)
+    in_stance = ((phase[:, None] - offsets[None, :]) % 1.0) < gait.duty_factor
+    notes = [f'no /gait/phase: gait {gait.name} (beta {gait.duty_factor:g}, step '
+             f'{gait.step_length_m:g} m, {legs} legs) as given, cycles and period from the '
+             f'joint positions ({len(edges)} cycles); the cycle phase starts at an arbitrary '
+             'leg phase, so leg_anomaly can name the wrong group of legs']
+    return inside, {'cycle_phase': phase, 'period_s': period, 'in_stance': in_stance}, gait, \
+        notes
+
+
+def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
+                      gait: GivenGait | None = None) -> ResidualRun:
+    """Read one robot bag: ``/battery_state`` and ``/gait/phase`` (required; without
+    ``/gait/phase``, ``gait`` and ``/joint_states`` give the schedule: see :class:`GivenGait`),
+    ``/servo_status`` and ``/joint_states`` (optional: thermal regressor, stream lag)."""
     from hexapod_common.bags import iter_messages, open_reader
     from hexapod_common.conversions import (
         battery_from_msg,
@@ -148,12 +210,22 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto') -> Residu
     per_joint: dict[str, list[tuple[float, float]]] = {}
     with open_reader(path) as reader:
         present = sorted({c.topic for c in reader.connections})
+        gait_msgs = sum(c.msgcount for c in reader.connections if c.topic == '/gait/phase')
+        use_given = gait is not None and gait_msgs == 0
         for topic in ('/battery_state', '/gait/phase'):
-            if topic not in present:
+            if topic == '/gait/phase' and use_given:
+                if '/joint_states' not in present:
+                    raise BagContentError(
+                        f'robot bag {path} has neither /gait/phase nor /joint_states: no '
+                        f'gait cycles for the residual; it has {present}')
+                continue
+            if topic not in present or (topic == '/gait/phase' and gait_msgs == 0):
                 raise BagContentError(
                     f'robot bag {path} has no {topic} (needed for the residual: '
-                    f'{"measured P_in" if topic == "/battery_state" else "gait schedule"}); '
-                    f'it has {present}')
+                    f'{"measured P_in" if topic == "/battery_state" else "gait schedule"}'
+                    + ('; without it give --gait, --duty-factor and --step-length, the cycles '
+                       'then come from the joint positions' if topic == '/gait/phase' else '')
+                    + f'); it has {present}')
         for m in iter_messages(reader, ('/battery_state', '/gait/phase', '/servo_status',
                                         '/joint_states')):
             msg = reader.deserialize(m.data, m.msgtype)
@@ -175,10 +247,28 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto') -> Residu
     if len(bat) < 10:
         raise BagContentError(f'robot bag {path}: /battery_state has {len(bat)} messages, '
                               'need at least 10')
-    if len(gp) < 2:
+    if len(gp) < 2 and not use_given:
         raise BagContentError(f'robot bag {path}: /gait/phase has {len(gp)} messages, need 2+')
     b = np.array(sorted(bat))
     sign = resolve_current_sign(b[:, 1], b[:, 2], current_sign)
+    if use_given:
+        assert gait is not None
+        keep, cols, pattern, notes = _joint_schedule(path, b[:, 0], gait)
+        b = b[keep]
+        t = b[:, 0]
+        in_stance = cols['in_stance'][keep]
+        power = sign * b[:, 1] * b[:, 2]
+        run = ResidualRun(
+            name=str(path), t_s=t, voltage_v=b[:, 1], current_a=np.zeros(0), power_w=power,
+            cycle_phase=cols['cycle_phase'][keep], period_s=cols['period_s'][keep],
+            duty_factor=np.full(t.shape, pattern.duty_factor),
+            step_length_m=np.full(t.shape, pattern.step_length_m), in_stance=in_stance,
+            supporting=in_stance.sum(axis=1),
+            temp_sum_c=np.full(t.shape, np.nan), servo_count=0,
+            leg_names=tuple(pattern.leg_names),
+            phase_offsets=tuple(float(x) for x in pattern.phase_offsets), gait=pattern.name)
+        run.notes = notes
+        return _finish_run(run, b, t, temps, mech, per_joint)
     t = b[:, 0]
     gp.sort(key=lambda g: g.t_s)
     gt = np.array([g.t_s for g in gp])
@@ -192,20 +282,28 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto') -> Residu
         adv = np.where(period_gt[idx] > 0, dt / period_gt[idx], 0.0)
     cycle_phase = (phase_gt[idx] + adv) % 1.0
     in_stance = np.array([np.asarray(gp[i].in_stance, bool) for i in idx])
-    if temps:
-        tt = np.array(sorted(temps))
-        temp_sum = np.interp(t, tt[:, 0], tt[:, 1])
-        servo_count = int(tt[0, 2])
-    else:
-        temp_sum, servo_count = np.full(t.shape, np.nan), 0
     power = sign * b[:, 1] * b[:, 2]
     run = ResidualRun(
         name=str(path), t_s=t, voltage_v=b[:, 1], current_a=np.zeros(0),
         power_w=power, cycle_phase=cycle_phase, period_s=period_gt[idx],
         duty_factor=col(lambda g: g.duty_factor), step_length_m=col(lambda g: g.step_length_m),
-        in_stance=in_stance, supporting=in_stance.sum(axis=1), temp_sum_c=temp_sum,
-        servo_count=servo_count, leg_names=tuple(gp[-1].leg_names),
+        in_stance=in_stance, supporting=in_stance.sum(axis=1),
+        temp_sum_c=np.full(t.shape, np.nan), servo_count=0,
+        leg_names=tuple(gp[-1].leg_names),
         phase_offsets=tuple(float(x) for x in gp[-1].phase_offsets), gait=gp[-1].gait)
+    return _finish_run(run, b, t, temps, mech, per_joint)
+
+
+def _finish_run(run: ResidualRun, b: np.ndarray, t: np.ndarray, temps: list[Any],
+                mech: list[Any], per_joint: dict[str, list[tuple[float, float]]]
+                ) -> ResidualRun:
+    """The optional streams of a :class:`ResidualRun`: servo temperatures, current, joint
+    drive features and per-joint efforts."""
+    if temps:
+        tt = np.array(sorted(temps))
+        run.temp_sum_c = np.interp(t, tt[:, 0], tt[:, 1])
+        run.servo_count = int(tt[0, 2])
+    power = run.power_w
     run.current_a = power / np.where(np.abs(b[:, 1]) > 1e-6, b[:, 1], np.nan)
     if len(mech) > 20:
         mm = np.array(sorted(mech))
@@ -510,7 +608,16 @@ def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = Non
     sat_counts = saturated_drive_count(runs)
     for ri, r in enumerate(runs):
         assert r.predicted_w is not None
-        keep = r.t_s >= r.t_s[0] + settle_s
+        # the first settle_s of the run and after every change of the gait schedule (a speed
+        # or gait change within one bag): the robot is in transition there
+        # (a period estimated from the joints moves by a fraction of a percent: not a change)
+        per = r.period_s
+        jump = np.abs(np.diff(per)) > 0.02 * np.maximum(np.abs(per[1:]), 1e-9)
+        jump |= (np.diff(r.duty_factor) != 0) | (np.diff(r.step_length_m) != 0)
+        changed = np.flatnonzero(jump) + 1
+        starts = np.concatenate([[r.t_s[0]], r.t_s[changed]])
+        k = np.searchsorted(starts, r.t_s, side='right') - 1
+        keep = r.t_s >= starts[k] + settle_s
         t = r.t_s[keep]
         walking = r.period_s[keep] > 0
         # window label: half-cycle count (walking), 0.5 s blocks (standing)
@@ -518,7 +625,12 @@ def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = Non
         wraps = np.concatenate([[0], np.cumsum(np.diff(half) != 0)])
         label = np.where(walking, wraps, np.floor((t - t[0]) / 0.5) + 1e6)
         _, inv, counts = np.unique(label, return_inverse=True, return_counts=True)
-        full = counts[inv] >= 0.6 * np.max(counts)
+        # a window is full when it holds 60 % of the samples its length should give (half a
+        # period walking, 0.5 s standing): a bag that changes speed keeps its fast windows
+        dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
+        span = np.where(walking, 0.5 * r.period_s[keep], 0.5)
+        expected = np.maximum(span / max(dt, 1e-9), 1.0)
+        full = counts[inv] >= 0.6 * np.minimum(expected, np.max(counts))
         ref = temp_ref_c if temp_ref_c is not None else \
             float(r.temp_sum_c[0] / max(r.servo_count, 1))
         texcess = r.temp_sum_c - r.servo_count * ref
@@ -660,6 +772,10 @@ class EffectSelection:
     max_collinearity : float
         A later effect whose fitted contribution correlates with the earlier effects' by at
         least this (absolute) is reported as collinear with them (not removed).
+    max_span_r : float
+        A candidate whose regressor columns lie within this uncentred multiple correlation of
+        the selected effects' span is not added (:meth:`_indistinguishable`): the runs cannot
+        tell it from them; its record says ``indistinguishable_from``.
     alternative_share : float
         Another candidate that passes both thresholds in the round an effect is added, and
         removes at least this share of the held-out error the added effect removes, is
@@ -685,6 +801,7 @@ class EffectSelection:
     min_improvement: float = 0.05
     max_collinearity: float = 0.9
     alternative_share: float = 0.9
+    max_span_r: float = 0.995
     history_: list[dict[str, Any]] = field(default_factory=list, repr=False)
 
     def _fit(self, effects: Sequence[EnergyEffect], table: WindowTable, train: np.ndarray
@@ -710,6 +827,29 @@ class EffectSelection:
         except np.linalg.LinAlgError:
             stderr = np.full(coef.shape, np.nan)
         return coef, stderr, x @ coef, sse
+
+    def _indistinguishable(self, effect: EnergyEffect, selected: Sequence[EnergyEffect],
+                           table: WindowTable, train: np.ndarray) -> list[str]:
+        """The selected effects whose regressors already span ``effect``'s: every column of
+        it lies within ``max_span_r`` (uncentred multiple correlation over the training
+        windows) of their span. The model has no intercept, so a nearly constant regressor
+        (the bench's mass sensitivity over tripod runs, 1.7-2.0 W/kg) is what a constant
+        already explains; adding it would only split the first effect's coefficient by the
+        residual's small curvature. [] when it adds something of its own."""
+        if not selected:
+            return []
+        base = np.hstack([e.columns(table) for e in selected])[train]
+        new = effect.columns(table)[train]
+        if new.shape[1] == 0 or base.shape[1] == 0:
+            return []
+        proj, *_ = np.linalg.lstsq(base, new, rcond=None)
+        fitted = base @ proj
+        norms = np.sum(new * new, axis=0)
+        r2 = np.where(norms > 0, np.sum(fitted * fitted, axis=0) / np.where(norms > 0, norms,
+                                                                              1.0), 1.0)
+        if np.all(np.sqrt(np.clip(r2, 0.0, 1.0)) >= self.max_span_r):
+            return [e.name for e in selected]
+        return []
 
     def _params(self, effects: Sequence[EnergyEffect], coef: np.ndarray, stderr: np.ndarray,
                 table: WindowTable) -> list[tuple[dict[str, Any], dict[str, Any]]]:
@@ -753,6 +893,10 @@ class EffectSelection:
                 # for the leg candidates keep the best leg
                 records[ci] = rec if prev is None or not prev['selected'] else prev
                 ok = dbic < -self.min_delta_bic and rmse < cur_rmse * (1 - self.min_improvement)
+                same = self._indistinguishable(e, selected, table, train)
+                if same:
+                    rec['indistinguishable_from'] = same
+                    ok = False
                 if ok:
                     passing[ci] = rec
                 if ok and (best is None or rmse < best[0]):
@@ -961,7 +1105,8 @@ def _bench_temperature_c(bench_bags: Sequence[str | Path]) -> float | None:
 def run_energy_loop(bench_bags: Sequence[str | Path], robot_bags: Sequence[str | Path],
                     out_dir: str | Path | None = None, *, robot_mass_kg: float = 2.183,
                     payload_kg: float = 0.0, current_sign: str = 'auto',
-                    load_offset_kg: float = 0.0, plots: bool = True) -> dict[str, Any]:
+                    load_offset_kg: float = 0.0, plots: bool = True,
+                    gait: GivenGait | None = None) -> dict[str, Any]:
     """Whole energy loop from bags; writes ``residuals.json`` (and plots) into ``out_dir`` when
     given and returns the document. Prints nothing.
 
@@ -982,7 +1127,7 @@ def run_energy_loop(bench_bags: Sequence[str | Path], robot_bags: Sequence[str |
         s, _ = bench_phase_samples(read_bench_bag(p), current_sign=current_sign)
         samples.extend(s)
     model = fit_bench_model(samples)
-    runs = [read_residual_run(p, current_sign=current_sign) for p in robot_bags]
+    runs = [read_residual_run(p, current_sign=current_sign, gait=gait) for p in robot_bags]
     return energy_loop_from_runs(model, runs, out_dir, robot_mass_kg=robot_mass_kg,
                                  payload_kg=payload_kg, load_offset_kg=load_offset_kg,
                                  temp_ref_c=_bench_temperature_c(bench_bags), plots=plots,
@@ -1029,7 +1174,7 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
                        'measured_w': float(np.mean(r.power_w)),
                        'predicted_w': float(np.mean(r.predicted_w)),  # type: ignore[arg-type]
                        'sample_rmse_w': float(np.sqrt(np.mean((r.power_w - r.predicted_w)**2))),
-                       'stream_lag_s': r.lag_s} for r in runs]
+                       'stream_lag_s': r.lag_s, 'notes': list(r.notes)} for r in runs]
     if temp_ref_c is not None:
         doc['temperature_reference_c'] = temp_ref_c
     if out_dir is not None:

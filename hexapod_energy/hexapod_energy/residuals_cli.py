@@ -66,6 +66,17 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
                    default='auto', help='battery current sign convention (default auto)')
     p.add_argument('--box', type=float, nargs=6, metavar=('X0', 'Y0', 'Z0', 'X1', 'Y1', 'Z1'),
                    help='--slip: permissible box in the mocap frame [m] (default 2 x 1 x 1 m)')
+    p.add_argument('--gait', default=None, metavar='NAME',
+                   help='gait of robot bags without /gait/phase (another lab\'s gait code): '
+                        'tripod, alternating, wave, ripple, tetrapod; with --duty-factor and '
+                        '--step-length; the cycles and period come from the joint positions')
+    p.add_argument('--duty-factor', type=float, default=None, metavar='B',
+                   help='duty factor of robot bags without /gait/phase (with --gait)')
+    p.add_argument('--step-length', type=float, default=None, metavar='M',
+                   help='step length of robot bags without /gait/phase [m] (with --gait)')
+    p.add_argument('--legs', type=int, default=None, metavar='N',
+                   help='leg count of robot bags without /gait/phase whose joint names do not '
+                        'follow L1..Lk/R1..Rk_<joint> (default: from the names)')
     p.add_argument('--no-plots', action='store_true', help='skip the PNG plots')
 
 
@@ -158,9 +169,20 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     if not args.bench or not args.robot:
         raise InvalidInputError('the energy loop needs both --bench BAG... and --robot BAG... '
                                 '(or use --slip BAG...)')
+    given = [getattr(args, k, None) for k in ('gait', 'duty_factor', 'step_length')]
+    gait = None
+    if any(v is not None for v in given):
+        if any(v is None for v in given):
+            raise InvalidInputError('--gait, --duty-factor and --step-length go together (the '
+                                    'gait of robot bags without /gait/phase)')
+        from hexapod_energy.residuals import GivenGait
+
+        gait = GivenGait(args.gait, args.duty_factor, args.step_length,
+                         getattr(args, 'legs', None))
     return run_energy_loop(args.bench, args.robot, args.out, robot_mass_kg=args.robot_mass,
                            payload_kg=args.robot_payload, current_sign=args.current_sign,
-                           load_offset_kg=args.load_offset, plots=not args.no_plots)
+                           load_offset_kg=args.load_offset, plots=not args.no_plots,
+                           gait=gait)
 
 
 def _handler(args: argparse.Namespace) -> int:
