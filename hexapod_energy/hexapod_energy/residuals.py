@@ -472,8 +472,13 @@ def predict_run_w(run: ResidualRun, model: Any, *, total_mass_kg: float,
         t_st = run.duty_factor[walking] * run.period_s[walking]
         t_sw = (1.0 - run.duty_factor[walking]) * run.period_s[walking]
         lw = big_l[walking]
-        out[walking] = lw * model.p_stance_w(t_st, m_c[walking]) + \
-            (n_legs - lw) * model.p_swing_w(t_sw, np.zeros_like(t_sw))
+        # a run holds few distinct (phase durations, support) rows: the surfaces (LOWESS, a
+        # weighted fit per point) are evaluated once per distinct row
+        rows, inv = np.unique(np.column_stack([t_st, t_sw, m_c[walking], lw]), axis=0,
+                              return_inverse=True)
+        p_st = model.p_stance_w(rows[:, 0], rows[:, 2])
+        p_sw = model.p_swing_w(rows[:, 1], np.zeros(len(rows)))
+        out[walking] = (rows[:, 3] * p_st + (n_legs - rows[:, 3]) * p_sw)[inv.ravel()]
     if (~walking).any():
         basal = getattr(model, 'basal_power_w_', {})
         if not basal:
