@@ -703,7 +703,7 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
         elif topic == '/gait/phase':
             gait = sample
             key = _schedule_key(sample)
-            if not changes or changes[-1][1] != key:
+            if not changes or not _same_schedule(changes[-1][1], key):
                 changes.append((sample.t_s, key, sample))
             windows.extend(acc.add_gait_phase(sample))
         elif topic == '/joint_states':
@@ -803,10 +803,25 @@ def read_robot_segments(path: str | Path, **kw: Any) -> list[RobotRun]:
 
 
 def _schedule_key(g: Any) -> tuple[Any, ...]:
-    """What makes two /gait/phase samples the same walking schedule (not the phase)."""
-    return (g.gait, tuple(g.leg_names), tuple(np.round(np.asarray(g.phase_offsets, float), 6)),
-            round(float(g.duty_factor), 6), round(float(g.period_s), 6),
-            round(float(g.step_length_m), 6), round(float(g.step_height_m), 6))
+    """What makes two /gait/phase samples the same walking schedule (not the phase): gait,
+    legs, phase offsets, duty factor, period, step length and height. Compared with
+    :func:`_same_schedule` (a gait node that recomputes its period every tick publishes
+    values that differ in the last digits)."""
+    return (g.gait, tuple(g.leg_names), tuple(float(x) for x in g.phase_offsets),
+            float(g.duty_factor), float(g.period_s), float(g.step_length_m),
+            float(g.step_height_m))
+
+
+def _same_schedule(a: tuple[Any, ...] | None, b: tuple[Any, ...] | None,
+                   rel: float = 1e-4) -> bool:
+    if a is None or b is None:
+        return False
+    if a[0] != b[0] or a[1] != b[1] or len(a[2]) != len(b[2]):
+        return False
+    x = np.array(a[2] + a[3:], dtype=float)
+    y = np.array(b[2] + b[3:], dtype=float)
+    return bool(np.all(np.abs(x - y) <= rel * np.maximum(np.maximum(np.abs(x), np.abs(y)),
+                                                         1.0)))
 
 
 def _schedule_label(g: Any) -> str:
@@ -823,7 +838,7 @@ def _window_schedule(d: Any, changes: list[tuple[float, tuple[Any, ...], Any]]) 
     k1 = int(np.searchsorted(times, t1 - 1e-9, side='right')) - 1
     if k0 < 0:
         k0 = 0
-    if any(changes[k][1] != changes[k0][1] for k in range(k0, k1 + 1)):
+    if not all(_same_schedule(changes[k][1], changes[k0][1]) for k in range(k0, k1 + 1)):
         return None
     g = changes[k0][2]
     return g if g.period_s > 0 else None
@@ -841,7 +856,7 @@ def _schedule_segments(windows: list[Any], changes: list[tuple[float, tuple[Any,
             last_key = None
             continue
         key = _schedule_key(g)
-        if key != last_key:
+        if not _same_schedule(key, last_key):
             out.append((g, float(d.t_end_s - d.window_s), 0, []))
             last_key = key
         gs, t0, n, ws = out[-1]

@@ -139,3 +139,23 @@ def test_slip_labels_each_stance_with_the_gait_at_its_touchdown(tmp_path):
     assert run.gait_at(t_switch - 0.5) == 'running' and run.gait_at(t_switch + 0.5) == 'walk'
     single = read_run(parts[0])
     assert [g for _, g in single.gait_changes] == ['running']
+
+
+def test_a_period_recomputed_every_tick_is_one_schedule(bags, tmp_path):
+    """A gait node that recomputes its period from the speed every tick publishes values that
+    differ in the last digits: still one schedule, the same run as the clean bag."""
+    store = typestore()
+    src, dst = bags / 'slow', tmp_path / 'jitter'
+    with AnyReader([src], default_typestore=store) as r, Writer(dst, version=8) as w:
+        conns = {c.id: w.add_connection(c.topic, c.msgtype, typestore=store)
+                 for c in r.connections}
+        for k, (c, t, raw) in enumerate(r.messages()):
+            if c.topic == '/gait/phase':
+                msg = r.deserialize(raw, c.msgtype)
+                msg.period *= 1.0 + (1e-7 if k % 2 else -1e-7)
+                raw = store.serialize_cdr(msg, c.msgtype)
+            w.write(conns[c.id], t, raw)
+    [run] = read_robot_segments(dst, mass_kg=MASS)
+    clean = read_robot_bag(src, mass_kg=MASS)
+    assert run.windows == clean.windows
+    assert run.power_in_w == pytest.approx(clean.power_in_w, rel=1e-9)
