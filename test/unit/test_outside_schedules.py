@@ -152,7 +152,7 @@ def test_a_period_recomputed_every_tick_is_one_schedule(bags, tmp_path):
         for k, (c, t, raw) in enumerate(r.messages()):
             if c.topic == '/gait/phase':
                 msg = r.deserialize(raw, c.msgtype)
-                msg.period *= 1.0 + (1e-7 if k % 2 else -1e-7)
+                msg.period *= 1.0 + (1e-6 if k % 2 else -1e-6)
                 raw = store.serialize_cdr(msg, c.msgtype)
             w.write(conns[c.id], t, raw)
     [run] = read_robot_segments(dst, mass_kg=MASS)
