@@ -253,6 +253,12 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None) ->
     no_header: dict[str, int] = {}
     with open_reader(path) as reader:
         if session is None:
+            present = {c.topic for c in reader.connections}
+            if '/bench/session' not in present and set(BENCH_TOPICS[:3]) <= present:
+                raise BagContentError(
+                    f'bag {path} has no /bench/session (the sessions\' load and frequency): a '
+                    'bench bag of one session, recorded without this project\'s sequencer, is '
+                    'given with --bench-sessions CSV (columns bag,load_kg[,frequency_hz])')
             _check_topics(reader, BENCH_TOPICS, str(path))
             topics: tuple[str, ...] = BENCH_TOPICS
         else:

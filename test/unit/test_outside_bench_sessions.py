@@ -184,3 +184,10 @@ def test_a_force_of_another_type_is_named(bench, tmp_path):
 
     with pytest.raises(ValueError, match='is not a force'):
         wrench_from_msg(object())
+
+
+def test_a_bag_without_sessions_given_with_bench_names_the_option(bench, tmp_path):
+    root, _ = bench
+    bag, _, _ = _walking_bags(root / 'orig', tmp_path, drop_gait=False)[0]
+    with pytest.raises(BagContentError, match='--bench-sessions CSV'):
+        read_bench_bag(bag)
