@@ -55,7 +55,7 @@ the joints), else the run has no prediction and is left out of ``prediction_erro
                       "notes" [str] (this run's input fallbacks),
                       "segment": {"index", "of", "t_start_s", "t_end_s"} (a bag whose
                       /gait/phase changes walking schedule gives one run per schedule;
-                      null on joint-derived cycles)}],
+                      without /gait/phase, one per joint-derived step period)}],
       "prediction_error": {"runs" (runs with a prediction), "rmse_w", "mae_w",
                            "bias_w" (mean predicted - measured),
                            "mean_power_w", "relative_rmse", "max_abs_relative"},
