@@ -605,7 +605,7 @@ def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = Non
         'run', 't_s', 'duration_s', 'measured_w', 'predicted_w', 'step_frequency_hz',
         'speed_mps', 'current_sq_a2', 'temp_excess_k', 'stance_fraction')}
     extra: dict[str, list[float]] = {'supply_dv_v': [], 'supply_sat_v2': [],
-                                     'saturated_drives': []}
+                                     'saturated_drives': [], 'elapsed_energy_j': []}
     with_slope = all(r.mass_slope_w_per_kg is not None for r in runs)
     if with_slope:
         extra['mass_slope_w_per_kg'] = []
@@ -649,7 +649,9 @@ def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = Non
         }
         sub_extra = {'supply_dv_v': r.voltage_v - v_s,
                      'supply_sat_v2': sat_counts[ri] * (r.voltage_v ** 2 - v_s ** 2),
-                     'saturated_drives': sat_counts[ri]}
+                     'saturated_drives': sat_counts[ri],
+                     'elapsed_energy_j': np.concatenate([[0.0], np.cumsum(
+                         0.5 * (r.power_w[1:] + r.power_w[:-1]) * np.diff(r.t_s))])}
         if with_slope:
             sub_extra['mass_slope_w_per_kg'] = r.mass_slope_w_per_kg
         for w in np.unique(inv[full]):

@@ -313,3 +313,36 @@ def test_bags_without_gait_phase_with_the_gait_given(bench, tmp_path):
     np.testing.assert_allclose(added(doc, 'basal_power')['params']['power_w'], 3.0, rtol=0.2)
     np.testing.assert_allclose(doc['baseline']['bias'], ref['baseline']['bias'], atol=0.1)
     assert doc['heldout']['rmse_after'] <= 0.5 * doc['heldout']['rmse_before']
+
+
+def test_thermal_drift_without_servo_temperatures(bench, tmp_path):
+    """Bags without /servo_status (another lab's servos, no ServoStatus): the servos' heating
+    is still found, through the energy drawn since each run started (faster runs heat faster).
+    Truth from the simulator's own temperatures: 0.05 W/K times the temperature rise per kJ
+    drawn, 0.69-0.78 W/kJ over the three runs."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.rosbag2 import Writer
+
+    from hexapod_common.bags import typestore
+
+    bags = robot_bags(tmp_path / 'hot', ['thermal_drift=0.05'], run_s=60.0)
+    store = typestore()
+    bare, truth = [], []
+    for i, b in enumerate(bags):
+        r = R.read_residual_run(b)
+        energy_kj = np.trapezoid(r.power_w, r.t_s) / 1000.0
+        rise_k = np.polyfit(r.t_s - r.t_s[0], r.temp_sum_c, 1)[0] * (r.t_s[-1] - r.t_s[0])
+        truth.append(0.05 * rise_k / energy_kj)
+        dst = tmp_path / f'bare{i}'
+        with AnyReader([b], default_typestore=store) as rd, Writer(dst, version=8) as w:
+            conns = {c.id: w.add_connection(c.topic, c.msgtype, typestore=store)
+                     for c in rd.connections if c.topic != '/servo_status'}
+            for c, t, raw in rd.messages():
+                if c.id in conns:
+                    w.write(conns[c.id], t, raw)
+        bare.append(dst)
+    doc = loop(bench, bare)
+    first = doc['added_params'][0]
+    assert first['name'] == 'thermal_drift' and 'w_per_kj' in first['params'], doc['summary']
+    np.testing.assert_allclose(first['params']['w_per_kj'], np.mean(truth), rtol=0.25)
+    assert doc['heldout']['rmse_after'] <= 0.5 * doc['heldout']['rmse_before']
