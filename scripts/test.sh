@@ -17,7 +17,11 @@ summarise() {  # read pytest's closing line counts
 }
 tmp=$(mktemp -d)
 echo "== unit tests"
-python -m pytest -q -p no:cacheprovider test/unit "$@" 2>&1 | tee "$tmp/unit.log"
+# the unit tests need no ROS and share nothing across files: one worker per core (pytest-xdist,
+# a file's tests stay together so its module fixtures are built once)
+workers=()
+[ "$(nproc 2>/dev/null || echo 1)" -ge 2 ] && workers=(-n 2 --dist loadfile)
+python -m pytest -q -p no:cacheprovider ${workers[@]+"${workers[@]}"} test/unit "$@" 2>&1 | tee "$tmp/unit.log"
 rc=${PIPESTATUS[0]}; [ "$rc" -eq 0 ] || [ "$rc" -eq 5 ] || status=1
 summarise "$tmp/unit.log"
 for f in test/integration/test_*.py; do
