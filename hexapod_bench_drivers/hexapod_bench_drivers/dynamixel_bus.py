@@ -331,7 +331,16 @@ class DynamixelBus:
 
     def _ping(self, s: _Servo) -> bool:
         for _ in range(1 + self.retries):
-            model, result, _err = self.packet.ping(self.port, s.joint.servo_id)
+            try:
+                model, result, _err = self.packet.ping(self.port, s.joint.servo_id)
+            except IndexError:
+                # the SDK's Protocol 1.0 ping reads the model number after the ping and indexes
+                # the reply unchecked: a late status packet (the ping's own, after its deadline)
+                # taken for that read is 'success' with no data. A corrupt exchange: drop what
+                # is in the input buffer and try again.
+                self.port.clearPort()
+                s.health.corrupt += 1
+                continue
             if result == COMM_SUCCESS:
                 try:
                     s.table = table_for_model(self.protocol, model)

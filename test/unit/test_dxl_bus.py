@@ -181,3 +181,26 @@ def test_a_bus_that_answers_sync_read_keeps_it():
 
 
 SYNC_CYCLES = 6
+
+
+def test_a_late_ping_reply_that_crashes_the_sdk_ping_is_retried(monkeypatch):
+    """The SDK's Protocol 1.0 ping indexes the model-number reply unchecked: a late status
+    packet taken for it raises IndexError inside the SDK (seen under load). The bus counts a
+    corrupt exchange, clears the port and pings again; the servo is found."""
+    from dynamixel_sdk.protocol1_packet_handler import Protocol1PacketHandler
+
+    real = Protocol1PacketHandler.ping
+    calls = {'n': 0}
+
+    def flaky(self, port, dxl_id):
+        calls['n'] += 1
+        if calls['n'] == 1:
+            raise IndexError('list index out of range')
+        return real(self, port, dxl_id)
+
+    monkeypatch.setattr(Protocol1PacketHandler, 'ping', flaky)
+    with ServoBusEmulator.of_model('ax18a', [1]) as emu, \
+            DynamixelBus(emu.port_name, _joints(1), protocol=1, timeout_margin_ms=10.0) as bus:
+        [h] = bus.health()
+        assert h.model == 'AX-18A' and h.corrupt == 1 and not h.silent
+        assert bus.poll().readings[0].ok
