@@ -113,6 +113,23 @@ def _leg_count(args: argparse.Namespace, run_: Any) -> int | None:
     return len({m.group(1) + m.group(2) for m in matches if m})
 
 
+def add_given_gait_arguments(p: argparse.ArgumentParser, purpose: str) -> None:
+    """``--gait``, ``--duty-factor``, ``--step-length`` and ``--legs``: the gait of robot bags
+    without /gait/phase (another lab's gait code; ``energy`` and ``residuals``)."""
+    p.add_argument('--gait', default=None, metavar='NAME',
+                   help=f'gait of robot bags without /gait/phase, {purpose} (hexapod_gait '
+                        'name: tripod, alternating, wave, ripple, tetrapod; with --duty-factor '
+                        'and --step-length; cycles and period from the joint positions, leg '
+                        'count from the joint names)')
+    p.add_argument('--duty-factor', type=float, default=None, metavar='B',
+                   help='duty factor of robot bags without /gait/phase (with --gait)')
+    p.add_argument('--step-length', type=float, default=None, metavar='M',
+                   help='step length of robot bags without /gait/phase [m] (with --gait)')
+    p.add_argument('--legs', type=int, default=None, metavar='N',
+                   help='leg count of robot bags without /gait/phase whose joint names do not '
+                        'follow L1..Lk/R1..Rk_<joint> (with --gait; default: from the names)')
+
+
 def _add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--bench', nargs='*', default=[], metavar='BAG',
                    help='bench bags (MiMiC-Ant single-leg sessions); without them robot runs '
@@ -155,17 +172,7 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--robot-speed', type=float, default=None, metavar='V',
                    help='speed of robot runs that have no /gait/phase, /mocap/body or /odom '
                         '[m/s] (default: unknown, CoT and specific resistance null)')
-    p.add_argument('--gait', default=None, metavar='NAME',
-                   help='gait of robot runs without /gait/phase, for the Eq. 1 prediction and '
-                        'the P_out model (hexapod_gait name: tripod, alternating, wave, ripple, '
-                        'tetrapod; period from the joints, leg count from the joint names)')
-    p.add_argument('--duty-factor', type=float, default=None, metavar='B',
-                   help='duty factor of robot runs without /gait/phase (with --gait)')
-    p.add_argument('--step-length', type=float, default=None, metavar='M',
-                   help='step length of robot runs without /gait/phase [m] (with --gait)')
-    p.add_argument('--legs', type=int, default=None, metavar='N',
-                   help='leg count of robot runs without /gait/phase whose joint names do not '
-                        'follow L1..Lk/R1..Rk_<joint> (with --gait; default: from the names)')
+    add_given_gait_arguments(p, 'for the Eq. 1 prediction and the P_out model')
     p.add_argument('--folds', type=int, default=5, help='k of the k-fold CV (default 5)')
     p.add_argument('--no-progress', action='store_true', help='hide the progress bar')
 

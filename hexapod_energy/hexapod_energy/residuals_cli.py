@@ -67,17 +67,9 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
                    default='auto', help='battery current sign convention (default auto)')
     p.add_argument('--box', type=float, nargs=6, metavar=('X0', 'Y0', 'Z0', 'X1', 'Y1', 'Z1'),
                    help='--slip: permissible box in the mocap frame [m] (default 2 x 1 x 1 m)')
-    p.add_argument('--gait', default=None, metavar='NAME',
-                   help='gait of robot bags without /gait/phase (another lab\'s gait code): '
-                        'tripod, alternating, wave, ripple, tetrapod; with --duty-factor and '
-                        '--step-length; the cycles and period come from the joint positions')
-    p.add_argument('--duty-factor', type=float, default=None, metavar='B',
-                   help='duty factor of robot bags without /gait/phase (with --gait)')
-    p.add_argument('--step-length', type=float, default=None, metavar='M',
-                   help='step length of robot bags without /gait/phase [m] (with --gait)')
-    p.add_argument('--legs', type=int, default=None, metavar='N',
-                   help='leg count of robot bags without /gait/phase whose joint names do not '
-                        'follow L1..Lk/R1..Rk_<joint> (default: from the names)')
+    from hexapod_energy.cli import add_given_gait_arguments
+
+    add_given_gait_arguments(p, 'for the energy loop\'s Eq. 1 prediction')
     p.add_argument('--no-plots', action='store_true', help='skip the PNG plots')
 
 
