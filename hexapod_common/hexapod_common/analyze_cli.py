@@ -15,6 +15,10 @@ Joint names outside the contract (``L1..Lk``/``R1..Rk`` legs, ``<leg>_hip``, ``<
 ``hexapod-analyze --joint-map hip_0:=L1_hip hip_1:=L2_hip ... slip BAG ...`` reads each recorded
 name as its contract name (names not listed pass unchanged;
 :mod:`hexapod_common.conversions`).
+
+Several batteries on ``/battery_state`` (told apart by ``header.frame_id``, e.g. a servo pack
+and a logic pack) are summed (:mod:`hexapod_common.battery`); ``hexapod-analyze
+--battery-source servo energy ...`` keeps one of them instead.
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ import sys
 from collections.abc import Sequence
 
 from hexapod_common.bags import REMAP_ENV, parse_remap
+from hexapod_common.battery import BATTERY_SOURCE_ENV
 from hexapod_common.conversions import JOINT_MAP_ENV, parse_joint_map
 
 __all__ = ['build_parser', 'main']
@@ -55,6 +60,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help='read recorded joint name FROM as the contract name TO (e.g. '
                         'hip_0:=L1_hip, j_c1_lf:=L1_coxa); before the command name; several '
                         'FROM:=TO may follow')
+    parser.add_argument('--battery-source', default=None, metavar='ID',
+                        help='keep only this battery of /battery_state (its header.frame_id, '
+                        'else location or serial_number); default: several batteries are '
+                        'summed; before the command name')
     sub = parser.add_subparsers(dest='command', metavar='COMMAND')
     for name, module in PROVIDERS.items():
         try:
@@ -107,7 +116,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not getattr(args, 'func', None):
         parser.print_help()
         return 2
-    saved = {k: os.environ.get(k) for k in (REMAP_ENV, JOINT_MAP_ENV)}
+    saved = {k: os.environ.get(k) for k in (REMAP_ENV, JOINT_MAP_ENV, BATTERY_SOURCE_ENV)}
+    if args.battery_source is not None:
+        os.environ[BATTERY_SOURCE_ENV] = args.battery_source
     if args.remap or args.namespace:
         # every bag reader of this process and of its workers (--jobs) reads the contract names
         try:

@@ -33,6 +33,7 @@ __all__ = [
     'WrenchSample',
     'PointSample',
     'battery_from_msg',
+    'battery_source',
     'current_sign_factor',
     'gait_phase_from_msg',
     'joint_map',
@@ -156,12 +157,15 @@ def joint_state_from_msg(msg: Any) -> JointStateSample:
 
 @dataclass(frozen=True)
 class BatterySample:
-    """``sensor_msgs/BatteryState`` as measured: voltage [V], current [A] in the message's sign."""
+    """``sensor_msgs/BatteryState`` as measured: voltage [V], current [A] in the message's sign;
+    ``source``: which battery (``header.frame_id``, else ``location``, else ``serial_number``;
+    several on one topic are summed by :mod:`hexapod_common.battery`)."""
 
     t_s: float
     voltage_v: float
     current_a: float
     temperature_c: float
+    source: str = ''
 
 
 def battery_from_msg(msg: Any) -> BatterySample:
@@ -169,7 +173,18 @@ def battery_from_msg(msg: Any) -> BatterySample:
     v, i = float(msg.voltage), float(msg.current)
     if not (math.isfinite(v) and math.isfinite(i)):
         raise ValueError(f'BatteryState without voltage/current (voltage={v}, current={i})')
-    return BatterySample(stamp_to_s(msg.header.stamp), v, i, float(msg.temperature))
+    return BatterySample(stamp_to_s(msg.header.stamp), v, i, float(msg.temperature),
+                         battery_source(msg))
+
+
+def battery_source(msg: Any) -> str:
+    """Which battery a BatteryState reports: ``header.frame_id``, else ``location``, else
+    ``serial_number`` ('' when all are empty)."""
+    for value in (getattr(msg.header, 'frame_id', ''), getattr(msg, 'location', ''),
+                  getattr(msg, 'serial_number', '')):
+        if value:
+            return str(value)
+    return ''
 
 
 @dataclass(frozen=True)

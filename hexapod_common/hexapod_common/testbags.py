@@ -17,7 +17,8 @@ from ruamel.yaml import YAML
 from hexapod_common.bags import BagWriter, find_msg_dir, new_msg, stamp
 
 __all__ = ['MIXED_TYPES', 'P0_W', 'PERIOD_S', 'RAW_COUNT_RECEIVER', 'downgrade_sqlite_bag',
-           'foreign_typestore', 'write_foreign_robot_bag', 'write_mixed_bag']
+           'foreign_typestore', 'write_foreign_robot_bag', 'write_mixed_bag',
+           'write_two_battery_robot_bag']
 
 LEGS = ('L1', 'L2', 'L3', 'R1', 'R2', 'R3')
 JOINTS = [f'{leg}_{j}' for leg in LEGS for j in ('coxa', 'femur', 'tibia')]
@@ -279,3 +280,37 @@ def downgrade_sqlite_bag(path: str | Path, version: int) -> None:
         con.commit()
         con.execute('PRAGMA journal_mode=DELETE')
         con.close()
+
+
+def write_two_battery_robot_bag(path: str | Path, *, servo_w: float = 30.0,
+                                logic_w: float = 5.0, period_s: float = 0.5,
+                                duration_s: float = 12.0, logic_hz: float = 10.0,
+                                logic_frame: str = 'logic',
+                                logic_stops_s: float | None = None) -> dict[str, float]:
+    """A tripod robot bag whose ``/battery_state`` carries two packs (ROS current sign): the
+    servo pack (frame_id ``servo``, 12 V, 50 Hz, ``servo_w`` plus a 10 % ripple at the gait
+    period) and a logic pack (``logic_frame``, 7.4 V, ``logic_hz``, ``logic_w`` steady; silent
+    after ``logic_stops_s``). Returns the mean powers of each pack."""
+    with BagWriter(path) as w:
+        for k, t in enumerate(np.arange(0.0, duration_s, 0.01)):
+            ns = int(round(t * 1e9))
+            if k % 2 == 0:
+                p = servo_w * (1.0 + 0.1 * math.sin(2 * math.pi * t / period_s))
+                w.write('/battery_state', 'sensor_msgs/msg/BatteryState', new_msg(
+                    'sensor_msgs/msg/BatteryState', header=stamp(ns, 'servo'), voltage=12.0,
+                    current=-p / 12.0), ns)
+            if k % int(round(100 / logic_hz)) == 0 and (logic_stops_s is None
+                                                        or t < logic_stops_s):
+                lns = ns + 3_000_000  # its own clock phase
+                w.write('/battery_state', 'sensor_msgs/msg/BatteryState', new_msg(
+                    'sensor_msgs/msg/BatteryState', header=stamp(lns, logic_frame),
+                    voltage=7.4, current=-logic_w / 7.4), lns)
+            w.write('/gait/phase', 'hexapod_interfaces/msg/GaitPhase', new_msg(
+                'hexapod_interfaces/msg/GaitPhase', header=stamp(ns), gait='tripod',
+                period=period_s, duty_factor=0.5, step_length=0.1, step_height=0.04,
+                cycle_phase=(t / period_s) % 1.0, leg_names=list(LEGS),
+                phase_offsets=[0.0, 0.5, 0.0, 0.5, 0.0, 0.5],
+                in_stance=[((t / period_s) % 1.0 - o) % 1.0 < 0.5
+                           for o in (0.0, 0.5, 0.0, 0.5, 0.0, 0.5)],
+                supporting_legs=3), ns)
+    return {'servo_w': servo_w, 'logic_w': logic_w}

@@ -234,7 +234,7 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None) ->
         wrench_from_msg,
     )
 
-    bat: list[tuple[float, float, float]] = []
+    bat_samples: list[Any] = []
     frc: list[tuple[float, float]] = []
     tip: list[tuple[float, float]] = []
     ses: list[dict[str, Any]] = []
@@ -283,7 +283,7 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None) ->
                 except ValueError as err:  # a bad message is dropped, as live
                     dropped.setdefault(m.topic, []).append(str(err))
                     continue
-                bat.append((stamped(b.t_s, m), b.voltage_v, b.current_a))
+                bat_samples.append(dataclasses.replace(b, t_s=stamped(b.t_s, m)))
             elif m.topic in ('/bench/ground_force', '/bench/leg_tip'):
                 if not hasattr(msg, 'header'):   # a std_msgs scalar: receive time, noted
                     no_header[m.topic] = no_header.get(m.topic, 0) + 1
@@ -319,6 +319,9 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None) ->
                     'step_length_m': float(msg.step_length),
                 })
     notes_out: list[str] = []
+    combined = _combine_batteries(path, [(b.t_s, k, '/battery_state', b)
+                                         for k, b in enumerate(bat_samples)], notes_out)
+    bat = [(b.t_s, b.voltage_v, b.current_a) for _, _, _, b in combined]
     if session is not None:
         ses = _session_from_spec(path, session, bat, frc, tip, periods, notes_out)
     for name, rows in (('/battery_state', bat), ('/bench/ground_force', frc),
@@ -696,6 +699,7 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
                      (f'none of its {n_bad} message(s) usable' if n_bad else
                       'without messages') +
                      ': cycle boundaries from the joint positions')
+    samples = _combine_batteries(path, samples, notes)
     # raw effort P_out per window: the command decides effort against model per run
     acc = DescriptorAccumulator(mass_kg=mass_kg, cycles=cycles, current_sign=current_sign,
                                 power_out_source='effort', cycle_source=cycle_source,
@@ -806,6 +810,25 @@ def read_robot_segments(path: str | Path, **kw: Any) -> list[RobotRun]:
     out = _read_robot(path, all_segments=True, **kw)
     assert isinstance(out, list)
     return out
+
+
+def _combine_batteries(path: str | Path, samples: list[tuple[float, int, str, Any]],
+                       notes: list[str]) -> list[tuple[float, int, str, Any]]:
+    """Several batteries on ``/battery_state`` summed, or the one of ``--battery-source``
+    kept (:mod:`hexapod_common.battery`); one battery and no choice: ``samples`` unchanged."""
+    from hexapod_common.battery import combine_battery_samples, selected_source
+
+    battery = [smp[3] for smp in samples if smp[2] == '/battery_state']
+    if len({b.source for b in battery}) < 2 and selected_source() is None:
+        return samples
+    try:
+        combined, more = combine_battery_samples(battery)
+    except ValueError as err:
+        raise BagContentError(f'bag {path}: {err}') from None
+    notes.extend(more)
+    rest = [smp for smp in samples if smp[2] != '/battery_state']
+    n = len(samples)
+    return rest + [(b.t_s, n + k, '/battery_state', b) for k, b in enumerate(combined)]
 
 
 def _schedule_key(g: Any) -> tuple[Any, ...]:

@@ -18,6 +18,10 @@ without joint efforts P_out is NaN (the Eq. 6 model needs the gait schedule).
 Times are header stamps. A message whose header stamp is zero (drivers that never fill it) is
 stamped with the node's clock on arrival instead (the bag time under replay), with one warning
 per topic, as the offline reader falls back to the bag's receive time.
+
+Several batteries on ``battery_state`` (distinct ``header.frame_id``: a servo pack and a logic
+pack) are summed as they appear (:class:`hexapod_common.battery.BatteryCombiner`, logged), or
+one is kept (parameter ``battery_source``).
 """
 
 from __future__ import annotations
@@ -33,6 +37,7 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from sensor_msgs.msg import BatteryState, JointState
 
+from hexapod_common.battery import BatteryCombiner
 from hexapod_common.conversions import (
     MOCAP_TYPES,
     battery_from_msg,
@@ -89,6 +94,10 @@ class EnergyParams:
         'TransformStamped (vicon_bridge), PoseWithCovarianceStamped or Odometry',
         validate=lambda v: None if v in MOCAP_TYPES else f'expected one of {list(MOCAP_TYPES)}',
         read_only=True)
+    battery_source: str = param(
+        '', 'keep only this battery of battery_state (header.frame_id, else location or '
+        'serial_number); empty: several batteries on the topic are summed',
+        read_only=True)
 
 
 def descriptors_to_msg(d: Descriptors, msg: Any = None) -> EnergeticDescriptors:
@@ -124,6 +133,9 @@ class EnergyMonitorNode(Node):
                                           current_sign=p.current_sign, power_out_model=model,
                                           power_out_source=p.power_out_source,
                                           cycle_source=p.cycle_source, speed_mps=p.speed)
+        # several batteries on one topic are summed, or one kept (hexapod_common.battery)
+        self.batteries = BatteryCombiner(select=p.battery_source or None)
+        self._battery_notes = 0
         self.pub = self.create_publisher(EnergeticDescriptors, 'energy/descriptors',
                                          RELIABLE_QOS)
         self.dropped = 0
@@ -172,9 +184,14 @@ class EnergyMonitorNode(Node):
             self.pub.publish(descriptors_to_msg(d))
 
     def _on_battery(self, msg: BatteryState) -> None:
-        self._publish(self._guard('BatteryState',
-                                  lambda m: self.core.add_battery(
-                                      self._restamp('battery_state', battery_from_msg(m))), msg))
+        self._publish(self._guard('BatteryState', self._add_battery, msg))
+
+    def _add_battery(self, msg: BatteryState) -> list[Descriptors]:
+        sample = self.batteries.add(self._restamp('battery_state', battery_from_msg(msg)))
+        for note in self.batteries.notes[self._battery_notes:]:
+            self.get_logger().warning(note)
+        self._battery_notes = len(self.batteries.notes)
+        return [] if sample is None else self.core.add_battery(sample)
 
     def _on_gait(self, msg: GaitPhase) -> None:
         self._publish(self._guard('GaitPhase',

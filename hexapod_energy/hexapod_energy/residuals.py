@@ -197,6 +197,7 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
     ``/gait/phase``, ``gait`` and ``/joint_states`` give the schedule: see :class:`GivenGait`),
     ``/servo_status`` and ``/joint_states`` (optional: thermal regressor, stream lag)."""
     from hexapod_common.bags import iter_messages, open_reader
+    from hexapod_common.battery import combine_battery_samples, selected_source
     from hexapod_common.conversions import (
         battery_from_msg,
         gait_phase_from_msg,
@@ -230,8 +231,7 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
                                         '/joint_states')):
             msg = reader.deserialize(m.data, m.msgtype)
             if m.topic == '/battery_state':
-                b = battery_from_msg(msg)
-                bat.append((b.t_s, b.voltage_v, b.current_a))
+                bat.append(battery_from_msg(msg))
             elif m.topic == '/gait/phase':
                 gp.append(gait_phase_from_msg(msg))
             elif m.topic == '/servo_status':
@@ -244,6 +244,13 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
                 if js.effort.size == len(js.names):
                     for name, e in zip(js.names, np.abs(js.effort)):
                         per_joint.setdefault(name, []).append((js.t_s, float(e)))
+    battery_notes: list[str] = []
+    if len({b.source for b in bat}) > 1 or selected_source() is not None:
+        try:
+            bat, battery_notes = combine_battery_samples(bat)
+        except ValueError as err:
+            raise BagContentError(f'robot bag {path}: {err}') from None
+    bat = [(b.t_s, b.voltage_v, b.current_a) for b in bat]
     if len(bat) < 10:
         raise BagContentError(f'robot bag {path}: /battery_state has {len(bat)} messages, '
                               'need at least 10')
@@ -267,7 +274,7 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
             temp_sum_c=np.full(t.shape, np.nan), servo_count=0,
             leg_names=tuple(pattern.leg_names),
             phase_offsets=tuple(float(x) for x in pattern.phase_offsets), gait=pattern.name)
-        run.notes = notes
+        run.notes = battery_notes + notes
         return _finish_run(run, b, t, temps, mech, per_joint)
     t = b[:, 0]
     gp.sort(key=lambda g: g.t_s)
@@ -291,6 +298,7 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
         temp_sum_c=np.full(t.shape, np.nan), servo_count=0,
         leg_names=tuple(gp[-1].leg_names),
         phase_offsets=tuple(float(x) for x in gp[-1].phase_offsets), gait=gp[-1].gait)
+    run.notes = battery_notes + list(run.notes)
     return _finish_run(run, b, t, temps, mech, per_joint)
 
 

@@ -95,6 +95,7 @@ def read_run(path: str | Path) -> RunData:
     central-difference speeds (each noted).
     """
     from hexapod_common.bags import iter_messages, open_reader
+    from hexapod_common.battery import combine_battery_samples, selected_source
     from hexapod_common.conversions import (
         battery_from_msg,
         gait_phase_from_msg,
@@ -146,6 +147,12 @@ def read_run(path: str | Path) -> RunData:
         for t, n in sorted(zero.items())]
     notes += [f'{n} {t} message(s) dropped (bad or NaN fields)'
               for t, n in sorted(dropped.items())]
+    if bt and (len({b.source for b in bt}) > 1 or selected_source() is not None):
+        try:
+            bt, battery_notes = combine_battery_samples(bt)
+        except ValueError as err:
+            raise MissingTopicError(f'bag {path}: {err}') from None
+        notes.extend(battery_notes)
     if not bt:
         notes.append('no usable /battery_state message (absent, or NaN voltage/current): the '
                      "run's power and specific resistance are null")

@@ -106,3 +106,31 @@ def test_offline_foxy_bag_zero_stamps_unknown_type(tmp_path):
         assert m.window == pytest.approx(PERIOD_S, abs=0.03)
         assert m.power_in == pytest.approx(P0_W, rel=3e-3)
         assert m.power_out == pytest.approx(float(np.mean(truth['pout'][:, 1])), rel=0.05)
+
+
+@pytest.mark.timeout(90)
+def test_two_batteries_on_one_topic_are_summed(tmp_path):
+    """A servo pack (30 W) and a logic pack (5 W) on battery_state, told apart by frame_id:
+    the node publishes their sum (it published their rate-weighted mean, 25.8 W), as the
+    offline reader does; ``battery_source`` keeps one."""
+    from hexapod_common.testbags import write_two_battery_robot_bag
+    from hexapod_energy.bag_io import read_robot_bag
+
+    bag = tmp_path / 'packs'
+    write_two_battery_robot_bag(bag)
+    offline = read_robot_bag(bag, mass_kg=2.0)
+    got = {}
+    with ros_env('outside_packs') as env:
+        for keep in ('', 'servo'):
+            node = EnergyMonitorNode(context=env.context, parameter_overrides=[
+                Parameter('current_sign', value='auto'), Parameter('mass', value=2.0),
+                Parameter('battery_source', value=keep)])
+            env.nodes.append(node)
+            got[keep] = run_offline([node], str(bag))['/energy/descriptors']
+    assert len(got['']) >= 20
+    for m in got[''][1:]:
+        assert m.power_in == pytest.approx(35.0, rel=2e-3)
+    assert float(np.mean([m.power_in for m in got[''][1:]])) == pytest.approx(
+        offline.power_in_w, rel=1e-3)
+    for m in got['servo']:
+        assert m.power_in == pytest.approx(30.0, rel=2e-3)

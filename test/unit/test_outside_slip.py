@@ -41,7 +41,7 @@ def _header(t_s: float | None, frame: str = ''):
 
 def _write(path, run, *, yaw_deg=35.0, shift_m=(2.4, -1.3, 0.0), rate_hz=100.0,
            hip_angles=True, shuffle_names=False, zero_stamps=False, nan_current=False,
-           mocap_clock_s=MOCAP_OFFSET_S, t0_s=500.0):
+           mocap_clock_s=MOCAP_OFFSET_S, t0_s=500.0, logic_pack_w=None):
     yaw = math.radians(yaw_deg)
     rot = np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0],
                     [0.0, 0.0, 1.0]])
@@ -84,6 +84,16 @@ def _write(path, run, *, yaw_deg=35.0, shift_m=(2.4, -1.3, 0.0), rate_hz=100.0,
                          cell_voltage=np.zeros(0, np.float32),
                          cell_temperature=np.zeros(0, np.float32), location='',
                          serial_number='')))
+        if logic_pack_w is not None and k % 10 == 3:  # a logic pack beside the robot's
+            msgs.append((ts, '/battery_state', 'sensor_msgs/msg/BatteryState',
+                         T['sensor_msgs/msg/BatteryState'](
+                             header=hdr(ts, 'logic'), voltage=7.4, temperature=nan,
+                             current=-logic_pack_w / 7.4, charge=nan, capacity=nan,
+                             design_capacity=nan, percentage=nan, power_supply_status=2,
+                             power_supply_health=0, power_supply_technology=0, present=True,
+                             cell_voltage=np.zeros(0, np.float32),
+                             cell_temperature=np.zeros(0, np.float32), location='',
+                             serial_number='')))
     for k, t in enumerate(tn):
         ts = t0_s + t + mocap_clock_s
         msgs.append((ts, '/mocap/body', 'geometry_msgs/msg/PoseStamped',
@@ -187,3 +197,14 @@ def test_mocap_on_another_clock_refused_in_one_line(tmp_path, sim_run):
     assert code == 1 and not doc['stances']
     err = doc['failed_bags'][0]['error']
     assert '\n' not in err and 'different clocks' in err
+
+
+def test_two_batteries_summed_for_the_specific_resistance(tmp_path, sim_run):
+    """The robot's pack and a 4 W logic pack (frame_id ``logic``) on /battery_state: the run's
+    power is their sum (it was their rate-weighted mean), and the specific resistance with it."""
+    _, one = _slip(tmp_path, _write(tmp_path / 'one', sim_run), 'one')
+    _, two = _slip(tmp_path, _write(tmp_path / 'two', sim_run, logic_pack_w=4.0), 'two')
+    p1, p2 = one['runs'][0]['power_w'], two['runs'][0]['power_w']
+    assert p2 == pytest.approx(p1 + 4.0, rel=0.02)
+    assert two['runs'][0]['sr'] == pytest.approx(one['runs'][0]['sr'] * p2 / p1, rel=1e-6)
+    assert any('2 batteries on /battery_state' in n for n in two['runs'][0]['notes'])

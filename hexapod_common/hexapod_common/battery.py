@@ -1,0 +1,236 @@
+"""Several batteries on one ``/battery_state`` topic: their input powers summed.
+
+A robot with a servo pack and a logic pack, or a power board reporting each rail, may publish
+every pack's ``sensor_msgs/BatteryState`` on the same topic, told apart by
+``header.frame_id`` (else ``location``, else ``serial_number``:
+:attr:`~hexapod_common.conversions.BatterySample.source`). Interleaved on one stream their
+samples would be treated as one battery's, and any average over time gives the MEAN of the
+packs' powers, not their sum: a robot drawing 30 W from its servo pack and 5 W from its logic
+pack would read 17.5 W.
+
+:class:`BatteryCombiner` turns such a stream back into one battery's: while one source has
+been seen, samples pass unchanged (a one-battery robot is untouched, bit for bit). With two or
+more, every sample gives one combined sample at its time, whose power ``V * I`` is the sum over
+the sources of each one's latest ``V_k * I_k`` (voltage: the reference source's, the first
+seen; current: the summed power over that voltage, in the messages' own sign convention, so
+the current-sign detection downstream sees it as one pack's). A source silent for more than
+``max(stale_s, 5 x its own sample interval)`` leaves the sum, noted. Offline readers pass every
+source found in the bag (``expected``), so no sum is formed before each has reported once;
+the live node learns them as they come (noted when one appears late).
+
+Two sources that report the same voltage and power (within 0.5 % and 5 % over their first 50
+samples) are more likely one pack published twice (a driver and a power board): noted, with
+the way to keep one (``select``: only that source's samples pass; CLI ``--battery-source``,
+node parameter ``battery_source``).
+
+Core module: no rclpy.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Iterable, Sequence
+
+import numpy as np
+
+from .conversions import BatterySample
+
+__all__ = ['BATTERY_SOURCE_ENV', 'BatteryCombiner', 'combine_battery_samples', 'STALE_S',
+           'selected_source']
+
+#: a source silent for longer than this (or 5 of its own sample intervals, if longer) [s]
+#: leaves the sum
+STALE_S = 2.0
+#: environment variable naming the one battery to keep (``hexapod-analyze --battery-source``,
+#: inherited by its ``--jobs`` workers)
+BATTERY_SOURCE_ENV = 'HEXAPOD_BATTERY_SOURCE'
+#: samples per source compared for the "same pack twice" note
+SAME_PACK_SAMPLES = 50
+
+
+def _label(source: str) -> str:
+    return repr(source) if source else "'' (no frame_id)"
+
+
+@dataclasses.dataclass
+class _Source:
+    t_s: float
+    voltage_v: float
+    current_a: float
+    interval_s: float = 0.0
+    stale: bool = False
+    first: list[tuple[float, float]] = dataclasses.field(default_factory=list)
+
+
+class BatteryCombiner:
+    """Sum of the input powers of the batteries on one topic (module docs).
+
+    Parameters
+    ----------
+    expected : sequence of str, optional
+        Every source the stream will carry (offline: found in the bag). With two or more, no
+        sample is emitted before each has reported once.
+    select : str, optional
+        Keep only this source's samples (the others are dropped, counted in ``notes``; noted
+        when it is not among the first 20). :func:`combine_battery_samples` keeps a stream
+        of one source whatever its name.
+    stale_s : float
+        A source silent longer than ``max(stale_s, 5 x its interval)`` leaves the sum.
+    """
+
+    def __init__(self, expected: Sequence[str] | None = None, select: str | None = None,
+                 stale_s: float = STALE_S) -> None:
+        if not stale_s > 0:
+            raise ValueError(f'stale_s must be > 0, got {stale_s}')
+        self.expected = tuple(dict.fromkeys(expected or ()))
+        self.select = select
+        self.stale_s = float(stale_s)
+        self.notes: list[str] = []
+        self._src: dict[str, _Source] = {}
+        self._order: list[str] = []
+        self._dropped = 0
+        self._held = 0
+        self._same_checked: set[tuple[str, str]] = set()
+        self.selected_seen_ = False
+
+    @property
+    def sources_(self) -> tuple[str, ...]:
+        """Sources seen so far, in order of appearance."""
+        return tuple(self._order)
+
+    @property
+    def summing_(self) -> bool:
+        """Whether samples are being summed over two or more sources."""
+        return self.select is None and (len(self._order) > 1 or len(self.expected) > 1)
+
+    def add(self, sample: BatterySample) -> BatterySample | None:
+        """One sample in; the combined sample out (None while waiting for every expected
+        source, or for a source other than ``select``)."""
+        src = sample.source
+        if self.select is not None:
+            if src != self.select:
+                self._dropped += 1
+                if src not in self._order:
+                    self._order.append(src)
+                if self._dropped == 20 and not self.selected_seen_:
+                    self.notes.append(
+                        f'battery source {_label(self.select)} not seen in 20 samples; the '
+                        f'topic carries {", ".join(map(_label, self._order))}')
+                return None
+            self.selected_seen_ = True
+            return sample
+        known = src in self._src
+        if not known:
+            if self._order and not self.expected:
+                self.notes.append(
+                    f'battery source {_label(src)} appeared at t = {sample.t_s:.3f} s beside '
+                    f'{", ".join(map(_label, self._order))}: input power is the sum of the '
+                    'sources from then on')
+            elif self.expected and src not in self.expected:
+                self.notes.append(f'battery source {_label(src)} not announced: summed from '
+                                  f't = {sample.t_s:.3f} s')
+            self._order.append(src)
+            self._src[src] = _Source(sample.t_s, sample.voltage_v, sample.current_a)
+        else:
+            s = self._src[src]
+            dt = sample.t_s - s.t_s
+            if dt > 0:
+                s.interval_s = dt if s.interval_s == 0 else 0.9 * s.interval_s + 0.1 * dt
+            if s.stale:
+                s.stale = False
+                self.notes.append(f'battery source {_label(src)} back at t = '
+                                  f'{sample.t_s:.3f} s: summed again')
+            s.t_s, s.voltage_v, s.current_a = sample.t_s, sample.voltage_v, sample.current_a
+        s = self._src[src]
+        if len(s.first) < SAME_PACK_SAMPLES:
+            s.first.append((sample.voltage_v, sample.voltage_v * sample.current_a))
+            if len(s.first) == SAME_PACK_SAMPLES:
+                self._check_same_pack(src)
+        if not self.summing_:
+            return sample
+        if self.expected and any(e not in self._src for e in self.expected):
+            self._held += 1
+            return None
+        return self._combined(sample)
+
+    def _combined(self, sample: BatterySample) -> BatterySample:
+        t = sample.t_s
+        power = 0.0
+        for name in self._order:
+            s = self._src[name]
+            limit = max(self.stale_s, 5.0 * s.interval_s)
+            if t - s.t_s > limit:
+                if not s.stale:
+                    s.stale = True
+                    self.notes.append(
+                        f'battery source {_label(name)} silent for more than {limit:.1f} s at '
+                        f't = {t:.3f} s: left out of the summed input power until it reports')
+                continue
+            power += s.voltage_v * s.current_a
+        ref = self._src[self._order[0]]
+        volt = ref.voltage_v if abs(ref.voltage_v) > 1e-6 else 1.0
+        return dataclasses.replace(sample, voltage_v=volt, current_a=power / volt,
+                                   source='+'.join(self._order))
+
+    def _check_same_pack(self, src: str) -> None:
+        a = self._src[src].first
+        for other in self._order:
+            b = self._src[other].first
+            pair = tuple(sorted((src, other)))
+            if other == src or len(b) < SAME_PACK_SAMPLES or pair in self._same_checked:
+                continue
+            self._same_checked.add(pair)  # type: ignore[arg-type]
+            va, pa = np.median(np.array(a), axis=0)
+            vb, pb = np.median(np.array(b), axis=0)
+            if (abs(va - vb) <= 0.005 * max(abs(va), abs(vb), 1e-9)
+                    and abs(pa - pb) <= 0.05 * max(abs(pa), abs(pb), 1e-9)):
+                self.notes.append(
+                    f'battery sources {_label(other)} and {_label(src)} report the same '
+                    f'voltage ({va:.2f} V) and power ({abs(pa):.2f} W): if they are one pack '
+                    'published twice, their sum counts it twice; keep one with '
+                    '--battery-source (node parameter battery_source)')
+
+    def finish(self) -> list[str]:
+        """Notes at the end of a stream (dropped, held samples; a ``select`` never seen)."""
+        out = list(self.notes)
+        if self.select is not None:
+            if self._dropped:
+                out.append(f'{self._dropped} /battery_state sample(s) of other sources than '
+                           f'{_label(self.select)} ignored (--battery-source)')
+        elif len(self._order) > 1:
+            out.insert(0, f'{len(self._order)} batteries on /battery_state '
+                          f'({", ".join(map(_label, self._order))}): input power is their sum')
+            if self._held:
+                out.append(f'{self._held} battery sample(s) before every source had reported '
+                           'left out')
+        return out
+
+
+def selected_source() -> str | None:
+    """The battery to keep, from ``BATTERY_SOURCE_ENV`` (None: sum them all)."""
+    return os.environ.get(BATTERY_SOURCE_ENV) or None
+
+
+def combine_battery_samples(samples: Iterable[BatterySample], select: str | None = None,
+                            stale_s: float = STALE_S,
+                            ) -> tuple[list[BatterySample], list[str]]:
+    """Offline: the samples in time order through a :class:`BatteryCombiner` that expects
+    every source they carry; returns the combined samples and the notes. ``select`` defaults
+    to :func:`selected_source`. Raises ValueError when ``select`` names no source of the
+    stream (listing those it has)."""
+    if select is None:
+        select = selected_source()
+    ordered = sorted(samples, key=lambda s: s.t_s)
+    sources = tuple(dict.fromkeys(s.source for s in ordered))
+    if select is not None and len(sources) < 2:
+        # a bag of one battery (a bench's supply beside robot bags of two packs): kept
+        return ordered, ([] if select in sources or not sources else [
+            f'--battery-source {select!r}: this bag has one battery ({_label(sources[0])}), '
+            'kept'])
+    if select is not None and select not in sources:
+        raise ValueError(f'battery source {select!r} not on /battery_state; its sources: '
+                         f'{", ".join(map(_label, sources)) or "none"}')
+    comb = BatteryCombiner(expected=sources, select=select, stale_s=stale_s)
+    out = [c for c in (comb.add(s) for s in ordered) if c is not None]
+    return out, comb.finish()
