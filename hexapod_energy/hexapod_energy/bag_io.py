@@ -227,6 +227,7 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None) ->
     counted per topic in ``notes`` (``energy.json`` ``bench.diagnostics[].notes``).
     """
     from hexapod_common.bags import iter_messages, open_reader
+    from hexapod_common.clocks import ClockCheck, shift_rows
     from hexapod_common.conversions import (
         battery_from_msg,
         point_from_msg,
@@ -241,9 +242,12 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None) ->
     dropped: dict[str, list[str]] = {}
     zero_stamps: dict[str, int] = {}
 
+    clocks = ClockCheck()
+
     def stamped(t_s: float, m: Any) -> float:
         # drivers that leave header.stamp at 0: the bag's receive time stands in
         if t_s != 0.0:
+            clocks.observe(m.topic, t_s, 1e-9 * m.stamp_ns)
             return t_s
         if m.stamp_ns != 0:  # stamp 0 at bag time 0: a clock starting at 0, nothing to note
             zero_stamps[m.topic] = zero_stamps.get(m.topic, 0) + 1
@@ -319,6 +323,16 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None) ->
                     'step_length_m': float(msg.step_length),
                 })
     notes_out: list[str] = []
+    shifts, clock_notes = clocks.shifts()   # a topic stamped on another clock
+    notes_out.extend(clock_notes)
+    if shifts:
+        dt = shifts.get
+        bat_samples = [dataclasses.replace(b, t_s=b.t_s + dt('/battery_state', 0.0))
+                       for b in bat_samples]
+        frc = shift_rows(frc, dt('/bench/ground_force', 0.0))
+        tip = shift_rows(tip, dt('/bench/leg_tip', 0.0))
+        for row in ses:
+            row['t_s'] += dt('/bench/session', 0.0)
     combined = _combine_batteries(path, [(b.t_s, k, '/battery_state', b)
                                          for k, b in enumerate(bat_samples)], notes_out)
     bat = [(b.t_s, b.voltage_v, b.current_a) for _, _, _, b in combined]
@@ -611,6 +625,7 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
                 all_segments: bool = False) -> RobotRun | list[RobotRun]:
     """Body of :func:`read_robot_bag` and :func:`read_robot_segments`."""
     from hexapod_common.bags import iter_messages, open_reader
+    from hexapod_common.clocks import ClockCheck
     from hexapod_common.conversions import (
         battery_from_msg,
         gait_phase_from_msg,
@@ -646,6 +661,7 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
     dropped: dict[str, list[str]] = {}
     duplicates = 0
     n_battery = 0
+    clocks = ClockCheck()
     with open_reader(path) as reader:
         _check_topics(reader, required, str(path))
         custom = _custom_data(reader)
@@ -660,6 +676,7 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
                 dropped.setdefault(m.topic, []).append(str(err))
                 continue
             if sample.t_s != 0.0:
+                clocks.observe(m.topic, sample.t_s, 1e-9 * m.stamp_ns)
                 # the same stamped message recorded twice (two recorders, a relay, a bridge)
                 key = (m.topic, m.data)
                 if key in seen:
@@ -675,6 +692,7 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
                     zero_stamps[m.topic] = zero_stamps.get(m.topic, 0) + 1
                 sample = dataclasses.replace(sample, t_s=1e-9 * m.stamp_ns)
             samples.append((sample.t_s, len(samples), m.topic, sample))
+    samples = _on_one_clock(samples, clocks, notes)
     bad_battery = dropped.get('/battery_state', [])
     if bad_battery and len(bad_battery) == n_battery:
         raise BagContentError(
@@ -810,6 +828,17 @@ def read_robot_segments(path: str | Path, **kw: Any) -> list[RobotRun]:
     out = _read_robot(path, all_segments=True, **kw)
     assert isinstance(out, list)
     return out
+
+
+def _on_one_clock(samples: list[tuple[float, int, str, Any]], clocks: Any,
+                  notes: list[str]) -> list[tuple[float, int, str, Any]]:
+    """Topics stamped on another clock moved onto the others' (:mod:`hexapod_common.clocks`)."""
+    shifts, more = clocks.shifts()
+    if not shifts:
+        return samples
+    notes.extend(more)
+    return [(t + shifts[topic], i, topic, dataclasses.replace(smp, t_s=smp.t_s + shifts[topic]))
+            if topic in shifts else (t, i, topic, smp) for t, i, topic, smp in samples]
 
 
 def _combine_batteries(path: str | Path, samples: list[tuple[float, int, str, Any]],

@@ -21,7 +21,9 @@ per topic, as the offline reader falls back to the bag's receive time.
 
 Several batteries on ``battery_state`` (distinct ``header.frame_id``: a servo pack and a logic
 pack) are summed as they appear (:class:`hexapod_common.battery.BatteryCombiner`, logged), or
-one is kept (parameter ``battery_source``).
+one is kept (parameter ``battery_source``). A topic stamped on another clock than the others
+(a board without time synchronisation) is reported once, as an error: its messages cannot be
+matched live (the offline readers re-stamp it from the bag's receive times).
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import BatteryState, JointState
 
 from hexapod_common.battery import BatteryCombiner
+from hexapod_common.clocks import ClockCheck
 from hexapod_common.conversions import (
     MOCAP_TYPES,
     battery_from_msg,
@@ -136,6 +139,8 @@ class EnergyMonitorNode(Node):
         # several batteries on one topic are summed, or one kept (hexapod_common.battery)
         self.batteries = BatteryCombiner(select=p.battery_source or None)
         self._battery_notes = 0
+        self._clocks: ClockCheck | None = ClockCheck()   # stamps against the node clock
+        self._clock_msgs = 0
         self.pub = self.create_publisher(EnergeticDescriptors, 'energy/descriptors',
                                          RELIABLE_QOS)
         self.dropped = 0
@@ -161,12 +166,32 @@ class EnergyMonitorNode(Node):
     def _restamp(self, topic: str, sample: Any) -> Any:
         """``sample`` stamped with the node's clock when its header stamp is zero."""
         if sample.t_s != 0.0:
+            self._check_clock(topic, sample.t_s)
             return sample
         if topic not in self._zero_stamp_topics:
             self._zero_stamp_topics.add(topic)
             self.get_logger().warning(f'{topic} messages have zero header stamps: using the '
                                       'arrival time on the node clock instead')
         return dataclasses.replace(sample, t_s=self.get_clock().now().nanoseconds * 1e-9)
+
+    def _check_clock(self, topic: str, t_s: float) -> None:
+        """Warn (once) when a topic is stamped on another clock than the others: its windows
+        never match theirs (the offline readers re-stamp it; :mod:`hexapod_common.clocks`)."""
+        if self._clocks is None:
+            return
+        self._clocks.observe(topic, t_s, self.get_clock().now().nanoseconds * 1e-9)
+        self._clock_msgs += 1
+        if self._clock_msgs in (200, 2000):
+            _, notes = self._clocks.shifts()
+            if notes:
+                self._clocks = None
+                for note in notes:
+                    what = note.split(': moved')[0].replace("the bag's receive times",
+                                                            'the node clock')
+                    self.get_logger().error(
+                        f"{what}: its messages cannot be matched with the others' live; give "
+                        'the publisher a synchronised clock (offline, hexapod-analyze '
+                        "re-stamps it from the bag's receive times)")
 
     def _publish(self, results: Sequence[Descriptors] | None) -> None:
         if self.core.sign_note_ and not self._sign_logged:

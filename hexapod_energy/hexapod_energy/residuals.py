@@ -25,6 +25,7 @@ lazily.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -198,16 +199,19 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
     ``/servo_status`` and ``/joint_states`` (optional: thermal regressor, stream lag)."""
     from hexapod_common.bags import iter_messages, open_reader
     from hexapod_common.battery import combine_battery_samples, selected_source
+    from hexapod_common.clocks import ClockCheck, shift_rows
     from hexapod_common.conversions import (
         battery_from_msg,
         gait_phase_from_msg,
         joint_state_from_msg,
         servo_status_from_msg,
+        stamp_to_s,
     )
 
     from hexapod_energy.descriptors import resolve_current_sign
 
     bat, gp, temps, mech = [], [], [], []
+    clocks = ClockCheck()
     per_joint: dict[str, list[tuple[float, float]]] = {}
     with open_reader(path) as reader:
         present = sorted({c.topic for c in reader.connections})
@@ -230,6 +234,8 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
         for m in iter_messages(reader, ('/battery_state', '/gait/phase', '/servo_status',
                                         '/joint_states')):
             msg = reader.deserialize(m.data, m.msgtype)
+            if msg.header.stamp.sec or msg.header.stamp.nanosec:
+                clocks.observe(m.topic, stamp_to_s(msg.header.stamp), 1e-9 * m.stamp_ns)
             if m.topic == '/battery_state':
                 bat.append(battery_from_msg(msg))
             elif m.topic == '/gait/phase':
@@ -245,6 +251,15 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
                     for name, e in zip(js.names, np.abs(js.effort)):
                         per_joint.setdefault(name, []).append((js.t_s, float(e)))
     battery_notes: list[str] = []
+    shifts, clock_notes = clocks.shifts()   # a topic stamped on another clock
+    if shifts:
+        battery_notes.extend(clock_notes)
+        dt = shifts.get
+        bat = [dataclasses.replace(b, t_s=b.t_s + dt('/battery_state', 0.0)) for b in bat]
+        gp = [dataclasses.replace(g, t_s=g.t_s + dt('/gait/phase', 0.0)) for g in gp]
+        temps = shift_rows(temps, dt('/servo_status', 0.0))
+        mech = shift_rows(mech, dt('/joint_states', 0.0))
+        per_joint = {k: shift_rows(v, dt('/joint_states', 0.0)) for k, v in per_joint.items()}
     if len({b.source for b in bat}) > 1 or selected_source() is not None:
         try:
             bat, battery_notes = combine_battery_samples(bat)

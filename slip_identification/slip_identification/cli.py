@@ -96,6 +96,7 @@ def read_run(path: str | Path) -> RunData:
     """
     from hexapod_common.bags import iter_messages, open_reader
     from hexapod_common.battery import combine_battery_samples, selected_source
+    from hexapod_common.clocks import ClockCheck
     from hexapod_common.conversions import (
         battery_from_msg,
         gait_phase_from_msg,
@@ -111,6 +112,7 @@ def read_run(path: str | Path) -> RunData:
     changes: list[tuple[float, str]] = []
     zero: dict[str, int] = {}
     dropped: dict[str, int] = {}
+    clocks = ClockCheck()
     with open_reader(path) as reader:
         reader_notes = list(getattr(reader, 'notes', ()))  # e.g. mcap without metadata.yaml
         present = {c.topic for c in reader.connections}
@@ -141,10 +143,18 @@ def read_run(path: str | Path) -> RunData:
                 if m.stamp_ns != 0:  # (stamp 0 at bag time 0: a clock starting at 0)
                     zero[m.topic] = zero.get(m.topic, 0) + 1
                 sample = dataclasses.replace(sample, t_s=1e-9 * m.stamp_ns)
+            else:
+                clocks.observe(m.topic, sample.t_s, 1e-9 * m.stamp_ns)
             streams[m.topic][0].append(sample)
     notes = reader_notes + [
         f'{n} {t} message(s) with a zero header stamp: bag receive time used'
         for t, n in sorted(zero.items())]
+    shifts, clock_notes = clocks.shifts()   # a topic stamped on another clock
+    notes.extend(clock_notes)
+    for topic, dt in shifts.items():
+        if topic in streams:
+            lst = streams[topic][0]
+            lst[:] = [dataclasses.replace(x, t_s=x.t_s + dt) for x in lst]
     notes += [f'{n} {t} message(s) dropped (bad or NaN fields)'
               for t, n in sorted(dropped.items())]
     if bt and (len({b.source for b in bt}) > 1 or selected_source() is not None):

@@ -134,3 +134,24 @@ def test_two_batteries_on_one_topic_are_summed(tmp_path):
         offline.power_in_w, rel=1e-3)
     for m in got['servo']:
         assert m.power_in == pytest.approx(30.0, rel=2e-3)
+
+
+@pytest.mark.timeout(90)
+def test_battery_on_another_clock_is_reported(tmp_path):
+    """A battery board stamping from its boot (57 s) in a robot recorded at 1000 s: live, its
+    samples never meet a gait window; the node says why, once, as an error."""
+    from hexapod_common.testbags import restamp_topic, write_two_battery_robot_bag
+
+    write_two_battery_robot_bag(tmp_path / 'ref', logic_w=0.0)
+    bag = restamp_topic(tmp_path / 'ref', tmp_path / 'boot', '/battery_state', 57.0 - 1000.0)
+    with ros_env('outside_clock') as env:
+        node = EnergyMonitorNode(context=env.context, parameter_overrides=[
+            Parameter('current_sign', value='ros'), Parameter('mass', value=2.0)])
+        env.nodes.append(node)
+        errors = []
+        logger = node.get_logger()
+        original = logger.error
+        logger.error = lambda msg, **kw: errors.append(msg) or original(msg, **kw)
+        run_offline([node], str(bag))
+    assert len(errors) == 1 and errors[0].startswith('battery_state stamped on another clock')
+    assert 'from the node clock' in errors[0]

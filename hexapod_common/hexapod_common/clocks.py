@@ -1,0 +1,91 @@
+"""Topics stamped on another clock: found from the bag's receive times, re-stamped, noted.
+
+A sensor whose driver stamps messages with its own clock -- a micro-ROS or rosserial board
+without time synchronisation (seconds since boot), a motion-capture bridge passing the
+capture system's time -- gives header stamps that do not overlap the other topics'. The
+analysis matches streams by header stamp, so such a bag had no window at all ("no whole gait
+cycle with battery samples around it") or was refused.
+
+The recorder's receive times are on one clock for every topic. :class:`ClockCheck` takes, per
+topic, the median of ``header stamp - receive time`` (the stamp clock's offset plus the
+transport latency, milliseconds). Topics whose medians agree within ``ANOTHER_CLOCK_S`` share
+a clock; the largest such group is the reference (on a tie, the group nearest the receive
+clock: a bag re-recorded from a replay has every topic far from it, and then nothing is
+changed). Every other topic is re-stamped ``t + (median_ref - median_topic)``: its own stamps'
+spacing is kept and it is placed on the reference clock up to the difference of the two
+latencies (milliseconds; the SLIP analysis estimates the motion capture's offset from the data
+anyway). Offsets below ``ANOTHER_CLOCK_S`` (latency, NTP error) are left alone.
+
+Core module: no rclpy.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from typing import Any
+
+import numpy as np
+
+__all__ = ['ANOTHER_CLOCK_S', 'ClockCheck']
+
+#: stamp-minus-receive medians further apart than this [s] are different clocks
+ANOTHER_CLOCK_S = 1.0
+#: samples per topic kept for the medians (evenly thinned beyond)
+_MAX_SAMPLES = 4096
+
+
+class ClockCheck:
+    """Per-topic stamp clocks from a bag's receive times (module docs)."""
+
+    def __init__(self, threshold_s: float = ANOTHER_CLOCK_S) -> None:
+        self.threshold_s = float(threshold_s)
+        self._d: dict[str, list[float]] = {}
+        self._n: dict[str, int] = {}
+
+    def observe(self, topic: str, stamp_s: float, receive_s: float) -> None:
+        """One message's header stamp and the bag's receive time [s]; zero stamps (replaced by
+        the receive time) are not evidence and should not be passed."""
+        n = self._n[topic] = self._n.get(topic, 0) + 1
+        d = self._d.setdefault(topic, [])
+        if len(d) < _MAX_SAMPLES:
+            d.append(stamp_s - receive_s)
+        elif n % 2 == 0:  # thin evenly: keep every other sample from here on
+            d[(n // 2) % _MAX_SAMPLES] = stamp_s - receive_s
+
+    def medians(self) -> dict[str, float]:
+        """Median ``stamp - receive`` per topic [s]."""
+        return {t: float(np.median(d)) for t, d in self._d.items() if d}
+
+    def shifts(self) -> tuple[dict[str, float], list[str]]:
+        """``{topic: seconds to add to its stamps}`` for topics on another clock, and notes."""
+        med = self.medians()
+        if len(med) < 2:
+            return {}, []
+        groups: list[list[str]] = []
+        for topic in sorted(med, key=med.get):  # type: ignore[arg-type]
+            if groups and med[topic] - med[groups[-1][0]] <= self.threshold_s:
+                groups[-1].append(topic)
+            else:
+                groups.append([topic])
+        if len(groups) == 1:
+            return {}, []
+        ref = max(groups, key=lambda g: (len(g), -min(abs(med[t]) for t in g)))
+        ref_med = float(np.median([med[t] for t in ref]))
+        out: dict[str, float] = {}
+        notes: list[str] = []
+        for g in groups:
+            if g is ref:
+                continue
+            for topic in g:
+                out[topic] = ref_med - med[topic]
+                notes.append(
+                    f'{topic} stamped on another clock (header stamps {med[topic]:+.3f} s from '
+                    f'the bag\'s receive times, against {ref_med:+.3f} s for '
+                    f'{", ".join(sorted(ref))}): moved by {out[topic]:+.3f} s onto their clock '
+                    '(its own stamp spacing kept)')
+        return out, notes
+
+
+def shift_rows(rows: Iterable[Any], dt: float) -> list[Any]:
+    """Tuples whose first item is a time [s], moved by ``dt``."""
+    return [(r[0] + dt, *r[1:]) for r in rows]
