@@ -37,7 +37,7 @@ import numpy as np
 from .conversions import BatterySample
 
 __all__ = ['BATTERY_SOURCE_ENV', 'BatteryCombiner', 'combine_battery_samples', 'STALE_S',
-           'selected_source']
+           'selected_source', 'unmeasured_power']
 
 #: a source silent for longer than this (or 5 of its own sample intervals, if longer) [s]
 #: leaves the sum
@@ -234,3 +234,17 @@ def combine_battery_samples(samples: Iterable[BatterySample], select: str | None
     comb = BatteryCombiner(expected=sources, select=select, stale_s=stale_s)
     out = [c for c in (comb.add(s) for s in ordered) if c is not None]
     return out, comb.finish()
+
+
+def unmeasured_power(voltage_v: Sequence[float], current_a: Sequence[float]) -> str | None:
+    """Why a battery stream does not measure power, or None: a monitor without a current
+    sensor (or a voltage input) often fills the field with 0 instead of NaN, and an input
+    power of 0 W is then not a measurement. Returns a message when every one of 3 or more
+    samples has ``V * I == 0``."""
+    v = np.asarray(voltage_v, dtype=float)
+    i = np.asarray(current_a, dtype=float)
+    if v.size < 3 or np.any(v * i != 0):
+        return None
+    which = 'current' if np.all(i == 0) else 'voltage' if np.all(v == 0) else 'voltage or current'
+    return (f'every /battery_state sample ({v.size}) has {which} 0: the monitor does not '
+            f'measure it (a driver filling 0 for "unknown"), so there is no input power')

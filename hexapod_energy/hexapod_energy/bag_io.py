@@ -227,6 +227,7 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None) ->
     counted per topic in ``notes`` (``energy.json`` ``bench.diagnostics[].notes``).
     """
     from hexapod_common.bags import iter_messages, open_reader
+    from hexapod_common.battery import unmeasured_power
     from hexapod_common.clocks import ClockCheck, shift_rows
     from hexapod_common.conversions import (
         battery_from_msg,
@@ -336,6 +337,9 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None) ->
     combined = _combine_batteries(path, [(b.t_s, k, '/battery_state', b)
                                          for k, b in enumerate(bat_samples)], notes_out)
     bat = [(b.t_s, b.voltage_v, b.current_a) for _, _, _, b in combined]
+    why = unmeasured_power([b[1] for b in bat], [b[2] for b in bat])
+    if why:
+        raise BagContentError(f'bag {path}: {why}')
     if session is not None:
         ses = _session_from_spec(path, session, bat, frc, tip, periods, notes_out)
     for name, rows in (('/battery_state', bat), ('/bench/ground_force', frc),
@@ -625,6 +629,7 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
                 all_segments: bool = False) -> RobotRun | list[RobotRun]:
     """Body of :func:`read_robot_bag` and :func:`read_robot_segments`."""
     from hexapod_common.bags import iter_messages, open_reader
+    from hexapod_common.battery import unmeasured_power
     from hexapod_common.clocks import ClockCheck
     from hexapod_common.conversions import (
         battery_from_msg,
@@ -698,6 +703,10 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
         raise BagContentError(
             f'bag {path}: no usable /battery_state message ({n_battery} of {n_battery} '
             f'dropped, e.g. {bad_battery[0]}): input power needs both voltage and current')
+    battery = [smp[3] for smp in samples if smp[2] == '/battery_state']
+    why = unmeasured_power([b.voltage_v for b in battery], [b.current_a for b in battery])
+    if why:
+        raise BagContentError(f'bag {path}: {why}')
     for topic, errs in sorted(dropped.items()):
         notes.append(f'{len(errs)} {topic} message(s) dropped: {errs[0]}')
     for topic, n in sorted(zero_stamps.items()):

@@ -63,6 +63,9 @@ from hexapod_energy.prediction import OutputPowerModel, RobotSpec
 
 __all__ = ['EnergyMonitorNode', 'EnergyParams', 'descriptors_to_msg', 'main']
 
+#: leading battery samples with V * I == 0 after which the node reports an unmeasured current
+ZERO_POWER_SAMPLES = 100
+
 
 @dataclass(frozen=True)
 class EnergyParams:
@@ -141,6 +144,7 @@ class EnergyMonitorNode(Node):
         self._battery_notes = 0
         self._clocks: ClockCheck | None = ClockCheck()   # stamps against the node clock
         self._clock_msgs = 0
+        self._zero_power: int | None = 0   # leading battery samples with V * I == 0
         self.pub = self.create_publisher(EnergeticDescriptors, 'energy/descriptors',
                                          RELIABLE_QOS)
         self.dropped = 0
@@ -216,7 +220,18 @@ class EnergyMonitorNode(Node):
         for note in self.batteries.notes[self._battery_notes:]:
             self.get_logger().warning(note)
         self._battery_notes = len(self.batteries.notes)
-        return [] if sample is None else self.core.add_battery(sample)
+        if sample is None:
+            return []
+        if self._zero_power is not None:   # a monitor that fills 0 for "not measured"
+            if sample.voltage_v * sample.current_a != 0:
+                self._zero_power = None
+            else:
+                self._zero_power += 1
+                if self._zero_power == ZERO_POWER_SAMPLES:
+                    self.get_logger().error(
+                        f'battery_state: {ZERO_POWER_SAMPLES} samples with voltage or current '
+                        '0: the monitor does not measure it; power_in 0 W is not a measurement')
+        return self.core.add_battery(sample)
 
     def _on_gait(self, msg: GaitPhase) -> None:
         self._publish(self._guard('GaitPhase',

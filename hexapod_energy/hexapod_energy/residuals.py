@@ -198,7 +198,11 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
     ``/gait/phase``, ``gait`` and ``/joint_states`` give the schedule: see :class:`GivenGait`),
     ``/servo_status`` and ``/joint_states`` (optional: thermal regressor, stream lag)."""
     from hexapod_common.bags import iter_messages, open_reader
-    from hexapod_common.battery import combine_battery_samples, selected_source
+    from hexapod_common.battery import (
+        combine_battery_samples,
+        selected_source,
+        unmeasured_power,
+    )
     from hexapod_common.clocks import ClockCheck, shift_rows
     from hexapod_common.conversions import (
         battery_from_msg,
@@ -265,6 +269,9 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
             bat, battery_notes = combine_battery_samples(bat)
         except ValueError as err:
             raise BagContentError(f'robot bag {path}: {err}') from None
+    why = unmeasured_power([b.voltage_v for b in bat], [b.current_a for b in bat])
+    if why:
+        raise BagContentError(f'robot bag {path}: {why}')
     bat = [(b.t_s, b.voltage_v, b.current_a) for b in bat]
     if len(bat) < 10:
         raise BagContentError(f'robot bag {path}: /battery_state has {len(bat)} messages, '

@@ -95,7 +95,11 @@ def read_run(path: str | Path) -> RunData:
     central-difference speeds (each noted).
     """
     from hexapod_common.bags import iter_messages, open_reader
-    from hexapod_common.battery import combine_battery_samples, selected_source
+    from hexapod_common.battery import (
+        combine_battery_samples,
+        selected_source,
+        unmeasured_power,
+    )
     from hexapod_common.clocks import ClockCheck
     from hexapod_common.conversions import (
         battery_from_msg,
@@ -163,6 +167,10 @@ def read_run(path: str | Path) -> RunData:
         except ValueError as err:
             raise MissingTopicError(f'bag {path}: {err}') from None
         notes.extend(battery_notes)
+    why = unmeasured_power([b.voltage_v for b in bt], [b.current_a for b in bt])
+    if why:
+        notes.append(why)
+        bt = []
     if not bt:
         notes.append('no usable /battery_state message (absent, or NaN voltage/current): the '
                      "run's power and specific resistance are null")

@@ -155,3 +155,22 @@ def test_battery_on_another_clock_is_reported(tmp_path):
         run_offline([node], str(bag))
     assert len(errors) == 1 and errors[0].startswith('battery_state stamped on another clock')
     assert 'from the node clock' in errors[0]
+
+
+@pytest.mark.timeout(90)
+def test_battery_current_always_zero_is_reported(tmp_path):
+    """A monitor without a current sensor that publishes 0 A: reported once, as an error."""
+    from hexapod_common.testbags import write_two_battery_robot_bag
+
+    bag = tmp_path / 'z'
+    write_two_battery_robot_bag(bag, servo_w=0.0, logic_w=0.0)
+    with ros_env('outside_zero') as env:
+        node = EnergyMonitorNode(context=env.context, parameter_overrides=[
+            Parameter('current_sign', value='ros'), Parameter('mass', value=2.0)])
+        env.nodes.append(node)
+        errors = []
+        logger = node.get_logger()
+        original = logger.error
+        logger.error = lambda msg, **kw: errors.append(msg) or original(msg, **kw)
+        run_offline([node], str(bag))
+    assert len(errors) == 1 and 'does not measure it' in errors[0]

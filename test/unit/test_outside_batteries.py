@@ -131,3 +131,19 @@ def test_battery_source_leaves_a_one_battery_bag_alone():
     comb = BatteryCombiner(select='servo')                 # live: strict, noted
     assert all(comb.add(s) is None for s in one * 4)
     assert "'servo' not seen in 20 samples; the topic carries 'supply'" in comb.finish()[0]
+
+
+def test_a_monitor_that_fills_zero_current_is_refused(tmp_path):
+    """A battery monitor without a current sensor that publishes current 0 (not NaN): the
+    robot run read 0 W input power (efficiency infinite) with no warning; now refused by name
+    (``slip`` keeps the run, power null, noted)."""
+    from test_outside_slow_sensors import _write_slow_battery_robot
+
+    _write_slow_battery_robot(tmp_path / 'z', battery_hz=50.0, power_w=0.0)
+    with pytest.raises(BagContentError, match='has current 0: the monitor does not measure'):
+        read_robot_bag(tmp_path / 'z', mass_kg=2.0)
+    with pytest.raises(BagContentError, match='has current 0'):
+        read_residual_run(tmp_path / 'z')
+    from hexapod_common.battery import unmeasured_power
+    assert unmeasured_power([12.0] * 5, [0.0] * 4 + [-0.1]) is None   # one real sample
+    assert 'voltage 0' in unmeasured_power([0.0] * 5, [-1.0] * 5)

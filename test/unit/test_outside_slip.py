@@ -41,7 +41,7 @@ def _header(t_s: float | None, frame: str = ''):
 
 def _write(path, run, *, yaw_deg=35.0, shift_m=(2.4, -1.3, 0.0), rate_hz=100.0,
            hip_angles=True, shuffle_names=False, zero_stamps=False, nan_current=False,
-           mocap_clock_s=MOCAP_OFFSET_S, t0_s=500.0, logic_pack_w=None):
+           mocap_clock_s=MOCAP_OFFSET_S, t0_s=500.0, logic_pack_w=None, zero_current=False):
     yaw = math.radians(yaw_deg)
     rot = np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0],
                     [0.0, 0.0, 1.0]])
@@ -76,7 +76,8 @@ def _write(path, run, *, yaw_deg=35.0, shift_m=(2.4, -1.3, 0.0), rate_hz=100.0,
                      T['sensor_msgs/msg/BatteryState'](
                          header=hdr(ts), voltage=float(run.battery_voltage_v[k]),
                          temperature=nan,
-                         current=nan if nan_current else float(run.battery_current_a[k]),
+                         current=nan if nan_current else 0.0 if zero_current
+                         else float(run.battery_current_a[k]),
                          charge=nan,
                          capacity=nan, design_capacity=nan, percentage=nan,
                          power_supply_status=2, power_supply_health=0,
@@ -208,3 +209,12 @@ def test_two_batteries_summed_for_the_specific_resistance(tmp_path, sim_run):
     assert p2 == pytest.approx(p1 + 4.0, rel=0.02)
     assert two['runs'][0]['sr'] == pytest.approx(one['runs'][0]['sr'] * p2 / p1, rel=1e-6)
     assert any('2 batteries on /battery_state' in n for n in two['runs'][0]['notes'])
+
+
+def test_battery_current_always_zero_gives_no_power(tmp_path, sim_run):
+    """A monitor that fills current 0 (no current sensor): the run's power and specific
+    resistance are null, noted (they read 0 W and 0 before)."""
+    code, doc = _slip(tmp_path, _write(tmp_path / 'z', sim_run, zero_current=True), 'z')
+    run = doc['runs'][0]
+    assert code == 0 and run['power_w'] is None and run['sr'] is None
+    assert any('has current 0: the monitor does not measure it' in n for n in run['notes'])
