@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ['ANOTHER_CLOCK_S', 'ClockCheck']
+__all__ = ['ANOTHER_CLOCK_S', 'ClockCheck', 'LiveClockWatch', 'shift_rows']
 
 #: stamp-minus-receive medians further apart than this [s] are different clocks
 ANOTHER_CLOCK_S = 1.0
@@ -89,3 +89,32 @@ class ClockCheck:
 def shift_rows(rows: Iterable[Any], dt: float) -> list[Any]:
     """Tuples whose first item is a time [s], moved by ``dt``."""
     return [(r[0] + dt, *r[1:]) for r in rows]
+
+
+class LiveClockWatch:
+    """A live node's check for a topic stamped on another clock than the others: the stamps
+    against the node clock on arrival, judged after 200 and 2000 messages; returns the error
+    messages to log, once. Live, such a topic cannot be re-stamped reliably (the node cannot
+    know which messages came before the judgement), so it is reported instead."""
+
+    def __init__(self) -> None:
+        self._check: ClockCheck | None = ClockCheck()
+        self._messages = 0
+
+    def observe(self, topic: str, stamp_s: float, now_s: float) -> list[str]:
+        """One message's header stamp and its arrival on the node clock [s] (zero stamps,
+        which nodes replace by the arrival time, are skipped)."""
+        if self._check is None or stamp_s == 0.0:
+            return []
+        self._check.observe(topic, stamp_s, now_s)
+        self._messages += 1
+        if self._messages not in (200, 2000):
+            return []
+        _, notes = self._check.shifts()
+        if not notes:
+            return []
+        self._check = None
+        return [note.split(': moved')[0].replace("the bag's receive times", 'the node clock') +
+                ": its messages cannot be matched with the others' live; give the publisher a "
+                "synchronised clock (offline, hexapod-analyze re-stamps it from the bag's "
+                'receive times)' for note in notes]

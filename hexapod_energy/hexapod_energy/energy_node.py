@@ -40,7 +40,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import BatteryState, JointState
 
 from hexapod_common.battery import BatteryCombiner
-from hexapod_common.clocks import ClockCheck
+from hexapod_common.clocks import LiveClockWatch
 from hexapod_common.conversions import (
     MOCAP_TYPES,
     battery_from_msg,
@@ -142,8 +142,7 @@ class EnergyMonitorNode(Node):
         # several batteries on one topic are summed, or one kept (hexapod_common.battery)
         self.batteries = BatteryCombiner(select=p.battery_source or None)
         self._battery_notes = 0
-        self._clocks: ClockCheck | None = ClockCheck()   # stamps against the node clock
-        self._clock_msgs = 0
+        self._clocks = LiveClockWatch()   # stamps against the node clock
         self._zero_power: int | None = 0   # leading battery samples with V * I == 0
         self.pub = self.create_publisher(EnergeticDescriptors, 'energy/descriptors',
                                          RELIABLE_QOS)
@@ -179,23 +178,9 @@ class EnergyMonitorNode(Node):
         return dataclasses.replace(sample, t_s=self.get_clock().now().nanoseconds * 1e-9)
 
     def _check_clock(self, topic: str, t_s: float) -> None:
-        """Warn (once) when a topic is stamped on another clock than the others: its windows
-        never match theirs (the offline readers re-stamp it; :mod:`hexapod_common.clocks`)."""
-        if self._clocks is None:
-            return
-        self._clocks.observe(topic, t_s, self.get_clock().now().nanoseconds * 1e-9)
-        self._clock_msgs += 1
-        if self._clock_msgs in (200, 2000):
-            _, notes = self._clocks.shifts()
-            if notes:
-                self._clocks = None
-                for note in notes:
-                    what = note.split(': moved')[0].replace("the bag's receive times",
-                                                            'the node clock')
-                    self.get_logger().error(
-                        f"{what}: its messages cannot be matched with the others' live; give "
-                        'the publisher a synchronised clock (offline, hexapod-analyze '
-                        "re-stamps it from the bag's receive times)")
+        """Report (once) a topic stamped on another clock than the others."""
+        for err in self._clocks.observe(topic, t_s, self.get_clock().now().nanoseconds * 1e-9):
+            self.get_logger().error(err)
 
     def _publish(self, results: Sequence[Descriptors] | None) -> None:
         if self.core.sign_note_ and not self._sign_logged:

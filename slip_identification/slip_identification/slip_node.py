@@ -24,6 +24,7 @@ from geometry_msgs.msg import PoseStamped
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
+from hexapod_common.clocks import LiveClockWatch
 from hexapod_common.conversions import (
     MOCAP_TYPES,
     joint_state_from_msg,
@@ -145,6 +146,7 @@ class SlipFitterNode(Node):
         self.published = 0
         self.received = 0
         self._notes_logged = 0
+        self._clocks = LiveClockWatch()   # stamps against the node clock
 
     def _guard(self, fn: Any, msg: Any) -> None:
         self.received += 1
@@ -165,8 +167,15 @@ class SlipFitterNode(Node):
                                          else getattr(s, f)
                                          for f in ('position', 'velocity', 'effort')})
 
+    def _check_clock(self, topic: str, t_s: float) -> None:
+        """Report (once) a topic stamped on another clock than the others (a mocap bridge
+        passing the capture system's time): the stream offset search cannot bridge it."""
+        for err in self._clocks.observe(topic, t_s, self.get_clock().now().nanoseconds * 1e-9):
+            self.get_logger().error(err)
+
     def _joint_state(self, msg: JointState) -> None:
         s = self._signed(joint_state_from_msg(msg))
+        self._check_clock('joint_states', s.t_s)
         self.core.add_joint_state(s.t_s, s.names, s.velocity, s.position)
         notes = self.core.notes
         while self._notes_logged < len(notes):  # each input fallback logged once
@@ -182,6 +191,7 @@ class SlipFitterNode(Node):
 
     def _mocap_and_fit(self, msg: PoseStamped) -> None:
         s = pose_from_msg(msg)
+        self._check_clock('mocap/body', s.t_s)
         q = s.orientation_xyzw if self._body_up == 'z' else \
             rotate_body(s.orientation_xyzw, self._body_up)[0]
         self.core.add_mocap(s.t_s, s.position_m, q)

@@ -46,3 +46,29 @@ def test_node_geometric_edges_from_ground_parameter():
         plain.destroy_node()
     finally:
         rclpy.try_shutdown(context=ctx)
+
+
+@pytest.mark.timeout(120)
+def test_mocap_on_another_clock_is_reported(tmp_path):
+    """Motion capture stamped with the capture system's clock (1 h ahead of the robot's): the
+    stream offset search (+-60 ms) cannot bridge it; the node says why, once, as an error."""
+    from hexapod_bench_drivers.edubot_bag import write_run
+    from hexapod_bench_drivers.edubot_sim import simulate_edubot
+    from hexapod_common.replay import run_offline
+    from hexapod_common.testbags import restamp_topic
+
+    write_run(tmp_path / 'ref', simulate_edubot('running', duration_s=3.0, seed=2))
+    bag = restamp_topic(tmp_path / 'ref', tmp_path / 'vicon', '/mocap/body', 3600.0)
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    try:
+        node = SlipFitterNode(context=ctx)
+        errors = []
+        logger = node.get_logger()
+        original = logger.error
+        logger.error = lambda msg, **kw: errors.append(msg) or original(msg, **kw)
+        run_offline([node], str(bag))
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)
+    assert len(errors) == 1 and errors[0].startswith('mocap/body stamped on another clock')
