@@ -16,6 +16,10 @@ Joint names outside the contract (``L1..Lk``/``R1..Rk`` legs, ``<leg>_hip``, ``<
 name as its contract name (names not listed pass unchanged;
 :mod:`hexapod_common.conversions`).
 
+Motion capture broadcast as tf (no pose topic): ``hexapod-analyze --mocap-tf world:base_link
+slip BAG ...`` reads that transform of ``/tf`` as ``/mocap/body`` (one hop: the transform as
+recorded, no chain through other frames).
+
 Several batteries on ``/battery_state`` (told apart by ``header.frame_id``, e.g. a servo pack
 and a logic pack) are summed (:mod:`hexapod_common.battery`); ``hexapod-analyze
 --battery-source servo energy ...`` keeps one of them instead.
@@ -32,7 +36,13 @@ from collections.abc import Sequence
 
 from hexapod_common.bags import REMAP_ENV, parse_remap
 from hexapod_common.battery import BATTERY_SOURCE_ENV
-from hexapod_common.conversions import JOINT_MAP_ENV, parse_joint_map
+from hexapod_common.errors import HexapodError
+from hexapod_common.conversions import (
+    JOINT_MAP_ENV,
+    MOCAP_TF_ENV,
+    parse_joint_map,
+    parse_mocap_tf,
+)
 
 __all__ = ['build_parser', 'main']
 
@@ -60,6 +70,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help='read recorded joint name FROM as the contract name TO (e.g. '
                         'hip_0:=L1_hip, j_c1_lf:=L1_coxa); before the command name; several '
                         'FROM:=TO may follow')
+    parser.add_argument('--mocap-tf', default=None, metavar='PARENT:CHILD',
+                        help='read the body pose from /tf: the transform PARENT -> CHILD (e.g. '
+                        'world:base_link; a lab whose motion capture is broadcast as tf) as '
+                        '/mocap/body; before the command name')
     parser.add_argument('--battery-source', default=None, metavar='ID',
                         help='keep only this battery of /battery_state (its header.frame_id, '
                         'else location or serial_number); default: several batteries are '
@@ -116,16 +130,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not getattr(args, 'func', None):
         parser.print_help()
         return 2
-    saved = {k: os.environ.get(k) for k in (REMAP_ENV, JOINT_MAP_ENV, BATTERY_SOURCE_ENV)}
+    saved = {k: os.environ.get(k)
+             for k in (REMAP_ENV, JOINT_MAP_ENV, BATTERY_SOURCE_ENV, MOCAP_TF_ENV)}
     if args.battery_source is not None:
         os.environ[BATTERY_SOURCE_ENV] = args.battery_source
-    if args.remap or args.namespace:
+    if args.remap or args.namespace or args.mocap_tf:
         # every bag reader of this process and of its workers (--jobs) reads the contract names
         try:
             remap = parse_remap(args.remap)
+            if args.mocap_tf:
+                parse_mocap_tf(args.mocap_tf)
+                remap.setdefault('/tf', '/mocap/body')
         except ValueError as err:
             parser.error(str(err))
         os.environ[REMAP_ENV] = json.dumps({'remap': remap, 'namespace': args.namespace})
+        if args.mocap_tf:
+            os.environ[MOCAP_TF_ENV] = args.mocap_tf
     if args.joint_map:
         try:
             os.environ[JOINT_MAP_ENV] = json.dumps(parse_joint_map(args.joint_map))
@@ -146,7 +166,7 @@ def _run(args: argparse.Namespace) -> int:
         return int(args.func(args) or 0)
     except KeyboardInterrupt:
         return 130
-    except (OSError, ValueError, LookupError, RuntimeError) as err:
+    except (OSError, ValueError, LookupError, RuntimeError, HexapodError) as err:
         # typed errors of the analysis: one line, no traceback
         print(f'hexapod-analyze {args.command}: error: {err}', file=sys.stderr)
         return 1

@@ -34,6 +34,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 from ruamel.yaml import YAML
 
+from hexapod_common.conversions import MOCAP_TF_ENV, parse_mocap_tf, pick_transform
 from hexapod_common.errors import (
     BagExistsError,
     BagNotFoundError,
@@ -459,10 +460,62 @@ def iter_messages(reader: AnyReader, topics: Sequence[str] | None = None,
                   ) -> Iterator[BagMessage]:
     """Raw messages in time order, optionally filtered by topic and bag-time window."""
     conns = [c for c in reader.connections if topics is None or c.topic in topics]
+    body = _mocap_tf_from_env()
+    tf_mocap = body is not None and any(c.topic == '/mocap/body' and c.msgtype == TF_TYPE
+                                        for c in conns)
+    found = 0
+    pairs: dict[tuple[str, str], int] = {}
     try:
         for conn, stamp, data in reader.messages(connections=conns, start=start_ns,
                                                  stop=stop_ns):
+            if tf_mocap and conn.topic == '/mocap/body' and conn.msgtype == TF_TYPE:
+                # the body's pose among the transforms of /tf (--mocap-tf PARENT:CHILD)
+                assert body is not None
+                tf_msg = reader.deserialize(bytes(data), TF_TYPE)
+                tr = pick_transform(tf_msg, *body)
+                if tr is None:
+                    if not found:
+                        for t in tf_msg.transforms:
+                            key = (str(t.header.frame_id), str(t.child_frame_id))
+                            pairs[key] = pairs.get(key, 0) + 1
+                    continue
+                found += 1
+                yield BagMessage('/mocap/body', TRANSFORM_TYPE, stamp,
+                                 bytes(_serialize_like(reader, tr, TRANSFORM_TYPE)))
+                continue
             yield BagMessage(conn.topic, conn.msgtype, stamp, bytes(data))
+    except BagReadError:
+        raise
     except Exception as err:
         msg = str(err).splitlines()[0] if str(err) else type(err).__name__
         raise BagReadError(f'bag is truncated or corrupt: {msg}') from err
+    if tf_mocap and not found and start_ns is None and stop_ns is None:
+        assert body is not None
+        have = ', '.join(f'{a or "?"} -> {b or "?"} ({n})'
+                         for (a, b), n in sorted(pairs.items(), key=lambda kv: -kv[1])[:8])
+        raise BagReadError(f'/tf has no transform {body[0]} -> {body[1]} (--mocap-tf); it has '
+                           f'{have or "no transforms"}')
+
+
+#: ``/tf`` messages and the transform they hold (--mocap-tf)
+TF_TYPE = 'tf2_msgs/msg/TFMessage'
+TRANSFORM_TYPE = 'geometry_msgs/msg/TransformStamped'
+
+
+def _mocap_tf_from_env() -> tuple[str, str] | None:
+    raw = os.environ.get(MOCAP_TF_ENV, '').strip()
+    if not raw:
+        return None
+    try:
+        return parse_mocap_tf(raw)
+    except ValueError as err:
+        raise BagReadError(f'{MOCAP_TF_ENV}: {err}') from err
+
+
+def _serialize_like(reader: Any, msg: Any, msgtype: str) -> Any:
+    """``msg`` serialised as the reader's own messages are (CDR for rosbag2, ROS 1 for rosbag1
+    files), so that ``reader.deserialize`` reads it back."""
+    store = reader.typestore
+    if getattr(reader, 'is2', True):
+        return store.serialize_cdr(msg, msgtype)
+    return store.serialize_ros1(msg, msgtype)

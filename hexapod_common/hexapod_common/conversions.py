@@ -26,6 +26,7 @@ __all__ = [
     'BatterySample',
     'GaitPhaseSample',
     'JOINT_MAP_ENV',
+    'MOCAP_TF_ENV',
     'MOCAP_TYPES',
     'JointStateSample',
     'PoseSample',
@@ -39,6 +40,8 @@ __all__ = [
     'joint_map',
     'joint_state_from_msg',
     'parse_joint_map',
+    'parse_mocap_tf',
+    'pick_transform',
     'point_from_msg',
     'pose_from_msg',
     'servo_status_from_msg',
@@ -263,6 +266,32 @@ MOCAP_TYPES = {
     'PoseWithCovarianceStamped': 'geometry_msgs/msg/PoseWithCovarianceStamped',
     'Odometry': 'nav_msgs/msg/Odometry',
 }
+
+
+#: environment variable naming the body pose to read from ``/tf`` (``PARENT:CHILD``), set by
+#: ``hexapod-analyze --mocap-tf`` (inherited by its ``--jobs`` workers)
+MOCAP_TF_ENV = 'HEXAPOD_MOCAP_TF'
+
+
+def parse_mocap_tf(text: str) -> tuple[str, str]:
+    """``'world:base_link'`` -> ``('world', 'base_link')`` (leading slashes of ROS 1 frame
+    names dropped); ValueError naming the expected form."""
+    parent, sep, child = str(text).partition(':')
+    parent, child = parent.strip().lstrip('/'), child.strip().lstrip('/')
+    if not sep or not parent or not child:
+        raise ValueError(f'a motion-capture transform is PARENT:CHILD (e.g. world:base_link, '
+                         f'the frames of /tf), got {text!r}')
+    return parent, child
+
+
+def pick_transform(msg: Any, parent: str, child: str) -> Any:
+    """The TransformStamped of ``parent -> child`` in a ``tf2_msgs/TFMessage`` (frame names
+    compared without leading slashes), or None."""
+    for tr in msg.transforms:
+        if (str(tr.header.frame_id).lstrip('/') == parent
+                and str(tr.child_frame_id).lstrip('/') == child):
+            return tr
+    return None
 
 
 def pose_from_msg(msg: Any) -> PoseSample:

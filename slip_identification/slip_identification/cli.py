@@ -122,8 +122,12 @@ def read_run(path: str | Path) -> RunData:
         present = {c.topic for c in reader.connections}
         missing = [t for t in REQUIRED_TOPICS if t not in present]
         if missing:
+            hint = ('; it records /tf: motion capture broadcast as tf is read with '
+                    'hexapod-analyze --mocap-tf PARENT:CHILD (e.g. world:base_link)'
+                    if '/mocap/body' in missing and '/tf' in present else '')
             raise MissingTopicError(f'bag {path} lacks topic(s) {missing}; needs '
-                                    f'{list(REQUIRED_TOPICS)} (and /battery_state for power)')
+                                    f'{list(REQUIRED_TOPICS)} (and /battery_state for power)'
+                                    + hint)
         streams = {'/joint_states': (js, joint_state_from_msg),
                    '/joint_commands': (jc, joint_state_from_msg),
                    '/mocap/body': (mo, pose_from_msg), '/battery_state': (bt, battery_from_msg)}
@@ -265,6 +269,8 @@ def _f(x: float) -> float | None:
 
 def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
     """Analyse one bag; returns a JSON-able dict (``error`` set when the bag is refused)."""
+    from hexapod_common.errors import HexapodError
+
     try:
         run = read_run(path)
         body_up = options.get('body_up', 'auto')
@@ -293,7 +299,7 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
                           position_fit=options.get('position_fit', True), geometry=geometry,
                           steady_only=options.get('steady_only', False),
                           check_body_up=body_up == 'auto')
-    except (SlipError, ValueError, OSError) as err:
+    except (SlipError, HexapodError, ValueError, OSError) as err:  # a truncated bag too
         return {'bag': path, 'error': str(err)}
     notes = list(run.notes) + list(res.notes)
     if run.gait == 'unknown':
