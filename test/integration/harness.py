@@ -96,3 +96,12 @@ def ros_env(prefix: str = 't') -> Iterator[RosEnv]:
             node.destroy_node()
         executor.shutdown()
         context.try_shutdown()
+
+
+def capture_errors(node: Any) -> list[str]:
+    """The messages ``node`` logs at error level from now on (still logged as well)."""
+    errors: list[str] = []
+    logger = node.get_logger()
+    original = logger.error
+    logger.error = lambda msg, **kw: errors.append(msg) or original(msg, **kw)
+    return errors

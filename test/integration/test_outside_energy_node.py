@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import rclpy
 from builtin_interfaces.msg import Time
-from harness import Collector, ros_env
+from harness import Collector, capture_errors, ros_env
 from hexapod_interfaces.msg import EnergeticDescriptors, GaitPhase
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -144,15 +144,7 @@ def test_battery_on_another_clock_is_reported(tmp_path):
 
     write_two_battery_robot_bag(tmp_path / 'ref', logic_w=0.0)
     bag = restamp_topic(tmp_path / 'ref', tmp_path / 'boot', '/battery_state', 57.0 - 1000.0)
-    with ros_env('outside_clock') as env:
-        node = EnergyMonitorNode(context=env.context, parameter_overrides=[
-            Parameter('current_sign', value='ros'), Parameter('mass', value=2.0)])
-        env.nodes.append(node)
-        errors = []
-        logger = node.get_logger()
-        original = logger.error
-        logger.error = lambda msg, **kw: errors.append(msg) or original(msg, **kw)
-        run_offline([node], str(bag))
+    errors = _errors_offline(bag)
     assert len(errors) == 1 and errors[0].startswith('battery_state stamped on another clock')
     assert 'from the node clock' in errors[0]
 
@@ -164,13 +156,16 @@ def test_battery_current_always_zero_is_reported(tmp_path):
 
     bag = tmp_path / 'z'
     write_two_battery_robot_bag(bag, servo_w=0.0, logic_w=0.0)
-    with ros_env('outside_zero') as env:
+    errors = _errors_offline(bag)
+    assert len(errors) == 1 and 'does not measure it' in errors[0]
+
+
+def _errors_offline(bag) -> list[str]:
+    """The errors an energy_monitor logs while ``bag`` is replayed through it."""
+    with ros_env('outside_errors') as env:
         node = EnergyMonitorNode(context=env.context, parameter_overrides=[
             Parameter('current_sign', value='ros'), Parameter('mass', value=2.0)])
         env.nodes.append(node)
-        errors = []
-        logger = node.get_logger()
-        original = logger.error
-        logger.error = lambda msg, **kw: errors.append(msg) or original(msg, **kw)
+        errors = capture_errors(node)
         run_offline([node], str(bag))
-    assert len(errors) == 1 and 'does not measure it' in errors[0]
+    return errors

@@ -56,6 +56,7 @@ def test_mocap_on_another_clock_is_reported(tmp_path):
     from hexapod_bench_drivers.edubot_sim import simulate_edubot
     from hexapod_common.replay import run_offline
     from hexapod_common.testbags import restamp_topic
+    from harness import capture_errors
 
     write_run(tmp_path / 'ref', simulate_edubot('running', duration_s=3.0, seed=2))
     bag = restamp_topic(tmp_path / 'ref', tmp_path / 'vicon', '/mocap/body', 3600.0)
@@ -63,10 +64,7 @@ def test_mocap_on_another_clock_is_reported(tmp_path):
     rclpy.init(context=ctx)
     try:
         node = SlipFitterNode(context=ctx)
-        errors = []
-        logger = node.get_logger()
-        original = logger.error
-        logger.error = lambda msg, **kw: errors.append(msg) or original(msg, **kw)
+        errors = capture_errors(node)
         run_offline([node], str(bag))
         node.destroy_node()
     finally:
