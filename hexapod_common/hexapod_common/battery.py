@@ -36,8 +36,8 @@ import numpy as np
 
 from .conversions import BatterySample
 
-__all__ = ['BATTERY_SOURCE_ENV', 'BatteryCombiner', 'combine_battery_samples', 'STALE_S',
-           'selected_source', 'unmeasured_power']
+__all__ = ['BATTERY_SOURCE_ENV', 'MILLI_THRESHOLD', 'BatteryCombiner', 'combine_battery_samples', 'STALE_S',
+           'prepare_battery_samples', 'selected_source', 'unmeasured_power']
 
 #: a source silent for longer than this (or 5 of its own sample intervals, if longer) [s]
 #: leaves the sum
@@ -248,3 +248,46 @@ def unmeasured_power(voltage_v: Sequence[float], current_a: Sequence[float]) -> 
     which = 'current' if np.all(i == 0) else 'voltage' if np.all(v == 0) else 'voltage or current'
     return (f'every /battery_state sample ({v.size}) has {which} 0: the monitor does not '
             f'measure it (a driver filling 0 for "unknown"), so there is no input power')
+
+
+#: a median |voltage| or |current| above this is taken as milli-units (mV, mA)
+MILLI_THRESHOLD = 1000.0
+
+
+def _milli_scaled(samples: list[BatterySample], notes: list[str]) -> list[BatterySample]:
+    """Voltages or currents published in millivolts or milliamps (some BMS and INA2xx drivers)
+    scaled to V and A, per source: a median magnitude above 1000 (no legged robot's pack
+    reaches 1000 V or draws 1000 A), noted."""
+    out = list(samples)
+    for src in dict.fromkeys(s.source for s in samples):
+        idx = [k for k, s in enumerate(samples) if s.source == src]
+        v = float(np.median([abs(samples[k].voltage_v) for k in idx]))
+        i = float(np.median([abs(samples[k].current_a) for k in idx]))
+        fv = 1e-3 if v > MILLI_THRESHOLD else 1.0
+        fi = 1e-3 if i > MILLI_THRESHOLD else 1.0
+        if fv == fi == 1.0:
+            continue
+        for k in idx:
+            out[k] = dataclasses.replace(out[k], voltage_v=out[k].voltage_v * fv,
+                                         current_a=out[k].current_a * fi)
+        what = ' and '.join(x for x, f in (('voltage', fv), ('current', fi)) if f != 1.0)
+        notes.append(f'/battery_state {_label(src) + " " if src else ""}{what} in milli-units '
+                     f'(median {v if fv != 1.0 else i:.0f}): divided by 1000')
+    return out
+
+
+def prepare_battery_samples(samples: Sequence[BatterySample]
+                            ) -> tuple[list[BatterySample], list[str]]:
+    """Offline readers' battery stream: milli-units scaled, several sources summed or the one
+    of ``--battery-source`` kept (:func:`combine_battery_samples`); returns the samples (the
+    input list unchanged for one battery in V and A) and notes. Raises ValueError when the
+    stream measures no power (:func:`unmeasured_power`) or the chosen source is missing."""
+    notes: list[str] = []
+    out = _milli_scaled(list(samples), notes) if samples else list(samples)
+    if len({b.source for b in out}) > 1 or selected_source() is not None:
+        out, more = combine_battery_samples(out)
+        notes.extend(more)
+    why = unmeasured_power([b.voltage_v for b in out], [b.current_a for b in out])
+    if why:
+        raise ValueError(why)
+    return out, notes

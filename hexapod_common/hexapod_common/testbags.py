@@ -18,7 +18,7 @@ from hexapod_common.bags import BagWriter, find_msg_dir, new_msg, stamp
 
 __all__ = ['MIXED_TYPES', 'P0_W', 'PERIOD_S', 'RAW_COUNT_RECEIVER', 'downgrade_sqlite_bag',
            'foreign_typestore', 'write_foreign_robot_bag', 'write_mixed_bag',
-           'restamp_topic', 'write_two_battery_robot_bag']
+           'restamp_topic', 'rewrite_bag', 'write_two_battery_robot_bag']
 
 LEGS = ('L1', 'L2', 'L3', 'R1', 'R2', 'R3')
 JOINTS = [f'{leg}_{j}' for leg in LEGS for j in ('coxa', 'femur', 'tibia')]
@@ -316,16 +316,25 @@ def write_two_battery_robot_bag(path: str | Path, *, servo_w: float = 30.0,
     return {'servo_w': servo_w, 'logic_w': logic_w}
 
 
-def restamp_topic(src: str | Path, dst: str | Path, topic: str, dt_s: float) -> Path:
-    """Copy a bag, moving ``topic``'s header stamps by ``dt_s`` (receive times kept): the topic
-    as a driver stamping on another clock would have recorded it."""
+def rewrite_bag(src: str | Path, dst: str | Path, edit: Any) -> Path:
+    """Copy a bag, calling ``edit(topic, msg)`` on every deserialised message (to change it in
+    place; receive times kept)."""
     from hexapod_common.bags import iter_messages, open_reader
 
     with open_reader(src) as reader, BagWriter(dst) as w:
         for m in iter_messages(reader):
             msg = reader.deserialize(m.data, m.msgtype)
-            if m.topic == topic:
-                ns = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec + int(dt_s * 1e9)
-                msg.header.stamp.sec, msg.header.stamp.nanosec = ns // 10**9, ns % 10**9
+            edit(m.topic, msg)
             w.write(m.topic, m.msgtype, msg, m.stamp_ns)
     return Path(dst)
+
+
+def restamp_topic(src: str | Path, dst: str | Path, topic: str, dt_s: float) -> Path:
+    """Copy a bag, moving ``topic``'s header stamps by ``dt_s`` (receive times kept): the topic
+    as a driver stamping on another clock would have recorded it."""
+    def edit(name: str, msg: Any) -> None:
+        if name == topic:
+            ns = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec + int(dt_s * 1e9)
+            msg.header.stamp.sec, msg.header.stamp.nanosec = ns // 10**9, ns % 10**9
+
+    return rewrite_bag(src, dst, edit)

@@ -227,7 +227,6 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None) ->
     counted per topic in ``notes`` (``energy.json`` ``bench.diagnostics[].notes``).
     """
     from hexapod_common.bags import iter_messages, open_reader
-    from hexapod_common.battery import unmeasured_power
     from hexapod_common.clocks import ClockCheck, shift_rows
     from hexapod_common.conversions import (
         battery_from_msg,
@@ -334,12 +333,9 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None) ->
         tip = shift_rows(tip, dt('/bench/leg_tip', 0.0))
         for row in ses:
             row['t_s'] += dt('/bench/session', 0.0)
-    combined = _combine_batteries(path, [(b.t_s, k, '/battery_state', b)
+    combined = _prepare_batteries(path, [(b.t_s, k, '/battery_state', b)
                                          for k, b in enumerate(bat_samples)], notes_out)
     bat = [(b.t_s, b.voltage_v, b.current_a) for _, _, _, b in combined]
-    why = unmeasured_power([b[1] for b in bat], [b[2] for b in bat])
-    if why:
-        raise BagContentError(f'bag {path}: {why}')
     if session is not None:
         ses = _session_from_spec(path, session, bat, frc, tip, periods, notes_out)
     for name, rows in (('/battery_state', bat), ('/bench/ground_force', frc),
@@ -629,7 +625,6 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
                 all_segments: bool = False) -> RobotRun | list[RobotRun]:
     """Body of :func:`read_robot_bag` and :func:`read_robot_segments`."""
     from hexapod_common.bags import iter_messages, open_reader
-    from hexapod_common.battery import unmeasured_power
     from hexapod_common.clocks import ClockCheck
     from hexapod_common.conversions import (
         battery_from_msg,
@@ -703,10 +698,6 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
         raise BagContentError(
             f'bag {path}: no usable /battery_state message ({n_battery} of {n_battery} '
             f'dropped, e.g. {bad_battery[0]}): input power needs both voltage and current')
-    battery = [smp[3] for smp in samples if smp[2] == '/battery_state']
-    why = unmeasured_power([b.voltage_v for b in battery], [b.current_a for b in battery])
-    if why:
-        raise BagContentError(f'bag {path}: {why}')
     for topic, errs in sorted(dropped.items()):
         notes.append(f'{len(errs)} {topic} message(s) dropped: {errs[0]}')
     for topic, n in sorted(zero_stamps.items()):
@@ -726,7 +717,7 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
                      (f'none of its {n_bad} message(s) usable' if n_bad else
                       'without messages') +
                      ': cycle boundaries from the joint positions')
-    samples = _combine_batteries(path, samples, notes)
+    samples = _prepare_batteries(path, samples, notes)
     # raw effort P_out per window: the command decides effort against model per run
     acc = DescriptorAccumulator(mass_kg=mass_kg, cycles=cycles, current_sign=current_sign,
                                 power_out_source='effort', cycle_source=cycle_source,
@@ -850,20 +841,22 @@ def _on_one_clock(samples: list[tuple[float, int, str, Any]], clocks: Any,
             if topic in shifts else (t, i, topic, smp) for t, i, topic, smp in samples]
 
 
-def _combine_batteries(path: str | Path, samples: list[tuple[float, int, str, Any]],
+def _prepare_batteries(path: str | Path, samples: list[tuple[float, int, str, Any]],
                        notes: list[str]) -> list[tuple[float, int, str, Any]]:
-    """Several batteries on ``/battery_state`` summed, or the one of ``--battery-source``
-    kept (:mod:`hexapod_common.battery`); one battery and no choice: ``samples`` unchanged."""
-    from hexapod_common.battery import combine_battery_samples, selected_source
+    """The ``/battery_state`` samples through :func:`hexapod_common.battery.
+    prepare_battery_samples` (milli-units scaled, several batteries summed or the one of
+    ``--battery-source`` kept); one battery in V and A: ``samples`` unchanged. A stream that
+    measures no power raises :class:`BagContentError`."""
+    from hexapod_common.battery import prepare_battery_samples
 
     battery = [smp[3] for smp in samples if smp[2] == '/battery_state']
-    if len({b.source for b in battery}) < 2 and selected_source() is None:
-        return samples
     try:
-        combined, more = combine_battery_samples(battery)
+        combined, more = prepare_battery_samples(battery)
     except ValueError as err:
         raise BagContentError(f'bag {path}: {err}') from None
     notes.extend(more)
+    if combined == battery:
+        return samples
     rest = [smp for smp in samples if smp[2] != '/battery_state']
     n = len(samples)
     return rest + [(b.t_s, n + k, '/battery_state', b) for k, b in enumerate(combined)]

@@ -39,7 +39,7 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from sensor_msgs.msg import BatteryState, JointState
 
-from hexapod_common.battery import BatteryCombiner
+from hexapod_common.battery import MILLI_THRESHOLD, BatteryCombiner
 from hexapod_common.clocks import LiveClockWatch
 from hexapod_common.conversions import (
     MOCAP_TYPES,
@@ -144,6 +144,7 @@ class EnergyMonitorNode(Node):
         self._battery_notes = 0
         self._clocks = LiveClockWatch()   # stamps against the node clock
         self._zero_power: int | None = 0   # leading battery samples with V * I == 0
+        self._millivolts = False
         self.pub = self.create_publisher(EnergeticDescriptors, 'energy/descriptors',
                                          RELIABLE_QOS)
         self.dropped = 0
@@ -201,7 +202,13 @@ class EnergyMonitorNode(Node):
         self._publish(self._guard('BatteryState', self._add_battery, msg))
 
     def _add_battery(self, msg: BatteryState) -> list[Descriptors]:
-        sample = self.batteries.add(self._restamp('battery_state', battery_from_msg(msg)))
+        raw = self._restamp('battery_state', battery_from_msg(msg))
+        if abs(raw.voltage_v) > MILLI_THRESHOLD:   # millivolts (no pack reaches 1000 V)
+            raw = dataclasses.replace(raw, voltage_v=1e-3 * raw.voltage_v)
+            if not self._millivolts:
+                self._millivolts = True
+                self.get_logger().warning('battery_state voltage in millivolts: divided by 1000')
+        sample = self.batteries.add(raw)
         for note in self.batteries.notes[self._battery_notes:]:
             self.get_logger().warning(note)
         self._battery_notes = len(self.batteries.notes)

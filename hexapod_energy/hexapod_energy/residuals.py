@@ -198,11 +198,7 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
     ``/gait/phase``, ``gait`` and ``/joint_states`` give the schedule: see :class:`GivenGait`),
     ``/servo_status`` and ``/joint_states`` (optional: thermal regressor, stream lag)."""
     from hexapod_common.bags import iter_messages, open_reader
-    from hexapod_common.battery import (
-        combine_battery_samples,
-        selected_source,
-        unmeasured_power,
-    )
+    from hexapod_common.battery import prepare_battery_samples
     from hexapod_common.clocks import ClockCheck, shift_rows
     from hexapod_common.conversions import (
         battery_from_msg,
@@ -264,14 +260,11 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
         temps = shift_rows(temps, dt('/servo_status', 0.0))
         mech = shift_rows(mech, dt('/joint_states', 0.0))
         per_joint = {k: shift_rows(v, dt('/joint_states', 0.0)) for k, v in per_joint.items()}
-    if len({b.source for b in bat}) > 1 or selected_source() is not None:
-        try:
-            bat, battery_notes = combine_battery_samples(bat)
-        except ValueError as err:
-            raise BagContentError(f'robot bag {path}: {err}') from None
-    why = unmeasured_power([b.voltage_v for b in bat], [b.current_a for b in bat])
-    if why:
-        raise BagContentError(f'robot bag {path}: {why}')
+    try:
+        bat, more = prepare_battery_samples(bat)
+    except ValueError as err:
+        raise BagContentError(f'robot bag {path}: {err}') from None
+    battery_notes.extend(more)
     bat = [(b.t_s, b.voltage_v, b.current_a) for b in bat]
     if len(bat) < 10:
         raise BagContentError(f'robot bag {path}: /battery_state has {len(bat)} messages, '

@@ -95,11 +95,7 @@ def read_run(path: str | Path) -> RunData:
     central-difference speeds (each noted).
     """
     from hexapod_common.bags import iter_messages, open_reader
-    from hexapod_common.battery import (
-        combine_battery_samples,
-        selected_source,
-        unmeasured_power,
-    )
+    from hexapod_common.battery import prepare_battery_samples
     from hexapod_common.clocks import ClockCheck
     from hexapod_common.conversions import (
         battery_from_msg,
@@ -165,15 +161,11 @@ def read_run(path: str | Path) -> RunData:
             lst[:] = [dataclasses.replace(x, t_s=x.t_s + dt) for x in lst]
     notes += [f'{n} {t} message(s) dropped (bad or NaN fields)'
               for t, n in sorted(dropped.items())]
-    if bt and (len({b.source for b in bt}) > 1 or selected_source() is not None):
-        try:
-            bt, battery_notes = combine_battery_samples(bt)
-        except ValueError as err:
-            raise MissingTopicError(f'bag {path}: {err}') from None
+    try:
+        bt, battery_notes = prepare_battery_samples(bt)
         notes.extend(battery_notes)
-    why = unmeasured_power([b.voltage_v for b in bt], [b.current_a for b in bt])
-    if why:
-        notes.append(why)
+    except ValueError as err:   # no power measured, or --battery-source not in this bag
+        notes.append(str(err))
         bt = []
     if not bt:
         notes.append('no usable /battery_state message (absent, or NaN voltage/current): the '

@@ -169,3 +169,27 @@ def _errors_offline(bag) -> list[str]:
         errors = capture_errors(node)
         run_offline([node], str(bag))
     return errors
+
+
+@pytest.mark.timeout(90)
+def test_battery_in_millivolts(tmp_path):
+    """A driver publishing the voltage in millivolts: the node divides it (it published 1000
+    times the power), warning once, as the offline reader does."""
+    from hexapod_common.testbags import rewrite_bag, write_two_battery_robot_bag
+
+    def millivolts(topic, msg):
+        if topic == '/battery_state':
+            msg.voltage *= 1000.0
+
+    write_two_battery_robot_bag(tmp_path / 'v', logic_w=0.0)
+    rewrite_bag(tmp_path / 'v', tmp_path / 'mv', millivolts)
+    got = {}
+    for name in ('v', 'mv'):
+        with ros_env('outside_mv') as env:
+            node = EnergyMonitorNode(context=env.context, parameter_overrides=[
+                Parameter('current_sign', value='ros'), Parameter('mass', value=2.0)])
+            env.nodes.append(node)
+            got[name] = [m.power_in for m in
+                         run_offline([node], str(tmp_path / name))['/energy/descriptors']]
+    assert len(got['mv']) == len(got['v']) >= 10
+    np.testing.assert_allclose(got['mv'], got['v'], rtol=1e-9)

@@ -15,10 +15,15 @@ import pytest
 from hexapod_common.analyze_cli import main as analyze
 from hexapod_common.battery import BATTERY_SOURCE_ENV, BatteryCombiner, combine_battery_samples
 from hexapod_common.conversions import BatterySample
-from hexapod_common.testbags import write_two_battery_robot_bag
+from hexapod_common.testbags import rewrite_bag, write_two_battery_robot_bag
 from hexapod_energy.bag_io import read_robot_bag
 from hexapod_energy.errors import BagContentError
 from hexapod_energy.residuals import read_residual_run
+
+
+def _millivolts(topic, msg) -> None:
+    if topic == '/battery_state':
+        msg.voltage *= 1000.0
 
 
 def _power(s: BatterySample) -> float:
@@ -147,3 +152,24 @@ def test_a_monitor_that_fills_zero_current_is_refused(tmp_path):
     from hexapod_common.battery import unmeasured_power
     assert unmeasured_power([12.0] * 5, [0.0] * 4 + [-0.1]) is None   # one real sample
     assert 'voltage 0' in unmeasured_power([0.0] * 5, [-1.0] * 5)
+
+
+def test_millivolts_and_milliamps_are_scaled(tmp_path):
+    """A BMS or INA2xx driver publishing mV and mA: the run read 1000 (or 10^6) times its
+    power silently; now scaled per source, noted, same figures as the bag in V and A."""
+    from hexapod_common.battery import prepare_battery_samples
+
+    v = [BatterySample(0.01 * k, 12.0, -2.5, 0.0, 'pack') for k in range(50)]
+    mv = [BatterySample(s.t_s, 12000.0, -2500.0, 0.0, 'pack') for s in v]
+    out, notes = prepare_battery_samples(mv)
+    assert out == v and 'voltage and current in milli-units (median 12000)' in notes[0]
+    out, notes = prepare_battery_samples(v)
+    assert out == v and notes == []
+    from test_outside_slow_sensors import _write_slow_battery_robot
+
+    _write_slow_battery_robot(tmp_path / 'v', battery_hz=50.0)
+    ref = read_robot_bag(tmp_path / 'v', mass_kg=2.0)
+    rewrite_bag(tmp_path / 'v', tmp_path / 'mv', _millivolts)
+    got = read_robot_bag(tmp_path / 'mv', mass_kg=2.0)
+    assert got.power_in_w == pytest.approx(ref.power_in_w, rel=1e-9)
+    assert any('voltage in milli-units' in n for n in got.extra['notes'])
