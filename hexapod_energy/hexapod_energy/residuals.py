@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -1136,9 +1136,11 @@ def run_energy_loop(bench_bags: Sequence[str | Path], robot_bags: Sequence[str |
                     out_dir: str | Path | None = None, *, robot_mass_kg: float = 2.183,
                     payload_kg: float = 0.0, current_sign: str = 'auto',
                     load_offset_kg: float = 0.0, plots: bool = True,
-                    gait: GivenGait | None = None) -> dict[str, Any]:
+                    gait: GivenGait | None = None,
+                    progress: Callable[[int], Any] | None = None) -> dict[str, Any]:
     """Whole energy loop from bags; writes ``residuals.json`` (and plots) into ``out_dir`` when
-    given and returns the document. Prints nothing.
+    given and returns the document. Prints nothing; ``progress(1)`` after each bag read and
+    after the loop.
 
     ``load_offset_kg``: subtracted from the carried mass before the bench surfaces are read
     (0 by the paper: a real robot's stance tip carries ``M g / L``, the bench tip
@@ -1152,16 +1154,23 @@ def run_energy_loop(bench_bags: Sequence[str | Path], robot_bags: Sequence[str |
         raise InvalidInputError('the energy loop needs --bench BAG (at least one bench bag)')
     if not robot_bags:
         raise InvalidInputError('the energy loop needs --robot BAG (at least one robot bag)')
+    step = progress or (lambda _n: None)
     samples = []
     for p in bench_bags:
         s, _ = bench_phase_samples(read_bench_bag(p), current_sign=current_sign)
         samples.extend(s)
+        step(1)
     model = fit_bench_model(samples)
-    runs = [read_residual_run(p, current_sign=current_sign, gait=gait) for p in robot_bags]
-    return energy_loop_from_runs(model, runs, out_dir, robot_mass_kg=robot_mass_kg,
-                                 payload_kg=payload_kg, load_offset_kg=load_offset_kg,
-                                 temp_ref_c=_bench_temperature_c(bench_bags), plots=plots,
-                                 robot_spec_cls=RobotSpec)
+    runs = []
+    for p in robot_bags:
+        runs.append(read_residual_run(p, current_sign=current_sign, gait=gait))
+        step(1)
+    doc = energy_loop_from_runs(model, runs, out_dir, robot_mass_kg=robot_mass_kg,
+                                payload_kg=payload_kg, load_offset_kg=load_offset_kg,
+                                temp_ref_c=_bench_temperature_c(bench_bags), plots=plots,
+                                robot_spec_cls=RobotSpec)
+    step(1)
+    return doc
 
 
 def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],

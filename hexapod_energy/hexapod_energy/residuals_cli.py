@@ -38,7 +38,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -71,6 +71,7 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
 
     add_given_gait_arguments(p, 'for the energy loop\'s Eq. 1 prediction')
     p.add_argument('--no-plots', action='store_true', help='skip the PNG plots')
+    p.add_argument('--no-progress', action='store_true', help='no progress bar on stderr')
 
 
 def add_cli(subparsers: Any) -> argparse.ArgumentParser:
@@ -92,8 +93,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def run_slip_loop(bags: list[str], out_dir: str | Path | None = None, *,
-                  plots: bool = True, box: Sequence[float] | None = None) -> dict[str, Any]:
-    """SLIP loop on EduBot bags; writes ``residuals.json`` when ``out_dir`` is given."""
+                  plots: bool = True, box: Sequence[float] | None = None,
+                  progress: Callable[[int], Any] | None = None) -> dict[str, Any]:
+    """SLIP loop on EduBot bags; writes ``residuals.json`` when ``out_dir`` is given;
+    ``progress(1)`` after each bag."""
     from slip_identification.cli import read_run
     from slip_identification.model import SlipModel
     from slip_identification.pipeline import analyze_run
@@ -116,6 +119,8 @@ def run_slip_loop(bags: list[str], out_dir: str | Path | None = None, *,
         common = [k for k in per['slip'] if all(k in per[n] for n in per)]
         for name in fits:
             fits[name].extend(per[name][k] for k in common)
+        if progress is not None:
+            progress(1)
     doc = slip_loop_document(SlipExtensionSelection().fit(fits))
     doc['bags'] = list(bags)
     if out_dir is not None:
@@ -154,11 +159,16 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     from hexapod_energy.errors import InvalidInputError
     from hexapod_energy.residuals import run_energy_loop
 
+    from tqdm import tqdm
+
     if args.slip:
         if args.bench or args.robot:
             raise InvalidInputError('give either --slip BAG... or --bench/--robot BAG..., '
                                     'not both')
-        return run_slip_loop(list(args.slip), args.out, plots=not args.no_plots, box=args.box)
+        with tqdm(total=len(args.slip), desc='residuals', unit='bag', file=sys.stderr,
+                  disable=getattr(args, 'no_progress', False)) as bar:
+            return run_slip_loop(list(args.slip), args.out, plots=not args.no_plots,
+                                 box=args.box, progress=bar.update)
     if not args.bench or not args.robot:
         raise InvalidInputError('the energy loop needs both --bench BAG... and --robot BAG... '
                                 '(or use --slip BAG...)')
@@ -172,10 +182,13 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
 
         gait = GivenGait(args.gait, args.duty_factor, args.step_length,
                          getattr(args, 'legs', None))
-    return run_energy_loop(args.bench, args.robot, args.out, robot_mass_kg=args.robot_mass,
-                           payload_kg=args.robot_payload, current_sign=args.current_sign,
-                           load_offset_kg=args.load_offset, plots=not args.no_plots,
-                           gait=gait)
+    with tqdm(total=len(args.bench) + len(args.robot) + 1, desc='residuals', unit='step',
+              file=sys.stderr, disable=getattr(args, 'no_progress', False)) as bar:
+        return run_energy_loop(args.bench, args.robot, args.out,
+                               robot_mass_kg=args.robot_mass, payload_kg=args.robot_payload,
+                               current_sign=args.current_sign,
+                               load_offset_kg=args.load_offset, plots=not args.no_plots,
+                               gait=gait, progress=bar.update)
 
 
 def _handler(args: argparse.Namespace) -> int:

@@ -248,7 +248,10 @@ def test_cli_writes_the_schema_and_plots(bench, tmp_path, capsys):
     for p in doc['plots']:
         assert (out / p).stat().st_size > 1000
     assert 'residual_regressors.png' in doc['plots']
-    assert 'supply_resistance' in capsys.readouterr().out
+    printed = capsys.readouterr()
+    assert 'supply_resistance' in printed.out
+    # a progress bar on stderr: bench and robot bags read, then the loop
+    assert 'residuals: 100%' in printed.err
 
 
 def test_bad_input_names_what_is_missing(bench, tmp_path, capsys):
