@@ -33,6 +33,9 @@ the joints), else the run has no prediction and is left out of ``prediction_erro
 
     {
       "schema": "hexapod_energy.energy/1",
+      "leg": {"name", "a_m", "alpha_rad", "d_m", "theta_offset_rad", "link_masses_kg",
+              "neutral_tip_m"} (the leg of the Eq. 6 output-power model and of the carried
+              mass: --leg FILE, default AntBot; hexapod_energy.leg_description),
       "bench": {"bags": [...], "diagnostics": [{"bag", "force_offset_s", "current_sign",
                 "force_sign" (+1, or -1: force.z negated, see --force-sign),
                 "sessions", "notes" (dropped messages)}], "fit": {"spans", "chosen": {"stance", "swing"},
@@ -151,6 +154,10 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
                    help='payload for --recommend [kg] (default 0)')
     p.add_argument('--robot-mass', type=float, default=2.183, metavar='KG',
                    help='robot mass without payload [kg] (default 2.183, AntBot)')
+    p.add_argument('--leg', default=None, metavar='FILE',
+                   help="the robot's leg for the Eq. 6 output-power model and the carried "
+                   'mass: a YAML/JSON file with a_m, link_masses_kg, neutral_tip_m (DH table, '
+                   'link masses, stance pose; hexapod_energy.leg_description); default AntBot')
     p.add_argument('--robot-payload', type=float, default=None, metavar='KG',
                    help='payload of the robot runs [kg] (default: from the bag metadata, '
                         'else 0)')
@@ -235,9 +242,9 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         read_bench_sessions_file,
         read_robot_segments,
     )
+    from hexapod_energy.leg_description import antbot_leg, load_leg_description
     from hexapod_energy.metrics import descriptors
     from hexapod_energy.prediction import (
-        OutputPowerModel,
         RobotSpec,
         bench_domain_check,
         predict_power_in_w,
@@ -262,7 +269,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         raise EnergyError(f'--robot-speed must be > 0 m/s, got {robot_speed}')
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    robot = RobotSpec(mass_kg=args.robot_mass)
+    leg = load_leg_description(args.leg) if getattr(args, 'leg', None) else antbot_leg()
+    robot = RobotSpec(mass_kg=args.robot_mass, leg=leg.spec)
     n_steps = len(bench_bags) + len(args.robot) + 1 + (16 if args.sweep else 0) + \
         (1 if args.recommend else 0)
     bar = tqdm(total=n_steps, desc='energy', unit='step', disable=args.no_progress,
@@ -293,7 +301,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         doc['bench'] = ({'bags': [b for b, _ in bench_bags], 'diagnostics': diags,
                          'fit': model.summary()} if model is not None else None)
 
-        opm = OutputPowerModel(robot=robot)
+        opm = leg.output_power_model(args.robot_mass)
+        doc['leg'] = leg.summary()
         runs = []
         failed: list[dict[str, str]] = []
         for path in args.robot:

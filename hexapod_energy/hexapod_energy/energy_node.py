@@ -59,7 +59,7 @@ from hexapod_common.node_utils import (
     run_node,
 )
 from hexapod_energy.descriptors import DescriptorAccumulator, Descriptors, model_power_out
-from hexapod_energy.prediction import OutputPowerModel, RobotSpec
+from hexapod_energy.leg_description import antbot_leg, load_leg_description
 
 __all__ = ['EnergyMonitorNode', 'EnergyParams', 'descriptors_to_msg', 'main']
 
@@ -100,6 +100,10 @@ class EnergyParams:
         'TransformStamped (vicon_bridge), PoseWithCovarianceStamped or Odometry',
         validate=lambda v: None if v in MOCAP_TYPES else f'expected one of {list(MOCAP_TYPES)}',
         read_only=True)
+    leg_file: str = param(
+        '', "the robot's leg for the Eq. 6 P_out model: a YAML/JSON leg file "
+        '(hexapod_energy.leg_description: DH table, link masses, stance pose); empty: AntBot',
+        read_only=True)
     battery_source: str = param(
         '', 'keep only this battery of battery_state (header.frame_id, else location or '
         'serial_number); empty: several batteries on the topic are summed',
@@ -133,7 +137,8 @@ class EnergyMonitorNode(Node):
         p = declare_params(self, EnergyParams)
         model = None
         if p.power_out_source != 'effort':
-            model = model_power_out(OutputPowerModel(robot=RobotSpec(mass_kg=p.robot_mass)),
+            leg = load_leg_description(p.leg_file) if p.leg_file else antbot_leg()
+            model = model_power_out(leg.output_power_model(p.robot_mass),
                                     robot_mass_kg=p.robot_mass)
         self.core = DescriptorAccumulator(mass_kg=p.mass, cycles=p.cycles,
                                           current_sign=p.current_sign, power_out_model=model,

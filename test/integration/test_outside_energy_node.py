@@ -193,3 +193,31 @@ def test_battery_in_millivolts(tmp_path):
                          run_offline([node], str(tmp_path / name))['/energy/descriptors']]
     assert len(got['mv']) == len(got['v']) >= 10
     np.testing.assert_allclose(got['mv'], got['v'], rtol=1e-9)
+
+
+@pytest.mark.timeout(90)
+def test_leg_file_for_the_model_output_power(tmp_path):
+    """``-p leg_file:=phantom.yaml``: the Eq. 6 P_out of another robot's leg (it was AntBot's
+    leg for every robot), the figure the offline model gives."""
+    from hexapod_common.testbags import write_two_battery_robot_bag
+    from hexapod_energy.leg_description import load_leg_description
+    from hexapod_gait.gait import make_gait
+
+    leg_file = tmp_path / 'phantom.yaml'
+    leg_file.write_text('a_m: [0.052, 0.082, 0.155]\nlink_masses_kg: [0.025, 0.14, 0.09]\n'
+                        'neutral_tip_m: [0.15, 0.0, -0.13]\n')
+    write_two_battery_robot_bag(tmp_path / 'bag', logic_w=0.0)
+    got = {}
+    for name, extra in (('ant', []), ('phantom', [Parameter('leg_file', value=str(leg_file))])):
+        with ros_env('outside_leg') as env:
+            node = EnergyMonitorNode(context=env.context, parameter_overrides=[
+                Parameter('current_sign', value='ros'), Parameter('mass', value=2.5),
+                Parameter('robot_mass', value=2.5), *extra])
+            env.nodes.append(node)
+            got[name] = run_offline([node], str(tmp_path / 'bag'))['/energy/descriptors']
+    gait = make_gait('tripod', period_s=0.5, step_length_m=0.1)
+    expected = float(load_leg_description(leg_file).output_power_model(2.5).power_out_w(gait))
+    assert len(got['phantom']) >= 10
+    for m in got['phantom']:
+        assert m.power_out == pytest.approx(expected, rel=1e-6)
+    assert got['ant'][0].power_out != pytest.approx(expected, rel=0.05)
