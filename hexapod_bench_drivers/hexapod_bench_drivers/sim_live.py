@@ -6,6 +6,7 @@ plain samples of ``hexapod_common.conversions``) and call :meth:`tick` on a time
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -70,6 +71,15 @@ class _Commands:
         self.qd = qd_new
         return used
 
+    @property
+    def last_stamp_s(self) -> float | None:
+        """Stamp of the latest command [s] (None before the first)."""
+        return self._t_prev
+
+
+#: longest a late tick carries the latest command forward [s]; beyond, it is held
+MAX_CARRY_S = 0.1
+
 
 class LiveRobot:
     """The servo hexapod stepped live from ``/joint_commands`` and ``/gait/phase``."""
@@ -100,16 +110,43 @@ class LiveRobot:
         self.speed_mps = float(speed_mps)
         self.step_frequency_hz = 1.0 / period_s if period_s > 0 else 0.0
 
-    def tick(self, dt_s: float) -> LiveSample:
+    def tick(self, dt_s: float, now_s: float | None = None,
+             nominal_s: float = 0.01) -> LiveSample:
+        """Step the robot by ``dt_s`` under the latest command.
+
+        With ``now_s`` (the node clock, on the commands' clock), as the batch simulator sees
+        its gait: the tick is split into steps of at most ``nominal_s``, each under the latest
+        command carried forward along its own velocity and acceleration to the step's start
+        (at most :data:`MAX_CARRY_S`), as if the commands the gait node sent meanwhile had
+        arrived on time. The simulated robot's power then does not depend on when the host
+        runs the timer: held stale, a jittered 100 Hz tick (mean 10 ms) raised P_in at 0.3 m/s
+        from 34.1 W (batch and on-time ticks) to 36.6 W (carried forward: 33.8 W), and to
+        38.7 +- 3 W in the demo on a loaded machine. The battery sample is the mean over the
+        steps."""
         sim, c = self.sim, self.commands
         n_legs = len(sim.leg_names)
-        inp = SampleInput(c.q.reshape(n_legs, 3), c.qd.reshape(n_legs, 3),
-                          c.qdd.reshape(n_legs, 3), self.in_stance.copy(), self.speed_mps,
-                          self.step_frequency_hz, None)
-        res = sim.step(dt_s, inp)
+        t_cmd = c.last_stamp_s
+        carry = now_s is not None and t_cmd is not None
+        steps = max(1, math.ceil(dt_s / nominal_s - 1e-9)) if carry else 1
+        h = dt_s / steps
+        volts_sum = current_sum = 0.0
+        for j in range(steps):
+            if carry:
+                assert now_s is not None and t_cmd is not None
+                tau = min(max(now_s - dt_s + j * h - t_cmd, 0.0), MAX_CARRY_S)
+                q = c.q + c.qd * tau + 0.5 * c.qdd * tau * tau
+                qd = c.qd + c.qdd * tau
+            else:
+                q, qd = c.q, c.qd
+            inp = SampleInput(q.reshape(n_legs, 3), qd.reshape(n_legs, 3),
+                              c.qdd.reshape(n_legs, 3), self.in_stance.copy(), self.speed_mps,
+                              self.step_frequency_hz, None)
+            res = sim.step(h, inp)
+            volts_sum += res['voltage_v']
+            current_sum += res['current_a']
         out = res['servo']
         noise, rng = sim.noise, sim.rng
-        volts, current = res['voltage_v'], res['current_a']
+        volts, current = volts_sum / steps, current_sum / steps
         vel = out.velocity_rad_s
         if noise:
             volts += rng.normal(0.0, 0.004 * noise)

@@ -117,7 +117,8 @@ class _SimNode(Node):
         dt = 1.0 / self.params.rate if self._last_ns is None or now_ns <= self._last_ns \
             else min((now_ns - self._last_ns) * 1e-9, 0.1)
         self._last_ns = now_ns
-        sample = self.live.tick(dt)
+        sample = self.live.tick(dt, now_ns * 1e-9, 1.0 / self.params.rate) \
+            if isinstance(self.live, LiveRobot) else self.live.tick(dt)
         self._publish(sample, now.to_msg())
         self._tick_count += 1
 
