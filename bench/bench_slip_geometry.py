@@ -3,13 +3,15 @@ simulated EduBot runs, against the proprioceptive baseline measured in the same 
 
 Per gait (running, jogging, pace, walk) and seed: the offset error [ms] and ground-height error
 [mm] of the geometric fit (searched from 0 +- 60 ms, no prior offset; the ground's slope
-fitted too), the share of single-support stances (from the steady state on) whose touchdown
-and lift-off are both within 5 ms of the simulator's truth, and the fit time; the baseline is the contact estimator (effort onsets against
-body-height breaks), the paper's clock edges with the touchdown refined to the effort onset
-(at the true offset), and the ground at the mocap origin (no ground estimate). Prints the
-median absolute errors of both and their ratio.
+fitted too; ``--refine``: the output-error refinement, the default, or ``none``), the share
+of single-support stances (from the steady state on) whose touchdown and lift-off are both
+within 5 ms of the simulator's truth, and the fit time; the baseline is the contact estimator
+(effort onsets against body-height breaks), the paper's clock edges with the touchdown
+refined to the effort onset (at the true offset), and the ground at the mocap origin (no
+ground estimate). Prints the median absolute errors of both and their ratio.
 
-Usage: ``python bench/bench_slip_geometry.py [--duration 4.5] [--seeds 1 2 3]``
+Usage: ``python bench/bench_slip_geometry.py [--duration 4.5] [--seeds 1 2 3]
+[--refine output|none]``
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import numpy as np
 from hexapod_bench_drivers.edubot_sim import simulate_edubot_batch
 from slip_identification.errors import SlipDataError
 from slip_identification.geometry import (
+    REFINE_MODES,
     LegGeometry,
     body_pitch_rad,
     fit_ground_offset,
@@ -48,6 +51,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('--duration', type=float, default=4.5)
     ap.add_argument('--seeds', type=int, nargs='+', default=[1, 2, 3])
+    ap.add_argument('--refine', choices=REFINE_MODES, default='output',
+                    help='refinement of the ground and offset fit (geometry.py)')
     args = ap.parse_args()
     rows = []
     for gait in ('running', 'jogging', 'pace', 'walk'):
@@ -65,7 +70,7 @@ def main() -> None:
                         pitch)
             t0 = time.perf_counter()
             fit = fit_ground_offset(*geo_args, initial_offset_s=0.0, offset_range_s=0.06,
-                                    x_m=pw[:, 0])
+                                    x_m=pw[:, 0], refine=args.refine)
             contacts, unknown = leg_contacts(*geo_args, offset_s=fit.offset_s,
                                              ground_m=fit.ground_m, fit=fit, x_m=pw[:, 0])
             ss = single_support(contacts, TRIPODS, unknown)
