@@ -94,6 +94,8 @@ def _unavailable(err: Exception) -> int:
 
 
 _MAPPING_OPTIONS = ('--remap', '--joint-map')
+#: set to get the traceback of an unexpected failure instead of its one-line summary
+DEBUG_ENV = 'HEXAPOD_DEBUG'
 
 
 def _spell_out_mappings(argv: Sequence[str]) -> list[str]:
@@ -169,6 +171,13 @@ def _run(args: argparse.Namespace) -> int:
     except (OSError, ValueError, LookupError, RuntimeError, HexapodError) as err:
         # typed errors of the analysis: one line, no traceback
         print(f'hexapod-analyze {args.command}: error: {err}', file=sys.stderr)
+        return 1
+    except Exception as err:  # noqa: BLE001 - a bug or an input nobody foresaw
+        if os.environ.get(DEBUG_ENV):
+            raise
+        print(f'hexapod-analyze {args.command}: failed: {type(err).__name__}: {err} (set '
+              f'{DEBUG_ENV}=1 for the traceback, and please report it with the bag)',
+              file=sys.stderr)
         return 1
 
 

@@ -134,3 +134,22 @@ def test_truncated_bags_are_refused_in_one_line(bags, capsys):
                     '--out', str(root / 'cut_energy')])
     err = capsys.readouterr().err
     assert code != 0 and 'cannot read bag' in err and 'Traceback' not in err
+
+
+def test_an_unforeseen_failure_is_one_line(monkeypatch, capsys, tmp_path):
+    """A bug or an input nobody foresaw (here an AttributeError from a reader): one line with
+    the exception and how to get the traceback, exit 1; HEXAPOD_DEBUG=1 raises it."""
+    import slip_identification.cli as slip_cli
+
+    def broken(path):
+        raise AttributeError("'GaitPhase' object has no attribute 'supporting_legs'")
+
+    monkeypatch.setattr(slip_cli, 'read_run', broken)
+    monkeypatch.setattr(slip_cli, 'analyze_bag', lambda path, options: broken(path))
+    argv = ['slip', str(tmp_path), '--out', str(tmp_path / 'o')]
+    assert analyze(argv) == 1
+    err = capsys.readouterr().err
+    assert "failed: AttributeError: 'GaitPhase' object" in err and 'HEXAPOD_DEBUG=1' in err
+    monkeypatch.setenv('HEXAPOD_DEBUG', '1')
+    with pytest.raises(AttributeError):
+        analyze(argv)
