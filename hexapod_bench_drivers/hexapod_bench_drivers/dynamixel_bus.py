@@ -49,7 +49,10 @@ from pathlib import Path
 from typing import Any
 
 from dynamixel_sdk import GroupSyncWrite, PacketHandler, PortHandler
-from dynamixel_sdk.robotis_def import COMM_RX_CORRUPT, COMM_RX_TIMEOUT, COMM_SUCCESS
+from dynamixel_sdk.protocol1_packet_handler import PKT_ID as P1_PKT_ID
+from dynamixel_sdk.protocol1_packet_handler import PKT_INSTRUCTION as P1_PKT_INSTRUCTION
+from dynamixel_sdk.protocol1_packet_handler import PKT_LENGTH as P1_PKT_LENGTH
+from dynamixel_sdk.robotis_def import COMM_RX_CORRUPT, COMM_RX_TIMEOUT, COMM_SUCCESS, INST_PING
 
 from hexapod_bench_drivers.control_tables import (
     ERROR_OVERHEATING,
@@ -196,6 +199,9 @@ class ServoHealth:
     silent: bool = False
     last_error_flags: int = 0
     torque_enabled: bool = False
+    #: the servo's Status Return Level as read at open (2: replies to every instruction,
+    #: 1: to READ and PING only, so writes are verified by reading back); -1 not read yet
+    status_return_level: int = -1
 
 
 @dataclass(frozen=True)
@@ -348,13 +354,55 @@ class DynamixelBus:
                     s.health.model = f'unsupported model {model}'
                     s.refusal = str(err)
                     return False
+                if not self._read_status_return_level(s):
+                    return False
                 s.health.model = s.table.model_name
                 s.health.silent = False
                 s.health.consecutive_failures = 0
                 return True
             self._count(s, result)
+        if self.protocol == 1 and self._bare_ping(s):
+            # The SDK's Protocol 1.0 ping is a PING and a READ of the model number: a servo
+            # that answers the PING alone is at Status Return Level 0.
+            self._refuse_level_0(s)
+            return False
         s.health.silent = True
         return False
+
+    def _bare_ping(self, s: _Servo) -> bool:
+        """A Protocol 1.0 PING without the SDK's model-number READ: answered or not."""
+        tx = [0] * 6
+        tx[P1_PKT_ID], tx[P1_PKT_LENGTH], tx[P1_PKT_INSTRUCTION] = s.joint.servo_id, 2, INST_PING
+        _rx, result, _err = self.packet.txRxPacket(self.port, tx)
+        return bool(result == COMM_SUCCESS)
+
+    def _refuse_level_0(self, s: _Servo) -> None:
+        s.table = None
+        s.health.model = 'unreadable (Status Return Level 0)'
+        s.refusal = (f'answers PING but no READ: its Status Return Level is 0 (the servo '
+                     f'replies to nothing else); set it to 1 or 2 (register '
+                     f'{"16" if self.protocol == 1 else "68"}, e.g. with Dynamixel Wizard: this '
+                     f'driver never writes configuration registers)')
+
+    def _read_status_return_level(self, s: _Servo) -> bool:
+        """Read the servo's Status Return Level after its PING (False, refused, at level 0).
+
+        Level 1 is a common setting on real robots (it halves the bus time of writes): such a
+        servo answers READ and PING only, so its torque writes are sent without waiting for a
+        reply and checked by reading the register back (:meth:`set_torque`)."""
+        assert s.table is not None
+        data, _ = self._read_single(s, s.table.reg('status_return_level').address, 1,
+                                    1 + self.retries)
+        if data is None:
+            self._refuse_level_0(s)
+            return False
+        level = int(data[0])
+        if level < 2 and s.health.status_return_level != level:
+            self.notes.append(
+                f'{s.joint.name} (id {s.joint.servo_id}) has Status Return Level {level}: it '
+                'does not acknowledge writes, so torque writes are checked by reading back')
+        s.health.status_return_level = level
+        return True
 
     # --- reading ---------------------------------------------------------------------------
     @property
@@ -561,9 +609,20 @@ class DynamixelBus:
             for k in range(1 + self.retries):
                 if k:
                     s.health.retries += 1
-                result, _err = self.packet.write1ByteTxRx(
-                    self.port, s.joint.servo_id, s.table.reg('torque_enable').address,
-                    int(bool(enabled)))
+                address = s.table.reg('torque_enable').address
+                if s.health.status_return_level >= 2:
+                    result, _err = self.packet.write1ByteTxRx(
+                        self.port, s.joint.servo_id, address, int(bool(enabled)))
+                else:
+                    # no acknowledgement at Status Return Level 1: write, then read back
+                    result = self.packet.write1ByteTxOnly(
+                        self.port, s.joint.servo_id, address, int(bool(enabled)))
+                    if result == COMM_SUCCESS:
+                        data, _ = self._read_single(s, address, 1, 1)
+                        if data is None:
+                            continue  # the read-back was counted
+                        if data[0] != int(bool(enabled)):
+                            continue  # the write was lost: send it again
                 if result == COMM_SUCCESS:
                     ok = True
                     break

@@ -94,8 +94,18 @@ class DynamixelDriverNode(Node):
         for h in self.bus.health():
             self.get_logger().info(f'servo id {h.servo_id}: {h.model}'
                                    + (' (silent)' if h.silent else ''))
+        for s in self.bus.servos:
+            if s.refusal:
+                self.get_logger().error(f'{s.joint.name} (id {s.joint.servo_id}) left out: '
+                                        f'{s.refusal}')
+        for note in self.bus.take_notes():
+            self.get_logger().warning(note)
         if p.torque_on_start:
-            self.bus.set_torque(True)
+            refused = {s.joint.name for s in self.bus.servos if s.refusal}
+            failed = [n for n, ok in self.bus.set_torque(True).items()
+                      if not ok and n not in refused]
+            if failed:
+                self.get_logger().error(f'torque on failed for {failed}')
         self.pub_joints = self.create_publisher(JointState, 'joint_states', RELIABLE_QOS)
         self.pub_status = self.create_publisher(ServoStatus, 'servo_status', RELIABLE_QOS)
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', RELIABLE_QOS)
@@ -188,7 +198,8 @@ class DynamixelDriverNode(Node):
         values = {'model': h.model, 'reads_ok': h.reads_ok, 'timeouts': h.timeouts,
                   'corrupt': h.corrupt, 'retries': h.retries, 'failed_cycles': h.failed_cycles,
                   'error_replies': h.error_replies, 'error_flags': h.last_error_flags,
-                  'torque_enabled': h.torque_enabled}
+                  'torque_enabled': h.torque_enabled,
+                  'status_return_level': h.status_return_level}
         d.values = [KeyValue(key=k, value=str(v)) for k, v in values.items()]
         return d
 

@@ -204,3 +204,47 @@ def test_a_late_ping_reply_that_crashes_the_sdk_ping_is_retried(monkeypatch):
         [h] = bus.health()
         assert h.model == 'AX-18A' and h.corrupt == 1 and not h.silent
         assert bus.poll().readings[0].ok
+
+
+@pytest.mark.parametrize('model,protocol,n', CASES)
+def test_status_return_level_1_torque_written_and_checked(model, protocol, n):
+    """Status Return Level 1 (a common setting on real robots: writes are not acknowledged).
+    Torque writes used to wait out a reply deadline per attempt and report failure (the
+    overheating abort said torque off failed); now they are sent, read back and reported
+    done, and the bus notes the level once."""
+    with ServoBusEmulator.of_model(model, range(1, n + 1)) as emu:
+        for i in range(1, n + 1):
+            emu.servo(i).set('status_return_level', 1)
+        with DynamixelBus(emu.port_name, _joints(n), protocol=protocol,
+                          timeout_margin_ms=10.0) as bus:
+            assert {h.status_return_level for h in bus.health()} == {1}
+            notes = bus.take_notes()
+            assert len(notes) == n and all('Status Return Level 1' in x for x in notes)
+            assert all(r.ok for r in bus.poll().readings)
+            timeouts = sum(h.timeouts for h in bus.health())
+            assert all(bus.set_torque(True).values())
+            assert [emu.read_register(i, 'torque_enable') for i in range(1, n + 1)] == [1] * n
+            assert all(h.torque_enabled for h in bus.health())
+            assert sum(h.timeouts for h in bus.health()) == timeouts
+            assert all(bus.set_torque(False, ['j2']).values())
+            assert emu.read_register(2, 'torque_enable') == 0
+
+
+@pytest.mark.parametrize('model,protocol', [('ax18a', 1), ('xl430', 2)])
+def test_status_return_level_0_refused_by_name(model, protocol):
+    """A servo at Status Return Level 0 answers only PING, so nothing can be read from it:
+    refused naming the level and the register (it was 'no servo answered a ping' on
+    Protocol 1.0, whose SDK ping also READs the model number); the others are served."""
+    with ServoBusEmulator.of_model(model, [1, 2]) as emu:
+        emu.servo(2).set('status_return_level', 0)
+        with DynamixelBus(emu.port_name, _joints(2), protocol=protocol, timeout_margin_ms=5.0,
+                          retries=0) as bus:
+            h = bus.health()
+            assert h[0].status_return_level == 2 and 'Level 0' in h[1].model
+            result = bus.poll()
+            assert [r.ok for r in result.readings] == [True, False]
+        emu.servo(1).set('status_return_level', 0)
+        with pytest.raises(BusError, match=r'id 1: answers PING but no READ.*Status Return '
+                                           r'Level is 0.*register (16|68)'):
+            DynamixelBus(emu.port_name, _joints(2), protocol=protocol, timeout_margin_ms=5.0,
+                         retries=0).open()
