@@ -19,7 +19,7 @@ __all__ = ['add_cli', 'write_report']
 HEADLINES = {
     'energy.json': ('prediction_error', 'failed_bags'),
     'residuals.json': ('model', 'unit', 'baseline', 'effects_added', 'final', 'heldout',
-                       'summary'),
+                       'unexplained', 'summary'),
     'slip.json': ('gait_table', 'table', 'counts', 'skipped'),
     'demo.json': None,
 }

@@ -37,6 +37,7 @@ from scipy.optimize import lsq_linear
 
 from hexapod_energy.effects_catalogue import EnergyEffect, WindowTable, default_catalogue
 from hexapod_energy.errors import BagContentError, InvalidInputError
+from hexapod_energy.unexplained import unexplained_residual, unexplained_text
 
 __all__ = [
     'EffectSelection',
@@ -1004,8 +1005,14 @@ class EffectSelection:
 
 
 def energy_loop_document(table: WindowTable, sel: EffectSelection,
-                         held: np.ndarray, view: SampleView | None = None) -> dict[str, Any]:
+                         held: np.ndarray, view: SampleView | None = None, *,
+                         run_names: Sequence[str] | None = None,
+                         run_t0_s: Sequence[float] | None = None) -> dict[str, Any]:
     """The ``residuals.json`` document of the energy loop (issue 8 schema, plus extras).
+
+    ``unexplained`` (:func:`hexapod_energy.unexplained.unexplained_residual`): the final
+    residual against the windows' noise and, when significant, its shape per run
+    (``run_names`` label them, times from ``run_t0_s``); the summary then says that the catalogue does not explain it.
 
     With a fitted :class:`SampleView` the ``time_offset`` candidate is its per-sample record;
     when selected it comes first in ``effects_added`` (the windows were built on the realigned
@@ -1056,12 +1063,21 @@ def energy_loop_document(table: WindowTable, sel: EffectSelection,
             'train_rmse_after': view.train_rmse_after_w_,
             'lag_s': view.lag_s_, 'lag_stderr_s': view.lag_stderr_s_,
             'samples': {'train': view.samples_[0], 'heldout': view.samples_[1]}}
+    doc['unexplained'] = unexplained_residual(table.run, table.t_s, r1, run_names=run_names,
+                                              mean_power_w=float(np.mean(table.measured_w)),
+                                              run_t0_s=run_t0_s)
     doc['summary'] = summary_text(doc)
     return doc
 
 
 def summary_text(doc: dict[str, Any]) -> str:
     """The plain-words paragraph of a ``residuals.json`` document."""
+    left = unexplained_text(doc.get('unexplained') or {}, doc['unit'])
+    return _summary_effects(doc) + (' ' + left if left else '')
+
+
+def _summary_effects(doc: dict[str, Any]) -> str:
+    """The summary's account of the added effects."""
     unit = doc['unit']
     h = doc['heldout']
     b = doc['baseline']
@@ -1204,7 +1220,8 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
     table = build_windows(runs, temp_ref_c=temp_ref_c)
     held = split_mask(table)
     sel = EffectSelection().fit(table, held)
-    doc = energy_loop_document(table, sel, held, view)
+    doc = energy_loop_document(table, sel, held, view, run_names=[r.name for r in runs],
+                               run_t0_s=[float(r.t_s[0]) for r in runs])
     doc['load_offset_kg'] = load_offset_kg
     if hasattr(model, 'spans'):
         doc['bench_model'] = {'spans': list(model.spans), 'chosen': model.chosen_}

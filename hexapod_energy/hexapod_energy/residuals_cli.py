@@ -20,6 +20,13 @@ SLIP, SLIP + leg damping and SLIP + hip torque (:mod:`slip_identification.residu
      "added_params": [{"name", "params", "stderr", "alternatives"?: [{"name", "heldout_rmse",
                        "params", "stderr", "share"}], "collinearity"?: {...}}], ...}
 
+``unexplained`` (energy): what the added effects left, against the windows' noise
+(:mod:`hexapod_energy.unexplained`): ``{"rmse_w", "noise_w", "structured_w", "significant",
+"isolated": [{"run", "at_s", "residual_w"}], "pattern"?: "run_offsets"|"trend"|"step"|"other",
+"explained_share"?, "per_run"?: [{"run", "mean_w", "slope_w_per_s"? | "step_w", "at_s"?}]}``;
+when significant (an effect outside the catalogue: an accessory switched on mid-run, one run
+on another floor) the summary says so and gives its shape.
+
 ``alternatives`` (energy): other candidates that explained the same residual nearly as well
 (at least 90 % of the held-out error the added effect removed): the runs cannot tell them
 apart, and the summary says so. Energy candidates: ``basal_power``, ``thermal_drift`` (on the
