@@ -12,6 +12,9 @@ model        P  number  ticks/deg  centre  rpm/u  N m    A     rpm    V   I mA  
 AX-12A       1  12      1024/300   512     0.111  1.5    1.5   59     12  -     70  ax/ax-12a
 AX-18A       1  18      1024/300   512     0.111  1.8    2.2   97     12  -     75  ax/ax-18a
 AX-12W       1  300     1024/300   512     0.111  0.2    1.4   54(1)  12  -     70  ax/ax-12w
+RX-24F       1  24      1024/300   512     0.111  2.6    2.4   126    12  -     80  rx/rx-24f
+RX-28        1  28      1024/300   512     0.111  3.7    1.9   85     18  -     80  rx/rx-28
+RX-64        1  64      1024/300   512     0.111  5.3    2.6   64     18  -     80  rx/rx-64
 MX-28        1  29      4096/360   2048    0.114  2.5    1.4   55     12  -     80  mx/mx-28
 MX-64        1  310     4096/360   2048    0.114  6.0    4.1   63     12  (2)   80  mx/mx-64
 MX-106       1  320     4096/360   2048    0.114  8.4    5.2   45     12  (2)   80  mx/mx-106
@@ -48,7 +51,10 @@ Goal Position 30, Moving Speed 32, the present block 36..43), but addresses 26-2
 count 0.114 rpm. Nothing here writes 26-29 on any model (the emulator writes only power-on
 defaults). Protocol 2.0 MX(2.0) firmware uses the X-series addresses.
 
-Not described (outside the list that was checked): XL-320, RX/EX, DX, Pro, P, Y, XH540, XW,
+RX-28 and RX-64 figures are at 18.5 V (``V`` 18 above, 18.5 in the table); the RX series has
+the AX control table (compliance margins and slopes, punch 32), Max Voltage Limit 190.
+
+Not described (outside the list that was checked): XL-320, RX-10, EX, DX, Pro, P, Y, XH540, XW,
 XD, XC330, MX-12W and the XH430-V (24 V) variants; they are refused by model number.
 
 Conventions: positions are radians about the servo's centre tick (512 or 2048), counter-clockwise
@@ -76,6 +82,9 @@ __all__ = [
     'MX64_2',
     'MX106',
     'MX106_2',
+    'RX24F',
+    'RX28',
+    'RX64',
     'XC430_W150',
     'XC430_W240',
     'XH430_W210',
@@ -526,7 +535,7 @@ _P1_READ = ('present_position', 'present_speed', 'present_load', 'present_voltag
 
 def _p1_table(name: str, number: int, stall_nm: float, stall_a: float, no_load_rpm: float,
               temp_limit_c: int, *, page: str, mx: bool = False, current: bool = False,
-              **register_defaults: int) -> ControlTable:
+              rated_voltage_v: float = 12.0, **register_defaults: int) -> ControlTable:
     return ControlTable(
         model_name=name, model_number=number, protocol=1,
         registers=MappingProxyType(_p1_registers(number, temp_limit_c, mx=mx, current=current,
@@ -537,7 +546,7 @@ def _p1_table(name: str, number: int, stall_nm: float, stall_a: float, no_load_r
         velocity_unit_rpm=0.114 if mx else 0.111, stall_torque_nm=stall_nm,
         stall_current_a=stall_a, no_load_speed_rad_s=no_load_rpm * RPM_TO_RAD_S,
         read_names=_P1_READ, p1_current_unit_a=0.0045 if current else 0.0,
-        page=_EMANUAL + page,
+        rated_voltage_v=rated_voltage_v, page=_EMANUAL + page,
     )
 
 
@@ -568,6 +577,13 @@ AX12A = _p1_table('AX-12A', 12, 1.5, 1.5, 59.0, 70, page='ax/ax-12a/')
 AX18A = _p1_table('AX-18A', 18, 1.8, 2.2, 97.0, 75, page='ax/ax-18a/')
 AX12W = _p1_table('AX-12W', 300, 0.2, 1.4, 54.0, 70, page='ax/ax-12w/', compliance_margin=4,
                   compliance_slope=64)
+# RX series: the AX layout and units (compliance at 26-29, 1024 ticks over 300 deg, 0.111 rpm),
+# Temperature Limit 80, Max Voltage Limit 19.0 V; RX-28 and RX-64 rated at 18.5 V.
+RX24F = _p1_table('RX-24F', 24, 2.6, 2.4, 126.0, 80, page='rx/rx-24f/', max_voltage_limit=190)
+RX28 = _p1_table('RX-28', 28, 3.7, 1.9, 85.0, 80, page='rx/rx-28/', max_voltage_limit=190,
+                 rated_voltage_v=18.5)
+RX64 = _p1_table('RX-64', 64, 5.3, 2.6, 64.0, 80, page='rx/rx-64/', max_voltage_limit=190,
+                 rated_voltage_v=18.5)
 MX28 = _p1_table('MX-28', 29, 2.5, 1.4, 55.0, 80, page='mx/mx-28/', mx=True,
                  max_voltage_limit=160, punch=0)
 MX64 = _p1_table('MX-64', 310, 6.0, 4.1, 63.0, 80, page='mx/mx-64/', mx=True, current=True,
@@ -612,7 +628,7 @@ XL330_M288 = _p2_table('XL330-M288', 1200, 0.52, 1.47, 103.0, 70, True, page='x/
                        shutdown=53, position_p_gain=400)
 
 ALL_MODELS: tuple[ControlTable, ...] = (
-    AX12A, AX18A, AX12W, MX28, MX64, MX106, MX28_2, MX64_2, MX106_2, XL430, XM430, XM430_W210,
+    AX12A, AX18A, AX12W, RX24F, RX28, RX64, MX28, MX64, MX106, MX28_2, MX64_2, MX106_2, XL430, XM430, XM430_W210,
     XH430_W210, XH430_W350, XC430_W150, XC430_W240, XM540_W150, XM540_W270, XL330_M077,
     XL330_M288)
 

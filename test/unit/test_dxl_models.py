@@ -37,6 +37,9 @@ EXPECTED = {
     'MX-28': (1, 29, 4096, 360, 2048, 0.114, 2.5, 1.4, 55, 12, None, 80),
     'MX-64': (1, 310, 4096, 360, 2048, 0.114, 6.0, 4.1, 63, 12, None, 80),
     'MX-106': (1, 320, 4096, 360, 2048, 0.114, 8.4, 5.2, 45, 12, None, 80),
+    'RX-24F': (1, 24, 1024, 300, 512, 0.111, 2.6, 2.4, 126, 12, None, 80),
+    'RX-28': (1, 28, 1024, 300, 512, 0.111, 3.7, 1.9, 85, 18.5, None, 80),
+    'RX-64': (1, 64, 1024, 300, 512, 0.111, 5.3, 2.6, 64, 18.5, None, 80),
     'MX-28(2.0)': (2, 30, 4096, 360, 2048, 0.229, 2.5, 1.4, 55, 12, None, 80),
     'MX-64(2.0)': (2, 311, 4096, 360, 2048, 0.229, 6.0, 4.1, 63, 12, 3.36, 80),
     'MX-106(2.0)': (2, 321, 4096, 360, 2048, 0.229, 8.4, 5.2, 45, 12, 3.36, 80),
@@ -114,8 +117,9 @@ def test_mx_protocol1_has_gains_not_compliance():
         assert [t.reg(n).address for n in ('d_gain', 'i_gain', 'p_gain')] == [26, 27, 28]
         assert t.reg('p_gain').default == 32
         assert t.reg('ccw_angle_limit').default == 4095
-    for t in (BY_NAME['AX-12A'], BY_NAME['AX-12W']):
+    for t in (BY_NAME['AX-12A'], BY_NAME['AX-12W'], BY_NAME['RX-28'], BY_NAME['RX-64']):
         assert t.reg('cw_compliance_slope').address == 28
+        assert t.reg('ccw_angle_limit').default == 1023
     assert BY_NAME['AX-12W'].reg('cw_compliance_slope').default == 64
 
 
@@ -177,7 +181,8 @@ def test_driver_reports_an_unknown_model_by_name():
 
 
 # (model, protocol, servos, external torque [N m]) for the driver-against-emulator tests.
-DRIVER_CASES = [('MX-28', 1, 4, 0.5), ('MX-64(2.0)', 2, 4, 1.2), ('XL330-M288', 2, 3, 0.13)]
+DRIVER_CASES = [('MX-28', 1, 4, 0.5), ('MX-64(2.0)', 2, 4, 1.2), ('XL330-M288', 2, 3, 0.13),
+                ('RX-28', 1, 4, 0.7)]
 
 
 @pytest.mark.parametrize('model,protocol,n,torque_nm', DRIVER_CASES)
