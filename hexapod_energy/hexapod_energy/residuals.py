@@ -1237,6 +1237,9 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         doc['plots'] = plot_energy_loop(table, sel, held, runs, out) if plots else []
+        if plots and doc['unexplained'].get('significant'):
+            doc['plots'].append(plot_unexplained(table, table.residual_w - sel.term_w_,
+                                                 doc['unexplained'], runs, out))
         import json
 
         (out / 'residuals.json').write_text(json.dumps(_jsonable(doc), indent=2) + '\n')
@@ -1301,3 +1304,50 @@ def plot_energy_loop(table: WindowTable, sel: EffectSelection, held: np.ndarray,
         plt.close(fig)
         names.append('residual_regressors.png')
     return names
+
+
+def plot_unexplained(table: WindowTable, residual_w: np.ndarray, u: dict[str, Any],
+                     runs: Sequence[ResidualRun], out: Path) -> str:
+    """The residual the added effects left, per run against time from the run's start, with
+    the shape :func:`hexapod_energy.unexplained.unexplained_residual` found and its noise
+    band; returns the PNG name."""
+    import matplotlib
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(9, 4))
+    rows = u.get('per_run', [])
+    noise = float(u.get('noise_w', float('nan')))
+    for k, r in enumerate(runs):
+        m = table.run == k
+        if not m.any():
+            continue
+        t = table.t_s[m] - float(r.t_s[0])
+        line, = ax.plot(t, residual_w[m], '.', ms=4, label=Path(r.name).name)
+        row = next((x for x in rows if x.get('run') == r.name), None)
+        if row is None:
+            continue
+        if u.get('pattern') == 'step':
+            before = row['mean_w'] - row['step_w'] * float(np.mean(t > row['at_s']))
+            ax.step([t.min(), row['at_s'], t.max()],
+                    [before, before + row['step_w'], before + row['step_w']],
+                    where='post', color=line.get_color(), lw=1)
+        elif u.get('pattern') == 'trend':
+            tc = t - t.min()
+            ax.plot(t, row['mean_w'] + row['slope_w_per_s'] * (tc - tc.mean()),
+                    color=line.get_color(), lw=1)
+        elif u.get('pattern') == 'run_offsets':
+            ax.hlines(row['mean_w'], t.min(), t.max(), color=line.get_color(), lw=1)
+    if np.isfinite(noise):
+        ax.axhspan(-2 * noise, 2 * noise, color='0.85', label='2 x window noise')
+    ax.set_xlabel('time in run [s]')
+    ax.set_ylabel('residual after the added effects [W]')
+    ax.set_title(f"left unexplained: {u.get('structured_w', float('nan')):.2f} W RMS "
+                 f"({u.get('pattern')})")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out / 'residual_unexplained.png', dpi=90)
+    plt.close(fig)
+    return 'residual_unexplained.png'
+

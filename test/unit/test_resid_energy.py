@@ -83,7 +83,7 @@ def test_clean_runs_leave_no_unexplained_residual(clean):
         [r['measured_w'] for r in clean['per_run']])
 
 
-def test_an_accessory_switched_on_mid_run_is_reported_unexplained(bench, clean_bags):
+def test_an_accessory_switched_on_mid_run_is_reported_unexplained(bench, clean_bags, tmp_path):
     """An effect outside the catalogue: +3 W (a camera or a computer switched on) from the
     middle of each run. The loop fits what it can (here an undeclared mass and thermal drift)
     and said nothing of the 1.4 W it left; now the leftover is named, with its shape: a step
@@ -93,10 +93,14 @@ def test_an_accessory_switched_on_mid_run_is_reported_unexplained(bench, clean_b
         extra_w = np.where(r.t_s - r.t_s[0] > 0.5 * (r.t_s[-1] - r.t_s[0]), 3.0, 0.0)
         r.current_a = r.current_a + extra_w / r.voltage_v
         r.power_w = r.voltage_v * r.current_a
-    doc = R.energy_loop_from_runs(bench['model'], runs, None, temp_ref_c=bench['temp_ref_c'],
+    doc = R.energy_loop_from_runs(bench['model'], runs, tmp_path, temp_ref_c=bench['temp_ref_c'],
                                   load_offset_kg=LEG_KG)
     u = doc['unexplained']
     print(f"\n{doc['summary']}")
+    assert 'residual_unexplained.png' in doc['plots']
+    assert (tmp_path / 'residual_unexplained.png').stat().st_size > 10_000
+    assert json.loads((tmp_path / 'residuals.json').read_text())['unexplained']['pattern'] == \
+        'step'
     assert u['significant'] and u['pattern'] == 'step'
     assert u['structured_w'] > 10 * u['noise_w']
     assert 'steps within runs' in doc['summary']
