@@ -47,6 +47,12 @@ the joints), else the run has no prediction and is left out of ``prediction_erro
       "robot_runs": [{"bag", "gait", "leg_count", "duty_factor", "period_s", "step_length_m",
                       "payload_kg", "mass_kg", "windows", "window_s",
                       "measured_power_in_w", "predicted_power_in_w", "residual_w",
+                      "power_breakdown_w": {"stance_w", "swing_w" (Eq. 1's phases),
+                      "holding_w" (every leg's bench basal power at the load it carries),
+                      "stance_motion_w", "swing_motion_w" (what moving adds),
+                      "predicted_w", "measured_w", "unmodelled_w" (measured - predicted),
+                      "holding_share" (holding / measured)} or null without a prediction
+                      (where the watts go; plot where_the_watts_go.png),
                       "prediction_outside_bench" [str] (where Eq. 1 read the surfaces
                       beyond the bench's sessions; empty inside; also a warning),
                       "power_out_w", "power_out_source" ("effort" | "model" | "none";
@@ -247,6 +253,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     from hexapod_energy.prediction import (
         RobotSpec,
         bench_domain_check,
+        power_breakdown_w,
         predict_power_in_w,
     )
     from hexapod_energy.single_leg import SingleLegModel
@@ -327,6 +334,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 gait = gait_from_sample(run_.gait) if run_.gait is not None else \
                     _given_gait(args, run_, notes)
                 predicted = p_model = math.nan
+                breakdown = None
                 if gait is not None and model is None:
                     notes.append('no bench bags (--bench): no Eq. 1 prediction')
                 outside: list[str] = []
@@ -335,6 +343,10 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                                                          leg_mass_kg=robot.leg_mass_kg,
                                                          swing_load=args.swing_load,
                                                          load_offset_kg=args.load_offset))
+                    breakdown = power_breakdown_w(model, gait, total_mass_kg=mass,
+                                                  leg_mass_kg=robot.leg_mass_kg,
+                                                  swing_load=args.swing_load,
+                                                  load_offset_kg=args.load_offset)
                     outside = bench_domain_check(model, gait, total_mass_kg=mass,
                                                  leg_mass_kg=robot.leg_mass_kg,
                                                  swing_load=args.swing_load,
@@ -378,6 +390,11 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                     'windows': run_.windows, 'window_s': run_.window_s,
                     'measured_power_in_w': run_.power_in_w, 'predicted_power_in_w': predicted,
                     'residual_w': run_.power_in_w - predicted,
+                    'power_breakdown_w': None if breakdown is None else {
+                        **breakdown, 'measured_w': run_.power_in_w,
+                        'unmodelled_w': run_.power_in_w - breakdown['predicted_w'],
+                        'holding_share': breakdown['holding_w'] / run_.power_in_w
+                        if run_.power_in_w > 0 else math.nan},
                     'prediction_outside_bench': outside,
                     'power_out_w': p_out, 'power_out_source': source, 'power_out_model_w': p_model,
                     'power_out_effort_w': run_.power_out_w,
@@ -409,10 +426,17 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 'relative_rmse': float(np.sqrt(np.mean(err**2)) / np.mean(meas)),
                 'max_abs_relative': float(np.max(np.abs(err) / meas)),
             }
-            from hexapod_energy.plots import prediction_plot
+            from hexapod_energy.plots import prediction_plot, watts_plot
 
             doc['plots'] += [str(p.relative_to(out)) for p in prediction_plot(
                 [r['speed'] for r in runs], meas, pred, out / 'prediction')]
+            labels = [Path(r['bag']).name + (f" [{r['segment']['index'] + 1}]"
+                                             if (r.get('segment') or {}).get('of', 1) > 1
+                                             else '') + f"\n{r['speed'] or 0:.2f} m/s"
+                      for r in runs]
+            doc['plots'] += [str(p.relative_to(out)) for p in watts_plot(
+                labels, [r['power_breakdown_w'] for r in runs], meas,
+                [r['power_out_w'] for r in runs], out / 'where_the_watts_go')]
 
         if args.sweep:
             _sweep(doc, model, opm, out, bar, args.load_offset)

@@ -29,7 +29,7 @@ import numpy as np  # noqa: E402
 
 from hexapod_energy.sweeps import SweepCurve  # noqa: E402
 
-__all__ = ['four_quadrant_plot', 'power_map_plot', 'prediction_plot']
+__all__ = ['four_quadrant_plot', 'power_map_plot', 'prediction_plot', 'watts_plot']
 
 _MARKERS = {'max_power_out': 'red', 'min_cot_per_mass': 'blue', 'max_efficiency': 'green'}
 
@@ -116,6 +116,41 @@ def prediction_plot(
     ax.set_ylabel('P_in [W]')
     ax.legend()
     ax.grid(alpha=0.3)
+    fig.tight_layout()
+    return _save(fig, out_stem)
+
+
+def watts_plot(labels: Sequence[str], breakdowns: Sequence[dict[str, float]],
+               measured_w: Sequence[float], power_out_w: Sequence[float],
+               out_stem: str | Path) -> list[Path]:
+    """Where the watts go, one stacked bar per robot run: holding (the legs' basal power at
+    their loads), moving in stance, moving in swing (or the two phases when the bench has no
+    0 Hz session), then the part the bench model does not explain (measured minus predicted,
+    hatched; below the stack when negative); the measured P_in and the mechanical output
+    P_out marked."""
+    fig, ax = plt.subplots(figsize=(max(6.0, 1.1 * len(labels) + 2.5), 4.8))
+    x = np.arange(len(labels))
+    with_basal = all(np.isfinite(b.get('holding_w', np.nan)) for b in breakdowns)
+    parts = ((('holding_w', 'holding (basal at load)', '#8c8c8c'),
+              ('stance_motion_w', 'moving, stance', '#1f77b4'),
+              ('swing_motion_w', 'moving, swing', '#ff7f0e')) if with_basal else
+             (('stance_w', 'stance legs', '#1f77b4'), ('swing_w', 'swing legs', '#ff7f0e')))
+    bottom = np.zeros(len(labels))
+    for key, label, color in parts:
+        v = np.array([b[key] for b in breakdowns], dtype=float)
+        ax.bar(x, v, 0.6, bottom=bottom, label=label, color=color)
+        bottom += v
+    rest = np.array(measured_w, dtype=float) - bottom
+    ax.bar(x, rest, 0.6, bottom=bottom, label='not in the bench model (measured - Eq. 1)',
+           color='white', edgecolor='k', hatch='//')
+    ax.plot(x, measured_w, 'k_', ms=22, mew=2, label='measured P_in')
+    ax.plot(x, power_out_w, 'v', color='green', label='of which mechanical output P_out')
+    ax.set_xticks(x)
+    ax.set_xticklabels(labels, rotation=20, ha='right', fontsize=8)
+    ax.set_ylabel('input power [W]')
+    ax.set_title('Where the watts go')
+    ax.legend(fontsize=7, loc='upper left')
+    ax.grid(alpha=0.3, axis='y')
     fig.tight_layout()
     return _save(fig, out_stem)
 

@@ -19,6 +19,8 @@ definition of average mechanical power.
 
 from __future__ import annotations
 
+import math
+
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Literal, Protocol
@@ -44,6 +46,7 @@ __all__ = [
     'bench_domain_check',
     'carried_mass_profile_kg',
     'phase_path',
+    'power_breakdown_w',
     'predict_power_in_w',
 ]
 
@@ -126,31 +129,86 @@ def predict_power_in_w(
     -------
     float, or array (k,) when ``periods_s`` is given.
     """
+    scalar = periods_s is None
+    stance, swing, _, _ = _phase_terms(model, gait, total_mass_kg=total_mass_kg,
+                                       leg_mass_kg=leg_mass_kg, periods_s=periods_s,
+                                       swing_load=swing_load, load_offset_kg=load_offset_kg)
+    total = stance + swing
+    return float(total[0]) if scalar else total
+
+
+def _phase_terms(model: PhasePowerModel, gait: Any, *, total_mass_kg: float,
+                 leg_mass_kg: float, periods_s: ArrayLike | None, swing_load: str,
+                 load_offset_kg: float, basal: Any = None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Eq. 1's stance and swing sums over the support profile, (k,) each [W]; with
+    ``basal`` (one leg's basal power at a load [W], a callable) also the basal power of the
+    stance legs at their loads and of the swing legs unloaded (else zeros)."""
     bp, supporting = gait.support_profile()
     widths = np.diff(np.append(bp, 1.0))
     n_legs = gait.leg_count
     beta = gait.duty_factor
-    scalar = periods_s is None
-    periods = np.atleast_1d(np.asarray(gait.period_s if scalar else periods_s, dtype=float))
+    periods = np.atleast_1d(np.asarray(gait.period_s if periods_s is None else periods_s,
+                                       dtype=float))
     if np.any(periods <= 0):
         raise InvalidInputError(f'periods_s must be > 0, got min {periods.min()}')
     if swing_load not in ('zero', 'carried'):
         raise InvalidInputError(f"swing_load must be 'zero' or 'carried', got {swing_load!r}")
-    total = np.zeros_like(periods)
+    stance, swing = np.zeros_like(periods), np.zeros_like(periods)
+    hold_st, hold_sw = np.zeros_like(periods), np.zeros_like(periods)
     t_st, t_sw = beta * periods, (1.0 - beta) * periods
     for w, big_l in zip(widths, supporting):
         if w <= 0:
             continue
         m_c = max(float(_carried(total_mass_kg, leg_mass_kg, np.array([big_l]))[0]) -
                   float(load_offset_kg), 0.0)
-        term = np.zeros_like(periods)
         if big_l > 0:
-            term += big_l * model.p_stance_w(t_st, m_c)
+            stance += w * big_l * model.p_stance_w(t_st, m_c)
+            if basal is not None:
+                hold_st += w * big_l * float(basal(m_c))
         if big_l < n_legs:
             m_sw = m_c if (swing_load == 'carried' and big_l > 0) else 0.0
-            term += (n_legs - big_l) * model.p_swing_w(t_sw, m_sw)
-        total += w * term
-    return float(total[0]) if scalar else total
+            swing += w * (n_legs - big_l) * model.p_swing_w(t_sw, m_sw)
+            if basal is not None:
+                hold_sw += w * (n_legs - big_l) * float(basal(m_sw))
+    return stance, swing, hold_st, hold_sw
+
+
+def power_breakdown_w(
+    model: PhasePowerModel,
+    gait: Any,
+    *,
+    total_mass_kg: float,
+    leg_mass_kg: float = ANTBOT_LEG_SPEC.leg_mass_kg,
+    swing_load: Literal['zero', 'carried'] = 'zero',
+    load_offset_kg: float = 0.0,
+) -> dict[str, float]:
+    """Where Eq. 1's input power goes, for one gait [W].
+
+    ``stance_w`` and ``swing_w``: the legs in stance and in swing (their sum is
+    :func:`predict_power_in_w`). With the bench's basal power (``model.basal_power_at_w``,
+    the 0 Hz sessions interpolated over load; a model without it leaves these nan):
+    ``holding_w``, what the legs draw standing still at the loads they carry in this support
+    pattern (a swinging leg unloaded); ``stance_motion_w`` and ``swing_motion_w``, what moving
+    adds in each phase (``stance_w - `` its holding part, likewise for swing; either may be
+    negative where a phase surface lies below the basal power). Arguments as
+    :func:`predict_power_in_w`.
+    """
+    basal = getattr(model, 'basal_power_at_w', None)
+    has_basal = basal is not None and math.isfinite(float(basal(0.0)))
+    stance, swing, hold_st, hold_sw = _phase_terms(
+        model, gait, total_mass_kg=total_mass_kg, leg_mass_kg=leg_mass_kg, periods_s=None,
+        swing_load=swing_load, load_offset_kg=load_offset_kg,
+        basal=basal if has_basal else None)
+    nan = float('nan')
+    out = {'predicted_w': float(stance[0] + swing[0]), 'stance_w': float(stance[0]),
+           'swing_w': float(swing[0]), 'holding_w': nan, 'stance_motion_w': nan,
+           'swing_motion_w': nan}
+    if has_basal:
+        out.update(holding_w=float(hold_st[0] + hold_sw[0]),
+                   stance_motion_w=float(stance[0] - hold_st[0]),
+                   swing_motion_w=float(swing[0] - hold_sw[0]))
+    return out
 
 
 def bench_domain_check(

@@ -221,3 +221,34 @@ def test_paper_direction_beta_and_wave(findings) -> None:
                                                                       duty_factor=0.5)
     assert _sim_loss_w(speed_mps=0.1, payload_kg=0.5, gait='wave', duty_factor=0.83) \
         < _sim_loss_w(speed_mps=0.1, payload_kg=0.5)
+
+
+def test_where_the_watts_go(bags, tmp_path) -> None:
+    """Each robot run's Eq. 1 power split by phase and into holding (the bench's basal power
+    at the loads the legs carry) and motion; the parts add up to the prediction, the rest is
+    what the bench model does not explain; drawn as stacked bars."""
+    doc = _analyze(bags, tmp_path / 'watts', '--load-offset', f'{LEG_KG:.6f}',
+                   '--power-out', 'model')
+    basal = doc['bench']['fit']['basal_power_w']
+    assert basal, 'the plan has 0 Hz sessions'
+    print()
+    for r in doc['robot_runs']:
+        b = r['power_breakdown_w']
+        print(f"  v {r['speed']:.2f} m/s: P_in {b['measured_w']:.2f} W = holding "
+              f"{b['holding_w']:.2f} ({100 * b['holding_share']:.0f} %) + stance motion "
+              f"{b['stance_motion_w']:.2f} + swing motion {b['swing_motion_w']:.2f} + "
+              f"unmodelled {b['unmodelled_w']:+.2f}")
+        assert b['stance_w'] + b['swing_w'] == pytest.approx(r['predicted_power_in_w'])
+        assert b['holding_w'] + b['stance_motion_w'] + b['swing_motion_w'] == \
+            pytest.approx(b['predicted_w'])
+        assert b['predicted_w'] + b['unmodelled_w'] == pytest.approx(r['measured_power_in_w'])
+        # six legs at the bench's basal power: between the unloaded and the heaviest session
+        lo, hi = min(basal.values()), max(basal.values())
+        assert 6 * lo - 1e-9 <= b['holding_w'] <= 6 * hi + 1e-9
+    shares = [r['power_breakdown_w']['holding_share'] for r in doc['robot_runs']]
+    motion = [r['power_breakdown_w']['swing_motion_w'] for r in doc['robot_runs']]
+    # holding weighs most at low speed; swinging faster costs more
+    assert shares[0] == max(shares) and shares[-1] == min(shares)
+    assert np.all(np.diff(motion) > 0)
+    assert 'where_the_watts_go.png' in doc['plots']
+    assert (tmp_path / 'watts' / 'where_the_watts_go.png').stat().st_size > 10_000
