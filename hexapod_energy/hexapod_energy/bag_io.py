@@ -3,8 +3,8 @@
 Uses ``hexapod_common.bags.open_reader`` (rosbags, definitions from the bag) and the message
 converters of ``hexapod_common.conversions``; all times are header stamps [s].
 
-Bench bags need ``/battery_state``, ``/bench/ground_force``, ``/bench/leg_tip`` and
-``/bench/session``; robot bags need ``/battery_state`` and ``/gait/phase`` (``/joint_states``
+Bench bags need ``/battery_state``, ``/bench/ground_force``, ``/bench/leg_tip`` (else the
+tip height from ``/joint_states`` by forward kinematics) and ``/bench/session``; robot bags need ``/battery_state`` and ``/gait/phase`` (``/joint_states``
 with efforts and ``/mocap/body`` are used when present).  A missing topic raises
 :class:`~hexapod_energy.errors.BagContentError` naming what is missing and what is there.
 
@@ -214,8 +214,16 @@ def _tip_frequency_hz(t_s: np.ndarray, z_m: np.ndarray) -> tuple[float, str]:
     return 1.0 / est.period_s, f'leg tip period {est.period_s:.4g} s'
 
 
-def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None) -> BenchData:
+def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
+                   leg_dh: Any = None, leg_name: str = 'AntBot') -> BenchData:
     """Read one bench bag's streams.
+
+    A bench without motion capture of the leg tip (no ``/bench/leg_tip``) but with the servos'
+    ``/joint_states`` takes the tip height from the joint angles by forward kinematics of the
+    leg (``leg_dh``: a ``hexapod_gait`` DHParameters, default AntBot's; ``leg_name`` for the
+    note): one leg's ``<leg>_coxa``, ``<leg>_femur`` and ``<leg>_tibia``, height in the leg's
+    base frame (the stance split takes the tip's lowest band, so the frame's origin does not
+    matter), noted.
 
     ``session``: the bag has no ``/bench/session`` (:class:`BenchSessionSpec`, from
     ``energy --bench-sessions``); the whole bag is one walking session (noted). A bag that
@@ -230,6 +238,7 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None) ->
     from hexapod_common.clocks import ClockCheck, shift_rows
     from hexapod_common.conversions import (
         battery_from_msg,
+        joint_state_from_msg,
         point_from_msg,
         stamp_to_s,
         wrench_from_msg,
@@ -255,28 +264,44 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None) ->
 
     periods: list[float] = []
     no_header: dict[str, int] = {}
+    joint_rows: list[tuple[float, float, float, float]] = []
+    tip_leg: list[str] = []
     with open_reader(path) as reader:
+        present = {c.topic for c in reader.connections}
+        # a bench without tip motion capture: the tip height from the joint angles
+        tip_topic = '/joint_states' if ('/bench/leg_tip' not in present and
+                                        '/joint_states' in present) else '/bench/leg_tip'
+        needed = tuple(tip_topic if t == '/bench/leg_tip' else t for t in BENCH_TOPICS)
         if session is None:
-            present = {c.topic for c in reader.connections}
-            if '/bench/session' not in present and set(BENCH_TOPICS[:3]) <= present:
+            if '/bench/session' not in present and set(needed[:3]) <= present:
                 raise BagContentError(
                     f'bag {path} has no /bench/session (the sessions\' load and frequency): a '
                     'bench bag of one session, recorded without this project\'s sequencer, is '
                     'given with --bench-sessions CSV (columns bag,load_kg[,frequency_hz])')
-            _check_topics(reader, BENCH_TOPICS, str(path))
-            topics: tuple[str, ...] = BENCH_TOPICS
+            _check_topics(reader, needed, str(path))
+            topics: tuple[str, ...] = needed
         else:
-            _check_topics(reader, BENCH_TOPICS[:3], str(path))
+            _check_topics(reader, needed[:3], str(path))
             if any(c.topic == '/bench/session' and c.msgcount > 0
                    for c in reader.connections):
                 raise BagContentError(
                     f'bag {path} records /bench/session and is in the bench sessions file '
                     'too: give it with --bench alone (its own sessions) or drop its '
                     '/bench/session')
-            topics = BENCH_TOPICS[:3] + (('/gait/phase',) if any(
+            topics = needed[:3] + (('/gait/phase',) if any(
                 c.topic == '/gait/phase' for c in reader.connections) else ())
         for m in iter_messages(reader, topics):
             msg = reader.deserialize(m.data, m.msgtype)
+            if m.topic == '/joint_states':
+                try:
+                    js = joint_state_from_msg(msg)
+                except ValueError as err:
+                    dropped.setdefault(m.topic, []).append(str(err))
+                    continue
+                row = _leg_joint_row(path, js, tip_leg)
+                if row is not None:
+                    joint_rows.append((stamped(js.t_s, m), *row))
+                continue
             if m.topic == '/gait/phase':
                 period = float(msg.period)
                 periods.append(period if math.isfinite(period) and period > 0 else 0.0)
@@ -323,6 +348,13 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None) ->
                     'step_length_m': float(msg.step_length),
                 })
     notes_out: list[str] = []
+    if tip_topic == '/joint_states':
+        tip = _tip_rows_from_joints(joint_rows, leg_dh)
+        if tip:
+            notes_out.append(
+                f'no /bench/leg_tip: the tip height is the forward kinematics of the '
+                f'{leg_name} leg (DH table; --leg) on /joint_states {tip_leg[0]}_coxa, '
+                '_femur, _tibia (leg base frame)')
     shifts, clock_notes = clocks.shifts()   # a topic stamped on another clock
     notes_out.extend(clock_notes)
     if shifts:
@@ -330,7 +362,7 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None) ->
         bat_samples = [dataclasses.replace(b, t_s=b.t_s + dt('/battery_state', 0.0))
                        for b in bat_samples]
         frc = shift_rows(frc, dt('/bench/ground_force', 0.0))
-        tip = shift_rows(tip, dt('/bench/leg_tip', 0.0))
+        tip = shift_rows(tip, dt(tip_topic, 0.0))
         for row in ses:
             row['t_s'] += dt('/bench/session', 0.0)
     combined = _prepare_batteries(path, [(b.t_s, k, '/battery_state', b)
@@ -339,7 +371,7 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None) ->
     if session is not None:
         ses = _session_from_spec(path, session, bat, frc, tip, periods, notes_out)
     for name, rows in (('/battery_state', bat), ('/bench/ground_force', frc),
-                       ('/bench/leg_tip', tip), ('/bench/session', ses)):
+                       (tip_topic, tip), ('/bench/session', ses)):
         if not rows:
             why = (f' ({len(dropped[name])} dropped, e.g. {dropped[name][0]}' +
                    ('; input power needs both voltage and current)'
@@ -357,6 +389,45 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None) ->
     ses.sort(key=lambda s: s['t_s'])
     return BenchData(str(path), b_arr[:, 0], b_arr[:, 1], b_arr[:, 2], f_arr[:, 0],
                      f_arr[:, 1], t_arr[:, 0], t_arr[:, 1], ses, notes)
+
+
+def _leg_joint_row(path: str | Path, js: Any, leg: list[str]
+                   ) -> tuple[float, float, float] | None:
+    """The bench leg's coxa, femur and tibia angles of one JointState [rad] (None when the
+    message does not hold all three, e.g. a joint group published apart). The leg is chosen
+    on the first message holding one leg's three joints (kept in ``leg``); several legs'
+    joints in one bench bag are refused by name (which one walks on the treadmill?)."""
+    names = list(js.names)
+    if not leg:
+        legs = sorted({n[:-len('_coxa')] for n in names if n.endswith('_coxa')
+                       and f'{n[:-5]}_femur' in names and f'{n[:-5]}_tibia' in names})
+        if len(legs) > 1:
+            raise BagContentError(
+                f'bag {path}: no /bench/leg_tip, and /joint_states holds the joints of several '
+                f'legs {legs}: a single-leg bench records one leg (or record /bench/leg_tip)')
+        if not legs:
+            return None
+        leg.append(legs[0])
+    try:
+        idx = [names.index(f'{leg[0]}_{j}') for j in ('coxa', 'femur', 'tibia')]
+    except ValueError:
+        return None
+    if js.position.size != len(names):
+        return None
+    q = js.position[idx]
+    return (float(q[0]), float(q[1]), float(q[2])) if np.all(np.isfinite(q)) else None
+
+
+def _tip_rows_from_joints(rows: list[tuple[float, float, float, float]], leg_dh: Any
+                          ) -> list[tuple[float, float]]:
+    """(t, tip z) rows by forward kinematics of the leg from (t, q_coxa, q_femur, q_tibia)."""
+    if not rows:
+        return []
+    from hexapod_gait.kinematics import ANTBOT_LEG, LegKinematics
+
+    arr = np.array(rows, dtype=float)
+    z = LegKinematics(leg_dh if leg_dh is not None else ANTBOT_LEG).forward(arr[:, 1:4])[:, 2]
+    return [(float(t), float(v)) for t, v in zip(arr[:, 0], z)]
 
 
 def _session_from_spec(path: str | Path, spec: BenchSessionSpec,

@@ -287,7 +287,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         samples, diags = [], []
         one_session = []
         for path, spec in bench_bags:
-            data = read_bench_bag(path, spec)
+            data = read_bench_bag(path, spec, leg_dh=leg.dh, leg_name=leg.name)
             bar.update(1)
             if spec is not None:
                 one_session.append(data)
