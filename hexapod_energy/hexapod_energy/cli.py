@@ -38,6 +38,7 @@ the joints), else the run has no prediction and is left out of ``prediction_erro
               mass: --leg FILE, default AntBot; hexapod_energy.leg_description),
       "bench": {"bags": [...], "diagnostics": [{"bag", "force_offset_s", "current_sign",
                 "force_sign" (+1, or -1: force.z negated, see --force-sign),
+                "phase_split" (schedule | contact | mixed: --phase-split),
                 "sessions", "notes" (dropped messages)}], "fit": {"spans", "chosen": {"stance", "swing"},
                 "cv_rmse_w": {"stance": {"lowess", "poly"}, "swing": {...}},
                 "fit_rmse_w": {"stance", "swing"}, "basal_power_w": {"<load kg>": W},
@@ -169,6 +170,12 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
                         'else 0)')
     p.add_argument('--current-sign', choices=('ros', 'positive_discharge', 'auto'),
                    default='auto', help='battery current sign convention (default auto)')
+    p.add_argument('--phase-split', choices=('auto', 'schedule', 'contact'), default='auto',
+                   help="how bench samples are labelled stance or swing: 'contact' (the "
+                        "paper's: normal force above a threshold and the tip low), "
+                        "'schedule' (the bench leg's commanded stance on /gait/phase, the "
+                        "timeline Eq. 1 composes the phases on), 'auto' (default: the "
+                        "schedule where the bag has it, else the contact)")
     p.add_argument('--force-sign', choices=('auto', 'positive', 'negative'), default='auto',
                    help='sign of the bench force in compression (default auto: decided from '
                         'the 0 Hz sessions against the walking ones, a flip noted)')
@@ -293,14 +300,16 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 one_session.append(data)
                 continue
             s, d = bench_phase_samples(data, current_sign=args.current_sign,
-                                       force_sign=getattr(args, 'force_sign', 'auto'))
+                                       force_sign=getattr(args, 'force_sign', 'auto'),
+                                       phase_split=getattr(args, 'phase_split', 'auto'))
             samples.extend(s)
             diags.append(d)
         # bags of one session each: one bench (force offset and sign from every session)
         merged = merge_bench_data(one_session)
         for data in [merged] if merged is not None else one_session:
             s, d = bench_phase_samples(data, current_sign=args.current_sign,
-                                       force_sign=getattr(args, 'force_sign', 'auto'))
+                                       force_sign=getattr(args, 'force_sign', 'auto'),
+                                       phase_split=getattr(args, 'phase_split', 'auto'))
             samples.extend(s)
             diags.append(d)
         model = SingleLegModel(folds=args.folds).fit(samples) if bench_bags else None

@@ -67,15 +67,20 @@ def bench(tmp_path_factory):
     root = tmp_path_factory.mktemp('bench')
     plan = BenchPlan(loads_kg=LOADS, frequencies_hz=FREQS, walk_s=5.0)
     write_trace(simulate_bench(plan, seed=4), root / 'orig')
-    ref, _ = bench_phase_samples(read_bench_bag(root / 'orig'))
-    return root, {(s.load_kg, s.frequency_hz): s for s in ref}
+    data = read_bench_bag(root / 'orig')
+    refs = {split: bench_phase_samples(data, phase_split=split)[0]
+            for split in ('schedule', 'contact')}
+    return root, {split: {(s.load_kg, s.frequency_hz): s for s in ref}
+                  for split, ref in refs.items()}
 
 
 @pytest.mark.parametrize('drop_gait', [False, True], ids=['gait_phase', 'tip_period'])
 def test_one_bag_per_session_gives_the_sessions_phase_powers(bench, tmp_path, drop_gait):
     """Merged (one bench: the force offset and sign from every session) the one-session bags
-    give the original's phase powers; each frequency's source is noted."""
-    root, ref = bench
+    give the original's phase powers (split by the commanded schedule with /gait/phase, by
+    contact without it); each frequency's source is noted."""
+    root, refs = bench
+    ref = refs['contact' if drop_gait else 'schedule']
     bags = _walking_bags(root / 'orig', tmp_path, drop_gait=drop_gait)
     datas = [read_bench_bag(bag, BenchSessionSpec(load_kg=load)) for bag, load, _ in bags]
     for d, (_, _, freq) in zip(datas, bags):
@@ -96,7 +101,8 @@ def test_one_bag_per_session_gives_the_sessions_phase_powers(bench, tmp_path, dr
 
 
 def test_cli_reads_the_sessions_file_and_fits(bench, tmp_path):
-    root, ref = bench
+    root, refs = bench
+    ref = refs['contact']
     bags = _walking_bags(root / 'orig', tmp_path, drop_gait=True)
     csv = tmp_path / 'sessions.csv'
     lines = ['# one row per bag; empty frequency: from the bag', 'bag,load_kg,frequency_hz']
@@ -170,9 +176,11 @@ def _retype(src: Path, dst: Path) -> Path:
 
 
 def test_tip_as_pose_and_force_as_bare_float_give_the_same_sessions(bench, tmp_path):
-    root, ref = bench
+    """(The contact split, where the tip and the force label the phases.)"""
+    root, refs = bench
+    ref = refs['contact']
     data = read_bench_bag(_retype(root / 'orig', tmp_path / 'retyped'))
-    samples, diag = bench_phase_samples(data)
+    samples, diag = bench_phase_samples(data, phase_split='contact')
     assert [(s.p_stance_w, s.p_swing_w) for s in samples] == \
         [(ref[(s.load_kg, s.frequency_hz)].p_stance_w, ref[(s.load_kg, s.frequency_hz)].p_swing_w)
          for s in samples]
