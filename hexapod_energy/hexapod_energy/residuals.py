@@ -1072,7 +1072,8 @@ def energy_loop_document(table: WindowTable, sel: EffectSelection,
 
 def summary_text(doc: dict[str, Any]) -> str:
     """The plain-words paragraph of a ``residuals.json`` document."""
-    left = unexplained_text(doc.get('unexplained') or {}, doc['unit'])
+    left = unexplained_text(doc.get('unexplained') or {}, doc['unit'],
+                            effects_added=bool(doc.get('effects_added')))
     return _summary_effects(doc) + (' ' + left if left else '')
 
 
@@ -1152,7 +1153,7 @@ def run_energy_loop(bench_bags: Sequence[str | Path], robot_bags: Sequence[str |
                     out_dir: str | Path | None = None, *, robot_mass_kg: float = 2.183,
                     payload_kg: float = 0.0, current_sign: str = 'auto',
                     load_offset_kg: float = 0.0, plots: bool = True,
-                    gait: GivenGait | None = None,
+                    gait: GivenGait | None = None, phase_split: str = 'auto',
                     progress: Callable[[int], Any] | None = None) -> dict[str, Any]:
     """Whole energy loop from bags; writes ``residuals.json`` (and plots) into ``out_dir`` when
     given and returns the document. Prints nothing; ``progress(1)`` after each bag read and
@@ -1162,7 +1163,8 @@ def run_energy_loop(bench_bags: Sequence[str | Path], robot_bags: Sequence[str |
     (0 by the paper: a real robot's stance tip carries ``M g / L``, the bench tip
     ``(m_leg + load) g``). This project's simulated robot loads each stance tip with only
     ``m_c g`` (``robot_sim.tip_forces_n``), matched by ``load_offset_kg = m_leg`` (0.166 kg for
-    AntBot); left at 0 it shows as a ``model_offset`` of about -1.4 W."""
+    AntBot); left at 0 it shows as a ``model_offset`` of about -1.4 W. ``phase_split``: the
+    bench's stance/swing labels (:func:`hexapod_energy.bag_io.bench_phase_samples`)."""
     from hexapod_energy.bag_io import bench_phase_samples, read_bench_bag
     from hexapod_energy.prediction import RobotSpec
 
@@ -1173,7 +1175,8 @@ def run_energy_loop(bench_bags: Sequence[str | Path], robot_bags: Sequence[str |
     step = progress or (lambda _n: None)
     samples = []
     for p in bench_bags:
-        s, _ = bench_phase_samples(read_bench_bag(p), current_sign=current_sign)
+        s, _ = bench_phase_samples(read_bench_bag(p), current_sign=current_sign,
+                                   phase_split=phase_split)
         samples.extend(s)
         step(1)
     model = fit_bench_model(samples)

@@ -65,6 +65,10 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
                    help='robot mass without payload [kg] (default 2.183, AntBot)')
     p.add_argument('--robot-payload', type=float, default=0.0, metavar='KG',
                    help='payload of the robot runs [kg] (default 0)')
+    p.add_argument('--phase-split', choices=('auto', 'schedule', 'contact'), default='auto',
+                   help="bench stance/swing labels: 'schedule' (the bench leg's commanded "
+                        "stance on /gait/phase), 'contact' (the paper's force and tip split), "
+                        "'auto' (default: the schedule where the bag has it)")
     p.add_argument('--load-offset', type=float, default=0.0, metavar='KG',
                    help='subtracted from the carried mass before the bench surfaces are read '
                         '[kg]: 0 (default, the paper: a real stance tip carries M g / L); '
@@ -195,7 +199,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                                robot_mass_kg=args.robot_mass, payload_kg=args.robot_payload,
                                current_sign=args.current_sign,
                                load_offset_kg=args.load_offset, plots=not args.no_plots,
-                               gait=gait, progress=bar.update)
+                               gait=gait, phase_split=getattr(args, 'phase_split', 'auto'),
+                               progress=bar.update)
 
 
 def _handler(args: argparse.Namespace) -> int:

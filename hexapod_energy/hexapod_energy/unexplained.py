@@ -177,8 +177,6 @@ def unexplained_residual(run: np.ndarray, t_s: np.ndarray, residual_w: np.ndarra
     total = float(np.sum(r ** 2))
     best: tuple[float, str, float, list[dict[str, Any]]] | None = None
     for pattern, per_run_k in (('run_offsets', 1), ('trend', 2), ('step', 3)):
-        if pattern == 'run_offsets' and len(runs) < 2:
-            continue
         sse, rows = 0.0, []
         for k, name in zip(runs, names):
             m = run == k
@@ -202,8 +200,9 @@ def unexplained_residual(run: np.ndarray, t_s: np.ndarray, residual_w: np.ndarra
     return out
 
 
-def unexplained_text(u: dict[str, Any], unit: str = 'W') -> str:
-    """One or two sentences for the loop's summary ('' when nothing significant is left)."""
+def unexplained_text(u: dict[str, Any], unit: str = 'W', *, effects_added: bool = True) -> str:
+    """One or two sentences for the loop's summary ('' when nothing significant is left);
+    ``effects_added``: whether the loop added any effect (the caution about them)."""
     iso = u.get('isolated') or []
     iso_text = ''
     if iso:
@@ -219,7 +218,13 @@ def unexplained_text(u: dict[str, Any], unit: str = 'W') -> str:
     rows = [dict(x, run=Path(str(x['run'])).name or str(x['run']))
             for x in u.get('per_run', [])]
     pattern = u.get('pattern')
-    if pattern == 'run_offsets':
+    means = [x['mean_w'] for x in rows]
+    if pattern == 'run_offsets' and (all(m > 0 for m in means) or all(m < 0 for m in means)):
+        side = 'under' if means[0] > 0 else 'over'
+        shape = (f"the model {side}-predicts every run, by {min(map(abs, means)):.2f} to "
+                 f"{max(map(abs, means)):.2f} {unit} (" + ', '.join(
+                     f"{x['run']} {x['mean_w']:+.2f} {unit}" for x in rows) + ')')
+    elif pattern == 'run_offsets':
         shape = 'it differs between runs (mean ' + ', '.join(
             f"{x['run']} {x['mean_w']:+.2f} {unit}" for x in rows) + ')'
     elif pattern == 'trend':
@@ -231,5 +236,6 @@ def unexplained_text(u: dict[str, Any], unit: str = 'W') -> str:
     else:
         shape = ('it varies within runs without one step or trend (a ripple, a changing '
                  'load: see the residual plot)')
-    return (f'{head}: {shape}. The effects added above may have absorbed part of it; read '
-            'their values with care.' + (' ' + iso_text if iso_text else ''))
+    care = (' The effects added above may have absorbed part of it; read their values with '
+            'care.') if effects_added else ''
+    return f'{head}: {shape}.{care}' + (' ' + iso_text if iso_text else '')

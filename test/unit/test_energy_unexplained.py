@@ -58,6 +58,13 @@ def test_a_trend_and_run_offsets():
     assert u['pattern'] == 'run_offsets'
     assert_allclose([x['mean_w'] for x in u['per_run']], [-1.0, 2.0, -1.0], atol=0.05)
     assert 'differs between runs' in unexplained_text(u)
+    # a common offset (the bench model over-predicts every run: no catalogue effect is negative)
+    u = check(*windows(lambda k, t: np.full(t.shape, (-1.5, -2.3, -1.7)[k])))
+    assert u['pattern'] == 'run_offsets'
+    text = unexplained_text(u, effects_added=False)
+    assert 'over-predicts every run, by 1.50 to 2.' in text and 'absorbed' not in text
+    u = check(*windows(lambda k, t: np.full(t.shape, 1.2)), )
+    assert 'under-predicts every run' in unexplained_text(u)
 
 
 def test_a_slow_ripple_is_other():
@@ -82,5 +89,7 @@ def test_one_run_and_short_runs(runs):
     run, t, r = windows(lambda k, t: np.where(t > 7.0, 2.0, 0.0), runs=runs)
     u = unexplained_residual(run, t, r, mean_power_w=30.0)
     assert u['pattern'] == 'step' and u['per_run'][0]['run'] == 'run 0'
+    u = unexplained_residual(run, t, r * 0 - 1.0 + 0.01 * np.sin(t), mean_power_w=30.0)
+    assert u['pattern'] == 'run_offsets' and u['per_run'][0]['mean_w'] < -0.9
     u = unexplained_residual(np.zeros(2, int), np.arange(2.0), np.ones(2), mean_power_w=30.0)
     assert not u['significant'] and np.isnan(u['noise_w'])
