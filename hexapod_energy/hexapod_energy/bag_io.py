@@ -4,8 +4,10 @@ Uses ``hexapod_common.bags.open_reader`` (rosbags, definitions from the bag) and
 converters of ``hexapod_common.conversions``; all times are header stamps [s].
 
 Bench bags need ``/battery_state``, ``/bench/ground_force``, ``/bench/leg_tip`` (else the
-tip height from ``/joint_states`` by forward kinematics) and ``/bench/session``; robot bags need ``/battery_state`` and ``/gait/phase`` (``/joint_states``
-with efforts and ``/mocap/body`` are used when present).  A missing topic raises
+tip height from ``/joint_states`` by forward kinematics) and ``/bench/session``, and use the
+bench leg's ``/gait/phase`` when present (the phase split); robot bags need ``/battery_state``
+and ``/gait/phase`` (``/joint_states`` with efforts and ``/mocap/body`` are used when
+present).  A missing topic raises
 :class:`~hexapod_energy.errors.BagContentError` naming what is missing and what is there.
 
 Bench bags (:func:`read_bench_bag`) take the same zero-stamp fallback on every topic they
