@@ -1012,7 +1012,8 @@ def energy_loop_document(table: WindowTable, sel: EffectSelection,
 
     ``unexplained`` (:func:`hexapod_energy.unexplained.unexplained_residual`): the final
     residual against the windows' noise and, when significant, its shape per run
-    (``run_names`` label them, times from ``run_t0_s``); the summary then says that the catalogue does not explain it.
+    (``run_names`` label them, times from ``run_t0_s``); the summary then says that the
+    catalogue does not explain it.
 
     With a fitted :class:`SampleView` the ``time_offset`` candidate is its per-sample record;
     when selected it comes first in ``effects_added`` (the windows were built on the realigned

@@ -117,7 +117,8 @@ def _fit_run(t: np.ndarray, r: np.ndarray, pattern: str, min_side: int
 
 def unexplained_residual(run: np.ndarray, t_s: np.ndarray, residual_w: np.ndarray, *,
                          run_names: Sequence[str] | None = None, mean_power_w: float,
-                         run_t0_s: Sequence[float] | None = None, factor: float = 2.0, min_share: float = 0.01,
+                         run_t0_s: Sequence[float] | None = None, factor: float = 2.0,
+                         min_share: float = 0.01,
                          isolated_share: float = 0.03, min_side: int = 4) -> dict[str, Any]:
     """The final residual's size against its noise, and its shape when it is significant.
 
