@@ -81,3 +81,25 @@ def test_joints_of_several_legs_are_refused_by_name(benches, tmp_path):
     bare = _without(untracked, tmp_path / 'bare', '/joint_states')
     with pytest.raises(BagContentError, match=r"lacks topic\(s\) \['/bench/leg_tip'\]"):
         read_bench_bag(bare)
+
+
+def test_phase_split_modes(benches, tmp_path):
+    """'auto' labels by the commanded schedule where /gait/phase is recorded (diagnostics say
+    which), 'contact' by force and tip; 'schedule' without /gait/phase is refused by name, and
+    a bag without it falls back to the contact split under 'auto'."""
+    from hexapod_energy.bag_io import BenchData
+
+    tracked, _ = benches
+    data = read_bench_bag(tracked)
+    assert data.schedule_t_s.size > 1000 and data.schedule_stance.any()
+    _, d_auto = bench_phase_samples(data)
+    _, d_contact = bench_phase_samples(data, phase_split='contact')
+    assert (d_auto['phase_split'], d_contact['phase_split']) == ('schedule', 'contact')
+    no_gait = _without(tracked, tmp_path / 'no_gait', '/gait/phase')
+    bare = read_bench_bag(no_gait)
+    assert isinstance(bare, BenchData) and bare.schedule_t_s.size == 0
+    assert bench_phase_samples(bare)[1]['phase_split'] == 'contact'
+    with pytest.raises(BagContentError, match='phase split schedule needs'):
+        bench_phase_samples(bare, phase_split='schedule')
+    with pytest.raises(ValueError, match='phase split must be one of'):
+        bench_phase_samples(data, phase_split='force')
