@@ -261,7 +261,6 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         RobotSpec,
         bench_domain_check,
         power_breakdown_w,
-        predict_power_in_w,
     )
     from hexapod_energy.single_leg import SingleLegModel
 
@@ -348,14 +347,12 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                     notes.append('no bench bags (--bench): no Eq. 1 prediction')
                 outside: list[str] = []
                 if gait is not None and model is not None:
-                    predicted = float(predict_power_in_w(model, gait, total_mass_kg=mass,
-                                                         leg_mass_kg=robot.leg_mass_kg,
-                                                         swing_load=args.swing_load,
-                                                         load_offset_kg=args.load_offset))
+                    # Eq. 1 and where its watts go, in one evaluation
                     breakdown = power_breakdown_w(model, gait, total_mass_kg=mass,
                                                   leg_mass_kg=robot.leg_mass_kg,
                                                   swing_load=args.swing_load,
                                                   load_offset_kg=args.load_offset)
+                    predicted = breakdown['predicted_w']
                     outside = bench_domain_check(model, gait, total_mass_kg=mass,
                                                  leg_mass_kg=robot.leg_mass_kg,
                                                  swing_load=args.swing_load,
