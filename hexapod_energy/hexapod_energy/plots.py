@@ -125,9 +125,9 @@ def watts_plot(labels: Sequence[str], breakdowns: Sequence[dict[str, float]],
                out_stem: str | Path) -> list[Path]:
     """Where the watts go, one stacked bar per robot run: holding (the legs' basal power at
     their loads), moving in stance, moving in swing (or the two phases when the bench has no
-    0 Hz session), then the part the bench model does not explain (measured minus predicted,
-    hatched; below the stack when negative); the measured P_in and the mechanical output
-    P_out marked."""
+    0 Hz session), then what the bench model does not explain: measured power above the
+    prediction hatched on top, a prediction above the measured power cross-hatched over the
+    stack's top; the measured P_in and the mechanical output P_out marked."""
     fig, ax = plt.subplots(figsize=(max(6.0, 1.1 * len(labels) + 2.5), 4.8))
     x = np.arange(len(labels))
     with_basal = all(np.isfinite(b.get('holding_w', np.nan)) for b in breakdowns)
@@ -140,11 +140,19 @@ def watts_plot(labels: Sequence[str], breakdowns: Sequence[dict[str, float]],
         v = np.array([b[key] for b in breakdowns], dtype=float)
         ax.bar(x, v, 0.6, bottom=bottom, label=label, color=color)
         bottom += v
-    rest = np.array(measured_w, dtype=float) - bottom
-    ax.bar(x, rest, 0.6, bottom=bottom, label='not in the bench model (measured - Eq. 1)',
-           color='white', edgecolor='k', hatch='//')
+    meas = np.array(measured_w, dtype=float)
+    rest = meas - bottom
+    if np.any(rest > 0):
+        ax.bar(x, np.clip(rest, 0.0, None), 0.6, bottom=bottom, color='white', edgecolor='k',
+               hatch='//', label='measured beyond the bench model (Eq. 1)')
+    if np.any(rest < 0):
+        ax.bar(x, np.clip(-rest, 0.0, None), 0.6, bottom=np.minimum(meas, bottom),
+               color='white', edgecolor='0.4', hatch='xx', alpha=0.7,
+               label='predicted by Eq. 1, not measured')
     ax.plot(x, measured_w, 'k_', ms=22, mew=2, label='measured P_in')
     ax.plot(x, power_out_w, 'v', color='green', label='of which mechanical output P_out')
+    top = float(np.nanmax(np.concatenate([np.asarray(measured_w, dtype=float), bottom])))
+    ax.set_ylim(0.0, 1.12 * top if np.isfinite(top) and top > 0 else None)
     ax.set_xticks(x)
     ax.set_xticklabels(labels, rotation=20, ha='right', fontsize=8)
     ax.set_ylabel('input power [W]')
