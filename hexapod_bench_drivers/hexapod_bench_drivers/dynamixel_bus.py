@@ -27,6 +27,24 @@ meanwhile. :class:`FastPortHandler` makes the wait ``packet bytes * byte time + 
 and sleeps in ``select`` instead of spinning, which frees the CPU (and the GIL for an in-process
 emulator).
 
+Late replies: a short deadline means a reply can arrive after it (a USB adapter holds replies
+for its latency timer, 16 ms by default on Linux FTDI/U2D2; a servo may answer late). Such a
+reply is never taken as the answer to a later request:
+
+- a reply must carry the requested ID *and* the requested number of parameters, and a retry
+  asks for one byte more than the attempt it repeats (a READ from one address lower), so the
+  late reply to the failed attempt cannot pass for the retry's; other packets are counted as
+  late (``ServoHealth.late_replies``) and skipped;
+- after a request that went unanswered, the line is drained until it stays quiet for one margin
+  before anything is sent, and bytes already waiting before a request are counted and dropped;
+- the margin adapts: the pings at open wait :data:`PROBE_MARGIN_MS` and the margin is raised to
+  cover their round trips; a late reply raises it to 1.5 x its lateness (capped at
+  :data:`MAX_MARGIN_MS`), noted; a ``/dev/ttyUSB*`` adapter whose sysfs ``latency_timer`` is
+  above 1 ms adds it to the margin, with a note that says how to set it to 1.
+
+A servo that answers PING but no READ is taken to be at Status Return Level 0 only when the
+line was quiet after the failed READs (no late reply to blame).
+
 Effort is an estimate: load fraction (Present Load, or Present Current over stall current) times
 the datasheet stall torque at the rated voltage (12 V; 5 V for XL330); these servos measure no
 torque.
@@ -37,12 +55,24 @@ and X series on 2.0), so one Protocol 1.0 bus may mix AX-18A and MX-28. A servo 
 model is left out of the cycle; if no servo is usable, :class:`BusError` carries the refusal,
 which names the known models. Only Torque Enable, Goal Position and Moving Speed / Profile
 Velocity are ever written (never the AX compliance or MX gain registers at 26-29).
+
+Operating Mode (Protocol 2.0, register 11) is read at open: in Extended Position (4) and
+Current-based Position (5) modes goals span +-1 048 575 ticks (multi-turn); a servo in a mode
+that ignores Goal Position (0 current, 1 velocity, 16 PWM) is still read, but its goals and
+torque on are refused, named in :attr:`DynamixelBus.refused` and noted.
+
+Torque on is checked by reading Torque Enable back: a servo that keeps it at 0 with a hardware
+error (X series in hardware-error shutdown stays off until REBOOT) is reported as failed, with
+the error in ``ServoHealth.torque_error``.
 """
 
 from __future__ import annotations
 
 import math
+import os
+import re
 import select
+import time
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -68,15 +98,27 @@ __all__ = [
     'FastPortHandler',
     'JointConfig',
     'JointMapError',
+    'MAX_MARGIN_MS',
+    'PROBE_MARGIN_MS',
     'PollResult',
     'ServoHealth',
     'ServoReading',
     'load_joint_map',
     'parse_joint_map',
+    'usb_latency_timer_ms',
 ]
 
 P2_ALERT = 0x80
 P2_ID, P2_ERROR, P2_PARAM0 = 4, 8, 9   # indices in a Protocol 2.0 status packet
+P1_ERROR, P1_PARAM0 = 4, 5              # indices in a Protocol 1.0 status packet
+
+#: reply deadline margin of the pings at open, whose round trips set the working margin [ms]
+#: (the SDK's own deadline is 34 ms: two 16 ms USB latency timers and 2 ms)
+PROBE_MARGIN_MS = 40.0
+#: the margin is never raised above this by late replies or round trips [ms]
+MAX_MARGIN_MS = 60.0
+#: sysfs directory of USB serial adapters (FTDI, U2D2), each with its ``latency_timer`` [ms]
+SYSFS_USB_SERIAL = Path('/sys/bus/usb-serial/devices')
 
 
 class BusError(RuntimeError):
@@ -151,6 +193,27 @@ def load_joint_map(path: str | Path) -> tuple[JointConfig, ...]:
     return parse_joint_map(data or {})
 
 
+def _usb_latency_timer_file(port_name: str) -> Path | None:
+    names = {Path(port_name).name, Path(os.path.realpath(port_name)).name}
+    for name in sorted(names):
+        if re.fullmatch(r'ttyUSB\d+', name):
+            return SYSFS_USB_SERIAL / name / 'latency_timer'
+    return None
+
+
+def usb_latency_timer_ms(port_name: str) -> int | None:
+    """The latency timer [ms] of a ``/dev/ttyUSB*`` adapter (or a link to one), else None.
+
+    Read from :data:`SYSFS_USB_SERIAL` ``/<tty>/latency_timer``: an FTDI adapter holds received
+    bytes up to this long before passing them to the host (16 ms by default on Linux).
+    """
+    path = _usb_latency_timer_file(port_name)
+    try:
+        return None if path is None else int(path.read_text().strip())
+    except (OSError, ValueError):
+        return None
+
+
 #: cycles in a row with single READs answered but no Sync Read before the bus stops trying it
 SYNC_READ_GIVE_UP = 3
 
@@ -174,6 +237,10 @@ class FastPortHandler(PortHandler):
     def setPacketTimeout(self, packet_length: int) -> None:  # noqa: N802 (SDK API)
         self.packet_start_time = self.getCurrentTime()
         self.packet_timeout = self.tx_time_per_byte * packet_length + self.timeout_margin_ms
+
+    def clearPort(self) -> None:  # noqa: N802 (SDK API)
+        # Some SDK releases flush the output here; unread input is what must go.
+        self.ser.reset_input_buffer()
 
     def readPort(self, length: int) -> bytes:  # noqa: N802 (SDK API)
         if self.ser.in_waiting == 0:
@@ -202,6 +269,13 @@ class ServoHealth:
     #: the servo's Status Return Level as read at open (2: replies to every instruction,
     #: 1: to READ and PING only, so writes are verified by reading back); -1 not read yet
     status_return_level: int = -1
+    #: replies that came after their deadline (skipped, never taken as a later answer)
+    late_replies: int = 0
+    #: Protocol 2.0 Operating Mode read at open (3 position, 4 extended position, ...); -1 not
+    #: read (Protocol 1.0, or no reply)
+    operating_mode: int = -1
+    #: why the last torque-on failed when the servo answered (hardware error, mode), else ''
+    torque_error: str = ''
 
 
 @dataclass(frozen=True)
@@ -241,6 +315,8 @@ class _Servo:
     table: ControlTable | None = None
     last_probe_cycle: int = field(default=-10**9)
     refusal: str = ''   # why an answering servo's model was refused (names the known models)
+    #: why the servo's goals and torque on are refused while it is still read (its mode)
+    command_refusal: str = ''
 
 
 class DynamixelBus:
@@ -299,10 +375,23 @@ class DynamixelBus:
         self.aborted = False
         self.abort_reason = ''
         self.is_open = False
+        #: late status packets seen on the bus (each also counted on its servo when known)
+        self.late_replies = 0
+        self._margin_ms = float(timeout_margin_ms)
+        self._set_port_margin(self._margin_ms)
+        self._dirty = False                      # a request went unanswered: drain first
+        self._tx_ms = 0.0                        # when the last request was sent [ms]
+        self._failed_tx_ms: float | None = None  # when the last unanswered one was sent [ms]
+        self._measuring_round_trip = False
+        self._round_trip_ms = 0.0                # slowest reply beyond its wire time at open
 
     # --- lifecycle -------------------------------------------------------------------------
     def open(self) -> DynamixelBus:
-        """Open the port and ping every servo; BusError if none answers."""
+        """Open the port and ping every servo; BusError if none answers.
+
+        The pings wait :data:`PROBE_MARGIN_MS` and their round trips set the reply margin (see
+        the module doc); a USB adapter's latency timer above 1 ms is added to it, noted.
+        """
         try:
             ok = self.port.openPort() and self.port.setBaudRate(self.baud_rate)
         except Exception as err:  # pyserial raises SerialException/OSError subclasses
@@ -311,8 +400,17 @@ class DynamixelBus:
             raise BusError(f'port {self.port.getPortName()!r}: cannot open at '
                            f'{self.baud_rate} baud (expected one of the SDK rates)')
         self.is_open = True
-        for s in self.servos:
-            self._ping(s)
+        self._check_usb_latency_timer()
+        self._round_trip_ms = 0.0
+        self._set_port_margin(max(self._margin_ms, PROBE_MARGIN_MS))
+        self._measuring_round_trip = True
+        try:
+            for s in self.servos:
+                self._ping(s)
+        finally:
+            self._measuring_round_trip = False
+            self._set_port_margin(self._margin_ms)
+        self._settle_margin()
         if not any(s.table is not None for s in self.servos):
             self.close()
             refused = [f'id {s.joint.servo_id}: {s.refusal}' for s in self.servos if s.refusal]
@@ -335,46 +433,195 @@ class DynamixelBus:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def _ping(self, s: _Servo) -> bool:
-        for _ in range(1 + self.retries):
-            try:
-                model, result, _err = self.packet.ping(self.port, s.joint.servo_id)
-            except IndexError:
-                # the SDK's Protocol 1.0 ping reads the model number after the ping and indexes
-                # the reply unchecked: a late status packet (the ping's own, after its deadline)
-                # taken for that read is 'success' with no data. A corrupt exchange: drop what
-                # is in the input buffer and try again.
-                self.port.clearPort()
-                s.health.corrupt += 1
-                continue
-            if result == COMM_SUCCESS:
-                try:
-                    s.table = table_for_model(self.protocol, model)
-                except ControlTableError as err:
-                    s.health.model = f'unsupported model {model}'
-                    s.refusal = str(err)
-                    return False
-                if not self._read_status_return_level(s):
-                    return False
-                s.health.model = s.table.model_name
-                s.health.silent = False
-                s.health.consecutive_failures = 0
-                return True
+    # --- reply margin ----------------------------------------------------------------------
+    @property
+    def reply_margin_ms(self) -> float:
+        """The working reply deadline margin [ms] (configured, then raised; see module doc)."""
+        return self._margin_ms
+
+    def _set_port_margin(self, margin_ms: float) -> None:
+        if hasattr(self.port, 'timeout_margin_ms'):
+            self.port.timeout_margin_ms = float(margin_ms)
+
+    def _port_margin_ms(self) -> float:
+        return float(getattr(self.port, 'timeout_margin_ms', self._margin_ms))
+
+    def _raise_margin(self, margin_ms: float, why: str) -> None:
+        new = min(MAX_MARGIN_MS, float(math.ceil(margin_ms)))
+        if new <= self._margin_ms:
+            return
+        self.notes.append(f'{why}: reply deadline margin raised from {self._margin_ms:.0f} to '
+                          f'{new:.0f} ms (a USB adapter holds replies for its latency timer: '
+                          'set it to 1 ms, see the README)')
+        self._margin_ms = new
+        self._set_port_margin(max(self._port_margin_ms(), new))
+
+    def _check_usb_latency_timer(self) -> None:
+        name = self.port.getPortName()
+        timer = usb_latency_timer_ms(name)
+        if timer is None or timer <= 1:
+            return
+        path = _usb_latency_timer_file(name)
+        new = min(MAX_MARGIN_MS, self._margin_ms + timer)
+        self.notes.append(
+            f'port {name}: USB latency timer {timer} ms ({path}): the adapter holds replies up '
+            f'to {timer} ms, so the reply deadline margin is {new:.0f} ms instead of '
+            f'{self._margin_ms:.0f}; set it to 1 ms: echo 1 | sudo tee {path} (or a udev rule, '
+            'see the README)')
+        self._margin_ms = new
+
+    def _settle_margin(self) -> None:
+        """After the pings at open: a margin that covers the slowest round trip seen."""
+        if self._round_trip_ms > 0:
+            self._raise_margin(1.5 * self._round_trip_ms + 1.0,
+                               f'replies at open came up to {self._round_trip_ms:.1f} ms after '
+                               'their requests')
+
+    # --- transactions: one request, its own reply, never a late one -----------------------
+    def _now_ms(self) -> float:
+        return time.monotonic() * 1000.0
+
+    def _prepare(self) -> None:
+        """Before sending: drain a line that may still carry a late reply, drop (and count)
+        what is waiting, and stamp the request."""
+        self.port.is_using = False
+        if self._dirty:
+            self._drain()
+        ser = self.port.ser
+        waiting = ser.in_waiting
+        if waiting:
+            self._late_bytes(ser.read(waiting))
+        self._tx_ms = self._now_ms()
+
+    def _failed(self) -> None:
+        """The request stamped last went (partly) unanswered: its reply may still come."""
+        self._dirty = True
+        self._failed_tx_ms = self._tx_ms
+
+    def _drain(self) -> None:
+        """Read until the line stays quiet for one margin (late bytes counted, bounded)."""
+        ser = self.port.ser
+        start = self._now_ms()
+        while True:
+            quiet_s = self._port_margin_ms() / 1000.0
+            ready, _, _ = select.select([ser.fileno()], [], [], quiet_s)
+            if not ready:
+                break
+            data = ser.read(ser.in_waiting or 1)
+            if data:
+                self._late_bytes(data)
+            if self._now_ms() - start > 4 * MAX_MARGIN_MS:
+                ser.reset_input_buffer()   # a babbling line (noise, another baud rate)
+                break
+        self._dirty = False
+
+    def _late_bytes(self, data: bytes) -> None:
+        """Bytes that arrived with no request waiting for them: count the status packets."""
+        head = b'\xff\xff\xfd\x00' if self.protocol == 2 else b'\xff\xff'
+        at = 4 if self.protocol == 2 else 2
+        ids = []
+        k = data.find(head)
+        while k >= 0 and k + at < len(data):
+            ids.append(data[k + at])
+            k = data.find(head, k + at + 1)
+        for sid in ids:
+            self._late(sid)
+
+    def _late(self, sid: int) -> None:
+        """One late status packet of ``sid``: counted, and the margin raised to cover it."""
+        self.late_replies += 1
+        s = self._by_id.get(sid)
+        if s is not None:
+            s.health.late_replies += 1
+        since = self._failed_tx_ms if self._failed_tx_ms is not None else self._tx_ms
+        late_ms = self._now_ms() - since
+        self._raise_margin(1.5 * late_ms + 1.0,
+                           f'a reply of id {sid} came {late_ms:.1f} ms after its request')
+
+    def _rx(self) -> tuple[list[int], int]:
+        if self.protocol == 2:
+            return self.packet.rxPacket(self.port, False)  # type: ignore[no-any-return]
+        return self.packet.rxPacket(self.port)  # type: ignore[no-any-return]
+
+    def _params(self, rx: list[int]) -> list[int]:
+        return list(rx[P2_PARAM0:-2]) if self.protocol == 2 else list(rx[P1_PARAM0:-1])
+
+    def _receive(self, sid: int, n_params: int) -> tuple[list[int] | None, int, int]:
+        """The status packet of ``sid`` with ``n_params`` parameters before the deadline set
+        for the request: (parameters, error byte, result). Other packets are late, skipped."""
+        while True:
+            rx, result = self._rx()
+            if result != COMM_SUCCESS:
+                self._failed()
+                return None, 0, result
+            rid = rx[P2_ID] if self.protocol == 2 else rx[P1_PKT_ID]
+            params = self._params(rx)
+            if rid == sid and len(params) == n_params:
+                self._failed_tx_ms = None
+                if self._measuring_round_trip:
+                    wire_ms = len(rx) * self.port.tx_time_per_byte
+                    self._round_trip_ms = max(self._round_trip_ms,
+                                              self._now_ms() - self._tx_ms - wire_ms)
+                return params, rx[P2_ERROR if self.protocol == 2 else P1_ERROR], result
+            self._late(rid)
+
+    def _status_bytes(self, n_params: int) -> int:
+        return n_params + (11 if self.protocol == 2 else 6)
+
+    # --- detection ---------------------------------------------------------------------------
+    def _ping_once(self, s: _Servo) -> tuple[int | None, bool]:
+        """One PING (and on Protocol 1.0 a READ of the model number): (model, PING answered).
+
+        Not the SDK's ping: it takes any packet with the right ID for its answer (a late PING
+        reply passed for the model READ)."""
+        sid = s.joint.servo_id
+        self._prepare()
+        if self.protocol == 2:
+            tx = [0] * 10
+            tx[P2_ID], tx[5], tx[6], tx[7] = sid, 3, 0, INST_PING
+        else:
+            tx = [0] * 6
+            tx[P1_PKT_ID], tx[P1_PKT_LENGTH], tx[P1_PKT_INSTRUCTION] = sid, 2, INST_PING
+        result = self.packet.txPacket(self.port, tx)
+        if result != COMM_SUCCESS:
             self._count(s, result)
-        if self.protocol == 1 and self._bare_ping(s):
-            # The SDK's Protocol 1.0 ping is a PING and a READ of the model number: a servo
-            # that answers the PING alone is at Status Return Level 0.
-            self._refuse_level_0(s)
-            return False
+            return None, False
+        n_params = 3 if self.protocol == 2 else 0
+        self.port.setPacketTimeout(self._status_bytes(n_params))
+        params, _err, result = self._receive(sid, n_params)
+        if params is None:
+            self._count(s, result)
+            return None, False
+        if self.protocol == 2:
+            return params[0] | (params[1] << 8), True
+        data, _ = self._read_settled(s, 0, 2)
+        return (None, True) if data is None else (data[0] | (data[1] << 8), True)
+
+    def _ping(self, s: _Servo) -> bool:
+        """Detect ``s``: model, Status Return Level, Operating Mode (False: left out)."""
+        for _ in range(1 + self.retries):
+            model, answered = self._ping_once(s)
+            if model is None and not answered:
+                continue
+            if model is None:
+                # PING answered, model READ not, on a quiet line: Status Return Level 0
+                self._refuse_level_0(s)
+                return False
+            try:
+                s.table = table_for_model(self.protocol, model)
+            except ControlTableError as err:
+                s.health.model = f'unsupported model {model}'
+                s.refusal = str(err)
+                return False
+            if not self._read_status_return_level(s):
+                return False
+            s.refusal = ''
+            s.health.model = s.table.model_name
+            s.health.silent = False
+            s.health.consecutive_failures = 0
+            return True
         s.health.silent = True
         return False
-
-    def _bare_ping(self, s: _Servo) -> bool:
-        """A Protocol 1.0 PING without the SDK's model-number READ: answered or not."""
-        tx = [0] * 6
-        tx[P1_PKT_ID], tx[P1_PKT_LENGTH], tx[P1_PKT_INSTRUCTION] = s.joint.servo_id, 2, INST_PING
-        _rx, result, _err = self.packet.txRxPacket(self.port, tx)
-        return bool(result == COMM_SUCCESS)
 
     def _refuse_level_0(self, s: _Servo) -> None:
         s.table = None
@@ -384,6 +631,19 @@ class DynamixelBus:
                      f'{"16" if self.protocol == 1 else "68"}, e.g. with Dynamixel Wizard: this '
                      f'driver never writes configuration registers)')
 
+    def _read_settled(self, s: _Servo, start: int, length: int) -> tuple[list[int] | None, int]:
+        """A READ with retries whose failure stands only if the line then stays quiet: when a
+        late reply turns up meanwhile (the margin is raised by it), the READ is tried again."""
+        for _ in range(3):
+            data, err = self._read_single(s, start, length, 1 + self.retries)
+            if data is not None:
+                return data, err
+            late = self.late_replies
+            self._drain()
+            if self.late_replies == late:
+                break
+        return None, 0
+
     def _read_status_return_level(self, s: _Servo) -> bool:
         """Read the servo's Status Return Level after its PING (False, refused, at level 0).
 
@@ -391,8 +651,7 @@ class DynamixelBus:
         servo answers READ and PING only, so its torque writes are sent without waiting for a
         reply and checked by reading the register back (:meth:`set_torque`)."""
         assert s.table is not None
-        data, _ = self._read_single(s, s.table.reg('status_return_level').address, 1,
-                                    1 + self.retries)
+        data, _ = self._read_settled(s, s.table.reg('status_return_level').address, 1)
         if data is None:
             self._refuse_level_0(s)
             return False
@@ -403,6 +662,13 @@ class DynamixelBus:
                 'does not acknowledge writes, so torque writes are checked by reading back')
         s.health.status_return_level = level
         return True
+
+    @property
+    def refused(self) -> dict[str, str]:
+        """Joints left out (unknown model, Status Return Level 0) or whose commands are refused
+        (Operating Mode), with the reason; silent servos are not listed (they are retried)."""
+        return {s.joint.name: s.refusal or s.command_refusal for s in self.servos
+                if s.refusal or s.command_refusal}
 
     # --- reading ---------------------------------------------------------------------------
     @property
@@ -436,22 +702,37 @@ class DynamixelBus:
             out.append(s)
         return out
 
-    def _read_single(self, s: _Servo, start: int, length: int,
-                     attempts: int) -> tuple[list[int] | None, int]:
+    def _read_single(self, s: _Servo, start: int, length: int, attempts: int, *,
+                     shifted: bool = False) -> tuple[list[int] | None, int]:
+        """READ ``length`` bytes at ``start``: (data, status error) or (None, 0).
+
+        Every other attempt (the first one too with ``shifted``, for a retry after a missed
+        Sync Read) asks for one byte more, from one address lower (or one higher at 0), and
+        drops it: the late reply to the attempt before has the wrong length for it."""
+        sid = s.joint.servo_id
         for k in range(attempts):
             if k:
                 s.health.retries += 1
-            data, result, error = self.packet.readTxRx(self.port, s.joint.servo_id, start, length)
-            if result == COMM_SUCCESS and len(data) == length:
-                return list(data), error
+            extra = (k % 2 == 1) != shifted
+            lo = 1 if extra and start > 0 else 0
+            n = length + (1 if extra else 0)
+            self._prepare()
+            result = self.packet.readTx(self.port, sid, start - lo, n)
+            if result == COMM_SUCCESS:
+                self.port.setPacketTimeout(self._status_bytes(n))
+                data, error, result = self._receive(sid, n)
+                if data is not None:
+                    return data[lo:lo + length], error
             self._count(s, result)
         return None, 0
 
     def _sync_read(self, servos: list[_Servo], start: int,
                    length: int) -> dict[int, tuple[list[int], int]]:
-        """Protocol 2.0 Sync Read; replies assigned by ID, so a silent servo costs only itself."""
+        """Protocol 2.0 Sync Read; replies assigned by ID, so a silent servo costs only itself.
+        A packet of another ID, a second one of an ID or one of another length is late."""
         ids = [s.joint.servo_id for s in servos]
         got: dict[int, tuple[list[int], int]] = {}
+        self._prepare()
         if self.packet.syncReadTx(self.port, start, length, ids, len(ids), False) != COMM_SUCCESS:
             return got
         pending = list(ids)
@@ -459,17 +740,20 @@ class DynamixelBus:
             self.port.setPacketTimeout(length + 11)
             rx, result = self.packet.rxPacket(self.port, False)
             sid = rx[P2_ID] if len(rx) > P2_ID else None
-            if result == COMM_SUCCESS and sid in pending:
+            if result == COMM_SUCCESS:
                 data = list(rx[P2_PARAM0:-2])
-                if len(data) != length:
-                    continue  # a stale reply to an earlier instruction (a late servo)
-                pending.remove(sid)
-                got[sid] = (data, rx[P2_ERROR])
+                if sid in pending and len(data) == length:
+                    pending.remove(sid)
+                    got[sid] = (data, rx[P2_ERROR])
+                else:
+                    self._late(int(rx[P2_ID]))
             elif result == COMM_RX_CORRUPT and sid in pending:
                 pending.remove(sid)
                 self._by_id[sid].health.corrupt += 1
-            elif result != COMM_SUCCESS:
+            else:
                 break
+        if pending:
+            self._failed()
         for sid in pending:
             self._by_id[sid].health.timeouts += 1  # no (valid) reply before the deadline
         return got
@@ -508,7 +792,8 @@ class DynamixelBus:
                 if self.retries == 0:
                     continue
                 s.health.retries += 1
-                data, err = self._read_single(s, *s.table.read_block, attempts=self.retries)
+                data, err = self._read_single(s, *s.table.read_block, attempts=self.retries,
+                                              shifted=True)
             else:
                 attempts = 1 if s.health.silent else 1 + self.retries
                 data, err = self._read_single(s, *s.table.read_block, attempts=attempts)
@@ -610,23 +895,25 @@ class DynamixelBus:
                 if k:
                     s.health.retries += 1
                 address = s.table.reg('torque_enable').address
-                if s.health.status_return_level >= 2:
-                    result, _err = self.packet.write1ByteTxRx(
-                        self.port, s.joint.servo_id, address, int(bool(enabled)))
-                else:
-                    # no acknowledgement at Status Return Level 1: write, then read back
-                    result = self.packet.write1ByteTxOnly(
-                        self.port, s.joint.servo_id, address, int(bool(enabled)))
-                    if result == COMM_SUCCESS:
-                        data, _ = self._read_single(s, address, 1, 1)
-                        if data is None:
-                            continue  # the read-back was counted
-                        if data[0] != int(bool(enabled)):
-                            continue  # the write was lost: send it again
-                if result == COMM_SUCCESS:
-                    ok = True
-                    break
-                self._count(s, result)
+                value = int(bool(enabled))
+                sid = s.joint.servo_id
+                self._prepare()
+                result = self.packet.write1ByteTxOnly(self.port, sid, address, value)
+                if result == COMM_SUCCESS and s.health.status_return_level >= 2:
+                    self.port.setPacketTimeout(self._status_bytes(0))
+                    _ack, _error, result = self._receive(sid, 0)
+                if result != COMM_SUCCESS:
+                    self._count(s, result)
+                    continue
+                if s.health.status_return_level < 2:
+                    # no acknowledgement at Status Return Level 1: read back
+                    data, _ = self._read_single(s, address, 1, 1)
+                    if data is None:
+                        continue  # the read-back was counted
+                    if data[0] != value:
+                        continue  # the write was lost: send it again
+                ok = True
+                break
             if ok:
                 s.health.torque_enabled = bool(enabled)
             out[name] = ok
@@ -665,5 +952,6 @@ class DynamixelBus:
             group.addParam(s.joint.servo_id, list(payload))
             count += 1
         for group in groups.values():
+            self._prepare()   # never talk over a late reply (a collision on the half-duplex line)
             group.txPacket()
         return count

@@ -58,8 +58,10 @@ class DynamixelDriverParams:
     joints_file: str = param('', 'YAML joint map: joints: {name: {id, direction, offset_rad}}.',
                              validate=lambda v: None if v else 'expected a YAML file path')
     rate_hz: float = param(100.0, 'Read/publish rate [Hz].', validate=_positive)
-    timeout_margin_ms: float = param(5.0, 'Reply deadline beyond the bytes on the wire [ms].',
-                                     validate=_positive)
+    timeout_margin_ms: float = param(
+        5.0, 'Reply deadline beyond the bytes on the wire [ms]; raised at start to cover the '
+        'round trips and a USB latency timer, and by late replies (at most 60 ms).',
+        validate=_positive)
     retries: int = param(1, 'Extra attempts for a failed read or torque write.',
                          validate=lambda v: None if v >= 0 else 'expected >= 0')
     silent_after: int = param(3, 'Failed cycles in a row before a servo is declared silent.',
@@ -199,7 +201,9 @@ class DynamixelDriverNode(Node):
                   'corrupt': h.corrupt, 'retries': h.retries, 'failed_cycles': h.failed_cycles,
                   'error_replies': h.error_replies, 'error_flags': h.last_error_flags,
                   'torque_enabled': h.torque_enabled,
-                  'status_return_level': h.status_return_level}
+                  'status_return_level': h.status_return_level,
+                  'late_replies': h.late_replies,
+                  'reply_margin_ms': f'{self.bus.reply_margin_ms:.0f}'}
         d.values = [KeyValue(key=k, value=str(v)) for k, v in values.items()]
         return d
 

@@ -15,6 +15,10 @@ Fault injection per servo (:meth:`ServoBusEmulator.inject`): ``no_answer`` (sile
 ``bad_checksum`` (reply with a corrupted checksum/CRC), ``error_bits`` (hardware error flags in
 the reply; Protocol 2.0 sets Hardware Error Status and the alert bit), ``late_reply`` (answer
 after a delay, holding the bus as a slow servo does), ``overheat`` (present temperature forced).
+:attr:`ServoBusEmulator.adapter_latency_s` delays every reply on its way to the host without
+holding the bus, as a USB adapter's latency timer does (FTDI/U2D2: 16 ms by default on Linux).
+:attr:`EmulatedServo.read_hook` is called before a servo answers a READ, Sync Read or Bulk
+Read (a test can stamp each reply, e.g. count requests in Present Position).
 
 Physics: :class:`hexapod_bench_drivers.servo_model.ServoModel` when importable (the simulator's
 electromechanical model), else :class:`FirstOrderServo`, a first-order stand-in. Either sits
@@ -312,6 +316,8 @@ class EmulatedServo:
     fault_hits: dict[str, int] = field(init=False, default_factory=dict)
     registered: tuple[int, bytes] | None = field(init=False, default=None)
     physics_error: int = field(init=False, default=0)
+    #: called (under the bus lock) before the servo answers a READ, Sync Read or Bulk Read
+    read_hook: Callable[[EmulatedServo], None] | None = field(init=False, default=None)
 
     def __post_init__(self) -> None:
         self.memory = bytearray(self.table.memory_size)
@@ -517,6 +523,9 @@ class ServoBusEmulator:
         self.packets_received = 0
         self.packets_corrupt = 0
         self.replies_sent = 0
+        #: delay of every reply on its way to the host [s], not holding the bus (USB latency)
+        self.adapter_latency_s = 0.0
+        self._outbox: list[tuple[float, bytes]] = []   # (due time, reply) under latency
         self._master, self._slave = os.openpty()
         tty.setraw(self._slave)
         self.port_name = os.ttyname(self._slave)
@@ -624,7 +633,11 @@ class ServoBusEmulator:
         parse = _parse_p1 if self.protocol == 1 else _parse_p2
         while not self._stop.is_set():
             try:
-                ready, _, _ = select.select([self._master], [], [], 0.05)
+                wait_s = 0.05
+                if self._outbox:
+                    wait_s = min(wait_s, max(0.0, self._outbox[0][0] - time.monotonic()))
+                ready, _, _ = select.select([self._master], [], [], wait_s)
+                self._deliver_due()
                 if not ready:
                     continue
                 chunk = os.read(self._master, 4096)
@@ -643,11 +656,21 @@ class ServoBusEmulator:
                 for delay_s, data in replies:
                     if delay_s > 0:
                         time.sleep(delay_s)  # a late servo holds the bus, as on real hardware
+                    if self.adapter_latency_s > 0:
+                        self._outbox.append((time.monotonic() + self.adapter_latency_s, data))
+                        continue
                     try:
                         os.write(self._master, data)
                     except OSError:
                         return
                     self.replies_sent += 1
+
+    def _deliver_due(self) -> None:
+        """Replies held by the adapter latency whose time has come, in order."""
+        now = time.monotonic()
+        while self._outbox and self._outbox[0][0] <= now:
+            os.write(self._master, self._outbox.pop(0)[1])
+            self.replies_sent += 1
 
     def _status(self, servo: EmulatedServo, error: int, params: bytes = b'',
                 *, is_read: bool = False, is_ping: bool = False) -> list[tuple[float, bytes]]:
@@ -719,6 +742,8 @@ class ServoBusEmulator:
             return self._status(servo, 0, is_ping=True)
         if pkt.instruction == INST_READ and len(p) == 2:
             err = self._access(servo, p[0], p[1], write=False)
+            if servo.read_hook is not None:
+                servo.read_hook(servo)
             data = bytes(servo.memory[p[0]:p[0] + p[1]]) if err == 0 else b''
             return self._status(servo, err, data, is_read=True)
         if pkt.instruction == INST_WRITE and len(p) >= 2:
@@ -784,6 +809,8 @@ class ServoBusEmulator:
         if inst == INST_READ and len(p) == 4:
             address, length = u16(p[0:2], 'little'), u16(p[2:4], 'little')
             err = self._access(servo, address, length, write=False)
+            if servo.read_hook is not None:
+                servo.read_hook(servo)
             data = bytes(servo.memory[address:address + length]) if err == 0 else b''
             return self._status(servo, err, data, is_read=True)
         if inst == INST_WRITE and len(p) >= 2:
@@ -812,6 +839,8 @@ class ServoBusEmulator:
             if s is None:
                 continue
             err = self._access(s, address, length, write=False)
+            if s.read_hook is not None:
+                s.read_hook(s)
             data = bytes(s.memory[address:address + length]) if err == 0 else b''
             out += self._status(s, err, data, is_read=True)
         return out
