@@ -891,6 +891,7 @@ class DynamixelBus:
                 out[name] = False
                 continue
             ok = False
+            s.health.torque_error = ''
             for k in range(1 + self.retries):
                 if k:
                     s.health.retries += 1
@@ -899,18 +900,25 @@ class DynamixelBus:
                 sid = s.joint.servo_id
                 self._prepare()
                 result = self.packet.write1ByteTxOnly(self.port, sid, address, value)
+                error = 0
                 if result == COMM_SUCCESS and s.health.status_return_level >= 2:
                     self.port.setPacketTimeout(self._status_bytes(0))
-                    _ack, _error, result = self._receive(sid, 0)
+                    _ack, error, result = self._receive(sid, 0)
                 if result != COMM_SUCCESS:
                     self._count(s, result)
                     continue
-                if s.health.status_return_level < 2:
-                    # no acknowledgement at Status Return Level 1: read back
-                    data, _ = self._read_single(s, address, 1, 1)
+                if enabled or s.health.status_return_level < 2:
+                    # Torque on is read back at every level (a servo in hardware-error
+                    # shutdown acknowledges the write and keeps Torque Enable 0); torque off
+                    # only where the write is not acknowledged (Status Return Level 1).
+                    data, read_error = self._read_single(s, address, 1, 1)
                     if data is None:
                         continue  # the read-back was counted
                     if data[0] != value:
+                        flags = self._hardware_flags(s, error | read_error)
+                        if flags:
+                            self._refuse_torque(s, flags)
+                            break
                         continue  # the write was lost: send it again
                 ok = True
                 break
@@ -918,6 +926,22 @@ class DynamixelBus:
                 s.health.torque_enabled = bool(enabled)
             out[name] = ok
         return out
+
+    def _refuse_torque(self, s: _Servo, flags: int) -> None:
+        """The servo keeps torque off with a hardware error: recorded and noted."""
+        s.health.last_error_flags = flags
+        s.health.error_replies += 1
+        if self.protocol == 2:
+            why = (f'Hardware Error Status {flags:#04x} '
+                   f'{list(decode_error_flags(self.protocol, flags))}: an X-series or MX(2.0) '
+                   'servo in hardware-error shutdown keeps torque off until it is rebooted '
+                   '(REBOOT instruction, e.g. Dynamixel Wizard, or a power cycle) once the '
+                   'cause is gone')
+        else:
+            why = (f'status error {flags:#04x} {list(decode_error_flags(self.protocol, flags))}: '
+                   'the servo keeps torque off while the error lasts (Alarm Shutdown)')
+        s.health.torque_error = f'torque on refused by the servo: {why}'
+        self.notes.append(f'{s.joint.name} (id {s.joint.servo_id}) {s.health.torque_error}')
 
     def write_goals(self, positions_rad: Mapping[str, float],
                     speeds_rad_s: Mapping[str, float] | None = None) -> int:

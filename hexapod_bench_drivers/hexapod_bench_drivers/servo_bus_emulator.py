@@ -13,7 +13,9 @@ BULK_WRITE. Status Return Level is honoured.
 
 Fault injection per servo (:meth:`ServoBusEmulator.inject`): ``no_answer`` (silent),
 ``bad_checksum`` (reply with a corrupted checksum/CRC), ``error_bits`` (hardware error flags in
-the reply; Protocol 2.0 sets Hardware Error Status and the alert bit), ``late_reply`` (answer
+the reply; Protocol 2.0 sets Hardware Error Status and the alert bit; a flag selected in the
+Shutdown register turns torque off and keeps Torque Enable at 0, on Protocol 2.0 until REBOOT
+clears the fault), ``late_reply`` (answer
 after a delay, holding the bus as a slow servo does), ``overheat`` (present temperature forced).
 :attr:`ServoBusEmulator.adapter_latency_s` delays every reply on its way to the host without
 holding the bus, as a USB adapter's latency timer does (FTDI/U2D2: 16 ms by default on Linux).
@@ -710,6 +712,13 @@ class ServoBusEmulator:
     def _write(self, servo: EmulatedServo, address: int, data: bytes) -> int:
         err = self._access(servo, address, len(data), write=True)
         if err == 0:
+            torque = servo.table.reg('torque_enable').address
+            if (address <= torque < address + len(data) and data[torque - address]
+                    and servo.hardware_errors() & servo.get('shutdown')):
+                # Hardware-error shutdown: Torque Enable stays 0 (X series: until REBOOT),
+                # the write is otherwise applied and the reply carries the error (alert bit).
+                data = bytearray(data)
+                data[torque - address] = 0
             servo.memory[address:address + len(data)] = data
         return err
 

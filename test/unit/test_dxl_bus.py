@@ -339,3 +339,25 @@ def test_status_return_level_0_refused_by_name(model, protocol):
                                            r'Level is 0.*register (16|68)'):
             DynamixelBus(emu.port_name, _joints(2), protocol=protocol, timeout_margin_ms=5.0,
                          retries=0).open()
+
+
+@pytest.mark.parametrize('model,protocol,tail', [('xl430', 2, 'REBOOT'),
+                                                 ('ax18a', 1, 'Alarm Shutdown')])
+def test_torque_on_refused_by_a_servo_in_hardware_error_shutdown(model, protocol, tail):
+    """Overload (0x20, in the Shutdown register): the servo acknowledges the torque write and
+    keeps Torque Enable 0. Reported as a failure naming the error (before: success), the
+    others turned on; once the fault is gone, torque on succeeds."""
+    with ServoBusEmulator.of_model(model, [1, 2]) as emu, \
+            DynamixelBus(emu.port_name, _joints(2), protocol=protocol,
+                         timeout_margin_ms=10.0) as bus:
+        bus.take_notes()
+        emu.inject(1, 'error_bits', error_bits=0x20)
+        assert bus.set_torque(True) == {'j1': False, 'j2': True}
+        assert [emu.read_register(i, 'torque_enable') for i in (1, 2)] == [0, 1]
+        h = bus.health()
+        assert not h[0].torque_enabled and h[0].last_error_flags == 0x20
+        assert 'overload' in h[0].torque_error and tail in h[0].torque_error
+        assert any(n.startswith('j1 (id 1) torque on refused') for n in bus.take_notes())
+        emu.clear_faults(1)
+        assert bus.set_torque(True) == {'j1': True, 'j2': True}
+        assert bus.health()[0].torque_error == ''
