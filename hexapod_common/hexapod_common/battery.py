@@ -36,7 +36,7 @@ import numpy as np
 
 from .conversions import BatterySample
 
-__all__ = ['BATTERY_SOURCE_ENV', 'MILLI_THRESHOLD', 'BatteryCombiner', 'combine_battery_samples', 'STALE_S',
+__all__ = ['BATTERY_SOURCE_ENV', 'MILLI_THRESHOLD', 'milli_factors', 'BatteryCombiner', 'combine_battery_samples', 'STALE_S',
            'prepare_battery_samples', 'selected_source', 'unmeasured_power']
 
 #: a source silent for longer than this (or 5 of its own sample intervals, if longer) [s]
@@ -252,6 +252,30 @@ def unmeasured_power(voltage_v: Sequence[float], current_a: Sequence[float]) -> 
 
 #: a median |voltage| or |current| above this is taken as milli-units (mV, mA)
 MILLI_THRESHOLD = 1000.0
+#: input power a legged robot on a battery draws [W] (a servo leg idling to a large quadruped):
+#: decides whether a current beside millivolts is in mA or A
+PLAUSIBLE_POWER_W = (0.5, 5000.0)
+
+
+def milli_factors(voltage: float, current: float) -> tuple[float, float]:
+    """Factors (1 or 1e-3) taking a battery reading's |voltage| and |current| to V and A.
+
+    Above :data:`MILLI_THRESHOLD` a value is in milli-units. A current under it beside a
+    voltage in millivolts is either a robot drawing under 1 A in mA (the driver's unit for
+    both) or amps: the power decides, the reading that gives a plausible legged robot's draw
+    (:data:`PLAUSIBLE_POWER_W`), and the driver's own unit (mA) when both would.
+    """
+    v, i = abs(float(voltage)), abs(float(current))
+    fv = 1e-3 if v > MILLI_THRESHOLD else 1.0
+    fi = 1e-3 if i > MILLI_THRESHOLD else 1.0
+    if fv != 1.0 and fi == 1.0 and i > 0:
+        p_milli, p_unit = 1e-6 * v * i, 1e-3 * v * i
+
+        def plausible(p: float) -> bool:
+            return PLAUSIBLE_POWER_W[0] <= p <= PLAUSIBLE_POWER_W[1]
+        if plausible(p_milli) or not plausible(p_unit):
+            fi = 1e-3
+    return fv, fi
 
 
 def _milli_scaled(samples: list[BatterySample], notes: list[str]) -> list[BatterySample]:
@@ -263,16 +287,16 @@ def _milli_scaled(samples: list[BatterySample], notes: list[str]) -> list[Batter
         idx = [k for k, s in enumerate(samples) if s.source == src]
         v = float(np.median([abs(samples[k].voltage_v) for k in idx]))
         i = float(np.median([abs(samples[k].current_a) for k in idx]))
-        fv = 1e-3 if v > MILLI_THRESHOLD else 1.0
-        fi = 1e-3 if i > MILLI_THRESHOLD else 1.0
+        fv, fi = milli_factors(v, i)
         if fv == fi == 1.0:
             continue
         for k in idx:
             out[k] = dataclasses.replace(out[k], voltage_v=out[k].voltage_v * fv,
                                          current_a=out[k].current_a * fi)
         what = ' and '.join(x for x, f in (('voltage', fv), ('current', fi)) if f != 1.0)
+        med = ' and '.join(f'{x:.0f}' for x, f in ((v, fv), (i, fi)) if f != 1.0)
         notes.append(f'/battery_state {_label(src) + " " if src else ""}{what} in milli-units '
-                     f'(median {v if fv != 1.0 else i:.0f}): divided by 1000')
+                     f'(median {med}): divided by 1000')
     return out
 
 

@@ -117,6 +117,7 @@ def foreign_typestore() -> Any:
 #: truth of :func:`write_foreign_robot_bag`: mean battery power [W], its swing [W], battery
 #: voltage [V], gait period [s]
 P0_W, P_AMP_W, VOLT_V, PERIOD_S = 9.0, 1.5, 11.5, 2.0
+ODOM_SPEED_MPS = 0.12
 BAG_T0_S = 1_750_000_000.0
 NO_HASH = 'RIHS01_' + '0' * 64
 
@@ -145,7 +146,11 @@ def write_foreign_robot_bag(path: str | Path, *, legs: int = 4, duration_s: floa
                       sign: float = -1.0, zero_stamps: bool = False, nan_current: bool = False,
                       swap_every: int = 0, duplicate_every: int = 0, storage: str = 'sqlite3',
                       msgdef: bool = True, unknown_topic: bool = False, seed: int = 0,
-                      split_joints: bool = False, battery_clock_s: float = 0.0
+                      split_joints: bool = False, battery_clock_s: float = 0.0,
+                      idle_offset_samples: int = 0, milli: bool = False,
+                      nan_effort_joints: tuple[int, ...] = (), nan_velocity_every: int = 0,
+                      gap_s: tuple[float, float] | None = None, battery: bool = True,
+                      odom_twist_only: bool = False, step_length_m: float = 0.06
                       ) -> dict[str, Any]:
     """A robot bag as another lab's ``ros2 bag record`` writes it: rosbags' own ``Writer``
     (not :class:`~hexapod_common.bags.BagWriter`), sqlite3 or mcap, optionally without message
@@ -158,8 +163,16 @@ def write_foreign_robot_bag(path: str | Path, *, legs: int = 4, duration_s: floa
     messages), ``duplicate_every`` (every n-th message recorded twice), ``unknown_topic`` (a
     ``lab_msgs/msg/Thing`` topic no typestore knows), ``split_joints`` (each sample's joints
     in two JointState messages, one per side, as drivers with one servo bus per side publish
-    them), ``battery_clock_s`` (battery stamps on another clock, this far ahead). Returns ``{'joints': names, 'pout': (n, 2)
-    array of (stamp [s], positive joint power [W])}``.
+    them), ``battery_clock_s`` (battery stamps on another clock, this far ahead),
+    ``idle_offset_samples`` (the first n battery samples read a +20 mA sensor offset, the
+    servos not yet drawing), ``milli`` (voltage in mV, current in mA), ``nan_effort_joints``
+    (joint indices whose effort is NaN: no effort interface), ``nan_velocity_every`` (every
+    n-th joint sample has one velocity NaN), ``gap_s`` (no message of any topic in that span),
+    ``battery`` False (the ``/battery_state`` connection without messages),
+    ``odom_twist_only`` (``/odom`` with the body speed ``ODOM_SPEED_MPS`` in its twist, the
+    pose left at 0), ``step_length_m`` on ``/gait/phase`` (0: a clock-driven schedule that
+    does not know the speed). Returns ``{'joints': names, 'pout': (n, 2) array of (stamp [s],
+    positive joint power [W] of the joints with finite values)}``.
     """
     STORE = foreign_typestore()
     T = STORE.types
@@ -169,10 +182,33 @@ def write_foreign_robot_bag(path: str | Path, *, legs: int = 4, duration_s: floa
     joints = [f'{leg}_{j}' for leg in names for j in ('coxa', 'femur', 'tibia')]
     msgs: list[tuple[float, str, str, object]] = []
     pout = []
-    for t in np.arange(0.0, duration_s, 0.02):
+    def gone(t: float) -> bool:
+        return gap_s is not None and gap_s[0] <= t < gap_s[1]
+
+    for k, t in enumerate(np.arange(0.0, duration_s, 0.02)):
         ts = t + rng.uniform(-0.003, 0.003)
+        if gone(ts):
+            continue
         eff, vel = _joint_power_w(ts, len(joints))
-        pout.append((ts, float(np.sum(np.clip(eff * vel, 0, None)))))
+        eff[list(nan_effort_joints)] = math.nan
+        if nan_velocity_every and k % nan_velocity_every == 0:
+            vel[1] = math.nan
+        jp = eff * vel
+        pout.append((ts, float(np.sum(np.clip(jp[np.isfinite(jp)], 0, None)))))
+        if odom_twist_only:
+            msgs.append((ts + 2e-4, '/odom', 'nav_msgs/msg/Odometry', T['nav_msgs/msg/Odometry'](
+                header=_header(ts), child_frame_id='base_link',
+                pose=T['geometry_msgs/msg/PoseWithCovariance'](
+                    pose=T['geometry_msgs/msg/Pose'](
+                        position=T['geometry_msgs/msg/Point'](x=0.0, y=0.0, z=0.0),
+                        orientation=T['geometry_msgs/msg/Quaternion'](x=0.0, y=0.0, z=0.0,
+                                                                      w=1.0)),
+                    covariance=np.zeros(36)),
+                twist=T['geometry_msgs/msg/TwistWithCovariance'](
+                    twist=T['geometry_msgs/msg/Twist'](
+                        linear=T['geometry_msgs/msg/Vector3'](x=ODOM_SPEED_MPS, y=0.0, z=0.0),
+                        angular=T['geometry_msgs/msg/Vector3'](x=0.0, y=0.0, z=0.0)),
+                    covariance=np.zeros(36)))))
         parts = [np.arange(len(joints))]
         if split_joints:  # one message per side (one servo bus each), same stamp
             half = len(joints) // 2
@@ -188,20 +224,26 @@ def write_foreign_robot_bag(path: str | Path, *, legs: int = 4, duration_s: floa
         msgs.append((ts + 5e-4, '/gait/phase', 'hexapod_interfaces/msg/GaitPhase',
                      T['hexapod_interfaces/msg/GaitPhase'](
                          header=_header(0.0 if zero_stamps else ts), gait='wave',
-                         period=PERIOD_S, duty_factor=duty, step_length=0.06, step_height=0.03,
+                         period=PERIOD_S, duty_factor=duty, step_length=step_length_m,
+                         step_height=0.03,
                          sweep_angle=0.0, leg_offset=0.0, cycle_phase=phase, leg_names=names,
                          phase_offsets=np.array(offsets), in_stance=stance,
                          supporting_legs=int(stance.sum()))))
-    for t in np.arange(0.0, duration_s, 0.1):
+    for k, t in enumerate(np.arange(0.0, duration_s, 0.1)):
         ts = t + rng.uniform(-0.003, 0.003)
+        if gone(ts):
+            continue
         power = P0_W + P_AMP_W * math.sin(2 * math.pi * ts / PERIOD_S)
         current = math.nan if nan_current else math.copysign(power / VOLT_V, sign)
+        if k < idle_offset_samples:
+            current = -sign * 0.02
         nan = math.nan
+        unit = 1e3 if milli else 1.0
         msgs.append((ts + 1e-3, '/battery_state', 'sensor_msgs/msg/BatteryState',
                      T['sensor_msgs/msg/BatteryState'](
                          header=_header(0.0 if zero_stamps else ts + battery_clock_s),
-                         voltage=VOLT_V,
-                         temperature=25.0, current=current, charge=nan, capacity=nan,
+                         voltage=VOLT_V * unit,
+                         temperature=25.0, current=current * unit, charge=nan, capacity=nan,
                          design_capacity=nan, percentage=nan, power_supply_status=2,
                          power_supply_health=0, power_supply_technology=0, present=True,
                          cell_voltage=np.zeros(0, np.float32),
@@ -217,6 +259,9 @@ def write_foreign_robot_bag(path: str | Path, *, legs: int = 4, duration_s: floa
     if duplicate_every:
         msgs = [m for i, x in enumerate(msgs)
                 for m in ((x, x) if i % duplicate_every == 0 else (x,))]
+    if not battery:  # the connection stays (``ros2 bag record -a`` of a silent topic)
+        silent = [m for m in msgs if m[1] == '/battery_state'][:1]
+        msgs = [m for m in msgs if m[1] != '/battery_state']
     plugin = StoragePlugin.SQLITE3 if storage == 'sqlite3' else StoragePlugin.MCAP
     with Writer(path, version=8, storage_plugin=plugin) as w:
         conns = {}
@@ -230,6 +275,9 @@ def write_foreign_robot_bag(path: str | Path, *, legs: int = 4, duration_s: floa
                 conns[topic] = w.add_connection(topic, typ, typestore=STORE)
             else:
                 conns[topic] = w.add_connection(topic, typ, msgdef='', rihs01=NO_HASH)
+        if not battery:
+            for _, topic, typ, _ in silent:
+                conns[topic] = w.add_connection(topic, typ, typestore=STORE)
         for i, (ts, topic, typ, msg) in enumerate(msgs):
             data = b'\x00\x01\x00\x00' + np.float64(1.0).tobytes() if msg is None else \
                 STORE.serialize_cdr(msg, typ)

@@ -788,9 +788,11 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
     )
 
     from hexapod_energy.descriptors import (
+        BATTERY_GAP_NOTE,
         POSITION_POWER_NOTE,
         SLOW_BATTERY_NOTE,
         DescriptorAccumulator,
+        resolve_current_sign,
     )
 
     if cycle_source not in ('auto', 'gait_phase', 'joints'):
@@ -870,7 +872,22 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
                      (f'none of its {n_bad} message(s) usable' if n_bad else
                       'without messages') +
                      ': cycle boundaries from the joint positions')
+    if not any(smp[2] == '/battery_state' for smp in samples):
+        raise BagContentError(
+            f'bag {path}: /battery_state has no ' + ('usable ' if n_battery else '') +
+            'messages' + (f' (all {n_battery} dropped)' if n_battery else '') +
+            ': input power needs the battery voltage and current')
     samples = _prepare_batteries(path, samples, notes)
+    if current_sign == 'auto':
+        # offline the whole run decides (the median of V * I), never its first samples: a
+        # sensor's idle offset before the servos draw current must not flip a run's P_in
+        bat = [smp[3] for smp in samples if smp[2] == '/battery_state']
+        sign = resolve_current_sign(np.array([b.voltage_v for b in bat]),
+                                    np.array([b.current_a for b in bat]), 'auto')
+        current_sign = 'ros' if sign < 0 else 'positive_discharge'
+        notes.append('battery current sign auto-detected from the median of V * I over the '
+                     'run: ' + ('ROS convention (negative while discharging)' if sign < 0 else
+                                'positive while discharging (not the ROS convention)'))
     # raw effort P_out per window: the command decides effort against model per run
     acc = DescriptorAccumulator(mass_kg=mass_kg, cycles=cycles, current_sign=current_sign,
                                 power_out_source='effort', cycle_source=cycle_source,
@@ -898,6 +915,27 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
     has_effort = acc.joint_power_samples_ > 0
     if any(POSITION_POWER_NOTE in d.warnings for d in windows):
         notes.append(POSITION_POWER_NOTE)
+    if acc.nonfinite_joint_power_:
+        bad = acc.nonfinite_joint_power_
+        never = sorted(n for n in bad if acc.joint_power_count_.get(n, 0) == 0)
+        some = sorted(n for n in bad if n not in never)
+        if never:
+            notes.append(f'no finite effort * velocity on joint(s) {", ".join(never)} (NaN: '
+                         'no effort interface?): P_out from the other joints only')
+        if some:
+            notes.append('non-finite effort or velocity in some samples of joint(s) ' +
+                         ', '.join(f'{n} ({bad[n]} of {bad[n] + acc.joint_power_count_[n]})'
+                                   for n in some) + ': those samples left out of P_out')
+    n_gap = sum(BATTERY_GAP_NOTE in d.warnings for d in windows)
+    if n_gap:
+        windows = [d for d in windows if BATTERY_GAP_NOTE not in d.warnings]
+        notes.append(f'{n_gap} window(s) across a gap in /battery_state (P_in would be '
+                     'interpolated over missing data) left out')
+    n_neg = sum(d.power_in_w < 0 for d in windows)
+    if n_neg:
+        notes.append(f'negative mean input power in {n_neg} of {len(windows)} window(s) with '
+                     f'the current sign {current_sign}: check the battery current sign '
+                     '(--current-sign)')
     n_slow = sum(SLOW_BATTERY_NOTE in d.warnings for d in windows)
     if n_slow:
         notes.append(f'{SLOW_BATTERY_NOTE} ({n_slow} of {len(windows)} window(s))')
@@ -945,6 +983,8 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
                              f'window(s) from {t_seg0:.2f} s); each is its own run')
         w = np.array([d.window_s for d in wins])
         avg = lambda xs: float(np.sum(w * np.array(xs)) / np.sum(w))  # noqa: E731
+        if any(d.speed_source == 'odometry_twist' for d in wins):
+            seg_notes.append(ODOM_TWIST_NOTE)
         n_none = sum(d.speed_source == 'none' for d in wins)
         if n_none:
             seg_notes.append(
@@ -981,6 +1021,11 @@ def read_robot_segments(path: str | Path, **kw: Any) -> list[RobotRun]:
     out = _read_robot(path, all_segments=True, **kw)
     assert isinstance(out, list)
     return out
+
+
+#: note of runs whose speed is the /odom twist's
+ODOM_TWIST_NOTE = ('speed from the /odom twist (its pose does not move: a velocity-only '
+                   'estimator), the mean horizontal speed over each window')
 
 
 def _on_one_clock(samples: list[tuple[float, int, str, Any]], clocks: Any,
@@ -1105,6 +1150,8 @@ def _joint_cycle_runs(path: str | Path, acc: Any, windows: list[Any],
     if speed_source == 'odometry':
         notes.append('speed from /odom (nav_msgs/Odometry position differenced over each '
                      'window, odometry frame)')
+    elif speed_source == 'odometry_twist':
+        notes.append(ODOM_TWIST_NOTE)
     elif speed_source == 'given':
         notes.append(f'speed {speed_mps} m/s as given (no /mocap/body or /odom)')
     elif 'none' in sources:

@@ -109,6 +109,8 @@ __all__ = ['add_cli', 'build_parser', 'gait_from_sample', 'main', 'run']
 
 
 _CONTRACT_JOINT = re.compile(r'^([LR])(\d+)_\w+$')
+#: AntBot's mass without payload [kg] (Brodoline et al.), the default robot
+ANTBOT_MASS_KG = 2.183
 
 
 def _leg_count(args: argparse.Namespace, run_: Any) -> int | None:
@@ -159,8 +161,9 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
                    help='target speed for --recommend [m/s]')
     p.add_argument('--payload', type=float, default=0.0, metavar='KG',
                    help='payload for --recommend [kg] (default 0)')
-    p.add_argument('--robot-mass', type=float, default=2.183, metavar='KG',
-                   help='robot mass without payload [kg] (default 2.183, AntBot)')
+    p.add_argument('--robot-mass', type=float, default=None, metavar='KG',
+                   help='robot mass without payload [kg] (default 2.183, AntBot, with a '
+                        'warning: CoT/M and specific resistance scale with it)')
     p.add_argument('--leg', default=None, metavar='FILE',
                    help="the robot's leg for the Eq. 6 output-power model and the carried "
                    'mass: a YAML/JSON file with a_m, link_masses_kg, neutral_tip_m (DH table, '
@@ -283,12 +286,23 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     leg = load_leg_description(args.leg) if getattr(args, 'leg', None) else antbot_leg()
+    mass_warning = ''
+    if args.robot_mass is None:
+        args.robot_mass = ANTBOT_MASS_KG
+        if args.robot:
+            mass_warning = (f'robot mass not given (--robot-mass): AntBot\'s {ANTBOT_MASS_KG} '
+                            'kg assumed; CoT, CoT/M and specific resistance scale with the '
+                            'mass')
+    if not (math.isfinite(args.robot_mass) and args.robot_mass > 0):
+        raise EnergyError(f'--robot-mass must be > 0 kg, got {args.robot_mass}')
     robot = RobotSpec(mass_kg=args.robot_mass, leg=leg.spec)
     n_steps = len(bench_bags) + len(args.robot) + 1 + (16 if args.sweep else 0) + \
         (1 if args.recommend else 0)
     bar = tqdm(total=n_steps, desc='energy', unit='step', disable=args.no_progress,
                file=sys.stderr)
     doc: dict[str, Any] = {'schema': 'hexapod_energy.energy/1', 'plots': []}
+    if mass_warning:
+        doc['warnings'] = [mass_warning]
     try:
         samples, diags = [], []
         one_session = []
@@ -331,7 +345,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 # one unreadable robot bag does not lose the others: refused by name (as
                 # ``slip`` does); every one refused is an error
                 failed.append({'bag': str(path), 'error': str(err)})
-                print(f'hexapod-analyze energy: refused {path}: {err}', file=sys.stderr)
+                if len(args.robot) > 1:  # a lone bag's refusal is the error itself
+                    print(f'hexapod-analyze energy: refused {path}: {err}', file=sys.stderr)
                 bar.update(1)
                 continue
             for run_ in segments:
@@ -379,6 +394,9 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                     p_out, source = run_.power_out_w, 'effort'
                 elif math.isfinite(p_model):
                     p_out, source = p_model, 'model'
+                    if getattr(args, 'leg', None) is None:
+                        notes.append(f'P_out from the Eq. 6 model of {leg.name}\'s leg (no '
+                                     'joint power from the bag; give --leg for another leg)')
                 else:
                     # without a gait (no /gait/phase, no --gait) P_out is unknown, not 0
                     p_out, source = (0.0 if run_.gait is not None else math.nan), 'none'
@@ -415,8 +433,9 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 })
             bar.update(1)
         if args.robot and len(failed) == len(args.robot):
-            raise EnergyError('every robot bag was refused: ' + '; '.join(
-                f['error'] for f in failed))
+            raise EnergyError(failed[0]['error'] if len(failed) == 1 else
+                              'every robot bag was refused: ' + '; '.join(
+                                  f['error'] for f in failed))
         doc['robot_runs'] = runs
         if failed:
             doc['failed_bags'] = failed

@@ -198,7 +198,7 @@ def implausible_effort_power(effort_w: float, power_in_w: float, net_w: float) -
     """
     if not (math.isfinite(effort_w) and effort_w > 0.0):
         return ''
-    if math.isfinite(power_in_w) and effort_w >= power_in_w:
+    if math.isfinite(power_in_w) and 0 < power_in_w <= effort_w:
         return (f'P_out from joint efforts ({effort_w:.3f} W) is not below P_in '
                 f'({power_in_w:.3f} W): the efforts are not joint torques (AX-series servos '
                 'report PWM load)')
@@ -243,8 +243,19 @@ def _mean_joint_power_w(joint: list[tuple[float, tuple[str, ...], np.ndarray, bo
     return float(sum(sums[n] / counts[n] for n in sums))
 
 
+#: odometry whose pose moves slower than this [m/s] over a window while its twist says faster
+#: is a velocity-only estimator (pose left at 0): the twist's mean speed is used
+ODOM_STILL_MPS = 1e-3
 #: ``auto`` current sign: samples that decide it at once when their V * I all share a sign.
 AUTO_UNANIMOUS_SAMPLES = 3
+#: ... and each draws at least this much [W]: a sensor's idle offset (20 mA at 12 V before the
+#: servos are powered) must not decide the sign of a whole run
+AUTO_UNANIMOUS_MIN_W = 1.0
+#: a window whose battery samples leave a gap longer than this many median battery intervals
+#: (and longer than 0.25 s) interpolates P_in across a recording gap: flagged
+BATTERY_GAP_INTERVALS = 5.0
+#: warning carried by such a window (offline readers leave these windows out)
+BATTERY_GAP_NOTE = 'battery samples missing over part of the window (a recording gap)'
 
 
 @dataclass
@@ -301,11 +312,14 @@ class DescriptorAccumulator:
     _gait: GaitPhaseSample | None = field(default=None, init=False)
     _last_phase: tuple[float, float] | None = field(default=None, init=False)
     _window_start: float | None = field(default=None, init=False)
-    _odom: list[tuple[float, float, float]] = field(default_factory=list, init=False)
+    _odom: list[tuple[float, float, float, float]] = field(default_factory=list, init=False)
     _tracker: JointCycleTracker | None = field(default=None, init=False)
     _seen_gait: bool = field(default=False, init=False)
     #: joint samples that gave a joint power (from velocities or position differences)
     joint_power_samples_: int = field(default=0, init=False)
+    #: per joint name: samples whose effort * velocity was finite / not finite (left out)
+    joint_power_count_: dict[str, int] = field(default_factory=dict, init=False)
+    nonfinite_joint_power_: dict[str, int] = field(default_factory=dict, init=False)
     # per joint name: (stamp, position, effort) of its last sample (velocity-less drivers)
     _last_joint: dict[str, tuple[float, float, float]] = field(default_factory=dict,
                                                                 init=False)
@@ -336,8 +350,9 @@ class DescriptorAccumulator:
             v = np.array([s.voltage_v for s in self._pending_battery])
             i = np.array([s.current_a for s in self._pending_battery])
             vi = v * i
-            unanimous = len(vi) >= AUTO_UNANIMOUS_SAMPLES and (bool(np.all(vi > 0)) or
-                                                               bool(np.all(vi < 0)))
+            unanimous = (len(vi) >= AUTO_UNANIMOUS_SAMPLES and
+                         bool(np.all(np.abs(vi) >= AUTO_UNANIMOUS_MIN_W)) and
+                         (bool(np.all(vi > 0)) or bool(np.all(vi < 0))))
             if len(self._pending_battery) < self.auto_samples and not unanimous:
                 return []
             self.sign_ = resolve_current_sign(v, i, 'auto')
@@ -378,8 +393,21 @@ class DescriptorAccumulator:
         if sample.effort.size and sample.velocity.size == sample.effort.size:
             power = np.asarray(sample.effort, dtype=float) * np.asarray(sample.velocity,
                                                                         dtype=float)
-            self._joint.append((sample.t_s, tuple(sample.names), power, False))
-            self.joint_power_samples_ += 1
+            ok = np.isfinite(power)
+            names = tuple(sample.names)
+            if not np.all(ok):
+                # a joint without an effort interface (ros2_control reports NaN) or a glitch:
+                # that joint is left out of this sample, the others still count
+                for name in np.asarray(names, dtype=object)[~ok]:
+                    self.nonfinite_joint_power_[name] = \
+                        self.nonfinite_joint_power_.get(name, 0) + 1
+                names = tuple(n for n, k in zip(names, ok) if k)
+                power = power[ok]
+            for name in names:
+                self.joint_power_count_[name] = self.joint_power_count_.get(name, 0) + 1
+            if names:
+                self._joint.append((sample.t_s, names, power, False))
+                self.joint_power_samples_ += 1
         elif sample.effort.size and sample.position.size == sample.effort.size:
             self._add_position_power(sample)
         if not self.joint_cycles_:
@@ -425,9 +453,14 @@ class DescriptorAccumulator:
             self.joint_power_samples_ += 1
 
     def add_odometry(self, sample: OdometrySample) -> None:
-        """Add an odometry pose (horizontal position in the odometry frame, for the speed)."""
+        """Add an odometry pose (horizontal position in the odometry frame, for the speed) and
+        its twist's horizontal speed (for estimators that publish the velocity only, with the
+        pose left at zero)."""
+        v = np.asarray(sample.linear_velocity_mps, dtype=float)
+        speed = float(math.hypot(v[0], v[1])) if v.size >= 2 and np.all(np.isfinite(v[:2])) \
+            else math.nan
         self._odom.append((sample.t_s, float(sample.position_m[0]),
-                           float(sample.position_m[1])))
+                           float(sample.position_m[1]), speed))
 
     def add_pose(self, sample: PoseSample) -> None:
         """Add a body pose (position used for the speed).
@@ -503,6 +536,15 @@ class DescriptorAccumulator:
         power_in = float(np.trapezoid(np.interp(grid, t, p), grid) / (t1 - t0))
         if grid.size - 2 < MIN_BATTERY_SAMPLES_PER_WINDOW:
             warnings.append(SLOW_BATTERY_NOTE)
+        elif t.size >= 3:
+            # the samples around and inside the window: a gap much longer than the stream's
+            # own interval means P_in was interpolated across missing data
+            i0 = max(int(np.searchsorted(t, t0, side='right')) - 1, 0)
+            i1 = min(int(np.searchsorted(t, t1, side='left')), t.size - 1)
+            steps = np.diff(t[i0:i1 + 1])
+            typical = float(np.median(np.diff(t)))
+            if steps.size and float(np.max(steps)) > max(BATTERY_GAP_INTERVALS * typical, 0.25):
+                warnings.append(BATTERY_GAP_NOTE)
         if power_in < 0:
             warnings.append(f'negative mean input power {power_in:.3f} W: check the battery '
                             'current sign convention (parameter current_sign)')
@@ -567,8 +609,17 @@ class DescriptorAccumulator:
             poses = sorted(p for p in track if t0 <= p[0] <= t1)
             if len(poses) >= 2 and poses[0][0] - t0 < 0.1 * (t1 - t0) and \
                     t1 - poses[-1][0] < 0.1 * (t1 - t0):
-                d = [b - a for a, b in zip(poses[0][1:], poses[-1][1:])]
-                return math.hypot(*d) / (poses[-1][0] - poses[0][0]), source
+                n = 3 if source == 'mocap' else 2
+                d = [b - a for a, b in zip(poses[0][1:1 + n], poses[-1][1:1 + n])]
+                speed = math.hypot(*d) / (poses[-1][0] - poses[0][0])
+                if source == 'odometry':
+                    twist = np.array([p[3] for p in poses])
+                    twist = twist[np.isfinite(twist)]
+                    if speed < ODOM_STILL_MPS and twist.size and \
+                            float(np.mean(twist)) > ODOM_STILL_MPS:
+                        # a velocity-only estimator: the pose stays at 0, the twist moves
+                        return float(np.mean(twist)), 'odometry_twist'
+                return speed, source
         if self.speed_mps > 0:
             return self.speed_mps, 'given'
         return (math.nan if self.joint_cycles_ or self._gait is not None else 0.0), 'none'

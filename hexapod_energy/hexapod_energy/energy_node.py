@@ -39,7 +39,7 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from sensor_msgs.msg import BatteryState, JointState
 
-from hexapod_common.battery import MILLI_THRESHOLD, BatteryCombiner
+from hexapod_common.battery import MILLI_THRESHOLD, BatteryCombiner, milli_factors
 from hexapod_common.clocks import LiveClockWatch
 from hexapod_common.conversions import (
     MOCAP_TYPES,
@@ -149,7 +149,7 @@ class EnergyMonitorNode(Node):
         self._battery_notes = 0
         self._clocks = LiveClockWatch()   # stamps against the node clock
         self._zero_power: int | None = 0   # leading battery samples with V * I == 0
-        self._millivolts = False
+        self._milli: tuple[float, float] | None = None
         self.pub = self.create_publisher(EnergeticDescriptors, 'energy/descriptors',
                                          RELIABLE_QOS)
         self.dropped = 0
@@ -208,11 +208,17 @@ class EnergyMonitorNode(Node):
 
     def _add_battery(self, msg: BatteryState) -> list[Descriptors]:
         raw = self._restamp('battery_state', battery_from_msg(msg))
-        if abs(raw.voltage_v) > MILLI_THRESHOLD:   # millivolts (no pack reaches 1000 V)
-            raw = dataclasses.replace(raw, voltage_v=1e-3 * raw.voltage_v)
-            if not self._millivolts:
-                self._millivolts = True
-                self.get_logger().warning('battery_state voltage in millivolts: divided by 1000')
+        if self._milli is None and (abs(raw.voltage_v) > MILLI_THRESHOLD or
+                                    abs(raw.current_a) > MILLI_THRESHOLD):
+            # milli-units (no pack reaches 1000 V or draws 1000 A), decided on the first such
+            # sample as the offline reader decides on the run (hexapod_common.battery)
+            self._milli = milli_factors(raw.voltage_v, raw.current_a)
+            what = ' and '.join(x for x, f in zip(('voltage', 'current'), self._milli)
+                                if f != 1.0)
+            self.get_logger().warning(f'battery_state {what} in milli-units: divided by 1000')
+        if self._milli is not None and self._milli != (1.0, 1.0):
+            raw = dataclasses.replace(raw, voltage_v=self._milli[0] * raw.voltage_v,
+                                      current_a=self._milli[1] * raw.current_a)
         sample = self.batteries.add(raw)
         for note in self.batteries.notes[self._battery_notes:]:
             self.get_logger().warning(note)

@@ -181,18 +181,25 @@ def test_battery_in_millivolts(tmp_path):
         if topic == '/battery_state':
             msg.voltage *= 1000.0
 
+    def milliamps_too(topic, msg):  # the same driver's current in mA (under 1 A: < 1000)
+        if topic == '/battery_state':
+            msg.voltage *= 1000.0
+            msg.current *= 1000.0
+
     write_two_battery_robot_bag(tmp_path / 'v', logic_w=0.0)
     rewrite_bag(tmp_path / 'v', tmp_path / 'mv', millivolts)
+    rewrite_bag(tmp_path / 'v', tmp_path / 'mvma', milliamps_too)
     got = {}
-    for name in ('v', 'mv'):
+    for name in ('v', 'mv', 'mvma'):
         with ros_env('outside_mv') as env:
             node = EnergyMonitorNode(context=env.context, parameter_overrides=[
                 Parameter('current_sign', value='ros'), Parameter('mass', value=2.0)])
             env.nodes.append(node)
             got[name] = [m.power_in for m in
                          run_offline([node], str(tmp_path / name))['/energy/descriptors']]
-    assert len(got['mv']) == len(got['v']) >= 10
+    assert len(got['mv']) == len(got['v']) == len(got['mvma']) >= 10
     np.testing.assert_allclose(got['mv'], got['v'], rtol=1e-9)
+    np.testing.assert_allclose(got['mvma'], got['v'], rtol=1e-6)
 
 
 @pytest.mark.timeout(90)

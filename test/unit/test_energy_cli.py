@@ -192,4 +192,25 @@ def test_a_bad_robot_bag_does_not_lose_the_others(bags, tmp_path, capsys) -> Non
     assert f['bag'] == str(bad) and f['error']
     assert f'refused {bad}' in capsys.readouterr().err
     code = main(['--robot', str(bad), '--out', str(tmp_path / 'p'), '--no-progress'])
+    err = capsys.readouterr().err
+    # a lone bag's refusal is said once, on one line
+    assert code == 2 and f['error'] in err and len(err.strip().splitlines()) == 1
+    code = main(['--robot', str(bad), str(bad), '--out', str(tmp_path / 'q'), '--no-progress'])
     assert code == 2 and 'every robot bag was refused' in capsys.readouterr().err
+
+
+def test_default_robot_mass_is_said(bags, tmp_path):
+    """Without --robot-mass, AntBot's mass is assumed with a warning (another robot's CoT/M and
+    specific resistance scale with it: a 3.4 kg quadruped read +56 % with no word)."""
+    root, _ = bags
+    assert main(['--robot', str(root / 'robot0'), '--out', str(tmp_path / 'a'),
+                 '--no-progress']) == 0
+    doc = json.loads((tmp_path / 'a' / 'energy.json').read_text())
+    assert any('robot mass not given' in w for w in doc['warnings'])
+    assert doc['robot_runs'][0]['mass_kg'] == pytest.approx(2.183)
+    assert main(['--robot', str(root / 'robot0'), '--robot-mass', '3.0', '--out',
+                 str(tmp_path / 'b'), '--no-progress']) == 0
+    doc = json.loads((tmp_path / 'b' / 'energy.json').read_text())
+    assert not any('robot mass not given' in w for w in doc.get('warnings', []))
+    assert main(['--robot', str(root / 'robot0'), '--robot-mass', '-1', '--out',
+                 str(tmp_path / 'c'), '--no-progress']) == 2

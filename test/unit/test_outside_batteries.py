@@ -162,7 +162,7 @@ def test_millivolts_and_milliamps_are_scaled(tmp_path):
     v = [BatterySample(0.01 * k, 12.0, -2.5, 0.0, 'pack') for k in range(50)]
     mv = [BatterySample(s.t_s, 12000.0, -2500.0, 0.0, 'pack') for s in v]
     out, notes = prepare_battery_samples(mv)
-    assert out == v and 'voltage and current in milli-units (median 12000)' in notes[0]
+    assert out == v and 'voltage and current in milli-units (median 12000 and 2500)' in notes[0]
     out, notes = prepare_battery_samples(v)
     assert out == v and notes == []
     from test_outside_slow_sensors import _write_slow_battery_robot
