@@ -61,7 +61,8 @@ the joints), else the run has no prediction and is left out of ``prediction_erro
                       "power_out_model_w", "efficiency", "speed" [m/s],
                       "cost_of_transport" [J/m], "specific_cost_of_transport" [J/(m kg)],
                       "specific_resistance", "cycle_source" ("gait_phase" | "joints"),
-                      "speed_source" (mocap | odometry | gait_schedule | given | none),
+                      "speed_source" (mocap | odometry | odometry_twist | gait_schedule |
+                      given | none),
                       "notes" [str] (this run's input fallbacks),
                       "segment": {"index", "of", "t_start_s", "t_end_s"} (a bag whose
                       /gait/phase changes walking schedule gives one run per schedule;
