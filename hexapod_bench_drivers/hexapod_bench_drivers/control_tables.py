@@ -107,6 +107,10 @@ __all__ = [
     'ERROR_INPUT_VOLTAGE',
     'ERROR_OVERHEATING',
     'ERROR_OVERLOAD',
+    'EXTENDED_POSITION_LIMIT',
+    'GOAL_POSITION_MODES',
+    'MULTI_TURN_MODES',
+    'OPERATING_MODES',
     'decode_error_flags',
     'known_model_names',
     'table_by_name',
@@ -140,6 +144,16 @@ P2_STATUS_ERRORS: Mapping[int, str] = MappingProxyType({
 ERROR_INPUT_VOLTAGE = 1 << 0
 ERROR_OVERHEATING = 1 << 2
 ERROR_OVERLOAD = 1 << 5
+
+#: Protocol 2.0 Operating Mode (register 11, X series and MX(2.0)) values and their names
+OPERATING_MODES = {0: 'current control', 1: 'velocity control', 3: 'position control',
+                   4: 'extended position control (multi-turn)',
+                   5: 'current-based position control', 16: 'PWM control'}
+#: modes that follow Goal Position; the others (current, velocity, PWM) ignore it
+GOAL_POSITION_MODES = frozenset({3, 4, 5})
+#: modes whose Goal Position spans several turns, +-EXTENDED_POSITION_LIMIT ticks
+MULTI_TURN_MODES = frozenset({4, 5})
+EXTENDED_POSITION_LIMIT = 1_048_575
 
 
 @dataclass(frozen=True)
@@ -431,9 +445,12 @@ class ControlTable:
         """Present/Goal Position ticks -> rad about the centre tick."""
         return (int(ticks) - self.center_tick) * self.rad_per_tick
 
-    def rad_to_position(self, rad: float) -> int:
-        """rad -> Goal Position ticks, rounded and clipped to the model's range."""
+    def rad_to_position(self, rad: float, *, multi_turn: bool = False) -> int:
+        """rad -> Goal Position ticks, rounded and clipped to the model's range (one turn), or
+        with ``multi_turn`` (Operating Mode 4 or 5) to +-EXTENDED_POSITION_LIMIT."""
         tick = int(round(rad / self.rad_per_tick)) + self.center_tick
+        if multi_turn:
+            return min(max(tick, -EXTENDED_POSITION_LIMIT), EXTENDED_POSITION_LIMIT)
         return min(max(tick, 0), self.max_tick)
 
     @property

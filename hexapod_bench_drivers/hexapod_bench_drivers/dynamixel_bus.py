@@ -86,6 +86,9 @@ from dynamixel_sdk.robotis_def import COMM_RX_CORRUPT, COMM_RX_TIMEOUT, COMM_SUC
 
 from hexapod_bench_drivers.control_tables import (
     ERROR_OVERHEATING,
+    GOAL_POSITION_MODES,
+    MULTI_TURN_MODES,
+    OPERATING_MODES,
     ControlTable,
     ControlTableError,
     decode_error_flags,
@@ -615,6 +618,7 @@ class DynamixelBus:
                 return False
             if not self._read_status_return_level(s):
                 return False
+            self._read_operating_mode(s)
             s.refusal = ''
             s.health.model = s.table.model_name
             s.health.silent = False
@@ -662,6 +666,30 @@ class DynamixelBus:
                 'does not acknowledge writes, so torque writes are checked by reading back')
         s.health.status_return_level = level
         return True
+
+    def _read_operating_mode(self, s: _Servo) -> None:
+        """Protocol 2.0 Operating Mode: multi-turn goals, or goals refused (see module doc)."""
+        assert s.table is not None
+        if 'operating_mode' not in s.table.registers:
+            return
+        reg = s.table.reg('operating_mode')
+        data, _ = self._read_settled(s, reg.address, 1)
+        if data is None:
+            self.notes.append(f'{s.joint.name} (id {s.joint.servo_id}): Operating Mode not '
+                              'read; goals limited to one turn (position mode)')
+            return
+        mode = int(data[0])
+        s.health.operating_mode = mode
+        if mode in GOAL_POSITION_MODES:
+            s.command_refusal = ''
+            return
+        label = OPERATING_MODES.get(mode, 'unknown mode')
+        s.command_refusal = (
+            f'Operating Mode {mode} ({label}) ignores Goal Position: its goals and torque on are '
+            f'refused; set Operating Mode (register {reg.address}) to 3 (position) or 4 '
+            '(extended position), e.g. with Dynamixel Wizard: this driver never writes '
+            'configuration registers')
+        self.notes.append(f'{s.joint.name} (id {s.joint.servo_id}): {s.command_refusal}')
 
     @property
     def refused(self) -> dict[str, str]:
@@ -890,6 +918,10 @@ class DynamixelBus:
             if s.table is None:
                 out[name] = False
                 continue
+            if enabled and s.command_refusal:
+                s.health.torque_error = s.command_refusal
+                out[name] = False
+                continue
             ok = False
             s.health.torque_error = ''
             for k in range(1 + self.retries):
@@ -947,7 +979,9 @@ class DynamixelBus:
                     speeds_rad_s: Mapping[str, float] | None = None) -> int:
         """Sync Write goal positions (joint frame) and, if given, moving speeds; 0 if aborted.
 
-        Unknown names and non-finite values are skipped. A speed of 0 means 'as fast as
+        Unknown names, non-finite values and servos whose commands are refused (Operating
+        Mode, see :attr:`refused`) are skipped. Goals are clipped to one turn, or to
+        +-1 048 575 ticks in the multi-turn modes 4 and 5. A speed of 0 means 'as fast as
         possible' (the servos' own convention). Returns the number of servos written.
         """
         if self.aborted:
@@ -956,10 +990,13 @@ class DynamixelBus:
         count = 0
         for name, target in positions_rad.items():
             s = self._by_name.get(name)
-            if s is None or s.table is None or not math.isfinite(target):
+            if (s is None or s.table is None or s.command_refusal
+                    or not math.isfinite(target)):
                 continue
             t = s.table
-            goal = t.encode('goal_position', t.rad_to_position(s.joint.to_servo(target)))
+            multi_turn = s.health.operating_mode in MULTI_TURN_MODES
+            goal = t.encode('goal_position',
+                            t.rad_to_position(s.joint.to_servo(target), multi_turn=multi_turn))
             speed = None if speeds_rad_s is None else speeds_rad_s.get(name)
             if speed is not None and math.isfinite(speed):
                 start, length = t.goal_block

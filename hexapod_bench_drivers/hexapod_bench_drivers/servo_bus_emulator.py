@@ -26,6 +26,9 @@ Physics: :class:`hexapod_bench_drivers.servo_model.ServoModel` when importable (
 electromechanical model), else :class:`FirstOrderServo`, a first-order stand-in. Either sits
 behind :class:`ServoPhysics`. Moving Speed / Profile Velocity limit the goal the physics tracks.
 
+Operating Mode (Protocol 2.0): in modes 0, 1 and 16 (current, velocity, PWM) a servo ignores
+Goal Position (it holds where it is); in modes 4 and 5 positions span +-1 048 575 ticks.
+
 Models: every ControlTable of :mod:`hexapod_bench_drivers.control_tables` (AX-12A/18A/12W and
 MX-28/64/106 on Protocol 1.0; MX(2.0), XL430, XM430, XH430, XC430, XM540, XL330 on 2.0), mixed
 models on one bus allowed (:meth:`ServoBusEmulator.of_models`). Present Load or Present Current
@@ -59,6 +62,9 @@ import numpy as np
 from hexapod_bench_drivers.control_tables import (
     ERROR_INPUT_VOLTAGE,
     ERROR_OVERHEATING,
+    EXTENDED_POSITION_LIMIT,
+    GOAL_POSITION_MODES,
+    MULTI_TURN_MODES,
     MODELS_BY_NAME,
     ControlTable,
     ControlTableError,
@@ -402,6 +408,7 @@ class _Group:
         self.r_moving = r['moving']
         self.r_shutdown = r['shutdown']
         self.r_hw = r.get('hardware_error_status')
+        self.r_mode = r.get('operating_mode')   # Protocol 2.0
         self.r_p1_current = r.get('current')   # MX-64/MX-106 on Protocol 1.0 (2048 = 0 A)
 
     def step(self, dt_s: float, supply_voltage_v: float) -> None:
@@ -416,6 +423,17 @@ class _Group:
         phys.moving_speed_rad_s = limits * t.velocity_unit_rad_s
         goal = (np.array([_get(m, self.r_goal) for m in mems], dtype=float)
                 - t.center_tick) * t.rad_per_tick
+        lo, hi = np.zeros(len(mems)), np.full(len(mems), float(t.max_tick))
+        if self.r_mode is not None:
+            # Operating Mode: velocity, current and PWM modes ignore Goal Position (here the
+            # servo holds where it is); modes 4 and 5 span several turns.
+            modes = [_get(m, self.r_mode) for m in mems]
+            here = (np.array([_get(m, self.r_pos) for m in mems], dtype=float)
+                    - t.center_tick) * t.rad_per_tick
+            goal = np.where([md in GOAL_POSITION_MODES for md in modes], goal, here)
+            multi = np.array([md in MULTI_TURN_MODES for md in modes])
+            lo = np.where(multi, -EXTENDED_POSITION_LIMIT, lo)
+            hi = np.where(multi, EXTENDED_POSITION_LIMIT, hi)
         torque = np.array([s.external_torque_nm for s in self.servos])
         out = phys.step(dt_s, goal, torque, supply_voltage_v)
         errors = getattr(out, 'error', None)
@@ -423,7 +441,7 @@ class _Group:
                   if errors is not None else [0] * len(mems))
         # Raw register values for all servos at once; the loop below only stores them.
         pos = np.clip(np.rint(np.asarray(out.position_rad) / t.rad_per_tick) + t.center_tick,
-                      0, t.max_tick).astype(int).tolist()
+                      lo, hi).astype(int).tolist()
         vel = np.asarray(out.velocity_rad_s, dtype=float)
         vel_units = np.rint(np.abs(vel) / t.velocity_unit_rad_s).astype(int)
         load = np.asarray(out.load_fraction, dtype=float)

@@ -361,3 +361,39 @@ def test_torque_on_refused_by_a_servo_in_hardware_error_shutdown(model, protocol
         emu.clear_faults(1)
         assert bus.set_torque(True) == {'j1': True, 'j2': True}
         assert bus.health()[0].torque_error == ''
+
+
+def test_operating_mode_multi_turn_goals_and_goal_ignoring_modes_refused():
+    """XL430 in Extended Position mode (4) one turn past centre (6144 ticks): holding the
+    angle read commands 6144 (before: clipped to 4095, a turn back). A servo in velocity mode
+    (1) ignores Goal Position: it is still read, but its goals and torque on are refused, named
+    (before: written and silently ignored)."""
+    from hexapod_bench_drivers.control_tables import XL430
+    from hexapod_bench_drivers.servo_bus_emulator import EmulatedServo
+
+    servos = [EmulatedServo(i, XL430) for i in (1, 2, 3)]
+    servos[0].set('operating_mode', 4)
+    servos[0].set('goal_position', 6144)
+    servos[0].set('present_position', 6144)
+    servos[1].set('operating_mode', 1)
+    with ServoBusEmulator(servos) as emu, \
+            DynamixelBus(emu.port_name, _joints(3), protocol=2, timeout_margin_ms=10.0) as bus:
+        assert [h.operating_mode for h in bus.health()] == [4, 1, 3]
+        assert list(bus.refused) == ['j2'] and 'Operating Mode 1 (velocity' in bus.refused['j2']
+        assert any('j2 (id 2): Operating Mode 1' in n for n in bus.take_notes())
+        result = bus.poll()
+        assert all(r.ok for r in result.readings)
+        assert_allclose(result.readings[0].position_rad, 2 * math.pi, atol=1e-9)
+        assert bus.set_torque(True) == {'j1': True, 'j2': False, 'j3': True}
+        assert 'ignores Goal Position' in bus.health()[1].torque_error
+        assert emu.read_register(2, 'torque_enable') == 0
+        # j2 has direction -1 and offset 0.1 (see _joints): its goal would be written if taken
+        assert bus.write_goals({'j1': result.readings[0].position_rad, 'j2': 0.5,
+                                'j3': 0.2}) == 2
+        bus.poll()
+        assert emu.read_register(1, 'goal_position') == 6144
+        assert emu.read_register(2, 'goal_position') == 2048
+        assert emu.read_register(3, 'goal_position') == 2048 + round(0.2 / (2 * math.pi / 4096))
+        bus.write_goals({'j1': 3 * 2 * math.pi})
+        bus.poll()
+        assert emu.read_register(1, 'goal_position') == 2048 + 3 * 4096
