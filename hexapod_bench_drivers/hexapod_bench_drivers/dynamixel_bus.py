@@ -893,11 +893,21 @@ class DynamixelBus:
                                          if n not in {r.name for r in hot}]
         self.set_torque(False, order)
         self.aborted = True
-        self.abort_reason = '; '.join(
-            f'{r.name} (id {r.servo_id}) at {r.temperature_c:.0f} degC, flags '
-            f'{list(decode_error_flags(self.protocol, r.error_flags))}' for r in hot) + (
-            f' > limit {self.temperature_limit_c:.0f} degC: torque off, aborted')
+        self.abort_reason = '; '.join(self._hot_reason(r) for r in hot) + (
+            ': torque off, aborted')
         return PollResult(readings, True, self.abort_reason)
+
+    def _hot_reason(self, r: ServoReading) -> str:
+        """Why ``r`` triggers the abort: above the limit, or the servo's overheating flag."""
+        why = []
+        if r.temperature_c > self.temperature_limit_c:
+            why.append(f'at {r.temperature_c:.0f} degC > limit {self.temperature_limit_c:.0f} '
+                       'degC')
+        if r.error_flags & ERROR_OVERHEATING:
+            why.append(f'reports overheating (flags '
+                       f'{list(decode_error_flags(self.protocol, r.error_flags))}) at '
+                       f'{r.temperature_c:.0f} degC (limit {self.temperature_limit_c:.0f} degC)')
+        return f'{r.name} (id {r.servo_id}) ' + ' and '.join(why)
 
     # --- writing ---------------------------------------------------------------------------
     def set_torque(self, enabled: bool, names: Iterable[str] | None = None) -> dict[str, bool]:

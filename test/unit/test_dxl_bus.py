@@ -397,3 +397,22 @@ def test_operating_mode_multi_turn_goals_and_goal_ignoring_modes_refused():
         bus.write_goals({'j1': 3 * 2 * math.pi})
         bus.poll()
         assert emu.read_register(1, 'goal_position') == 2048 + 3 * 4096
+
+
+def test_abort_reason_says_why():
+    """The overheating flag at 26 degC aborts too; the reason says the servo reports it, not
+    that 26 degC is above the 70 degC limit (it read "at 26 degC, flags ['overheating'] >
+    limit 70 degC")."""
+    with ServoBusEmulator.of_model('xl430', [1, 2]) as emu, \
+            DynamixelBus(emu.port_name, _joints(2), protocol=2, timeout_margin_ms=10.0) as bus:
+        bus.set_torque(True)
+        emu.inject(2, 'error_bits', error_bits=0x04)
+        result = bus.poll()
+        assert result.aborted_now
+        assert result.abort_reason == ("j2 (id 2) reports overheating (flags ['overheating']) "
+                                       'at 26 degC (limit 70 degC): torque off, aborted')
+    with ServoBusEmulator.of_model('xl430', [1, 2]) as emu, \
+            DynamixelBus(emu.port_name, _joints(2), protocol=2, timeout_margin_ms=10.0,
+                         temperature_limit_c=60.0) as bus:
+        emu.inject(1, 'overheat', temperature_c=61)
+        assert bus.poll().abort_reason == 'j1 (id 1) at 61 degC > limit 60 degC: torque off, aborted'
