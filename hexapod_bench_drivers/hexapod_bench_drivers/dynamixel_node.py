@@ -11,7 +11,13 @@ Topics (relative names, so a namespace applies):
   Write; with ``use_command_velocity`` the |velocity| becomes the moving speed. Names not on
   this bus are ignored.
 - service ``set_torque`` (std_srvs/SetBool): torque on/off for every servo; turning torque on
-  also clears a temperature abort once all servos are below the limit.
+  also clears a temperature abort once all servos are below the limit. Servos the bus refused
+  (unknown model, Status Return Level 0, an Operating Mode that ignores goals) do not make it
+  fail; the message names them, and the servo's own reason when torque on fails.
+
+/diagnostics: ERROR for a servo left out (with the refusal), silent, or when aborted; WARN for
+a servo whose commands are refused (its mode), which refused torque on (hardware error) or
+reports hardware error flags; OK otherwise.
 
 On shutdown, torque is turned off (``shutdown_action: torque_off``) or left on (``hold``).
 All bus logic lives in :class:`hexapod_bench_drivers.dynamixel_bus.DynamixelBus`.
@@ -103,11 +109,13 @@ class DynamixelDriverNode(Node):
         for note in self.bus.take_notes():
             self.get_logger().warning(note)
         if p.torque_on_start:
-            refused = {s.joint.name for s in self.bus.servos if s.refusal}
+            refused = self.bus.refused
             failed = [n for n, ok in self.bus.set_torque(True).items()
                       if not ok and n not in refused]
             if failed:
                 self.get_logger().error(f'torque on failed for {failed}')
+            for note in self.bus.take_notes():
+                self.get_logger().warning(note)
         self.pub_joints = self.create_publisher(JointState, 'joint_states', RELIABLE_QOS)
         self.pub_status = self.create_publisher(ServoStatus, 'servo_status', RELIABLE_QOS)
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', RELIABLE_QOS)
@@ -132,11 +140,17 @@ class DynamixelDriverNode(Node):
             self.get_logger().warning(f'joint_commands dropped: {err}')
 
     def _on_set_torque(self, request: Any, response: Any) -> Any:
+        refused = self.bus.refused
         results = self.bus.set_torque(bool(request.data))
-        failed = [n for n, ok in results.items() if not ok]
+        failed = [n for n, ok in results.items() if not ok and n not in refused]
         response.success = not failed
+        why = {h.servo_id: h.torque_error for h in self.bus.health() if h.torque_error}
+        reasons = [f'{s.joint.name}: {why[s.joint.servo_id]}' for s in self.bus.servos
+                   if s.joint.name in failed and s.joint.servo_id in why]
         response.message = ('torque ' + ('on' if request.data else 'off')
-                            + (f'; failed for {failed}' if failed else ''))
+                            + (f'; failed for {failed}' if failed else '')
+                            + ''.join(f'; {r}' for r in reasons)
+                            + (f'; left out (refused): {sorted(refused)}' if refused else ''))
         if request.data and self.bus.aborted:
             response.message += f'; still aborted: {self.bus.abort_reason}'
         return response
@@ -184,15 +198,23 @@ class DynamixelDriverNode(Node):
         self.pub_diag.publish(arr)
 
     def _servo_diagnostic(self, h: ServoHealth) -> DiagnosticStatus:
-        name = next(s.joint.name for s in self.bus.servos if s.joint.servo_id == h.servo_id)
+        servo = next(s for s in self.bus.servos if s.joint.servo_id == h.servo_id)
+        name = servo.joint.name
         d = DiagnosticStatus()
         d.name = f'{self.get_name()}: {name}'
         d.hardware_id = f'dynamixel id {h.servo_id}'
         flags = decode_error_flags(self.bus.protocol, h.last_error_flags)
         if self.bus.aborted:
             d.level, d.message = DiagnosticStatus.ERROR, f'aborted: {self.bus.abort_reason}'
+        elif servo.refusal:
+            d.level, d.message = DiagnosticStatus.ERROR, f'left out: {servo.refusal}'
         elif h.silent:
             d.level, d.message = DiagnosticStatus.ERROR, 'silent: no reply'
+        elif servo.command_refusal:
+            d.level = DiagnosticStatus.WARN
+            d.message = f'read only, commands refused: {servo.command_refusal}'
+        elif h.torque_error:
+            d.level, d.message = DiagnosticStatus.WARN, h.torque_error
         elif flags:
             d.level, d.message = DiagnosticStatus.WARN, 'hardware error: ' + ', '.join(flags)
         else:
@@ -202,7 +224,7 @@ class DynamixelDriverNode(Node):
                   'error_replies': h.error_replies, 'error_flags': h.last_error_flags,
                   'torque_enabled': h.torque_enabled,
                   'status_return_level': h.status_return_level,
-                  'late_replies': h.late_replies,
+                  'late_replies': h.late_replies, 'operating_mode': h.operating_mode,
                   'reply_margin_ms': f'{self.bus.reply_margin_ms:.0f}'}
         d.values = [KeyValue(key=k, value=str(v)) for k, v in values.items()]
         return d

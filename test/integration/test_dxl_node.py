@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from harness import Collector, ros_env
 from hexapod_interfaces.msg import ServoStatus
 from numpy.testing import assert_allclose
@@ -101,3 +101,45 @@ def test_torque_service_silent_servo_and_overheat_diagnostics(tmp_path):
         values = {kv.key: kv.value for s in diags.messages[-1].status
                   if s.name.endswith(silent) for kv in s.values}
         assert int(values['timeouts']) >= 3 and values['model'] == 'AX-18A'
+
+
+@pytest.mark.timeout(90)
+def test_refused_servos_in_diagnostics_and_the_torque_service(tmp_path):
+    """Two XM430s, an unknown model (350, as an XL-320 reports), a servo at Status Return
+    Level 0 and one in velocity mode. Diagnostics: ERROR 'left out' with the refusal for the
+    first two, WARN naming the mode for the third (all read 'ok' before); the torque service
+    succeeds for the usable servos and names the refused ones (it could never succeed)."""
+    import dataclasses
+
+    from hexapod_bench_drivers.control_tables import XM430
+    from hexapod_bench_drivers.servo_bus_emulator import EmulatedServo
+
+    servos = [EmulatedServo(i, XM430) for i in (1, 2, 4, 5)]
+    servos.insert(2, EmulatedServo(3, dataclasses.replace(XM430, model_name='XL-320',
+                                                           model_number=350)))
+    servos[3].set('status_return_level', 0)
+    servos[4].set('operating_mode', 1)
+    names = ['a', 'b', 'c', 'd', 'e']
+    joints = tmp_path / 'joints.yaml'
+    joints.write_text('joints:\n' + ''.join(f'  {n}: {{id: {i}}}\n'
+                                            for i, n in enumerate(names, 1)))
+    with ServoBusEmulator(servos) as emu, ros_env('dxl') as env:
+        node = _node(env, emu, str(joints), 2, torque_on_start=False, diagnostics_period_s=0.1)
+        diags = Collector(env, DiagnosticArray, '/diagnostics')
+        diags.wait_for(env, 1)
+        status = {s.name.split(': ')[-1]: s for s in diags.messages[-1].status}
+        levels = {n: status[n].level for n in names}
+        assert levels == {'a': DiagnosticStatus.OK, 'b': DiagnosticStatus.OK,
+                          'c': DiagnosticStatus.ERROR, 'd': DiagnosticStatus.ERROR,
+                          'e': DiagnosticStatus.WARN}
+        assert status['c'].message.startswith('left out: unknown Dynamixel model number 350')
+        assert 'Status Return Level is 0' in status['d'].message
+        assert 'Operating Mode 1 (velocity control)' in status['e'].message
+
+        client = node.create_client(SetBool, 'set_torque')
+        fut = client.call_async(SetBool.Request(data=True))
+        env.executor.spin_until_future_complete(fut, timeout_sec=10.0)
+        assert fut.done() and fut.result().success
+        assert "left out (refused): ['c', 'd', 'e']" in fut.result().message
+        assert [emu.read_register(i, 'torque_enable') for i in (1, 2, 3, 4, 5)] == [1, 1, 0,
+                                                                                      0, 0]

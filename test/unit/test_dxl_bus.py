@@ -415,4 +415,5 @@ def test_abort_reason_says_why():
             DynamixelBus(emu.port_name, _joints(2), protocol=2, timeout_margin_ms=10.0,
                          temperature_limit_c=60.0) as bus:
         emu.inject(1, 'overheat', temperature_c=61)
-        assert bus.poll().abort_reason == 'j1 (id 1) at 61 degC > limit 60 degC: torque off, aborted'
+        assert bus.poll().abort_reason == ('j1 (id 1) at 61 degC > limit 60 degC: torque off, '
+                                           'aborted')
