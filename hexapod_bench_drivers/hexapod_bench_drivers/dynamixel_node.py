@@ -51,38 +51,58 @@ def _positive(v: float) -> str | None:
     return None if v > 0 else 'expected > 0'
 
 
+def _temperature_limit(v: float) -> str | None:
+    return None if 0 < v <= 100 else 'expected a limit in (0, 100] degC'
+
+
+#: the start-up reading of a parameter that is not applied at run time: read only, so a
+#: run-time change is refused with the reason instead of accepted and ignored
+_START = {'read_only': True}
+
+
 @dataclass(frozen=True)
 class DynamixelDriverParams:
-    """Parameters of the dynamixel_driver node."""
+    """Parameters of the dynamixel_driver node.
 
-    port: str = param('/dev/ttyUSB0', 'Serial device of the bus (or the emulator pty).')
-    baud_rate: int = param(1_000_000, 'Baud rate, one of the dynamixel_sdk rates.')
+    Applied at run time: ``temperature_limit_c`` (the bus's safety limit, at once),
+    ``shutdown_action``, ``use_command_velocity``, ``frame_id``. The others configure the bus
+    and timers when the node starts and are read only.
+    """
+
+    port: str = param('/dev/ttyUSB0', 'Serial device of the bus (or the emulator pty).',
+                      **_START)
+    baud_rate: int = param(1_000_000, 'Baud rate, one of the dynamixel_sdk rates.', **_START)
     protocol: int = param(1, 'Dynamixel protocol: 1 (AX series, MX on Protocol 1.0 firmware) '
                           'or 2 (X series, MX(2.0)); models are detected by ping '
                           '(control_tables.ALL_MODELS).',
-                          validate=lambda v: None if v in (1, 2) else 'expected 1 or 2')
+                          validate=lambda v: None if v in (1, 2) else 'expected 1 or 2',
+                          **_START)
     joints_file: str = param('', 'YAML joint map: joints: {name: {id, direction, offset_rad}}.',
-                             validate=lambda v: None if v else 'expected a YAML file path')
-    rate_hz: float = param(100.0, 'Read/publish rate [Hz].', validate=_positive)
+                             validate=lambda v: None if v else 'expected a YAML file path',
+                             **_START)
+    rate_hz: float = param(100.0, 'Read/publish rate [Hz].', validate=_positive, **_START)
     timeout_margin_ms: float = param(
         5.0, 'Reply deadline beyond the bytes on the wire [ms]; raised at start to cover the '
         'round trips and a USB latency timer, and by late replies (at most 60 ms).',
-        validate=_positive)
+        validate=_positive, **_START)
     retries: int = param(1, 'Extra attempts for a failed read or torque write.',
-                         validate=lambda v: None if v >= 0 else 'expected >= 0')
+                         validate=lambda v: None if v >= 0 else 'expected >= 0', **_START)
     silent_after: int = param(3, 'Failed cycles in a row before a servo is declared silent.',
-                              validate=lambda v: None if v >= 1 else 'expected >= 1')
+                              validate=lambda v: None if v >= 1 else 'expected >= 1', **_START)
     probe_interval_s: float = param(1.0, 'A silent servo is tried again this often [s].',
-                                    validate=_positive)
-    temperature_limit_c: float = param(70.0, 'Above it: torque off on all servos, abort [degC].')
+                                    validate=_positive, **_START)
+    temperature_limit_c: float = param(
+        70.0, 'Above it: torque off on all servos, abort [degC]; a run-time change applies '
+        'from the next read cycle.', validate=_temperature_limit)
     shutdown_action: str = param(
         'torque_off', 'On shutdown: torque_off, or hold (leave torque on).',
         validate=lambda v: None if v in ('torque_off', 'hold') else 'expected torque_off or hold')
-    torque_on_start: bool = param(True, 'Turn torque on when the node starts.')
+    torque_on_start: bool = param(True, 'Turn torque on when the node starts.', **_START)
     use_command_velocity: bool = param(
         False, 'Use |joint_commands.velocity| as moving speed (0 = as fast as possible).')
     frame_id: str = param('', 'header.frame_id of the published messages.')
-    diagnostics_period_s: float = param(1.0, 'Period of /diagnostics [s].', validate=_positive)
+    diagnostics_period_s: float = param(1.0, 'Period of /diagnostics [s].', validate=_positive,
+                                        **_START)
 
 
 class DynamixelDriverNode(Node):
@@ -92,7 +112,7 @@ class DynamixelDriverNode(Node):
                  namespace: str | None = None, **kw: Any) -> None:
         super().__init__('dynamixel_driver', context=context,
                          parameter_overrides=parameter_overrides, namespace=namespace, **kw)
-        p = self.params = declare_params(self, DynamixelDriverParams)
+        p = self.params = declare_params(self, DynamixelDriverParams, on_change=self._on_change)
         self.bus = DynamixelBus(
             p.port, load_joint_map(p.joints_file), protocol=p.protocol, baud_rate=p.baud_rate,
             timeout_margin_ms=p.timeout_margin_ms, retries=p.retries,
@@ -127,6 +147,14 @@ class DynamixelDriverNode(Node):
         self.create_timer(p.diagnostics_period_s, self._publish_diagnostics)
 
     # --- callbacks -------------------------------------------------------------------------
+    def _on_change(self, new: DynamixelDriverParams) -> str | None:
+        """Apply an accepted run-time change (the others are read only)."""
+        bus = getattr(self, 'bus', None)   # None while the node is being built
+        if bus is not None and new.temperature_limit_c != bus.temperature_limit_c:
+            bus.temperature_limit_c = new.temperature_limit_c
+            self.get_logger().warning(f'temperature limit now {new.temperature_limit_c:g} degC')
+        return None
+
     def _on_timer(self) -> None:
         self._publish(self.bus.poll())
         for note in self.bus.take_notes():

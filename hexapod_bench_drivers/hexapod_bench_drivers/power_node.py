@@ -38,7 +38,11 @@ BACKENDS = ('sim', 'ina226', 'ina219', 'scpi')
 
 @dataclass(frozen=True)
 class PowerMonitorParams:
-    """Parameters of the power_monitor node."""
+    """Parameters of the power_monitor node.
+
+    ``frame_id`` and ``zero_offset_samples`` apply at run time; the others (backend, rate,
+    bus settings) are read when the node starts and are read only.
+    """
 
     backend: str = param(
         'sim', 'sim, ina226, ina219 or scpi.',
@@ -55,8 +59,9 @@ class PowerMonitorParams:
     sim_current_a: float = param(1.0, 'sim backend: drawn current [A].')
     sim_noise_a: float = param(0.0, 'sim backend: current noise, standard deviation [A].')
     zero_offset_samples: int = param(0, 'Readings averaged into the zero-current offset at '
-                                        'start (0 = no calibration).')
-    frame_id: str = param('', 'header.frame_id of battery_state.')
+                                        'start (0 = no calibration); a run-time change applies '
+                                        'to the next calibrate_zero.', live=True)
+    frame_id: str = param('', 'header.frame_id of battery_state.', live=True)
 
 
 def make_backend(p: PowerMonitorParams) -> PowerBackend:

@@ -5,6 +5,9 @@ timer of the node clock (so ``use_sim_time`` and a ``/clock`` publisher drive th
 drivers' topics: ``/joint_states``, ``/servo_status`` (every ``status_every`` ticks),
 ``/battery_state`` (ROS sign), and for the bench ``/bench/ground_force``, ``/bench/leg_tip`` and
 ``/bench/session`` (latched). The physics is in ``sim_live`` (core); callbacks are one line.
+
+Parameters configure the simulation when the node starts and are read only, except
+``status_every`` (applies at once).
 """
 
 from __future__ import annotations
@@ -58,7 +61,8 @@ class RobotNodeParams:
     battery: bool = param(False, 'true: 3S LiPo; false: 11.9 V lab supply')
     servo: str = param('ax18a', 'servo preset: ax18a, ax12a, xl430, xm430')
     rate: float = param(100.0, 'publish rate [Hz]', validate=_positive)
-    status_every: int = param(10, 'publish /servo_status every N ticks', validate=_positive)
+    status_every: int = param(10, 'publish /servo_status every N ticks', validate=_positive,
+                              live=True)
     effects: tuple[str, ...] = param(('sensor_noise=1',), 'named effects NAME=VALUE',
                                      validate=_effects_ok)
     seed: int = param(0, 'noise seed')
@@ -71,7 +75,8 @@ class BenchNodeParams:
                         validate=lambda x: None if x >= 0 else 'must be >= 0')
     servo: str = param('ax18a', 'servo preset')
     rate: float = param(100.0, 'publish rate [Hz]', validate=_positive)
-    status_every: int = param(10, 'publish /servo_status every N ticks', validate=_positive)
+    status_every: int = param(10, 'publish /servo_status every N ticks', validate=_positive,
+                              live=True)
     effects: tuple[str, ...] = param(('sensor_noise=1',), 'named effects NAME=VALUE',
                                      validate=_effects_ok)
     seed: int = param(0, 'noise seed')

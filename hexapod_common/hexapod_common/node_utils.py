@@ -4,11 +4,22 @@ Parameters are declared from one frozen dataclass per node. Each field becomes a
 whose type is the field's type, whose description comes from ``field(metadata={'description':
 ...})`` and whose optional validator (``metadata={'validate': callable}``) runs both at start-up
 and on run-time changes, so a bad value is refused with its reason.
+
+A float parameter (or every element of a float list) must be finite unless its field says
+``finite=False`` (a NaN that means "off"): NaN compares false, so a NaN limit is never reached.
+
+Run-time changes: a parameter is writable only when a run-time change takes effect. That is a
+field declared ``live=True`` (the node reads ``node.params`` at every use), or any field not
+``read_only`` of a node that passes ``on_change`` to :func:`declare_params` (the handler applies
+the change). Every other parameter is read only, so ``ros2 param set`` is refused with a reason
+instead of answering ``successful`` and changing nothing.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
+import os
 import sys
 from collections.abc import Callable, Sequence
 from typing import Any, TypeVar
@@ -36,6 +47,9 @@ __all__ = [
 ]
 
 T = TypeVar('T')
+
+#: set to get the traceback of a start-up failure instead of its one-line summary
+DEBUG_ENV = 'HEXAPOD_DEBUG'
 
 #: Subscriptions to sensor streams: best effort matches both best-effort and reliable
 #: publishers (a reliable subscription would not connect to a best-effort driver); deep enough
@@ -65,12 +79,16 @@ LATCHED_QOS = QoSProfile(
 
 
 def param(default: Any, description: str, *, validate: Callable[[Any], str | None] | None = None,
-          read_only: bool = False) -> Any:
+          read_only: bool = False, live: bool = False, finite: bool = True) -> Any:
     """Declare one parameter field of a node's frozen dataclass.
 
     ``validate`` returns None when the value is fine, else the reason it is refused.
+    ``live``: a run-time change takes effect (the node reads ``node.params`` at each use);
+    without it, and without an ``on_change`` handler, the parameter is read only (module doc).
+    ``finite=False`` lets a float parameter be NaN or infinite.
     """
-    meta = {'description': description, 'validate': validate, 'read_only': read_only}
+    meta = {'description': description, 'validate': validate, 'read_only': read_only,
+            'live': live, 'finite': finite}
     if isinstance(default, (list, tuple)):
         return dataclasses.field(default_factory=lambda: type(default)(default), metadata=meta)
     return dataclasses.field(default=default, metadata=meta)
@@ -100,12 +118,21 @@ def _coerce(name: str, value: Any, default: Any) -> Any:
     return value
 
 
+def _not_finite(value: Any) -> str | None:
+    """Why a float (or float list) value is refused as not finite, else None."""
+    values = value if isinstance(value, (list, tuple)) else (value,)
+    bad = [v for v in values if isinstance(v, float) and not math.isfinite(v)]
+    return f'expected a finite number, got {bad[0]}' if bad else None
+
+
 def validate_params(cls: type[T], values: dict[str, Any]) -> T:
     """Build the frozen parameter dataclass from ``values``, running every validator."""
     kwargs = {}
     for fld in dataclasses.fields(cls):  # type: ignore[arg-type]
         default = _default_of(fld)
         value = _coerce(fld.name, values.get(fld.name, default), default)
+        if fld.metadata.get('finite', True) and (reason := _not_finite(value)):
+            raise ParameterError(f'parameter {fld.name!r} = {value!r} refused: {reason}')
         check = fld.metadata.get('validate')
         if check is not None and (reason := check(value)):
             raise ParameterError(f'parameter {fld.name!r} = {value!r} refused: {reason}')
@@ -123,18 +150,27 @@ def declare_params(node: Any, cls: type[T], *,
     """Declare every field of ``cls`` on ``node`` and read the values back into ``cls``.
 
     On a run-time change the new set is validated as a whole; ``on_change`` receives the new
-    dataclass and may refuse it by returning a reason. The accepted value is stored in
-    ``node.params``.
+    dataclass, applies it, or refuses it by returning a reason. The accepted value is stored in
+    ``node.params``. Without ``on_change`` only ``live`` fields are writable; with it, every
+    field not ``read_only`` (module doc). A start-up value of the wrong type raises
+    :class:`ParameterError`.
     """
+    from rclpy.exceptions import InvalidParameterTypeException
+
     values = {}
     for fld in dataclasses.fields(cls):  # type: ignore[arg-type]
         default = _default_of(fld)
+        writable = bool(fld.metadata.get('live', False)) or on_change is not None
         descriptor = ParameterDescriptor(
             description=fld.metadata.get('description', ''),
-            read_only=bool(fld.metadata.get('read_only', False)),
+            read_only=bool(fld.metadata.get('read_only', False)) or not writable,
         )
         declared = default if not isinstance(default, tuple) else list(default)
-        node.declare_parameter(fld.name, declared, descriptor)
+        try:
+            node.declare_parameter(fld.name, declared, descriptor)
+        except InvalidParameterTypeException as err:
+            raise ParameterError(f'parameter {fld.name!r} refused: '
+                                 f'{err.args[0] if err.args else err}') from err
         values[fld.name] = node.get_parameter(fld.name).value
     params = validate_params(cls, values)
     node.params = params
@@ -161,7 +197,9 @@ def run_node(node_factory: Callable[..., Any], args: Sequence[str] | None = None
     A node that has a ``finished`` attribute (an ``rclpy.task.Future``) is spun until that
     future is done, and its result is the exit code (a plan that ends, a replay that finishes).
 
-    A parameter error at start-up is printed as one line and gives exit code 2.
+    Any error while the node is built (a refused parameter, a missing file, a bus that does
+    not open) is printed as one line naming the node and the error and gives exit code 2;
+    with ``HEXAPOD_DEBUG=1`` the traceback is raised instead.
     """
     import rclpy
     from rclpy.executors import ExternalShutdownException
@@ -169,7 +207,18 @@ def run_node(node_factory: Callable[..., Any], args: Sequence[str] | None = None
     rclpy.init(args=args)
     node = None
     try:
-        node = node_factory()
+        try:
+            node = node_factory()
+        except (KeyboardInterrupt, ExternalShutdownException):
+            raise
+        except Exception as err:
+            if os.environ.get(DEBUG_ENV):
+                raise
+            what = str(err) if isinstance(err, ParameterError) else \
+                f'{type(err).__name__}: {err}'
+            print(f'{_program_name(node_factory)}: error: {what} (set {DEBUG_ENV}=1 for the '
+                  'traceback)', file=sys.stderr)
+            return 2
         finished = getattr(node, 'finished', None)
         if finished is None:
             rclpy.spin(node)
@@ -181,14 +230,19 @@ def run_node(node_factory: Callable[..., Any], args: Sequence[str] | None = None
                 return int(finished.result() or 0)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except ParameterError as err:
-        print(f'error: {err}', file=sys.stderr)
-        return 2
     finally:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
     return 0
+
+
+def _program_name(node_factory: Callable[..., Any]) -> str:
+    """The console script's name (``energy_monitor``), else the factory's."""
+    name = os.path.basename(sys.argv[0]) if sys.argv and sys.argv[0] else ''
+    if not name or name.endswith('.py') or name.startswith('-') or name == 'pytest':
+        name = getattr(node_factory, '__name__', 'node')
+    return name
 
 
 def mocap_msg_class(name: str) -> Any:

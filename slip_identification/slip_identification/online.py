@@ -148,6 +148,11 @@ class OnlineSlip:
         if world_frame is not None:
             self._frame = (math.inf, world_frame)
 
+    def set_model(self, model: SlipModel) -> None:
+        """Fit the stances from now on with ``model`` (e.g. another mass)."""
+        self.model = model
+        self.fitter = SlipFitter(model)
+
     def _trim(self, buf: deque, t: float) -> None:  # type: ignore[type-arg]
         while buf and buf[0][0] < t - self.buffer_s:
             buf.popleft()

@@ -41,6 +41,7 @@ from hexapod_common.node_utils import (
 )
 from hexapod_interfaces.msg import SlipFit
 
+from .errors import SlipError
 from .fit import SlipFitResult
 from .geometry import LegGeometry
 from .model import SlipModel
@@ -59,23 +60,46 @@ def _non_negative(v: float) -> str | None:
     return None if v >= 0 else 'must be >= 0'
 
 
+def _model_name(v: str) -> str | None:
+    try:
+        SlipModel.from_name(v)
+    except (SlipError, ValueError) as err:
+        return str(err)
+    return None
+
+
+def _box(v: list[float]) -> str | None:
+    if len(v) != 6:
+        return f'expected 6 values (x0 y0 z0 x1 y1 z1), got {len(v)}'
+    if not all(lo < hi for lo, hi in zip(v[:3], v[3:])):
+        return 'expected each lower corner value below the upper one'
+    return None
+
+
 @dataclass(frozen=True)
 class SlipParams:
-    mass: float = param(3.31, 'robot mass m [kg]', validate=_positive)
-    model: str = param('slip', "template: 'slip' or 'slip+leg_damping' etc.", read_only=True)
-    mocap_offset: float = param(0.0, 'seconds subtracted from mocap stamps (stream offset)')
+    mass: float = param(3.31, 'robot mass m [kg]; a run-time change applies to the next fits',
+                        validate=_positive)
+    model: str = param('slip', "template: 'slip' or 'slip+leg_damping' etc.",
+                       validate=_model_name, read_only=True)
+    mocap_offset: float = param(0.0, 'seconds subtracted from mocap stamps (stream offset)',
+                                read_only=True)
     margin: float = param(0.0, 'mocap needed after lift-off before fitting [s] (0: the '
-                          'first sample after lift-off)', validate=_non_negative)
+                          'first sample after lift-off); a run-time change applies at once',
+                          validate=_non_negative)
     box: list[float] = param([-1.0, -0.5, -0.5, 1.0, 0.5, 0.5],
                              'permissible box in the mocap frame x0 y0 z0 x1 y1 z1 [m]',
-                             read_only=True)
+                             validate=_box, read_only=True)
     ground: float = param(math.nan, 'ground height in the world frame [m] (e.g. an offline '
                           "analysis' ground_m); finite: geometric stance edges from the "
-                          "half-circle legs, NaN: the paper's clock edges", read_only=True)
+                          "half-circle legs, NaN: the paper's clock edges", read_only=True,
+                          finite=False)
     leg_radius: float = param(LegGeometry.leg_radius_m, 'arc radius R of the half-circle '
                               'leg [m] (geometric edges)', validate=_positive, read_only=True)
     hip_x: list[float] = param(list(LegGeometry.hip_x_m), 'hip x front, middle, rear from '
-                               'the COM [m] (geometric edges)', read_only=True)
+                               'the COM [m] (geometric edges)', read_only=True,
+                               validate=lambda v: None if len(v) == 3 else
+                               f'expected 3 values (front, middle, rear), got {len(v)}')
     hip_signs: list[float] = param(
         [1.0] * 6, 'sign of each hip angle, L1 L2 L3 R1 R2 R3 (-1: the motor is mounted '
         'mirrored and reports forward rotation negative; the offline slip analysis detects it '
@@ -123,12 +147,10 @@ class SlipFitterNode(Node):
                  namespace: str | None = None, **kw: Any) -> None:
         super().__init__('slip_fitter', context=context,
                          parameter_overrides=parameter_overrides, namespace=namespace, **kw)
-        p = declare_params(self, SlipParams)
+        p = declare_params(self, SlipParams, on_change=self._on_change)
         b = list(p.box)
         geo = None
         if math.isfinite(p.ground):
-            if len(p.hip_x) != 3:
-                raise ValueError(f'hip_x must have 3 values (front, middle, rear), got {p.hip_x}')
             geo = LegGeometry(hip_x_m=tuple(float(v) for v in p.hip_x),  # type: ignore[arg-type]
                               leg_radius_m=p.leg_radius)
         self.core = OnlineSlip(SlipModel.from_name(p.model, mass_kg=p.mass),
@@ -147,6 +169,15 @@ class SlipFitterNode(Node):
         self.received = 0
         self._notes_logged = 0
         self._clocks = LiveClockWatch()   # stamps against the node clock
+
+    def _on_change(self, new: SlipParams) -> str | None:
+        """Apply a run-time change of ``mass`` or ``margin`` (the others are read only)."""
+        core = getattr(self, 'core', None)   # None while the node is being built
+        if core is not None:
+            if new.mass != core.model.mass_kg:
+                core.set_model(SlipModel.from_name(new.model, mass_kg=new.mass))
+            core.margin_s = new.margin
+        return None
 
     def _guard(self, fn: Any, msg: Any) -> None:
         self.received += 1

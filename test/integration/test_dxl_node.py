@@ -143,3 +143,59 @@ def test_refused_servos_in_diagnostics_and_the_torque_service(tmp_path):
         assert "left out (refused): ['c', 'd', 'e']" in fut.result().message
         assert [emu.read_register(i, 'torque_enable') for i in (1, 2, 3, 4, 5)] == [1, 1, 0,
                                                                                       0, 0]
+
+
+def _set_parameter(env, node, name, value):
+    """One SetParameters request through the node's service, as ``ros2 param set`` sends it."""
+    from rcl_interfaces.srv import SetParameters
+
+    client = node.create_client(SetParameters, f'{node.get_fully_qualified_name()}'
+                                                '/set_parameters')
+    fut = client.call_async(SetParameters.Request(
+        parameters=[Parameter(name, value=value).to_parameter_msg()]))
+    env.executor.spin_until_future_complete(fut, timeout_sec=10.0)
+    assert fut.done()
+    node.destroy_client(client)
+    return fut.result().results[0]
+
+
+@pytest.mark.timeout(90)
+def test_run_time_temperature_limit_applies_and_bus_settings_are_read_only(tmp_path):
+    """temperature_limit_c set to 40 at run time stops a servo at 55 degC (the bus used to
+    keep 70); NaN is refused; settings the bus took at start-up are refused with a reason."""
+    names = NAMES[:3]
+    with ServoBusEmulator.of_model('ax18a', range(1, 4)) as emu, ros_env('dxl') as env:
+        node = _node(env, emu, _joint_file(tmp_path, names), 1)
+        states = Collector(env, JointState, 'joint_states')
+        states.wait_for(env, 5)
+        for name, value in [('rate_hz', 1.0), ('port', '/dev/null'), ('baud_rate', 57600),
+                            ('retries', 5), ('timeout_margin_ms', 50.0), ('silent_after', 9),
+                            ('probe_interval_s', 9.0), ('diagnostics_period_s', 9.0)]:
+            result = _set_parameter(env, node, name, value)
+            assert not result.successful and 'read-only' in result.reason, name
+        nan = _set_parameter(env, node, 'temperature_limit_c', float('nan'))
+        assert not nan.successful and 'finite' in nan.reason
+        assert node.bus.temperature_limit_c == 70.0
+        emu.inject(2, 'overheat', temperature_c=55)
+        n = len(states.messages)
+        assert env.spin_until(lambda: len(states.messages) >= n + 10, 30.0)
+        assert not node.bus.aborted                      # 55 degC is below the 70 degC limit
+        result = _set_parameter(env, node, 'temperature_limit_c', 40.0)
+        assert result.successful
+        assert node.bus.temperature_limit_c == 40.0
+        assert env.spin_until(lambda: node.bus.aborted, 30.0)
+        assert 'limit 40 degC' in node.bus.abort_reason
+        assert [emu.read_register(i, 'torque_enable') for i in (1, 2, 3)] == [0, 0, 0]
+
+
+@pytest.mark.parametrize('limit', [float('nan'), float('inf'), -5.0])
+def test_a_temperature_limit_that_can_never_fire_is_refused_at_start_up(limit):
+    from hexapod_common.errors import ParameterError
+    from hexapod_common.node_utils import params_from_overrides
+
+    from hexapod_bench_drivers.dynamixel_node import DynamixelDriverParams
+
+    with pytest.raises(ParameterError, match='temperature_limit_c'):
+        params_from_overrides(DynamixelDriverParams,
+                              [Parameter('temperature_limit_c', value=limit),
+                               Parameter('joints_file', value='j.yaml')])

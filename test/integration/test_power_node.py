@@ -47,3 +47,20 @@ def test_scpi_backend_through_parameters():
             assert_allclose([m.current for m in msgs], -0.75, rtol=1e-6)
     finally:
         peer.close()
+
+
+@pytest.mark.timeout(60)
+def test_run_time_rate_change_is_refused_frame_id_applies():
+    """rate_hz sets the timer once: a run-time change is refused (it used to be accepted while
+    the timer kept 100 Hz); frame_id is read for every message and applies."""
+    with ros_env('power') as env:
+        node = env.make(PowerMonitorNode, backend=SimPowerBackend(12.0, 1.0))
+        msgs = Collector(env, BatteryState, 'battery_state')
+        [rate] = node.set_parameters([Parameter('rate_hz', value=1.0)])
+        assert not rate.successful and 'read-only' in rate.reason
+        assert [t.timer_period_ns for t in node.timers] == [10_000_000]
+        [frame] = node.set_parameters([Parameter('frame_id', value='supply')])
+        assert frame.successful
+        n = len(msgs.messages)
+        msgs.wait_for(env, n + 2)
+        assert msgs.messages[-1].header.frame_id == 'supply'

@@ -51,3 +51,19 @@ def test_sim_bench_publishes_force_tip_and_session() -> None:
         assert fz.max() > (0.166 + 0.2) * 9.81 * 0.9           # stance: leg + load weight
         assert fz.min() < 0.5                                   # swing: off the belt
         assert len(js.messages[-1].name) == 3
+
+
+@pytest.mark.timeout(60)
+def test_sim_robot_refuses_run_time_changes_it_cannot_apply() -> None:
+    """rate, mass, effects... build the simulator once: refused at run time (a rate of 1 Hz
+    used to be accepted and passed as the period while the timer still fired at 100 Hz)."""
+    with ros_env('simrobot') as env:
+        node = env.make(SimRobotNode)
+        for name, value in [('rate', 1.0), ('robot_mass', 3.0), ('payload', 1.0),
+                            ('effects', ['basal_power=2']), ('seed', 3)]:
+            [res] = node.set_parameters([Parameter(name, value=value)])
+            assert not res.successful and 'read-only' in res.reason, name
+        assert node.params.rate == 100.0
+        assert [t.timer_period_ns for t in node.timers] == [10_000_000]
+        [ok] = node.set_parameters([Parameter('status_every', value=5)])
+        assert ok.successful and node.params.status_every == 5

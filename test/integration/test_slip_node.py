@@ -70,3 +70,22 @@ def test_mocap_on_another_clock_is_reported(tmp_path):
     finally:
         rclpy.try_shutdown(context=ctx)
     assert len(errors) == 1 and errors[0].startswith('mocap/body stamped on another clock')
+
+
+@pytest.mark.timeout(60)
+def test_run_time_mass_and_margin_apply_mocap_offset_is_read_only():
+    """mass and margin used to be accepted at run time and never reach the core."""
+    from harness import ros_env
+
+    with ros_env('slipp') as env:
+        node = env.make(SlipFitterNode)
+        [mass] = node.set_parameters([rclpy.parameter.Parameter('mass', value=5.0)])
+        assert mass.successful
+        assert node.core.model.mass_kg == 5.0 and node.core.fitter.model.mass_kg == 5.0
+        [margin] = node.set_parameters([rclpy.parameter.Parameter('margin', value=0.2)])
+        assert margin.successful and node.core.margin_s == 0.2
+        [bad] = node.set_parameters([rclpy.parameter.Parameter('mass', value=-1.0)])
+        assert not bad.successful and node.core.model.mass_kg == 5.0
+        [offset] = node.set_parameters([rclpy.parameter.Parameter('mocap_offset', value=0.05)])
+        assert not offset.successful and 'read-only' in offset.reason
+        assert node.core.mocap_offset_s == 0.0

@@ -1,0 +1,120 @@
+"""Node conventions (hexapod_common.node_utils): which parameters a run-time change may touch,
+finite numbers, and the one-line start-up error of the console scripts."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import pytest
+import rclpy
+from harness import ros_env
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from hexapod_common.errors import ParameterError
+from hexapod_common.node_utils import declare_params, param, run_node, validate_params
+
+
+@dataclass(frozen=True)
+class _Params:
+    rate_hz: float = param(10.0, 'a timer period, read once')
+    label: str = param('', 'read at every use', live=True)
+    limit: float = param(1.0, 'a limit', validate=lambda v: None if v > 0 else 'must be > 0')
+    off: float = param(math.nan, 'NaN = off', finite=False)
+    box: list[float] = param([0.0, 1.0], 'two numbers')
+
+
+class _Node(Node):
+    def __init__(self, *, context, namespace, on_change=None, parameter_overrides=None):
+        super().__init__('params_node', context=context, namespace=namespace,
+                         parameter_overrides=parameter_overrides or [])
+        self.changes = []
+        declare_params(self, _Params, on_change=on_change)
+
+
+def test_without_a_handler_only_live_parameters_change_at_run_time():
+    with ros_env('np') as env:
+        node = env.make(_Node)
+        [rate] = node.set_parameters([Parameter('rate_hz', value=1.0)])
+        assert not rate.successful and 'read-only' in rate.reason
+        assert node.params.rate_hz == 10.0
+        [label] = node.set_parameters([Parameter('label', value='x')])
+        assert label.successful and node.params.label == 'x'
+
+
+def test_with_a_handler_the_handler_gets_every_change():
+    with ros_env('np') as env:
+        changes = []
+        node = env.make(_Node, on_change=lambda p: changes.append(p.rate_hz))
+        [ok] = node.set_parameters([Parameter('rate_hz', value=2.0)])
+        assert ok.successful and changes == [2.0] and node.params.rate_hz == 2.0
+
+
+@pytest.mark.parametrize('name,value', [('limit', math.nan), ('limit', math.inf),
+                                        ('box', [0.0, math.nan])])
+def test_non_finite_numbers_are_refused(name, value):
+    with pytest.raises(ParameterError, match=f"'{name}'.*finite"):
+        validate_params(_Params, {name: value})
+    assert math.isnan(validate_params(_Params, {'off': math.nan}).off)
+
+
+def test_non_finite_numbers_are_refused_at_run_time():
+    with ros_env('np') as env:
+        node = env.make(_Node, on_change=lambda p: None)
+        [res] = node.set_parameters([Parameter('limit', value=math.nan)])
+        assert not res.successful and 'finite' in res.reason
+        assert node.params.limit == 1.0
+
+
+def test_a_wrong_type_at_start_up_is_a_parameter_error():
+    with ros_env('np') as env, pytest.raises(ParameterError, match="'rate_hz'"):
+        env.make(_Node, parameter_overrides=[Parameter('rate_hz', value='abc')])
+
+
+def _failing_factory(exc):
+    def factory():
+        raise exc
+    return factory
+
+
+@pytest.mark.parametrize('exc', [ParameterError("parameter 'mass' = -1.0 refused"),
+                                 FileNotFoundError('/nonexistent.yaml'),
+                                 ValueError('hip_x must have 3 values')])
+def test_run_node_start_up_error_is_one_line_and_exit_2(exc, capsys, monkeypatch):
+    monkeypatch.delenv('HEXAPOD_DEBUG', raising=False)
+    assert run_node(_failing_factory(exc), ['prog']) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and 'Traceback' not in err[0]
+    assert str(exc) in err[0] and 'error' in err[0]
+    assert not rclpy.ok()   # the context was shut down
+
+
+def test_run_node_debug_shows_the_traceback(monkeypatch):
+    monkeypatch.setenv('HEXAPOD_DEBUG', '1')
+    with pytest.raises(ValueError, match='bad'):
+        run_node(_failing_factory(ValueError('bad')), ['prog'])
+    assert not rclpy.ok()
+
+
+@pytest.mark.parametrize('module,args,expected', [
+    ('hexapod_energy.energy_node', ['mass:=abc'], "'mass'"),
+    ('hexapod_energy.energy_node', ['mass:=.inf'], "'mass'"),
+    ('hexapod_energy.energy_node', ['leg_file:=/nonexistent.yaml'], '/nonexistent.yaml'),
+    ('slip_identification.slip_node', ['model:=bogus'], 'bogus'),
+    ('slip_identification.slip_node', ['ground:=0.0', 'hip_x:=[1.0]'], "'hip_x'"),
+    ('slip_identification.slip_node', ['hip_x:=[1.0]'], "'hip_x'"),
+    ('slip_identification.slip_node', ['box:=[1.0]'], "'box'"),
+    ('slip_identification.slip_node', ['mocap_offset:=.nan'], "'mocap_offset'"),
+])
+def test_console_scripts_refuse_bad_start_up_values_in_one_line(module, args, expected, capsys,
+                                                                monkeypatch):
+    import importlib
+
+    monkeypatch.delenv('HEXAPOD_DEBUG', raising=False)
+    main = importlib.import_module(module).main
+    argv = ['node', '--ros-args'] + [x for a in args for x in ('-p', a)]
+    assert main(argv) == 2
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert len(err) == 1, err
+    assert expected in err[0] and 'Traceback' not in err[0]
