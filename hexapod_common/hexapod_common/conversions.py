@@ -216,13 +216,26 @@ class GaitPhaseSample:
         return self.step_length_m / (self.duty_factor * self.period_s)
 
 
+#: GaitPhase fields that must be finite numbers (a NaN period gives NaN speeds silently)
+GAIT_PHASE_FINITE = ('period', 'duty_factor', 'step_length', 'step_height', 'sweep_angle',
+                     'leg_offset', 'cycle_phase')
+
+
 def gait_phase_from_msg(msg: Any) -> GaitPhaseSample:
-    """Convert a GaitPhase."""
+    """Convert a GaitPhase; a non-finite number in :data:`GAIT_PHASE_FINITE` or in
+    ``phase_offsets`` raises ValueError naming the field (the message is dropped)."""
+    values = {name: float(getattr(msg, name)) for name in GAIT_PHASE_FINITE}
+    bad = [f'{name}={v}' for name, v in values.items() if not math.isfinite(v)]
+    offsets = np.asarray(msg.phase_offsets, dtype=float)
+    if not np.all(np.isfinite(offsets)):
+        bad.append(f'phase_offsets={offsets.tolist()}')
+    if bad:
+        raise ValueError(f'GaitPhase with non-finite {", ".join(bad)}')
     return GaitPhaseSample(
-        stamp_to_s(msg.header.stamp), str(msg.gait), float(msg.period),
-        float(msg.duty_factor), float(msg.step_length), float(msg.step_height),
-        float(msg.sweep_angle), float(msg.leg_offset), float(msg.cycle_phase),
-        tuple(msg.leg_names), np.asarray(msg.phase_offsets, dtype=float),
+        stamp_to_s(msg.header.stamp), str(msg.gait), values['period'],
+        values['duty_factor'], values['step_length'], values['step_height'],
+        values['sweep_angle'], values['leg_offset'], values['cycle_phase'],
+        tuple(msg.leg_names), offsets,
         np.asarray(msg.in_stance, dtype=bool), int(msg.supporting_legs))
 
 
