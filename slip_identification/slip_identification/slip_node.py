@@ -51,6 +51,9 @@ from .preprocess import Box
 
 __all__ = ['SlipFitterNode', 'SlipParams', 'main', 'result_to_msg']
 
+#: distinct drop reasons counted separately; beyond them, one shared count
+MAX_DROP_REASONS = 64
+
 
 def _positive(v: float) -> str | None:
     return None if v > 0 else 'must be > 0'
@@ -167,6 +170,8 @@ class SlipFitterNode(Node):
         self._body_up = p.body_up
         self.published = 0
         self.received = 0
+        self.dropped = 0
+        self._drops: dict[str, int] = {}   # reason -> messages dropped for it
         self._notes_logged = 0
         self._clocks = LiveClockWatch()   # stamps against the node clock
 
@@ -179,15 +184,26 @@ class SlipFitterNode(Node):
             core.margin_s = new.margin
         return None
 
-    def _guard(self, fn: Any, msg: Any) -> None:
+    def _guard(self, fn: Any, msg: Any, topic: str) -> None:
         self.received += 1
         try:
             fn(msg)
         except (ValueError, RuntimeError) as err:  # a bad message is logged and dropped
-            self.get_logger().warning(f'dropped message: {err}')
+            self.dropped += 1
+            self._log_drop(f'dropped a {topic} message: {err}')
+
+    def _log_drop(self, text: str) -> None:
+        """Log a dropped message: each distinct reason on its 1st, 10th, 100th, 1000th ...
+        occurrence (another publisher on the topic, e.g. a gripper's joint_states at 10 Hz,
+        would otherwise give one warning per message)."""
+        key = text[:160] if len(self._drops) < MAX_DROP_REASONS or text[:160] in self._drops \
+            else 'other reasons'
+        n = self._drops[key] = self._drops.get(key, 0) + 1
+        if n == 1 or n in (10, 100, 1000) or n % 10000 == 0:
+            self.get_logger().warning(text if n == 1 else f'{text} [{n} such messages so far]')
 
     def _on_js(self, msg: JointState) -> None:
-        self._guard(self._joint_state, msg)
+        self._guard(self._joint_state, msg, 'joint_states')
 
     def _signed(self, s: Any) -> Any:
         """A JointStateSample with the mirrored hips' values negated (``hip_signs``)."""
@@ -215,10 +231,10 @@ class SlipFitterNode(Node):
 
     def _on_cmd(self, msg: JointState) -> None:
         self._guard(lambda m: (lambda s: self.core.add_command(s.t_s, s.names, s.velocity))(
-            self._signed(joint_state_from_msg(m))), msg)
+            self._signed(joint_state_from_msg(m))), msg, 'joint_commands')
 
     def _on_mocap(self, msg: PoseStamped) -> None:
-        self._guard(self._mocap_and_fit, msg)
+        self._guard(self._mocap_and_fit, msg, 'mocap/body')
 
     def _mocap_and_fit(self, msg: PoseStamped) -> None:
         s = pose_from_msg(msg)

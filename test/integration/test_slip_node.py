@@ -89,3 +89,36 @@ def test_run_time_mass_and_margin_apply_mocap_offset_is_read_only():
         [offset] = node.set_parameters([rclpy.parameter.Parameter('mocap_offset', value=0.05)])
         assert not offset.successful and 'read-only' in offset.reason
         assert node.core.mocap_offset_s == 0.0
+
+
+def _joint_state(names, t_s):
+    from sensor_msgs.msg import JointState
+
+    msg = JointState(name=list(names), position=[0.1] * len(names),
+                     velocity=[1.0] * len(names))
+    msg.header.stamp.sec, msg.header.stamp.nanosec = int(t_s), int(round(t_s % 1 * 1e9))
+    return msg
+
+
+@pytest.mark.timeout(60)
+def test_another_joint_states_publisher_is_not_one_warning_per_message():
+    """A gripper's ['gripper'] JointState at 10 Hz beside the hips: 57 messages dropped, each
+    reason logged on its 1st and 10th occurrence (was 57 warnings)."""
+    from harness import ros_env
+
+    hips = [f'{s}{k}_hip' for s in 'LR' for k in (1, 2, 3)]
+    with ros_env('slipw') as env:
+        node = env.make(SlipFitterNode)
+        warnings = []
+        logger = node.get_logger()
+        original = logger.warning
+        logger.warning = lambda msg, **kw: warnings.append(msg) or original(msg, **kw)
+        for k in range(570):
+            t = 100.0 + 0.01 * k
+            node._on_js(_joint_state(hips, t))
+            if k % 10 == 0:
+                node._on_js(_joint_state(['gripper'], t))
+        assert node.dropped == 57
+        assert len(warnings) == 2, warnings
+        assert 'joint_states' in warnings[0] and 'gripper' in warnings[0]
+        assert '[10 such messages so far]' in warnings[1]
