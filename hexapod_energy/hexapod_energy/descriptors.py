@@ -46,6 +46,22 @@ DESIGN §4:
 Windows are decided by stamps, not arrival order: a window closes only once a battery sample
 past its end has arrived, so live streams and replayed bags give identical numbers.
 
+Time going backwards (a looped bag restarting, a simulation clock reset under
+``use_sim_time``): a stream whose stamp falls more than ``time_jump_s`` behind its own
+previous stamp restarts the accumulation from the new time (every buffer, the cycle
+boundaries and the joint cycle tracker; the decided current sign is kept), noted once per
+jump in :attr:`DescriptorAccumulator.notes_`; the other streams' samples from before the jump
+that arrive afterwards are dropped until their own stamps jump too. Each loop of a looped bag
+gives the same windows. Stamps a few ms out of order are unaffected.
+
+Bounded memory: no window is longer than ``max_window_s``; samples older than that before the
+newest stamp are dropped (``quiet_s`` before the cycle source's first sample; the last battery
+sample before the cut is kept for interpolation),
+and a pending window that would be longer is given up (the cycle source paused: counted in
+``dropped_windows_``). While the cycle source (``/gait/phase``; on the joint path
+``/joint_states``) has been quiet for ``quiet_s`` of battery stamps, a note says so, once per
+pause.
+
 Cycle boundaries (``cycle_source``): ``gait_phase`` takes them from the wraps of the
 ``/gait/phase`` cycle phase; ``joints`` from the joint positions alone
 (:class:`hexapod_energy.cycles.JointCycleTracker`), for robots whose gait code publishes no
@@ -76,6 +92,9 @@ from hexapod_energy.cycles import CycleSettings, JointCycleTracker, unwrap_near
 
 __all__ = [
     'AUTO_UNANIMOUS_SAMPLES',
+    'CYCLE_QUIET_S',
+    'MAX_WINDOW_S',
+    'TIME_JUMP_S',
     'MIN_BATTERY_SAMPLES_PER_WINDOW',
     'SLOW_BATTERY_NOTE',
     'G_MPS2',
@@ -256,6 +275,13 @@ AUTO_UNANIMOUS_MIN_W = 1.0
 BATTERY_GAP_INTERVALS = 5.0
 #: warning carried by such a window (offline readers leave these windows out)
 BATTERY_GAP_NOTE = 'battery samples missing over part of the window (a recording gap)'
+#: a stream's stamp this far [s] behind its previous one is a backward time jump (a looped
+#: bag, a reset simulation clock); stamps less out of order than this are ordinary jitter
+TIME_JUMP_S = 1.0
+#: longest window [s]: older samples are dropped (the buffers' bound)
+MAX_WINDOW_S = 60.0
+#: battery stamps [s] without a cycle-source sample before that is noted
+CYCLE_QUIET_S = 5.0
 
 
 @dataclass
@@ -299,7 +325,23 @@ class DescriptorAccumulator:
     cycle_source: str = 'gait_phase'
     speed_mps: float = 0.0
     cycle_settings: CycleSettings = field(default_factory=CycleSettings)
+    time_jump_s: float = TIME_JUMP_S
+    max_window_s: float = MAX_WINDOW_S
+    quiet_s: float = CYCLE_QUIET_S
     sign_: float | None = field(default=None, init=False)
+    #: events worth a warning (time jumps, a quiet cycle source, given-up windows), in order
+    notes_: list[str] = field(default_factory=list, init=False)
+    #: backward time jumps seen: (stream, previous stamp, new stamp) [s]
+    time_jumps_: list[tuple[str, float, float]] = field(default_factory=list, init=False)
+    #: pending windows given up because they would be longer than ``max_window_s``
+    dropped_windows_: int = field(default=0, init=False)
+    #: samples dropped because they were stamped before a time jump but arrived after it
+    stale_samples_: int = field(default=0, init=False)
+    _t_last: dict[str, float] = field(default_factory=dict, init=False)
+    _stale: dict[str, float] = field(default_factory=dict, init=False)
+    _t_newest: float | None = field(default=None, init=False)
+    _t_first: float | None = field(default=None, init=False)
+    _quiet_noted: bool = field(default=False, init=False)
     sign_note_: str = field(default='', init=False)
     _battery: list[tuple[float, float]] = field(default_factory=list, init=False)
     _pending_battery: list[BatterySample] = field(default_factory=list, init=False)
@@ -337,14 +379,122 @@ class DescriptorAccumulator:
                              f'{self.cycle_source!r}')
         if not (math.isfinite(self.speed_mps) and self.speed_mps >= 0):
             raise ValueError(f'speed_mps must be finite and >= 0, got {self.speed_mps}')
+        if not (self.time_jump_s > 0 and self.max_window_s > 0 and self.quiet_s > 0):
+            raise ValueError('time_jump_s, max_window_s and quiet_s must be > 0')
         if self.cycle_source != 'gait_phase':
             self._tracker = JointCycleTracker(self.cycle_settings)
         if self.current_sign != 'auto':
             self.sign_ = resolve_current_sign(np.zeros(1), np.zeros(1), self.current_sign)
 
+    # -- time ------------------------------------------------------------------------------
+    def _clock(self, stream: str, t: float) -> bool:
+        """Bookkeeping of one sample's stamp; False: drop it (stamped before a time jump)."""
+        last = self._t_last.get(stream)
+        mark = self._stale.get(stream)
+        if mark is not None:
+            if self._t_newest is not None and self._t_newest >= mark:
+                del self._stale[stream]   # the new time has caught up: nothing stale left
+            elif t >= mark - self.time_jump_s:
+                self.stale_samples_ += 1
+                return False
+            else:
+                del self._stale[stream]   # this stream has jumped too
+                last = None
+        if last is not None and t < last - self.time_jump_s:
+            self._restart(stream, last, t)
+            last = None
+        self._t_last[stream] = t if last is None else max(last, t)
+        if self._t_first is None:
+            self._t_first = t
+        if self._t_newest is None or t > self._t_newest:
+            self._t_newest = t
+        return True
+
+    def _restart(self, stream: str, last: float, t: float) -> None:
+        """Time went back on ``stream`` from ``last`` to ``t``: start again from ``t``."""
+        self.time_jumps_.append((stream, last, t))
+        self.notes_.append(f'time jumped back {last - t:.3f} s on {stream} ({last:.3f} s -> '
+                           f'{t:.3f} s: a looped bag or a reset simulation clock?): '
+                           'accumulation restarted from the new time')
+        # streams whose last stamp lies ahead of the new time: their samples still in flight
+        # from before the jump are dropped until their own stamps jump back
+        self._stale = {k: v for k, v in self._t_last.items()
+                       if k != stream and v > t + self.time_jump_s}
+        self._t_last = {}
+        self._t_newest = None
+        self._t_first = None
+        self._quiet_noted = False
+        self._pending_battery = []
+        self._battery = []
+        self._joint = []
+        self._poses = []
+        self._odom = []
+        self._boundaries = []
+        self._gait = None
+        self._last_phase = None
+        self._window_start = None
+        self._last_joint = {}
+        self._seen_gait = False
+        self._tracker = (JointCycleTracker(self.cycle_settings)
+                         if self.cycle_source != 'gait_phase' else None)
+
+    def _bound(self) -> None:
+        """Drop what no window can still use: windows are at most ``max_window_s`` long."""
+        if self._t_newest is None:
+            return
+        # before the cycle source's first sample no boundary exists: a first window starts
+        # after it, so a few seconds of data suffice
+        horizon = self.max_window_s if any(k in self._t_last for k in self._cycle_streams()) \
+            else min(self.max_window_s, self.quiet_s)
+        cut = self._t_newest - horizon
+        if self._window_start is not None and self._window_start < cut:
+            self._window_start = None
+            self.dropped_windows_ += 1
+            if self.dropped_windows_ in (1, 10, 100) or self.dropped_windows_ % 1000 == 0:
+                self.notes_.append(f'a window longer than {self.max_window_s:g} s given up '
+                                   f'(the cycle source paused?) [{self.dropped_windows_} so '
+                                   'far]')
+        if self._boundaries and self._boundaries[0] < cut:
+            self._boundaries = [b for b in self._boundaries if not b < cut]
+        # amortised: trim once the oldest entry is half a horizon past the cut
+        slack = cut - 0.5 * horizon
+        # (the battery's first entry may be the one kept before the cut: look at its second)
+        if any(len(buf) > k and buf[k][0] < slack
+               for buf, k in ((self._battery, 1), (self._joint, 0), (self._poses, 0),
+                              (self._odom, 0))):
+            self._trim(cut, keep_s=0.0)
+
+    def _cycle_streams(self) -> tuple[str, ...]:
+        """The streams the cycle boundaries come from now."""
+        if self.joint_cycles_ or (self.cycle_source == 'auto' and not self._seen_gait):
+            return ('joint_states',) if self.cycle_source == 'joints' else \
+                ('gait/phase', 'joint_states')
+        return ('gait/phase',)
+
+    def _check_quiet(self, t: float) -> None:
+        """Note (once per pause) a cycle source quiet for ``quiet_s`` while batteries come."""
+        streams = self._cycle_streams()
+        seen = [self._t_last[k] for k in streams if k in self._t_last]
+        ref = max(seen) if seen else self._t_first
+        if ref is None or t - ref < self.quiet_s:
+            if seen and t - max(seen) < self.quiet_s:
+                self._quiet_noted = False
+            return
+        if not self._quiet_noted:
+            self._quiet_noted = True
+            what = ' or '.join(f'/{k}' for k in streams)
+            self.notes_.append(
+                f'no {what} for {t - ref:.1f} s while /battery_state arrives: no gait cycle '
+                f'can complete a window (gait node stopped?); data older than '
+                f'{self.max_window_s:g} s is dropped')
+
     # -- inputs ----------------------------------------------------------------------------
     def add_battery(self, sample: BatterySample) -> list[Descriptors]:
         """Add one battery sample; returns the windows this sample completes."""
+        if not self._clock('battery_state', sample.t_s):
+            return []
+        self._check_quiet(sample.t_s)
+        self._bound()
         if self.sign_ is None:
             self._pending_battery.append(sample)
             v = np.array([s.voltage_v for s in self._pending_battery])
@@ -390,6 +540,8 @@ class DescriptorAccumulator:
         bus or leg) are handled: P_out is the sum over joint names of each joint's mean
         positive power over the window.
         """
+        if not self._clock('joint_states', sample.t_s):
+            return []
         if sample.effort.size and sample.velocity.size == sample.effort.size:
             power = np.asarray(sample.effort, dtype=float) * np.asarray(sample.velocity,
                                                                         dtype=float)
@@ -456,6 +608,8 @@ class DescriptorAccumulator:
         """Add an odometry pose (horizontal position in the odometry frame, for the speed) and
         its twist's horizontal speed (for estimators that publish the velocity only, with the
         pose left at zero)."""
+        if not self._clock('odom', sample.t_s):
+            return
         v = np.asarray(sample.linear_velocity_mps, dtype=float)
         speed = float(math.hypot(v[0], v[1])) if v.size >= 2 and np.all(np.isfinite(v[:2])) \
             else math.nan
@@ -470,11 +624,15 @@ class DescriptorAccumulator:
         motion-capture frame, z-up (Vicon, ROS) or y-up (OptiTrack), where the x-y distance
         read only part of a y-up frame's travel.
         """
+        if not self._clock('mocap/body', sample.t_s):
+            return
         p = sample.position_m
         self._poses.append((sample.t_s, float(p[0]), float(p[1]), float(p[2])))
 
     def add_gait_phase(self, sample: GaitPhaseSample) -> list[Descriptors]:
         """Add a gait schedule sample; a wrap of the cycle phase marks a cycle boundary."""
+        if not self._clock('gait/phase', sample.t_s):
+            return []
         if self.cycle_source == 'joints':
             self._gait = sample
             return []
@@ -624,8 +782,8 @@ class DescriptorAccumulator:
             return self.speed_mps, 'given'
         return (math.nan if self.joint_cycles_ or self._gait is not None else 0.0), 'none'
 
-    def _trim(self, t: float) -> None:
-        keep_from = t - 1.0
+    def _trim(self, t: float, *, keep_s: float = 1.0) -> None:
+        keep_from = t - keep_s
         last_before = [b for b in self._battery if b[0] <= t]
         self._battery = ([last_before[-1]] if last_before else []) + \
             [b for b in self._battery if b[0] > t]

@@ -19,6 +19,12 @@ Times are header stamps. A message whose header stamp is zero (drivers that neve
 stamped with the node's clock on arrival instead (the bag time under replay), with one warning
 per topic, as the offline reader falls back to the bag's receive time.
 
+Time going backwards by more than a second (a looped bag, a simulation clock reset under
+``use_sim_time``) is logged once as a warning naming the jump, and the accumulation restarts
+from the new time; a window is at most 60 s long and older samples are dropped, so the buffers
+stay bounded when ``/gait/phase`` stops, which is logged as a warning while the battery keeps
+coming (:mod:`hexapod_energy.descriptors`).
+
 Several batteries on ``battery_state`` (distinct ``header.frame_id``: a servo pack and a logic
 pack) are summed as they appear (:class:`hexapod_common.battery.BatteryCombiner`, logged), or
 one is kept (parameter ``battery_source``). A topic stamped on another clock than the others
@@ -154,6 +160,7 @@ class EnergyMonitorNode(Node):
                                          RELIABLE_QOS)
         self.dropped = 0
         self._sign_logged = False
+        self._notes_logged = 0
         self._warned: dict[str, int] = {}  # warning kind -> windows seen with it
         self._zero_stamp_topics: set[str] = set()
         self.create_subscription(BatteryState, 'battery_state', self._on_battery, SENSOR_QOS)
@@ -189,6 +196,10 @@ class EnergyMonitorNode(Node):
             self.get_logger().error(err)
 
     def _publish(self, results: Sequence[Descriptors] | None) -> None:
+        notes = self.core.notes_
+        while self._notes_logged < len(notes):   # time jumps, a quiet /gait/phase: once each
+            self.get_logger().warning(notes[self._notes_logged])
+            self._notes_logged += 1
         if self.core.sign_note_ and not self._sign_logged:
             self._sign_logged = True
             self.get_logger().info(self.core.sign_note_)
@@ -250,10 +261,12 @@ class EnergyMonitorNode(Node):
     def _on_odom(self, msg: Odometry) -> None:
         self._guard('Odometry', lambda m: self.core.add_odometry(
                         self._restamp('odom', odometry_from_msg(m))), msg)
+        self._publish(None)
 
     def _on_pose(self, msg: PoseStamped) -> None:
         self._guard('PoseStamped', lambda m: self.core.add_pose(
                         self._restamp('mocap/body', pose_from_msg(m))), msg)
+        self._publish(None)
 
 
 def main(args: Sequence[str] | None = None) -> int:
