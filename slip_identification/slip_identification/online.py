@@ -34,6 +34,13 @@ one joint-state period late (10 ms at 100 Hz: the fits, which wait for the motio
 after lift-off, see at most that much extra latency); :attr:`OnlineSlip.notes` lists what was
 done.
 
+Time going backwards (a looped bag restarting, a simulation clock reset): a stream whose stamp
+falls more than ``time_jump_s`` behind its own previous stamp restarts everything from the new
+time (buffers, joint assemblers, world frame, fitted-stance memory), with one line in
+:attr:`OnlineSlip.warnings` naming the jump; samples of the other streams stamped before the
+jump that arrive after it are dropped until their own stamps jump. Each loop of a looped bag
+gives the same fits; stamps a few ms out of order are unaffected.
+
 Latency bookkeeping (simulated time, no wall clock): for every fit, ``latency_s`` records the
 time of the newest motion-capture sample (proprioception clock) minus the stance's lift-off.
 """
@@ -61,7 +68,10 @@ from .stance import (
     tripod_stance_windows,
 )
 
-__all__ = ['OnlineSlip', 'OnlineSkip']
+__all__ = ['TIME_JUMP_S', 'OnlineSlip', 'OnlineSkip']
+
+#: a stream's stamp this far [s] behind its previous one is a backward time jump
+TIME_JUMP_S = 1.0
 
 
 @dataclass(frozen=True)
@@ -103,6 +113,9 @@ class OnlineSlip:
     world_frame : WorldFrame, optional
         A fixed world frame (e.g. the offline analysis' of an earlier run in the same
         volume) instead of the one refitted from the buffer; ``ground_m`` is then in it.
+    time_jump_s : float
+        A stamp this far [s] behind its stream's previous one restarts everything (module
+        docs).
     """
 
     def __init__(self, model: SlipModel | None = None, *, box: Box | None = None,
@@ -112,7 +125,8 @@ class OnlineSlip:
                  frame_min_s: float = 0.5, spline_pad_s: float = 0.05,
                  geometry: LegGeometry | None = None, ground_m: float | None = None,
                  geometry_window_s: float = 1.0,
-                 world_frame: WorldFrame | None = None) -> None:
+                 world_frame: WorldFrame | None = None,
+                 time_jump_s: float = TIME_JUMP_S) -> None:
         if (geometry is None) != (ground_m is None):
             raise SlipError('geometric edges need both geometry and ground_m (or neither)')
         self.geometry = geometry
@@ -147,6 +161,63 @@ class OnlineSlip:
         self.world_frame = world_frame
         if world_frame is not None:
             self._frame = (math.inf, world_frame)
+        self.time_jump_s = time_jump_s
+        #: events worth a warning (backward time jumps), one line each, in order
+        self.warnings: list[str] = []
+        #: backward time jumps: (stream, previous stamp, new stamp) [s]
+        self.time_jumps: list[tuple[str, float, float]] = []
+        #: samples dropped as stamped before a time jump but arriving after it
+        self.stale_samples = 0
+        self._t_last: dict[str, float] = {}
+        self._stale: dict[str, float] = {}
+        self._t_newest: float | None = None
+        self._old_notes: list[str] = []
+
+    def _clock(self, stream: str, t: float) -> bool:
+        """Bookkeeping of one sample's stamp; False: drop it (stamped before a time jump)."""
+        last = self._t_last.get(stream)
+        mark = self._stale.get(stream)
+        if mark is not None:
+            if self._t_newest is not None and self._t_newest >= mark:
+                del self._stale[stream]   # the new time has caught up: nothing stale left
+            elif t >= mark - self.time_jump_s:
+                self.stale_samples += 1
+                return False
+            else:
+                del self._stale[stream]   # this stream has jumped too
+                last = None
+        if last is not None and t < last - self.time_jump_s:
+            self._restart(stream, last, t)
+            last = None
+        self._t_last[stream] = t if last is None else max(last, t)
+        if self._t_newest is None or t > self._t_newest:
+            self._t_newest = t
+        return True
+
+    def _restart(self, stream: str, last: float, t: float) -> None:
+        """Time went back on ``stream`` from ``last`` to ``t``: start again from ``t``."""
+        self.time_jumps.append((stream, last, t))
+        self.warnings.append(f'time jumped back {last - t:.3f} s on {stream} ({last:.3f} s -> '
+                             f'{t:.3f} s: a looped bag or a reset simulation clock?): stance '
+                             'detection restarted from the new time')
+        self._stale = {k: v for k, v in self._t_last.items()
+                       if k != stream and v > t + self.time_jump_s}
+        self._t_last = {}
+        self._t_newest = None
+        self._old_notes = self.notes
+        self._js.clear()
+        self._cmd.clear()
+        self._mocap.clear()
+        self.names = ()
+        self._joints = JointFrameAssembler()
+        self._cmd_joints = JointFrameAssembler()
+        self._cmd_perm = {}
+        self._early_cmd_names = None
+        self._done = []
+        self._shift_cache = {}
+        self._first_inside_s = None
+        self._geo_since_s = None
+        self._frame = (math.inf, self.world_frame) if self.world_frame is not None else None
 
     def set_model(self, model: SlipModel) -> None:
         """Fit the stances from now on with ``model`` (e.g. another mass)."""
@@ -159,9 +230,11 @@ class OnlineSlip:
 
     @property
     def notes(self) -> list[str]:
-        """Input fallbacks so far (hip angles unwrapped, velocities derived), one line each
-        (the assembler's list: read only)."""
-        return self._joints.notes
+        """Input fallbacks so far (hip angles unwrapped, velocities derived), one line each,
+        each once, across time jumps (a new list: read only)."""
+        if not self._old_notes:
+            return self._joints.notes
+        return self._old_notes + [n for n in self._joints.notes if n not in self._old_notes]
 
     def add_joint_state(self, t_s: float, names: tuple[str, ...], velocity: np.ndarray,
                         position: np.ndarray | None = None) -> None:
@@ -173,6 +246,8 @@ class OnlineSlip:
         central differences of the angles and each frame enters one joint-state period
         later (10 ms at 100 Hz). A full message with velocities and no wrap is used as it
         is."""
+        if not self._clock('joint_states', t_s):
+            return
         for fr in self._joints.add(t_s, names, velocity, position):
             if not self.names:
                 self._set_names(fr.names)
@@ -199,6 +274,8 @@ class OnlineSlip:
     def add_command(self, t_s: float, names: tuple[str, ...], velocity: np.ndarray) -> None:
         """One command message (target speeds [rad/s]); split messages are assembled and
         put in the joint states' name order."""
+        if not self._clock('joint_commands', t_s):
+            return
         if names == self.names or not self.names and names == self._early_cmd_names \
                 or not self.names and self._early_cmd_names is None \
                 and not missing_joints(names):
@@ -221,6 +298,9 @@ class OnlineSlip:
             self._trim(self._cmd, fr.t_s)
 
     def add_mocap(self, t_s: float, position_m: np.ndarray, quat_xyzw: np.ndarray) -> None:
+        """One motion-capture pose (stamp on the mocap clock; ``mocap_offset_s`` removed)."""
+        if not self._clock('mocap/body', t_s):
+            return
         self._mocap.append((t_s - self.mocap_offset_s, np.asarray(position_m, dtype=float),
                             np.asarray(quat_xyzw, dtype=float)))
         self._trim(self._mocap, t_s)

@@ -9,7 +9,9 @@ angles from ``/joint_states`` positions; ``leg_radius``, ``hip_x`` describe the 
 default). Joint states
 split over several messages, hip angles wrapped into ``[-pi, pi)`` or ``[0, 2 pi)``, and
 positions without velocities (speeds from central differences, one joint-state period of
-extra latency) are handled by the core; each such fallback is logged once (info).
+extra latency) are handled by the core; each such fallback is logged once (info). Time going
+back by more than a second (a looped bag, a simulation clock reset) is logged once per jump
+as a warning, and stance detection restarts from the new time.
 """
 
 from __future__ import annotations
@@ -172,6 +174,7 @@ class SlipFitterNode(Node):
         self.received = 0
         self.dropped = 0
         self._drops: dict[str, int] = {}   # reason -> messages dropped for it
+        self._warnings_logged = 0
         self._notes_logged = 0
         self._clocks = LiveClockWatch()   # stamps against the node clock
 
@@ -191,6 +194,10 @@ class SlipFitterNode(Node):
         except (ValueError, RuntimeError) as err:  # a bad message is logged and dropped
             self.dropped += 1
             self._log_drop(f'dropped a {topic} message: {err}')
+        warnings = self.core.warnings
+        while self._warnings_logged < len(warnings):   # time jumps: once each
+            self.get_logger().warning(warnings[self._warnings_logged])
+            self._warnings_logged += 1
 
     def _log_drop(self, text: str) -> None:
         """Log a dropped message: each distinct reason on its 1st, 10th, 100th, 1000th ...

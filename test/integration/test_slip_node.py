@@ -122,3 +122,24 @@ def test_another_joint_states_publisher_is_not_one_warning_per_message():
         assert len(warnings) == 2, warnings
         assert 'joint_states' in warnings[0] and 'gripper' in warnings[0]
         assert '[10 such messages so far]' in warnings[1]
+
+
+@pytest.mark.timeout(60)
+def test_a_looped_stream_is_one_warning_and_a_bounded_buffer():
+    """Joint-state stamps restart three times (a looped bag): one warning per jump, naming
+    it, and the joint buffer keeps its 3 s bound (it grew without limit)."""
+    from harness import ros_env
+
+    hips = [f'{s}{k}_hip' for s in 'LR' for k in (1, 2, 3)]
+    with ros_env('slipt') as env:
+        node = env.make(SlipFitterNode)
+        warnings = []
+        logger = node.get_logger()
+        original = logger.warning
+        logger.warning = lambda msg, **kw: warnings.append(msg) or original(msg, **kw)
+        for _ in range(4):
+            for k in range(500):
+                node._on_js(_joint_state(hips, 100.0 + 0.01 * k))
+        assert len(warnings) == 3 and all('time jumped back' in w for w in warnings)
+        assert '104.990 s -> 100.000 s' in warnings[0]
+        assert len(node.core._js) <= 302
