@@ -25,7 +25,8 @@ buffer, heights above ``ground_m`` in the world frame: the buffered one, or ``wo
 when given, e.g. an offline analysis' frame with its ground; the stream offset is
 ``mocap_offset_s``) instead of the clock's target edges; a window is fitted once the mocap
 covers its lift-off (a piece that touches the buffer's newest sample is not yet finished;
-stances that end before the world frame is ready are not looked for). Without them (or without hip angles), the paper's target edges are used.
+stances that end before the world frame is ready are not looked for). Without them (or
+without hip angles), the paper's target edges are used.
 
 Other labs' joint states (:class:`.joints.JointFrameAssembler`): messages split over name
 groups are assembled, wrapped hip angles are unwrapped per joint as they arrive, and a driver
