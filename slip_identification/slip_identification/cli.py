@@ -278,9 +278,21 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
         model = SlipModel.from_name(options.get('model', 'slip'),
                                     mass_kg=options.get('mass_kg', EDUBOT_MASS_KG))
         geometry = None
+        geometry_notes: list[str] = []
         if options.get('geometry', 'edubot') == 'edubot':
             tau = options.get('leg_damping_time', 'default')
             overrides = dict(options.get('geometry_overrides') or {})
+            if tau == 'default' and {'leg_radius_m', 'hip_x_m', 'hip_z_m'} & set(overrides):
+                # another robot's legs: EduBot's 3.4 ms damping time need not be theirs (kept
+                # silently, it moved the offset 7 ms and every lift-off 3-5 ms on a lab's
+                # undamped legs); fitting it trades off against the offset, so the default is
+                # checked against undamped legs instead
+                overrides['damping_assumed'] = True
+                geometry_notes.append(
+                    'another robot\'s leg geometry without --leg-damping-time: the EduBot '
+                    'description\'s damping time (3.4 ms) is assumed and checked against '
+                    'undamped legs; give it (seconds, e.g. from a drop test of one leg, or '
+                    '\'fit\') for a surer offset')
             if tau != 'default':
                 overrides['leg_damping_time_s'] = tau
             geometry = LegGeometry(**overrides)
@@ -293,7 +305,7 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
                           check_body_up=body_up == 'auto')
     except (SlipError, HexapodError, ValueError, OSError) as err:  # a truncated bag too
         return {'bag': path, 'error': str(err)}
-    notes = list(run.notes) + list(res.notes)
+    notes = list(run.notes) + geometry_notes + list(res.notes)
     if run.gait == 'unknown':
         notes.append('no /gait/phase in the bag: the gait name is unknown')
     gaits = list(dict.fromkeys(g for _, g in run.gait_changes))
@@ -454,7 +466,8 @@ def add_cli(subparsers: Any) -> None:
                    help='leg angle from the body\'s downward axis at hip angle 0 [rad] (EduBot 0)')
     p.add_argument('--leg-damping-time', default='default',
                    help="leg radial damping over stiffness [s] for the geometric fit, 'fit' "
-                        "to fit it, or 'default' (the EduBot description's)")
+                        "to fit it, or 'default' (the EduBot description's; fitted when "
+                        "another robot's legs are given with --leg-radius/--hip-x/...)")
     p.add_argument('--offset-lag', type=float, default=0.0,
                    help="physical lag removed from the 'auto' offset [s]")
     p.add_argument('--max-lateral', type=float, default=0.05,

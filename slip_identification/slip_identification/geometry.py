@@ -174,6 +174,10 @@ class LegGeometry:
     rearm_clearance_m : float
         Clearance [m] a leg's lowest point must reach above the ground after a lift-off
         before a new contact counts (:func:`leg_contacts`): contact hysteresis.
+    damping_assumed : bool
+        ``leg_damping_time_s`` is a default, not this robot's (another robot's legs given
+        without a damping time): the pipeline checks it against undamped legs and keeps the
+        better fit of the body height.
     """
 
     hip_x_m: tuple[float, float, float] = (0.20, 0.0, -0.20)
@@ -182,6 +186,7 @@ class LegGeometry:
     hip_zero_rad: float = 0.0
     leg_damping_time_s: float | None = 12.9 / 3800.0
     rearm_clearance_m: float = 0.002
+    damping_assumed: bool = False
 
     @classmethod
     def from_params(cls, params: Any, *, with_damping: bool = True) -> LegGeometry:
@@ -1155,13 +1160,15 @@ def _union(iv: list[FloatArray]) -> FloatArray:
 
 
 def single_support(contacts: dict[str, FloatArray], tripods: dict[str, tuple[str, ...]],
-                   unknown: ArrayLike | None = None, *, guard_s: float = 1e-3
+                   unknown: ArrayLike | None = None, *, guard_s: float = 1e-3,
+                   dropped: list[tuple[str, float, float]] | None = None
                    ) -> dict[str, FloatArray]:
     """Per tripod, the intervals where any of its legs is in contact and no leg of the others.
 
     Returns ``{tripod: (k, 2)}`` [s], the longest piece of each tripod contact interval;
     pieces within ``guard_s`` of an ``unknown`` interval (:func:`leg_contacts`) are dropped
-    (the other tripod's contact there is not known).
+    (the other tripod's contact there is not known) and, when ``dropped`` is a list, appended
+    to it as ``(tripod, start, end)``.
     """
     unk = np.zeros((0, 2)) if unknown is None else np.asarray(unknown, dtype=float).reshape(-1, 2)
     on = {tp: _union([contacts[leg] for leg in legs if leg in contacts])
@@ -1176,5 +1183,7 @@ def single_support(contacts: dict[str, FloatArray], tripods: dict[str, tuple[str
                 s0, s1 = longest
                 if not np.any((unk[:, 0] <= s1 + guard_s) & (unk[:, 1] >= s0 - guard_s)):
                     pieces.append((s0, s1))
+                elif dropped is not None:
+                    dropped.append((tp, float(s0), float(s1)))
         out[tp] = np.array(pieces, dtype=float).reshape(-1, 2)
     return out

@@ -124,6 +124,126 @@ def _tripod_mean(names: tuple[str, ...], values: FloatArray, tripod: str) -> Flo
     return np.asarray(values, dtype=float)[:, cols].mean(axis=1)
 
 
+#: relative body-height RMS by which a start half a stride away must beat the cross-correlation's
+#: to be taken: below it the two are the same fit (the tripods mirror each other)
+HALF_STRIDE_BETTER = 0.05
+
+
+def _stances_in_gaps(cut: list[tuple[str, float, float]], unknown: FloatArray,
+                     found: list[StanceWindow], paper: list[StanceWindow]
+                     ) -> list[tuple[str, float, float, str]]:
+    """Single supports the geometric edges cannot give because a motion-capture gap cuts or
+    hides them: ``(tripod, touchdown, lift-off, how)``. Pieces cut by a gap come from the
+    contacts (``how`` 'geometry_cut'); stances wholly inside a gap from the shifted clock's
+    windows that overlap it and no geometric stance (``how`` 'clock'). Gaps here are the
+    interior ones (not the run's ends)."""
+    gaps = np.asarray(unknown, dtype=float).reshape(-1, 2)
+    gaps = gaps[np.isfinite(gaps).all(axis=1)]
+    out = [(tp, a, b, 'geometry_cut') for tp, a, b in cut
+           if np.any((gaps[:, 0] <= b + 1e-3) & (gaps[:, 1] >= a - 1e-3))]
+    taken = [(w.touchdown_s, w.liftoff_s) for w in found] + [(a, b) for _, a, b, _ in out]
+    for w in paper:
+        a, b = w.touchdown_s, w.liftoff_s
+        in_gap = np.any((gaps[:, 0] < b) & (gaps[:, 1] > a))
+        if in_gap and not any(c < b and d > a for c, d in taken):
+            out.append((w.tripod, a, b, 'clock'))
+    return sorted(out, key=lambda x: x[1])
+
+
+def _damping_tradeoff(gfit: Any, geometry: LegGeometry, geo_inputs: tuple[Any, ...],
+                      geo_x: FloatArray, off: float, off_range: float, res: RunResult
+                      ) -> tuple[Any, LegGeometry, tuple[Any, ...]]:
+    """The legs' damping time unknown: the fit with it free against undamped legs.
+
+    The damper advances the leg force like a clock shift, so the damping time and the offset
+    trade off and the free fit can settle on either (undamped legs of another lab fitted 3.4
+    ms and an offset 7.4 ms late). The lower body-height RMS is kept and both are reported.
+    """
+    undamped = dataclasses.replace(geometry, leg_damping_time_s=0.0, damping_assumed=False)
+    inputs0 = (undamped,) + tuple(geo_inputs[1:])
+    try:
+        f0 = fit_ground_offset(*inputs0, initial_offset_s=off, offset_range_s=off_range,
+                               fix_offset=False, x_m=geo_x)
+    except SlipDataError:
+        return gfit, geometry, geo_inputs
+    how = 'fitted' if geometry.leg_damping_time_s is None else 'assumed'
+    res.frame['offset_damping_tradeoff'] = {
+        'damping': how,
+        'fitted_damping_time_s': gfit.damping_ratio_s, 'fitted_offset_s': gfit.offset_s,
+        'fitted_rms_m': gfit.rms_m, 'undamped_offset_s': f0.offset_s, 'undamped_rms_m': f0.rms_m}
+    take0 = f0.rms_m < gfit.rms_m
+    res.notes.append(
+        f'leg damping time unknown: {how} {1e3 * gfit.damping_ratio_s:.2f} ms gives the '
+        f'offset {gfit.offset_s:+.4f} s (body-height rms {1e3 * gfit.rms_m:.3f} mm), undamped '
+        f'legs {f0.offset_s:+.4f} s ({1e3 * f0.rms_m:.3f} mm); the damping time and the offset '
+        f'trade off, the ' + ('undamped' if take0 else how) + ' fit is kept (lower rms)')
+    if take0:
+        return f0, undamped, inputs0
+    return gfit, geometry, geo_inputs
+
+
+def _stride_period_s(tj: FloatArray, speed: dict[str, FloatArray]) -> float:
+    """Stride period [s] of a RHex-class run: one hip revolution per stride (the tripods'
+    mean hip speed), NaN when the hips do not turn on (not a rotating-leg gait)."""
+    w = 0.5 * (np.asarray(speed['left']) + np.asarray(speed['right']))
+    w = w[np.isfinite(w)]
+    if w.size < 10:
+        return math.nan
+    mean = float(np.mean(w))
+    return 2 * math.pi / abs(mean) if abs(mean) > 1.0 else math.nan
+
+
+def _half_stride_check(gfit: Any, geo_inputs: tuple[Any, ...], geo_x: FloatArray,
+                       speed: dict[str, FloatArray], tj: FloatArray, off_range: float,
+                       res: RunResult) -> Any:
+    """The cross-correlation's offset against starts half a stride either side.
+
+    In the sagittal plane the two tripods (front and rear legs of one side with the other
+    side's middle leg) are mirror images: mocap heights shifted by half a stride fit the hip
+    angles just as well, with the tripods' stances swapped. Without hip efforts nothing in the
+    geometric fit tells them apart, so the cross-correlation's sign decides. A start half a
+    stride away is taken only when it fits clearly better (an asymmetric robot); when it fits
+    as well the ambiguity is said (res.notes, res.frame['offset_half_stride']).
+    """
+    period = _stride_period_s(tj, speed)
+    if not math.isfinite(period):
+        return gfit
+    half = 0.5 * period
+    best = gfit
+    alt = []
+    for start in (gfit.offset_s - half, gfit.offset_s + half):
+        try:
+            f = fit_ground_offset(*geo_inputs, initial_offset_s=start, offset_range_s=off_range,
+                                  fix_offset=False, x_m=geo_x)
+        except SlipDataError:
+            continue
+        alt.append(f)
+        if f.rms_m < best.rms_m * (1 - HALF_STRIDE_BETTER):
+            best = f
+    if not alt:
+        return gfit
+    rms = [f.rms_m for f in alt]
+    res.frame['offset_half_stride'] = {
+        'stride_s': period, 'xcorr_offset_s': gfit.offset_s, 'xcorr_rms_m': gfit.rms_m,
+        'alias_offsets_s': [f.offset_s for f in alt], 'alias_rms_m': rms,
+        'chosen_offset_s': best.offset_s}
+    if best is not gfit:
+        res.notes.append(
+            f'the cross-correlation\'s offset {gfit.offset_s:+.4f} s was half a stride off: '
+            f'the start {best.offset_s:+.4f} s fits the body height clearly better (rms '
+            f'{1e3 * best.rms_m:.3f} mm against {1e3 * gfit.rms_m:.3f} mm)')
+    elif min(rms) < gfit.rms_m * (1 + HALF_STRIDE_BETTER):
+        res.notes.append(
+            f'offset ambiguous by half a stride ({half:.3f} s): without hip efforts the '
+            f'geometric fit cannot tell the tripods apart (they mirror each other in the '
+            f'sagittal plane; body-height rms {1e3 * gfit.rms_m:.3f} mm at '
+            f'{gfit.offset_s:+.4f} s, ' + ', '.join(
+                f'{1e3 * f.rms_m:.3f} mm at {f.offset_s:+.4f} s' for f in alt) +
+            '); the cross-correlation\'s sign chose it. If the stances look swapped (tripod '
+            'labels, foot positions a step off), give --offset, or record hip efforts')
+    return best
+
+
 def _tilted_frame(frame: WorldFrame, tilt_rad: float, x0_m: float, ground_m: float
                   ) -> WorldFrame:
     """``frame`` turned about its y axis so that a ground rising by ``tilt_rad`` along x is
@@ -452,6 +572,12 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                     f'{wide.ground_m:+.3f} m, offset {wide.offset_s:+.3f} s, rms '
                     f'{1e3 * wide.rms_m:.2f} mm (the mocap origin is not on the floor)')
                 gfit = wide
+        if (geometry.leg_damping_time_s is None or geometry.damping_assumed) and \
+                method == 'geometry':
+            gfit, geometry, geo_inputs = _damping_tradeoff(gfit, geometry, geo_inputs, geo_x,
+                                                           off, off_range, res)
+        if init == 'xcorr' and method == 'geometry':
+            gfit = _half_stride_check(gfit, geo_inputs, geo_x, speed, tj, off_range, res)
         off = gfit.offset_s
         res.ground_m = gfit.ground_m
         # the fitted ground is the frame's vertical translation and its slope along x a
@@ -461,7 +587,9 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
         res.frame.update(tilt_deg=math.degrees(frame.tilt_rad), rotation=frame.rotation.tolist(),
                          origin_m=frame.origin_m.tolist(),
                          ground_m=gfit.ground_m, ground_tilt_rad=gfit.tilt_rad,
-                         ground_source='geometry', geometry_rms_m=gfit.rms_m)
+                         ground_source='geometry', geometry_rms_m=gfit.rms_m,
+                         geometry_damping_time_s=gfit.damping_ratio_s,
+                         geometry_damping_fitted=geometry.leg_damping_time_s is None)
     res.offset_s = off
     res.offset_method = method
     res.edges = edges
@@ -486,16 +614,20 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
     if edges == 'effort':
         refined = {tp: refine_touchdowns(windows[tp], touchdowns[tp])[0] for tp in TRIPODS}
         stance_windows = single_tripod_stances(refined, res.shift_s)
+    gap_stances: list[tuple[str, float, float, str]] = []
     if geo_inputs:
         # heights in geo_inputs are those before the ground was moved
         contacts, unknown = leg_contacts(*geo_inputs, offset_s=res.offset_s,
                                          ground_m=res.ground_m, fit=gfit, x_m=geo_x)
-        ss = single_support(contacts, TRIPODS, unknown)
+        cut: list[tuple[str, float, float]] = []
+        ss = single_support(contacts, TRIPODS, unknown, dropped=cut)
         res.geometry_windows = sorted(
             (StanceWindow(float(a), float(b), tp, res.shift_s.get(tp, 0.0))
              for tp, iv in ss.items() for a, b in iv), key=lambda w: w.touchdown_s)
         if edges == 'geometry':
             stance_windows = res.geometry_windows
+            gap_stances = _stances_in_gaps(cut, unknown, res.geometry_windows,
+                                           res.paper_windows)
     t_in0, t_in1 = track.t_s[0], track.t_s[-1]
     t_steady = -math.inf
     if steady_only:
@@ -505,6 +637,17 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
         t_steady = (steady_start_s(tm[inside], body_pitch_rad(frame.rotation, quats), period)
                     if math.isfinite(period) else math.inf)
         res.frame['steady_start_s'] = t_steady
+    # raw mocap samples (all, in or out of the box) on the proprio clock, for skip reasons
+    t_raw = np.asarray(run.mocap_t_s, dtype=float) - res.offset_s
+    fin_raw = np.isfinite(t_raw) & np.all(np.isfinite(pm), axis=1)
+    dt_raw = float(np.median(np.diff(np.sort(t_raw[fin_raw])))) if fin_raw.sum() > 2 else 0.01
+
+    def why_not_whole(a: float, b: float) -> str:
+        # a sample of the window (or its neighbours) tracked but outside the box: it left
+        # the volume; otherwise the tracking lost it there
+        near = fin_raw & (t_raw >= a - 1.5 * dt_raw) & (t_raw <= b + 1.5 * dt_raw)
+        return 'outside_volume' if np.any(near & ~inside) else 'mocap_gap'
+
     stances: list[Stance] = []
     for k, w in enumerate(stance_windows):
         label = f'{run.label}#{k}'
@@ -517,7 +660,7 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
             reason = 'too_short'
         t, x, rt, rxz, whole = track.window(w.touchdown_s, w.liftoff_s)
         if not reason and not whole:
-            reason = 'mocap_gap' if t.size and np.any(np.isfinite(x[:, 0])) else 'outside_volume'
+            reason = why_not_whole(w.touchdown_s, w.liftoff_s)
         if not reason:
             st = Stance(t_s=t, state=x, tripod=w.tripod, raw_t_s=rt, raw_xz_m=rxz, label=label)
             try:
@@ -529,6 +672,13 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
             res.skipped.append({'label': label, 'tripod': w.tripod, 'touchdown': w.touchdown_s,
                                 'liftoff': w.liftoff_s, 'reason': reason})
             res.skipped_counts[reason] += 1
+    for tp, a, b, how in gap_stances:
+        if b < t_in0 or a > t_in1:
+            continue
+        res.skipped.append({'label': f'{run.label}#gap{len(res.skipped)}', 'tripod': tp,
+                            'touchdown': a, 'liftoff': b, 'reason': 'mocap_gap',
+                            'edges': how})
+        res.skipped_counts['mocap_gap'] += 1
     if stances:
         res.fits = SlipFitter(model).fit(stances).results_
         if position_fit:
