@@ -212,6 +212,7 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
     from hexapod_energy.descriptors import resolve_current_sign
 
     bat, gp, temps, mech = [], [], [], []
+    dropped: dict[str, list[str]] = {}
     clocks = ClockCheck()
     per_joint: dict[str, list[tuple[float, float]]] = {}
     with open_reader(path) as reader:
@@ -237,10 +238,14 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
             msg = reader.deserialize(m.data, m.msgtype)
             if msg.header.stamp.sec or msg.header.stamp.nanosec:
                 clocks.observe(m.topic, stamp_to_s(msg.header.stamp), 1e-9 * m.stamp_ns)
-            if m.topic == '/battery_state':
-                bat.append(battery_from_msg(msg))
-            elif m.topic == '/gait/phase':
-                gp.append(gait_phase_from_msg(msg))
+            if m.topic in ('/battery_state', '/gait/phase'):
+                # a bad message (NaN voltage, NaN period) is dropped and counted, as live
+                try:
+                    (bat if m.topic == '/battery_state' else gp).append(
+                        (battery_from_msg if m.topic == '/battery_state'
+                         else gait_phase_from_msg)(msg))
+                except ValueError as err:
+                    dropped.setdefault(m.topic, []).append(str(err))
             elif m.topic == '/servo_status':
                 s = servo_status_from_msg(msg)
                 temps.append((s.t_s, float(np.sum(s.temperature_c)), len(s.temperature_c)))
@@ -251,7 +256,8 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
                 if js.effort.size == len(js.names):
                     for name, e in zip(js.names, np.abs(js.effort)):
                         per_joint.setdefault(name, []).append((js.t_s, float(e)))
-    battery_notes: list[str] = []
+    battery_notes: list[str] = [f'{len(errs)} {topic} message(s) dropped: {errs[0]}'
+                                for topic, errs in sorted(dropped.items())]
     shifts, clock_notes = clocks.shifts()   # a topic stamped on another clock
     if shifts:
         battery_notes.extend(clock_notes)

@@ -112,3 +112,28 @@ def test_windows_across_a_recording_gap_are_left_out(tmp_path):
     np.testing.assert_allclose(run.power_in_w, P0_W, rtol=3e-3)
     for d in run.extra['windows']:
         assert not (d.t_end_s - d.window_s < 6.1 and d.t_end_s > 6.2), d
+
+
+def test_residual_reader_drops_bad_messages(tmp_path):
+    """A NaN gait period and a NaN battery voltage: dropped with a note by the residual loop's
+    reader, as by the energy reader and the live nodes (it raised ValueError)."""
+    from hexapod_common.testbags import rewrite_bag
+    from hexapod_energy.residuals import read_residual_run
+
+    write_bag(tmp_path / 'bag')
+    count = {'/gait/phase': 0, '/battery_state': 0}
+
+    def spoil(topic, msg):
+        if topic in count:
+            count[topic] += 1
+            if count[topic] == 7:
+                if topic == '/gait/phase':
+                    msg.period = float('nan')
+                else:
+                    msg.voltage = float('nan')
+
+    rewrite_bag(tmp_path / 'bag', tmp_path / 'bad', spoil)
+    run = read_residual_run(tmp_path / 'bad')
+    notes = ' '.join(run.notes)
+    assert '1 /gait/phase message(s) dropped' in notes and 'period' in notes
+    assert '1 /battery_state message(s) dropped' in notes
