@@ -25,7 +25,14 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
                           (geometry|mocap_origin), "ground_m", "geometry_rms_m",
                           "offset_initial", "ground_tilt_rad" and "rotation" (geometry:
                           the frame turned by the ground's fitted slope), "steady_start_s"
-                          (--steady-only)},
+                          (--steady-only), "offset_half_stride" (no hip efforts: the
+                          offset fitted from half a stride either side, {"stride_s",
+                          "xcorr_offset_s", "xcorr_rms_m", "alias_offsets_s",
+                          "alias_rms_m", "chosen_offset_s"}), "offset_damping_tradeoff"
+                          (damping time assumed or fitted, against undamped legs:
+                          {"damping", "fitted_damping_time_s", "fitted_offset_s",
+                          "fitted_rms_m", "undamped_offset_s", "undamped_rms_m"}),
+                          "geometry_damping_time_s", "geometry_damping_fitted"},
                 "ground_m" [m, fitted ground height in the path frame, null without it],
                 "paper_edges": [{"tripod", "touchdown", "liftoff"}],    # side by side:
                 "geometry_edges": [{"tripod", "touchdown", "liftoff"}], # single support
@@ -39,7 +46,9 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
                                     # no /gait/phase; "frame" also has "box": {"lower_m",
                                     # "upper_m", "source" (given|default|tracked_samples)}
       "gaits": {"<gait>": {"stances", "nerr_mean", "nerr_std", "power_w_mean", ...}},  # Table 3
-      "skipped": [{"bag", "label", "tripod", "touchdown", "liftoff", "reason"}],
+      "skipped": [{"bag", "label", "tripod", "touchdown", "liftoff", "reason"}],  # stances
+                  # a mocap dropout cuts or hides (geometric edges) also have "edges":
+                  # geometry_cut | clock (placed by the shifted clock inside the gap)
       "skipped_counts": {"<reason>": n},   # too_short, nan, mocap_gap, outside_volume,
                                            # transient (--steady-only), ...
       "failed_bags": [{"bag", "error"}]    # e.g. a missing topic
