@@ -934,9 +934,17 @@ class EffectSelection:
                 if same:
                     rec['indistinguishable_from'] = same
                     ok = False
+                if ok and e.needs_variation:
+                    _, _, term_v, _ = self._fit(selected + [_Centered(e, table)], table, train)
+                    rmse_v = float(np.sqrt(np.mean((y[held] - term_v[held]) ** 2)))
+                    if not rmse_v < cur_rmse * (1 - self.min_improvement):
+                        ok = False
+                        rec['note'] = ('only the constant part of its regressor lowers the '
+                                       'error (its variation does not): not told from an '
+                                       'offset')
                 if ok:
                     passing[ci] = rec
-                if ok and (best is None or rmse < best[0]):
+                if ok and e.selectable and (best is None or rmse < best[0]):
                     best = (rmse, ci, dbic)
             if best is None:
                 break
@@ -1104,9 +1112,14 @@ def _summary_effects(doc: dict[str, Any]) -> str:
         return intro + ('No candidate effect lowered the held-out error significantly, so none '
                         f"was added (held-out RMSE {h['rmse_before']:.3g} {unit}).")
     def fmt(params: dict[str, Any], stderr: dict[str, Any]) -> str:
-        return ', '.join(f'{k} = {v:.4g} +/- {stderr.get(k, float("nan")):.2g}'
-                         if isinstance(v, float) else f'{k} = {v}'
-                         for k, v in params.items() if k != 'same_stance_as')
+        out = ', '.join(f'{k} = {v:.4g} +/- {stderr.get(k, float("nan")):.2g}'
+                        if isinstance(v, float) else f'{k} = {v}'
+                        for k, v in params.items() if k != 'same_stance_as')
+        same = params.get('same_stance_as')
+        if same:  # legs these runs cannot tell from the named one: said, not hidden
+            out += (f" (or {', '.join(same)}: the same stance timing in these runs, so which "
+                    'of them cannot be told; nor whether it draws in stance or all the time)')
+        return out
 
     parts, doubts, others = [], [], []
     for a in doc.get('added_params', []):
@@ -1181,10 +1194,14 @@ def run_energy_loop(bench_bags: Sequence[str | Path], robot_bags: Sequence[str |
         raise InvalidInputError('the energy loop needs --robot BAG (at least one robot bag)')
     step = progress or (lambda _n: None)
     samples = []
+    bench_v: list[float] = []
     for p in bench_bags:
-        s, _ = bench_phase_samples(read_bench_bag(p), current_sign=current_sign,
-                                   phase_split=phase_split)
+        data = read_bench_bag(p)
+        s, _ = bench_phase_samples(data, current_sign=current_sign, phase_split=phase_split)
         samples.extend(s)
+        v = np.abs(np.asarray(data.battery_v, dtype=float))
+        if np.any(np.isfinite(v)):
+            bench_v.append(float(np.nanmedian(v)))
         step(1)
     model = fit_bench_model(samples)
     runs = []
@@ -1194,17 +1211,60 @@ def run_energy_loop(bench_bags: Sequence[str | Path], robot_bags: Sequence[str |
     doc = energy_loop_from_runs(model, runs, out_dir, robot_mass_kg=robot_mass_kg,
                                 payload_kg=payload_kg, load_offset_kg=load_offset_kg,
                                 temp_ref_c=_bench_temperature_c(bench_bags), plots=plots,
-                                robot_spec_cls=RobotSpec)
+                                robot_spec_cls=RobotSpec,
+                                bench_voltage_v=float(np.median(bench_v)) if bench_v else None)
     step(1)
     return doc
+
+
+#: a robot supply this far (relative) from the bench's is said: the bench surfaces hold at the
+#: bench's voltage (a servo's drive losses and speed depend on it)
+SUPPLY_MISMATCH = 0.03
+
+
+class _Centered(EnergyEffect):
+    """``effect`` with its columns minus their means over ``table`` (its variation only, with
+    the effect's own sign): the test of :attr:`EnergyEffect.needs_variation`."""
+
+    def __init__(self, effect: EnergyEffect, table: WindowTable) -> None:
+        self.effect = effect
+        self.name = f'{effect.name}_variation'
+        self.unit = effect.unit
+        self._mean = np.mean(effect.columns(table), axis=0)
+
+    def columns(self, table: WindowTable) -> np.ndarray:
+        return self.effect.columns(table) - self._mean
+
+    def params(self, coef, stderr, table):  # type: ignore[no-untyped-def]
+        return self.effect.params(coef, stderr, table)
+
+
+def _supply_check(doc: dict[str, Any], runs: Sequence[ResidualRun], bench_v: float | None
+                  ) -> None:
+    """Robot runs at another supply voltage than the bench's: recorded and said."""
+    if bench_v is None or not bench_v > 0:
+        return
+    robot_v = [float(np.median(np.abs(r.voltage_v))) for r in runs]
+    doc['supply_voltage'] = {'bench_v': bench_v, 'robot_v': robot_v}
+    off = [v / bench_v - 1.0 for v in robot_v]
+    if max(abs(x) for x in off) > SUPPLY_MISMATCH:
+        doc['supply_voltage']['mismatch'] = True
+        doc['summary'] += (
+            f' The robot ran at {min(robot_v):.2f}-{max(robot_v):.2f} V and the bench at '
+            f'{bench_v:.2f} V ({100 * min(off):+.0f} to {100 * max(off):+.0f} %): the bench '
+            'surfaces hold at the bench\'s voltage, so part of what the loop names may be '
+            'the supply (power_gain, carried_mass and speed_friction can all stand for it); '
+            'measure the bench at the robot\'s voltage.')
 
 
 def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
                           out_dir: str | Path | None = None, *, robot_mass_kg: float = 2.183,
                           payload_kg: float = 0.0, temp_ref_c: float | None = None,
                           load_offset_kg: float = 0.0, plots: bool = True,
-                          robot_spec_cls: Any = None) -> dict[str, Any]:
-    """The loop on a fitted bench model and read robot runs (tests reuse one bench fit)."""
+                          robot_spec_cls: Any = None, bench_voltage_v: float | None = None
+                          ) -> dict[str, Any]:
+    """The loop on a fitted bench model and read robot runs (tests reuse one bench fit).
+    ``bench_voltage_v``: the bench's supply voltage, checked against the robot runs'."""
     from hexapod_energy.prediction import RobotSpec
 
     spec = (robot_spec_cls or RobotSpec)(mass_kg=robot_mass_kg)
@@ -1243,6 +1303,7 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
                        'stream_lag_s': r.lag_s, 'notes': list(r.notes)} for r in runs]
     if temp_ref_c is not None:
         doc['temperature_reference_c'] = temp_ref_c
+    _supply_check(doc, runs, bench_voltage_v)
     if out_dir is not None:
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
