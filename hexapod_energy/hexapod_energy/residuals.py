@@ -1249,12 +1249,16 @@ def _supply_check(doc: dict[str, Any], runs: Sequence[ResidualRun], bench_v: flo
     off = [v / bench_v - 1.0 for v in robot_v]
     if max(abs(x) for x in off) > SUPPLY_MISMATCH:
         doc['supply_voltage']['mismatch'] = True
+        sag = 'supply_resistance' in doc.get('effects_added', [])
         doc['summary'] += (
             f' The robot ran at {min(robot_v):.2f}-{max(robot_v):.2f} V and the bench at '
             f'{bench_v:.2f} V ({100 * min(off):+.0f} to {100 * max(off):+.0f} %): the bench '
-            'surfaces hold at the bench\'s voltage, so part of what the loop names may be '
-            'the supply (power_gain, carried_mass and speed_friction can all stand for it); '
-            'measure the bench at the robot\'s voltage.')
+            'surfaces hold at the bench\'s voltage' +
+            (' (supply_resistance, added above, is the sag under load; what the sag does not '
+             'explain may still be the supply)' if sag else
+             ', so part of what the loop names may be the supply (power_gain, carried_mass '
+             'and speed_friction can all stand for it); measure the bench at the robot\'s '
+             'voltage') + '.')
 
 
 def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
