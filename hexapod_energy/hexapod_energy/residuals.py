@@ -684,19 +684,41 @@ def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = Non
                          0.5 * (r.power_w[1:] + r.power_w[:-1]) * np.diff(r.t_s))])}
         if with_slope:
             sub_extra['mass_slope_w_per_kg'] = r.mass_slope_w_per_kg
+        # walking windows: means over the exact half cycle (its boundary instants from the
+        # cycle phase), the samples interpolated, so that a sample stamped a little before or
+        # after a boundary (battery and gait stamped apart: any real robot) moves only its
+        # share, not its whole weight, across (+-0.5 ms jitter raised the windows' noise
+        # 0.017 -> 0.32 W and hid what the exact stamps showed)
+        hu = np.full(t.size, np.nan)
+        if np.any(walking):
+            ph = r.cycle_phase[keep]
+            wrap = np.concatenate([[0.0], np.cumsum(np.diff(ph) < -0.5)])
+            hu = 2.0 * (ph + wrap)
         for w in np.unique(inv[full]):
             m = inv == w
             m &= full
             tw = t[m]
             if tw.size < 3:
                 continue
+            idx = np.flatnonzero(m)
+            span = _half_cycle_span(t, hu, idx) if walking[idx[0]] else None
             cols['run'].append(ri)
-            cols['t_s'].append(float(tw.mean()))
-            cols['duration_s'].append(float(tw[-1] - tw[0]))
-            for k, arr in sub.items():
-                cols[k].append(float(np.mean(arr[keep][m])))
-            for k, arr in sub_extra.items():
-                extra[k].append(float(np.mean(arr[keep][m])))
+            if span is None:
+                cols['t_s'].append(float(tw.mean()))
+                cols['duration_s'].append(float(tw[-1] - tw[0]))
+                for k, arr in sub.items():
+                    cols[k].append(float(np.mean(arr[keep][m])))
+                for k, arr in sub_extra.items():
+                    extra[k].append(float(np.mean(arr[keep][m])))
+            else:
+                ta, tb = span
+                cols['t_s'].append(0.5 * (ta + tb))
+                cols['duration_s'].append(tb - ta)
+                for k, arr in sub.items():
+                    cols[k].append(_span_mean(t, np.asarray(arr)[keep], ta, tb))
+                for k, arr in sub_extra.items():
+                    extra[k].append(_span_mean(t, np.broadcast_to(arr, r.t_s.shape)[keep],
+                                               ta, tb))
             cols['stance_fraction'].append(r.in_stance[keep][m].mean(axis=0))
     if not cols['run']:
         raise ResidualDataError('robot bags give no complete half-cycle window after the '
@@ -706,6 +728,35 @@ def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = Non
     return WindowTable(**arrays, leg_names=runs[0].leg_names, supply_slope_ohm=slope,
                        supply_slope_stderr_ohm=se,
                        extra={k: np.array(v) for k, v in extra.items()})
+
+
+def _half_cycle_span(t: np.ndarray, hu: np.ndarray, idx: np.ndarray
+                     ) -> tuple[float, float] | None:
+    """Start and end [s] of the half cycle holding samples ``idx`` (contiguous): where the
+    unwrapped half-phase ``hu`` crosses the window's integer bounds, interpolated between the
+    window's first (last) sample and its neighbour; None at a run's ends or a break."""
+    i0, i1 = int(idx[0]), int(idx[-1])
+    if i0 == 0 or i1 >= t.size - 1 or not np.all(np.isfinite(hu[i0 - 1:i1 + 2])):
+        return None
+    lo = math.floor(hu[i0])
+    if math.floor(hu[i1]) != lo or not (hu[i0 - 1] < lo <= hu[i0]) or \
+            not (hu[i1] < lo + 1 <= hu[i1 + 1]):
+        return None
+
+    def cross(a: int, level: float) -> float:
+        f = (level - hu[a]) / (hu[a + 1] - hu[a])
+        return float(t[a] + f * (t[a + 1] - t[a]))
+
+    ta, tb = cross(i0 - 1, lo), cross(i1, lo + 1)
+    return (ta, tb) if tb > ta else None
+
+
+def _span_mean(t: np.ndarray, y: np.ndarray, ta: float, tb: float) -> float:
+    """Mean of the piecewise-linear ``y(t)`` over ``[ta, tb]``."""
+    inner = (t > ta) & (t < tb)
+    grid = np.concatenate([[ta], t[inner], [tb]])
+    vals = np.interp(grid, t, y)
+    return float(np.trapezoid(vals, grid) / (tb - ta))
 
 
 def split_mask(table: WindowTable, *, block_s: float = 2.0, every: int = 3) -> np.ndarray:
