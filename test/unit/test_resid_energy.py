@@ -433,3 +433,26 @@ def test_hidden_offsets_and_gains_are_not_confidently_misnamed(bench, clean_bags
     gains = [a for a in first.get('alternatives', []) if a['name'] == 'power_gain']
     assert gains, doc['summary']
     assert 'power_gain (gain = ' in doc['summary']
+
+
+def test_battery_stamps_jittered_against_the_gait(bench, clean_bags, tmp_path):
+    """Battery and gait stamped apart (+-0.5 ms, any real robot; the simulator stamps both on
+    the same instants): the half-cycle windows are means over the exact half cycles, so the
+    windows' noise stays near the exact stamps' (0.017 W) instead of 0.32 W, and clean runs
+    stay clean (an outside review: the jitter hid a 1.5 W fan the exact stamps showed)."""
+    from hexapod_common.testbags import rewrite_bag
+
+    rng = np.random.default_rng(5)
+
+    def jitter(topic, msg):
+        if topic == '/battery_state':
+            ns = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+            ns += int(rng.uniform(-5e5, 5e5))
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(ns, 10**9)
+
+    bags = [rewrite_bag(p, tmp_path / p.name, jitter) for p in clean_bags]
+    doc = loop(bench, bags)
+    u = doc['unexplained']
+    print(f"\njittered clean: final {u['rmse_w']:.3f} W, noise {u['noise_w']:.3f} W")
+    assert u['noise_w'] < 0.08 and not u['significant']
+    assert doc['effects_added'] == [] or doc['heldout']['rmse_before'] < 0.2
