@@ -274,6 +274,7 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
         return 1e-9 * m.stamp_ns
 
     periods: list[float] = []
+    duties: list[float] = []
     no_header: dict[str, int] = {}
     joint_rows: list[tuple[float, float, float, float]] = []
     tip_leg: list[str] = []
@@ -317,6 +318,9 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
             if m.topic == '/gait/phase':
                 period = float(msg.period)
                 periods.append(period if math.isfinite(period) and period > 0 else 0.0)
+                duty = float(msg.duty_factor)
+                if math.isfinite(duty) and 0 < duty < 1:
+                    duties.append(duty)
                 schedule.append((stamped(stamp_to_s(msg.header.stamp), m),
                                  tuple(msg.leg_names), tuple(bool(x) for x in msg.in_stance)))
                 continue
@@ -385,7 +389,8 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
                                          for k, b in enumerate(bat_samples)], notes_out)
     bat = [(b.t_s, b.voltage_v, b.current_a) for _, _, _, b in combined]
     if session is not None:
-        ses = _session_from_spec(path, session, bat, frc, tip, periods, notes_out)
+        ses = _session_from_spec(path, session, bat, frc, tip, periods, notes_out,
+                                 duties=duties)
     for name, rows in (('/battery_state', bat), ('/bench/ground_force', frc),
                        (tip_topic, tip), ('/bench/session', ses)):
         if not rows:
@@ -477,9 +482,12 @@ def _tip_rows_from_joints(rows: list[tuple[float, float, float, float]], leg_dh:
 def _session_from_spec(path: str | Path, spec: BenchSessionSpec,
                        bat: list[tuple[float, float, float]], frc: list[tuple[float, float]],
                        tip: list[tuple[float, float]], periods: list[float],
-                       notes: list[str]) -> list[dict[str, Any]]:
+                       notes: list[str], *, duties: Sequence[float] = ()
+                       ) -> list[dict[str, Any]]:
     """The one walking session of a bag without ``/bench/session`` (see
-    :class:`BenchSessionSpec`); its frequency's source goes into ``notes``."""
+    :class:`BenchSessionSpec`); its frequency's source goes into ``notes``. The duty factor:
+    the spec's, else ``/gait/phase``'s (``duties``), else unknown (0: the phase split then
+    takes the measured stance fraction)."""
     if not (bat and frc and tip):
         return []   # the caller names the empty topic
     if spec.frequency_hz is not None:
@@ -504,7 +512,7 @@ def _session_from_spec(path: str | Path, spec: BenchSessionSpec,
                  f'(sessions file), {freq:.4g} Hz (from {source})')
     return [{'t_s': t0, 'session_id': Path(path).name, 'state': 'walking',
              'load_kg': spec.load_kg, 'frequency_hz': freq,
-             'duty_factor': spec.duty_factor or 0.0,
+             'duty_factor': spec.duty_factor or (float(np.median(duties)) if duties else 0.0),
              'step_length_m': spec.step_length_m or 0.0},
             {'t_s': t_end, 'session_id': Path(path).name, 'state': 'end'}]
 
@@ -539,9 +547,15 @@ def _walking_segments(sessions: list[dict[str, Any]], t_end_s: float
     out: list[tuple[dict[str, Any], float, float]] = []
     current: dict[str, Any] | None = None
     start = 0.0
+    def params(x: dict[str, Any]) -> tuple[Any, ...]:
+        return tuple(x.get(k) for k in ('load_kg', 'frequency_hz', 'duty_factor'))
+
     for s in sessions + [{'t_s': t_end_s, 'session_id': None, 'state': 'end'}]:
+        # a new load, frequency or duty factor under the same id is a new session too (a lab
+        # that names its sessions by load: 42 sessions read as 7 of 48 s, each labelled with
+        # its first frequency)
         same = current is not None and s['session_id'] == current['session_id'] and \
-            s['state'] == 'walking'
+            s['state'] == 'walking' and params(s) == params(current)
         if same:
             continue
         if current is not None:
@@ -606,6 +620,17 @@ def bench_phase_samples(
             f'bag {data.path}: /bench/leg_tip z spans {tip_span:.1f} between its 5th and 95th '
             'percentiles, far beyond a leg\'s stroke: the positions look like millimetres '
             '(the contract is metres, REP-103)')
+    walk_tip = np.zeros(data.tip_t_s.shape, bool)
+    for s, t0, t1 in segments:
+        if s['frequency_hz'] > 0:
+            walk_tip |= (data.tip_t_s >= t0) & (data.tip_t_s < t1)
+    if walk_tip.sum() >= 20 and not data.schedule_t_s.size:
+        span = float(np.subtract(*np.nanpercentile(data.tip_z_m[walk_tip], [95, 5])))
+        if span < FLAT_TIP_M:
+            raise BagContentError(
+                f'bag {data.path}: the leg tip\'s height spans {1e3 * span:.1f} mm over the '
+                'walking sessions: it is not the height (a y-up motion-capture frame? the '
+                'contract\'s z is up, REP-103), so stance and swing cannot be split by it')
     f_sign, why = force_sign_factor(data, segments, force_sign)
     if why:
         notes.append(why)
@@ -629,6 +654,7 @@ def bench_phase_samples(
     offset = _weighted_median(np.array(offsets), np.array(cycles)) if offsets else 0.0
     samples = []
     splits: dict[str, int] = {}
+    guessed: list[float] = []
     for s, t0, t1 in segments:
         a = t0 + settle_s if t1 - t0 > 2 * settle_s else t0
         f = s['frequency_hz']
@@ -660,10 +686,24 @@ def bench_phase_samples(
             splits['contact'] = splits.get('contact', 0) + 1
         else:
             t_tip, st = np.empty(0), np.empty(0, bool)
+        duty = s['duty_factor']
+        if not duty > 0:
+            # not given (a sessions CSV without it, no /gait/phase): Brodoline et al.'s 0.5,
+            # said with the measured stance fraction (a bench at 0.6 read +20 % stance and
+            # -20 % swing power in silence). The measured fraction is no substitute: the
+            # sensed contact outlasts the commanded stance (0.7 at 0.5 on the simulated bench)
+            duty = 0.5
+            if s['frequency_hz'] > 0 and st.size:
+                guessed.append(float(np.mean(st)))
         samples.append(phase_powers(
             data.battery_t_s[pm], power[pm], t_tip, st, session_id=s['session_id'],
-            load_kg=s['load_kg'], frequency_hz=s['frequency_hz'],
-            duty_factor=s['duty_factor'] if s['duty_factor'] > 0 else 0.5))
+            load_kg=s['load_kg'], frequency_hz=s['frequency_hz'], duty_factor=duty))
+    if guessed:
+        notes.append(f'bench duty factor not given: 0.5 assumed (Brodoline et al.\'s bench); '
+                     f'the sensed stance fraction is {min(guessed):.2f} to {max(guessed):.2f}. '
+                     'If the leg was commanded at another duty factor, give it (duty_factor '
+                     'in the sessions file): the phase powers scale with it (0.6 read as 0.5: '
+                     'stance +20 %, swing -20 %)')
     if phase_split == 'schedule' and splits.get('contact'):
         raise BagContentError(f'bag {data.path}: /gait/phase does not cover '
                               f'{splits["contact"]} walking session(s); use the contact split')
@@ -708,13 +748,53 @@ def force_sign_factor(data: BenchData, segments: list[tuple[dict[str, Any], floa
             float(np.mean(data.force_z_n[m])))
     diffs = [np.mean(static[k]) - np.mean(walking[k]) for k in static if k in walking]
     if not diffs:
+        # no static session to compare with: the tip decides. In stance the tip is low and
+        # the leg presses on the treadmill, so the force in compression falls as the tip rises
+        r = _force_tip_correlation(data, segments)
+        if math.isfinite(r) and r > TIP_SIGN_R:
+            return -1.0, (f'bench force negative in compression (it rises with the leg tip\'s '
+                          f'height while walking, r = {r:+.2f}; no 0 Hz session to compare): '
+                          'force.z negated (--force-sign positive keeps it as recorded)')
+        if math.isfinite(r) and r < -TIP_SIGN_R:
+            return 1.0, ''
         return 1.0, ('force sign not checked (no 0 Hz session with a walking session of the '
-                     'same load): force.z taken as positive in compression')
+                     'same load, and the force does not follow the tip height): force.z taken '
+                     'as positive in compression')
     if float(np.median(diffs)) < 0:
         return -1.0, ('bench force negative in compression (static sessions below walking '
                       'ones under the same load): force.z negated (--force-sign positive keeps '
                       'it as recorded)')
     return 1.0, ''
+
+
+#: |correlation| of force and tip height over walking sessions that decides the force sign
+#: when no static session can
+TIP_SIGN_R = 0.3
+#: a leg tip whose height spans less than this over walking sessions is not the height [m]
+FLAT_TIP_M = 0.002
+
+
+def _force_tip_correlation(data: BenchData,
+                           segments: list[tuple[dict[str, Any], float, float]]) -> float:
+    """Correlation of the normal force with the tip height over the walking sessions (each
+    session's means removed), NaN without enough samples."""
+    fs, zs = [], []
+    for s, t0, t1 in segments:
+        if s['frequency_hz'] <= 0:
+            continue
+        m = (data.tip_t_s >= t0) & (data.tip_t_s < t1)
+        if m.sum() < 10 or data.force_t_s.size < 4:
+            continue
+        z = data.tip_z_m[m]
+        f = np.interp(data.tip_t_s[m], data.force_t_s, data.force_z_n)
+        fs.append(f - np.mean(f))
+        zs.append(z - np.mean(z))
+    if not fs:
+        return math.nan
+    f, z = np.concatenate(fs), np.concatenate(zs)
+    if not (np.std(f) > 0 and np.std(z) > 0):
+        return math.nan
+    return float(np.corrcoef(f, z)[0, 1])
 
 
 def _weighted_median(values: np.ndarray, weights: np.ndarray) -> float:

@@ -111,8 +111,13 @@ def align_offset_s(
         lo, hi = np.percentile(a, [5, 95])
         a = (a > lo + 0.5 * (hi - lo)).astype(float)
         b = (-b < np.percentile(-b, 5) + height_margin_m).astype(float)
-    a = (a - a.mean()) / (a.std() or 1.0)
-    b = (b - b.mean()) / (b.std() or 1.0)
+    if not (a.std() > 0 and b.std() > 0):
+        # a flat stream (a tip whose z does not move: another axis up; a dead load cell) has
+        # no correlation peak; the maximum lag came out and shifted the force by it
+        raise InvalidInputError('force or tip height does not vary over the session: nothing '
+                                'to align')
+    a = (a - a.mean()) / a.std()
+    b = (b - b.mean()) / b.std()
     n = len(grid)
     nfft = 1 << (2 * n - 1).bit_length()
     # corr[k] = sum_i a[i + k] b[i]: force lags tip by k samples
@@ -487,6 +492,11 @@ class SingleLegModel:
         self._fits = {}
         self.domain_: dict[str, dict[str, tuple[float, float]]] = {}
         moving = cols.frequency_hz > 0
+        if not np.any(moving):
+            raise InvalidInputError(
+                f'single-leg fit: none of the {len(samples)} bench sessions walks (all 0 Hz): '
+                'the phase surfaces need walking sessions (a leg tip that never moves: is its '
+                'height on z, REP-103?)')
         for phase, rate, y, keep in (
             ('stance', cols.stance_rate_hz, cols.p_stance_w,
              np.ones_like(moving) if self.basal_in_stance else moving),
