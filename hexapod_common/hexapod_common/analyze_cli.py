@@ -167,6 +167,8 @@ def _run(args: argparse.Namespace) -> int:
     try:
         return int(args.func(args) or 0)
     except KeyboardInterrupt:
+        print(f'hexapod-analyze {args.command}: interrupted; nothing more written',
+              file=sys.stderr)
         return 130
     except (OSError, ValueError, LookupError, RuntimeError, HexapodError) as err:
         # typed errors of the analysis: one line, no traceback

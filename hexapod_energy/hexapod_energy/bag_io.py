@@ -879,6 +879,13 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
         raise ValueError(f'cycle_source must be auto, gait_phase or joints, got {cycle_source!r}')
     with open_reader(path) as reader:
         present = {c.topic for c in reader.connections}
+        bench_like = any(c.topic in ('/bench/session', '/bench/ground_force') and c.msgcount
+                         for c in reader.connections)
+    if bench_like:
+        # a single-leg bench bag read as a robot gave 'runs' of a one-legged tripod
+        raise BagContentError(
+            f'bag {path} is a single-leg bench bag (/bench/session, /bench/ground_force), not '
+            'a robot run: give it with --bench')
     auto_cycles = cycle_source == 'auto'
     if auto_cycles:
         cycle_source = 'gait_phase' if '/gait/phase' in present else 'joints'

@@ -556,6 +556,12 @@ def _handler(args: argparse.Namespace) -> int:
     if err:
         line += f" (prediction rmse {err['rmse_w']:.3f} W, {100 * err['relative_rmse']:.2f} %)"
     print(line)
+    warns = list(dict.fromkeys(doc.get('warnings', [])))
+    if warns:
+        # said on the terminal too (an assumed mass, refused efforts, an extrapolation), not
+        # only inside energy.json
+        print(f'hexapod-analyze energy: {len(warns)} warning(s) in energy.json "warnings"; '
+              f'first: {warns[0]}', file=sys.stderr)
     return 0
 
 

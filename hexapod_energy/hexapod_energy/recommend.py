@@ -171,5 +171,14 @@ def recommend_gait(
                         phase_power, output_power, lim, min_sup, load_offset_kg)
     saving = None if default is None else \
         1.0 - best.specific_cost_of_transport / default.specific_cost_of_transport
+    if saving is not None and saving < 0 and default is not None:
+        # the default costs less but was not eligible: say why the recommendation costs more
+        why = ('it reads the bench surfaces outside their sessions (' +
+               '; '.join(default.outside_bench) + ')') if default.outside_bench else \
+            'it is not among the configurations searched'
+        note = '; '.join(x for x in (note, (
+            f'the default gait predicts {-100 * saving:.1f} % less CoT/M than this '
+            f'recommendation, but {why}: its figure is an extrapolation, the recommendation '
+            'the best the bench covers')) if x)
     return Recommendation(speed_mps, payload_kg, best, default, saving, evaluated, rejected,
                           outside, note)

@@ -1163,8 +1163,11 @@ def _summary_effects(doc: dict[str, Any]) -> str:
         return intro + ('No candidate effect lowered the held-out error significantly, so none '
                         f"was added (held-out RMSE {h['rmse_before']:.3g} {unit}).")
     def fmt(params: dict[str, Any], stderr: dict[str, Any]) -> str:
+        # a constant of the model (stderr exactly 0, e.g. the drive loss factor) has no +/-
         out = ', '.join(f'{k} = {v:.4g} +/- {stderr.get(k, float("nan")):.2g}'
-                        if isinstance(v, float) else f'{k} = {v}'
+                        if isinstance(v, float) and stderr.get(k) != 0.0
+                        else f'{k} = {v:.4g} (fixed)' if isinstance(v, float)
+                        else f'{k} = {v}'
                         for k, v in params.items() if k != 'same_stance_as')
         same = params.get('same_stance_as')
         if same:  # legs these runs cannot tell from the named one: said, not hidden

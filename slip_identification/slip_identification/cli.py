@@ -404,10 +404,19 @@ def run_command(args: argparse.Namespace) -> int:
         # this process, and forking after OpenMP aborts the child ('fork() called from a
         # process already using GNU OpenMP')
         ctx = multiprocessing.get_context('forkserver')
-        with ProcessPoolExecutor(max_workers=args.jobs, mp_context=ctx) as pool:
+        pool = ProcessPoolExecutor(max_workers=args.jobs, mp_context=ctx)
+        try:
             futs = [pool.submit(analyze_bag, b, options) for b in bags]
             for fut in tqdm(futs, desc='slip', unit='bag'):
                 results.append(fut.result())
+        except KeyboardInterrupt:
+            # Ctrl-C: the bags not started are dropped and the running workers stopped,
+            # not waited for (they kept going 14 s)
+            pool.shutdown(wait=False, cancel_futures=True)
+            for proc in list(getattr(pool, '_processes', {}).values()):
+                proc.terminate()
+            raise
+        pool.shutdown()
     else:
         for b in tqdm(bags, desc='slip', unit='bag'):
             results.append(analyze_bag(b, options))

@@ -199,7 +199,7 @@ def test_a_bad_robot_bag_does_not_lose_the_others(bags, tmp_path, capsys) -> Non
     assert code == 2 and 'every robot bag was refused' in capsys.readouterr().err
 
 
-def test_default_robot_mass_is_said(bags, tmp_path):
+def test_default_robot_mass_is_said(bags, tmp_path, capsys):
     """Without --robot-mass, AntBot's mass is assumed with a warning (another robot's CoT/M and
     specific resistance scale with it: a 3.4 kg quadruped read +56 % with no word)."""
     root, _ = bags
@@ -207,6 +207,8 @@ def test_default_robot_mass_is_said(bags, tmp_path):
                  '--no-progress']) == 0
     doc = json.loads((tmp_path / 'a' / 'energy.json').read_text())
     assert any('robot mass not given' in w for w in doc['warnings'])
+    # and said on the terminal, not only inside energy.json
+    assert 'warning(s) in energy.json' in capsys.readouterr().err
     assert doc['robot_runs'][0]['mass_kg'] == pytest.approx(2.183)
     assert main(['--robot', str(root / 'robot0'), '--robot-mass', '3.0', '--out',
                  str(tmp_path / 'b'), '--no-progress']) == 0

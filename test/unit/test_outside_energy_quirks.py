@@ -137,3 +137,27 @@ def test_residual_reader_drops_bad_messages(tmp_path):
     notes = ' '.join(run.notes)
     assert '1 /gait/phase message(s) dropped' in notes and 'period' in notes
     assert '1 /battery_state message(s) dropped' in notes
+
+
+def test_bench_bag_given_as_robot_is_refused(tmp_path):
+    """A single-leg bench bag given as --robot gave 'runs' of a one-legged tripod (exit 0)."""
+    from hexapod_bench_drivers.bench_sim import BenchPlan, simulate_bench
+    from hexapod_bench_drivers.sim_bag import write_trace
+
+    write_trace(simulate_bench(BenchPlan(loads_kg=(0.0,), frequencies_hz=(0.0, 1.0),
+                                         walk_s=3.0), seed=1), tmp_path / 'bench')
+    with pytest.raises(BagContentError, match='single-leg bench bag.*--bench'):
+        read_robot_bag(tmp_path / 'bench', mass_kg=2.0)
+
+
+def test_interrupt_is_said(capsys):
+    """Ctrl-C: one line and exit 130 (it exited 130 in silence)."""
+    import argparse
+
+    from hexapod_common.analyze_cli import _run
+
+    def boom(_args):
+        raise KeyboardInterrupt
+
+    assert _run(argparse.Namespace(func=boom, command='slip')) == 130
+    assert 'interrupted' in capsys.readouterr().err
