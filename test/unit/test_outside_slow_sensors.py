@@ -90,12 +90,16 @@ def test_compression_negative_force_is_flipped(bench, tare_n):
     assert diag['force_sign'] == 1.0
 
 
-def test_force_sign_unchecked_without_a_static_session(bench):
+def test_force_sign_from_the_tip_without_a_static_session(bench):
+    # no 0 Hz session to compare with: the tip decides (the force falls as the tip rises),
+    # where the sign used to go unchecked (test_outside_bench_quirks.py)
     walking_only = dataclasses.replace(
         bench, sessions=[s for s in bench.sessions if s['frequency_hz'] > 0])
     _, diag = bench_phase_samples(walking_only)
     assert diag['force_sign'] == 1.0
-    assert any('force sign not checked' in n for n in diag['notes'])
+    assert not any('force sign not checked' in n for n in diag['notes'])
+    flipped = dataclasses.replace(walking_only, force_z_n=-walking_only.force_z_n)
+    assert bench_phase_samples(flipped)[1]['force_sign'] == -1.0
     with pytest.raises(ValueError, match='force sign'):
         bench_phase_samples(bench, force_sign='up')
 
