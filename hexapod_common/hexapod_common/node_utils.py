@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 import os
 import sys
 from collections.abc import Callable, Sequence
@@ -111,6 +112,9 @@ def _coerce(name: str, value: Any, default: Any) -> Any:
     if isinstance(default, float) and isinstance(value, int) and not isinstance(value, bool):
         return float(value)
     if isinstance(default, (list, tuple)):
+        if default and all(isinstance(d, float) for d in default):
+            value = [float(v) if isinstance(v, int) and not isinstance(v, bool) else v
+                     for v in value]
         return type(default)(value)
     if not isinstance(value, type(default)):
         raise ParameterError(
@@ -156,8 +160,10 @@ def declare_params(node: Any, cls: type[T], *,
     :class:`ParameterError`.
     """
     from rclpy.exceptions import InvalidParameterTypeException
+    from rclpy.parameter import Parameter
 
     values = {}
+    widened: dict[str, Parameter.Type] = {}   # float fields that also take a whole number
     for fld in dataclasses.fields(cls):  # type: ignore[arg-type]
         default = _default_of(fld)
         writable = bool(fld.metadata.get('live', False)) or on_change is not None
@@ -166,11 +172,19 @@ def declare_params(node: Any, cls: type[T], *,
             read_only=bool(fld.metadata.get('read_only', False)) or not writable,
         )
         declared = default if not isinstance(default, tuple) else list(default)
+        kind = Parameter.Type.from_parameter_value(declared)
+        if kind in (Parameter.Type.DOUBLE, Parameter.Type.DOUBLE_ARRAY):
+            widened[fld.name] = kind
         try:
             node.declare_parameter(fld.name, declared, descriptor)
         except InvalidParameterTypeException as err:
-            raise ParameterError(f'parameter {fld.name!r} refused: '
-                                 f'{err.args[0] if err.args else err}') from err
+            # ``-p mass:=2`` is an INTEGER override of a DOUBLE parameter: take it as 2.0
+            value = _override_value(node, fld.name)
+            as_float = _widen(kind, value)
+            if as_float is None:
+                raise ParameterError(f'parameter {fld.name!r} refused: '
+                                     f'{err.args[0] if err.args else err}') from err
+            node.declare_parameter(fld.name, as_float, descriptor, ignore_override=True)
         values[fld.name] = node.get_parameter(fld.name).value
     params = validate_params(cls, values)
     node.params = params
@@ -187,8 +201,48 @@ def declare_params(node: Any, cls: type[T], *,
         node.params = new
         return SetParametersResult(successful=True)
 
+    def _pre_set(parameters: list[Any]) -> list[Any]:
+        # a run-time whole number for a float parameter (``ros2 param set /n mass 2``)
+        out = []
+        for p in parameters:
+            as_float = _widen(widened[p.name], p.value) if p.name in widened else None
+            out.append(p if as_float is None or p.type_ == widened[p.name]
+                       else Parameter(p.name, widened[p.name], as_float))
+        return out
+
+    node.add_pre_set_parameters_callback(_pre_set)
     node.add_on_set_parameters_callback(_on_set)
     return params
+
+
+def _widen(kind: Any, value: Any) -> Any:
+    """``value`` as a float (or float list) when ``kind`` is DOUBLE (DOUBLE_ARRAY) and
+    ``value`` is a whole number (a list of them), else None."""
+    from rclpy.parameter import Parameter
+
+    def whole(v: Any) -> bool:
+        return isinstance(v, numbers.Integral) and not isinstance(v, bool)
+
+    if kind == Parameter.Type.DOUBLE and whole(value):
+        return float(value)
+    if kind == Parameter.Type.DOUBLE_ARRAY and not isinstance(value, (str, bytes)) \
+            and hasattr(value, '__iter__') and all(whole(v) for v in value):
+        return [float(v) for v in value]
+    return None
+
+
+def _override_value(node: Any, name: str) -> Any:
+    """The start-up override of ``name`` (``-p name:=...``), read by declaring the parameter
+    with dynamic typing, then undeclaring it; None if there is none."""
+    probe = ParameterDescriptor(dynamic_typing=True)
+    try:
+        node.declare_parameter(name, None, probe)
+        return node.get_parameter(name).value
+    except Exception:   # noqa: BLE001 - no readable override: the caller refuses the value
+        return None
+    finally:
+        if node.has_parameter(name):
+            node.undeclare_parameter(name)
 
 
 def run_node(node_factory: Callable[..., Any], args: Sequence[str] | None = None) -> int:

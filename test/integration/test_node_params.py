@@ -72,6 +72,66 @@ def test_a_wrong_type_at_start_up_is_a_parameter_error():
         env.make(_Node, parameter_overrides=[Parameter('rate_hz', value='abc')])
 
 
+
+@pytest.mark.timeout(60)
+def test_a_whole_number_for_a_float_parameter_is_taken_as_a_float_at_start_up():
+    # energy_monitor --ros-args -p mass:=2 (an INTEGER override of a DOUBLE parameter)
+    from hexapod_energy.energy_node import EnergyMonitorNode
+
+    with ros_env('np') as env:
+        node = env.make(EnergyMonitorNode, parameter_overrides=[Parameter('mass', value=2)])
+        assert node.params.mass == 2.0 and isinstance(node.params.mass, float)
+        assert node.get_parameter('mass').type_ == Parameter.Type.DOUBLE
+        other = env.make(_Node, parameter_overrides=[Parameter('rate_hz', value=5),
+                                                     Parameter('box', value=[1, 2])])
+        assert other.params.rate_hz == 5.0 and isinstance(other.params.rate_hz, float)
+        assert other.params.box == [1.0, 2.0]
+        assert all(isinstance(v, float) for v in other.params.box)
+        assert other.get_parameter('box').type_ == Parameter.Type.DOUBLE_ARRAY
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize('value', [True, 'abc'])
+def test_a_bool_or_a_string_for_a_float_parameter_is_still_refused_at_start_up(value):
+    with ros_env('np') as env, pytest.raises(ParameterError, match="'limit'.*DOUBLE"):
+        env.make(_Node, parameter_overrides=[Parameter('limit', value=value)])
+
+
+@pytest.mark.timeout(60)
+def test_a_whole_number_for_a_float_parameter_is_taken_as_a_float_at_run_time():
+    # ros2 param set /params_node limit 3: the SetParameters service with an INTEGER value
+    from rcl_interfaces.srv import SetParameters
+
+    with ros_env('np') as env:
+        seen = []
+        node = env.make(_Node, on_change=lambda p: seen.append(p.limit))
+        client_node = env.add(rclpy.create_node('np_client', context=env.context,
+                                                namespace=env.namespace))
+        client = client_node.create_client(SetParameters,
+                                           f'{node.get_fully_qualified_name()}/set_parameters')
+        assert env.spin_until(client.service_is_ready, timeout_s=30.0)
+
+        def call(name, value):
+            fut = client.call_async(SetParameters.Request(
+                parameters=[Parameter(name, value=value).to_parameter_msg()]))
+            env.executor.spin_until_future_complete(fut, timeout_sec=30.0)
+            assert fut.done()
+            [result] = fut.result().results
+            return result
+
+        assert call('limit', 3).successful
+        assert node.params.limit == 3.0 and isinstance(node.params.limit, float)
+        assert seen == [3.0] and isinstance(seen[0], float)
+        assert node.get_parameter('limit').type_ == Parameter.Type.DOUBLE
+        assert call('box', [2, 5]).successful and node.params.box == [2.0, 5.0]
+        for bad in (True, 'abc'):
+            res = call('limit', bad)
+            assert not res.successful and 'type' in res.reason.lower()
+        assert node.params.limit == 3.0
+        res = call('limit', -1)   # still validated after the conversion
+        assert not res.successful and 'must be > 0' in res.reason
+
+
 def _failing_factory(exc):
     def factory():
         raise exc
