@@ -14,9 +14,13 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
+import math
+import os
 import sys
+import tempfile
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any
 
 from .effects import EFFECTS, EffectError, parse_effects
@@ -58,8 +62,8 @@ def build_parser() -> argparse.ArgumentParser:
     robot.add_argument('--gait', default='tripod')
     robot.add_argument('--duty-factor', type=float, default=0.5)
     robot.add_argument('--period', type=float, default=1.0, help='gait period [s]; 0 = stand')
-    robot.add_argument('--speed', type=float, default=0.0,
-                       help='body speed [m/s]; > 0 overrides --period')
+    robot.add_argument('--speed', type=float, default=None,
+                       help='body speed [m/s], > 0; overrides --period')
     robot.add_argument('--step-length', type=float, default=0.10, help='[m]')
     robot.add_argument('--step-height', type=float, default=0.04, help='[m]')
     robot.add_argument('--legs', type=int, default=6, help='leg count (4, 6, 8)')
@@ -133,7 +137,8 @@ def _run_robot(args: argparse.Namespace) -> int:
     from .robot_sim import RobotConfig, RobotSimulator
     effects = parse_effects(args.effect, simulator='robot')
     config = RobotConfig(leg_count=args.legs, gait=args.gait, duty_factor=args.duty_factor,
-                         period_s=args.period, speed_mps=args.speed,
+                         period_s=args.period,
+                         speed_mps=args.speed if args.speed is not None else 0.0,
                          step_length_m=args.step_length, step_height_m=args.step_height,
                          payload_kg=args.payload,
                          supply='battery' if args.battery else 'supply', servo=args.servo,
@@ -167,9 +172,63 @@ def _run_bench(args: argparse.Namespace) -> int:
     return _finish(args, trace, effects, t0)
 
 
+#: Numeric options of the subcommands and what they must be (checked before simulating);
+#: an option a subcommand lacks, or left at None, is skipped. Every value must be finite.
+_NUMBER_RULES: dict[str, tuple[str, Callable[[float], bool]]] = {
+    'duration': ('> 0', lambda v: v > 0),
+    'rate': ('> 0', lambda v: v > 0),
+    'speed': ('> 0', lambda v: v > 0),
+    'period': ('>= 0 (0 = stand)', lambda v: v >= 0),
+    'duty_factor': ('in (0, 1)', lambda v: 0 < v < 1),
+    'step_length': ('>= 0', lambda v: v >= 0),
+    'step_height': ('>= 0', lambda v: v >= 0),
+    'payload': ('>= 0', lambda v: v >= 0),
+    'max_cool': ('>= 0', lambda v: v >= 0),
+    'loads': ('>= 0', lambda v: v >= 0),
+    'frequencies': ('>= 0', lambda v: v >= 0),
+}
+
+
+def _check_numbers(args: argparse.Namespace) -> str | None:
+    """Why a numeric option is refused, else None."""
+    for name, (rule, ok) in _NUMBER_RULES.items():
+        value = getattr(args, name, None)
+        if value is None or isinstance(value, bool):
+            continue
+        for v in value if isinstance(value, (list, tuple)) else (value,):
+            if not isinstance(v, (int, float)):
+                continue
+            if not math.isfinite(v) or not ok(v):
+                option = '--' + name.replace('_', '-')
+                return f'{option} must be a finite number {rule}, got {v:g}'
+    return None
+
+
+def _check_out(out: str) -> str | None:
+    """Why the bag folder ``out`` cannot be created, else None (nothing is left behind)."""
+    path = Path(out)
+    if path.exists() or path.is_symlink():
+        return f'--out {out} exists; refusing to overwrite (remove it or choose another name)'
+    parent = path.absolute().parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent   # the bag writer creates the missing folders
+    if not parent.is_dir():
+        return f'--out {out}: {parent} is not a folder'
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix='.hexapod-sim-', dir=parent))
+    except OSError as err:
+        return f'--out {out}: cannot create a folder in {parent} ({err.strerror or err})'
+    return None
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    # refuse before simulating: a bench plan takes minutes before the bag is written
+    reason = _check_numbers(args) or _check_out(args.out)
+    if reason:
+        print(f'hexapod-sim {args.command}: error: {reason}', file=sys.stderr)
+        return 2
     try:
         return int(args.func(args))
     except (EffectError, ValueError) as err:
