@@ -5,6 +5,7 @@ A ROS 1 ``.bag`` is accepted too: its messages are converted to ROS 2 CDR on the
 
 Usage: ``bag_replay BAG [--rate R] [--topics T ...] [--remap FROM:=TO ...] [--start S]
 [--end S] [--no-clock] [--wait-subscribers N]``. Rate 0 (default) is as fast as possible.
+A negative rate or offset is refused, and so is a ``--start`` past the bag's end (exit 2).
 """
 
 from __future__ import annotations
@@ -25,7 +26,8 @@ from hexapod_common.errors import HexapodError
 from hexapod_common.node_utils import LATCHED_QOS
 from hexapod_common.replay import ReplayOptions, ReplaySource, pace
 
-__all__ = ['BagReplayNode', 'FASTDDS_PROFILE', 'main', 'parse_args', 'use_replay_profile']
+__all__ = ['BagReplayNode', 'FASTDDS_PROFILE', 'check_args', 'main', 'parse_args',
+           'use_replay_profile']
 
 #: Fast DDS writer profile with a 2 ms heartbeat period. Acknowledgements answer heartbeats, and
 #: with the default 3 s period a replayer waiting for acks crawls (measured: 3000 messages to
@@ -157,12 +159,40 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     return args
 
 
+def check_args(args: argparse.Namespace) -> str | None:
+    """Why the numbers of :func:`parse_args` are refused, else None."""
+    import math
+
+    for name in ('rate', 'start', 'end'):
+        value = getattr(args, name)
+        if not math.isfinite(value) or value < 0:
+            extra = ' (1 = real time, 0 = as fast as possible)' if name == 'rate' else ''
+            return f'--{name} must be a finite number >= 0{extra}, got {value:g}'
+    if args.end and args.end <= args.start:
+        return f'--end {args.end:g} s must be after --start {args.start:g} s (0 = to the end)'
+    if args.wait_subscribers < 0:
+        return f'--wait-subscribers must be >= 0, got {args.wait_subscribers}'
+    return None
+
+
+def _check_window(args: argparse.Namespace, source: ReplaySource) -> str | None:
+    """Why ``--start`` selects nothing of the bag (it starts past the bag's end), else None."""
+    span_s = max(0, source.end_ns - source.start_ns) * 1e-9
+    if args.start > span_s:
+        return (f'--start {args.start:g} s is past the end: the bag spans {span_s:.3f} s, '
+                'nothing to replay')
+    return None
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     import rclpy
     from rclpy.utilities import remove_ros_args
 
     raw = list(sys.argv[1:] if argv is None else argv)
     args = parse_args(remove_ros_args(['bag_replay', *raw])[1:])
+    if reason := check_args(args):
+        print(f'bag_replay: error: {reason}', file=sys.stderr)
+        return 2
     use_replay_profile()
     rclpy.init(args=['bag_replay', *raw])
     node = None
@@ -172,12 +202,21 @@ def main(argv: Sequence[str] | None = None) -> int:
             unknown = '; '.join(f'{t}: {why}' for t, why in node.source.skipped.items())
             raise HexapodError('nothing to replay' + (f' (unknown types: {unknown})'
                                                       if unknown else ' (no matching topics)'))
+        if reason := _check_window(args, node.source):
+            print(f'bag_replay: error: {reason}', file=sys.stderr)
+            return 2
         if args.wait_subscribers:
             node.wait_for_subscribers(args.wait_subscribers)
         counts = node.run()
         total = sum(counts.values())
         print(f'replayed {total} messages: ' +
               ', '.join(f'{t} {c}' for t, c in sorted(counts.items())))
+        if total == 0:
+            span_s = max(0, node.source.end_ns - node.source.start_ns) * 1e-9
+            print(f'bag_replay: error: no message in the selected window '
+                  f'(--start {args.start:g} s, --end {args.end:g} s); the bag spans '
+                  f'{span_s:.3f} s', file=sys.stderr)
+            return 1
         return 0
     except HexapodError as err:
         print(f'bag_replay: error: {err}', file=sys.stderr)

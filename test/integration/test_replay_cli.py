@@ -130,3 +130,49 @@ while time.monotonic() - t0 < 30:
         count = reader.message_count
     assert span_s >= 9.0, (span_s, recorded_for)
     assert count >= 900
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize('args,word', [
+    (['--rate', '-1'], '--rate'),
+    (['--rate', 'nan'], '--rate'),
+    (['--start', '-2'], '--start'),
+    (['--end', '-1'], '--end'),
+    (['--start', '5', '--end', '2'], '--end'),
+    (['--wait-subscribers', '-1'], '--wait-subscribers'),
+])
+def test_bad_numbers_are_refused_in_one_line_with_exit_2(tmp_path, args, word):
+    bag = tmp_path / 'b'
+    write_mixed_bag(bag, 30)
+    proc = run('bag_replay', str(bag), *args)
+    assert proc.returncode == 2
+    assert_one_line_error(proc, word)
+    assert 'replayed' not in proc.stdout
+
+
+@pytest.mark.timeout(60)
+def test_start_past_the_end_names_the_bag_span(tmp_path):
+    bag = tmp_path / 'b20'
+    write_mixed_bag(bag, 6000, rate_hz=100.0)   # 2000 ticks: the bag spans 19.99 s
+    proc = run('bag_replay', str(bag), '--start', '30')
+    assert proc.returncode == 2
+    assert_one_line_error(proc, '--start 30', 'spans 19.99')
+
+
+@pytest.mark.timeout(60)
+def test_an_empty_window_inside_the_bag_says_so(tmp_path):
+    bag = tmp_path / 'b'
+    write_mixed_bag(bag, 30, rate_hz=1.0)   # one tick a second, 10 ticks
+    proc = run('bag_replay', str(bag), '--start', '2.5', '--end', '2.9')
+    assert proc.returncode == 1
+    assert 'replayed 0 messages' in proc.stdout
+    assert_one_line_error(proc, 'no message', 'spans 9.000')
+
+
+@pytest.mark.timeout(60)
+def test_rate_zero_is_still_as_fast_as_possible(tmp_path):
+    bag = tmp_path / 'b'
+    counts = write_mixed_bag(bag, 30)
+    proc = run('bag_replay', str(bag), '--rate', '0', '--start', '0.05')
+    assert proc.returncode == 0, proc.stderr
+    assert f'replayed {sum(counts.values()) - 15} messages' in proc.stdout
