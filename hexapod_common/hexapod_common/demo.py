@@ -155,7 +155,7 @@ def batch_analysis(out: Path, hidden: str, quick: bool) -> dict[str, Any]:
     leg_mass = f'{RobotSpec().leg_mass_kg:.4f}'
     rc = energy_main(['--bench', str(bench), '--robot', *map(str, robots),
                       '--out', str(out / 'energy'), '--no-progress', '--load-offset', leg_mass,
-                      '--power-out', 'model'])
+                      '--power-out', 'model', '--robot-mass', f'{RobotSpec().mass_kg:.4f}'])
     if rc:
         raise RuntimeError(f'hexapod-analyze energy failed with exit code {rc}')
     energy = json.loads((out / 'energy' / 'energy.json').read_text())
@@ -181,6 +181,7 @@ def other_lab_check(out: Path, robot_bag: Path, bench: Path, reference: dict[str
     gait described on the command line; its figures against the full bag's."""
     from hexapod_common.bags import BagWriter, iter_messages, open_reader
     from hexapod_energy.cli import main as energy_main
+    from hexapod_energy.prediction import RobotSpec
 
     lab = out / 'other_lab_robot'
     with open_reader(robot_bag) as reader, BagWriter(lab) as writer:
@@ -188,6 +189,7 @@ def other_lab_check(out: Path, robot_bag: Path, bench: Path, reference: dict[str
             writer.write(m.topic, m.msgtype, m.data, m.stamp_ns)
     rc = energy_main(['--bench', str(bench), '--robot', str(lab), '--out',
                       str(out / 'other_lab'), '--no-progress', '--load-offset', leg_mass,
+                      '--robot-mass', f'{RobotSpec().mass_kg:.4f}',
                       '--robot-speed', f"{reference['speed']:.6g}", '--gait', 'tripod',
                       '--duty-factor', '0.5', '--step-length', '0.1'])
     if rc:

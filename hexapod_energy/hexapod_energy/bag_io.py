@@ -972,9 +972,9 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
         sign = resolve_current_sign(np.array([b.voltage_v for b in bat]),
                                     np.array([b.current_a for b in bat]), 'auto')
         current_sign = 'ros' if sign < 0 else 'positive_discharge'
-        notes.append('battery current sign auto-detected from the median of V * I over the '
-                     'run: ' + ('ROS convention (negative while discharging)' if sign < 0 else
-                                'positive while discharging (not the ROS convention)'))
+        if sign > 0:  # the contract's convention needs no word; the other does
+            notes.append('battery current sign auto-detected from the median of V * I over '
+                         'the run: positive while discharging (not the ROS convention)')
     # raw effort P_out per window: the command decides effort against model per run
     acc = DescriptorAccumulator(mass_kg=mass_kg, cycles=cycles, current_sign=current_sign,
                                 power_out_source='effort', cycle_source=cycle_source,

@@ -36,7 +36,12 @@ def test_idle_offset_at_start_does_not_decide_the_current_sign(tmp_path):
     run = read_robot_bag(tmp_path / 'bag', mass_kg=2.0, current_sign='auto')
     assert run.current_sign == -1.0
     np.testing.assert_allclose(run.power_in_w, P0_W, rtol=0.02)
-    assert any('auto-detected' in n and 'ROS convention' in n for n in run.extra['notes'])
+    # the contract's sign needs no note; positive-on-discharge is said
+    assert not any('auto-detected' in n for n in run.extra['notes'])
+    write_bag(tmp_path / 'pos', sign=+1.0, idle_offset_samples=3)
+    run = read_robot_bag(tmp_path / 'pos', mass_kg=2.0, current_sign='auto')
+    assert run.current_sign == 1.0
+    assert any('positive while discharging' in n for n in run.extra['notes'])
 
 
 def test_live_accumulator_ignores_an_idle_offset_for_its_early_decision():
