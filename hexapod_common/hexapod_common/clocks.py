@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ['ANOTHER_CLOCK_S', 'ClockCheck', 'LiveClockWatch', 'shift_rows']
+__all__ = ['ANOTHER_CLOCK_S', 'ClockCheck', 'LiveClockWatch', 'StreamClock', 'shift_rows']
 
 #: stamp-minus-receive medians further apart than this [s] are different clocks
 ANOTHER_CLOCK_S = 1.0
@@ -118,3 +118,56 @@ class LiveClockWatch:
                 ": its messages cannot be matched with the others' live; give the publisher a "
                 "synchronised clock (offline, hexapod-analyze re-stamps it from the bag's "
                 'receive times)' for note in notes]
+
+
+class StreamClock:
+    """Per-stream stamp bookkeeping of a live consumer that must survive time going backwards
+    (a looped bag, a reset simulation clock): the energy monitor's accumulator and the online
+    SLIP share it.
+
+    :meth:`observe` records one sample's stamp. A stamp more than ``jump_s`` before the
+    stream's last one is a backward jump: the clock starts again from it (returned, so that
+    the caller restarts its own state), and the other streams' samples still stamped on the
+    old time are dropped (``keep`` False, counted in ``stale_samples``) until their own stamps
+    jump back or the new time catches up. Stamps a little out of order are kept.
+    """
+
+    def __init__(self, jump_s: float) -> None:
+        self.jump_s = float(jump_s)
+        #: last (largest) stamp per stream since the last jump [s]
+        self.last: dict[str, float] = {}
+        #: newest and first stamp of any stream since the last jump [s]
+        self.newest: float | None = None
+        self.first: float | None = None
+        #: samples dropped as stamped before a jump but arriving after it
+        self.stale_samples = 0
+        self._stale: dict[str, float] = {}
+
+    def observe(self, stream: str, t: float) -> tuple[bool, float | None]:
+        """(keep, jumped_from): ``keep`` False drops a sample stamped before a jump;
+        ``jumped_from`` is the stream's previous stamp when ``t`` jumped back (else None)."""
+        last = self.last.get(stream)
+        mark = self._stale.get(stream)
+        if mark is not None:
+            if self.newest is not None and self.newest >= mark:
+                del self._stale[stream]   # the new time has caught up: nothing stale left
+            elif t >= mark - self.jump_s:
+                self.stale_samples += 1
+                return False, None
+            else:
+                del self._stale[stream]   # this stream has jumped too
+                last = None
+        jumped = None
+        if last is not None and t < last - self.jump_s:
+            # streams whose last stamp lies ahead of the new time: their samples still in
+            # flight from before the jump are dropped until their own stamps jump back
+            self._stale = {k: v for k, v in self.last.items()
+                           if k != stream and v > t + self.jump_s}
+            self.last, self.newest, self.first = {}, None, None
+            jumped, last = last, None
+        self.last[stream] = t if last is None else max(last, t)
+        if self.first is None:
+            self.first = t
+        if self.newest is None or t > self.newest:
+            self.newest = t
+        return True, jumped

@@ -80,6 +80,7 @@ from typing import Any
 
 import numpy as np
 
+from hexapod_common.clocks import StreamClock
 from hexapod_common.conversions import (
     BatterySample,
     GaitPhaseSample,
@@ -336,11 +337,7 @@ class DescriptorAccumulator:
     #: pending windows given up because they would be longer than ``max_window_s``
     dropped_windows_: int = field(default=0, init=False)
     #: samples dropped because they were stamped before a time jump but arrived after it
-    stale_samples_: int = field(default=0, init=False)
-    _t_last: dict[str, float] = field(default_factory=dict, init=False)
-    _stale: dict[str, float] = field(default_factory=dict, init=False)
-    _t_newest: float | None = field(default=None, init=False)
-    _t_first: float | None = field(default=None, init=False)
+    _clk: StreamClock = field(init=False)
     _quiet_noted: bool = field(default=False, init=False)
     sign_note_: str = field(default='', init=False)
     _battery: list[tuple[float, float]] = field(default_factory=list, init=False)
@@ -367,6 +364,7 @@ class DescriptorAccumulator:
                                                                 init=False)
 
     def __post_init__(self) -> None:
+        self._clk = StreamClock(self.time_jump_s)
         if self.mass_kg <= 0:
             raise ValueError(f'mass_kg must be > 0, got {self.mass_kg}')
         if self.cycles < 1:
@@ -389,26 +387,15 @@ class DescriptorAccumulator:
     # -- time ------------------------------------------------------------------------------
     def _clock(self, stream: str, t: float) -> bool:
         """Bookkeeping of one sample's stamp; False: drop it (stamped before a time jump)."""
-        last = self._t_last.get(stream)
-        mark = self._stale.get(stream)
-        if mark is not None:
-            if self._t_newest is not None and self._t_newest >= mark:
-                del self._stale[stream]   # the new time has caught up: nothing stale left
-            elif t >= mark - self.time_jump_s:
-                self.stale_samples_ += 1
-                return False
-            else:
-                del self._stale[stream]   # this stream has jumped too
-                last = None
-        if last is not None and t < last - self.time_jump_s:
-            self._restart(stream, last, t)
-            last = None
-        self._t_last[stream] = t if last is None else max(last, t)
-        if self._t_first is None:
-            self._t_first = t
-        if self._t_newest is None or t > self._t_newest:
-            self._t_newest = t
-        return True
+        keep, jumped = self._clk.observe(stream, t)
+        if jumped is not None:
+            self._restart(stream, jumped, t)
+        return keep
+
+    @property
+    def stale_samples_(self) -> int:
+        """Samples dropped as stamped before a time jump but arriving after it."""
+        return self._clk.stale_samples
 
     def _restart(self, stream: str, last: float, t: float) -> None:
         """Time went back on ``stream`` from ``last`` to ``t``: start again from ``t``."""
@@ -416,13 +403,7 @@ class DescriptorAccumulator:
         self.notes_.append(f'time jumped back {last - t:.3f} s on {stream} ({last:.3f} s -> '
                            f'{t:.3f} s: a looped bag or a reset simulation clock?): '
                            'accumulation restarted from the new time')
-        # streams whose last stamp lies ahead of the new time: their samples still in flight
-        # from before the jump are dropped until their own stamps jump back
-        self._stale = {k: v for k, v in self._t_last.items()
-                       if k != stream and v > t + self.time_jump_s}
-        self._t_last = {}
-        self._t_newest = None
-        self._t_first = None
+        # (the stream clock has started again from t and marked the other streams' stale)
         self._quiet_noted = False
         self._pending_battery = []
         self._battery = []
@@ -440,13 +421,13 @@ class DescriptorAccumulator:
 
     def _bound(self) -> None:
         """Drop what no window can still use: windows are at most ``max_window_s`` long."""
-        if self._t_newest is None:
+        if self._clk.newest is None:
             return
         # before the cycle source's first sample no boundary exists: a first window starts
         # after it, so a few seconds of data suffice
-        horizon = self.max_window_s if any(k in self._t_last for k in self._cycle_streams()) \
+        horizon = self.max_window_s if any(k in self._clk.last for k in self._cycle_streams()) \
             else min(self.max_window_s, self.quiet_s)
-        cut = self._t_newest - horizon
+        cut = self._clk.newest - horizon
         if self._window_start is not None and self._window_start < cut:
             self._window_start = None
             self.dropped_windows_ += 1
@@ -474,8 +455,8 @@ class DescriptorAccumulator:
     def _check_quiet(self, t: float) -> None:
         """Note (once per pause) a cycle source quiet for ``quiet_s`` while batteries come."""
         streams = self._cycle_streams()
-        seen = [self._t_last[k] for k in streams if k in self._t_last]
-        ref = max(seen) if seen else self._t_first
+        seen = [self._clk.last[k] for k in streams if k in self._clk.last]
+        ref = max(seen) if seen else self._clk.first
         if ref is None or t - ref < self.quiet_s:
             if seen and t - max(seen) < self.quiet_s:
                 self._quiet_noted = False

@@ -54,6 +54,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hexapod_common.clocks import StreamClock
+
 from .errors import SlipDataError, SlipError
 from .fit import SlipFitResult, SlipFitter, Stance, validate_stance
 from .geometry import LegGeometry, body_pitch_rad, leg_contacts, single_support
@@ -167,33 +169,20 @@ class OnlineSlip:
         self.warnings: list[str] = []
         #: backward time jumps: (stream, previous stamp, new stamp) [s]
         self.time_jumps: list[tuple[str, float, float]] = []
-        #: samples dropped as stamped before a time jump but arriving after it
-        self.stale_samples = 0
-        self._t_last: dict[str, float] = {}
-        self._stale: dict[str, float] = {}
-        self._t_newest: float | None = None
+        self._clk = StreamClock(time_jump_s)
         self._old_notes: list[str] = []
 
     def _clock(self, stream: str, t: float) -> bool:
         """Bookkeeping of one sample's stamp; False: drop it (stamped before a time jump)."""
-        last = self._t_last.get(stream)
-        mark = self._stale.get(stream)
-        if mark is not None:
-            if self._t_newest is not None and self._t_newest >= mark:
-                del self._stale[stream]   # the new time has caught up: nothing stale left
-            elif t >= mark - self.time_jump_s:
-                self.stale_samples += 1
-                return False
-            else:
-                del self._stale[stream]   # this stream has jumped too
-                last = None
-        if last is not None and t < last - self.time_jump_s:
-            self._restart(stream, last, t)
-            last = None
-        self._t_last[stream] = t if last is None else max(last, t)
-        if self._t_newest is None or t > self._t_newest:
-            self._t_newest = t
-        return True
+        keep, jumped = self._clk.observe(stream, t)
+        if jumped is not None:
+            self._restart(stream, jumped, t)
+        return keep
+
+    @property
+    def stale_samples(self) -> int:
+        """Samples dropped as stamped before a time jump but arriving after it."""
+        return self._clk.stale_samples
 
     def _restart(self, stream: str, last: float, t: float) -> None:
         """Time went back on ``stream`` from ``last`` to ``t``: start again from ``t``."""
@@ -201,10 +190,7 @@ class OnlineSlip:
         self.warnings.append(f'time jumped back {last - t:.3f} s on {stream} ({last:.3f} s -> '
                              f'{t:.3f} s: a looped bag or a reset simulation clock?): stance '
                              'detection restarted from the new time')
-        self._stale = {k: v for k, v in self._t_last.items()
-                       if k != stream and v > t + self.time_jump_s}
-        self._t_last = {}
-        self._t_newest = None
+        # (the stream clock has started again from t and marked the other streams' stale)
         self._old_notes = self.notes
         self._js.clear()
         self._cmd.clear()
