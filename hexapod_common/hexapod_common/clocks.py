@@ -21,7 +21,7 @@ Core module: no rclpy.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from typing import Any
 
 import numpy as np
@@ -126,14 +126,17 @@ class StreamClock:
     SLIP share it.
 
     :meth:`observe` records one sample's stamp. A stamp more than ``jump_s`` before the
-    stream's last one is a backward jump: the clock starts again from it (returned, so that
-    the caller restarts its own state), and the other streams' samples still stamped on the
-    old time are dropped (``keep`` False, counted in ``stale_samples``) until their own stamps
-    jump back or the new time catches up. Stamps a little out of order are kept.
+    stream's last one is a backward jump: the clock starts again from it and calls
+    ``on_jump(stream, previous stamp, new stamp)`` (the caller restarts its own state), and
+    the other streams' samples still stamped on the old time are dropped (False, counted in
+    ``stale_samples``) until their own stamps jump back or the new time catches up. Stamps a
+    little out of order are kept.
     """
 
-    def __init__(self, jump_s: float) -> None:
+    def __init__(self, jump_s: float,
+                 on_jump: Callable[[str, float, float], None] | None = None) -> None:
         self.jump_s = float(jump_s)
+        self.on_jump = on_jump
         #: last (largest) stamp per stream since the last jump [s]
         self.last: dict[str, float] = {}
         #: newest and first stamp of any stream since the last jump [s]
@@ -143,9 +146,8 @@ class StreamClock:
         self.stale_samples = 0
         self._stale: dict[str, float] = {}
 
-    def observe(self, stream: str, t: float) -> tuple[bool, float | None]:
-        """(keep, jumped_from): ``keep`` False drops a sample stamped before a jump;
-        ``jumped_from`` is the stream's previous stamp when ``t`` jumped back (else None)."""
+    def observe(self, stream: str, t: float) -> bool:
+        """Record ``t`` on ``stream``; False: drop the sample (stamped before a jump)."""
         last = self.last.get(stream)
         mark = self._stale.get(stream)
         if mark is not None:
@@ -153,7 +155,7 @@ class StreamClock:
                 del self._stale[stream]   # the new time has caught up: nothing stale left
             elif t >= mark - self.jump_s:
                 self.stale_samples += 1
-                return False, None
+                return False
             else:
                 del self._stale[stream]   # this stream has jumped too
                 last = None
@@ -170,4 +172,6 @@ class StreamClock:
             self.first = t
         if self.newest is None or t > self.newest:
             self.newest = t
-        return True, jumped
+        if jumped is not None and self.on_jump is not None:
+            self.on_jump(stream, jumped, t)
+        return True

@@ -364,7 +364,7 @@ class DescriptorAccumulator:
                                                                 init=False)
 
     def __post_init__(self) -> None:
-        self._clk = StreamClock(self.time_jump_s)
+        self._clk = StreamClock(self.time_jump_s, self._restart)
         if self.mass_kg <= 0:
             raise ValueError(f'mass_kg must be > 0, got {self.mass_kg}')
         if self.cycles < 1:
@@ -385,13 +385,6 @@ class DescriptorAccumulator:
             self.sign_ = resolve_current_sign(np.zeros(1), np.zeros(1), self.current_sign)
 
     # -- time ------------------------------------------------------------------------------
-    def _clock(self, stream: str, t: float) -> bool:
-        """Bookkeeping of one sample's stamp; False: drop it (stamped before a time jump)."""
-        keep, jumped = self._clk.observe(stream, t)
-        if jumped is not None:
-            self._restart(stream, jumped, t)
-        return keep
-
     @property
     def stale_samples_(self) -> int:
         """Samples dropped as stamped before a time jump but arriving after it."""
@@ -472,7 +465,7 @@ class DescriptorAccumulator:
     # -- inputs ----------------------------------------------------------------------------
     def add_battery(self, sample: BatterySample) -> list[Descriptors]:
         """Add one battery sample; returns the windows this sample completes."""
-        if not self._clock('battery_state', sample.t_s):
+        if not self._clk.observe('battery_state', sample.t_s):
             return []
         self._check_quiet(sample.t_s)
         self._bound()
@@ -521,7 +514,7 @@ class DescriptorAccumulator:
         bus or leg) are handled: P_out is the sum over joint names of each joint's mean
         positive power over the window.
         """
-        if not self._clock('joint_states', sample.t_s):
+        if not self._clk.observe('joint_states', sample.t_s):
             return []
         if sample.effort.size and sample.velocity.size == sample.effort.size:
             power = np.asarray(sample.effort, dtype=float) * np.asarray(sample.velocity,
@@ -589,7 +582,7 @@ class DescriptorAccumulator:
         """Add an odometry pose (horizontal position in the odometry frame, for the speed) and
         its twist's horizontal speed (for estimators that publish the velocity only, with the
         pose left at zero)."""
-        if not self._clock('odom', sample.t_s):
+        if not self._clk.observe('odom', sample.t_s):
             return
         v = np.asarray(sample.linear_velocity_mps, dtype=float)
         speed = float(math.hypot(v[0], v[1])) if v.size >= 2 and np.all(np.isfinite(v[:2])) \
@@ -605,14 +598,14 @@ class DescriptorAccumulator:
         motion-capture frame, z-up (Vicon, ROS) or y-up (OptiTrack), where the x-y distance
         read only part of a y-up frame's travel.
         """
-        if not self._clock('mocap/body', sample.t_s):
+        if not self._clk.observe('mocap/body', sample.t_s):
             return
         p = sample.position_m
         self._poses.append((sample.t_s, float(p[0]), float(p[1]), float(p[2])))
 
     def add_gait_phase(self, sample: GaitPhaseSample) -> list[Descriptors]:
         """Add a gait schedule sample; a wrap of the cycle phase marks a cycle boundary."""
-        if not self._clock('gait/phase', sample.t_s):
+        if not self._clk.observe('gait/phase', sample.t_s):
             return []
         if self.cycle_source == 'joints':
             self._gait = sample

@@ -169,15 +169,8 @@ class OnlineSlip:
         self.warnings: list[str] = []
         #: backward time jumps: (stream, previous stamp, new stamp) [s]
         self.time_jumps: list[tuple[str, float, float]] = []
-        self._clk = StreamClock(time_jump_s)
+        self._clk = StreamClock(time_jump_s, self._restart)
         self._old_notes: list[str] = []
-
-    def _clock(self, stream: str, t: float) -> bool:
-        """Bookkeeping of one sample's stamp; False: drop it (stamped before a time jump)."""
-        keep, jumped = self._clk.observe(stream, t)
-        if jumped is not None:
-            self._restart(stream, jumped, t)
-        return keep
 
     @property
     def stale_samples(self) -> int:
@@ -233,7 +226,7 @@ class OnlineSlip:
         central differences of the angles and each frame enters one joint-state period
         later (10 ms at 100 Hz). A full message with velocities and no wrap is used as it
         is."""
-        if not self._clock('joint_states', t_s):
+        if not self._clk.observe('joint_states', t_s):
             return
         for fr in self._joints.add(t_s, names, velocity, position):
             if not self.names:
@@ -261,7 +254,7 @@ class OnlineSlip:
     def add_command(self, t_s: float, names: tuple[str, ...], velocity: np.ndarray) -> None:
         """One command message (target speeds [rad/s]); split messages are assembled and
         put in the joint states' name order."""
-        if not self._clock('joint_commands', t_s):
+        if not self._clk.observe('joint_commands', t_s):
             return
         if names == self.names or not self.names and names == self._early_cmd_names \
                 or not self.names and self._early_cmd_names is None \
@@ -286,7 +279,7 @@ class OnlineSlip:
 
     def add_mocap(self, t_s: float, position_m: np.ndarray, quat_xyzw: np.ndarray) -> None:
         """One motion-capture pose (stamp on the mocap clock; ``mocap_offset_s`` removed)."""
-        if not self._clock('mocap/body', t_s):
+        if not self._clk.observe('mocap/body', t_s):
             return
         self._mocap.append((t_s - self.mocap_offset_s, np.asarray(position_m, dtype=float),
                             np.asarray(quat_xyzw, dtype=float)))
