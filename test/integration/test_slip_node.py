@@ -100,6 +100,15 @@ def _joint_state(names, t_s):
     return msg
 
 
+def _capture_warnings(node) -> list[str]:
+    """The node's warnings, collected as they are logged (and still logged)."""
+    warnings: list[str] = []
+    logger = node.get_logger()
+    original = logger.warning
+    logger.warning = lambda msg, **kw: warnings.append(msg) or original(msg, **kw)
+    return warnings
+
+
 @pytest.mark.timeout(60)
 def test_another_joint_states_publisher_is_not_one_warning_per_message():
     """A gripper's ['gripper'] JointState at 10 Hz beside the hips: 57 messages dropped, each
@@ -109,10 +118,7 @@ def test_another_joint_states_publisher_is_not_one_warning_per_message():
     hips = [f'{s}{k}_hip' for s in 'LR' for k in (1, 2, 3)]
     with ros_env('slipw') as env:
         node = env.make(SlipFitterNode)
-        warnings = []
-        logger = node.get_logger()
-        original = logger.warning
-        logger.warning = lambda msg, **kw: warnings.append(msg) or original(msg, **kw)
+        warnings = _capture_warnings(node)
         for k in range(570):
             t = 100.0 + 0.01 * k
             node._on_js(_joint_state(hips, t))
@@ -133,10 +139,7 @@ def test_a_looped_stream_is_one_warning_and_a_bounded_buffer():
     hips = [f'{s}{k}_hip' for s in 'LR' for k in (1, 2, 3)]
     with ros_env('slipt') as env:
         node = env.make(SlipFitterNode)
-        warnings = []
-        logger = node.get_logger()
-        original = logger.warning
-        logger.warning = lambda msg, **kw: warnings.append(msg) or original(msg, **kw)
+        warnings = _capture_warnings(node)
         for _ in range(4):
             for k in range(500):
                 node._on_js(_joint_state(hips, 100.0 + 0.01 * k))
