@@ -23,6 +23,11 @@ recorded, no chain through other frames).
 Several batteries on ``/battery_state`` (told apart by ``header.frame_id``, e.g. a servo pack
 and a logic pack) are summed (:mod:`hexapod_common.battery`); ``hexapod-analyze
 --battery-source servo energy ...`` keeps one of them instead.
+
+Exit status, the same for every command: 0 done (``slip``: at least one bag analysed, the
+refused ones listed in ``slip.json``); 2 input refused (a bad option, a missing or unreadable
+bag, data that cannot be analysed), one line on stderr; 1 an unforeseen failure (a bug: one
+line, ``HEXAPOD_DEBUG=1`` for the traceback); 130 interrupted.
 """
 
 from __future__ import annotations
@@ -171,9 +176,9 @@ def _run(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return 130
     except (OSError, ValueError, LookupError, RuntimeError, HexapodError) as err:
-        # typed errors of the analysis: one line, no traceback
+        # typed errors of the analysis (input refused): one line, no traceback, exit 2
         print(f'hexapod-analyze {args.command}: error: {err}', file=sys.stderr)
-        return 1
+        return 2
     except Exception as err:  # noqa: BLE001 - a bug or an input nobody foresaw
         if os.environ.get(DEBUG_ENV):
             raise

@@ -438,7 +438,7 @@ def run_command(args: argparse.Namespace) -> int:
         print(f"slip: refused {f['bag']}: {f['error']}")
     print(f'slip: {len(stances)} stances fitted, {len(skipped)} skipped, '
           f"{len(doc['failed_bags'])} bag(s) refused -> {out / 'slip.json'}")
-    return 0 if len(doc['failed_bags']) < len(bags) else 1
+    return 0 if len(doc['failed_bags']) < len(bags) else 2   # every bag refused: input
 
 
 def add_cli(subparsers: Any) -> None:

@@ -125,7 +125,7 @@ def test_truncated_bags_are_refused_in_one_line(bags, capsys):
     data = next(p for p in cut.iterdir() if p.suffix == '.mcap')
     raw = data.read_bytes()
     data.write_bytes(raw[:len(raw) // 2])
-    assert analyze(['slip', str(cut), '--out', str(root / 'cut_out')]) == 1
+    assert analyze(['slip', str(cut), '--out', str(root / 'cut_out')]) == 2
     doc = json.loads((root / 'cut_out' / 'slip.json').read_text())
     assert 'cut' in doc['failed_bags'][0]['bag'] and '\n' not in doc['failed_bags'][0]['error']
     from test_energy_cli import _write_bench
