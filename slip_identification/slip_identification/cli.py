@@ -32,7 +32,9 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
                           (damping time assumed or fitted, against undamped legs:
                           {"damping", "fitted_damping_time_s", "fitted_offset_s",
                           "fitted_rms_m", "undamped_offset_s", "undamped_rms_m"}),
-                          "geometry_damping_time_s", "geometry_damping_fitted"},
+                          "geometry_damping_time_s", "geometry_damping_fitted",
+                          "com_height_m" (mocap_origin: median COM height above the
+                          origin's plane, with a note that heights are measured from it)},
                 "ground_m" [m, fitted ground height in the path frame, null without it],
                 "paper_edges": [{"tripod", "touchdown", "liftoff"}],    # side by side:
                 "geometry_edges": [{"tripod", "touchdown", "liftoff"}], # single support

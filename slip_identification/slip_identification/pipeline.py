@@ -694,7 +694,26 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
         res.speed_mps = float((track.state[ok, 0][-1] - track.state[ok, 0][0])
                               / (track.t_s[ok][-1] - track.t_s[ok][0]))
     res.sr = specific_resistance(res.power_w, model.mass_kg, res.speed_mps)
+    if res.frame.get('ground_source') == 'mocap_origin':
+        _note_ground_from_origin(res, track.state[:, 2])
     return res
+
+
+def _note_ground_from_origin(res: RunResult, bz_m: FloatArray) -> None:
+    """Without a leg geometry the ground is the mocap origin's plane: every height, and so
+    every rest length, is measured from it. Say so with the COM height it gives (a mocap origin
+    calibrated 12 cm above the floor gave rest lengths of 0.05 m with no word)."""
+    bz = np.asarray(bz_m, dtype=float)
+    bz = bz[np.isfinite(bz)]
+    if not bz.size:
+        return
+    height = float(np.median(bz))
+    res.frame['com_height_m'] = height
+    res.notes.append(
+        f'ground height taken from the mocap origin (no leg geometry): the COM runs '
+        f'{1000 * height:.0f} mm above it, and rest_length and every height are measured from '
+        "it; if the origin is not on the floor, give the robot's legs (--geometry, "
+        '--leg-radius, --hip-x ...) so the ground is fitted, or recalibrate the origin')
 
 
 def run_data_from_sim(run: Any, *, with_effort: bool = True) -> RunData:

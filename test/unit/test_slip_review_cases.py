@@ -178,3 +178,23 @@ def test_labhex_without_efforts_offset_ambiguity_said(tmp_path):
     info = run['frame']['offset_half_stride']
     assert any(abs(o - 0.030) < 2e-3 for o in [run['offset_s'], *info['alias_offsets_s']])
     assert any('ambiguous by half a stride' in n for n in run['notes'])
+
+
+def test_ground_from_the_mocap_origin_is_said_with_the_com_height(jogging):
+    """--geometry none: the ground is the mocap origin's plane. An origin calibrated 12 cm
+    above the floor gave rest lengths of 0.05 m with no word; the run now reports the COM
+    height above that plane and a note naming the assumption and the way out."""
+    rd = run_data_from_sim(jogging)
+    res = analyze_run(rd, box=BOX, offset_s='auto', position_fit=False)
+    raised = dataclasses.replace(
+        rd, mocap_position_m=np.asarray(rd.mocap_position_m) - [0.0, 0.0, 0.12])
+    res_up = analyze_run(raised, box=BOX, offset_s='auto', position_fit=False)
+    for r in (res, res_up):
+        assert r.frame['ground_source'] == 'mocap_origin'
+        assert any('ground height taken from the mocap origin' in n for n in r.notes)
+    drop = res.frame['com_height_m'] - res_up.frame['com_height_m']
+    assert drop == pytest.approx(0.12, abs=0.005)
+    geo = LegGeometry.from_params(jogging.params)
+    res_geo = analyze_run(raised, box=BOX, offset_s='auto', geometry=geo, position_fit=False)
+    assert 'com_height_m' not in res_geo.frame
+    assert not any('ground height taken from the mocap origin' in n for n in res_geo.notes)
