@@ -440,7 +440,19 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         doc['robot_runs'] = runs
         if failed:
             doc['failed_bags'] = failed
+        measured_only = runs
         runs = [r for r in runs if math.isfinite(r['predicted_power_in_w'])]
+        robot_name = f'{leg.name} robot, {args.robot_mass:.4g} kg'
+        if measured_only and not runs:
+            # no bench model (no --bench): the measured runs still get their plot
+            from hexapod_energy.plots import measured_runs_plot
+
+            doc['plots'] += [str(p.relative_to(out)) for p in measured_runs_plot(
+                [_run_label(r) for r in measured_only],
+                [r['measured_power_in_w'] for r in measured_only],
+                [r['specific_cost_of_transport'] for r in measured_only],
+                out / 'measured_runs',
+                title=f'Measured robot runs ({robot_name}; no --bench: no prediction)')]
         if runs:
             meas = np.array([r['measured_power_in_w'] for r in runs])
             pred = np.array([r['predicted_power_in_w'] for r in runs])
@@ -455,14 +467,14 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             from hexapod_energy.plots import prediction_plot, watts_plot
 
             doc['plots'] += [str(p.relative_to(out)) for p in prediction_plot(
-                [r['speed'] for r in runs], meas, pred, out / 'prediction')]
-            labels = [Path(r['bag']).name + (f" [{r['segment']['index'] + 1}]"
-                                             if (r.get('segment') or {}).get('of', 1) > 1
-                                             else '') + f"\n{r['speed'] or 0:.2f} m/s"
-                      for r in runs]
+                [r['speed'] for r in runs], meas, pred, out / 'prediction',
+                labels=[_run_label(r, speed=False) for r in runs],
+                title=f'Eq. 1 prediction against measurement ({robot_name})')]
+            labels = [_run_label(r) for r in runs]
             doc['plots'] += [str(p.relative_to(out)) for p in watts_plot(
                 labels, [r['power_breakdown_w'] for r in runs], meas,
-                [r['power_out_w'] for r in runs], out / 'where_the_watts_go')]
+                [r['power_out_w'] for r in runs], out / 'where_the_watts_go',
+                title=robot_name)]
 
         if args.sweep:
             _sweep(doc, model, opm, out, bar, args.load_offset)
@@ -479,6 +491,13 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         bar.close()
     (out / 'energy.json').write_text(json.dumps(_jsonable(doc), indent=1))
     return doc
+
+
+def _run_label(run: dict[str, Any], *, speed: bool = True) -> str:
+    """A run's plot label: bag name, walking schedule when the bag holds several, speed."""
+    seg = run.get('segment') or {}
+    label = Path(run['bag']).name + (f" [{seg['index'] + 1}]" if seg.get('of', 1) > 1 else '')
+    return label + (f"\n{run['speed'] or 0:.2f} m/s" if speed else '')
 
 
 def _given_gait(args: argparse.Namespace, run_: Any, notes: list[str]) -> Any:
@@ -529,18 +548,24 @@ def _sweep(doc: dict[str, Any], model: Any, opm: Any, out: Path, bar: Any,
     titles = {'duty_factor': 'Fig. 3A duty factor', 'step_length': 'Fig. 3B step length',
               'gait_type': 'Fig. 3C gait type', 'leg_count': 'Fig. 3D leg count'}
     for name in STANDARD_SWEEPS:
+        # the subtitle (robot mass, the parameters the curves share) and the payload band's
+        # legend entry come from the curves
         paths = four_quadrant_plot(curves[name], out / f'four_quadrant_{name}',
-                                   title=titles.get(name, name) + ' (band: 0-500 g)')
+                                   title=titles.get(name, name))
         doc['plots'] += [str(p.relative_to(out)) for p in paths]
     speeds = np.linspace(0.1, 0.6, 50)
     payloads = np.linspace(0.0, 0.5, 50)
     t0 = time.perf_counter()
-    pm = opm.power_map_w(make_gait('tripod'), speeds, payloads)
+    gait = make_gait('tripod')
+    pm = opm.power_map_w(gait, speeds, payloads)
     seconds = time.perf_counter() - t0
     doc['power_map'] = {'speeds_mps': speeds.tolist(), 'payloads_kg': payloads.tolist(),
                         'power_out_w': pm.tolist(), 'seconds': seconds}
     doc['plots'] += [str(p.relative_to(out))
-                     for p in power_map_plot(speeds, payloads, pm, out / 'power_map')]
+                     for p in power_map_plot(
+                         speeds, payloads, pm, out / 'power_map',
+                         gait_label=f'{gait.name} beta {gait.duty_factor:g}, step '
+                                    f'{1000 * gait.step_length_m:.0f} mm')]
 
 
 def _handler(args: argparse.Namespace) -> int:
