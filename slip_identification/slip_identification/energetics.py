@@ -66,8 +66,37 @@ def gait_table(rows: Sequence[dict[str, float | str]]) -> dict[str, dict[str, fl
     return out
 
 
+def _runs_of(rows: Sequence[dict[str, float | str]]) -> list[list[dict[str, float | str]]]:
+    """The stances grouped by run: by ``bag`` when the rows carry it, else by the run values
+    every stance of a run repeats (gait, power, speed)."""
+    groups: dict[tuple[str, ...], list[dict[str, float | str]]] = {}
+    for r in rows:
+        key = (str(r['gait']), str(r['bag'])) if 'bag' in r else \
+            (str(r['gait']), repr(float(r['power_w'])), repr(float(r['speed_mps'])))
+        groups.setdefault(key, []).append(r)
+    return list(groups.values())
+
+
 def plot_figures(rows: Sequence[dict[str, float | str]], out_dir: str | Path) -> list[Path]:
-    """Scatter plots of Figs. 7 (v vs SR), 8 (P vs v), 9 (nerr vs SR), colour per gait."""
+    """Figs. 7 (v vs SR), 8 (P vs v), 9 (nerr vs SR), colour per gait, one marker per run.
+
+    Speed, power and SR are run values (repeated on each stance): one marker per run,
+    annotated with its stance count ``n``; nerr is per stance: Fig. 9 shows each run's mean
+    +/- sd over its stances, the stances faint behind it.
+
+    Parameters
+    ----------
+    rows : sequence of dict
+        One dict per stance (``gait``, ``nerr``, ``power_w``, ``speed_mps``, ``sr``,
+        optionally ``bag``).
+    out_dir : str or Path
+        Output folder.
+
+    Returns
+    -------
+    list of Path
+        The three PNGs.
+    """
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
@@ -75,19 +104,46 @@ def plot_figures(rows: Sequence[dict[str, float | str]], out_dir: str | Path) ->
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     gaits = sorted({str(r['gait']) for r in rows})
-    specs = [('fig7_speed_vs_sr.png', 'sr', 'speed_mps', 'specific resistance', 'speed [m/s]'),
-             ('fig8_power_vs_speed.png', 'speed_mps', 'power_w', 'speed [m/s]', 'power [W]'),
-             ('fig9_nerr_vs_sr.png', 'sr', 'nerr', 'specific resistance',
-              'SLIP-measure (nerr)')]
+    colors = plt.rcParams['axes.prop_cycle'].by_key()['color']
+    color = {g: colors[i % len(colors)] for i, g in enumerate(gaits)}
+    runs = _runs_of(rows)
+    specs = [('fig7_speed_vs_sr.png', 'sr', 'speed_mps', 'specific resistance SR',
+              'speed [m/s]', 'Fig. 7: speed against specific resistance'),
+             ('fig8_power_vs_speed.png', 'speed_mps', 'power_w', 'speed [m/s]',
+              'input power [W]', 'Fig. 8: input power against speed'),
+             ('fig9_nerr_vs_sr.png', 'sr', 'nerr', 'specific resistance SR',
+              'SLIP-measure nerr (mean \u00b1 sd per run)',
+              'Fig. 9: SLIP-measure against specific resistance')]
     paths = []
-    for name, kx, ky, lx, ly in specs:
-        fig, ax = plt.subplots(figsize=(5, 4))
-        for g in gaits:
-            sel = [r for r in rows if r['gait'] == g]
-            ax.scatter([float(r[kx]) for r in sel], [float(r[ky]) for r in sel], s=10, label=g)
+    for name, kx, ky, lx, ly, title in specs:
+        fig, ax = plt.subplots(figsize=(5.5, 4.3))
+        labelled: set[str] = set()
+        for run in runs:
+            g = str(run[0]['gait'])
+            xs = np.array([float(r[kx]) for r in run], dtype=float)
+            ys = np.array([float(r[ky]) for r in run], dtype=float)
+            x = float(np.nanmean(xs)) if np.isfinite(xs).any() else math.nan
+            ok = np.isfinite(ys)
+            y = float(ys[ok].mean()) if ok.any() else math.nan
+            label = g if g not in labelled else None
+            labelled.add(g)
+            if ky == 'nerr':
+                ax.scatter(np.full(ok.sum(), x), ys[ok], s=8, color=color[g], alpha=0.25,
+                           linewidths=0, label='_stances')
+                ax.errorbar([x], [y], yerr=[float(ys[ok].std()) if ok.any() else 0.0],
+                            fmt='o', ms=7, color=color[g], capsize=4, label=label)
+            else:
+                ax.plot([x], [y], 'o', ms=8, color=color[g], label=label)
+            if math.isfinite(x) and math.isfinite(y):
+                ax.annotate(f'n={len(run)}', (x, y), textcoords='offset points',
+                            xytext=(7, 4), fontsize=8)
         ax.set_xlabel(lx)
         ax.set_ylabel(ly)
-        ax.legend()
+        ax.set_title(f'{title}\n(Komsuoglu et al.; one marker per run, n stances)',
+                     fontsize=9)
+        ax.grid(alpha=0.3)
+        ax.margins(0.15)
+        ax.legend(title='gait', fontsize=8)
         fig.tight_layout()
         fig.savefig(out / name, dpi=100)
         plt.close(fig)
