@@ -145,20 +145,45 @@ def run_slip_loop(bags: list[str], out_dir: str | Path | None = None, *,
 
 
 def _plot_slip(fits: dict[str, list[Any]], doc: dict[str, Any], out: Path) -> list[str]:
+    """nerr per stance against touchdown time: one series per bag (its stances in time
+    order, never joined across bags), plain SLIP (before, filled) and SLIP with the added
+    extension (after, hollow); returns the PNG name."""
     import matplotlib
 
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
     import numpy as np
 
-    fig, ax = plt.subplots(figsize=(8, 4))
-    t = np.array([r.touchdown_s for r in fits['slip']])
-    for name, res in fits.items():
-        ax.plot(t, [r.nerr for r in res], '.-' if name in doc['effects_added'] or name == 'slip'
-                else '.', ms=4, lw=0.6, label=name)
-    ax.set_xlabel('touchdown [s]')
+    added = [n for n in doc.get('effects_added', []) if n in fits]
+    after_name = added[-1] if added else None
+    # a stance's label is '<bag>#<index>'; the bag groups the stances of one run
+    bags: dict[str, list[int]] = {}
+    for i, r in enumerate(fits['slip']):
+        bags.setdefault(str(getattr(r, 'label', '')).rsplit('#', 1)[0], []).append(i)
+    fig, ax = plt.subplots(figsize=(9, 4.5))
+    colors = plt.rcParams['axes.prop_cycle'].by_key()['color']
+    for k, (bag, idx) in enumerate(bags.items()):
+        col = colors[k % len(colors)]
+        name = Path(bag).name or f'run {k + 1}'
+        order = sorted(idx, key=lambda i: fits['slip'][i].touchdown_s)
+        t = np.array([fits['slip'][i].touchdown_s for i in order], dtype=float)
+        ax.plot(t, [fits['slip'][i].nerr for i in order], 'o-', ms=5, lw=0.8, color=col,
+                label=f'{name}: before (plain SLIP)')
+        if after_name is not None:
+            ax.plot(t, [fits[after_name][i].nerr for i in order], 's--', ms=5, lw=0.8,
+                    mfc='none', color=col, label=f'{name}: after (+ {after_name})')
+    held = doc.get('heldout') or {}
+    title = 'SLIP-measure per stance: plain SLIP (before)' + (
+        f' and with {after_name} (after)' if after_name else ', no extension added')
+    if isinstance(held.get('rmse_before'), (int, float)) and \
+            isinstance(held.get('rmse_after'), (int, float)):
+        title += (f'\nheld-out rms nerr {held["rmse_before"]:.3g} before, '
+                  f'{held["rmse_after"]:.3g} after')
+    ax.set_title(title, fontsize=10)
+    ax.set_xlabel('touchdown [s] (bag time of each run)')
     ax.set_ylabel('nerr per stance')
-    ax.legend()
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc='upper left', bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     fig.tight_layout()
     fig.savefig(out / 'residual_slip_nerr.png', dpi=90)
     plt.close(fig)
