@@ -1391,43 +1391,113 @@ def _jsonable(obj: Any) -> Any:
 
 def plot_energy_loop(table: WindowTable, sel: EffectSelection, held: np.ndarray,
                      runs: Sequence[ResidualRun], out: Path) -> list[str]:
-    """Residual vs time (per sample and per window, before/after) and vs the chosen
-    regressors; returns the PNG names."""
+    """Residual vs time (per sample before, per window before/after, one colour per run, run
+    boundaries named, y-range clipped to robust percentiles) and vs each chosen effect's
+    fitted term; returns the PNG names."""
+    import textwrap
+
     import matplotlib
 
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
+
+    def robust(ax: Any, values: Sequence[np.ndarray], what: str) -> None:
+        """Clip the y-range to the 0.5-99.5 percentiles; say so on the axis when it cuts."""
+        v = np.concatenate([np.ravel(a) for a in values]) if values else np.zeros(0)
+        v = v[np.isfinite(v)]
+        if v.size < 20:
+            ax.set_ylabel(what)
+            return
+        lo, hi = np.percentile(v, [0.5, 99.5])
+        pad = 0.08 * (hi - lo) if hi > lo else 1.0
+        beyond = int(np.sum((v < lo - pad) | (v > hi + pad)))
+        if beyond:
+            ax.set_ylim(lo - pad, hi + pad)
+            what += f'\n(clipped to 0.5-99.5 %: {beyond} beyond)'
+        ax.set_ylabel(what)
 
     names = []
     r0, r1 = table.residual_w, table.residual_w - sel.term_w_
-    fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=False)
-    for r in runs:
+    colors = plt.rcParams['axes.prop_cycle'].by_key()['color']
+    col = [colors[k % len(colors)] for k in range(len(runs))]
+    fig, axes = plt.subplots(2, 1, figsize=(10, 7.5), sharex=False)
+    per_sample = []
+    for k, r in enumerate(runs):
         assert r.predicted_w is not None
-        axes[0].plot(r.t_s - r.t_s[0], r.power_w - r.predicted_w, lw=0.4, alpha=0.6)
-    axes[0].set_ylabel('residual per sample [W]')
+        res = r.power_w - r.predicted_w
+        per_sample.append(res)
+        axes[0].plot(r.t_s - r.t_s[0], res, lw=0.4, alpha=0.6, color=col[k],
+                     label=Path(r.name).name)
+    robust(axes[0], per_sample, 'residual per sample [W]')
     axes[0].set_xlabel('time in run [s]')
-    axes[1].plot(np.arange(r0.size), r0, '.', ms=3, label='before')
-    axes[1].plot(np.arange(r1.size), r1, '.', ms=3, label='after')
-    axes[1].plot(np.flatnonzero(held), r0[held], 'x', ms=3, color='k', label='held out')
-    axes[1].set_ylabel('residual per half cycle [W]')
-    axes[1].set_xlabel('window (runs in order)')
-    axes[1].legend()
+    axes[0].set_title('Measured minus predicted P_in per sample, before the added effects '
+                      '(the gait cycle\'s ripple)', fontsize=10)
+    axes[0].legend(fontsize=7, loc='upper right', ncol=min(len(runs), 4) or 1)
+    idx = np.arange(r0.size)
+    ax = axes[1]
+    for k, r in enumerate(runs):
+        m = table.run == k
+        if not m.any():
+            continue
+        ax.plot(idx[m], r0[m], 'o', ms=3, color=col[k])
+        ax.plot(idx[m], r1[m], 's', ms=3.5, mfc='none', mew=0.8, color=col[k])
+        first, last = int(idx[m][0]), int(idx[m][-1])
+        if first > 0:
+            ax.axvline(first - 0.5, color='0.5', lw=0.8, ls='--')
+        ax.annotate(Path(r.name).name, ((first + last) / 2, 1.0),
+                    xycoords=('data', 'axes fraction'), xytext=(0, 2),
+                    textcoords='offset points', ha='center', va='bottom', fontsize=8,
+                    color=col[k])
+    ax.plot(idx[held], r0[held], 'x', ms=3, color='k')
+    ax.axhline(0.0, color='0.3', lw=0.6)
+    robust(ax, [r0, r1], 'residual per half cycle [W]')
+    ax.set_xlabel('window (runs in order, boundaries dashed)')
+    added = ', '.join(e.name for e in (sel.selected_ or [])) or 'none'
+    ax.set_title(f'Per half cycle: before (filled) and after (hollow) the added effects '
+                 f'({added})', fontsize=10, pad=14)
+    ax.legend(handles=[Line2D([], [], ls='', marker='o', ms=4, color='0.3', label='before'),
+                       Line2D([], [], ls='', marker='s', ms=4, mfc='none', color='0.3',
+                              label='after'),
+                       Line2D([], [], ls='', marker='x', ms=4, color='k',
+                              label='held out (before)')], fontsize=8, loc='best')
     fig.tight_layout()
     fig.savefig(out / 'residual_time.png', dpi=90)
     plt.close(fig)
     names.append('residual_time.png')
     chosen = sel.selected_ or []
     if chosen:
-        fig, axes = plt.subplots(1, len(chosen), figsize=(4.5 * len(chosen), 3.8),
+        # each added effect's own fitted term (its columns times its coefficients)
+        blocks = [e.columns(table) for e in chosen]
+        widths = [b.shape[1] for b in blocks]
+        coef = np.asarray(getattr(sel, 'coef_', np.zeros(0)), dtype=float)
+        split = coef.size == sum(widths)
+        fig, axes = plt.subplots(1, len(chosen), figsize=(5.2 * len(chosen), 4.6),
                                  squeeze=False)
-        for ax, e in zip(axes[0], chosen):
-            x = e.columns(table)
-            xv = x[:, 0] if x.shape[1] else table.t_s
-            ax.plot(xv, r0, '.', ms=3, label='before')
-            ax.plot(xv, r1, '.', ms=3, label='after')
-            ax.set_xlabel(f'{e.name} regressor')
+        start = 0
+        for ax, e, x in zip(axes[0], chosen, blocks):
+            if split:
+                term = x @ coef[start:start + x.shape[1]] if x.shape[1] else np.zeros(r0.size)
+                start += x.shape[1]
+                # before: the residual with the other added effects taken out
+                partial = r0 - (sel.term_w_ - term)
+                ax.plot(term, partial, '.', ms=3, label='before this effect')
+                ax.plot(term, r1, '.', ms=3, label='after')
+                lim = [float(np.nanmin(term)), float(np.nanmax(term))]
+                ax.plot(lim, lim, 'k-', lw=1, label='fitted term (y = x)')
+                ax.set_xlabel(f'fitted {e.name} term [W]')
+            else:
+                xv = x[:, 0] if x.shape[1] else table.t_s
+                ax.plot(xv, r0, '.', ms=3, label='before')
+                ax.plot(xv, r1, '.', ms=3, label='after')
+                ax.set_xlabel(f'{e.name} regressor' + (f' [{e.unit}]' if e.unit else ''))
+            doc = ' '.join((type(e).__doc__ or '').strip().split('\n\n')[0].split())
+            doc = doc.replace('``', '')
+            ax.set_title(textwrap.fill(f'{e.name}: {doc}', 60) if doc else e.name,
+                         fontsize=8)
             ax.set_ylabel('residual [W]')
-            ax.legend()
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize=8)
         fig.tight_layout()
         fig.savefig(out / 'residual_regressors.png', dpi=90)
         plt.close(fig)

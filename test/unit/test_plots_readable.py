@@ -199,3 +199,59 @@ def test_residual_slip_nerr_one_series_per_bag(monkeypatch: pytest.MonkeyPatch,
         assert len(series) == 4                # 2 bags x (before, after)
     finally:
         _REAL_CLOSE('all')
+
+
+class _Offset:
+    """A stand-in effect: a constant per window (one column)."""
+
+    name, unit = 'basal_power', 'W'
+
+    def columns(self, table: Any) -> np.ndarray:
+        return np.ones((table.run.size, 1))
+
+
+def test_residual_time_runs_told_apart_and_a_spike_clipped(monkeypatch: pytest.MonkeyPatch,
+                                                          tmp_path: Path) -> None:
+    from hexapod_energy.residuals import plot_energy_loop
+
+    kept: list[Any] = []
+    monkeypatch.setattr(plt, 'close', lambda fig=None: kept.append(fig))
+    rng = np.random.default_rng(1)
+    runs, run_idx, resid = [], [], []
+    for k, offset in enumerate((-1.0, -6.0, -12.0)):
+        t = np.linspace(0.0, 10.0, 2000)
+        predicted = np.full(t.size, 30.0)
+        power = predicted + offset + 3.0 * np.sin(2 * np.pi * 1.5 * t)
+        if k == 0:
+            power[0] += 130.0                       # one start-up spike
+        runs.append(SimpleNamespace(t_s=t + 100.0 * k, power_w=power, predicted_w=predicted,
+                                    name=f'/d/robot_{k}'))
+        run_idx += [k] * 20
+        resid += list(offset + 0.2 * rng.standard_normal(20))
+    r0 = np.array(resid)
+    table = SimpleNamespace(residual_w=r0, run=np.array(run_idx), t_s=np.arange(r0.size))
+    sel = SimpleNamespace(term_w_=r0 - 0.1, selected_=[_Offset()],
+                          coef_=np.array([float(np.mean(r0))]))
+    held = np.zeros(r0.size, bool)
+    held[::5] = True
+    assert plot_energy_loop(table, sel, held, runs, tmp_path) == [
+        'residual_time.png', 'residual_regressors.png']
+    try:
+        fig = next(f for f in kept if f is not None and len(f.axes) == 2)
+        top, bottom = fig.axes
+        assert top.get_ylim()[1] < 100.0                          # the spike does not set it
+        assert top.get_ylim()[1] > 3.0 - 1.0                      # the ripple stays in
+        assert 'clipped' in top.get_ylabel()
+        assert [t.get_text() for t in top.get_legend().get_texts()] == [
+            'robot_0', 'robot_1', 'robot_2']
+        # before and after both drawn, each run in its own colour; boundaries named
+        styles = {(ln.get_marker(), ln.get_markerfacecolor() == 'none')
+                  for ln in bottom.get_lines() if len(ln.get_xdata()) == 20}
+        assert ('o', False) in styles and ('s', True) in styles
+        assert {t.get_text() for t in bottom.texts} == {'robot_0', 'robot_1', 'robot_2'}
+        assert sum(1 for ln in bottom.get_lines() if ln.get_linestyle() == '--') == 2
+        reg = next(f for f in kept if f is not None and f is not fig)
+        assert 'fitted basal_power term [W]' == reg.axes[0].get_xlabel()
+        assert any('fitted term' in ln.get_label() for ln in reg.axes[0].get_lines())
+    finally:
+        _REAL_CLOSE('all')
