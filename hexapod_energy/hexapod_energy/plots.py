@@ -262,7 +262,7 @@ def prediction_figure(
     ax.plot(lim, [1.1 * x for x in lim], ':', color='0.6', lw=1, label='\u00b110 %')
     ax.plot(lim, [0.9 * x for x in lim], ':', color='0.6', lw=1)
     sc = ax.scatter(meas, pred, c=speeds, cmap='viridis', s=40, zorder=3, edgecolor='k')
-    if np.isfinite(speeds).any():
+    if np.unique(speeds[np.isfinite(speeds)]).size > 1:     # one speed: the labels say it
         fig.colorbar(sc, ax=ax, label='speed v [m/s]')
     for x, y, v, name in zip(meas, pred, speeds, names):
         if np.isfinite(x) and np.isfinite(y):
