@@ -122,8 +122,9 @@ def four_quadrant_figure(curves: Sequence[SweepCurve], *, title: str = '',
             np.zeros(p_out.shape, bool)
         out = out_all[:, 0]
         any_out |= bool(out.any())
-        # a curve the bench never covers is all there is of it: its points count
-        keep = out_all & ~out_all.all()
+        # limits from the speeds where the nominal curve is on the bench (its whole payload
+        # band there); a curve the bench never covers is all there is of it: it all counts
+        keep = np.repeat(out[:, None], m, axis=1) & ~out.all()
         inside_pout.append(np.where(keep, np.nan, p_out))
         inside_cot.append(np.where(keep, np.nan, cot))
         label = curve.spec.label + (' (all extrapolated)' if out.all() else '')
