@@ -101,13 +101,35 @@ Named effects (``effects={'name': value}``; value 0 switches an effect off)
 -------------------------------------------------------------------------
 ``leg_damping`` [N s/m], default off
     Radial viscous damping of the *tripod's* virtual leg: each leg in contact gets
-    ``value / 3`` N s/m along its spoke, so a tripod of three legs in contact acts as one
-    SLIP leg with damping ``value``.
+    ``value / 3`` N s/m along its spoke (on top of the structural 12.9), so a tripod of three
+    legs in contact acts as one SLIP leg with damping ``value``. The damper also loads the
+    hips: the rolling leg's rest length shrinks as it turns (``-R sin(psi/2)`` per rad), so
+    the damper resists the shaft's rotation too. It is a plain loss (power up about linearly,
+    speed down a little, the gait unchanged) over 0 .. 6 N s/m in the running (+2.6 W,
+    -0.03 m/s at 6), 0 .. 15 in the jogging (+14.5 W, -0.09 m/s at 15) and over the whole
+    range in the walk (+0.3 W at 45: its legs hardly compress). Beyond that range the extra
+    hip load tips the running (one seed in six at 9 N s/m, five in six at 15) and the jogging
+    (at 20) into the model's stalled mode, the one of note [e]: nose up, a rear leg falls
+    2 .. 7 rad behind its clock at the driver's current limit and catches up again; the power
+    then jumps (running +9 .. +57 W over 9 .. 45 N s/m, mostly copper) and does not grow
+    monotonically with the value, because the run switches between the two modes (seed 3:
+    +30.7 W at 15, +23.5 at 20, +29.0 at 30). From 30 the jogging runs at the current limit
+    in 6-9 % of the hip samples (+38 .. +45 W). The pace has two modes of its own (24 or
+    28 W, see Status): a few N s/m move some seeds to the 24 W one (-3 W). This is the
+    controller's physics (a PD clock driving a current-limited motor), not a damping error.
 ``hip_torque`` [N m], default off
-    Extra hip torque along the stance that a pure SLIP lacks: while a leg is in contact its
-    motor gets a voltage feed-forward ``R * (value/3) / (N * kt * eta)``, i.e. ``value/3`` N m
-    of stall-equivalent torque per leg (``value`` per tripod), paid from the battery. The PD
-    loop partly absorbs it; the net effect is a larger, more forward-pushing stance torque.
+    Extra stance hip torque, ``value / 3`` N m per leg in contact (``value`` per tripod), that
+    the motor delivers and the battery pays: while a leg is in contact the ground resists its
+    forward rotation with a constant couple of ``value / 3`` N m (a rolling resistance of the
+    C-leg, a stance load the sagittal SLIP lacks; the couple's reaction reaches the body
+    through the motor like the rest of the hip torque), and the firmware feeds the same torque
+    forward, a voltage ``R * (value/3) / (N * kt * eta)`` (the torque at stall), so the loop
+    keeps tracking its clock. The stance hip effort rises by about ``value / 3`` per leg and
+    the battery power by the copper and gear losses of that torque plus its work, while the
+    body's motion stays nearly the same (seed 3: walk 0.3 -> +0.103 N m, +5.6 W; jogging
+    0.3 -> +0.104 N m, +4.9 W; walk 1.0 -> +0.350 N m, +25 W). Like ``leg_damping`` it loads
+    the hips: from 0.3 in the running and 0.6 in the jogging a run can tip into the stalled
+    mode (the effort and the power then rise more, the speed drops).
 ``time_offset`` [s], default **on**, 0.025 s
     Motion-capture clock minus proprioception clock: a mocap sample of the body at true time
     ``t`` carries the stamp ``t + value``.
@@ -260,9 +282,13 @@ class EdubotEffect:
 
 EDUBOT_EFFECTS: dict[str, EdubotEffect] = {e.name: e for e in (
     EdubotEffect('leg_damping', 'N s/m', 0.0,
-                 'radial damping of the tripod virtual leg (value/3 per leg in contact)'),
+                 'radial damping of the tripod virtual leg (value/3 per leg in contact); a '
+                 'plain loss up to 6 (running) / 15 (jogging), beyond it the running and '
+                 'jogging can tip into a stalled mode (a rear leg at the current limit)'),
     EdubotEffect('hip_torque', 'N m', 0.0,
-                 'extra stance hip torque per tripod (value/3 per leg, voltage feed-forward)'),
+                 'extra stance hip torque per tripod (value/3 per leg in contact: a ground '
+                 'couple the motor delivers with a voltage feed-forward, paid from the '
+                 'battery)'),
     EdubotEffect('time_offset', 's', 0.025,
                  'mocap clock minus proprioception clock'),
     EdubotEffect('mocap_noise', 'm', 0.0002,
@@ -475,7 +501,8 @@ def _integrate(clock: Any, gains: tuple[float, float], p: EdubotParams, n_steps:
         p.mass_kg, p.pitch_inertia_kgm2, p.hip_inertia_kgm2, p.hip_zero_rad, GRAVITY_M_S2,
         p.body_half_length_m, p.body_half_height_m, p.foot_friction,
         1.0 / p.foot_slide_stiffness_n_m, p.electronics_power_w, p.battery_resistance_ohm,
-        p.initial_height_m, float(init_vx), float(ocv)], dtype=float)
+        p.initial_height_m, float(init_vx), float(ocv),
+        hip_torque / 3.0], dtype=float)                          # stance couple per leg
     out_state = np.empty((n_steps, 5))
     out_phi = np.empty((n_steps, 6))
     out_dphi = np.empty((n_steps, 6))
@@ -524,6 +551,7 @@ def _kernel(tgt: np.ndarray, tgt_v: np.ndarray, hxs: np.ndarray, c: np.ndarray,
     n_slip = 0
     x, z, beta, vx, vz, wb = 0.0, c[27], 0.0, c[28], 0.0, 0.0
     ocv = c[29]
+    ff_couple = c[30]
     v_bat = ocv
     phi = np.empty(6)
     dphi = np.zeros(6)
@@ -626,10 +654,17 @@ def _kernel(tgt: np.ndarray, tgt_v: np.ndarray, hxs: np.ndarray, c: np.ndarray,
                 if rolling:
                     tau_leg += r_arc * gx
                     roll_rate[i] = r_arc * w_abs
+                # hip_torque: the ground's constant couple on the stance leg against its
+                # forward rotation
+                # (an extra stance load the hip must deliver, reacted on the body through
+                # the motor like the rest of the hip torque)
+                tau_leg += ff_couple
             # hip motor under PD to the clock
             w = dphi[i]
             u0 = kpn * (tgt[k, i] - phi[i]) + kdn * tgt_v[k, i]
             if contact[i]:
+                # hip_torque's feed-forward: the couple's stall-equivalent voltage, so the
+                # loop keeps tracking its clock while the motor delivers the extra torque
                 u0 += v_ff
             # the speed term -kdn * w and the back-EMF are taken at the end of the step
             # (backward Euler on the motor's electrical damping): the firmware's normalised
@@ -850,7 +885,9 @@ def simulate_edubot_batch(gait: Any, *, duration_s: float,
     """Simulate one run per seed in one vectorised integration (same gait and effects).
 
     Each seed varies the initial forward speed (+-10 %), the battery's open-circuit voltage
-    (+-0.2 V), the mocap frame placement and the mocap noise.
+    (+-0.2 V), the mocap frame placement and the mocap noise: the seed changes the physics,
+    not only the noise (the first two pick the mode of a gait that has two, e.g. the pace's 24
+    or 28 W).
     """
     name, clock = resolve_clock(gait)
     eff = resolve_effects(effects)
@@ -889,7 +926,8 @@ def simulate_edubot(gait: Any, *, duration_s: float,
     effects
         ``{name: value}`` for :data:`EDUBOT_EFFECTS`; 0 switches an effect off.
     seed
-        Same seed, same data.
+        Same seed, same data. It draws the physics too (the battery's open-circuit voltage
+        and the initial speed, see :func:`simulate_edubot_batch`), not only the noise.
     """
     return simulate_edubot_batch(gait, duration_s=duration_s, effects=effects, seeds=(seed,),
                                  params=params)[0]

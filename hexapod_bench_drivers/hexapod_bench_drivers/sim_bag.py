@@ -3,10 +3,22 @@
 Topics (DESIGN section 4): ``/joint_states``, ``/joint_commands``, ``/gait/phase`` (every sample),
 ``/servo_status`` (every ``status_every`` samples), ``/battery_state`` (every sample, ROS sign:
 current negative while discharging), and for the bench ``/bench/ground_force``,
-``/bench/leg_tip`` and ``/bench/session`` (one message per state change). ``header.stamp`` is the
-time a stream's device stamps (``time_offset`` and ``sensor_latency`` effects shift it); the bag
-time is the true sample time. The effect set goes into the bag's metadata only
-(custom data ``hexapod_sim.effects``), with the run's configuration under ``hexapod_sim.config``.
+``/bench/leg_tip`` and ``/bench/session`` (one message per state change). The effect set goes
+into the bag's metadata only (custom data ``hexapod_sim.effects``), with the run's configuration
+under ``hexapod_sim.config``.
+
+Stamps and bag times (the same convention in :mod:`edubot_bag`): ``header.stamp`` is the time
+the device (or its driver) stamps the sample with, the bag time the recorder's clock when it
+receives it; a sample of the true instant ``t`` is, without effects, stamped and received at
+``t``.
+
+* A **clock offset** moves the stamp only: the device's clock is off, the sample still arrives
+  at ``t`` (``time_offset``: ``/battery_state`` stamped ``t + value``, received at ``t``;
+  EduBot's ``time_offset``: ``/mocap/body`` likewise). Its stamp may be later than its bag time.
+* A **transport delay** moves both: the driver reads the sample ``value`` seconds after the
+  instant it describes, stamps it then and the recorder receives it then, so the bag time is
+  never earlier than the stamp (``sensor_latency``: ``/joint_states`` and ``/servo_status``
+  stamped and received at ``t + value``, describing ``t``).
 """
 
 from __future__ import annotations
@@ -79,9 +91,13 @@ def _write(w: BagWriter, tr: SimTrace, start_ns: int, status_every: int,
             rec_ns = _ns(start_ns, sessions[si].t_s)
             w.write('/bench/session', session_t, _session_bytes(sessions[si], rec_ns), rec_ns)
             si += 1
+        # sensor_latency, a transport delay: stamped when the driver reads the bus and
+        # received then too (never before the stamp, nor before the instant described)
         servo_ns = _ns(start_ns, t + tr.servo_stamp_offset_s)
+        servo_rec_ns = max(servo_ns, t_ns)
         w.write('/joint_states', js_t, cdr.joint_state(
-            servo_ns, names, tr.position_rad[k], tr.velocity_rad_s[k], tr.effort_nm[k]), t_ns)
+            servo_ns, names, tr.position_rad[k], tr.velocity_rad_s[k], tr.effort_nm[k]),
+            servo_rec_ns)
         w.write('/joint_commands', js_t, cdr.joint_state(
             t_ns, names, tr.command_position_rad[k], tr.command_velocity_rad_s[k], ()), t_ns)
         w.write('/gait/phase', 'hexapod_interfaces/msg/GaitPhase', cdr.gait_phase(
@@ -91,7 +107,8 @@ def _write(w: BagWriter, tr: SimTrace, start_ns: int, status_every: int,
         if k % status_every == 0:
             w.write('/servo_status', 'hexapod_interfaces/msg/ServoStatus', cdr.servo_status(
                 servo_ns, names, tr.temperature_c[k], tr.servo_voltage_v[k],
-                tr.load_fraction[k], tr.servo_error[k]), servo_ns)
+                tr.load_fraction[k], tr.servo_error[k]), servo_rec_ns)
+        # time_offset, a clock offset: the stamp moves, the sample arrives at t
         bat_ns = _ns(start_ns, t + tr.battery_stamp_offset_s)
         w.write('/battery_state', bat_t, cdr.battery_state(
             bat_ns, float(tr.battery_voltage_v[k]), float(tr.battery_current_a[k]),

@@ -69,7 +69,11 @@ def test_fast_encoders_write_the_bytes_rosbags_writes(tmp_path):
             seen[topic] = k + 1
             if k % 37:                      # a spread sample of each topic is enough
                 continue
-            hdr = stamp(t_ns, 'mocap' if topic == '/mocap/body' else '')
+            hdr = stamp(t_ns, '')
+            if topic == '/mocap/body':     # stamped in the mocap clock, received at true time
+                stamp_ns = int(round(run.mocap_t_s[k] * 1e9))
+                assert stamp_ns - t_ns == pytest.approx(run.effects['time_offset'] * 1e9, abs=2)
+                hdr = stamp(stamp_ns, 'mocap')
             if topic == '/joint_states':
                 msg = new_msg(conn.msgtype, header=hdr, name=names,
                               position=run.hip_position_rad[k],
