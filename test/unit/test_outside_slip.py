@@ -188,14 +188,14 @@ def test_zero_header_stamps_and_nan_battery_current(tmp_path, sim_run):
 def test_mocap_on_another_clock_refused_in_one_line(tmp_path, sim_run):
     bag = _write(tmp_path / 'lab', sim_run, mocap_clock_s=-400.0)
     code, doc = _slip(tmp_path, bag, 'out')
-    assert code == 1 and not doc['stances']
+    assert code == 2 and not doc["stances"]
     err = doc['failed_bags'][0]['error']
     assert '\n' not in err and 'overlap' in err
     # with the offset given (wrongly) and no hip angles (paper edges) the run gave 0 stances
     # and exit 0, silently; now the refusal names the clocks
     bag = _write(tmp_path / 'noangles', sim_run, mocap_clock_s=-400.0, hip_angles=False)
     code, doc = _slip(tmp_path, bag, 'out2', '--offset', '0.02')
-    assert code == 1 and not doc['stances']
+    assert code == 2 and not doc["stances"]
     err = doc['failed_bags'][0]['error']
     assert '\n' not in err and 'different clocks' in err
 
