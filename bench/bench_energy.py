@@ -42,7 +42,8 @@ def baseline_map(opm: OutputPowerModel, gait, speeds, payloads) -> np.ndarray:
             carried = carried_mass_profile_kg(gait, phase, total_mass_kg=2.183 + m,
                                               leg_mass_kg=opm.robot.leg_mass_kg)
             force = np.zeros((len(q), 3))
-            force[:, 2] = carried[0] * 9.81
+            # Eq. 4: the stance tip carries the leg's own weight too
+            force[:, 2] = (carried[0] + opm.robot.leg_mass_kg * (carried[0] > 0)) * 9.81
             tau = opm.dynamics.inverse_dynamics(q, d1 / period, d2 / period**2, force)
             out[i, j] = gait.leg_count * mean_mechanical_power_w(tau * d1 / period)
     return out

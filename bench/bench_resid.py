@@ -55,13 +55,11 @@ def main() -> None:
         t0 = time.perf_counter()
         runs = [R.read_residual_run(p) for p in bags]
         for r in runs:
-            R.predict_run_w(r, model, total_mass_kg=spec.mass_kg, leg_mass_kg=spec.leg_mass_kg,
-                            load_offset_kg=spec.leg_mass_kg)
+            R.predict_run_w(r, model, total_mass_kg=spec.mass_kg, leg_mass_kg=spec.leg_mass_kg)
         t_base += time.perf_counter() - t0
         t0 = time.perf_counter()
         runs = [R.read_residual_run(p) for p in bags]
-        doc = R.energy_loop_from_runs(model, runs, None, temp_ref_c=tref,
-                                      load_offset_kg=spec.leg_mass_kg)
+        doc = R.energy_loop_from_runs(model, runs, None, temp_ref_c=tref)
         t_loop += time.perf_counter() - t0
         got = ''
         if name is not None:

@@ -42,6 +42,7 @@ from .sim_core import (
     SimTrace,
     Supply,
     TraceBuilder,
+    powered_step,
     quantise_position,
 )
 
@@ -173,8 +174,13 @@ class BenchSimulator:
         self.supply = Supply(voltage_v=cfg.supply_voltage_v,
                              series_resistance_ohm=float(eff.value('supply_resistance')))
         anomaly = eff.value('leg_anomaly')
-        self.anomaly_w = float(anomaly[1]) if anomaly is not None and anomaly[0] == cfg.leg \
-            else 0.0
+        if anomaly is not None and anomaly[0] != cfg.leg:
+            # the bench carries one leg: an anomaly on another would do nothing, yet be
+            # recorded in the bag's metadata as on
+            raise ValueError(f'effect leg_anomaly={anomaly[0]}:{anomaly[1]}: the bench carries '
+                             f'leg {cfg.leg!r} only (give --leg {anomaly[0]}, or the anomaly '
+                             f'on {cfg.leg})')
+        self.anomaly_w = float(anomaly[1]) if anomaly is not None else 0.0
         self.noise = float(eff.value('sensor_noise'))
         self.t_s = 0.0
 
@@ -231,12 +237,14 @@ class BenchSimulator:
         outward = np.array([1.0, 0.0, 0.0])
         positions = np.empty((n, 3))
         for k in range(n):
-            volts = supply.terminal_voltage_v() if powered else 0.0
-            out = servos.step(dt, goal[k], -tau[k], volts)
-            current = float(out.current_a.sum())
-            if volts > 1.0:
-                current += extra_w[k] / volts
-            supply.draw(current, dt)
+            if powered:
+                out, volts, current = powered_step(servos, supply, dt, goal[k], -tau[k],
+                                                   float(extra_w[k]))
+            else:
+                volts = 0.0
+                out = servos.step(dt, goal[k], -tau[k], volts)
+                current = float(out.current_a.sum())
+                supply.draw(current, dt)
             positions[k] = out.position_rad
             tb.position_rad[k] = out.position_rad
             tb.velocity_rad_s[k] = out.velocity_rad_s

@@ -6,9 +6,11 @@ sample (100 Hz by default):
 
 1. the commanded joint angles (from the gait's tip trajectories in batch mode, or from
    ``/joint_commands`` in the live node) and the stance flags give the load each joint carries:
-   ``tau = M qdd + C qd + G - J^T f`` with the ground force ``f = (0, 0, m_c g)`` on each stance
-   tip, ``m_c = (M - m_leg L) / L`` the mass each of the ``L`` supporting legs carries (body
-   weight shared by the stance legs, payload included), plus the ``speed_friction`` drag;
+   ``tau = M qdd + C qd + G - J^T f`` with the ground force ``f = (0, 0, (m_c + m_leg) g)`` on
+   each stance tip, ``m_c = (M - m_leg L) / L`` the mass each of the ``L`` supporting legs
+   carries (body weight shared by the stance legs, payload included) plus the leg's own weight
+   (Brodoline et al. Eq. 4: the stance tips carry ``M g`` together, as the bench tip carries
+   ``(m_leg + load) g``), plus the ``speed_friction`` drag;
 2. the servos track the commands against that load (finite stiffness, back-EMF, gear friction),
    draw current and heat up;
 3. the supply (lab supply at 11.9 V, or a 3S LiPo) delivers the sum of the servo currents plus
@@ -34,7 +36,15 @@ from hexapod_gait.trajectory import ANTBOT_NEUTRAL_TIP_M, LegTrajectory
 
 from .effects import EffectSet
 from .servo_model import ServoModel, ServoParams
-from .sim_core import G_MPS2, LegLoads, SimTrace, Supply, TraceBuilder, quantise_position
+from .sim_core import (
+    G_MPS2,
+    LegLoads,
+    SimTrace,
+    Supply,
+    TraceBuilder,
+    powered_step,
+    quantise_position,
+)
 
 __all__ = ['RobotConfig', 'RobotSimulator', 'SampleInput', 'simulate_robot']
 
@@ -202,7 +212,7 @@ class RobotSimulator:
         stance = inp.in_stance
         supporting = int(stance.sum())
         forces = np.zeros((len(self.leg_names), 3))
-        forces[stance, 2] = self.carried_mass_kg(supporting) * G_MPS2
+        forces[stance, 2] = (self.carried_mass_kg(supporting) + self.loads.leg_mass_kg) * G_MPS2
         c = float(self.effects.value('speed_friction'))
         if c > 0.0 and supporting > 0 and inp.tip_velocity_mps is not None:
             # Ground drag c v on the body, shared by the stance legs: it pushes on each stance
@@ -225,16 +235,19 @@ class RobotSimulator:
         k_err = float(eff.value('kinematic_error'))
         if k_err and inp.step_frequency_hz > 0.0:
             goal = inp.q + 0.0025 * k_err * inp.step_frequency_hz * (inp.q - self.neutral_q)
-        volts = self.supply.terminal_voltage_v() if self.powered else 0.0
-        out = self.servos.step(dt_s, goal.ravel(), -tau_req.ravel(), volts)
         extra_w = 0.0
         if self.powered:
             extra_w += float(eff.value('basal_power'))
             extra_w += k_err * inp.step_frequency_hz
             if self.anomaly_leg >= 0 and inp.in_stance[self.anomaly_leg]:
                 extra_w += self.anomaly_w
-        current = float(out.current_a.sum()) + (extra_w / volts if volts > 1.0 else 0.0)
-        self.supply.draw(current, dt_s)
+            out, volts, current = powered_step(self.servos, self.supply, dt_s, goal.ravel(),
+                                               -tau_req.ravel(), extra_w)
+        else:
+            volts = 0.0
+            out = self.servos.step(dt_s, goal.ravel(), -tau_req.ravel(), volts)
+            current = float(out.current_a.sum())
+            self.supply.draw(current, dt_s)
         self.t_s += dt_s
         return {'servo': out, 'current_a': current, 'voltage_v': volts,
                 'power_w': current * volts}
@@ -271,7 +284,9 @@ class RobotSimulator:
         carried[some] = carried_mass_per_leg_kg(self.config.total_mass_kg,
                                                 self.loads.leg_mass_kg, supporting[some])
         forces = np.zeros((n, n_legs, 3))
-        forces[..., 2] = np.where(stance, carried[:, None] * G_MPS2, 0.0)
+        # each stance tip carries its share of the body and its own leg: M g over the L tips
+        forces[..., 2] = np.where(stance, (carried[:, None] + self.loads.leg_mass_kg) * G_MPS2,
+                                  0.0)
         c = float(self.effects.value('speed_friction'))
         if c > 0.0:
             share = np.where(stance, c / np.maximum(supporting, 1)[:, None], 0.0)

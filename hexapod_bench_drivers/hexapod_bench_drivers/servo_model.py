@@ -524,6 +524,18 @@ class ServoModel:
             out = out + 0.5 * p.backlash_rad * np.tanh(tau_ext / p.backlash_torque_nm)
         return out
 
+    _STATE = ('motor_position_rad', 'velocity_rad_s', 'temperature_c', '_setpoint_rad',
+              '_last_external_nm', '_overheated')
+
+    def state(self) -> dict[str, FloatArray]:
+        """Copy of everything :meth:`step` changes (to step again from the same state)."""
+        return {k: np.array(getattr(self, k), copy=True) for k in self._STATE}
+
+    def set_state(self, state: dict[str, FloatArray]) -> None:
+        """Restore a :meth:`state` copy."""
+        for k in self._STATE:
+            setattr(self, k, np.array(state[k], copy=True))
+
     # --- integration ----------------------------------------------------------------------------
     def step(self, dt_s: float, goal_position_rad: ArrayLike,
              external_torque_nm: ArrayLike = 0.0,

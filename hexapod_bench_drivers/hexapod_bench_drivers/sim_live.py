@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 from .bench_sim import BenchConfig, BenchSimulator
 from .effects import EffectSet
 from .robot_sim import RobotConfig, RobotSimulator, SampleInput
-from .sim_core import G_MPS2, quantise_position
+from .sim_core import G_MPS2, powered_step, quantise_position
 
 __all__ = ['LiveBench', 'LiveRobot', 'LiveSample']
 
@@ -189,12 +189,9 @@ class LiveBench:
         tau = sim.loads.static_torques(q, force)[0]
         k_err = float(eff.value('kinematic_error'))
         goal = q + 0.0025 * k_err * self.step_frequency_hz * (q - sim.neutral_q)
-        volts = sim.supply.terminal_voltage_v()
-        out = sim.servos.step(dt_s, goal, -tau, volts)
         extra = float(eff.value('basal_power')) + k_err * self.step_frequency_hz \
             + (sim.anomaly_w if self.in_stance else 0.0)
-        current = float(out.current_a.sum()) + extra / volts
-        sim.supply.draw(current, dt_s)
+        out, volts, current = powered_step(sim.servos, sim.supply, dt_s, goal, -tau, extra)
         tip_leg = sim.kinematics.forward(out.position_rad)[0]
         contact = -tip_leg[2] >= sim.stop_z
         base_z = max(sim.stop_z, -tip_leg[2])

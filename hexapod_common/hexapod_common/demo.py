@@ -150,11 +150,10 @@ def batch_analysis(out: Path, hidden: str, quick: bool) -> dict[str, Any]:
     from hexapod_energy.cli import main as energy_main
     from hexapod_energy.prediction import RobotSpec
 
-    # The simulated robot's stance tips carry (M - m_leg L)/L g each, the bench tip carries
-    # (m_leg + load) g: compare them at equal tip force (hexapod-analyze energy --load-offset).
-    leg_mass = f'{RobotSpec().leg_mass_kg:.4f}'
+    # The simulated robot's stance tips carry (m_c + m_leg) g each, as a real robot's, and the
+    # bench tip (m_leg + load) g: the paper's convention, no --load-offset.
     rc = energy_main(['--bench', str(bench), '--robot', *map(str, robots),
-                      '--out', str(out / 'energy'), '--no-progress', '--load-offset', leg_mass,
+                      '--out', str(out / 'energy'), '--no-progress',
                       '--power-out', 'model', '--robot-mass', f'{RobotSpec().mass_kg:.4f}'])
     if rc:
         raise RuntimeError(f'hexapod-analyze energy failed with exit code {rc}')
@@ -166,16 +165,15 @@ def batch_analysis(out: Path, hidden: str, quick: bool) -> dict[str, Any]:
     except ImportError as err:
         result['residuals'] = f'unavailable: {err}'
         return result
-    res = run_energy_loop([bench], robots, out / 'residuals', load_offset_kg=float(leg_mass))
+    res = run_energy_loop([bench], robots, out / 'residuals')
     result['residuals'] = {k: res.get(k) for k in ('baseline', 'effects_added', 'final',
                                                    'heldout', 'added_params', 'summary')}
-    result['other_lab'] = other_lab_check(out, robots[1], bench, energy['robot_runs'][1],
-                                          leg_mass)
+    result['other_lab'] = other_lab_check(out, robots[1], bench, energy['robot_runs'][1])
     return result
 
 
-def other_lab_check(out: Path, robot_bag: Path, bench: Path, reference: dict[str, Any],
-                    leg_mass: str) -> dict[str, Any]:
+def other_lab_check(out: Path, robot_bag: Path, bench: Path, reference: dict[str, Any]
+                    ) -> dict[str, Any]:
     """The 0.3 m/s run as a lab with its own gait code records it (``ros2 bag record
     /joint_states /battery_state``: no ``/gait/phase``) -> ``hexapod-analyze energy`` with the
     gait described on the command line; its figures against the full bag's."""
@@ -188,7 +186,7 @@ def other_lab_check(out: Path, robot_bag: Path, bench: Path, reference: dict[str
         for m in iter_messages(reader, ['/joint_states', '/battery_state']):
             writer.write(m.topic, m.msgtype, m.data, m.stamp_ns)
     rc = energy_main(['--bench', str(bench), '--robot', str(lab), '--out',
-                      str(out / 'other_lab'), '--no-progress', '--load-offset', leg_mass,
+                      str(out / 'other_lab'), '--no-progress',
                       '--robot-mass', f'{RobotSpec().mass_kg:.4f}',
                       '--robot-speed', f"{reference['speed']:.6g}", '--gait', 'tripod',
                       '--duty-factor', '0.5', '--step-length', '0.1'])

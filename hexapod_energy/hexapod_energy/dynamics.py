@@ -10,9 +10,10 @@ Joint torques along a trajectory (Eq. 5)::
 
     tau = M(q) qdd + C(q, qd) qd + G(q) - J(q)^T f
 
-with ``f = (0, 0, m_c g)`` the ground reaction force on the tip while the leg is in stance
-(``m_c`` the mass the leg carries, Eq. 2 / :func:`hexapod_gait.gait.carried_mass_per_leg_kg`),
-zero in swing; ``J`` is the linear part of the tip Jacobian in base-aligned axes.
+with ``f = (0, 0, (m_c + m_leg) g)`` the ground reaction force on the tip while the leg is in
+stance (Eq. 4: ``m_c`` the mass the leg carries, Eq. 2 /
+:func:`hexapod_gait.gait.carried_mass_per_leg_kg`, plus the leg's own mass: the stance tips
+carry ``M g`` together), zero in swing; ``J`` is the linear part of the tip Jacobian in base-aligned axes.
 
 Average mechanical (output) power, Eq. 6.  **Definition used here, and everywhere in
 hexapod_energy** (the ``energy_monitor`` node from joint efforts, the offline analysis, this
@@ -32,7 +33,7 @@ sampling for a periodic trajectory).
 Speed scaling.  A gait's joint path in *phase* ``phi = t / T`` does not depend on ``T``.  With
 ``q' = dq/dphi`` and ``q'' = d2q/dphi2``, ``qd = q' / T`` and ``qdd = q'' / T^2`` so that::
 
-    tau(T, m_c) = G(q) + H(q, q', q'') / T^2 - m_c g J^T e_z
+    tau(T, m) = G(q) + H(q, q', q'') / T^2 - m g J^T e_z     (m = m_c + m_leg in stance)
 
 with ``H = RNEA(q, q', q'') - G``: one RNEA pass per phase sample serves every period and every
 load.  This is what makes the 50 x 50 power map a NumPy expression (:func:`power_map`).

@@ -120,9 +120,9 @@ def predict_power_in_w(
     load_offset_kg : float
         Subtracted from ``m_c`` to give the bench load the surfaces are evaluated at [kg]
         (clipped at 0).  0 by the paper: the bench tip carries ``(m_leg + load) g``, a robot's
-        stance tip ``M g / L = (m_c + m_leg) g``, so ``load = m_c``.  A robot whose stance tips
-        carry only ``m_c g`` (this project's simulated robot, ``robot_sim.tip_forces_n``) is
-        matched by ``load_offset_kg = m_leg``.
+        stance tip ``M g / L = (m_c + m_leg) g`` (the simulated robot's too,
+        ``robot_sim.tip_forces_n``), so ``load = m_c``.  A bench whose tip also carries a
+        stage of mass ``m_s`` is matched by ``load_offset_kg = m_s``.
 
     Returns
     -------
@@ -377,11 +377,13 @@ class OutputPowerModel:
             )  # (legs, n)
             # legs with the same carried-mass profile have the same power: evaluate once each
             carried, counts = np.unique(carried, axis=0, return_counts=True)
-            # tau (legs, k, n, 3) = G + H / T^2 + m_c u
+            # tau (legs, k, n, 3) = G + H / T^2 + (m_c + m_leg) u in stance (Eq. 4: the
+            # stance tip carries the leg's own weight with its share of the body)
+            supported = carried + self.robot.leg_mass_kg * pt.stance[None, :]
             tau = (
                 pt.gravity_nm[None, None]
                 + pt.inertial_nm_s2[None, None] * (inv_t**2)[None, :, None, None]
-                + carried[:, None, :, None] * pt.per_carried_kg_nm[None, None]
+                + supported[:, None, :, None] * pt.per_carried_kg_nm[None, None]
             )
             power = tau * pt.dq_dphase[None, None] * inv_t[None, :, None, None]
             per_leg = mean_mechanical_power_w(power, self.definition, axis=-1)  # (legs, k)

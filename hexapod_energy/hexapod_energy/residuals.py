@@ -565,20 +565,37 @@ def fit_bench_model(samples: Sequence[Any], *, spans: Sequence[float] = BENCH_SP
     return SingleLegModel(spans=(best['stance'][1], best['swing'][1])).fit(samples)
 
 
-def _lagged_slope(runs: Sequence[ResidualRun]) -> tuple[float, float]:
-    """-dV/dI [ohm] and its standard error, V[k] against I[k-1] within each run."""
-    xs, ys = [], []
-    for r in runs:
-        xs.append(r.current_a[:-1] - r.current_a[:-1].mean())
-        ys.append(r.voltage_v[1:] - r.voltage_v[1:].mean())
-    x, y = np.concatenate(xs), np.concatenate(ys)
-    sxx = float(np.sum(x * x))
-    if sxx <= 0 or x.size < 3:
-        return 0.0, math.inf
-    slope = float(np.sum(x * y) / sxx)
-    res = y - slope * x
-    se = math.sqrt(float(np.sum(res * res)) / (x.size - 2) / sxx)
-    return -slope, se
+def _lagged_slope(runs: Sequence[ResidualRun]) -> tuple[float, float, int]:
+    """-dV/dI [ohm], its standard error and the sample lag of V behind I (0 or 1).
+
+    A monitor that samples voltage and current together (INA226, a lab supply's readback)
+    relates ``V[k]`` to ``I[k]``; one whose voltage reading follows the previous current
+    sample relates ``V[k]`` to ``I[k-1]``. Both are fitted within each run and the lag whose
+    regression leaves the smaller residual is kept.
+    """
+    best: tuple[float, float, int, float] = (0.0, math.inf, 0, math.inf)
+    for lag in (0, 1):
+        xs, ys = [], []
+        for r in runs:
+            n = r.current_a.size
+            if n < 3:
+                continue
+            i, v = r.current_a[:n - lag], r.voltage_v[lag:]
+            xs.append(i - i.mean())
+            ys.append(v - v.mean())
+        if not xs:
+            continue
+        x, y = np.concatenate(xs), np.concatenate(ys)
+        sxx = float(np.sum(x * x))
+        if sxx <= 0 or x.size < 3:
+            continue
+        slope = float(np.sum(x * y) / sxx)
+        res = y - slope * x
+        sse = float(np.sum(res * res))
+        rel = sse / max(float(np.sum(y * y)), 1e-300)
+        if rel < best[3]:
+            best = (-slope, math.sqrt(sse / (x.size - 2) / sxx), lag, rel)
+    return best[0], best[1], best[2]
 
 
 def saturated_drive_count(runs: Sequence[ResidualRun], *, min_samples: int = 20
@@ -616,12 +633,14 @@ def saturated_drive_count(runs: Sequence[ResidualRun], *, min_samples: int = 20
     return out
 
 
-def source_voltage_v(run: ResidualRun, resistance_ohm: float) -> float:
-    """The run's source voltage behind the series resistance [V]: mean of ``V[k] + R I[k-1]``
-    (the monitored voltage of a sample follows the previous sample's current)."""
+def source_voltage_v(run: ResidualRun, resistance_ohm: float, lag: int = 0) -> float:
+    """The run's source voltage behind the series resistance [V]: mean of ``V[k] + R
+    I[k - lag]`` (``lag`` 1 for a monitor whose voltage follows the previous current sample,
+    :func:`_lagged_slope`)."""
     if run.t_s.size < 2:
         return float(np.mean(run.voltage_v))
-    return float(np.mean(run.voltage_v[1:] + resistance_ohm * run.current_a[:-1]))
+    n = run.current_a.size
+    return float(np.mean(run.voltage_v[lag:] + resistance_ohm * run.current_a[:n - lag]))
 
 
 def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = None,
@@ -639,7 +658,7 @@ def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = Non
     with_slope = all(r.mass_slope_w_per_kg is not None for r in runs)
     if with_slope:
         extra['mass_slope_w_per_kg'] = []
-    slope, se = _lagged_slope(runs)
+    slope, se, v_lag = _lagged_slope(runs)
     sat_counts = saturated_drive_count(runs)
     for ri, r in enumerate(runs):
         assert r.predicted_w is not None
@@ -672,7 +691,7 @@ def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = Non
         per = np.where(r.period_s > 0, r.period_s, np.inf)
         freq = np.where(r.period_s > 0, 1.0 / per, 0.0)
         speed = np.where(r.period_s > 0, r.step_length_m / (r.duty_factor * per), 0.0)
-        v_s = source_voltage_v(r, max(slope, 0.0))
+        v_s = source_voltage_v(r, max(slope, 0.0), v_lag)
         sub = {
             'measured_w': r.power_w, 'predicted_w': r.predicted_w, 'step_frequency_hz': freq,
             'speed_mps': speed, 'current_sq_a2': r.current_a ** 2, 'temp_excess_k': texcess,
@@ -1234,10 +1253,8 @@ def run_energy_loop(bench_bags: Sequence[str | Path], robot_bags: Sequence[str |
     after the loop.
 
     ``load_offset_kg``: subtracted from the carried mass before the bench surfaces are read
-    (0 by the paper: a real robot's stance tip carries ``M g / L``, the bench tip
-    ``(m_leg + load) g``). This project's simulated robot loads each stance tip with only
-    ``m_c g`` (``robot_sim.tip_forces_n``), matched by ``load_offset_kg = m_leg`` (0.166 kg for
-    AntBot); left at 0 it shows as a ``model_offset`` of about -1.4 W. ``phase_split``: the
+    (0 by the paper: a robot's stance tip carries ``M g / L``, the simulated robot's too
+    (``robot_sim.tip_forces_n``), the bench tip ``(m_leg + load) g``). ``phase_split``: the
     bench's stance/swing labels (:func:`hexapod_energy.bag_io.bench_phase_samples`)."""
     from hexapod_energy.bag_io import bench_phase_samples, read_bench_bag
     from hexapod_energy.prediction import RobotSpec

@@ -71,9 +71,10 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
                         "'auto' (default: the schedule where the bag has it)")
     p.add_argument('--load-offset', type=float, default=0.0, metavar='KG',
                    help='subtracted from the carried mass before the bench surfaces are read '
-                        '[kg]: 0 (default, the paper: a real stance tip carries M g / L); '
-                        '0.166 (the leg mass) for this project\'s simulated robot, whose stance '
-                        'tips carry only (M - m_leg L) g / L')
+                        '[kg]: 0 (default, the paper: a stance tip carries M g / L, the '
+                        'simulated robot\'s too); the leg mass for a robot model whose stance '
+                        'tips carry only (M - m_leg L) g / L, a stage mass for a bench whose '
+                        'tip carries one')
     p.add_argument('--current-sign', choices=('ros', 'positive_discharge', 'auto'),
                    default='auto', help='battery current sign convention (default auto)')
     p.add_argument('--box', type=float, nargs=6, metavar=('X0', 'Y0', 'Z0', 'X1', 'Y1', 'Z1'),

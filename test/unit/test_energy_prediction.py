@@ -88,7 +88,8 @@ def test_output_power_tripod_equals_six_single_legs() -> None:
     period = 0.7
     total = ANTBOT_ROBOT.total_mass_kg(payload)
     force = np.zeros((400, 3))
-    force[phase < 0.5, 2] = (total - 3 * M_LEG) / 3 * 9.81
+    # Eq. 4: a stance tip carries its share of the body and its own leg, M g / 3
+    force[phase < 0.5, 2] = ((total - 3 * M_LEG) / 3 + M_LEG) * 9.81
     tau = LegDynamics().inverse_dynamics(q, d1 / period, d2 / period**2, force)
     p_leg = mean_mechanical_power_w(tau * d1 / period)
     assert_allclose(p_robot, 6 * p_leg, rtol=1e-12)

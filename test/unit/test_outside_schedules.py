@@ -90,8 +90,8 @@ def test_energy_reports_one_run_per_schedule(bags, tmp_path):
     write_trace(simulate_bench(BenchPlan(loads_kg=(0.0, 0.3, 0.6),
                                          frequencies_hz=(0.0, 0.75, 1.25, 1.75, 2.25),
                                          walk_s=3.0), seed=2), bench)
-    assert main(['--bench', str(bench), '--robot', str(bags / 'sweep'), '--load-offset',
-                 '0.166', '--out', str(tmp_path / 'out'), '--no-progress']) == 0
+    assert main(['--bench', str(bench), '--robot', str(bags / 'sweep'),
+                 '--out', str(tmp_path / 'out'), '--no-progress']) == 0
     doc = json.loads((tmp_path / 'out' / 'energy.json').read_text())
     runs = doc['robot_runs']
     assert [r['period_s'] for r in runs] == [1.0, 0.5]

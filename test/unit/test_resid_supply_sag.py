@@ -47,8 +47,7 @@ def robot_runs(root: Path, effects: list[str]) -> list[R.ResidualRun]:
 
 
 def loop(bench, runs) -> dict:
-    return R.energy_loop_from_runs(bench['model'], runs, None, temp_ref_c=bench['temp_ref_c'],
-                                   load_offset_kg=LEG_KG)
+    return R.energy_loop_from_runs(bench['model'], runs, None, temp_ref_c=bench['temp_ref_c'])
 
 
 @pytest.fixture(scope='module')
