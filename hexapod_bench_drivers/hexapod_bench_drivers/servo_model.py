@@ -55,9 +55,10 @@ Physics, all quantities referred to the OUTPUT shaft (after the gearbox):
 
 Calibration against Brodoline et al.'s gait findings (``bench/bench_sim_breakdown.py``, its
 ``--budget`` and ``--candidates`` modes; constants unchanged). With these constants the
-simulated AntBot reproduces the paper's whole-robot figures (standing 10.7 W, 0.6 m/s 64 W at
-5.8 % efficiency, CoT/M 38.8 J/(m kg) at 0.84 m/s with 140 mm steps, +1.55 W per leg after
-10 min at 3 Hz with 500 g) but not two of its gait findings: tripod beta 0.7 at 0.26 m/s loses
+simulated AntBot reproduces the paper's whole-robot figures (standing 10.7 W, 0.6 m/s 65.4 W at
+5.7 % efficiency, CoT/M 39.7 J/(m kg) at 0.84 m/s with 140 mm steps, +1.55 W per leg after
+10 min at 3 Hz with 500 g on the bench; figures since the stance tips carry the leg's own
+weight, ``robot_sim``) but not two of its gait findings: tripod beta 0.7 at 0.26 m/s loses
 +30 % more than beta 0.5 (paper: -10 %) and the wave gait (beta 0.83) at 0.1 m/s with 0.5 kg
 +14 % more than the tripod (paper: up to -8 %).
 

@@ -211,7 +211,7 @@ def test_duty_factor_and_wave_findings_follow_the_simulator(findings) -> None:
     'needs 5.1 times the stance copper), and break the 0.6 m/s efficiency, CoT/M and thermal '
     'bands; dither alone (friction_smoothing_rad_s=1) gives wave -1.7 % on the robot but the '
     'fitted model +20 % and a 9.4 % worst prediction error. With the calibrated servo the '
-    'simulated robot loses +30 % (beta 0.7) and +14 % (wave); the fitted model +41 % and +27 % '
+    'simulated robot loses +31 % (beta 0.7) and +6 % (wave); the fitted model +41 % and +27 % '
     '(+47 % and +41 % with the contact split)'))
 def test_paper_direction_beta_and_wave(findings) -> None:
     b5, b7, tri, wave = (findings[k] for k in ('b5', 'b7', 'tri', 'wave'))
