@@ -8,8 +8,14 @@ Rule. Stances are split by index (every ``every``-th held out). An extension is 
 when, on the training stances, the summed BIC change against plain SLIP is below
 ``-min_delta_bic`` per stance on median; it is selected when, in addition, the mean nerr of the
 held-out stances falls by more than ``min_improvement`` (fraction) and the fitted extension
-parameter is non-zero by more than 2 standard errors on median. Only the best extension is
-added (forward selection stops after one: each extension is a per-stance template).
+parameter is non-zero by more than 2 standard errors on median. The parameter must also be one
+property of the robot, not a per-stance fudge: its training median must be physical (leg
+damping >= 0: :data:`PHYSICAL_SIGN`), at least ``min_same_sign`` of the training stances must
+share its sign, and the median must stand out of the spread between stances (more than 2 of
+its standard errors, ``1.2533 sd / sqrt(n)``). An outside review had a leg damping of
+-31.2 N s/m named as missed, per-stance values from -105 to +4462 N s/m. Only the best
+extension is added (forward selection stops after one: each extension is a per-stance
+template).
 """
 
 from __future__ import annotations
@@ -31,6 +37,9 @@ __all__ = [
     'fit_slip_candidates',
     'slip_loop_document',
 ]
+
+#: sign an extension's parameter must have to be physical (+1: >= 0; 0: either)
+PHYSICAL_SIGN: Mapping[str, int] = {'leg_damping': 1, 'hip_torque': 0}
 
 #: extension name -> SlipModel extensions tuple
 SLIP_CANDIDATES: Mapping[str, tuple[str, ...]] = {
@@ -77,6 +86,7 @@ class SlipExtensionSelection:
     every: int = 3
     min_delta_bic: float = 10.0
     min_improvement: float = 0.05
+    min_same_sign: float = 0.75
 
     def fit(self, fits: Mapping[str, Sequence[SlipFitResult]]) -> SlipExtensionSelection:
         """``fits``: 'slip' and each extension name -> results in the same stance order."""
@@ -108,16 +118,18 @@ class SlipExtensionSelection:
                                                                        ses[train], np.inf)))
             ok = (med_dbic < -self.min_delta_bic and rmse < rmse0 * (1 - self.min_improvement)
                   and signif > 2.0)
+            why = self._inconsistent(name, vals[train])
             unit = EXTENSIONS[pname][0]
             rec = {'name': name, 'heldout_rmse': rmse, 'delta_bic': float(np.nansum(dbic[train])),
-                   'median_delta_bic': med_dbic, 'selected': False,
+                   'median_delta_bic': med_dbic, 'selected': False, 'rejected_because': why,
+                   'improves': bool(ok),
                    'params': {pname: float(np.median(vals)), 'unit': unit,
                               'per_stance': vals.tolist()},
                    'stderr': {pname: float(np.std(vals) / math.sqrt(n)),
                               'per_stance_median': float(np.nanmedian(ses))},
                    '_nerr': nerr}
             cands.append(rec)
-            if ok and (best is None or rmse < best['heldout_rmse']):
+            if ok and not why and (best is None or rmse < best['heldout_rmse']):
                 best = rec
         if best is not None:
             best['selected'] = True
@@ -129,6 +141,26 @@ class SlipExtensionSelection:
         self.rmse_heldout_before_ = rmse0
         self.rmse_heldout_after_ = float(np.sqrt(np.mean(self.nerr_after_[held] ** 2)))
         return self
+
+    def _inconsistent(self, name: str, vals: np.ndarray) -> list[str]:
+        """Why the training stances' parameter values are not one property of the robot
+        (empty: they are)."""
+        v = vals[np.isfinite(vals)]
+        if v.size < 2:
+            return ['too few finite values']
+        med = float(np.median(v))
+        why = []
+        if PHYSICAL_SIGN.get(name, 0) > 0 and med <= 0.0:
+            why.append(f'unphysical median {med:.3g} (must be > 0)')
+        same = float(np.mean(np.sign(v) == np.sign(med))) if med != 0.0 else 0.0
+        if same < self.min_same_sign:
+            why.append(f'sign varies between stances ({100 * same:.0f} % share the median\'s, '
+                       f'need {100 * self.min_same_sign:.0f} %)')
+        se = 1.2533 * float(np.std(v, ddof=1)) / math.sqrt(v.size)
+        if not abs(med) > 2.0 * se:
+            why.append(f'median {med:.3g} within 2 standard errors ({se:.3g}) of zero across '
+                       'stances')
+        return why
 
 
 def slip_loop_document(sel: SlipExtensionSelection) -> dict[str, Any]:
@@ -154,6 +186,13 @@ def slip_loop_document(sel: SlipExtensionSelection) -> dict[str, Any]:
             f'{c["params"][pname]:.3g} {c["params"]["unit"]}) reduced held-out error (rms nerr) '
             f'from {h["rmse_before"]:.3g} to {h["rmse_after"]:.3g}.')
     else:
-        doc['summary'] = intro + ('Neither leg damping nor hip torque lowered the held-out error '
-                                  'significantly, so plain SLIP is kept.')
+        fudge = [c for c in sel.candidates_ if c.get('improves') and c.get('rejected_because')]
+        if fudge:
+            doc['summary'] = intro + ' '.join(
+                f'{c["name"]} lowered the held-out error (rms nerr {h["rmse_before"]:.3g} -> '
+                f'{c["heldout_rmse"]:.3g}) but is not one property of the robot: '
+                f'{"; ".join(c["rejected_because"])}.' for c in fudge) + ' Plain SLIP is kept.'
+        else:
+            doc['summary'] = intro + ('Neither leg damping nor hip torque lowered the held-out '
+                                      'error significantly, so plain SLIP is kept.')
     return doc

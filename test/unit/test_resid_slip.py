@@ -80,3 +80,40 @@ def test_cli_slip_writes_residuals_json(tmp_path):
     assert {c['name'] for c in doc['candidates']} == {'leg_damping', 'hip_torque'}
     assert doc['stances']['count'] >= 3
     assert (tmp_path / 'out' / 'residual_slip_nerr.png').is_file()
+
+
+class _Fit:
+    """A per-stance fit result as the selection reads it."""
+
+    def __init__(self, nerr: float, bic: float, params: dict, stderr: dict) -> None:
+        self.nerr, self._bic, self.params, self.stderr = nerr, bic, params, stderr
+
+    def bic(self) -> float:
+        return self._bic
+
+
+def _fits(damping: list[float], se: float = 5.0) -> dict:
+    n = len(damping)
+    return {'slip': [_Fit(0.30, 0.0, {}, {}) for _ in range(n)],
+            'leg_damping': [_Fit(0.10, -50.0, {'leg_damping': c}, {'leg_damping': se})
+                            for c in damping],
+            'hip_torque': [_Fit(0.30, 0.0, {'hip_torque': 0.0}, {'hip_torque': 1.0})
+                           for _ in range(n)]}
+
+
+def test_a_damping_that_is_not_one_property_of_the_robot_is_not_added():
+    """An outside review's SLIP loop named a missed leg damping of -31.2 N s/m (per stance -105
+    to +4462 N s/m): every stance's fit improved, but the values changed sign and the median was
+    negative. Now the median must be physical (damping > 0), 75 % of the stances must share its
+    sign and it must stand out of the spread between stances; the summary says why not."""
+    mixed = [-105.0, -40.0, -31.2, 4462.0, 4430.0, -20.0, 4450.0, -60.0, -31.0, 10.0, -50.0,
+             4420.0]
+    doc = slip_loop_document(SlipExtensionSelection().fit(_fits(mixed)))
+    assert doc['effects_added'] == []
+    c = next(c for c in doc['candidates'] if c['name'] == 'leg_damping')
+    assert c['improves'] and any('unphysical' in w for w in c['rejected_because'])
+    assert any('sign varies' in w for w in c['rejected_because'])
+    assert 'not one property of the robot' in doc['summary']
+    consistent = [95.0, 102.0, 110.0, 98.0, 105.0, 99.0, 101.0, 97.0, 103.0, 100.0, 96.0, 104.0]
+    doc = slip_loop_document(SlipExtensionSelection().fit(_fits(consistent)))
+    assert doc['effects_added'] == ['leg_damping']
