@@ -14,7 +14,9 @@ SLIP, SLIP + leg damping and SLIP + hip torque (:mod:`slip_identification.residu
 ``residuals.json``::
 
     {"model": "energy"|"slip", "unit": "W"|"nerr", "baseline": {"rmse", "mae", "bias"},
-     "candidates": [{"name", "heldout_rmse", "delta_bic", "selected", "params", "stderr"}],
+     "candidates": [{"name", "heldout_rmse", "delta_bic", "selected", "params", "stderr",
+                     (slip:) "improves", "rejected_because": [why the parameter is not one
+                     property of the robot]}],
      "effects_added": [names in order], "final": {"rmse", "mae", "bias"},
      "heldout": {"rmse_before", "rmse_after"}, "summary": "plain words", "plots": [...],
      "added_params": [{"name", "params", "stderr", "alternatives"?: [{"name", "heldout_rmse",
