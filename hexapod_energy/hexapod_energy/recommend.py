@@ -1,20 +1,26 @@
 """Gait recommendation: minimum CoT/M for a target speed and payload within actuator limits.
 
 Candidates: every gait name in ``gaits`` x duty factor in ``duty_factors`` x step length in
-``step_lengths_m`` for the robot's leg count.  A candidate is kept when the period giving the
-target speed (``T = step_length / (beta v)``) satisfies the actuator limits
-(:func:`hexapod_gait.feasibility.check_feasible`), the body is always supported
+``step_lengths_m`` for the robot's leg count (``leg_count``; every named gait
+:func:`hexapod_gait.gait.make_gait` builds for it, ``tetrapod`` included).  The default
+duty-factor grid (0.5 to 0.85 by 0.05, and 5/6) also holds each gait's typical duty factor for
+the leg count (:func:`hexapod_gait.gait.typical_duty_factor`: an 8-leg wave's 7/8).  A candidate
+is kept when the period giving the target speed (``T = step_length / (beta v)``) satisfies the
+actuator limits (:func:`hexapod_gait.feasibility.check_feasible`; default AntBot's servos',
+:data:`hexapod_gait.feasibility.ANTBOT_LIMITS`), the body is always supported
 (``min L(t) >= min_supporting_legs``) and its leg path is reachable.  The one with the lowest
 ``CoT/M = (P_in - P_out) / (M v)`` among those whose phase durations and loads lie within the
 bench's sessions wins (configurations that would extrapolate the surfaces are counted in
-``outside_bench`` and only used, with a note, when no other is feasible); the saving is reported against the default gait
-(tripod/alternating, beta 0.5, 100 mm) at the same speed and payload, when that one is feasible.
+``outside_bench`` and only used, with a note, when no other is feasible); the saving is reported
+against the default gait (tripod for 6 legs, alternating for other leg counts; beta 0.5, 100 mm)
+at the same speed and payload, when that one is feasible.  The recommendation records the leg
+count, robot mass and limits it used.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
@@ -27,7 +33,7 @@ from hexapod_energy.prediction import (
     predict_power_in_w,
 )
 
-__all__ = ['Candidate', 'Recommendation', 'recommend_gait']
+__all__ = ['Candidate', 'Recommendation', 'default_gait_name', 'recommend_gait']
 
 
 @dataclass(frozen=True)
@@ -59,6 +65,9 @@ class Recommendation:
     rejected: int
     outside_bench: int = 0
     note: str = ''
+    leg_count: int = 6
+    robot_mass_kg: float = float('nan')  # without payload
+    limits: dict[str, float] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -66,6 +75,10 @@ class Recommendation:
             'note': self.note,
             'speed_mps': self.speed_mps,
             'payload_kg': self.payload_kg,
+            'leg_count': self.leg_count,
+            'robot_mass_kg': self.robot_mass_kg,
+            'mass_kg': self.robot_mass_kg + self.payload_kg,
+            'limits': dict(self.limits),
             'best': asdict(self.best),
             'default': None if self.default is None else asdict(self.default),
             'saving_fraction': self.saving_fraction,
@@ -74,11 +87,21 @@ class Recommendation:
         }
 
 
+def default_gait_name(leg_count: int) -> str:
+    """The default gait's name: ``tripod`` for 6 legs, ``alternating`` (the same pattern) for
+    other leg counts."""
+    return 'tripod' if leg_count == 6 else 'alternating'
+
+
 def _evaluate(
     name: str, legs: int, beta: float, step_m: float, speed: float, payload: float,
     phase_power: PhasePowerModel, output_power: OutputPowerModel, limits: Any,
     min_supporting_legs: int, load_offset_kg: float = 0.0,
-) -> Candidate | None:
+) -> Candidate | tuple[str, str]:
+    """The candidate, or ``(kind, why)`` when the configuration is not one: ``kind`` is
+    ``invalid`` (no such gait for ``legs``), ``limits`` (actuator limits), ``support`` (too few
+    supporting legs) or ``unreachable`` (leg path out of reach, or another model refusal)."""
+    from hexapod_gait.errors import InfeasibleGaitError, InvalidGaitError
     from hexapod_gait.feasibility import check_feasible
     from hexapod_gait.gait import make_gait
 
@@ -86,10 +109,17 @@ def _evaluate(
     try:
         gait = make_gait(name, leg_count=legs, duty_factor=beta, period_s=period,
                          step_length_m=step_m)
+    except InvalidGaitError as err:
+        return 'invalid', str(err)
+    try:
         check_feasible(gait, limits)
-        if gait.min_supporting_legs() < min_supporting_legs:
-            return None
-        total = output_power.robot.mass_kg + payload
+    except InfeasibleGaitError as err:
+        return 'limits', str(err)
+    if gait.min_supporting_legs() < min_supporting_legs:
+        return 'support', (f'{name} beta {beta:g} supports the body on '
+                           f'{gait.min_supporting_legs()} legs < {min_supporting_legs}')
+    total = output_power.robot.mass_kg + payload
+    try:
         p_in = float(predict_power_in_w(phase_power, gait, total_mass_kg=total,
                                         leg_mass_kg=output_power.robot.leg_mass_kg,
                                         load_offset_kg=load_offset_kg))
@@ -97,10 +127,21 @@ def _evaluate(
         outside = bench_domain_check(phase_power, gait, total_mass_kg=total,
                                      leg_mass_kg=output_power.robot.leg_mass_kg,
                                      load_offset_kg=load_offset_kg)[0]
-    except ValueError:  # infeasible, invalid gait or unreachable path: not a candidate
-        return None
+    except ValueError as err:  # unreachable leg path (or a load the model refuses)
+        return 'unreachable', str(err)
     return Candidate(name, legs, beta, step_m, period, p_in, p_out, p_out / p_in,
                      (p_in - p_out) / (total * speed), tuple(outside))
+
+
+#: The default duty-factor grid (each gait's typical duty factor is added to it)
+DEFAULT_DUTY_FACTORS: tuple[float, ...] = \
+    tuple(float(b) for b in np.round(np.arange(0.5, 0.86, 0.05), 2)) + (5 / 6,)
+
+
+def _limits_dict(limits: Any) -> dict[str, float]:
+    return {'min_swing_s': float(limits.min_swing_s),
+            'min_stance_s': float(limits.min_stance_s),
+            'max_step_frequency_hz': float(limits.max_step_frequency_hz)}
 
 
 def recommend_gait(
@@ -111,7 +152,7 @@ def recommend_gait(
     payload_kg: float = 0.0,
     leg_count: int = 6,
     gaits: Sequence[str] = ('alternating', 'wave', 'ripple', 'tetrapod'),
-    duty_factors: Sequence[float] = tuple(np.round(np.arange(0.5, 0.86, 0.05), 2)) + (5 / 6,),
+    duty_factors: Sequence[float] | None = None,
     step_lengths_m: Sequence[float] = tuple(np.round(np.arange(0.06, 0.141, 0.01), 3)),
     limits: Any | None = None,
     min_supporting_legs: int = 3,
@@ -119,12 +160,26 @@ def recommend_gait(
 ) -> Recommendation:
     """The configuration minimising CoT/M at ``speed_mps`` with ``payload_kg``.
 
+    Parameters
+    ----------
+    leg_count : int
+        The robot's legs: every candidate and the default gait have this many.
+    duty_factors : sequence of float, optional
+        The duty factors searched (default :data:`DEFAULT_DUTY_FACTORS` plus each gait's
+        typical duty factor for ``leg_count``).
+    limits : hexapod_gait.feasibility.ActuatorLimits, optional
+        Default AntBot's servo limits (:data:`~hexapod_gait.feasibility.ANTBOT_LIMITS`).
+    min_supporting_legs : int
+        Fewest legs on the ground at any time (capped at ``leg_count // 2``).
+
     Raises
     ------
     InvalidInputError
-        If the speed is not positive or no candidate is feasible at that speed.
+        If the speed is not positive or no candidate is feasible at that speed (the message
+        says why the configurations were rejected).
     """
     from hexapod_gait.feasibility import ANTBOT_LIMITS
+    from hexapod_gait.gait import typical_duty_factor
 
     if speed_mps <= 0:
         raise InvalidInputError(f'speed_mps must be > 0, got {speed_mps}')
@@ -133,16 +188,24 @@ def recommend_gait(
     best: Candidate | None = None
     best_outside: Candidate | None = None
     evaluated = rejected = outside = 0
+    why: dict[str, list[str]] = {}
     for name in gaits:
-        if name == 'tetrapod' and leg_count != 6:
-            continue
-        for beta in duty_factors:
+        betas = list(duty_factors) if duty_factors is not None else list(DEFAULT_DUTY_FACTORS)
+        if duty_factors is None:
+            try:
+                typical = typical_duty_factor(name, leg_count)
+            except ValueError:
+                typical = None
+            if typical is not None and not any(abs(b - typical) < 1e-9 for b in betas):
+                betas.append(typical)
+        for beta in sorted(betas):
             for step in step_lengths_m:
                 cand = _evaluate(name, leg_count, float(beta), float(step), speed_mps,
                                  payload_kg, phase_power, output_power, lim, min_sup,
                                  load_offset_kg)
-                if cand is None:
+                if not isinstance(cand, Candidate):
                     rejected += 1
+                    why.setdefault(cand[0], []).append(cand[1])
                     continue
                 evaluated += 1
                 if cand.outside_bench:
@@ -164,11 +227,11 @@ def recommend_gait(
                 'sessions and were not considered (their predicted power is an extrapolation)')
     if best is None:
         raise InvalidInputError(
-            f'no feasible gait reaches {speed_mps} m/s within the actuator limits '
-            f'({rejected} configurations rejected)'
-        )
-    default = _evaluate('alternating', leg_count, 0.5, 0.10, speed_mps, payload_kg,
-                        phase_power, output_power, lim, min_sup, load_offset_kg)
+            f'no feasible gait reaches {speed_mps} m/s for {leg_count} legs: '
+            + _rejections(why, gaits, lim))
+    default_ = _evaluate(default_gait_name(leg_count), leg_count, 0.5, 0.10, speed_mps,
+                         payload_kg, phase_power, output_power, lim, min_sup, load_offset_kg)
+    default = default_ if isinstance(default_, Candidate) else None
     saving = None if default is None else \
         1.0 - best.specific_cost_of_transport / default.specific_cost_of_transport
     if saving is not None and saving < 0 and default is not None:
@@ -181,4 +244,21 @@ def recommend_gait(
             f'recommendation, but {why}: its figure is an extrapolation, the recommendation '
             'the best the bench covers')) if x)
     return Recommendation(speed_mps, payload_kg, best, default, saving, evaluated, rejected,
-                          outside, note)
+                          outside, note, leg_count, float(output_power.robot.mass_kg),
+                          _limits_dict(lim))
+
+
+def _rejections(why: dict[str, list[str]], gaits: Sequence[str], limits: Any) -> str:
+    """What happened to the configurations, by kind, with the first reason of each."""
+    if not why:
+        return f'no configuration was searched (gaits {tuple(gaits)})'
+    kinds = {'invalid': 'are not gaits for this leg count',
+             'limits': ('exceed the actuator limits (min swing {:g} s, min stance {:g} s, max '
+                        '{:g} Hz)').format(limits.min_swing_s, limits.min_stance_s,
+                                           limits.max_step_frequency_hz),
+             'support': 'support the body on too few legs',
+             'unreachable': 'have a leg path out of reach'}
+    parts = [f'{len(v)} {kinds[k]} (e.g. {v[0]})' for k, v in why.items()]
+    total = sum(len(v) for v in why.values())
+    return (f'{total} configurations rejected, none evaluated: ' if total > 1 else
+            '1 configuration rejected, none evaluated: ') + '; '.join(parts)

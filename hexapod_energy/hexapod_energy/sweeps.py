@@ -8,6 +8,11 @@ from Eq. 6 (:class:`OutputPowerModel`).
 
 Optimal operating points are taken on the nominal payload (the first of the band): maximum
 ``P_out``, minimum ``CoT/M`` and maximum efficiency; ``min(eta)`` is reported per curve.
+
+:func:`standard_sweeps` gives the paper's four sweeps for a robot's leg count (the duty-factor,
+step-length and gait-type sweeps at that leg count; the leg-count sweep is always 4/6/8 legs as
+Fig. 3D); :data:`STANDARD_SWEEPS` is AntBot's (6 legs).  The actuator limits default to AntBot's
+servos' (:data:`hexapod_gait.feasibility.ANTBOT_LIMITS`).
 """
 
 from __future__ import annotations
@@ -34,6 +39,7 @@ __all__ = [
     'SweepCurve',
     'SweepSpec',
     'run_standard_sweeps',
+    'standard_sweeps',
     'sweep_curve',
 ]
 
@@ -53,24 +59,40 @@ class SweepSpec:
     step_height_m: float = 0.04
 
 
-#: The paper's four sweeps: duty factor (3A), step length (3B), gait type (3C), leg count (3D).
-STANDARD_SWEEPS: dict[str, tuple[SweepSpec, ...]] = {
-    'duty_factor': tuple(
-        SweepSpec(f'beta {b:.1f}', 'tripod', 6, b) for b in (0.5, 0.6, 0.7, 0.8)
-    ),
-    'step_length': tuple(
-        SweepSpec(f'step {int(round(s * 1000))} mm', 'tripod', 6, 0.5, s)
-        for s in (0.07, 0.10, 0.12, 0.14)
-    ),
-    'gait_type': (
-        SweepSpec('tripod beta 0.5', 'tripod', 6, 0.5),
-        SweepSpec('wave beta 0.83', 'wave', 6, 0.83),
-        SweepSpec('wave beta 0.5', 'wave', 6, 0.5),
-    ),
-    'leg_count': tuple(
-        SweepSpec(f'{n} legs', 'alternating', n, 0.5) for n in (4, 6, 8)
-    ),
-}
+def standard_sweeps(leg_count: int = 6) -> dict[str, tuple[SweepSpec, ...]]:
+    """The paper's four sweeps for a robot of ``leg_count`` legs.
+
+    Duty factor (3A: beta 0.5-0.8, 100 mm steps), step length (3B: 70-140 mm, beta 0.5) and gait
+    type (3C: the alternating gait at beta 0.5, the wave gait at its typical duty factor, 1 - 1/n
+    (the paper's 0.83 for 6 legs), and at 0.5) at ``leg_count`` legs, the alternating gait being
+    ``tripod`` for 6 legs; leg count (3D): the alternating gait on 4, 6 and 8 legs, beta 0.5,
+    100 mm, whatever ``leg_count``.
+    """
+    n = int(leg_count)
+    alt = 'tripod' if n == 6 else 'alternating'
+    wave_beta = 0.83 if n == 6 else round(1.0 - 1.0 / n, 3)
+    return {
+        'duty_factor': tuple(
+            SweepSpec(f'beta {b:.1f}', alt, n, b) for b in (0.5, 0.6, 0.7, 0.8)
+        ),
+        'step_length': tuple(
+            SweepSpec(f'step {int(round(s * 1000))} mm', alt, n, 0.5, s)
+            for s in (0.07, 0.10, 0.12, 0.14)
+        ),
+        'gait_type': (
+            SweepSpec(f'{alt} beta 0.5', alt, n, 0.5),
+            SweepSpec(f'wave beta {wave_beta:g}', 'wave', n, wave_beta),
+            SweepSpec('wave beta 0.5', 'wave', n, 0.5),
+        ),
+        'leg_count': tuple(
+            SweepSpec(f'{k} legs', 'alternating', k, 0.5) for k in (4, 6, 8)
+        ),
+    }
+
+
+#: The paper's four sweeps for AntBot (6 legs): duty factor (3A), step length (3B), gait type
+#: (3C), leg count (3D).
+STANDARD_SWEEPS: dict[str, tuple[SweepSpec, ...]] = standard_sweeps(6)
 
 
 @dataclass(frozen=True)
@@ -159,12 +181,26 @@ def sweep_curve(
 ) -> SweepCurve:
     """Evaluate one configuration over speeds up to its maximum and over payloads.
 
-    ``load_offset_kg`` is passed to :func:`predict_power_in_w` (bench load = m_c - offset).
+    ``load_offset_kg`` is passed to :func:`predict_power_in_w` (bench load = m_c - offset);
+    ``limits`` (default AntBot's servos') set the maximum speed.
+
+    Raises
+    ------
+    InvalidInputError
+        If the maximum speed is below the sweep start, or the robot's mass does not exceed its
+        legs' (``M <= n m_leg``: the body would carry a negative mass).
+    ValueError
+        If the leg cannot follow the configuration's path (out of reach).
     """
     from hexapod_gait.feasibility import ANTBOT_LIMITS, max_speed_mps
     from hexapod_gait.gait import make_gait
 
     lim = ANTBOT_LIMITS if limits is None else limits
+    legs_kg = spec.leg_count * output_power.robot.leg_mass_kg
+    if output_power.robot.mass_kg <= legs_kg:
+        raise InvalidInputError(
+            f'{spec.label}: robot mass {output_power.robot.mass_kg:.4g} kg <= {spec.leg_count} '
+            f'legs x {output_power.robot.leg_mass_kg:.4g} kg = {legs_kg:.4g} kg')
     v_max = max_speed_mps(spec.duty_factor, spec.step_length_m, lim)
     if v_max <= min_speed_mps:
         raise InvalidInputError(
@@ -225,18 +261,38 @@ def run_standard_sweeps(
     n_speeds: int = 40,
     progress: Any | None = None,
     load_offset_kg: float = 0.0,
+    leg_count: int = 6,
+    limits: Any | None = None,
+    skipped: list[str] | None = None,
 ) -> dict[str, list[SweepCurve]]:
-    """All four standard sweeps (or ``sweeps``); ``progress`` is an optional tqdm-like bar
-    advanced once per curve."""
-    todo = STANDARD_SWEEPS if sweeps is None else sweeps
+    """All four standard sweeps for ``leg_count`` legs (:func:`standard_sweeps`) or ``sweeps``.
+
+    Parameters
+    ----------
+    progress : tqdm-like, optional
+        Advanced once per curve.
+    limits : hexapod_gait.feasibility.ActuatorLimits, optional
+        Default AntBot's servo limits.
+    skipped : list of str, optional
+        When given, a curve the model cannot evaluate (a leg that cannot reach its step, a
+        robot lighter than its legs, a maximum speed below the start) is left out and a line
+        naming the sweep and the curve is appended here; without it the error is raised.
+    """
+    todo = standard_sweeps(leg_count) if sweeps is None else sweeps
     out: dict[str, list[SweepCurve]] = {}
     for name, specs in todo.items():
         out[name] = []
         for spec in specs:
-            out[name].append(
-                sweep_curve(spec, phase_power, output_power, payloads_kg=payloads_kg,
-                            n_speeds=n_speeds, load_offset_kg=load_offset_kg)
-            )
+            try:
+                out[name].append(
+                    sweep_curve(spec, phase_power, output_power, payloads_kg=payloads_kg,
+                                n_speeds=n_speeds, load_offset_kg=load_offset_kg,
+                                limits=limits)
+                )
+            except ValueError as err:
+                if skipped is None:
+                    raise
+                skipped.append(f'sweep {name!r}, curve {spec.label!r} skipped: {err}')
             if progress is not None:
                 progress.update(1)
     return out
