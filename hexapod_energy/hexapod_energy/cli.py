@@ -4,6 +4,7 @@ Usage::
 
     hexapod-analyze energy [--bench BAG [BAG ...]] [--robot BAG [BAG ...]] --out DIR
                            [--sweep] [--recommend --speed V --payload KG]
+                           [--legs N] [--limits MIN_SWING_S MIN_STANCE_S MAX_FREQ_HZ]
                            [--robot-speed V] [--gait NAME --duty-factor B --step-length M]
 
 Steps: bench bags -> per-session phase powers -> surface fits (LOWESS vs polynomial by k-fold
@@ -16,6 +17,16 @@ given with ``--bench-sessions CSV`` (columns ``bag,load_kg[,frequency_hz,duty_fa
 step_length_m]``, :func:`hexapod_energy.bag_io.read_bench_sessions_file`); they are read as one
 bench when their times do not overlap (:func:`hexapod_energy.bag_io.merge_bench_data`).
 
+``--sweep`` and ``--recommend`` are for the robot described: its mass (``--robot-mass``, default
+AntBot's 2.183 kg with a warning), its leg (``--leg``), its leg count (``--legs N``, else the
+robot bags' gaits or joint names, else 6 with a warning) and its actuator limits (``--limits``,
+default AntBot's servo limits: swing >= 0.16 s, stance >= 0.15 s, step frequency <= 3 Hz).  The
+duty-factor, step-length and gait-type sweeps use the robot's leg count, the leg-count sweep 4, 6
+and 8 legs (Fig. 3D), the power map the robot's alternating gait (tripod for 6 legs), beta 0.5,
+100 mm; ``sweep_settings`` records what was held fixed.  A curve the leg cannot walk (a step out
+of its reach) is skipped with a warning naming the sweep and the curve.  A robot not heavier
+than its legs (``M <= N m_leg``) is refused.
+
 Without ``--bench`` (a robot but no single-leg bench) the robot runs get their measured
 descriptors only: ``bench`` and every ``predicted_power_in_w`` are null and
 ``prediction_error`` is absent; ``--sweep`` and ``--recommend`` need the bench surfaces.
@@ -27,7 +38,8 @@ the speed from ``/mocap/body``, else ``/odom`` (nav_msgs/Odometry), else ``--rob
 else null; P_out from the joint efforts, else null (the Eq. 6 model needs the gait); the Eq. 1
 prediction needs the gait: ``--gait NAME --duty-factor B --step-length M`` describe it (leg count
 from joint names that follow ``L1..Lk``/``R1..Rk`` + ``_<joint>``, else ``--legs N``; period from
-the joints), else the run has no prediction and is left out of ``prediction_error``. Every such fallback is listed in the run's ``notes``.
+the joints), else the run has no prediction and is left out of ``prediction_error``.  Every
+such fallback is listed in the run's ``notes``.
 
 ``energy.json`` schema (version 1; keys are a contract, units in the names or below)::
 
@@ -39,7 +51,8 @@ the joints), else the run has no prediction and is left out of ``prediction_erro
       "bench": {"bags": [...], "diagnostics": [{"bag", "force_offset_s", "current_sign",
                 "force_sign" (+1, or -1: force.z negated, see --force-sign),
                 "phase_split" (schedule | contact | mixed: --phase-split),
-                "sessions", "notes" (dropped messages)}], "fit": {"spans", "chosen": {"stance", "swing"},
+                "sessions", "notes" (dropped messages)}],
+                "fit": {"spans", "chosen": {"stance", "swing"},
                 "cv_rmse_w": {"stance": {"lowess", "poly"}, "swing": {...}},
                 "fit_rmse_w": {"stance", "swing"}, "basal_power_w": {"<load kg>": W},
                 "domain": {"stance"|"swing": {"rate_hz": [lo, hi], "load_kg": [lo, hi]}}
@@ -59,7 +72,9 @@ the joints), else the run has no prediction and is left out of ``prediction_erro
                       "power_out_w", "power_out_source" ("effort" | "model" | "none";
                       --power-out), "power_out_effort_w" (nan/null without efforts),
                       "power_out_model_w", "efficiency", "speed" [m/s],
-                      "cost_of_transport" [J/m], "specific_cost_of_transport" [J/(m kg)],
+                      "cost_of_transport" [J/m], "specific_cost_of_transport" [J/(m kg)]
+                      (power_out_w, efficiency and both costs of transport, which use
+                      P_in - P_out, are null when P_out is unknown: source "none"),
                       "specific_resistance", "cycle_source" ("gait_phase" | "joints"),
                       "speed_source" (mocap | odometry | odometry_twist | gait_schedule |
                       given | none),
@@ -72,11 +87,21 @@ the joints), else the run has no prediction and is left out of ``prediction_erro
                            "mean_power_w", "relative_rmse", "max_abs_relative"},
       "sweeps": {"<sweep name>": [SweepCurve.to_dict()]},     # with --sweep; each curve's
                   # "outside_bench" (n_speed x n_payload bool) marks extrapolated points
-                  # (dotted in the plots), "outside_bench_reasons" says how
+                  # (dotted in the plots), "outside_bench_reasons" says how; a curve the
+                  # leg cannot walk is left out (listed in sweep_settings "skipped")
+      "sweep_settings": {"robot_mass_kg" (payload excluded), "leg_count",
+                  "leg_count_source" (--legs | robot bags | assumed), "payloads_kg",
+                  "load_offset_kg", "limits": {"min_swing_s", "min_stance_s",
+                  "max_step_frequency_hz"}, "limits_source" (AntBot's servo limits, or
+                  --limits), "held_fixed": {"<sweep name>": str}, "skipped" [str]},
+                                                              # with --sweep
       "power_map": {"speeds_mps", "payloads_kg", "power_out_w" (n_speed x n_payload),
-                    "seconds"},                               # with --sweep
-      "recommendation": Recommendation.to_dict(),             # with --recommend; only
-                  # configurations inside the bench's domain unless none is ("note")
+                    "seconds", "gait", "leg_count", "duty_factor",
+                    "step_length_m"},                         # with --sweep
+      "recommendation": Recommendation.to_dict() + {"leg_count_source",
+                  "limits_source"},                           # with --recommend; only
+                  # configurations inside the bench's domain unless none is ("note"); it
+                  # records "leg_count", "robot_mass_kg", "mass_kg" (with payload), "limits"
       "warnings": [str],                                      # when any
       "failed_bags": [{"bag", "error"}],   # robot bags refused (the others are analysed;
                                            # all refused: exit 2)
@@ -126,9 +151,11 @@ def _leg_count(args: argparse.Namespace, run_: Any) -> int | None:
     return len({m.group(1) + m.group(2) for m in matches if m})
 
 
-def add_given_gait_arguments(p: argparse.ArgumentParser, purpose: str) -> None:
+def add_given_gait_arguments(p: argparse.ArgumentParser, purpose: str,
+                             legs_help: str | None = None) -> None:
     """``--gait``, ``--duty-factor``, ``--step-length`` and ``--legs``: the gait of robot bags
-    without /gait/phase (another lab's gait code; ``energy`` and ``residuals``)."""
+    without /gait/phase (another lab's gait code; ``energy`` and ``residuals``); ``legs_help``
+    replaces ``--legs``'s help (``energy`` uses it for ``--sweep``/``--recommend`` too)."""
     p.add_argument('--gait', default=None, metavar='NAME',
                    help=f'gait of robot bags without /gait/phase, {purpose} (hexapod_gait '
                         'name: tripod, alternating, wave, ripple, tetrapod; with --duty-factor '
@@ -139,8 +166,9 @@ def add_given_gait_arguments(p: argparse.ArgumentParser, purpose: str) -> None:
     p.add_argument('--step-length', type=float, default=None, metavar='M',
                    help='step length of robot bags without /gait/phase [m] (with --gait)')
     p.add_argument('--legs', type=int, default=None, metavar='N',
-                   help='leg count of robot bags without /gait/phase whose joint names do not '
-                        'follow L1..Lk/R1..Rk_<joint> (with --gait; default: from the names)')
+                   help=legs_help or
+                   'leg count of robot bags without /gait/phase whose joint names do not '
+                   'follow L1..Lk/R1..Rk_<joint> (with --gait; default: from the names)')
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
@@ -155,9 +183,16 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
                    help='robot bags to compare with the Eq. 1 prediction')
     p.add_argument('--out', required=True, metavar='DIR', help='output folder')
     p.add_argument('--sweep', action='store_true',
-                   help='run the Fig. 3 sweeps and the Fig. 7D power map, with plots')
+                   help='run the Fig. 3 sweeps and the Fig. 7D power map, with plots, for the '
+                        'robot described (--robot-mass, --leg, --legs, --limits): duty factor '
+                        '0.5-0.8 (100 mm steps), step length 70-140 mm (beta 0.5) and gait type '
+                        '(alternating/tripod 0.5, wave at 1 - 1/N and at 0.5) at the robot\'s '
+                        'N legs; leg count 4/6/8 (alternating, beta 0.5, 100 mm); power map: '
+                        'alternating (tripod for 6 legs), beta 0.5, 100 mm, N legs; payload '
+                        '0-0.5 kg (energy.json "sweep_settings")')
     p.add_argument('--recommend', action='store_true',
-                   help='recommend the gait minimising CoT/M at --speed and --payload')
+                   help='recommend the gait minimising CoT/M at --speed and --payload for the '
+                        'robot described (--robot-mass, --leg, --legs, --limits)')
     p.add_argument('--speed', type=float, default=None, metavar='V',
                    help='target speed for --recommend [m/s]')
     p.add_argument('--payload', type=float, default=0.0, metavar='KG',
@@ -187,8 +222,16 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
                    help='load of a swinging leg in Eq. 1 (default zero)')
     p.add_argument('--load-offset', type=float, default=0.0, metavar='KG',
                    help='subtract KG from the carried mass m_c before reading the bench '
-                        'surfaces (default 0, the paper; use the leg mass, 0.166, for robots '
-                        'whose stance tips carry only m_c g, such as hexapod-sim robot)')
+                        'surfaces (default 0, the paper\'s convention: a robot\'s stance tip '
+                        'carries M g / L, the bench tip (m_leg + load) g); use KG for a bench '
+                        'whose tip carries an extra stage mass, or a robot model whose stance '
+                        'tips carry only m_c g')
+    p.add_argument('--limits', type=float, nargs=3, default=None,
+                   metavar=('MIN_SWING_S', 'MIN_STANCE_S', 'MAX_FREQ_HZ'),
+                   help='actuator limits of --sweep and --recommend: shortest swing [s], '
+                        'shortest stance [s], highest step frequency [Hz] (default AntBot\'s '
+                        'servo limits 0.16 0.15 3; they set the sweeps\' maximum speeds and '
+                        'which gaits are feasible)')
     p.add_argument('--power-out', choices=('auto', 'effort', 'model'), default='auto',
                    help='P_out source: joint effort x velocity (positive part), the Eq. 6 '
                         'inverse-dynamics model, or auto (default: effort when the bag has '
@@ -196,7 +239,12 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--robot-speed', type=float, default=None, metavar='V',
                    help='speed of robot runs that have no /gait/phase, /mocap/body or /odom '
                         '[m/s] (default: unknown, CoT and specific resistance null)')
-    add_given_gait_arguments(p, 'for the Eq. 1 prediction and the P_out model')
+    add_given_gait_arguments(
+        p, 'for the Eq. 1 prediction and the P_out model',
+        legs_help='leg count of the robot: of robot bags without /gait/phase whose joint names '
+                  'do not follow L1..Lk/R1..Rk_<joint> (with --gait), and of the robot --sweep '
+                  'and --recommend describe (default: from the robot bags\' gaits or joint '
+                  'names, else 6, AntBot\'s, with a warning)')
     p.add_argument('--folds', type=int, default=5, help='k of the k-fold CV (default 5)')
     p.add_argument('--no-progress', action='store_true', help='hide the progress bar')
 
@@ -284,19 +332,24 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     robot_speed = getattr(args, 'robot_speed', None)
     if robot_speed is not None and not (math.isfinite(robot_speed) and robot_speed > 0):
         raise EnergyError(f'--robot-speed must be > 0 m/s, got {robot_speed}')
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     leg = load_leg_description(args.leg) if getattr(args, 'leg', None) else antbot_leg()
     mass_warning = ''
     if args.robot_mass is None:
         args.robot_mass = ANTBOT_MASS_KG
-        if args.robot:
+        if args.robot or args.sweep or args.recommend:
             mass_warning = (f'robot mass not given (--robot-mass): AntBot\'s {ANTBOT_MASS_KG} '
                             'kg assumed; CoT, CoT/M and specific resistance scale with the '
                             'mass')
     if not (math.isfinite(args.robot_mass) and args.robot_mass > 0):
         raise EnergyError(f'--robot-mass must be > 0 kg, got {args.robot_mass}')
     robot = RobotSpec(mass_kg=args.robot_mass, leg=leg.spec)
+    limits, limits_source = _actuator_limits(args)
+    if getattr(args, 'legs', None) is not None:
+        if args.legs < 2 or args.legs % 2:
+            raise EnergyError(f'--legs must be an even number >= 2, got {args.legs}')
+        _check_mass(robot, args.legs, '--legs')
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
     n_steps = len(bench_bags) + len(args.robot) + 1 + (16 if args.sweep else 0) + \
         (1 if args.recommend else 0)
     bar = tqdm(total=n_steps, desc='energy', unit='step', disable=args.no_progress,
@@ -399,8 +452,9 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                         notes.append(f'P_out from the Eq. 6 model of {leg.name}\'s leg (no '
                                      'joint power from the bag; give --leg for another leg)')
                 else:
-                    # without a gait (no /gait/phase, no --gait) P_out is unknown, not 0
-                    p_out, source = (0.0 if run_.gait is not None else math.nan), 'none'
+                    # no efforts to trust and no model (no gait, or a path the leg cannot
+                    # reach): P_out is unknown, not 0, and so are eta and the CoTs
+                    p_out, source = math.nan, 'none'
                 # the accumulator used robot.mass_kg; descriptors are recomputed with the payload
                 d = descriptors(power_in_w=run_.power_in_w, power_out_w=p_out, mass_kg=mass,
                                 speed_mps=run_.speed_mps)
@@ -440,6 +494,11 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         doc['robot_runs'] = runs
         if failed:
             doc['failed_bags'] = failed
+        for n in sorted({r['leg_count'] for r in runs if r['leg_count']}):
+            _check_mass(robot, int(n), 'the robot bags')
+        legs_n, legs_source = _robot_leg_count(args, runs, doc)
+        if args.sweep or args.recommend:
+            _check_mass(robot, legs_n, legs_source)
         measured_only = runs
         runs = [r for r in runs if math.isfinite(r['predicted_power_in_w'])]
         robot_name = f'{leg.name} robot, {args.robot_mass:.4g} kg'
@@ -477,13 +536,16 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 title=robot_name)]
 
         if args.sweep:
-            _sweep(doc, model, opm, out, bar, args.load_offset)
+            _sweep(doc, model, opm, out, bar, args.load_offset, leg_count=legs_n,
+                   leg_count_source=legs_source, limits=limits, limits_source=limits_source)
         if args.recommend:
             from hexapod_energy.recommend import recommend_gait
 
             rec = recommend_gait(model, opm, speed_mps=args.speed, payload_kg=args.payload,
-                                 load_offset_kg=args.load_offset)
-            doc['recommendation'] = rec.to_dict()
+                                 load_offset_kg=args.load_offset, leg_count=legs_n,
+                                 limits=limits)
+            doc['recommendation'] = {**rec.to_dict(), 'leg_count_source': legs_source,
+                                     'limits_source': limits_source}
             if rec.note:
                 doc.setdefault('warnings', []).append(f'recommendation: {rec.note}')
             bar.update(1)
@@ -491,6 +553,58 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         bar.close()
     (out / 'energy.json').write_text(json.dumps(_jsonable(doc), indent=1))
     return doc
+
+
+def _actuator_limits(args: argparse.Namespace) -> tuple[Any, str]:
+    """The actuator limits of ``--sweep``/``--recommend`` and where they come from."""
+    from hexapod_gait.feasibility import ANTBOT_LIMITS, ActuatorLimits
+
+    given = getattr(args, 'limits', None)
+    if given is None:
+        return ANTBOT_LIMITS, ("AntBot's servo limits (hexapod_gait ANTBOT_LIMITS; --limits "
+                               'for another robot)')
+    try:
+        lim = ActuatorLimits(*(float(x) for x in given))
+    except ValueError as err:
+        raise EnergyError(f'--limits MIN_SWING_S MIN_STANCE_S MAX_FREQ_HZ: {err}') from err
+    return lim, '--limits'
+
+
+def _check_mass(robot: Any, legs: int, source: str) -> None:
+    """Refuse a robot not heavier than its legs (``M <= N m_leg``: negative body mass)."""
+    legs_kg = legs * robot.leg_mass_kg
+    if robot.mass_kg <= legs_kg:
+        raise EnergyError(
+            f'robot mass {robot.mass_kg:.4g} kg (payload excluded) <= {legs} legs ({source}) x '
+            f'{robot.leg_mass_kg:.4g} kg = {legs_kg:.4g} kg: the legs alone outweigh the robot; '
+            'check --robot-mass, --leg and --legs')
+
+
+def _robot_leg_count(args: argparse.Namespace, runs: list[dict[str, Any]],
+                     doc: dict[str, Any]) -> tuple[int, str]:
+    """Leg count of the robot --sweep and --recommend describe, and its source: ``--legs``,
+    else the robot runs' (their gaits or joint names; the commonest, with a warning, when they
+    disagree), else 6 (AntBot), with a warning when --sweep or --recommend uses it."""
+    warns: list[str] = []
+    counts = [int(r['leg_count']) for r in runs if r.get('leg_count')]
+    given = getattr(args, 'legs', None)
+    n, source = 6, 'assumed: AntBot'
+    if given is not None:
+        other = sorted(set(counts) - {int(given)})
+        if other:
+            warns.append(f'--legs {given} but robot runs walk on {other} legs')
+        n, source = int(given), '--legs'
+    elif counts:
+        n, source = max(set(counts), key=counts.count), 'robot bags'
+        if len(set(counts)) > 1:
+            warns.append(f'robot runs walk on {sorted(set(counts))} legs: --sweep and '
+                         f'--recommend use {n} (give --legs N)')
+    elif args.sweep or args.recommend:
+        warns.append('leg count unknown (no --legs, no robot bag gives it): --sweep and '
+                     '--recommend assume 6 legs (AntBot); give --legs N')
+    if warns:
+        doc.setdefault('warnings', []).extend(warns)
+    return n, source
 
 
 def _run_label(run: dict[str, Any], *, speed: bool = True) -> str:
@@ -537,17 +651,50 @@ def _given_gait(args: argparse.Namespace, run_: Any, notes: list[str]) -> Any:
 
 
 def _sweep(doc: dict[str, Any], model: Any, opm: Any, out: Path, bar: Any,
-           load_offset_kg: float = 0.0) -> None:
+           load_offset_kg: float = 0.0, *, leg_count: int = 6,
+           leg_count_source: str = 'assumed: AntBot', limits: Any | None = None,
+           limits_source: str = "AntBot's servo limits") -> None:
+    """The Fig. 3 sweeps at the robot's ``leg_count`` (the leg-count sweep 4/6/8) and the
+    Fig. 7D power map of its alternating gait; curves the leg cannot walk are skipped (warned),
+    what is held fixed goes to ``sweep_settings``."""
+    from hexapod_gait.feasibility import ANTBOT_LIMITS
     from hexapod_gait.gait import make_gait
 
     from hexapod_energy.plots import four_quadrant_plot, power_map_plot
-    from hexapod_energy.sweeps import STANDARD_SWEEPS, run_standard_sweeps
+    from hexapod_energy.recommend import default_gait_name
+    from hexapod_energy.sweeps import DEFAULT_PAYLOADS_KG, run_standard_sweeps, standard_sweeps
 
-    curves = run_standard_sweeps(model, opm, progress=bar, load_offset_kg=load_offset_kg)
+    lim = ANTBOT_LIMITS if limits is None else limits
+    specs = standard_sweeps(leg_count)
+    skipped: list[str] = []
+    curves = run_standard_sweeps(model, opm, progress=bar, load_offset_kg=load_offset_kg,
+                                 sweeps=specs, limits=lim, skipped=skipped)
     doc['sweeps'] = {k: [c.to_dict() for c in v] for k, v in curves.items()}
+    alt = default_gait_name(leg_count)
+    wave = specs['gait_type'][1].duty_factor
+    doc['sweep_settings'] = {
+        'robot_mass_kg': float(opm.robot.mass_kg), 'leg_count': leg_count,
+        'leg_count_source': leg_count_source, 'payloads_kg': list(DEFAULT_PAYLOADS_KG),
+        'load_offset_kg': load_offset_kg,
+        'limits': {'min_swing_s': lim.min_swing_s, 'min_stance_s': lim.min_stance_s,
+                   'max_step_frequency_hz': lim.max_step_frequency_hz},
+        'limits_source': limits_source,
+        'held_fixed': {
+            'duty_factor': f'{alt}, {leg_count} legs, step 100 mm, step height 40 mm',
+            'step_length': f'{alt}, {leg_count} legs, beta 0.5, step height 40 mm',
+            'gait_type': f'{leg_count} legs, step 100 mm ({alt} beta 0.5, wave beta {wave:g} '
+                         'and 0.5)',
+            'leg_count': 'alternating, beta 0.5, step 100 mm (4, 6 and 8 legs whatever the '
+                         "robot's)",
+            'power_map': f'{alt}, {leg_count} legs, beta 0.5, step 100 mm'},
+        'skipped': skipped}
+    for line in skipped:
+        doc.setdefault('warnings', []).append(line)
     titles = {'duty_factor': 'Fig. 3A duty factor', 'step_length': 'Fig. 3B step length',
               'gait_type': 'Fig. 3C gait type', 'leg_count': 'Fig. 3D leg count'}
-    for name in STANDARD_SWEEPS:
+    for name in specs:
+        if not curves.get(name):
+            continue  # every curve skipped (warned)
         # the subtitle (robot mass, the parameters the curves share) and the payload band's
         # legend entry come from the curves
         paths = four_quadrant_plot(curves[name], out / f'four_quadrant_{name}',
@@ -556,15 +703,22 @@ def _sweep(doc: dict[str, Any], model: Any, opm: Any, out: Path, bar: Any,
     speeds = np.linspace(0.1, 0.6, 50)
     payloads = np.linspace(0.0, 0.5, 50)
     t0 = time.perf_counter()
-    gait = make_gait('tripod')
-    pm = opm.power_map_w(gait, speeds, payloads)
+    gait = make_gait(alt, leg_count=leg_count)
+    try:
+        pm = opm.power_map_w(gait, speeds, payloads)
+    except ValueError as err:
+        doc.setdefault('warnings', []).append(f'power map skipped: {err}')
+        return
     seconds = time.perf_counter() - t0
     doc['power_map'] = {'speeds_mps': speeds.tolist(), 'payloads_kg': payloads.tolist(),
-                        'power_out_w': pm.tolist(), 'seconds': seconds}
+                        'power_out_w': pm.tolist(), 'seconds': seconds, 'gait': gait.name,
+                        'leg_count': gait.leg_count, 'duty_factor': gait.duty_factor,
+                        'step_length_m': gait.step_length_m}
     doc['plots'] += [str(p.relative_to(out))
                      for p in power_map_plot(
                          speeds, payloads, pm, out / 'power_map',
-                         gait_label=f'{gait.name} beta {gait.duty_factor:g}, step '
+                         gait_label=f'{gait.name} ({gait.leg_count} legs) beta '
+                                    f'{gait.duty_factor:g}, step '
                                     f'{1000 * gait.step_length_m:.0f} mm')]
 
 
