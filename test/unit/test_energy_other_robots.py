@@ -10,6 +10,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from test_energy_sweeps import StubTrajectory as _SweepStub
 
 from hexapod_common.bags import BagWriter, new_msg, stamp
 from hexapod_energy.cli import build_parser, main
@@ -37,20 +38,13 @@ class Phase:
         return 1.9 + 0.5 * f + 0.06 * f**2 + 0 * np.asarray(m)
 
 
-class StubTrajectory:
-    """Sinusoidal joints scaled by the step; a step above 120 mm is out of reach."""
+class StubTrajectory(_SweepStub):
+    """The sweep tests' sinusoidal joints; a step above 125 mm is out of reach."""
 
-    def __init__(self, gait: object, leg_index: int, **_kw: object) -> None:
+    def __init__(self, gait: object, leg_index: int, **kw: object) -> None:
         if gait.step_length_m > 0.125:
             raise ValueError('tip target out of reach (stub)')
-        self.s = gait.step_length_m / 0.1
-
-    def joints(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        t = np.asarray(t, float)[:, None]
-        w = 2 * np.pi
-        a = np.array([0.3, 0.25, -0.35]) * self.s
-        q0 = np.array([0.0, 0.3, -1.6])
-        return q0 + a * np.sin(w * t), a * w * np.cos(w * t), -a * w**2 * np.sin(w * t)
+        super().__init__(gait, leg_index, **kw)
 
 
 @pytest.fixture(scope='module')
