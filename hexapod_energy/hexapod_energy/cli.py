@@ -407,6 +407,9 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 notes = list(run_.extra.get('notes', []))
                 payload = args.robot_payload if args.robot_payload is not None else \
                     (run_.payload_kg or 0.0)
+                if args.robot_payload is None and run_.payload_kg:
+                    notes.append(f'payload {run_.payload_kg:g} kg from the bag\'s metadata '
+                                 '(--robot-payload overrides it)')
                 mass = robot.total_mass_kg(payload)
                 gait = gait_from_sample(run_.gait) if run_.gait is not None else \
                     _given_gait(args, run_, notes)

@@ -76,3 +76,21 @@ def test_bench_refuses_a_leg_anomaly_on_a_leg_it_does_not_carry(tmp_path, capsys
                    '1', '--duration', '1', '--leg', 'R2', '--effect', 'leg_anomaly=L1:1.5'])
     assert rc == 2 and not (tmp_path / 'b').exists()
     assert "carries leg 'R2' only" in capsys.readouterr().err
+
+
+def test_energy_reads_the_payload_a_bag_declares(tmp_path) -> None:
+    """--robot-payload defaults to the bag's metadata; rosbags keeps custom_data at
+    Reader.storage.metadata and the reader looked at Reader.metadata only, so a simulated
+    0.5 kg payload was never used (CoT/M 23 % high, no word)."""
+    import json
+
+    from hexapod_bench_drivers.sim_cli import main as sim_main
+    from hexapod_energy.cli import main as energy_main
+
+    bag = tmp_path / 'loaded'
+    assert sim_main(['robot', '--out', str(bag), '--duration', '3', '--payload', '0.5']) == 0
+    assert energy_main(['--robot', str(bag), '--robot-mass', '2.183', '--out',
+                        str(tmp_path / 'o'), '--no-progress']) == 0
+    run = json.loads((tmp_path / 'o' / 'energy.json').read_text())['robot_runs'][0]
+    assert run['payload_kg'] == pytest.approx(0.5)
+    assert any("from the bag's metadata" in n for n in run['notes'])
