@@ -41,16 +41,26 @@ class ClockCheck:
         self.threshold_s = float(threshold_s)
         self._d: dict[str, list[float]] = {}
         self._n: dict[str, int] = {}
+        self._stride: dict[str, int] = {}
 
     def observe(self, topic: str, stamp_s: float, receive_s: float) -> None:
         """One message's header stamp and the bag's receive time [s]; zero stamps (replaced by
-        the receive time) are not evidence and should not be passed."""
-        n = self._n[topic] = self._n.get(topic, 0) + 1
+        the receive time) are not evidence and should not be passed.
+
+        Every ``stride``-th message is kept; when ``2 * _MAX_SAMPLES`` are kept, every other
+        one is dropped and the stride doubles, so the kept samples stay evenly spread over the
+        whole bag. (A ring buffer kept only the last ~8k messages: a late last minute of a
+        10-minute bag moved the whole stream by 3 s.)"""
+        n = self._n.get(topic, 0)
+        self._n[topic] = n + 1
+        stride = self._stride.setdefault(topic, 1)
+        if n % stride:
+            return
         d = self._d.setdefault(topic, [])
-        if len(d) < _MAX_SAMPLES:
-            d.append(stamp_s - receive_s)
-        elif n % 2 == 0:  # thin evenly: keep every other sample from here on
-            d[(n // 2) % _MAX_SAMPLES] = stamp_s - receive_s
+        d.append(stamp_s - receive_s)
+        if len(d) >= 2 * _MAX_SAMPLES:
+            del d[1::2]
+            self._stride[topic] = 2 * stride
 
     def medians(self) -> dict[str, float]:
         """Median ``stamp - receive`` per topic [s]."""

@@ -97,3 +97,21 @@ def test_slip_mocap_on_the_capture_systems_clock(tmp_path):
     _, ref_doc = _slip(tmp_path, ref, 'ref_out')
     assert len(doc['stances']) == len(ref_doc['stances'])
     json.dumps(doc)
+
+
+def test_clock_check_samples_the_whole_bag_not_its_end() -> None:
+    """An outside review: in a 600 s bag at 100 Hz only the last 60 s of /battery_state were
+    received 3 s late; the check's ring buffer held only the last ~8k messages and moved the
+    whole stream by 3 s. The kept samples now span the bag evenly: the median is the bag's."""
+    from hexapod_common.clocks import ClockCheck
+
+    check = ClockCheck()
+    n = 60_000
+    for k in range(n):
+        t = 0.01 * k
+        late = 3.0 if k >= 0.9 * n else 0.0
+        check.observe('/battery_state', t, t + late)
+        check.observe('/joint_states', t, t)
+    shifts, _ = check.shifts()
+    assert shifts == {}
+    assert abs(check.medians()['/battery_state']) < 1e-9
