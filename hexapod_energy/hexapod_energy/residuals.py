@@ -713,32 +713,38 @@ def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = Non
             ph = r.cycle_phase[keep]
             wrap = np.concatenate([[0.0], np.cumsum(np.diff(ph) < -0.5)])
             hu = 2.0 * (ph + wrap)
-        for w in np.unique(inv[full]):
-            m = inv == w
-            m &= full
-            tw = t[m]
-            if tw.size < 3:
+        # each column restricted to the kept samples once, then every window reads its own
+        # samples only (sorted by window: linear in the run's length, not samples x windows)
+        sub_kept = {k: np.asarray(arr)[keep] for k, arr in sub.items()}
+        extra_kept = {k: np.broadcast_to(arr, r.t_s.shape)[keep]
+                      for k, arr in sub_extra.items()}
+        stance_kept = r.in_stance[keep]
+        for idx in _window_groups(inv, full):
+            if idx.size < 3:
                 continue
-            idx = np.flatnonzero(m)
+            tw = t[idx]
             span = _half_cycle_span(t, hu, idx) if walking[idx[0]] else None
             cols['run'].append(ri)
             if span is None:
                 cols['t_s'].append(float(tw.mean()))
                 cols['duration_s'].append(float(tw[-1] - tw[0]))
-                for k, arr in sub.items():
-                    cols[k].append(float(np.mean(arr[keep][m])))
-                for k, arr in sub_extra.items():
-                    extra[k].append(float(np.mean(arr[keep][m])))
+                for k, arr in sub_kept.items():
+                    cols[k].append(float(np.mean(arr[idx])))
+                for k, arr in extra_kept.items():
+                    extra[k].append(float(np.mean(arr[idx])))
             else:
                 ta, tb = span
+                # the span lies between the window's neighbours (i0 - 1, i1 + 1): its mean
+                # needs no sample outside them
+                lo, hi = int(idx[0]) - 1, int(idx[-1]) + 2
+                ts = t[lo:hi]
                 cols['t_s'].append(0.5 * (ta + tb))
                 cols['duration_s'].append(tb - ta)
-                for k, arr in sub.items():
-                    cols[k].append(_span_mean(t, np.asarray(arr)[keep], ta, tb))
-                for k, arr in sub_extra.items():
-                    extra[k].append(_span_mean(t, np.broadcast_to(arr, r.t_s.shape)[keep],
-                                               ta, tb))
-            cols['stance_fraction'].append(r.in_stance[keep][m].mean(axis=0))
+                for k, arr in sub_kept.items():
+                    cols[k].append(_span_mean(ts, arr[lo:hi], ta, tb))
+                for k, arr in extra_kept.items():
+                    extra[k].append(_span_mean(ts, arr[lo:hi], ta, tb))
+            cols['stance_fraction'].append(stance_kept[idx].mean(axis=0))
     if not cols['run']:
         raise ResidualDataError('robot bags give no complete half-cycle window after the '
                                 f'first {settle_s} s; record longer runs')
@@ -747,6 +753,18 @@ def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = Non
     return WindowTable(**arrays, leg_names=runs[0].leg_names, supply_slope_ohm=slope,
                        supply_slope_stderr_ohm=se,
                        extra={k: np.array(v) for k, v in extra.items()})
+
+
+def _window_groups(inv: np.ndarray, full: np.ndarray) -> list[np.ndarray]:
+    """Sample indices (ascending) of each window label ``inv`` among the ``full`` samples, in
+    ascending label order: one stable sort instead of one mask over the run per window."""
+    sel = np.flatnonzero(full)
+    if not sel.size:
+        return []
+    order = np.argsort(inv[sel], kind='stable')
+    ordered, labels = sel[order], inv[sel][order]
+    cuts = np.flatnonzero(np.diff(labels)) + 1
+    return np.split(ordered, cuts)
 
 
 def _half_cycle_span(t: np.ndarray, hu: np.ndarray, idx: np.ndarray
@@ -771,7 +789,10 @@ def _half_cycle_span(t: np.ndarray, hu: np.ndarray, idx: np.ndarray
 
 
 def _span_mean(t: np.ndarray, y: np.ndarray, ta: float, tb: float) -> float:
-    """Mean of the piecewise-linear ``y(t)`` over ``[ta, tb]``."""
+    """Mean of the piecewise-linear ``y(t)`` over ``[ta, tb]``.
+
+    ``t`` need only cover ``[ta, tb]`` with one sample at or beyond each end (a window's slice
+    of the run): samples farther out do not change the mean."""
     inner = (t > ta) & (t < tb)
     grid = np.concatenate([[ta], t[inner], [tb]])
     vals = np.interp(grid, t, y)

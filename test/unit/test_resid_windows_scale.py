@@ -1,0 +1,28 @@
+"""build_windows is linear in the run's length and equals the per-window implementation it
+replaced (kept as the baseline of bench/bench_resid_scale.py)."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+from hexapod_energy import residuals as R
+
+_BENCH = Path(__file__).resolve().parents[2] / 'bench' / 'bench_resid_scale.py'
+
+
+def _bench_module():
+    spec = importlib.util.spec_from_file_location('bench_resid_scale', _BENCH)
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_windows_equal_the_per_window_baseline():
+    bench = _bench_module()
+    runs = [bench.synthetic_run(1.5, seed=3), bench.synthetic_run(1.0, seed=4)]
+    new = R.build_windows(runs, temp_ref_c=29.0)
+    old = bench.build_windows_baseline(runs, temp_ref_c=29.0)
+    assert new.t_s.size > 300
+    assert bench.max_difference(new, old) <= 1e-12
