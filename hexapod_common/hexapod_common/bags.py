@@ -21,7 +21,7 @@ import os
 import shutil
 import sys
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from io import StringIO
@@ -46,6 +46,7 @@ __all__ = [
     'BagMessage',
     'BagWriter',
     'CUSTOM_MSGS',
+    'duplicates_note',
     'find_msg_dir',
     'iter_messages',
     'new_msg',
@@ -456,18 +457,60 @@ def open_reader(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[str]]
 
 
 def iter_messages(reader: AnyReader, topics: Sequence[str] | None = None,
-                  start_ns: int | None = None, stop_ns: int | None = None
+                  start_ns: int | None = None, stop_ns: int | None = None, *,
+                  dedupe: bool = True, duplicates: dict[str, int] | None = None,
+                  progress: Callable[[int], Any] | None = None
                   ) -> Iterator[BagMessage]:
-    """Raw messages in time order, optionally filtered by topic and bag-time window."""
+    """Raw messages in time order, optionally filtered by topic and bag-time window.
+
+    Parameters
+    ----------
+    reader
+        An open reader (:func:`open_reader`).
+    topics
+        Topics to read (all when None).
+    start_ns, stop_ns
+        Bag-time window [ns].
+    dedupe
+        Drop exact duplicates: a message of the same topic, log time and bytes as one already
+        yielded (a recorder or relay that wrote some messages twice); a message recorded twice
+        counts once. False yields every stored message (replaying a bag as recorded).
+    duplicates
+        Filled with topic -> number of duplicates dropped (for the readers' notes; see
+        :func:`duplicates_note`).
+    progress
+        Called with the number of messages read since its last call (every 4096 messages and
+        at the end), e.g. a tqdm's ``update``.
+    """
     conns = [c for c in reader.connections if topics is None or c.topic in topics]
     body = _mocap_tf_from_env()
     tf_mocap = body is not None and any(c.topic == '/mocap/body' and c.msgtype == TF_TYPE
                                         for c in conns)
     found = 0
     pairs: dict[tuple[str, str], int] = {}
+    # exact duplicates share the log time: the messages stored at the current log time
+    group_t: int | None = None
+    group: set[tuple[str, bytes]] = set()
+    read = 0
     try:
         for conn, stamp, data in reader.messages(connections=conns, start=start_ns,
                                                  stop=stop_ns):
+            if progress is not None:
+                read += 1
+                if read == 4096:
+                    progress(read)
+                    read = 0
+            if dedupe:
+                data = bytes(data)
+                key = (conn.topic, data)
+                if stamp != group_t:
+                    group_t, group = stamp, {key}
+                elif key in group:
+                    if duplicates is not None:
+                        duplicates[conn.topic] = duplicates.get(conn.topic, 0) + 1
+                    continue
+                else:
+                    group.add(key)
             if tf_mocap and conn.topic == '/mocap/body' and conn.msgtype == TF_TYPE:
                 # the body's pose among the transforms of /tf (--mocap-tf PARENT:CHILD)
                 assert body is not None
@@ -489,12 +532,24 @@ def iter_messages(reader: AnyReader, topics: Sequence[str] | None = None,
     except Exception as err:
         msg = str(err).splitlines()[0] if str(err) else type(err).__name__
         raise BagReadError(f'bag is truncated or corrupt: {msg}') from err
+    if progress is not None and read:
+        progress(read)
     if tf_mocap and not found and start_ns is None and stop_ns is None:
         assert body is not None
         have = ', '.join(f'{a or "?"} -> {b or "?"} ({n})'
                          for (a, b), n in sorted(pairs.items(), key=lambda kv: -kv[1])[:8])
         raise BagReadError(f'/tf has no transform {body[0]} -> {body[1]} (--mocap-tf); it has '
                            f'{have or "no transforms"}')
+
+
+def duplicates_note(duplicates: dict[str, int]) -> list[str]:
+    """The note of :func:`iter_messages`' ``duplicates`` count (empty when none was dropped)."""
+    total = sum(duplicates.values())
+    if not total:
+        return []
+    per = ', '.join(f'{t} {n}' for t, n in sorted(duplicates.items()) if n)
+    return [f'{total} duplicated message(s) ignored (recorded twice: same topic, log time '
+            f'and bytes; {per})']
 
 
 #: ``/tf`` messages and the transform they hold (--mocap-tf)

@@ -99,7 +99,9 @@ class ReplaySource:
         start = self.start_ns + int(self.options.start_offset_s * 1e9)
         stop = self.start_ns + int(self.options.end_offset_s * 1e9) + 1 \
             if self.options.end_offset_s > 0 else None
-        raw = iter_messages(self.reader, topics=list(self.types), start_ns=start, stop_ns=stop)
+        # replayed as recorded: a message stored twice is published twice
+        raw = iter_messages(self.reader, topics=list(self.types), start_ns=start,
+                            stop_ns=stop, dedupe=False)
         return raw if self.ros1 is None else self._from_ros1(raw)
 
     def _from_ros1(self, raw: Iterable[BagMessage]) -> Iterator[BagMessage]:

@@ -250,7 +250,7 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
     whose header stamp is zero (drivers that never fill it) takes the bag's receive time,
     counted per topic in ``notes`` (``energy.json`` ``bench.diagnostics[].notes``).
     """
-    from hexapod_common.bags import iter_messages, open_reader
+    from hexapod_common.bags import duplicates_note, iter_messages, open_reader
     from hexapod_common.clocks import ClockCheck, shift_rows
     from hexapod_common.conversions import (
         battery_from_msg,
@@ -266,6 +266,7 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
     ses: list[dict[str, Any]] = []
     dropped: dict[str, list[str]] = {}
     zero_stamps: dict[str, int] = {}
+    dups: dict[str, int] = {}   # messages recorded twice (same topic, log time, bytes)
 
     clocks = ClockCheck()
 
@@ -308,7 +309,7 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
                     'too: give it with --bench alone (its own sessions) or drop its '
                     '/bench/session')
             topics = needed[:3] + (('/gait/phase',) if with_schedule else ())
-        for m in iter_messages(reader, topics):
+        for m in iter_messages(reader, topics, duplicates=dups):
             msg = reader.deserialize(m.data, m.msgtype)
             if m.topic == '/joint_states':
                 try:
@@ -408,6 +409,7 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
               for t, n in sorted(zero_stamps.items())]
     notes += [f'{t}: {n} message(s) without a header: bag receive time used'
               for t, n in sorted(no_header.items())]
+    notes += duplicates_note(dups)
     notes += notes_out
     b_arr = np.array(sorted(bat))
     f_arr = np.array(sorted(frc))
@@ -907,6 +909,7 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
     zero_stamps: dict[str, int] = {}
     dropped: dict[str, list[str]] = {}
     duplicates = 0
+    exact: dict[str, int] = {}   # same topic, log time and bytes: dropped by iter_messages
     n_battery = 0
     clocks = ClockCheck()
     with open_reader(path) as reader:
@@ -914,7 +917,7 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
         custom = _custom_data(reader)
         notes.extend(getattr(reader, 'notes', ()))  # e.g. mcap files without metadata.yaml
         topics = ROBOT_TOPICS + ('/joint_states', '/mocap/body', '/odom')
-        for m in iter_messages(reader, topics):
+        for m in iter_messages(reader, topics, duplicates=exact):
             msg = reader.deserialize(m.data, m.msgtype)
             n_battery += m.topic == '/battery_state'
             try:
@@ -949,6 +952,7 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
         notes.append(f'{len(errs)} {topic} message(s) dropped: {errs[0]}')
     for topic, n in sorted(zero_stamps.items()):
         notes.append(f'{n} {topic} message(s) with a zero header stamp: bag receive time used')
+    duplicates += sum(exact.values())
     if duplicates:
         notes.append(f'{duplicates} duplicated message(s) ignored')
     n_gait = sum(1 for smp in samples if smp[2] == '/gait/phase')

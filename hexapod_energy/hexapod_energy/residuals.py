@@ -197,8 +197,10 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
                       gait: GivenGait | None = None) -> ResidualRun:
     """Read one robot bag: ``/battery_state`` and ``/gait/phase`` (required; without
     ``/gait/phase``, ``gait`` and ``/joint_states`` give the schedule: see :class:`GivenGait`),
-    ``/servo_status`` and ``/joint_states`` (optional: thermal regressor, stream lag)."""
-    from hexapod_common.bags import iter_messages, open_reader
+    ``/servo_status`` and ``/joint_states`` (optional: thermal regressor, stream lag).
+
+    A message recorded twice (same topic, log time and bytes) counts once, noted."""
+    from hexapod_common.bags import duplicates_note, iter_messages, open_reader
     from hexapod_common.battery import prepare_battery_samples
     from hexapod_common.clocks import ClockCheck, shift_rows
     from hexapod_common.conversions import (
@@ -213,6 +215,7 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
 
     bat, gp, temps, mech = [], [], [], []
     dropped: dict[str, list[str]] = {}
+    dups: dict[str, int] = {}
     clocks = ClockCheck()
     per_joint: dict[str, list[tuple[float, float]]] = {}
     with open_reader(path) as reader:
@@ -234,7 +237,7 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
                        'then come from the joint positions' if topic == '/gait/phase' else '')
                     + f'); it has {present}')
         for m in iter_messages(reader, ('/battery_state', '/gait/phase', '/servo_status',
-                                        '/joint_states')):
+                                        '/joint_states'), duplicates=dups):
             msg = reader.deserialize(m.data, m.msgtype)
             if msg.header.stamp.sec or msg.header.stamp.nanosec:
                 clocks.observe(m.topic, stamp_to_s(msg.header.stamp), 1e-9 * m.stamp_ns)
@@ -258,6 +261,7 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
                         per_joint.setdefault(name, []).append((js.t_s, float(e)))
     battery_notes: list[str] = [f'{len(errs)} {topic} message(s) dropped: {errs[0]}'
                                 for topic, errs in sorted(dropped.items())]
+    battery_notes += duplicates_note(dups)
     shifts, clock_notes = clocks.shifts()   # a topic stamped on another clock
     if shifts:
         battery_notes.extend(clock_notes)

@@ -100,12 +100,13 @@ def read_run(path: str | Path) -> RunData:
 
     ``/battery_state`` is optional (without usable samples, power and SR are null); a message
     whose header stamp is zero takes the bag's receive time; input fallbacks are listed in
-    ``RunData.notes``. ``/joint_states`` goes through :func:`.joints.assemble_joint_frames`:
+    ``RunData.notes`` (messages recorded twice, same topic, log time and bytes, count once).
+    ``/joint_states`` goes through :func:`.joints.assemble_joint_frames`:
     messages split over name groups are assembled, hip angles wrapped into ``[-pi, pi)`` or
     ``[0, 2 pi)`` are unwrapped per joint, and positions without any velocities give
     central-difference speeds (each noted).
     """
-    from hexapod_common.bags import iter_messages, open_reader
+    from hexapod_common.bags import duplicates_note, iter_messages, open_reader
     from hexapod_common.battery import prepare_battery_samples
     from hexapod_common.clocks import ClockCheck
     from hexapod_common.conversions import (
@@ -123,6 +124,7 @@ def read_run(path: str | Path) -> RunData:
     changes: list[tuple[float, str]] = []
     zero: dict[str, int] = {}
     dropped: dict[str, int] = {}
+    dups: dict[str, int] = {}   # messages recorded twice (same topic, log time, bytes)
     clocks = ClockCheck()
     with open_reader(path) as reader:
         reader_notes = list(getattr(reader, 'notes', ()))  # e.g. mcap without metadata.yaml
@@ -138,7 +140,7 @@ def read_run(path: str | Path) -> RunData:
         streams = {'/joint_states': (js, joint_state_from_msg),
                    '/joint_commands': (jc, joint_state_from_msg),
                    '/mocap/body': (mo, pose_from_msg), '/battery_state': (bt, battery_from_msg)}
-        for m in iter_messages(reader, list(TOPICS) + ['/gait/phase']):
+        for m in iter_messages(reader, list(TOPICS) + ['/gait/phase'], duplicates=dups):
             # the reader's own deserializer: rosbag2 CDR, or ROS 1 bags through AnyReader
             msg = reader.deserialize(m.data, m.msgtype)
             try:
@@ -163,7 +165,7 @@ def read_run(path: str | Path) -> RunData:
             streams[m.topic][0].append(sample)
     notes = reader_notes + [
         f'{n} {t} message(s) with a zero header stamp: bag receive time used'
-        for t, n in sorted(zero.items())]
+        for t, n in sorted(zero.items())] + duplicates_note(dups)
     shifts, clock_notes = clocks.shifts()   # a topic stamped on another clock
     notes.extend(clock_notes)
     for topic, dt in shifts.items():
