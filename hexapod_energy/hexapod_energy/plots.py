@@ -128,11 +128,22 @@ def four_quadrant_figure(curves: Sequence[SweepCurve], *, title: str = '',
         inside_pout.append(np.where(keep, np.nan, p_out))
         inside_cot.append(np.where(keep, np.nan, cot))
         label = curve.spec.label + (' (all extrapolated)' if out.all() else '')
+        # a curve equal to an earlier one (wave at beta 0.5 is the tripod: L(t) = 3 always)
+        # is drawn dashed over it and says so; it hid the earlier curve
+        same = next((other.spec.label for other in curves[:c]
+                     if other.speeds_mps.shape == curve.speeds_mps.shape
+                     and np.allclose(other.speeds_mps, curve.speeds_mps)
+                     and np.allclose(other.power_out_w, p_out, rtol=1e-9, equal_nan=True)
+                     and np.allclose(other.cot_per_mass, cot, rtol=1e-9, equal_nan=True)),
+                    None)
+        style = '--' if same else '-'
+        if same:
+            label += f' (= {same})'
         for ax, x, y in ((ax1, v, p_out), (ax2, eta, p_out), (ax3, eta, cot), (ax4, v, cot)):
             _band(ax, x, y, col)
             # solid where the bench's sessions cover the point, dotted where Eq. 1 extrapolates
             inside = np.where(out, np.nan, y[:, 0])
-            ax.plot(x[:, 0], inside, color=col,
+            ax.plot(x[:, 0], inside, style, color=col, lw=1.5 if same else 2.5,
                     label=label if ax is ax1 and not out.all() else None)
             if out.any():
                 edge = out | np.convolve(out, [1, 1, 1], 'same').astype(bool)

@@ -255,3 +255,15 @@ def test_residual_time_runs_told_apart_and_a_spike_clipped(monkeypatch: pytest.M
         assert any('fitted term' in ln.get_label() for ln in reg.axes[0].get_lines())
     finally:
         _REAL_CLOSE('all')
+
+
+def test_a_curve_equal_to_an_earlier_one_is_dashed_and_says_so() -> None:
+    """Wave at beta 0.5 is the tripod (L(t) = 3 at every instant; the paper says so): drawn
+    solid over it, it hid the tripod curve. It is now dashed and labelled '(= tripod ...)'."""
+    fig = plots.four_quadrant_figure([_curve('tripod beta 0.5', 1.0),
+                                      _curve('wave beta 0.5', 1.0)], title='Fig. 3C')
+    lines = [ln for ln in fig.axes[1].get_lines() if not ln.get_label().startswith('_')]
+    twin = [ln for ln in lines if ln.get_label().startswith('wave beta 0.5')]
+    assert twin and twin[0].get_label() == 'wave beta 0.5 (= tripod beta 0.5)'
+    assert twin[0].get_linestyle() == '--'
+    plt.close(fig)
