@@ -1291,8 +1291,10 @@ def run_energy_loop(bench_bags: Sequence[str | Path], robot_bags: Sequence[str |
     step = progress or (lambda _n: None)
     samples = []
     bench_v: list[float] = []
+    bench_notes: dict[str, list[str]] = {}
     for p in bench_bags:
         data = read_bench_bag(p)
+        bench_notes[str(p)] = list(data.notes)
         s, _ = bench_phase_samples(data, current_sign=current_sign, phase_split=phase_split)
         samples.extend(s)
         v = np.abs(np.asarray(data.battery_v, dtype=float))
@@ -1308,7 +1310,8 @@ def run_energy_loop(bench_bags: Sequence[str | Path], robot_bags: Sequence[str |
                                 payload_kg=payload_kg, load_offset_kg=load_offset_kg,
                                 temp_ref_c=_bench_temperature_c(bench_bags), plots=plots,
                                 robot_spec_cls=RobotSpec,
-                                bench_voltage_v=float(np.median(bench_v)) if bench_v else None)
+                                bench_voltage_v=float(np.median(bench_v)) if bench_v else None,
+                                bench_notes=bench_notes)
     step(1)
     return doc
 
@@ -1361,10 +1364,11 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
                           out_dir: str | Path | None = None, *, robot_mass_kg: float = 2.183,
                           payload_kg: float = 0.0, temp_ref_c: float | None = None,
                           load_offset_kg: float = 0.0, plots: bool = True,
-                          robot_spec_cls: Any = None, bench_voltage_v: float | None = None
-                          ) -> dict[str, Any]:
+                          robot_spec_cls: Any = None, bench_voltage_v: float | None = None,
+                          bench_notes: dict[str, list[str]] | None = None) -> dict[str, Any]:
     """The loop on a fitted bench model and read robot runs (tests reuse one bench fit).
-    ``bench_voltage_v``: the bench's supply voltage, checked against the robot runs'."""
+    ``bench_voltage_v``: the bench's supply voltage, checked against the robot runs'.
+    ``bench_notes``: bench bag -> how it was read (``per_bench`` in the document when any)."""
     from hexapod_energy.prediction import RobotSpec
 
     spec = (robot_spec_cls or RobotSpec)(mass_kg=robot_mass_kg)
@@ -1401,6 +1405,8 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
                        'predicted_w': float(np.mean(r.predicted_w)),  # type: ignore[arg-type]
                        'sample_rmse_w': float(np.sqrt(np.mean((r.power_w - r.predicted_w)**2))),
                        'stream_lag_s': r.lag_s, 'notes': list(r.notes)} for r in runs]
+    if bench_notes and any(bench_notes.values()):
+        doc['per_bench'] = [{'bag': b, 'notes': list(n)} for b, n in bench_notes.items()]
     if temp_ref_c is not None:
         doc['temperature_reference_c'] = temp_ref_c
     _supply_check(doc, runs, bench_voltage_v)
