@@ -22,6 +22,8 @@ import shutil
 import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass
 from functools import lru_cache
 from io import StringIO
@@ -49,6 +51,7 @@ __all__ = [
     'duplicates_note',
     'find_msg_dir',
     'iter_messages',
+    'message_progress',
     'new_msg',
     'OpenedReader',
     'open_reader',
@@ -456,6 +459,26 @@ def open_reader(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[str]]
     return reader
 
 
+#: the label of :func:`message_progress`'s bars while one is active
+_MESSAGE_BAR: ContextVar[str | None] = ContextVar('hexapod_message_bar', default=None)
+
+
+@contextmanager
+def message_progress(desc: str, *, disable: bool = False) -> Iterator[None]:
+    """While active, every :func:`iter_messages` of this thread shows a progress bar of the
+    messages read (stderr, below the command's own bar, total from the bag's message counts):
+    a single large bag then shows its progress, not ``0/1`` for minutes.
+
+    ``disable`` (a command's ``--no-progress``) and a stderr that is not a terminal show none.
+    """
+    on = not disable and hasattr(sys.stderr, 'isatty') and sys.stderr.isatty()
+    token = _MESSAGE_BAR.set(desc if on else None)
+    try:
+        yield
+    finally:
+        _MESSAGE_BAR.reset(token)
+
+
 def iter_messages(reader: AnyReader, topics: Sequence[str] | None = None,
                   start_ns: int | None = None, stop_ns: int | None = None, *,
                   dedupe: bool = True, duplicates: dict[str, int] | None = None,
@@ -483,6 +506,19 @@ def iter_messages(reader: AnyReader, topics: Sequence[str] | None = None,
         at the end), e.g. a tqdm's ``update``.
     """
     conns = [c for c in reader.connections if topics is None or c.topic in topics]
+    bar_desc = _MESSAGE_BAR.get() if progress is None else None
+    if bar_desc is not None:
+        from tqdm import tqdm
+
+        total = sum(int(getattr(c, 'msgcount', 0) or 0) for c in conns)
+        bar = tqdm(total=total or None, desc=bar_desc, unit='msg', unit_scale=True,
+                   leave=False, file=sys.stderr, mininterval=0.5)
+        try:
+            yield from iter_messages(reader, topics, start_ns, stop_ns, dedupe=dedupe,
+                                     duplicates=duplicates, progress=bar.update)
+        finally:
+            bar.close()
+        return
     body = _mocap_tf_from_env()
     tf_mocap = body is not None and any(c.topic == '/mocap/body' and c.msgtype == TF_TYPE
                                         for c in conns)

@@ -354,6 +354,13 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         (1 if args.recommend else 0)
     bar = tqdm(total=n_steps, desc='energy', unit='step', disable=args.no_progress,
                file=sys.stderr)
+    # a second bar of the messages read: one long bag shows progress, not 0/2 for minutes
+    from contextlib import ExitStack
+
+    from hexapod_common.bags import message_progress
+
+    reading = ExitStack()
+    reading.enter_context(message_progress('energy: bag', disable=args.no_progress))
     doc: dict[str, Any] = {'schema': 'hexapod_energy.energy/1', 'plots': []}
     if mass_warning:
         doc['warnings'] = [mass_warning]
@@ -553,6 +560,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 doc.setdefault('warnings', []).append(f'recommendation: {rec.note}')
             bar.update(1)
     finally:
+        reading.close()
         bar.close()
     (out / 'energy.json').write_text(json.dumps(_jsonable(doc), indent=1))
     return doc

@@ -221,8 +221,12 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
 
         gait = GivenGait(args.gait, args.duty_factor, args.step_length,
                          getattr(args, 'legs', None))
+    from hexapod_common.bags import message_progress
+
+    quiet = getattr(args, 'no_progress', False)
     with tqdm(total=len(args.bench) + len(args.robot) + 1, desc='residuals', unit='step',
-              file=sys.stderr, disable=getattr(args, 'no_progress', False)) as bar:
+              file=sys.stderr, disable=quiet) as bar, \
+            message_progress('residuals: bag', disable=quiet):   # messages of a long bag
         return run_energy_loop(args.bench, args.robot, args.out,
                                robot_mass_kg=args.robot_mass, payload_kg=args.robot_payload,
                                current_sign=args.current_sign,

@@ -422,8 +422,11 @@ def run_command(args: argparse.Namespace) -> int:
             raise
         pool.shutdown()
     else:
-        for b in tqdm(bags, desc='slip', unit='bag'):
-            results.append(analyze_bag(b, options))
+        from hexapod_common.bags import message_progress
+
+        with message_progress('slip: bag'):   # the messages of a long bag as they are read
+            for b in tqdm(bags, desc='slip', unit='bag'):
+                results.append(analyze_bag(b, options))
     stances = [s for r in results for s in r.get('stances', [])]
     skipped = [s for r in results for s in r.get('skipped', [])]
     rows = [{'gait': s['gait'], 'nerr': s['nerr'] if s['nerr'] is not None else math.nan,
