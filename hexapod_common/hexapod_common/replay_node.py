@@ -4,8 +4,10 @@ A ROS 1 ``.bag`` is accepted too: its messages are converted to ROS 2 CDR on the
 (``hexapod_common.ros1``); ROS 1 types with no ROS 2 counterpart are skipped with one warning.
 
 Usage: ``bag_replay BAG [--rate R] [--topics T ...] [--remap FROM:=TO ...] [--start S]
-[--end S] [--no-clock] [--wait-subscribers N]``. Rate 0 (default) is as fast as possible.
-A negative rate or offset is refused, and so is a ``--start`` past the bag's end (exit 2).
+[--end S] [--no-clock] [--wait-subscribers N] [--progress-every S]``. Rate 0 (default) is as
+fast as possible. A negative rate or offset is refused, and so is a ``--start`` past the bag's
+end (exit 2). Every ``--progress-every`` seconds (default 5, 0 = never) a line on stderr says
+how many messages were sent of how many and how far into the bag the replay is.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 from rclpy.duration import Duration
 from rclpy.node import Node
@@ -51,15 +53,23 @@ _ACK_POLL = Duration(nanoseconds=2_000_000)
 
 
 class BagReplayNode(Node):
-    """Publishes a bag; call :meth:`run` (blocking) after the graph is up."""
+    """Publishes a bag; call :meth:`run` (blocking) after the graph is up.
+
+    ``progress_every_s``: every so many seconds of wall time (checked once per batch of
+    ``ack_every`` messages, so it costs nothing measurable) :meth:`run` writes a progress line
+    to ``progress_file`` (stderr by default); None or 0 writes none.
+    """
 
     def __init__(self, bag: str | Sequence[str], options: ReplayOptions = ReplayOptions(), *,
                  ack_every: int = 64, ack_timeout_s: float = 10.0, context: Any = None,
                  parameter_overrides: Any = None, namespace: str | None = None,
-                 node_name: str = 'bag_replay') -> None:
+                 node_name: str = 'bag_replay', progress_every_s: float | None = None,
+                 progress_file: TextIO | None = None) -> None:
         super().__init__(node_name, context=context, namespace=namespace or '',
                          parameter_overrides=parameter_overrides or [])
         self.options = options
+        self.progress_every_s = progress_every_s or 0.0
+        self.progress_file = progress_file
         self.ack_every = max(1, ack_every)
         self.ack_timeout = Duration(seconds=ack_timeout_s)
         self.source = ReplaySource(bag, options, warn=self.get_logger().warning)
@@ -94,6 +104,8 @@ class BagReplayNode(Node):
         bag_t0 = self.source.start_ns + int(self.options.start_offset_s * 1e9)
         dirty: set[str] = set()
         n = 0
+        every = self.progress_every_s
+        next_report = wall_t0 + every if every > 0 else float('inf')
         for item in self.source.messages():
             pace(self.options.rate, bag_t0, wall_t0, item.stamp_ns)
             if self.clock_pub is not None:
@@ -107,8 +119,27 @@ class BagReplayNode(Node):
             if n % self.ack_every == 0:
                 self._wait_acked(dirty)
                 dirty.clear()
+                if time.monotonic() >= next_report:
+                    self._report(n, item.stamp_ns, wall_t0)
+                    next_report = time.monotonic() + every
         self._wait_acked(dirty)
         return dict(self.published)
+
+    def total_messages(self) -> int:
+        """Messages of the replayed topics in the whole bag (0 when the bag does not say)."""
+        return sum(c.msgcount for c in self.source.reader.connections
+                   if c.topic in self.source.types)
+
+    def _report(self, sent: int, stamp_ns: int, wall_t0: float) -> None:
+        """One progress line: messages sent of the total, bag time reached, rate."""
+        total = self.total_messages()
+        of = f' / {total:,} ({100.0 * sent / total:.0f} %)' if total else ''
+        span_s = max(0, self.source.end_ns - self.source.start_ns) * 1e-9
+        bag_s = max(0, stamp_ns - self.source.start_ns) * 1e-9
+        wall_s = max(time.monotonic() - wall_t0, 1e-9)
+        out = self.progress_file or sys.stderr
+        print(f'bag_replay: {sent:,}{of} messages sent, bag time {bag_s:.1f} / {span_s:.1f} s, '
+              f'{sent / wall_s:,.0f} msg/s', file=out, flush=True)
 
     def _wait_acked(self, topics: set[str]) -> None:
         pubs = [self.pubs[t] for t in topics]
@@ -146,6 +177,8 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     parser.add_argument('--no-clock', action='store_true', help='do not publish /clock')
     parser.add_argument('--wait-subscribers', type=int, default=0, metavar='N',
                         help='wait (up to 10 s) for N subscribers on every topic first')
+    parser.add_argument('--progress-every', type=float, default=5.0, metavar='S',
+                        help='a progress line on stderr every S seconds (0 = none)')
     args = parser.parse_args(argv)
     remap = {}
     for item in args.remap:
@@ -163,11 +196,12 @@ def check_args(args: argparse.Namespace) -> str | None:
     """Why the numbers of :func:`parse_args` are refused, else None."""
     import math
 
-    for name in ('rate', 'start', 'end'):
+    for name in ('rate', 'start', 'end', 'progress_every'):
         value = getattr(args, name)
         if not math.isfinite(value) or value < 0:
             extra = ' (1 = real time, 0 = as fast as possible)' if name == 'rate' else ''
-            return f'--{name} must be a finite number >= 0{extra}, got {value:g}'
+            return f'--{name.replace("_", "-")} must be a finite number >= 0{extra}, ' \
+                f'got {value:g}'
     if args.end and args.end <= args.start:
         return f'--end {args.end:g} s must be after --start {args.start:g} s (0 = to the end)'
     if args.wait_subscribers < 0:
@@ -197,7 +231,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     rclpy.init(args=['bag_replay', *raw])
     node = None
     try:
-        node = BagReplayNode(args.bag, args.options)
+        node = BagReplayNode(args.bag, args.options, progress_every_s=args.progress_every)
         if not node.source.types:
             unknown = '; '.join(f'{t}: {why}' for t, why in node.source.skipped.items())
             raise HexapodError('nothing to replay' + (f' (unknown types: {unknown})'

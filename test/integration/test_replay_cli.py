@@ -140,6 +140,7 @@ while time.monotonic() - t0 < 30:
     (['--end', '-1'], '--end'),
     (['--start', '5', '--end', '2'], '--end'),
     (['--wait-subscribers', '-1'], '--wait-subscribers'),
+    (['--progress-every', '-1'], '--progress-every'),
 ])
 def test_bad_numbers_are_refused_in_one_line_with_exit_2(tmp_path, args, word):
     bag = tmp_path / 'b'
@@ -176,3 +177,25 @@ def test_rate_zero_is_still_as_fast_as_possible(tmp_path):
     proc = run('bag_replay', str(bag), '--rate', '0', '--start', '0.05')
     assert proc.returncode == 0, proc.stderr
     assert f'replayed {sum(counts.values()) - 15} messages' in proc.stdout
+
+
+@pytest.mark.timeout(60)
+def test_a_long_replay_prints_progress_lines(tmp_path):
+    """Every --progress-every seconds (checked after each batch of 64 messages) a stderr line:
+    messages sent of the bag's total, bag time reached of its span, rate."""
+    import re
+
+    bag = tmp_path / 'b'
+    counts = write_mixed_bag(bag, 3000, rate_hz=100.0)   # 1000 ticks: 9.99 s of bag (10.0)
+    total = sum(counts.values())
+    proc = run('bag_replay', str(bag), '--progress-every', '0.000001')
+    assert proc.returncode == 0, proc.stderr
+    lines = [ln for ln in proc.stderr.splitlines() if 'messages sent' in ln]
+    assert len(lines) == total // 64, proc.stderr
+    first = re.match(r'bag_replay: (\d+) / ([\d,]+) \((\d+) %\) messages sent, bag time '
+                     r'([\d.]+) / 10\.0 s, [\d,]+ msg/s$', lines[0])
+    assert first, lines[0]
+    assert int(first.group(1)) == 64 and first.group(2) == f'{total:,}'
+    assert f'replayed {total} messages' in proc.stdout
+    quiet = run('bag_replay', str(bag), '--progress-every', '0')
+    assert quiet.returncode == 0 and 'messages sent' not in quiet.stderr
