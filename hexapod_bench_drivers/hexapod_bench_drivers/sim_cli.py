@@ -6,7 +6,8 @@ Examples::
     hexapod-sim robot --out stand --duration 10 --period 0
     hexapod-sim bench --out plan --loads 0,0.095,0.515 --frequencies 0,1,3 --duration 20
 
-Prints one JSON line with the bag path, message counts and the effects that were on.
+Prints one JSON line per bag: robot and bench the bag path, message counts and the effects that
+were on; edubot the bag, gait, seed, duration, power, speed and specific resistance.
 """
 
 from __future__ import annotations
@@ -39,13 +40,15 @@ def _floats(text: str) -> tuple[float, ...]:
     return values
 
 
-def _common(p: argparse.ArgumentParser) -> None:
+def _common(p: argparse.ArgumentParser, simulator: str) -> None:
     p.add_argument('--out', required=True, help='bag folder to create (must not exist)')
     p.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap')
     p.add_argument('--seed', type=int, default=0, help='noise seed (same seed, same bag)')
     p.add_argument('--effect', action='append', default=[], metavar='NAME=VALUE',
-                   help='switch an effect on (NAME=off turns a default one off); known: '
-                        + ', '.join(sorted(EFFECTS)))
+                   help='switch an effect on (NAME=off turns a default one off); this '
+                        'simulator implements: '
+                        + ', '.join(sorted(n for n, s in EFFECTS.items()
+                                           if simulator in s.simulators)))
     p.add_argument('--servo', default='ax18a', help='servo preset: ax18a, ax12a, xl430, xm430')
     p.add_argument('--rate', type=float, default=100.0, help='sample rate [Hz]')
     p.add_argument('--no-progress', action='store_true', help='no progress bar')
@@ -57,7 +60,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest='command', required=True)
 
     robot = sub.add_parser('robot', help='servo hexapod (AntBot defaults)')
-    _common(robot)
+    _common(robot, 'robot')
     robot.add_argument('--duration', type=float, default=10.0, help='simulated time [s]')
     robot.add_argument('--gait', default='tripod')
     robot.add_argument('--duty-factor', type=float, default=0.5)
@@ -72,7 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
     robot.set_defaults(func=_run_robot)
 
     bench = sub.add_parser('bench', help='single leg on the MiMiC-Ant bench, a plan of sessions')
-    _common(bench)
+    _common(bench, 'bench')
     bench.add_argument('--duration', type=float, default=10.0,
                        help='walking time of each session [s]')
     bench.add_argument('--loads', type=_floats, default=(0.0, 0.095, 0.141, 0.187, 0.515),

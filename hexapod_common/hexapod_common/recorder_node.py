@@ -140,7 +140,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         pass
     except (HexapodError, ValueError) as err:
         print(f'bag_recorder: error: {err}', file=sys.stderr)
-        return 1
+        return 2
     finally:
         if node is not None:
             node.destroy_node()

@@ -250,11 +250,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f'bag_replay: error: no message in the selected window '
                   f'(--start {args.start:g} s, --end {args.end:g} s); the bag spans '
                   f'{span_s:.3f} s', file=sys.stderr)
-            return 1
+            return 2
         return 0
     except HexapodError as err:
         print(f'bag_replay: error: {err}', file=sys.stderr)
-        return 1
+        return 2
     except KeyboardInterrupt:
         return 130
     finally:

@@ -111,7 +111,8 @@ such fallback is listed in the run's ``notes``.
 ``power_out_w`` everywhere is the mean *positive* joint power (servos do not regenerate; see
 :mod:`hexapod_energy.dynamics`), the definition the ``energy_monitor`` node uses too.
 
-Exit codes: 0 success, 2 bad input (missing topic, bad option), 1 other failure.
+Exit codes: 0 success, 2 input refused (missing topic, bad option, nothing analysable), 1 an
+unforeseen failure (a bug), 130 interrupted.
 """
 
 from __future__ import annotations

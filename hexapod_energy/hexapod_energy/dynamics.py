@@ -13,7 +13,8 @@ Joint torques along a trajectory (Eq. 5)::
 with ``f = (0, 0, (m_c + m_leg) g)`` the ground reaction force on the tip while the leg is in
 stance (Eq. 4: ``m_c`` the mass the leg carries, Eq. 2 /
 :func:`hexapod_gait.gait.carried_mass_per_leg_kg`, plus the leg's own mass: the stance tips
-carry ``M g`` together), zero in swing; ``J`` is the linear part of the tip Jacobian in base-aligned axes.
+carry ``M g`` together), zero in swing; ``J`` is the linear part of the tip Jacobian in
+base-aligned axes.
 
 Average mechanical (output) power, Eq. 6.  **Definition used here, and everywhere in
 hexapod_energy** (the ``energy_monitor`` node from joint efforts, the offline analysis, this

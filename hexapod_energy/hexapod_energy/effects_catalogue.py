@@ -34,10 +34,10 @@ model_offset        1, coefficient <= 0 (opt-in, not default)     ``offset_w`` [
 
 There is no always-on constant in the model: the bench-to-robot transfer bias is reported as
 the baseline ``bias`` instead of being fitted away, so a constant extra consumption is free to
-show as ``basal_power``. On simulated data with the matching tip-load convention
-(``load_offset_kg = m_leg``) and cross-validated LOWESS spans the clean bias is -0.2 W on
-27-43 W; a negative constant has no physical effect in this catalogue (every effect adds
-power), so clean data adds nothing.
+show as ``basal_power``. On simulated data with the paper's tip-load convention
+(``load_offset_kg = 0``: the simulated robot's stance tips carry ``M g / L``) and
+cross-validated LOWESS spans the clean bias is -0.24 W on 27-45 W; a negative constant has
+no physical effect in this catalogue (every effect adds power), so clean data adds nothing.
 
 ``T_ref`` is the servo temperature the bench model was measured at (median over the bench's
 walking sessions), so ``thermal_drift`` is the extra power relative to the bench conditions.

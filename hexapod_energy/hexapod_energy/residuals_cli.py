@@ -19,8 +19,11 @@ SLIP, SLIP + leg damping and SLIP + hip torque (:mod:`slip_identification.residu
                      property of the robot]}],
      "effects_added": [names in order], "final": {"rmse", "mae", "bias"},
      "heldout": {"rmse_before", "rmse_after"}, "summary": "plain words", "plots": [...],
-     "added_params": [{"name", "params", "stderr", "alternatives"?: [{"name", "heldout_rmse",
-                       "params", "stderr", "share"}], "collinearity"?: {...}}], ...}
+     (energy:) "added_params": [{"name", "params", "stderr",
+                                 "alternatives"?: [{"name", "heldout_rmse", "params",
+                                                    "stderr", "share"}],
+                                 "collinearity"?: {...}}],
+     (slip:) "bags", "stances": {"count", "heldout"}, ...}
 
 ``unexplained`` (energy): what the added effects left, against the windows' noise
 (:mod:`hexapod_energy.unexplained`): ``{"rmse_w", "noise_w", "structured_w", "significant",
@@ -38,8 +41,8 @@ payload, in kg, from the bench model's own mass sensitivity), ``leg_anomaly`` (p
 ``time_offset`` (:mod:`hexapod_energy.effects_catalogue`).
 
 Energy residuals are measured minus predicted ``P_in`` per half gait cycle [W] (``bias`` is
-their mean); SLIP residuals are the per-stance nerr. Exit codes: 0 success, 2 bad input (missing
-topic or session, too little data), 1 other failure.
+their mean); SLIP residuals are the per-stance nerr. Exit codes: 0 success, 2 input refused
+(missing topic or session, too little data), 1 an unforeseen failure (a bug), 130 interrupted.
 """
 
 from __future__ import annotations
@@ -66,7 +69,9 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--robot-mass', type=float, default=2.183, metavar='KG',
                    help='robot mass without payload [kg] (default 2.183, AntBot)')
     p.add_argument('--robot-payload', type=float, default=0.0, metavar='KG',
-                   help='payload of the robot runs [kg] (default 0)')
+                   help='payload of the robot runs [kg] (default 0; unlike energy, not read '
+                        "from the bags' metadata: a payload left undeclared is for the loop to "
+                        'find)')
     p.add_argument('--phase-split', choices=('auto', 'schedule', 'contact'), default='auto',
                    help="bench stance/swing labels: 'schedule' (the bench leg's commanded "
                         "stance on /gait/phase), 'contact' (the paper's force and tip split), "

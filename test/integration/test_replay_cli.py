@@ -85,6 +85,7 @@ def test_recorder_refuses_to_overwrite(tmp_path):
     before = sorted(p.name for p in bag.iterdir())
     proc = run('bag_recorder', '-o', str(bag))
     assert_one_line_error(proc, 'refusing to overwrite')
+    assert proc.returncode == 2        # refused input, as every command (it said 1)
     assert sorted(p.name for p in bag.iterdir()) == before
     with open_reader(bag) as reader:
         assert reader.message_count == 30
@@ -165,7 +166,7 @@ def test_an_empty_window_inside_the_bag_says_so(tmp_path):
     bag = tmp_path / 'b'
     write_mixed_bag(bag, 30, rate_hz=1.0)   # one tick a second, 10 ticks
     proc = run('bag_replay', str(bag), '--start', '2.5', '--end', '2.9')
-    assert proc.returncode == 1
+    assert proc.returncode == 2
     assert 'replayed 0 messages' in proc.stdout
     assert_one_line_error(proc, 'no message', 'spans 9.000')
 
