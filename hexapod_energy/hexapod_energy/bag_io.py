@@ -999,6 +999,10 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
             key = _schedule_key(sample)
             if not changes or not _same_schedule(changes[-1][1], key):
                 changes.append((sample.t_s, key, sample))
+            else:
+                # the schedule's latest sample stands for it: the first one within the
+                # tolerance may still be settling (beta 0.7499711 for 0.75 after a transition)
+                changes[-1] = (changes[-1][0], changes[-1][1], sample)
             windows.extend(acc.add_gait_phase(sample))
         elif topic == '/joint_states':
             windows.extend(acc.add_joint_state(sample) or ())
@@ -1068,6 +1072,13 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
     n_mixed = sum(1 for d in all_windows if _window_schedule(d, changes) is None)
     if n_mixed:
         notes.append(f'{n_mixed} window(s) spanning a schedule change (or standing) left out')
+    breaks = acc.schedule_breaks_
+    if breaks:
+        shown = '; '.join(f'{why} at {t:.2f} s' for t, why in breaks[:3])
+        more = f' and {len(breaks) - 3} more' if len(breaks) > 3 else ''
+        notes.append(f'{len(breaks)} schedule break(s) on /gait/phase ({shown}{more}): no '
+                     'window spans one; the cycles across them were left out (windows '
+                     'spanning a schedule change)')
     payload = _find_number(custom, ('payload_kg', 'payload'))
 
     def run_of(k: int) -> RobotRun:

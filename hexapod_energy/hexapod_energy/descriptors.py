@@ -350,6 +350,10 @@ class DescriptorAccumulator:
     _boundaries: list[float] = field(default_factory=list, init=False)
     _gait: GaitPhaseSample | None = field(default=None, init=False)
     _last_phase: tuple[float, float] | None = field(default=None, init=False)
+    # the schedule the current run of windows is under (see _schedule_break)
+    _ref_gait: GaitPhaseSample | None = field(default=None, init=False)
+    #: schedule breaks: (time [s], reason) where no window may span
+    schedule_breaks_: list[tuple[float, str]] = field(default_factory=list, init=False)
     _window_start: float | None = field(default=None, init=False)
     _odom: list[tuple[float, float, float, float]] = field(default_factory=list, init=False)
     _tracker: JointCycleTracker | None = field(default=None, init=False)
@@ -406,6 +410,7 @@ class DescriptorAccumulator:
         self._boundaries = []
         self._gait = None
         self._last_phase = None
+        self._ref_gait = None
         self._window_start = None
         self._last_joint = {}
         self._seen_gait = False
@@ -617,7 +622,14 @@ class DescriptorAccumulator:
                 self._boundaries = []
                 self._window_start = None
         self._gait = sample
-        if self._last_phase is not None:
+        why = self._schedule_break(sample)
+        if why:
+            # no window spans it: the one in progress is dropped, the next starts at the
+            # next wrap of the new schedule
+            self._boundaries.append(math.nan)
+            self.schedule_breaks_.append((sample.t_s, why))
+            self._ref_gait = sample
+        elif self._last_phase is not None:
             t_prev, phase_prev = self._last_phase
             if sample.t_s > t_prev and sample.cycle_phase < phase_prev - 0.5:
                 # interpolate the wrap instant between the two samples
@@ -627,6 +639,36 @@ class DescriptorAccumulator:
         if self._last_phase is None or sample.t_s > self._last_phase[0]:
             self._last_phase = (sample.t_s, sample.cycle_phase)
         return self._emit()
+
+    #: a schedule value (period, duty factor, step length) moving by more than this fraction
+    #: from the one the windows started under breaks them (a transition, a new command)
+    SCHEDULE_CHANGE = 0.02
+    #: a /gait/phase silence longer than this [s] (and than half the period) breaks them
+    SCHEDULE_GAP_S = 0.25
+
+    def _schedule_break(self, sample: GaitPhaseSample) -> str:
+        """Why no window may span this /gait/phase sample ('' when one may): a silence on
+        the topic (a gait node stopped and started again), another gait or leg set, or a
+        period, duty factor or step length that moved by more than :attr:`SCHEDULE_CHANGE`
+        from the schedule the windows started under (a transition). A window across a gait
+        node's restart mixed two schedules and was given the new one's speed (CoT/M 42 for
+        the two gaits' 99 and 75); a window during a transition took its end's speed (+24 %).
+        """
+        ref = self._ref_gait
+        if ref is None:
+            self._ref_gait = sample
+            return ''
+        if self._last_phase is not None:
+            gap = sample.t_s - self._last_phase[0]
+            if gap > max(self.SCHEDULE_GAP_S, 0.5 * max(ref.period_s, 0.0)):
+                return f'/gait/phase silent for {gap:.3f} s'
+        if sample.gait != ref.gait or tuple(sample.leg_names) != tuple(ref.leg_names):
+            return f'gait {ref.gait} -> {sample.gait}'
+        for name in ('period_s', 'duty_factor', 'step_length_m'):
+            a, b = float(getattr(ref, name)), float(getattr(sample, name))
+            if abs(b - a) > self.SCHEDULE_CHANGE * max(abs(a), abs(b), 1e-9):
+                return f'{name} {a:.4g} -> {b:.4g}'
+        return ''
 
     # -- windows ---------------------------------------------------------------------------
     def _emit(self) -> list[Descriptors]:

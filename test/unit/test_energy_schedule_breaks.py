@@ -1,0 +1,77 @@
+"""No descriptor window spans a change of walking schedule (an outside review ran the live
+graph): a gait node stopped and started again with another gait published a 3.9 s window with
+the new gait's speed (CoT/M 42 for the two gaits' 99 and 75), and windows during a speed
+transition took the end's speed (+24 %). DescriptorAccumulator now breaks the windows at a
+silence on /gait/phase, another gait or leg set, and a period, duty factor or step length
+moving by more than 2 % (DescriptorAccumulator.SCHEDULE_CHANGE)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hexapod_common.conversions import BatterySample, GaitPhaseSample
+from hexapod_energy.descriptors import DescriptorAccumulator
+
+
+def gait(t: float, name: str, period: float, beta: float, phase: float) -> GaitPhaseSample:
+    return GaitPhaseSample(t, name, period, beta, 0.1, 0.04, 0.0, 0.0, phase % 1.0,
+                           ('L1', 'R1'), np.zeros(2), np.ones(2, bool), 2)
+
+
+def battery(t: float) -> BatterySample:
+    return BatterySample(t, 12.0, -2.0, 25.0)
+
+
+def feed(acc, t0: float, t1: float, name: str, period: float, beta: float,
+         period_end: float | None = None) -> list:
+    """/gait/phase and /battery_state at 100 Hz over [t0, t1); the period ramps linearly to
+    ``period_end`` (a transition) with the phase integrated."""
+    out, phase = [], 0.0
+    n = int(round((t1 - t0) / 0.01))
+    for k in range(n):
+        t = t0 + 0.01 * k
+        p = period if period_end is None else period + (period_end - period) * k / n
+        out += acc.add_gait_phase(gait(t, name, p, beta, phase))
+        out += acc.add_battery(battery(t + 1e-4))
+        phase += 0.01 / p
+    return out
+
+
+def test_no_window_spans_a_gait_node_restart() -> None:
+    acc = DescriptorAccumulator(mass_kg=1.6, current_sign='ros')
+    a = feed(acc, 0.0, 4.0, 'alternating', 1.0, 0.5)            # 0.2 m/s
+    b = feed(acc, 6.0, 10.0, 'wave', 0.5, 0.75)                  # 2 s of silence, then wave
+    for d in a + b:
+        t0 = d.t_end_s - d.window_s
+        assert t0 >= 6.0 or d.t_end_s <= 4.0, (t0, d.t_end_s)   # nothing across the gap
+        assert d.window_s < 1.01
+    assert {round(d.speed_mps, 4) for d in a} == {0.2}
+    assert {round(d.speed_mps, 4) for d in b} == {round(0.1 / (0.75 * 0.5), 4)}
+    assert any('silent' in why for _, why in acc.schedule_breaks_)
+
+
+def test_no_window_during_a_transition_takes_the_end_speed() -> None:
+    acc = DescriptorAccumulator(mass_kg=2.8, current_sign='ros')
+    out = feed(acc, 0.0, 4.0, 'alternating', 1.0, 0.5)
+    out += feed(acc, 4.0, 7.0, 'alternating', 1.0, 0.5, period_end=0.4)   # 0.2 -> 0.5 m/s
+    out += feed(acc, 7.0, 10.0, 'alternating', 0.4, 0.5)
+    for d in out:
+        t0 = d.t_end_s - d.window_s
+        # every window lies wholly before the ramp or after it has settled within 2 %
+        assert d.t_end_s <= 4.0 + 1e-9 or t0 >= 6.9, (t0, d.t_end_s)
+    late = [d for d in out if d.t_end_s > 7.0]
+    assert late and all(d.speed_mps == pytest.approx(0.5, rel=0.02) for d in late)
+    assert any('period_s' in why for _, why in acc.schedule_breaks_)
+
+
+def test_a_steady_schedule_is_not_broken_by_rounding() -> None:
+    acc = DescriptorAccumulator(mass_kg=2.0, current_sign='ros')
+    out, phase = [], 0.0
+    for k in range(400):
+        t = 0.01 * k
+        p = 0.5 * (1.0 + 1e-9 * np.sin(k))    # a node recomputing its period every tick
+        out += acc.add_gait_phase(gait(t, 'tripod', p, 0.5, phase))
+        out += acc.add_battery(battery(t + 1e-4))
+        phase += 0.01 / p
+    assert len(out) >= 6 and acc.schedule_breaks_ == []
