@@ -74,7 +74,7 @@ gait schedule), with a warning.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -283,6 +283,16 @@ TIME_JUMP_S = 1.0
 MAX_WINDOW_S = 60.0
 #: battery stamps [s] without a cycle-source sample before that is noted
 CYCLE_QUIET_S = 5.0
+
+
+def _legs_without_joints(legs: Sequence[str], joint_names: Sequence[str]) -> list[str]:
+    """Legs of a gait schedule that no joint name belongs to (``<leg>_<joint>``); empty
+    when no joint name starts with any of the schedule's legs (another naming convention:
+    nothing to compare)."""
+    have = {str(n).split('_', 1)[0] for n in joint_names if '_' in str(n)}
+    if not have.intersection(legs):
+        return []
+    return [leg for leg in legs if leg not in have]
 
 
 @dataclass
@@ -723,6 +733,12 @@ class DescriptorAccumulator:
             warnings.append(f'negative mean input power {power_in:.3f} W: check the battery '
                             'current sign convention (parameter current_sign)')
         joint = [j for j in self._joint if t0 <= j[0] < t1]
+        if joint and self._gait is not None:
+            missing = _legs_without_joints(self._gait.leg_names, joint[-1][1])
+            if missing:
+                warnings.append(f'the gait schedule names legs {", ".join(missing)} that have no '
+                                f'joint on /joint_states ({len(joint[-1][1])} joints): the gait '
+                                'node and the robot disagree on the legs (leg_count?)')
         use_model = self.power_out_source == 'model' or \
             (self.power_out_source == 'auto' and not joint)
         joint_path = self.joint_cycles_

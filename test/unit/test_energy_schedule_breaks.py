@@ -75,3 +75,25 @@ def test_a_steady_schedule_is_not_broken_by_rounding() -> None:
         out += acc.add_battery(battery(t + 1e-4))
         phase += 0.01 / p
     assert len(out) >= 6 and acc.schedule_breaks_ == []
+
+
+def test_a_schedule_for_legs_the_robot_lacks_is_said() -> None:
+    """A gait node set to 8 legs beside a 6-legged robot: the descriptors carried leg_count 8
+    and an 8-leg model P_out with no word. Each window now names the legs with no joint."""
+    from hexapod_common.conversions import JointStateSample
+
+    names = tuple(f'{leg}_{j}' for leg in ('L1', 'L2', 'L3', 'R1', 'R2', 'R3')
+                  for j in ('coxa', 'femur', 'tibia'))
+    legs8 = ('L1', 'L2', 'L3', 'L4', 'R1', 'R2', 'R3', 'R4')
+    acc = DescriptorAccumulator(mass_kg=2.0, current_sign='ros')
+    out, phase = [], 0.0
+    for k in range(300):
+        t = 0.01 * k
+        out += acc.add_gait_phase(GaitPhaseSample(t, 'alternating', 0.5, 0.5, 0.1, 0.04, 0.0,
+                                                  0.0, phase % 1.0, legs8, np.zeros(8),
+                                                  np.ones(8, bool), 4))
+        out += acc.add_battery(battery(t + 1e-4))
+        out += acc.add_joint_state(JointStateSample(t, names, np.zeros(18), np.zeros(18),
+                                                    np.zeros(18)))
+        phase += 0.01 / 0.5
+    assert out and all(any('L4, R4' in w and 'disagree' in w for w in d.warnings) for d in out)
