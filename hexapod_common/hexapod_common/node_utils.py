@@ -40,11 +40,15 @@ __all__ = [
     'RELIABLE_QOS',
     'SENSOR_QOS',
     'declare_params',
+    'find_params_class',
     'mocap_msg_class',
+    'node_help',
+    'overridden',
     'param',
     'params_from_overrides',
     'run_node',
     'validate_params',
+    'wants_help',
 ]
 
 T = TypeVar('T')
@@ -245,8 +249,13 @@ def _override_value(node: Any, name: str) -> Any:
             node.undeclare_parameter(name)
 
 
-def run_node(node_factory: Callable[..., Any], args: Sequence[str] | None = None) -> int:
+def run_node(node_factory: Callable[..., Any], args: Sequence[str] | None = None, *,
+             params: type | None = None) -> int:
     """The Jazzy ``main()``: init, spin, clean shutdown on Ctrl-C or external shutdown.
+
+    ``-h``/``--help`` before any ``--ros-args`` prints the node's name, purpose and parameters
+    (:func:`node_help`; ``params`` is the node's parameter dataclass, found from the factory
+    when not given) and returns 0 without initialising rclpy: no node, no publisher.
 
     A node that has a ``finished`` attribute (an ``rclpy.task.Future``) is spun until that
     future is done, and its result is the exit code (a plan that ends, a replay that finishes).
@@ -254,10 +263,22 @@ def run_node(node_factory: Callable[..., Any], args: Sequence[str] | None = None
     Any error while the node is built (a refused parameter, a missing file, a bus that does
     not open) is printed as one line naming the node and the error and gives exit code 2;
     with ``HEXAPOD_DEBUG=1`` the traceback is raised instead.
-    """
-    import rclpy
-    from rclpy.executors import ExternalShutdownException
 
+    Ctrl-C shuts the context down from rclpy's signal handler while a callback may be
+    publishing or the executor building its wait set: the ``RCLError`` or ``InvalidHandle``
+    (or the node being built) that follows while the context is no longer valid is a clean
+    stop (exit 0), as is a second ``KeyboardInterrupt`` during the clean-up.
+    """
+    if wants_help(sys.argv[1:] if args is None else args):
+        print(node_help(node_factory, params))
+        return 0
+
+    import rclpy
+    from rclpy.exceptions import InvalidHandle
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.impl.implementation_singleton import rclpy_implementation
+
+    stopping_errors = (rclpy_implementation.RCLError, InvalidHandle)
     rclpy.init(args=args)
     node = None
     try:
@@ -266,6 +287,8 @@ def run_node(node_factory: Callable[..., Any], args: Sequence[str] | None = None
         except (KeyboardInterrupt, ExternalShutdownException):
             raise
         except Exception as err:
+            if isinstance(err, stopping_errors) and not rclpy.ok():
+                return 0     # Ctrl-C while the node was being built: a stop, not an error
             if os.environ.get(DEBUG_ENV):
                 raise
             what = str(err) if isinstance(err, ParameterError) else \
@@ -274,21 +297,132 @@ def run_node(node_factory: Callable[..., Any], args: Sequence[str] | None = None
                   'traceback)', file=sys.stderr)
             return 2
         finished = getattr(node, 'finished', None)
-        if finished is None:
-            rclpy.spin(node)
-        else:
-            # A node with a job that ends (e.g. a bench plan) resolves ``node.finished`` with
-            # its exit code; spin until then.
-            rclpy.spin_until_future_complete(node, finished)
-            if finished.done():
-                return int(finished.result() or 0)
+        try:
+            if finished is None:
+                rclpy.spin(node)
+            else:
+                # A node with a job that ends (e.g. a bench plan) resolves ``node.finished``
+                # with its exit code; spin until then.
+                rclpy.spin_until_future_complete(node, finished)
+                if finished.done():
+                    return int(finished.result() or 0)
+        except stopping_errors:
+            if rclpy.ok():
+                raise    # not a shutdown: a real error
+            # the context was shut down under a callback or the wait set (Ctrl-C): a stop
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+        _close(node)
     return 0
+
+
+def _close(node: Any) -> None:
+    """Destroy ``node`` and shut rclpy down, through a late Ctrl-C or an invalid context."""
+    import rclpy
+    from rclpy.exceptions import InvalidHandle
+    from rclpy.impl.implementation_singleton import rclpy_implementation
+
+    for step in ((node.destroy_node,) if node is not None else ()) + (rclpy.try_shutdown,):
+        for _ in range(3):   # a KeyboardInterrupt pending from the Ctrl-C lands here
+            try:
+                step()
+                break
+            except KeyboardInterrupt:
+                continue
+            except (rclpy_implementation.RCLError, InvalidHandle):
+                break        # already gone with the context
+
+
+def wants_help(args: Sequence[str]) -> bool:
+    """True when ``-h`` or ``--help`` comes before any ``--ros-args`` in ``args``."""
+    for arg in args:
+        if arg == '--ros-args':
+            return False
+        if arg in ('-h', '--help'):
+            return True
+    return False
+
+
+def find_params_class(node_factory: Callable[..., Any]) -> type | None:
+    """The parameter dataclass a node class passes to :func:`declare_params`, else None.
+
+    Read from the ``declare_params(self, Cls`` call in the ``__init__`` of the class or its
+    bases; else the one dataclass of :func:`param` fields in the factory's module.
+    """
+    import importlib
+    import inspect
+    import re
+
+    classes = inspect.getmro(node_factory) if inspect.isclass(node_factory) else (node_factory,)
+    for cls in classes:
+        init = getattr(cls, '__init__', None) if inspect.isclass(cls) else cls
+        try:
+            source = inspect.getsource(init)  # type: ignore[arg-type]
+        except (OSError, TypeError):
+            continue
+        module = importlib.import_module(getattr(cls, '__module__', '') or '__main__')
+        for name in re.findall(r'declare_params\(\s*self\s*,\s*(\w+)', source):
+            found = getattr(module, name, None)
+            if _is_params_class(found):
+                return found
+    module = sys.modules.get(getattr(node_factory, '__module__', '') or '')
+    candidates = [v for v in vars(module).values()
+                  if _is_params_class(v) and v.__module__ == module.__name__] if module else []
+    return candidates[0] if len(candidates) == 1 else None
+
+
+def _is_params_class(obj: Any) -> bool:
+    """A dataclass whose every field was declared with :func:`param`."""
+    if not (isinstance(obj, type) and dataclasses.is_dataclass(obj)):
+        return False
+    fields = dataclasses.fields(obj)
+    return bool(fields) and all('description' in f.metadata for f in fields)
+
+
+def _first_line(doc: str | None) -> str:
+    return (doc or '').strip().split('\n\n')[0].replace('\n', ' ').strip()
+
+
+def node_help(node_factory: Callable[..., Any], params: type | None = None) -> str:
+    """``--help`` text of a node: its name, one line of purpose, its parameters.
+
+    The purpose is the first sentence of the class docstring when it names the node
+    (````sim_robot``: ...``), else of the module docstring; parameters come from ``params``
+    (or :func:`find_params_class`) with their defaults and descriptions.
+    """
+    import re
+    import textwrap
+
+    cls_doc = _first_line(getattr(node_factory, '__doc__', None))
+    module = sys.modules.get(getattr(node_factory, '__module__', '') or '')
+    purpose = cls_doc if cls_doc.startswith('``') else \
+        _first_line(getattr(module, '__doc__', None)) or cls_doc
+    named = re.match(r'``([\w/]+)``(?: node)?:\s*', purpose)
+    name = named.group(1) if named else _program_name(node_factory)
+    purpose = purpose[named.end():] if named else purpose
+    purpose = re.sub(r':\w+:`~?([^`]+)`', r'\1', purpose).replace('``', '')
+    lines = [f'usage: {name} [-h] [--ros-args [-p NAME:=VALUE]... [--params-file FILE]]', '',
+             f'{name}: {purpose}' if purpose else name, '']
+    cls = params or find_params_class(node_factory)
+    if cls is None:
+        lines.append('parameters: see the README')
+        return '\n'.join(lines)
+    lines.append('parameters (--ros-args -p NAME:=VALUE; default after =):')
+    for fld in dataclasses.fields(cls):  # type: ignore[arg-type]
+        default = _default_of(fld)
+        shown = list(default) if isinstance(default, tuple) else default
+        kind = type(default).__name__ if not isinstance(default, (list, tuple)) else 'list'
+        lines.append(f'  {fld.name} = {shown!r} ({kind})')
+        lines.extend(textwrap.wrap(fld.metadata.get('description', ''), width=92,
+                                   initial_indent=' ' * 6, subsequent_indent=' ' * 6))
+    return '\n'.join(lines)
+
+
+def overridden(node: Any, name: str) -> bool:
+    """True when parameter ``name`` was given at start-up (``-p``, a params file, or
+    ``parameter_overrides``) rather than left at its default."""
+    return name in getattr(node, '_parameter_overrides', {})
 
 
 def _program_name(node_factory: Callable[..., Any]) -> str:
