@@ -46,7 +46,8 @@ from .sim_core import (
     quantise_position,
 )
 
-__all__ = ['RobotConfig', 'RobotSimulator', 'SampleInput', 'simulate_robot']
+__all__ = ['RobotConfig', 'RobotSimulator', 'SampleInput', 'robot_mass_problem',
+           'simulate_robot']
 
 FloatArray = NDArray[np.float64]
 
@@ -66,9 +67,10 @@ class RobotConfig:
     speed_mps : float
         If > 0, the period is ``step_length / (duty_factor * speed)`` instead of ``period_s``.
     robot_mass_kg : float
-        Robot mass without payload [kg] (legs included).
+        Robot mass without payload [kg] (legs included): finite, > 0, and more than the legs
+        (checked by :class:`RobotSimulator`, which knows the leg).
     payload_kg : float
-        Payload on the body [kg].
+        Payload on the body [kg], finite and >= 0.
     supply : {'supply', 'battery'}
         Lab supply at ``supply_voltage_v`` or a 3S LiPo.
     supply_voltage_v : float
@@ -99,6 +101,15 @@ class RobotConfig:
     ambient_temperature_c: float = 26.0
     initial_temperature_c: float = 26.0
     max_substep_s: float = 1.0 / 300.0
+
+    def __post_init__(self) -> None:
+        if self.leg_count < 2 or self.leg_count % 2 != 0:
+            raise ValueError(f'leg_count = {self.leg_count!r}: expected an even number >= 2')
+        if not (math.isfinite(self.robot_mass_kg) and self.robot_mass_kg > 0.0):
+            raise ValueError(f'robot_mass_kg = {self.robot_mass_kg!r}: expected a finite mass '
+                             '> 0 kg')
+        if not (math.isfinite(self.payload_kg) and self.payload_kg >= 0.0):
+            raise ValueError(f'payload_kg = {self.payload_kg!r}: expected a finite mass >= 0 kg')
 
     def gait_pattern(self) -> GaitPattern | None:
         """The gait, or None when standing still."""
@@ -140,6 +151,20 @@ class SampleInput:
     tip_velocity_mps: FloatArray | None = None   # (legs, 3) for speed_friction
 
 
+def robot_mass_problem(robot_mass_kg: float, leg_count: int, leg_mass_kg: float) -> str | None:
+    """Why a robot of ``robot_mass_kg`` (payload excluded, legs included) cannot have
+    ``leg_count`` legs of ``leg_mass_kg`` each, else None.
+
+    The body's mass ``M - N m_leg`` must be positive: a lighter robot gives the stance legs a
+    negative carried mass (Eq. 2), i.e. tips pulled up by the ground.
+    """
+    legs_kg = leg_count * leg_mass_kg
+    if robot_mass_kg > legs_kg:
+        return None
+    return (f'robot mass {robot_mass_kg:.4g} kg (payload excluded) <= {leg_count} legs x '
+            f'{leg_mass_kg:.4g} kg = {legs_kg:.4g} kg: the legs alone outweigh the robot')
+
+
 class RobotSimulator:
     """Stateful servo hexapod; :meth:`step` advances one sample, :meth:`run` a whole batch.
 
@@ -152,6 +177,11 @@ class RobotSimulator:
         Seed of the sensor noise (same seed, same data).
     dh : DHParameters
         Leg geometry and masses.
+
+    Raises
+    ------
+    ValueError
+        A robot not heavier than its legs (:func:`robot_mass_problem`).
     """
 
     kind = 'robot'
@@ -169,6 +199,9 @@ class RobotSimulator:
         self.joint_names: tuple[str, ...] = tuple(
             j for leg in self.leg_names for j in joint_names(leg))
         self.loads = LegLoads(dh)
+        if reason := robot_mass_problem(cfg.robot_mass_kg, cfg.leg_count,
+                                        self.loads.leg_mass_kg):
+            raise ValueError(reason)
         self.kinematics = self.loads.kinematics
         n_legs = len(self.leg_names)
         self.trajectories = [LegTrajectory(legs_gait, i, kinematics=self.kinematics)

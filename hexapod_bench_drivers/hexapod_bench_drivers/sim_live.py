@@ -17,7 +17,7 @@ from .effects import EffectSet
 from .robot_sim import RobotConfig, RobotSimulator, SampleInput
 from .sim_core import G_MPS2, powered_step, quantise_position
 
-__all__ = ['LiveBench', 'LiveRobot', 'LiveSample']
+__all__ = ['LiveBench', 'LiveRobot', 'LiveSample', 'NameMismatch']
 
 FloatArray = NDArray[np.float64]
 
@@ -38,6 +38,67 @@ class LiveSample:
     battery_current_a: float           # ROS sign: negative while discharging
     ground_force_n: float | None = None
     tip_m: FloatArray | None = None
+
+
+def _listed(names: tuple[str, ...], most: int = 12) -> str:
+    """``a, b, c`` (at most ``most`` names, then how many in all)."""
+    shown = ', '.join(names[:most])
+    return shown if len(names) <= most else f'{shown}, ... ({len(names)} in all)'
+
+
+class NameMismatch:
+    """Reports names in a message that the simulator does not have, once per distinct set.
+
+    The simulators silently ignored joints (``/joint_commands``) and legs (``/gait/phase``)
+    that are not theirs, so a gait node walking 8 legs drove a 6-legged ``sim_robot`` whose
+    L4/R4 simply did not exist. :meth:`check` returns ``(level, message)`` the first time a set
+    of unknown names is seen (``'warning'``), or a message that matches no name of ours at all
+    (``'error'``), else None; at most ``max_sets`` distinct sets are reported.
+
+    Parameters
+    ----------
+    topic : str
+        The topic named in the messages.
+    known : tuple of str
+        The simulator's names (its joints or legs).
+    owner : str
+        Who ``known`` belongs to, e.g. ``'this robot (6 legs: L1, ..., R3)'``.
+    kind : str
+        ``'joints'`` or ``'legs'``.
+    extra_ok : bool
+        Unknown names are expected (the bench leg takes its three joints out of the whole
+        robot's commands): only a message matching none of ours is reported.
+    """
+
+    def __init__(self, topic: str, known: tuple[str, ...], owner: str, kind: str, *,
+                 extra_ok: bool = False, max_sets: int = 32) -> None:
+        self.topic = topic
+        self.known = tuple(known)
+        self.owner = owner
+        self.kind = kind
+        self.extra_ok = extra_ok
+        self.max_sets = max_sets
+        self._seen: set[tuple[bool, frozenset[str]]] = set()
+        self._known = frozenset(known)
+
+    def check(self, names: tuple[str, ...]) -> tuple[str, str] | None:
+        """``(level, message)`` for the names of one message, once per distinct case."""
+        unknown = tuple(n for n in names if n not in self._known)
+        none_ours = bool(names) and len(unknown) == len(names)
+        if not unknown or (self.extra_ok and not none_ours):
+            return None
+        key = (none_ours, frozenset(unknown))
+        if key in self._seen or len(self._seen) >= self.max_sets:
+            return None
+        self._seen.add(key)
+        if none_ours:
+            return 'error', (
+                f'{self.topic}: none of its {len(names)} {self.kind} ({_listed(unknown)}) '
+                f'belongs to {self.owner}, whose {self.kind} are {_listed(self.known)}; the '
+                'message is ignored (check the leg count and the joint names of the nodes)')
+        return 'warning', (
+            f'{self.topic}: {self.kind} not on {self.owner} ignored: {_listed(unknown)} '
+            f'(ours: {_listed(self.known)}); check the leg count of the nodes')
 
 
 class _Commands:
@@ -101,9 +162,15 @@ class LiveRobot:
     def joint_names(self) -> tuple[str, ...]:
         return self.sim.joint_names
 
+    def describe(self) -> str:
+        """``this robot (6 legs: L1, L2, L3, R1, R2, R3)``, for the mismatch messages."""
+        legs = self.sim.leg_names
+        return f'this robot ({len(legs)} legs: {", ".join(legs)})'
+
     def set_gait(self, leg_names: tuple[str, ...], in_stance: NDArray[np.bool_],
                  speed_mps: float, period_s: float) -> None:
-        """Stance flags (by leg name) and speed from a ``/gait/phase`` sample."""
+        """Stance flags (by leg name) and speed from a ``/gait/phase`` sample; legs that are
+        not this robot's are skipped (the node reports them, :class:`NameMismatch`)."""
         for name, flag in zip(leg_names, in_stance):
             if name in self.sim.leg_names:
                 self.in_stance[self.sim.leg_names.index(name)] = bool(flag)

@@ -7,7 +7,14 @@ drivers' topics: ``/joint_states``, ``/servo_status`` (every ``status_every`` ti
 ``/bench/session`` (latched). The physics is in ``sim_live`` (core); callbacks are one line.
 
 Parameters configure the simulation when the node starts and are read only, except
-``status_every`` (applies at once).
+``status_every`` (applies at once). A robot not heavier than its legs (``robot_mass`` <=
+``leg_count`` legs' mass) is refused at start-up.
+
+Joints on ``/joint_commands`` and legs on ``/gait/phase`` that the simulator does not have (a
+gait node walking 8 legs, ``<leg>_hip`` names) are ignored and reported once per distinct set
+as a warning naming them and the simulator's own; a message that matches none of its joints
+(legs) is reported as an error (``sim_live.NameMismatch``). The bench leg takes its three
+joints out of the whole robot's commands, so only a message without them is reported there.
 """
 
 from __future__ import annotations
@@ -20,6 +27,7 @@ from rclpy.node import Node
 
 from geometry_msgs.msg import PointStamped, WrenchStamped
 from hexapod_common.conversions import gait_phase_from_msg, joint_state_from_msg
+from hexapod_common.errors import ParameterError
 from hexapod_common.node_utils import (
     LATCHED_QOS,
     RELIABLE_QOS,
@@ -28,13 +36,14 @@ from hexapod_common.node_utils import (
     param,
     run_node,
 )
+from hexapod_gait.kinematics import ANTBOT_LEG
 from hexapod_interfaces.msg import BenchSession, GaitPhase, ServoStatus
 from sensor_msgs.msg import BatteryState, JointState
 
 from .bench_sim import BenchConfig
 from .effects import EffectError, parse_effects
-from .robot_sim import RobotConfig
-from .sim_live import LiveBench, LiveRobot, LiveSample
+from .robot_sim import RobotConfig, robot_mass_problem
+from .sim_live import LiveBench, LiveRobot, LiveSample, NameMismatch
 
 __all__ = ['BenchNodeParams', 'RobotNodeParams', 'SimBenchNode', 'SimRobotNode', 'main_bench',
            'main_robot']
@@ -88,9 +97,14 @@ class _SimNode(Node):
 
     live: Any
     params: Any
+    #: reporters of the joints (legs) of /joint_commands (/gait/phase) that are not ours
+    command_check: NameMismatch
+    gait_check: NameMismatch
 
     def _setup(self) -> None:
         p = self.params
+        #: (level, message) of every joint/leg mismatch reported, in order
+        self.name_notes: list[tuple[str, str]] = []
         self._tick_count = 0
         self._last_ns: int | None = None
         self.pub_js = self.create_publisher(JointState, 'joint_states', RELIABLE_QOS)
@@ -106,12 +120,28 @@ class _SimNode(Node):
             self.live.commands.update(s.t_s, s.names, s.position, s.velocity)
         except (ValueError, IndexError) as err:
             self.get_logger().warning(f'dropped a bad /joint_commands message: {err}')
+            return
+        self._report(self.command_check.check(tuple(s.names)))
 
     def _on_gait(self, msg: GaitPhase) -> None:
         try:
-            self._apply_gait(gait_phase_from_msg(msg))
+            g = gait_phase_from_msg(msg)
+            self._apply_gait(g)
         except (ValueError, IndexError) as err:
             self.get_logger().warning(f'dropped a bad /gait/phase message: {err}')
+            return
+        self._report(self.gait_check.check(tuple(g.leg_names)))
+
+    def _report(self, note: tuple[str, str] | None) -> None:
+        """Log a :class:`NameMismatch` note at its level (it is given once per case) and keep
+        it in ``name_notes``."""
+        if note is not None:
+            self.name_notes.append(note)
+            level, text = note
+            if level == 'error':    # one call site per severity (rclpy's logger wants it)
+                self.get_logger().error(text)
+            else:
+                self.get_logger().warning(text)
 
     def _apply_gait(self, g: Any) -> None:
         raise NotImplementedError
@@ -164,11 +194,19 @@ class SimRobotNode(_SimNode):
         super().__init__('sim_robot', context=context, parameter_overrides=parameter_overrides,
                          namespace=namespace, **kw)
         p = declare_params(self, RobotNodeParams)
+        if reason := robot_mass_problem(p.robot_mass, p.leg_count,
+                                        sum(ANTBOT_LEG.link_masses_kg)):
+            raise ParameterError(f'parameters robot_mass = {p.robot_mass} and leg_count = '
+                                 f'{p.leg_count} refused: {reason}')
         cfg = RobotConfig(leg_count=p.leg_count, payload_kg=p.payload, robot_mass_kg=p.robot_mass,
                           supply='battery' if p.battery else 'supply', servo=p.servo,
                           rate_hz=p.rate)
         self.live = LiveRobot(cfg, effects=parse_effects(list(p.effects), defaults=False),
                               seed=p.seed)
+        owner = self.live.describe()
+        self.command_check = NameMismatch('/joint_commands', self.live.joint_names, owner,
+                                          'joints')
+        self.gait_check = NameMismatch('/gait/phase', self.live.sim.leg_names, owner, 'legs')
         self._setup()
 
     def _apply_gait(self, g: Any) -> None:
@@ -187,6 +225,10 @@ class SimBenchNode(_SimNode):
                               load_kg=p.load,
                               effects=parse_effects(list(p.effects), defaults=False),
                               seed=p.seed)
+        owner = f'bench leg {p.leg}'
+        self.command_check = NameMismatch('/joint_commands', self.live.joint_names, owner,
+                                          'joints', extra_ok=True)
+        self.gait_check = NameMismatch('/gait/phase', (p.leg,), owner, 'legs', extra_ok=True)
         self.pub_force = self.create_publisher(WrenchStamped, 'bench/ground_force', RELIABLE_QOS)
         self.pub_tip = self.create_publisher(PointStamped, 'bench/leg_tip', RELIABLE_QOS)
         self.pub_session = self.create_publisher(BenchSession, 'bench/session', LATCHED_QOS)
