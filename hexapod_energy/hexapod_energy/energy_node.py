@@ -25,6 +25,14 @@ from the new time; a window is at most 60 s long and older samples are dropped, 
 stay bounded when ``/gait/phase`` stops, which is logged as a warning while the battery keeps
 coming (:mod:`hexapod_energy.descriptors`).
 
+Masses: ``mass`` is the whole robot with its payload; not given, AntBot's 2.183 kg is assumed
+with a warning at start (as the offline ``hexapod-analyze energy`` warns without
+``--robot-mass``). The Eq. 6 P_out model is for a robot of ``robot_mass`` carrying
+``mass - robot_mass``; ``robot_mass`` not given (0) is ``mass``, payload 0, so ``-p mass:=M``
+gives the P_out of ``hexapod-analyze energy --robot-mass M`` (a robot_mass defaulted to
+AntBot's made a 1.6 kg robot's P_out that of a 2.183 kg one, +7.5 %). A ``robot_mass`` above
+``mass`` is warned about (the payload cannot be negative: the model uses payload 0).
+
 Several batteries on ``battery_state`` (distinct ``header.frame_id``: a servo pack and a logic
 pack) are summed as they appear (:class:`hexapod_common.battery.BatteryCombiner`, logged), or
 one is kept (parameter ``battery_source``). A topic stamped on another clock than the others
@@ -61,6 +69,7 @@ from hexapod_common.node_utils import (
     SENSOR_QOS,
     declare_params,
     mocap_msg_class,
+    overridden,
     param,
     run_node,
 )
@@ -69,13 +78,17 @@ from hexapod_energy.leg_description import antbot_leg, load_leg_description
 
 __all__ = ['EnergyMonitorNode', 'EnergyParams', 'descriptors_to_msg', 'main']
 
+#: AntBot's mass without payload [kg] (Brodoline et al.), assumed when ``mass`` is not given
+ANTBOT_MASS_KG = 2.183
+
 #: leading battery samples with V * I == 0 after which the node reports an unmeasured current
 ZERO_POWER_SAMPLES = 100
 
 
 @dataclass(frozen=True)
 class EnergyParams:
-    mass: float = param(2.183, 'total robot mass [kg], payload included',
+    mass: float = param(ANTBOT_MASS_KG, "total robot mass [kg], payload included (not given: "
+                        "AntBot's 2.183 kg, with a warning)",
                         validate=lambda v: None if v > 0 else 'must be > 0', read_only=True)
     cycles: int = param(1, 'whole gait cycles per published window',
                         validate=lambda v: None if v >= 1 else 'must be >= 1', read_only=True)
@@ -88,9 +101,9 @@ class EnergyParams:
         'or model (for drivers whose effort is not a torque, e.g. AX-series PWM load)',
         validate=lambda v: None if v in ('auto', 'effort', 'model')
         else 'expected auto, effort or model', read_only=True)
-    robot_mass: float = param(2.183, 'robot mass without payload [kg], for the P_out model '
-                              '(payload = mass - robot_mass)',
-                              validate=lambda v: None if v > 0 else 'must be > 0',
+    robot_mass: float = param(0.0, 'robot mass without payload [kg], for the P_out model '
+                              '(payload = mass - robot_mass); 0: mass (payload 0)',
+                              validate=lambda v: None if v >= 0 else 'must be >= 0 (0: mass)',
                               read_only=True)
     cycle_source: str = param(
         'auto', 'gait cycle boundaries from: auto (/gait/phase when its messages arrive, else '
@@ -141,11 +154,26 @@ class EnergyMonitorNode(Node):
         super().__init__(node_name, context=context, namespace=namespace or '',
                          parameter_overrides=parameter_overrides or [])
         p = declare_params(self, EnergyParams)
+        #: start-up warnings (an assumed mass, a robot_mass above mass), logged once each
+        self.start_warnings: list[str] = []
+        if not overridden(self, 'mass'):
+            self.start_warnings.append(
+                f"mass not given (-p mass:=KG): AntBot's {ANTBOT_MASS_KG} kg is assumed; give "
+                '-p mass:=KG (CoT, CoT/M and specific resistance scale with the mass)')
+        #: the P_out model's robot mass without payload [kg]: robot_mass, else mass
+        self.robot_mass_kg = p.robot_mass if p.robot_mass > 0 else p.mass
+        if self.robot_mass_kg > p.mass:
+            self.start_warnings.append(
+                f'robot_mass {self.robot_mass_kg:g} kg > mass {p.mass:g} kg: a negative payload;'
+                ' the P_out model uses the robot_mass robot without payload (check -p mass and '
+                '-p robot_mass)')
+        for warning in self.start_warnings:
+            self.get_logger().warning(warning)
         model = None
         if p.power_out_source != 'effort':
             leg = load_leg_description(p.leg_file) if p.leg_file else antbot_leg()
-            model = model_power_out(leg.output_power_model(p.robot_mass),
-                                    robot_mass_kg=p.robot_mass)
+            model = model_power_out(leg.output_power_model(self.robot_mass_kg),
+                                    robot_mass_kg=self.robot_mass_kg)
         self.core = DescriptorAccumulator(mass_kg=p.mass, cycles=p.cycles,
                                           current_sign=p.current_sign, power_out_model=model,
                                           power_out_source=p.power_out_source,
