@@ -49,6 +49,7 @@ __all__ = [
     'run_node',
     'validate_params',
     'wants_help',
+    'writable_params',
 ]
 
 T = TypeVar('T')
@@ -274,11 +275,9 @@ def run_node(node_factory: Callable[..., Any], args: Sequence[str] | None = None
         return 0
 
     import rclpy
-    from rclpy.exceptions import InvalidHandle
     from rclpy.executors import ExternalShutdownException
-    from rclpy.impl.implementation_singleton import rclpy_implementation
 
-    stopping_errors = (rclpy_implementation.RCLError, InvalidHandle)
+    stopping_errors = _stopping_errors()
     rclpy.init(args=args)
     node = None
     try:
@@ -317,11 +316,17 @@ def run_node(node_factory: Callable[..., Any], args: Sequence[str] | None = None
     return 0
 
 
+def _stopping_errors() -> tuple[type[BaseException], ...]:
+    """What rclpy raises once the context is shut down under a callback or a clean-up."""
+    from rclpy.exceptions import InvalidHandle
+    from rclpy.impl.implementation_singleton import rclpy_implementation
+
+    return (rclpy_implementation.RCLError, InvalidHandle)
+
+
 def _close(node: Any) -> None:
     """Destroy ``node`` and shut rclpy down, through a late Ctrl-C or an invalid context."""
     import rclpy
-    from rclpy.exceptions import InvalidHandle
-    from rclpy.impl.implementation_singleton import rclpy_implementation
 
     for step in ((node.destroy_node,) if node is not None else ()) + (rclpy.try_shutdown,):
         for _ in range(3):   # a KeyboardInterrupt pending from the Ctrl-C lands here
@@ -330,7 +335,7 @@ def _close(node: Any) -> None:
                 break
             except KeyboardInterrupt:
                 continue
-            except (rclpy_implementation.RCLError, InvalidHandle):
+            except _stopping_errors():
                 break        # already gone with the context
 
 
@@ -372,6 +377,31 @@ def find_params_class(node_factory: Callable[..., Any]) -> type | None:
     return candidates[0] if len(candidates) == 1 else None
 
 
+def writable_params(node_factory: Callable[..., Any], cls: type) -> set[str]:
+    """Names of ``cls``'s fields a run-time ``ros2 param set`` changes (module doc): the
+    ``live`` ones, and every field not ``read_only`` when the node's ``declare_params`` call
+    passes ``on_change`` (read from its source, as :func:`find_params_class`)."""
+    import inspect
+    import re
+
+    fields = dataclasses.fields(cls)  # type: ignore[arg-type]
+    live = {f.name for f in fields if f.metadata.get('live', False)}
+    classes = inspect.getmro(node_factory) if inspect.isclass(node_factory) else (node_factory,)
+    for klass in classes:
+        init = getattr(klass, '__init__', None) if inspect.isclass(klass) else klass
+        try:
+            source = inspect.getsource(init)  # type: ignore[arg-type]
+        except (OSError, TypeError):
+            continue
+        call = re.search(r'declare_params\(\s*self\s*,\s*' + re.escape(cls.__name__) +
+                         r'\b([^)]*)\)', source)
+        if call is not None:
+            if 'on_change' in call.group(1):
+                return live | {f.name for f in fields if not f.metadata.get('read_only')}
+            return live
+    return live
+
+
 def _is_params_class(obj: Any) -> bool:
     """A dataclass whose every field was declared with :func:`param`."""
     if not (isinstance(obj, type) and dataclasses.is_dataclass(obj)):
@@ -408,12 +438,15 @@ def node_help(node_factory: Callable[..., Any], params: type | None = None) -> s
     if cls is None:
         lines.append('parameters: see the README')
         return '\n'.join(lines)
-    lines.append('parameters (--ros-args -p NAME:=VALUE; default after =):')
+    lines.append('parameters (--ros-args -p NAME:=VALUE; default after =; "settable" ones also '
+                 'take `ros2 param set` while running, the others refuse it):')
+    writable = writable_params(node_factory, cls)
     for fld in dataclasses.fields(cls):  # type: ignore[arg-type]
         default = _default_of(fld)
         shown = list(default) if isinstance(default, tuple) else default
         kind = type(default).__name__ if not isinstance(default, (list, tuple)) else 'list'
-        lines.append(f'  {fld.name} = {shown!r} ({kind})')
+        tag = ', settable' if fld.name in writable else ''
+        lines.append(f'  {fld.name} = {shown!r} ({kind}{tag})')
         lines.extend(textwrap.wrap(fld.metadata.get('description', ''), width=92,
                                    initial_indent=' ' * 6, subsequent_indent=' ' * 6))
     return '\n'.join(lines)

@@ -54,6 +54,53 @@ def test_help_prints_the_parameters_and_starts_nothing(module: str, func: str, c
         assert fld.metadata['description'].split()[0] in out
 
 
+@pytest.mark.timeout(60)
+def test_help_says_which_parameters_take_a_run_time_set(capsys: Any) -> None:
+    """``--help`` did not say which parameters ``ros2 param set`` changes; its "settable" tags
+    must be the declared descriptors' ``read_only`` negated, on every node."""
+    from hexapod_common.errors import ParameterError
+    from hexapod_common.node_utils import declare_params, writable_params
+
+    checked = 0
+    with ros_env() as env:
+        for module, func, cls in NODES:
+            mod = importlib.import_module(module)
+            klass = getattr(mod, cls)
+            params = find_params_class(klass)
+            node = rclpy.create_node(f'help_{cls.lower()}', context=env.context)
+            env.nodes.append(node)
+            on_change = (lambda _p: None) if 'on_change' in _declare_call(klass) else None
+            try:
+                declare_params(node, params, on_change=on_change)
+            except ParameterError:
+                pass   # a required value (joints_file): every parameter is declared by then
+            writable = {f.name for f in dataclasses.fields(params)
+                        if not node.describe_parameter(f.name).read_only}
+            assert writable_params(klass, params) == writable, cls
+            getattr(mod, func)(['--help'])
+            out = capsys.readouterr().out
+            for fld in dataclasses.fields(params):
+                line = next(ln for ln in out.splitlines() if ln.startswith(f'  {fld.name} = '))
+                assert line.endswith(', settable)') == (fld.name in writable), line
+            checked += 1
+    assert checked == len(NODES)
+
+
+def _declare_call(klass: type) -> str:
+    import inspect
+    import re
+
+    for k in inspect.getmro(klass):
+        try:
+            src = inspect.getsource(k.__init__)
+        except (OSError, TypeError):
+            continue
+        m = re.search(r'declare_params\(self[^)]*\)', src)
+        if m:
+            return m.group(0)
+    return ''
+
+
 def test_help_only_before_ros_args() -> None:
     assert wants_help(['--help']) and wants_help(['prog', '-h', '--ros-args'])
     assert not wants_help(['--ros-args', '-p', 'x:=1', '--help'])
