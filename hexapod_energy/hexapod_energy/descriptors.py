@@ -639,6 +639,16 @@ class DescriptorAccumulator:
             self._boundaries.append(math.nan)
             self.schedule_breaks_.append((sample.t_s, why))
             self._ref_gait = sample
+        elif self._last_phase is not None and sample.period_s <= 0 and \
+                sample.t_s > self._last_phase[0]:
+            # standing (period 0): no cycle wraps; windows of STAND_WINDOW_S on the schedule's
+            # clock, so the standing robot's input power (basal electronics and the servos
+            # holding the body) is measured too, with speed 0 (CoT undefined)
+            t_prev = self._last_phase[0]
+            k_prev = math.floor(t_prev / self.STAND_WINDOW_S)
+            k_now = math.floor(sample.t_s / self.STAND_WINDOW_S)
+            self._boundaries.extend(self.STAND_WINDOW_S * k for k in range(k_prev + 1,
+                                                                           k_now + 1))
         elif self._last_phase is not None:
             t_prev, phase_prev = self._last_phase
             if sample.t_s > t_prev and sample.cycle_phase < phase_prev - 0.5:
@@ -649,6 +659,9 @@ class DescriptorAccumulator:
         if self._last_phase is None or sample.t_s > self._last_phase[0]:
             self._last_phase = (sample.t_s, sample.cycle_phase)
         return self._emit()
+
+    #: window length [s] while the schedule stands still (period 0): no cycle to average over
+    STAND_WINDOW_S = 1.0
 
     #: a schedule value (period, duty factor, step length) moving by more than this fraction
     #: from the one the windows started under breaks them (a transition, a new command)

@@ -97,3 +97,26 @@ def test_a_schedule_for_legs_the_robot_lacks_is_said() -> None:
                                                     np.zeros(18)))
         phase += 0.01 / 0.5
     assert out and all(any('L4, R4' in w and 'disagree' in w for w in d.warnings) for d in out)
+
+
+def test_a_standing_robot_gets_windows_of_its_input_power() -> None:
+    """A standing schedule (period 0: no cycle wraps) gave no window at all, so the monitor
+    said nothing of the power a standing robot draws (electronics, servos holding the body).
+    Standing now gives STAND_WINDOW_S windows with speed 0 and CoT undefined, and no window
+    spans the change from standing to walking or back."""
+    acc = DescriptorAccumulator(mass_kg=2.2, current_sign='ros')
+    out = []
+    for k in range(400):                    # 4 s standing
+        t = 0.01 * k
+        out += acc.add_gait_phase(gait(t, 'stand', 0.0, 0.5, 0.0))
+        out += acc.add_battery(battery(t + 1e-4))
+    stand = list(out)
+    assert len(stand) >= 2
+    for d in stand:
+        assert d.window_s == pytest.approx(DescriptorAccumulator.STAND_WINDOW_S)
+        assert d.power_in_w == pytest.approx(24.0) and d.speed_mps == 0.0
+        assert np.isnan(d.specific_resistance) and np.isnan(d.cost_of_transport_j_per_m)
+    walk = feed(acc, 4.0, 7.0, 'alternating', 1.0, 0.5)
+    assert walk and all(d.t_end_s - d.window_s >= 4.0 for d in walk)
+    assert all(round(d.speed_mps, 4) == 0.2 for d in walk)
+    assert [why for _, why in acc.schedule_breaks_] == ['gait stand -> alternating']
