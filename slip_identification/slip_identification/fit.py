@@ -386,13 +386,19 @@ def _stderr_from_jacobian(jac: FloatArray, rss: float, n_res: int, inflation: fl
 
 
 def _bucket(stances: Sequence[Stance], max_batch: int, spread: float) -> list[list[int]]:
-    """Group stance indices by similar length (padding waste <= ``spread``)."""
-    order = sorted(range(len(stances)), key=lambda i: stances[i].n_samples)
+    """Group stance indices by sample spacing (one integration step per batch: stances of
+    other spacings were integrated with the group's median, 1 kHz and 2 ms stances fitted
+    together gave k 5400 for 12000, converged) and then by similar length (padding waste <=
+    ``spread``)."""
+    def spacing(i: int) -> float:   # 6 significant digits: rounding noise is one spacing
+        return float(f'{stances[i].dt_s:.6g}')
+
+    order = sorted(range(len(stances)), key=lambda i: (spacing(i), stances[i].n_samples))
     groups: list[list[int]] = []
     for i in order:
         n = stances[i].n_samples
-        if groups and len(groups[-1]) < max_batch and \
-                n <= (1.0 + spread) * stances[groups[-1][0]].n_samples:
+        if groups and len(groups[-1]) < max_batch and spacing(i) == spacing(groups[-1][0]) \
+                and n <= (1.0 + spread) * stances[groups[-1][0]].n_samples:
             groups[-1].append(i)
         else:
             groups.append([i])

@@ -134,3 +134,19 @@ def test_nerr_definition():
     xe = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 2.0, 0.0, 0.0]])
     xm = xe + np.array([[0.0, 0.0, 0.3, 0.4], [0.0, 0.0, 0.0, 0.0]])
     assert nerr(xm, xe) == pytest.approx(0.5 / 3.0)
+
+
+def test_stances_of_other_sample_spacings_fitted_together():
+    """An outside review: the fast path batched stances by length only and integrated each
+    batch with its median spacing, so 1 ms and 2 ms stances of similar sample counts fitted in
+    one call gave k 5400 for 12000 (converged); each is now integrated on its own spacing."""
+    syn = make_stances(8, seed=0, speed_mps=(0.3, 1.1))
+    long_ = syn[3].stance                                   # 221 samples at 1 ms
+    two_ms = Stance(t_s=long_.t_s[::2], state=long_.state[::2])   # 111 samples at 2 ms
+    stances = [syn[1].stance, syn[4].stance, two_ms]        # 115, 109 (1 ms) and 111 (2 ms)
+    truth = np.array([syn[k].params for k in (1, 4, 3)])
+    together = SlipFitter(stderr=False).fit(stances).results_
+    for r, st in zip(together, stances):
+        alone = SlipFitter(stderr=False).fit([st]).results_[0]
+        assert_allclose(r.params['stiffness'], alone.params['stiffness'], rtol=1e-6)
+    assert_allclose(_params(together)[:, 0], truth[:, 0], rtol=5e-3)
