@@ -31,18 +31,22 @@ efforts alone leave P_out unknown (NaN), never 0 W.
 
 from __future__ import annotations
 
+import array
 import dataclasses
 import json
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from hexapod_energy.errors import BagContentError
 from hexapod_energy.single_leg import PhaseSample, align_offset_s, phase_powers, stance_mask
+
+if TYPE_CHECKING:   # the bag reader (rosbags) is imported where a bag is read
+    from hexapod_common.bags import SampleColumns
 
 __all__ = [
     'BENCH_TOPICS',
@@ -864,7 +868,7 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
                 cycle_source: str = 'auto', segment: int | None = None,
                 all_segments: bool = False) -> RobotRun | list[RobotRun]:
     """Body of :func:`read_robot_bag` and :func:`read_robot_segments`."""
-    from hexapod_common.bags import iter_messages, open_reader
+    from hexapod_common.bags import SampleColumns, iter_messages, open_reader
     from hexapod_common.clocks import ClockCheck
     from hexapod_common.conversions import (
         battery_from_msg,
@@ -904,7 +908,11 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
     converters = {'/battery_state': battery_from_msg, '/gait/phase': gait_phase_from_msg,
                   '/joint_states': joint_state_from_msg, '/mocap/body': pose_from_msg,
                   '/odom': odometry_from_msg}
-    samples: list[tuple[float, int, str, Any]] = []
+    # every converted sample, per topic, as compact columns (a 60 min 18-joint bag held as
+    # sample objects took 2 GB); ``order`` numbers them in reading order across topics
+    stores: dict[str, SampleColumns] = {topic: SampleColumns() for topic in converters}
+    order: dict[str, array.array] = {topic: array.array('q') for topic in converters}
+    n_samples = 0
     seen: dict[tuple[str, bytes], None] = {}
     zero_stamps: dict[str, int] = {}
     dropped: dict[str, list[str]] = {}
@@ -941,8 +949,11 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
                 if m.stamp_ns != 0:
                     zero_stamps[m.topic] = zero_stamps.get(m.topic, 0) + 1
                 sample = dataclasses.replace(sample, t_s=1e-9 * m.stamp_ns)
-            samples.append((sample.t_s, len(samples), m.topic, sample))
-    samples = _on_one_clock(samples, clocks, notes)
+            stores[m.topic].append(sample)
+            order[m.topic].append(n_samples)
+            n_samples += 1
+    del seen
+    _on_one_clock(stores, clocks, notes)
     bad_battery = dropped.get('/battery_state', [])
     if bad_battery and len(bad_battery) == n_battery:
         raise BagContentError(
@@ -955,11 +966,11 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
     duplicates += sum(exact.values())
     if duplicates:
         notes.append(f'{duplicates} duplicated message(s) ignored')
-    n_gait = sum(1 for smp in samples if smp[2] == '/gait/phase')
+    n_gait = len(stores['/gait/phase'])
     if auto_cycles and cycle_source == 'gait_phase' and n_gait == 0:
         # an advertised but silent /gait/phase (``ros2 bag record -a``): the joints decide
         n_bad = len(dropped.get('/gait/phase', []))
-        if not any(smp[2] == '/joint_states' for smp in samples):
+        if not len(stores['/joint_states']):
             raise BagContentError(
                 f'bag {path}: /gait/phase has no ' + ('usable ' if n_bad else '') +
                 'messages and /joint_states none either: no gait cycles to average over')
@@ -968,18 +979,18 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
                      (f'none of its {n_bad} message(s) usable' if n_bad else
                       'without messages') +
                      ': cycle boundaries from the joint positions')
-    if not any(smp[2] == '/battery_state' for smp in samples):
+    if not len(stores['/battery_state']):
         raise BagContentError(
             f'bag {path}: /battery_state has no ' + ('usable ' if n_battery else '') +
             'messages' + (f' (all {n_battery} dropped)' if n_battery else '') +
             ': input power needs the battery voltage and current')
-    samples = _prepare_batteries(path, samples, notes)
+    _prepare_battery_store(path, stores, order, n_samples, notes)
     if current_sign == 'auto':
         # offline the whole run decides (the median of V * I), never its first samples: a
         # sensor's idle offset before the servos draw current must not flip a run's P_in
-        bat = [smp[3] for smp in samples if smp[2] == '/battery_state']
-        sign = resolve_current_sign(np.array([b.voltage_v for b in bat]),
-                                    np.array([b.current_a for b in bat]), 'auto')
+        bat = stores['/battery_state']
+        sign = resolve_current_sign(np.asarray(bat.column('voltage_v'), dtype=float),
+                                    np.asarray(bat.column('current_a'), dtype=float), 'auto')
         current_sign = 'ros' if sign < 0 else 'positive_discharge'
         if sign > 0:  # the contract's convention needs no word; the other does
             notes.append('battery current sign auto-detected from the median of V * I over '
@@ -988,10 +999,10 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
     acc = DescriptorAccumulator(mass_kg=mass_kg, cycles=cycles, current_sign=current_sign,
                                 power_out_source='effort', cycle_source=cycle_source,
                                 speed_mps=speed_mps or 0.0)
-    # header-stamp order (recorders store receive order; stamps may be a few ms out of order)
-    samples.sort(key=lambda s: (s[0], s[1]))
     changes: list[tuple[float, tuple[Any, ...], Any]] = []   # schedule changes on /gait/phase
-    for _, _, topic, sample in samples:
+    # header-stamp order (recorders store receive order; stamps may be a few ms out of order),
+    # each sample rebuilt from the columns as it is fed
+    for topic, sample in _stamp_ordered(stores, order):
         if topic == '/battery_state':
             windows.extend(acc.add_battery(sample))
         elif topic == '/gait/phase':
@@ -1040,8 +1051,8 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
     if n_slow:
         notes.append(f'{SLOW_BATTERY_NOTE} ({n_slow} of {len(windows)} window(s))')
     if cycle_source == 'joints':
-        runs = _joint_cycle_runs(path, acc, windows, samples, notes, custom, has_effort,
-                                 speed_mps, gait)
+        runs = _joint_cycle_runs(path, acc, windows, stores['/joint_states'], notes, custom,
+                                 has_effort, speed_mps, gait)
         if all_segments:
             return runs
         if segment is None:
@@ -1052,9 +1063,10 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
     all_windows = list(windows)
     if not windows or gait is None:
         spans = {}
-        for t_s, _, topic, _ in samples:
-            lo, hi = spans.get(topic, (t_s, t_s))
-            spans[topic] = (min(lo, t_s), max(hi, t_s))
+        for topic, store in stores.items():
+            t_col = np.asarray(store.column('t_s'), dtype=float)
+            if t_col.size:
+                spans[topic] = (float(np.min(t_col)), float(np.max(t_col)))
         hint = ''
         bat, gph = spans.get('/battery_state'), spans.get('/gait/phase')
         if bat and gph and (bat[1] < gph[0] or gph[1] < bat[0]):
@@ -1135,15 +1147,65 @@ ODOM_TWIST_NOTE = ('speed from the /odom twist (its pose does not move: a veloci
                    'estimator), the mean horizontal speed over each window')
 
 
-def _on_one_clock(samples: list[tuple[float, int, str, Any]], clocks: Any,
-                  notes: list[str]) -> list[tuple[float, int, str, Any]]:
-    """Topics stamped on another clock moved onto the others' (:mod:`hexapod_common.clocks`)."""
+def _on_one_clock(stores: dict[str, SampleColumns], clocks: Any, notes: list[str]) -> None:
+    """Topics stamped on another clock moved onto the others' (:mod:`hexapod_common.clocks`),
+    in place."""
     shifts, more = clocks.shifts()
     if not shifts:
-        return samples
+        return
     notes.extend(more)
-    return [(t + shifts[topic], i, topic, dataclasses.replace(smp, t_s=smp.t_s + shifts[topic]))
-            if topic in shifts else (t, i, topic, smp) for t, i, topic, smp in samples]
+    for topic, dt in shifts.items():
+        if topic in stores:
+            stores[topic].shift('t_s', dt)
+
+
+def _prepare_battery_store(path: str | Path, stores: dict[str, SampleColumns],
+                           order: dict[str, array.array], n_samples: int,
+                           notes: list[str]) -> None:
+    """The ``/battery_state`` columns through :func:`hexapod_common.battery.
+    prepare_battery_samples` (milli-units scaled, several batteries summed or the one of
+    ``--battery-source`` kept), in place; one battery in V and A stays as read. The combined
+    samples come after every other in reading order. A stream that measures no power raises
+    :class:`BagContentError`."""
+    from hexapod_common.bags import prepare_battery_columns
+
+    battery = stores['/battery_state']
+    try:
+        combined, more = prepare_battery_columns(battery)
+    except ValueError as err:
+        raise BagContentError(f'bag {path}: {err}') from None
+    notes.extend(more)
+    if combined is battery or (len(combined) == len(battery) and
+                               all(a == b for a, b in zip(combined, battery))):
+        return
+    stores['/battery_state'] = combined
+    order['/battery_state'] = array.array('q', range(n_samples, n_samples + len(combined)))
+
+
+#: samples rebuilt per step of :func:`_stamp_ordered` (the order's indices as Python ints)
+_ORDER_CHUNK = 65536
+
+
+def _stamp_ordered(stores: dict[str, SampleColumns], order: dict[str, array.array]
+                   ) -> Iterator[tuple[str, Any]]:
+    """(topic, sample) of every stored sample in header-stamp order, ties in reading order,
+    each sample rebuilt from its columns when it is reached."""
+    topics = list(stores)
+    parts = [(np.asarray(stores[t].column('t_s'), dtype=float),
+              np.frombuffer(order[t], dtype=np.int64) if len(order[t])
+              else np.zeros(0, dtype=np.int64)) for t in topics]
+    t_all = np.concatenate([p[0] for p in parts])
+    seq_all = np.concatenate([p[1] for p in parts])
+    code = np.concatenate([np.full(len(stores[t]), k, dtype=np.int64)
+                           for k, t in enumerate(topics)])
+    row = np.concatenate([np.arange(len(stores[t]), dtype=np.int64) for t in topics])
+    ranked = np.lexsort((seq_all, t_all))
+    del t_all, seq_all
+    for start in range(0, ranked.size, _ORDER_CHUNK):
+        chunk = ranked[start:start + _ORDER_CHUNK]
+        for k, r in zip(code[chunk].tolist(), row[chunk].tolist()):
+            topic = topics[k]
+            yield topic, stores[topic][r]
 
 
 def _prepare_batteries(path: str | Path, samples: list[tuple[float, int, str, Any]],
@@ -1231,7 +1293,7 @@ def _schedule_segments(windows: list[Any], changes: list[tuple[float, tuple[Any,
 
 
 def _joint_cycle_runs(path: str | Path, acc: Any, windows: list[Any],
-                      samples: list[tuple[float, int, str, Any]], notes: list[str],
+                      joint_states: SampleColumns, notes: list[str],
                       custom: dict[str, str], has_effort: bool, speed_mps: float | None,
                       gait: Any) -> list[RobotRun]:
     """:class:`RobotRun` of each step period of a bag read on joint-derived cycles (see
@@ -1249,8 +1311,7 @@ def _joint_cycle_runs(path: str | Path, acc: Any, windows: list[Any],
             '/battery_state across it) and no /gait/phase to take the cycles from')
     notes.append('no /gait/phase: cycle boundaries from the joint positions (step period '
                  'by autocorrelation, hexapod_energy.cycles)')
-    names = sorted({n for _, _, topic, smp in samples if topic == '/joint_states'
-                    for n in smp.names})
+    names = sorted({n for group in joint_states.distinct('names') for n in group})
     legs = sorted({n.rsplit('_', 1)[0] for n in names if '_' in n})
     sources = sorted({d.speed_source for d in windows})
     speed_source = sources[0] if len(sources) == 1 else '+'.join(sources)

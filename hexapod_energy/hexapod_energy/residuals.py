@@ -200,8 +200,15 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
     ``/servo_status`` and ``/joint_states`` (optional: thermal regressor, stream lag).
 
     A message recorded twice (same topic, log time and bytes) counts once, noted."""
-    from hexapod_common.bags import duplicates_note, iter_messages, open_reader
-    from hexapod_common.battery import prepare_battery_samples
+    import array
+
+    from hexapod_common.bags import (
+        SampleColumns,
+        duplicates_note,
+        iter_messages,
+        open_reader,
+        prepare_battery_columns,
+    )
     from hexapod_common.clocks import ClockCheck, shift_rows
     from hexapod_common.conversions import (
         battery_from_msg,
@@ -213,11 +220,16 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
 
     from hexapod_energy.descriptors import resolve_current_sign
 
-    bat, gp, temps, mech = [], [], [], []
+    # every message's sample kept as compact columns, not as objects (a 60 min robot bag took
+    # 1.9 GB): battery and gait samples in SampleColumns, the joint drive features as rows of
+    # (t, 5 features) and each joint's |effort| as (t, value) in array.array
+    bat, gp = SampleColumns(), SampleColumns()
+    temps: list[tuple[float, float, int]] = []
+    mech = array.array('d')
     dropped: dict[str, list[str]] = {}
     dups: dict[str, int] = {}
     clocks = ClockCheck()
-    per_joint: dict[str, list[tuple[float, float]]] = {}
+    per_joint: dict[str, tuple[array.array, array.array]] = {}
     with open_reader(path) as reader:
         present = sorted({c.topic for c in reader.connections})
         gait_msgs = sum(c.msgcount for c in reader.connections if c.topic == '/gait/phase')
@@ -255,34 +267,48 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
             else:
                 js = joint_state_from_msg(msg)
                 if js.effort.size == js.velocity.size and js.effort.size:
-                    mech.append((js.t_s, *joint_features(js.effort, js.velocity)))
+                    mech.append(js.t_s)
+                    mech.extend(joint_features(js.effort, js.velocity))
                 if js.effort.size == len(js.names):
-                    for name, e in zip(js.names, np.abs(js.effort)):
-                        per_joint.setdefault(name, []).append((js.t_s, float(e)))
+                    for name, e in zip(js.names, np.abs(js.effort).tolist()):
+                        series = per_joint.get(name)
+                        if series is None:
+                            series = per_joint[name] = (array.array('d'), array.array('d'))
+                        series[0].append(js.t_s)
+                        series[1].append(e)
     battery_notes: list[str] = [f'{len(errs)} {topic} message(s) dropped: {errs[0]}'
                                 for topic, errs in sorted(dropped.items())]
     battery_notes += duplicates_note(dups)
     shifts, clock_notes = clocks.shifts()   # a topic stamped on another clock
+    mech_rows = np.frombuffer(mech, dtype=float).reshape(-1, 6) if len(mech) else \
+        np.zeros((0, 6))
     if shifts:
         battery_notes.extend(clock_notes)
         dt = shifts.get
-        bat = [dataclasses.replace(b, t_s=b.t_s + dt('/battery_state', 0.0)) for b in bat]
-        gp = [dataclasses.replace(g, t_s=g.t_s + dt('/gait/phase', 0.0)) for g in gp]
+        bat.shift('t_s', dt('/battery_state', 0.0))
+        gp.shift('t_s', dt('/gait/phase', 0.0))
         temps = shift_rows(temps, dt('/servo_status', 0.0))
-        mech = shift_rows(mech, dt('/joint_states', 0.0))
-        per_joint = {k: shift_rows(v, dt('/joint_states', 0.0)) for k, v in per_joint.items()}
+        mech_rows[:, 0] += dt('/joint_states', 0.0)
+        for t_j, _ in per_joint.values():
+            if len(t_j):
+                view = np.frombuffer(t_j, dtype=float)
+                view += dt('/joint_states', 0.0)
+                del view
     try:
-        bat, more = prepare_battery_samples(bat)
+        bat, more = prepare_battery_columns(bat)
     except ValueError as err:
         raise BagContentError(f'robot bag {path}: {err}') from None
     battery_notes.extend(more)
-    bat = [(b.t_s, b.voltage_v, b.current_a) for b in bat]
     if len(bat) < 10:
         raise BagContentError(f'robot bag {path}: /battery_state has {len(bat)} messages, '
                               'need at least 10')
     if len(gp) < 2 and not use_given:
         raise BagContentError(f'robot bag {path}: /gait/phase has {len(gp)} messages, need 2+')
-    b = np.array(sorted(bat))
+    # (t, V, I) rows in the order of the tuples sorted
+    b = np.column_stack([np.asarray(bat.column(f), dtype=float)
+                         for f in ('t_s', 'voltage_v', 'current_a')])
+    b = b[np.lexsort((b[:, 2], b[:, 1], b[:, 0]))]
+    del bat
     sign = resolve_current_sign(b[:, 1], b[:, 2], current_sign)
     if use_given:
         assert gait is not None
@@ -301,38 +327,44 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
             leg_names=tuple(pattern.leg_names),
             phase_offsets=tuple(float(x) for x in pattern.phase_offsets), gait=pattern.name)
         run.notes = battery_notes + notes
-        return _finish_run(run, b, t, temps, mech, per_joint)
+        return _finish_run(run, b, t, temps, mech_rows, per_joint)
     t = b[:, 0]
-    gp.sort(key=lambda g: g.t_s)
-    gt = np.array([g.t_s for g in gp])
+    # the gait samples in stamp order (a stable sort, as the samples' list sort was)
+    go = np.argsort(np.asarray(gp.column('t_s'), dtype=float), kind='stable')
+    gt = np.asarray(gp.column('t_s'), dtype=float)[go]
     idx = np.clip(np.searchsorted(gt, t, side='right') - 1, 0, len(gp) - 1)
-    col = lambda f: np.array([f(gp[i]) for i in idx])  # noqa: E731
-    phase_gt = np.array([g.cycle_phase for g in gp])
-    period_gt = np.array([g.period_s for g in gp])
+    col = lambda f: np.asarray(gp.column(f), dtype=float)[go][idx]  # noqa: E731
+    phase_gt = np.asarray(gp.column('cycle_phase'), dtype=float)[go]
+    period_gt = np.asarray(gp.column('period_s'), dtype=float)[go]
     # cycle phase at the battery stamps: advance from the previous gait sample
     dt = t - gt[idx]
     with np.errstate(divide='ignore', invalid='ignore'):
         adv = np.where(period_gt[idx] > 0, dt / period_gt[idx], 0.0)
     cycle_phase = (phase_gt[idx] + adv) % 1.0
-    in_stance = np.array([np.asarray(gp[i].in_stance, bool) for i in idx])
+    stance = gp.stacked('in_stance')
+    if stance is not None and stance.dtype == bool and stance.shape[0] == len(gp):
+        in_stance = stance[go[idx]]
+    else:   # legs that differ from one message to the next: as each sample has them
+        in_stance = np.array([np.asarray(gp[int(go[i])].in_stance, bool) for i in idx])
+    last = gp[int(go[-1])]
     power = sign * b[:, 1] * b[:, 2]
     run = ResidualRun(
         name=str(path), t_s=t, voltage_v=b[:, 1], current_a=np.zeros(0),
         power_w=power, cycle_phase=cycle_phase, period_s=period_gt[idx],
-        duty_factor=col(lambda g: g.duty_factor), step_length_m=col(lambda g: g.step_length_m),
+        duty_factor=col('duty_factor'), step_length_m=col('step_length_m'),
         in_stance=in_stance, supporting=in_stance.sum(axis=1),
         temp_sum_c=np.full(t.shape, np.nan), servo_count=0,
-        leg_names=tuple(gp[-1].leg_names),
-        phase_offsets=tuple(float(x) for x in gp[-1].phase_offsets), gait=gp[-1].gait)
+        leg_names=tuple(last.leg_names),
+        phase_offsets=tuple(float(x) for x in last.phase_offsets), gait=last.gait)
     run.notes = battery_notes + list(run.notes)
-    return _finish_run(run, b, t, temps, mech, per_joint)
+    return _finish_run(run, b, t, temps, mech_rows, per_joint)
 
 
 def _finish_run(run: ResidualRun, b: np.ndarray, t: np.ndarray, temps: list[Any],
-                mech: list[Any], per_joint: dict[str, list[tuple[float, float]]]
-                ) -> ResidualRun:
+                mech: np.ndarray, per_joint: dict[str, tuple[Any, Any]]) -> ResidualRun:
     """The optional streams of a :class:`ResidualRun`: servo temperatures, current, joint
-    drive features and per-joint efforts."""
+    drive features (rows of t and 5 features) and per-joint efforts ((t, |effort|) columns);
+    rows in the order of their tuples sorted."""
     if temps:
         tt = np.array(sorted(temps))
         run.temp_sum_c = np.interp(t, tt[:, 0], tt[:, 1])
@@ -340,12 +372,14 @@ def _finish_run(run: ResidualRun, b: np.ndarray, t: np.ndarray, temps: list[Any]
     power = run.power_w
     run.current_a = power / np.where(np.abs(b[:, 1]) > 1e-6, b[:, 1], np.nan)
     if len(mech) > 20:
-        mm = np.array(sorted(mech))
+        mm = mech[np.lexsort(mech.T[::-1])]
         run.joint_t_s, run.joint_features = mm[:, 0], mm[:, 1:]
-    if per_joint and all(len(v) > 20 for v in per_joint.values()):
+    if per_joint and all(len(v[0]) > 20 for v in per_joint.values()):
         run.joint_abs_effort = {}
-        for name, v in per_joint.items():
-            a = np.array(sorted(v))
+        for name, (t_j, e_j) in per_joint.items():
+            tv, ev = np.frombuffer(t_j, dtype=float), np.frombuffer(e_j, dtype=float)
+            o = np.lexsort((ev, tv))
+            a = np.column_stack((tv[o], ev[o]))
             ok = np.isfinite(a[:, 1])
             run.joint_abs_effort[name] = (a[ok, 0], a[ok, 1])
     return run
