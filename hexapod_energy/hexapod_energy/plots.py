@@ -57,8 +57,17 @@ def _fixed_parameters(curves: Sequence[SweepCurve]) -> str:
     """What the curves of one sweep share: robot mass, gait, legs, duty factor, step."""
     specs = [c.spec for c in curves]
     parts = []
-    if curves and len(curves[0].mass_kg):
-        parts.append(f'robot {float(curves[0].mass_kg[0]):.3g} kg')
+    masses = {round(c.robot_mass_kg, 9) for c in curves}
+    if len(masses) == 1:
+        parts.append(f'robot {masses.pop():.4g} kg')
+    elif len({s.leg_count for s in specs}) > 1 and \
+            all(s.mass_reference_legs is not None for s in specs):
+        # the leg-count sweep: one body, each curve its own legs (masses in the legend)
+        c0, c1 = min(curves, key=lambda c: c.spec.leg_count), \
+            max(curves, key=lambda c: c.spec.leg_count)
+        m_leg = (c1.robot_mass_kg - c0.robot_mass_kg) / (c1.spec.leg_count - c0.spec.leg_count)
+        parts.append(f'body {c0.robot_mass_kg - c0.spec.leg_count * m_leg:.4g} kg + '
+                     f'legs of {m_leg:.3g} kg')
     if len({s.gait for s in specs}) == 1:
         parts.append(specs[0].gait)
     if len({s.leg_count for s in specs}) == 1:
@@ -112,6 +121,7 @@ def four_quadrant_figure(curves: Sequence[SweepCurve], *, title: str = '',
     inside_pout: list[np.ndarray] = []
     inside_cot: list[np.ndarray] = []
     any_out = clipped = False
+    masses = {round(c.robot_mass_kg, 9) for c in curves}   # several: each label says its own
     for c, curve in enumerate(curves):
         col = colors[c % len(colors)]
         m = len(curve.payloads_kg)
@@ -127,7 +137,8 @@ def four_quadrant_figure(curves: Sequence[SweepCurve], *, title: str = '',
         keep = np.repeat(out[:, None], m, axis=1) & ~out.all()
         inside_pout.append(np.where(keep, np.nan, p_out))
         inside_cot.append(np.where(keep, np.nan, cot))
-        label = curve.spec.label + (' (all extrapolated)' if out.all() else '')
+        label = curve.spec.label + (f', {curve.robot_mass_kg:.4g} kg' if len(masses) > 1
+                                    else '') + (' (all extrapolated)' if out.all() else '')
         # a curve equal to an earlier one (wave at beta 0.5 is the tripod: L(t) = 3 always)
         # is drawn dashed over it and says so; it hid the earlier curve
         same = next((other.spec.label for other in curves[:c]

@@ -13,6 +13,15 @@ Optimal operating points are taken on the nominal payload (the first of the band
 step-length and gait-type sweeps at that leg count; the leg-count sweep is always 4/6/8 legs as
 Fig. 3D); :data:`STANDARD_SWEEPS` is AntBot's (6 legs).  The actuator limits default to AntBot's
 servos' (:data:`hexapod_gait.feasibility.ANTBOT_LIMITS`).
+
+Robot mass.  Every curve is for the robot of the output-power model (``RobotSpec.mass_kg``, the
+robot described: ``hexapod-analyze energy --robot-mass``), except in the leg-count sweep: a
+robot with more legs is heavier, so (as the authors' code, ``robot_mass = legs * m_leg +
+body``) each of its curves keeps the described robot's body, ``M - N m_leg`` (``N`` the
+described robot's legs, :attr:`SweepSpec.mass_reference_legs`), and carries its own ``k``
+legs: ``M_k = M + (k - N) m_leg`` (AntBot, 2.183 kg on 6 legs of 0.166 kg: 1.851, 2.183 and
+2.515 kg).  The curve of the robot's own leg count has the given mass.  Each curve records its
+mass (``robot_mass_kg``; ``mass_rule`` says how in the leg-count sweep).
 """
 
 from __future__ import annotations
@@ -57,6 +66,10 @@ class SweepSpec:
     duty_factor: float = 0.5
     step_length_m: float = 0.10
     step_height_m: float = 0.04
+    #: when set, the robot's given mass is that of a robot with this many legs: the curve keeps
+    #: its body and carries ``leg_count`` legs, ``M + (leg_count - mass_reference_legs) m_leg``
+    #: (the leg-count sweep); None: the given mass whatever ``leg_count``
+    mass_reference_legs: int | None = None
 
 
 def standard_sweeps(leg_count: int = 6) -> dict[str, tuple[SweepSpec, ...]]:
@@ -66,7 +79,8 @@ def standard_sweeps(leg_count: int = 6) -> dict[str, tuple[SweepSpec, ...]]:
     type (3C: the alternating gait at beta 0.5, the wave gait at its typical duty factor, 1 - 1/n
     (the paper's 0.83 for 6 legs), and at 0.5) at ``leg_count`` legs, the alternating gait being
     ``tripod`` for 6 legs; leg count (3D): the alternating gait on 4, 6 and 8 legs, beta 0.5,
-    100 mm, whatever ``leg_count``.
+    100 mm, whatever ``leg_count``, each curve with the body of the ``leg_count``-legged robot
+    and its own legs (:attr:`SweepSpec.mass_reference_legs`, module docstring).
     """
     n = int(leg_count)
     alt = 'tripod' if n == 6 else 'alternating'
@@ -85,7 +99,8 @@ def standard_sweeps(leg_count: int = 6) -> dict[str, tuple[SweepSpec, ...]]:
             SweepSpec('wave beta 0.5', 'wave', n, 0.5),
         ),
         'leg_count': tuple(
-            SweepSpec(f'{k} legs', 'alternating', k, 0.5) for k in (4, 6, 8)
+            SweepSpec(f'{k} legs', 'alternating', k, 0.5, mass_reference_legs=n)
+            for k in (4, 6, 8)
         ),
     }
 
@@ -104,7 +119,8 @@ class SweepCurve:
     spec : SweepSpec
     speeds_mps : (k,)
     payloads_kg : (m,)
-    mass_kg : (m,)          total robot mass per payload [kg]
+    mass_kg : (m,)          total robot mass per payload [kg] (this curve's robot: see
+                            :attr:`SweepSpec.mass_reference_legs`)
     power_in_w, power_out_w, efficiency, cot_per_mass, specific_resistance : (k, m)
         ``cot_per_mass`` = CoT/M [J/(m kg)].
     outside_bench : (k, m) bool, optional
@@ -123,6 +139,12 @@ class SweepCurve:
     specific_resistance: np.ndarray
     outside_bench: np.ndarray | None = None
     outside_reasons: tuple[str, ...] = ()
+    mass_rule: str = ''   # how the mass was set (the leg-count sweep's body + legs), else ''
+
+    @property
+    def robot_mass_kg(self) -> float:
+        """This curve's robot mass without payload [kg]."""
+        return float(self.mass_kg[0] - self.payloads_kg[0])
 
     def optimal_points(self, payload_index: int = 0) -> dict[str, dict[str, float]]:
         """Operating points at one payload: ``max_power_out``, ``min_cot_per_mass``,
@@ -152,6 +174,9 @@ class SweepCurve:
             'leg_count': self.spec.leg_count,
             'duty_factor': self.spec.duty_factor,
             'step_length_m': self.spec.step_length_m,
+            'robot_mass_kg': self.robot_mass_kg,
+            'mass_kg': self.mass_kg.tolist(),
+            'mass_rule': self.mass_rule,
             'speeds_mps': self.speeds_mps.tolist(),
             'payloads_kg': self.payloads_kg.tolist(),
             'power_in_w': self.power_in_w.tolist(),
@@ -182,7 +207,9 @@ def sweep_curve(
     """Evaluate one configuration over speeds up to its maximum and over payloads.
 
     ``load_offset_kg`` is passed to :func:`predict_power_in_w` (bench load = m_c - offset);
-    ``limits`` (default AntBot's servos') set the maximum speed.
+    ``limits`` (default AntBot's servos') set the maximum speed.  The robot's mass is
+    ``output_power.robot.mass_kg``, or with ``spec.mass_reference_legs`` set that robot's
+    body with ``spec.leg_count`` legs (module docstring).
 
     Raises
     ------
@@ -196,11 +223,20 @@ def sweep_curve(
     from hexapod_gait.gait import make_gait
 
     lim = ANTBOT_LIMITS if limits is None else limits
-    legs_kg = spec.leg_count * output_power.robot.leg_mass_kg
-    if output_power.robot.mass_kg <= legs_kg:
+    m_leg = output_power.robot.leg_mass_kg
+    legs_kg = spec.leg_count * m_leg
+    given = robot_kg = float(output_power.robot.mass_kg)
+    rule = ''
+    if spec.mass_reference_legs is not None:
+        n_ref = int(spec.mass_reference_legs)
+        body = given - n_ref * m_leg
+        robot_kg = body + legs_kg
+        rule = (f'body {body:.4g} kg (the {given:.4g} kg {n_ref}-legged robot less its legs) '
+                f'+ {spec.leg_count} legs x {m_leg:.4g} kg = {robot_kg:.4g} kg')
+    if robot_kg <= legs_kg:
         raise InvalidInputError(
-            f'{spec.label}: robot mass {output_power.robot.mass_kg:.4g} kg <= {spec.leg_count} '
-            f'legs x {output_power.robot.leg_mass_kg:.4g} kg = {legs_kg:.4g} kg')
+            f'{spec.label}: robot mass {robot_kg:.4g} kg <= {spec.leg_count} '
+            f'legs x {m_leg:.4g} kg = {legs_kg:.4g} kg')
     v_max = max_speed_mps(spec.duty_factor, spec.step_length_m, lim)
     if v_max <= min_speed_mps:
         raise InvalidInputError(
@@ -215,7 +251,7 @@ def sweep_curve(
         step_height_m=spec.step_height_m,
     )
     payloads = np.asarray(payloads_kg, dtype=float)
-    mass = output_power.robot.mass_kg + payloads
+    mass = robot_kg + payloads
     p_in = np.stack(
         [
             np.asarray(predict_power_in_w(phase_power, gait, total_mass_kg=float(m),
@@ -231,14 +267,16 @@ def sweep_curve(
                                  load_offset_kg=load_offset_kg) for m in mass]
     outside = np.array([[bool(c[i]) for c in checks] for i in range(periods.size)])
     reasons = tuple(dict.fromkeys(r for c in checks for rs in c for r in rs))
-    p_out = np.asarray(output_power.power_out_w(gait, payload_kg=payloads, periods_s=periods))
+    # Eq. 6 depends on the total mass only: a heavier robot is the model's robot with more payload
+    p_out = np.asarray(output_power.power_out_w(
+        gait, payload_kg=mass - output_power.robot.mass_kg, periods_s=periods))
     v = speeds[:, None]
     with np.errstate(divide='ignore', invalid='ignore'):
         eff = p_out / p_in
         cot_m = (p_in - p_out) / (mass[None, :] * v)
         sr = p_in / (mass[None, :] * G_MPS2 * v)
     return SweepCurve(spec, speeds, payloads, mass, p_in, p_out, eff, cot_m, sr, outside,
-                      _summarise_reasons(reasons))
+                      _summarise_reasons(reasons), rule)
 
 
 def _summarise_reasons(reasons: Sequence[str]) -> tuple[str, ...]:

@@ -1,0 +1,91 @@
+"""Outside review of the sweeps and their plots: the leg-count sweep's robot mass (body + its
+own legs, as the authors' code) and the payload bands drawn against ``outside_bench``."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from hexapod_energy.plots import four_quadrant_figure
+from hexapod_energy.prediction import OutputPowerModel
+from hexapod_energy.sweeps import run_standard_sweeps, standard_sweeps
+
+
+class Phase:
+    """Basal 1.9 W per leg plus rate- and load-dependent parts (test_energy_sweeps)."""
+
+    def p_stance_w(self, t, m):
+        f = 1 / np.asarray(t)
+        return 1.9 + 0.45 * f + 0.05 * f**2 + 2.0 * np.asarray(m) * (1 + 0.2 * f)
+
+    def p_swing_w(self, t, m):
+        f = 1 / np.asarray(t)
+        return 1.9 + 0.5 * f + 0.06 * f**2 + 0 * np.asarray(m)
+
+
+class StubTrajectory:
+    def __init__(self, gait, leg_index, **_kw):
+        self.s = gait.step_length_m / 0.1
+
+    def joints(self, t):
+        t = np.asarray(t, float)[:, None]
+        w = 2 * np.pi
+        a = np.array([0.3, 0.25, -0.35]) * self.s
+        q0 = np.array([0.0, 0.3, -1.6])
+        return q0 + a * np.sin(w * t), a * w * np.cos(w * t), -a * w**2 * np.sin(w * t)
+
+
+@pytest.fixture(scope='module')
+def opm() -> OutputPowerModel:
+    return OutputPowerModel(trajectory_factory=StubTrajectory, n_samples=64)
+
+
+def _legend_texts(fig) -> list[str]:
+    return [t.get_text() for lg in fig.legends for t in lg.get_texts()]
+
+
+@pytest.mark.parametrize('robot_legs', [6, 4])
+def test_leg_count_sweep_adds_the_legs_to_the_body(opm, robot_legs) -> None:
+    """Fig. 3D: robot_mass = body + N m_leg (the authors' p4_benchDataEstimation.m); it held
+    the given mass for 4, 6 and 8 legs. The given mass is the robot's with its own legs."""
+    m_leg, big_m = opm.robot.leg_mass_kg, opm.robot.mass_kg
+    specs = {'leg_count': standard_sweeps(robot_legs)['leg_count']}
+    curves = run_standard_sweeps(Phase(), opm, sweeps=specs, n_speeds=6)['leg_count']
+    body = big_m - robot_legs * m_leg
+    for c in curves:
+        k = c.spec.leg_count
+        assert c.robot_mass_kg == pytest.approx(body + k * m_leg)
+        assert_allclose(c.mass_kg, body + k * m_leg + c.payloads_kg)
+        # P_out and CoT/M of the heavier (lighter) robot, not of the given one
+        heavier = OutputPowerModel(
+            robot=type(opm.robot)(mass_kg=body + k * m_leg, leg=opm.robot.leg),
+            trajectory_factory=StubTrajectory, n_samples=64)
+        from hexapod_gait.gait import make_gait
+        gait = make_gait('alternating', leg_count=k, period_s=1.0)
+        periods = c.spec.step_length_m / (c.spec.duty_factor * c.speeds_mps)
+        assert_allclose(c.power_out_w, heavier.power_out_w(gait, payload_kg=c.payloads_kg,
+                                                           periods_s=periods), rtol=1e-9)
+        assert_allclose(c.cot_per_mass, (c.power_in_w - c.power_out_w)
+                        / (c.mass_kg[None, :] * c.speeds_mps[:, None]))
+        d = c.to_dict()
+        assert d['robot_mass_kg'] == pytest.approx(body + k * m_leg)
+        assert d['mass_rule'].startswith(f'body {body:.4g} kg')
+        if k == robot_legs:
+            assert c.robot_mass_kg == pytest.approx(big_m)   # the given mass, unchanged
+    assert len({round(c.robot_mass_kg, 6) for c in curves}) == 3
+    fig = four_quadrant_figure(curves)
+    texts = _legend_texts(fig)
+    for c in curves:
+        assert any(t.startswith(f'{c.spec.label}, {c.robot_mass_kg:.4g} kg') for t in texts)
+    assert f'body {body:.4g} kg' in fig._suptitle.get_text()
+    import matplotlib.pyplot as plt
+    plt.close(fig)
+
+
+def test_other_sweeps_keep_the_given_mass(opm) -> None:
+    specs = standard_sweeps(6)
+    curves = run_standard_sweeps(Phase(), opm, sweeps={'duty_factor': specs['duty_factor']},
+                                 n_speeds=4)['duty_factor']
+    assert all(c.robot_mass_kg == pytest.approx(opm.robot.mass_kg) for c in curves)
+    assert all(c.to_dict()['mass_rule'] == '' for c in curves)
