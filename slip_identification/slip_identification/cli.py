@@ -106,8 +106,13 @@ def read_run(path: str | Path) -> RunData:
     ``[0, 2 pi)`` are unwrapped per joint, and positions without any velocities give
     central-difference speeds (each noted).
     """
-    from hexapod_common.bags import duplicates_note, iter_messages, open_reader
-    from hexapod_common.battery import prepare_battery_samples
+    from hexapod_common.bags import (
+        SampleColumns,
+        duplicates_note,
+        iter_messages,
+        open_reader,
+        prepare_battery_columns,
+    )
     from hexapod_common.clocks import ClockCheck
     from hexapod_common.conversions import (
         battery_from_msg,
@@ -116,10 +121,8 @@ def read_run(path: str | Path) -> RunData:
         pose_from_msg,
     )
 
-    js: list[Any] = []
-    jc: list[Any] = []
-    mo: list[Any] = []
-    bt: list[Any] = []
+    # every sample kept as compact columns, not as objects (a 30 min EduBot bag took 745 MB)
+    js, jc, mo, bt = SampleColumns(), SampleColumns(), SampleColumns(), SampleColumns()
     gait = 'unknown'
     changes: list[tuple[float, str]] = []
     zero: dict[str, int] = {}
@@ -170,20 +173,19 @@ def read_run(path: str | Path) -> RunData:
     notes.extend(clock_notes)
     for topic, dt in shifts.items():
         if topic in streams:
-            lst = streams[topic][0]
-            lst[:] = [dataclasses.replace(x, t_s=x.t_s + dt) for x in lst]
+            streams[topic][0].shift('t_s', dt)
     notes += [f'{n} {t} message(s) dropped (bad or NaN fields)'
               for t, n in sorted(dropped.items())]
     try:
-        bt, battery_notes = prepare_battery_samples(bt)
+        bt, battery_notes = prepare_battery_columns(bt)
         notes.extend(battery_notes)
     except ValueError as err:   # no power measured, or --battery-source not in this bag
         notes.append(str(err))
-        bt = []
-    if not bt:
+        bt = SampleColumns()
+    if not len(bt):
         notes.append('no usable /battery_state message (absent, or NaN voltage/current): the '
                      "run's power and specific resistance are null")
-    if not js:
+    if not len(js):
         raise MissingTopicError(f'bag {path}: /joint_states has no usable message')
     try:
         joints = assemble_joint_frames(js)
@@ -204,17 +206,15 @@ def read_run(path: str | Path) -> RunData:
         notes.append(f'{", ".join(flipped)} turn backwards over the run (net rotation below '
                      '-pi: motors mounted mirrored?): their angles, speeds, efforts and commanded '
                      f'speeds are negated (online: slip_fitter -p hip_signs:={online})')
-    if not jc:
+    if not len(jc):
         command_t_s, command_velocity = np.zeros(0), np.zeros((0, len(names)))
         notes.append('no usable /joint_commands (the Buehler clock\'s target speeds): the '
                      "paper's shifted-clock edges are not available, stance edges from the "
                      'leg geometry only')
-    elif all(len(s.names) == len(names) and set(s.names) == set(names) for s in jc):
+    elif all(len(g) == len(names) and set(g) == set(names) for g in jc.distinct('names')):
         # drivers need not keep one name order: every sample is put in the joints' order
-        jc = [r for r in (_in_order(s, names) for s in jc) if r.velocity.size == len(names)]
-        command_t_s = np.array([s.t_s for s in jc])
-        command_velocity = np.array([s.velocity for s in jc])
-    elif jc:  # commands split over several messages too
+        command_t_s, command_velocity = _commands_in_order(jc, names)
+    elif len(jc):  # commands split over several messages too
         try:
             cmd = assemble_joint_frames(jc, required=names)
         except SlipDataError as err:
@@ -231,14 +231,45 @@ def read_run(path: str | Path) -> RunData:
     return RunData(
         joint_names=names, joint_t_s=joints.t_s, joint_velocity=joints.velocity,
         command_t_s=command_t_s, command_velocity=command_velocity,
-        mocap_t_s=np.array([s.t_s for s in mo]),
-        mocap_position_m=np.array([s.position_m for s in mo]),
-        mocap_quat_xyzw=np.array([s.orientation_xyzw for s in mo]),
-        battery_t_s=np.array([s.t_s for s in bt]),
-        battery_voltage_v=np.array([s.voltage_v for s in bt]),
-        battery_current_a=np.array([s.current_a for s in bt]), gait=gait, label=str(path),
+        mocap_t_s=_rows(mo, 't_s'), mocap_position_m=_rows(mo, 'position_m'),
+        mocap_quat_xyzw=_rows(mo, 'orientation_xyzw'), battery_t_s=_rows(bt, 't_s'),
+        battery_voltage_v=_rows(bt, 'voltage_v'),
+        battery_current_a=_rows(bt, 'current_a'), gait=gait, label=str(path),
         joint_effort=joints.effort, joint_position=joints.position,
         notes=tuple(notes), gait_changes=tuple(changes))
+
+
+def _rows(samples: Any, name: str) -> np.ndarray:
+    """``np.array([getattr(s, name) for s in samples])`` from a :class:`SampleColumns`
+    without rebuilding its samples (a number field's column; an array field's rows)."""
+    if not len(samples):
+        return np.array([])
+    value = getattr(samples[0], name)
+    if isinstance(value, np.ndarray):
+        stacked = samples.stacked(name)
+        if stacked is not None:
+            return np.array(stacked)
+    elif isinstance(value, float):
+        column = samples.column(name)
+        if isinstance(column, np.ndarray):
+            return np.array(column)
+    return np.array([getattr(s, name) for s in samples])
+
+
+def _commands_in_order(samples: Any, names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """Stamps and commanded velocities of the ``/joint_commands`` samples (each naming the
+    joints of ``names`` in some order) in the order of ``names``; samples without a velocity
+    per joint are left out."""
+    t_s: list[float] = []
+    velocity = np.empty((len(samples), len(names)))
+    for s in samples:
+        r = _in_order(s, names)
+        if r.velocity.size == len(names):
+            velocity[len(t_s)] = r.velocity
+            t_s.append(r.t_s)
+    if not t_s:
+        return np.array([]), np.array([])
+    return np.array(t_s), velocity[:len(t_s)].copy()
 
 
 def _in_order(sample: Any, names: tuple[str, ...]) -> Any:
