@@ -10,10 +10,12 @@ III: CoT/M vs eta     IV: CoT/M vs v
 ====================  ====================
 
 Each curve is drawn at the nominal payload (first of its band, solid) with the payload band
-(e.g. 0-500 g) shaded, dotted where Eq. 1 extrapolates the bench (the axes fit the points the
-bench covers); optimal points marked by shape, drawn so that coinciding ones stay visible:
-large hollow circle maximum P_out, hollow square minimum CoT/M, small filled triangle maximum
-efficiency.  The subtitle gives the robot mass and the parameters the curves share.  Uses the
+(e.g. 0-500 g) shaded, the curve dotted and the band hatched (lighter) where Eq. 1 extrapolates
+the bench (``outside_bench``; the axes fit the points the bench covers); optimal points marked
+by shape, drawn so that coinciding ones stay visible: large hollow circle maximum P_out, hollow
+square minimum CoT/M, small filled triangle maximum efficiency.  The subtitle gives the robot
+mass (the leg-count sweep: its body and leg mass, each curve's mass in the legend) and the
+parameters the curves share.  Uses the
 non-interactive Agg backend; writes PNG and SVG.
 """
 
@@ -45,12 +47,60 @@ OPTIMUM_MARKERS = {
 }
 
 
-def _band(ax: Any, x: np.ndarray, y: np.ndarray, color: str) -> None:
-    """Shade between the first and last payload columns of (k, m) arrays."""
-    xs = np.concatenate([x[:, 0], x[::-1, -1]])
-    ys = np.concatenate([y[:, 0], y[::-1, -1]])
-    ok = np.isfinite(xs) & np.isfinite(ys)
-    ax.fill(xs[ok], ys[ok], color=color, alpha=0.18, linewidth=0)
+#: the payload band: solid shade where the bench covers it, hatched and lighter where Eq. 1
+#: extrapolates (``outside_bench``)
+BAND_ALPHA = 0.18
+EXTRAPOLATED_BAND = {'alpha': 0.07, 'hatch': '////'}
+
+
+def _band_split(outside: np.ndarray) -> np.ndarray:
+    """Per speed interval ``i`` (speeds ``i`` and ``i + 1``) of a (k, m) ``outside_bench``
+    mask, the last payload column up to which the band is on the bench: every column from
+    the first to it is inside at both speeds; -1 when the first column is not (the whole
+    band there is extrapolated), ``m - 1`` when the whole band is on the bench."""
+    both = ~(outside[:-1] | outside[1:])                     # (k - 1, m)
+    return np.cumprod(both, axis=1).sum(axis=1) - 1
+
+
+def _band(ax: Any, x: np.ndarray, y: np.ndarray, color: str,
+          outside: np.ndarray | None = None) -> tuple[bool, bool]:
+    """Shade between the first and last payload columns of (k, m) arrays: solid where the
+    bench covers the payloads (every column from the first inside at both ends of a speed
+    interval), hatched and lighter above that column, i.e. where Eq. 1 extrapolates.
+
+    Returns whether an in-bench part and an extrapolated part were drawn."""
+    k, m = x.shape
+    split = np.full(max(k - 1, 0), m - 1) if outside is None else _band_split(outside)
+    drawn = [False, False]
+
+    def fill(i0: int, i1: int, lo: int, hi: int, extrapolated: bool) -> None:
+        # speeds i0..i1 (inclusive) between payload columns lo and hi
+        xs = np.concatenate([x[i0:i1 + 1, lo], x[i0:i1 + 1, hi][::-1]])
+        ys = np.concatenate([y[i0:i1 + 1, lo], y[i0:i1 + 1, hi][::-1]])
+        ok = np.isfinite(xs) & np.isfinite(ys)
+        if ok.sum() < 3:
+            return
+        drawn[int(extrapolated)] = True
+        if extrapolated:
+            ax.fill(xs[ok], ys[ok], facecolor=color, alpha=EXTRAPOLATED_BAND['alpha'],
+                    linewidth=0)
+            # the hatch in the curve's colour, its own patch: alpha would fade it away
+            ax.fill(xs[ok], ys[ok], facecolor='none', edgecolor=color, linewidth=0,
+                    hatch=EXTRAPOLATED_BAND['hatch'], alpha=0.45)
+        else:
+            ax.fill(xs[ok], ys[ok], color=color, alpha=BAND_ALPHA, linewidth=0)
+
+    start = 0
+    for i in range(1, split.size + 1):
+        if i < split.size and split[i] == split[start]:
+            continue
+        j = int(split[start])                       # one run of speed intervals start..i-1
+        if j > 0:
+            fill(start, i, 0, j, False)
+        if j < m - 1:
+            fill(start, i, max(j, 0), m - 1, True)
+        start = i
+    return drawn[0], drawn[1]
 
 
 def _fixed_parameters(curves: Sequence[SweepCurve]) -> str:
@@ -59,7 +109,7 @@ def _fixed_parameters(curves: Sequence[SweepCurve]) -> str:
     parts = []
     masses = {round(c.robot_mass_kg, 9) for c in curves}
     if len(masses) == 1:
-        parts.append(f'robot {masses.pop():.4g} kg')
+        parts.append(f'robot {masses.pop():.3g} kg')
     elif len({s.leg_count for s in specs}) > 1 and \
             all(s.mass_reference_legs is not None for s in specs):
         # the leg-count sweep: one body, each curve its own legs (masses in the legend)
@@ -120,7 +170,7 @@ def four_quadrant_figure(curves: Sequence[SweepCurve], *, title: str = '',
     colors = plt.rcParams['axes.prop_cycle'].by_key()['color']
     inside_pout: list[np.ndarray] = []
     inside_cot: list[np.ndarray] = []
-    any_out = clipped = False
+    any_out = clipped = band_in = band_out = False
     masses = {round(c.robot_mass_kg, 9) for c in curves}   # several: each label says its own
     for c, curve in enumerate(curves):
         col = colors[c % len(colors)]
@@ -151,7 +201,8 @@ def four_quadrant_figure(curves: Sequence[SweepCurve], *, title: str = '',
         if same:
             label += f' (= {same})'
         for ax, x, y in ((ax1, v, p_out), (ax2, eta, p_out), (ax3, eta, cot), (ax4, v, cot)):
-            _band(ax, x, y, col)
+            drew_in, drew_out = _band(ax, x, y, col, out_all)
+            band_in, band_out = band_in or drew_in, band_out or drew_out
             # solid where the bench's sessions cover the point, dotted where Eq. 1 extrapolates
             inside = np.where(out, np.nan, y[:, 0])
             ax.plot(x[:, 0], inside, style, color=col, lw=1.5 if same else 2.5,
@@ -169,8 +220,15 @@ def four_quadrant_figure(curves: Sequence[SweepCurve], *, title: str = '',
                         mfc='k' if filled else 'none', zorder=5, gid=key)
     payloads = curves[0].payloads_kg if curves else np.zeros(1)
     lo_g, hi_g = 1000 * float(payloads[0]), 1000 * float(payloads[-1])
-    extra = [Line2D([], [], color='0.3', label=f'solid: {lo_g:.0f} g payload'),
-             Patch(color='0.3', alpha=0.18, label=f'band: payload {lo_g:.0f}-{hi_g:.0f} g')]
+    band = f'band: payload {lo_g:.0f}-{hi_g:.0f} g'
+    extra = [Line2D([], [], color='0.3', label=f'solid: {lo_g:.0f} g payload')]
+    if band_in or not band_out:
+        extra.append(Patch(color='0.3', alpha=BAND_ALPHA, label=band))
+    if band_out:
+        extra.append(Patch(facecolor=(0.3, 0.3, 0.3, EXTRAPOLATED_BAND['alpha']),
+                           edgecolor='0.45', linewidth=0, hatch=EXTRAPOLATED_BAND['hatch'],
+                           label=('hatched: ' if band_in else f'{band}, hatched: ')
+                           + 'extrapolated beyond the bench'))
     if any_out:
         extra.append(Line2D([], [], ls=':', color='0.3',
                             label='dotted: outside the bench (Eq. 1 extrapolated)'))
@@ -265,9 +323,13 @@ def power_map_plot(
 def prediction_figure(
     speeds_mps: Sequence[float], measured_w: Sequence[float], predicted_w: Sequence[float],
     *, labels: Sequence[str] | None = None, title: str = '',
+    outside: Sequence[bool] | None = None,
 ) -> Any:
     """Predicted against measured robot input power, one labelled point per run, the 1:1
-    line, the RMSE in the title; equal axes padded so that one run still reads."""
+    line, the RMSE in the title; equal axes padded so that one run still reads.  Runs whose
+    prediction extrapolates the bench (``outside``, true per run: energy.json
+    ``prediction_outside_bench`` not empty) are ringed with a dotted circle, named in the
+    legend."""
     meas = np.asarray(measured_w, dtype=float)
     pred = np.asarray(predicted_w, dtype=float)
     speeds = np.asarray(speeds_mps, dtype=float)
@@ -285,6 +347,11 @@ def prediction_figure(
     ax.plot(lim, [1.1 * x for x in lim], ':', color='0.6', lw=1, label='\u00b110 %')
     ax.plot(lim, [0.9 * x for x in lim], ':', color='0.6', lw=1)
     sc = ax.scatter(meas, pred, c=speeds, cmap='viridis', s=40, zorder=3, edgecolor='k')
+    far = np.zeros(meas.size, bool) if outside is None else np.asarray(outside, bool) & ok
+    if far.any():
+        ax.scatter(meas[far], pred[far], s=190, facecolors='none', edgecolors='crimson',
+                   linestyles=':', linewidths=1.5, zorder=4,
+                   label='Eq. 1 extrapolated beyond the bench')
     if np.unique(speeds[np.isfinite(speeds)]).size > 1:     # one speed: the labels say it
         fig.colorbar(sc, ax=ax, label='speed v [m/s]')
     for x, y, v, name in zip(meas, pred, speeds, names):
@@ -311,11 +378,12 @@ def prediction_figure(
 def prediction_plot(
     speeds_mps: Sequence[float], measured_w: Sequence[float], predicted_w: Sequence[float],
     out_stem: str | Path, *, labels: Sequence[str] | None = None, title: str = '',
+    outside: Sequence[bool] | None = None,
 ) -> list[Path]:
     """Measured against predicted robot input power per run (:func:`prediction_figure`);
     returns the PNG and SVG paths."""
     return _save(prediction_figure(speeds_mps, measured_w, predicted_w, labels=labels,
-                                   title=title), out_stem)
+                                   title=title, outside=outside), out_stem)
 
 
 def measured_runs_plot(labels: Sequence[str], power_in_w: Sequence[float],

@@ -89,3 +89,82 @@ def test_other_sweeps_keep_the_given_mass(opm) -> None:
                                  n_speeds=4)['duty_factor']
     assert all(c.robot_mass_kg == pytest.approx(opm.robot.mass_kg) for c in curves)
     assert all(c.to_dict()['mass_rule'] == '' for c in curves)
+
+
+def _patches(ax):
+    """(hatched, solid) fill polygons of the band on ``ax``: their vertices."""
+    hatched, solid = [], []
+    for p in ax.patches:
+        verts = p.get_path().vertices
+        if p.get_hatch():
+            hatched.append(verts)
+        elif p.get_facecolor()[3] > 0.1:
+            solid.append(verts)
+    return hatched, solid
+
+
+def test_payload_band_is_hatched_where_it_is_extrapolated() -> None:
+    """The band was one solid shade although every tripod payload above 0 g lay outside the
+    bench (``outside_bench``): the part above the last in-bench payload is now hatched."""
+    import matplotlib.pyplot as plt
+
+    from hexapod_energy.sweeps import SweepCurve, SweepSpec
+
+    k, m = 6, 3
+    v = np.linspace(0.1, 0.6, k)
+    pay = np.array([0.0, 0.25, 0.5])
+    p_out = 0.5 + v[:, None] * (1 + pay[None, :])
+    p_in = 20.0 + 10 * v[:, None] + 5 * pay[None, :]
+    mass = 2.0 + pay
+    out = np.zeros((k, m), bool)
+    out[3:, 1:] = True            # the payloads beyond 0 g leave the bench from the 4th speed
+    curve = SweepCurve(SweepSpec('c'), v, pay, mass, p_in, p_out, p_out / p_in,
+                       (p_in - p_out) / (mass * v[:, None]), p_in / (mass * 9.81 * v[:, None]),
+                       out)
+    fig = four_quadrant_figure([curve])
+    ax4 = fig.axes[3]                                  # CoT/M vs speed
+    hatched, solid = _patches(ax4)
+    assert hatched and solid
+    # the solid band spans the speeds where every payload is on the bench, the hatched one
+    # the rest; neither reaches into the other
+    assert max(vs[:, 0].max() for vs in solid) == pytest.approx(v[2])
+    assert min(vs[:, 0].min() for vs in hatched) == pytest.approx(v[2])
+    assert max(vs[:, 0].max() for vs in hatched) == pytest.approx(v[-1])
+    assert any('extrapolated beyond the bench' in t for t in _legend_texts(fig))
+    plt.close(fig)
+    # all on the bench: one solid band, no hatch, no legend entry
+    inside = SweepCurve(curve.spec, v, pay, mass, p_in, p_out, curve.efficiency,
+                        curve.cot_per_mass, curve.specific_resistance, np.zeros((k, m), bool))
+    fig = four_quadrant_figure([inside])
+    hatched, solid = _patches(fig.axes[3])
+    assert not hatched and len(solid) == 1
+    assert not any('extrapolated beyond' in t for t in _legend_texts(fig))
+    plt.close(fig)
+    # the nominal payload outside too: the whole band there is hatched
+    out2 = np.zeros((k, m), bool)
+    out2[:2] = True
+    outer = SweepCurve(curve.spec, v, pay, mass, p_in, p_out, curve.efficiency,
+                       curve.cot_per_mass, curve.specific_resistance, out2)
+    fig = four_quadrant_figure([outer])
+    hatched, solid = _patches(fig.axes[3])
+    assert max(vs[:, 0].max() for vs in hatched) == pytest.approx(v[2])
+    assert min(vs[:, 0].min() for vs in solid) == pytest.approx(v[2])
+    plt.close(fig)
+
+
+def test_prediction_plot_rings_extrapolated_runs() -> None:
+    import matplotlib.pyplot as plt
+
+    from hexapod_energy.plots import prediction_figure
+
+    fig = prediction_figure([0.1, 0.3, 0.9], [20.0, 30.0, 90.0], [21.0, 29.0, 70.0],
+                            labels=['a', 'b', 'c'], outside=[False, False, True])
+    ax = fig.axes[0]
+    texts = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert 'Eq. 1 extrapolated beyond the bench' in texts
+    rings = [c for c in ax.collections if c.get_label() == 'Eq. 1 extrapolated beyond the bench']
+    assert len(rings) == 1 and rings[0].get_offsets().tolist() == [[90.0, 70.0]]
+    plt.close(fig)
+    fig = prediction_figure([0.1], [20.0], [21.0])
+    assert not any('extrapolated' in t.get_text() for t in fig.axes[0].get_legend().get_texts())
+    plt.close(fig)
