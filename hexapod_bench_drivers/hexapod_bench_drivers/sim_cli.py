@@ -4,6 +4,12 @@ Examples::
 
     hexapod-sim robot --out run1 --duration 30 --speed 0.6 --effect basal_power=3
     hexapod-sim robot --out stand --duration 10 --period 0
+    hexapod-sim robot --out fast --speed 0.9 --allow-infeasible   # beyond the servo limits
+
+``robot`` refuses (exit 2) a gait the project calls infeasible: a phase shorter than AntBot's
+servo limits allow (swing 0.16 s, stance 0.15 s, 3 Hz; ``hexapod_gait.feasibility``) or a part
+of the cycle with no leg on the ground (L(t) = 0); ``--allow-infeasible`` simulates it anyway,
+with a warning on stderr.
     hexapod-sim bench --out plan --loads 0,0.095,0.515 --frequencies 0,1,3 --duration 20
 
 Prints one JSON line per bag: robot and bench the bag path, message counts and the effects that
@@ -72,6 +78,10 @@ def build_parser() -> argparse.ArgumentParser:
     robot.add_argument('--legs', type=int, default=6, help='leg count (4, 6, 8)')
     robot.add_argument('--payload', type=float, default=0.0, help='[kg]')
     robot.add_argument('--battery', action='store_true', help='3S LiPo instead of a 11.9 V supply')
+    robot.add_argument('--allow-infeasible', action='store_true',
+                       help='simulate a gait beyond the servo limits (swing >= 0.16 s, stance '
+                            '>= 0.15 s, <= 3 Hz) or with no leg on the ground at some phase; '
+                            'refused (exit 2) without it')
     robot.set_defaults(func=_run_robot)
 
     bench = sub.add_parser('bench', help='single leg on the MiMiC-Ant bench, a plan of sessions')
@@ -136,6 +146,27 @@ def _finish(args: argparse.Namespace, trace: Any, effects: Any, t0: float) -> in
     return 0
 
 
+def _infeasible(gait: Any) -> list[str]:
+    """Why the project calls ``gait`` infeasible: AntBot's servo limits
+    (``hexapod_gait.feasibility``) and phases with no leg on the ground (L(t) = 0); empty
+    when it is not (or when standing, ``gait`` None)."""
+    if gait is None:
+        return []
+    import numpy as np
+    from hexapod_gait.feasibility import ANTBOT_LIMITS, feasibility_violations
+
+    lim = ANTBOT_LIMITS
+    out = feasibility_violations(gait, lim)
+    if out:
+        out[-1] += (f" (AntBot's servo limits: swing >= {lim.min_swing_s:g} s, stance >= "
+                    f'{lim.min_stance_s:g} s, <= {lim.max_step_frequency_hz:g} Hz)')
+    bp, supporting = gait.support_profile()
+    airborne = float(np.diff(np.append(np.asarray(bp, float), 1.0))[supporting == 0].sum())
+    if airborne > 1e-9:
+        out.append(f'no leg on the ground {100 * airborne:.0f} % of the cycle (L(t) = 0)')
+    return out
+
+
 def _run_robot(args: argparse.Namespace) -> int:
     from .robot_sim import RobotConfig, RobotSimulator
     effects = parse_effects(args.effect, simulator='robot')
@@ -146,6 +177,17 @@ def _run_robot(args: argparse.Namespace) -> int:
                          payload_kg=args.payload,
                          supply='battery' if args.battery else 'supply', servo=args.servo,
                          rate_hz=args.rate)
+    gait = config.gait_pattern()
+    why = _infeasible(gait)
+    if why:
+        what = (f'{gait.name} gait, duty factor {gait.duty_factor:g}, period '
+                f'{gait.period_s:.4g} s, {gait.leg_count} legs')
+        if not getattr(args, 'allow_infeasible', False):
+            print(f'hexapod-sim robot: error: infeasible {what}: ' + '; '.join(why)
+                  + ' (--allow-infeasible simulates it anyway)', file=sys.stderr)
+            return 2
+        print(f'hexapod-sim robot: warning: simulating an infeasible {what} '
+              '(--allow-infeasible): ' + '; '.join(why), file=sys.stderr)
     t0 = time.perf_counter()
     sim = RobotSimulator(config, effects=effects, seed=args.seed)
     progress = _Progress(int(args.duration * args.rate), 'robot', not args.no_progress)

@@ -445,6 +445,12 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                         p_model = float(opm.power_out_w(gait, payload_kg=payload))
                     except (ValueError, ImportError) as err:
                         doc.setdefault('warnings', []).append(f'{path}: no P_out model: {err}')
+                if gait is not None:  # a schedule the robot cannot walk (--limits, L(t) = 0)
+                    from hexapod_energy.recommend import infeasible_schedule
+                    bad = infeasible_schedule(gait, limits)
+                    if bad:
+                        notes.insert(0, 'infeasible schedule, not a gait the robot can '
+                                        'walk: ' + '; '.join(bad))
                 for note in notes:
                     doc.setdefault('warnings', []).append(f'{path}: {note}')
                 effort_ok = math.isfinite(run_.power_out_w) and args.power_out != 'model'

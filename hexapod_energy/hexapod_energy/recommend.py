@@ -33,7 +33,8 @@ from hexapod_energy.prediction import (
     predict_power_in_w,
 )
 
-__all__ = ['Candidate', 'Recommendation', 'default_gait_name', 'recommend_gait']
+__all__ = ['Candidate', 'Recommendation', 'default_gait_name', 'infeasible_schedule',
+           'recommend_gait']
 
 
 @dataclass(frozen=True)
@@ -85,6 +86,30 @@ class Recommendation:
             'evaluated': self.evaluated,
             'rejected': self.rejected,
         }
+
+
+def infeasible_schedule(gait: Any, limits: Any | None = None) -> list[str]:
+    """Why a walked schedule is not one the robot can walk (empty when it can): the actuator
+    limits it violates (:func:`hexapod_gait.feasibility.feasibility_violations`; default
+    AntBot's servo limits) and phases of the cycle with no leg on the ground (``L(t) = 0``:
+    the body falls).  The checks :func:`recommend_gait` applies to its candidates, for a robot
+    run's schedule: its measured descriptors are those of a gait the project calls
+    infeasible (a wave at duty factor 0.1 gave CoT/M 29.0 J/(m kg), better than any feasible
+    gait).  Standing (period 0) and clock-driven schedules (a RHex's Buehler clock: step
+    length 0, rotating legs that may run with a flight phase) are not checked."""
+    from hexapod_gait.feasibility import ANTBOT_LIMITS, feasibility_violations
+
+    if not (gait.period_s > 0 and gait.step_length_m > 0) or gait.name == 'buehler':
+        return []
+    lim = ANTBOT_LIMITS if limits is None else limits
+    out = list(feasibility_violations(gait, lim))
+    bp, supporting = gait.support_profile()
+    widths = np.diff(np.append(np.asarray(bp, float), 1.0))
+    airborne = float(widths[np.asarray(supporting) == 0].sum())
+    if airborne > 1e-9:
+        out.append(f'no leg on the ground {100 * airborne:.0f} % of the cycle (L(t) = 0; '
+                   f'{gait.name}, duty factor {gait.duty_factor:.4g}, {gait.leg_count} legs)')
+    return out
 
 
 def default_gait_name(leg_count: int) -> str:

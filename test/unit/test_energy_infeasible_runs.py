@@ -1,0 +1,85 @@
+"""Outside review: gaits the project calls infeasible (beyond the servo limits, or no leg on the
+ground at some phase) were simulated by ``hexapod-sim robot`` and analysed by
+``hexapod-analyze energy`` without a word (a wave at duty factor 0.1: CoT/M 29.0 J/(m kg),
+better than any feasible gait)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from hexapod_energy.recommend import infeasible_schedule
+
+
+def _gait(name, **kw):
+    from hexapod_gait.gait import make_gait
+    return make_gait(name, **kw)
+
+
+def test_infeasible_schedule_names_limits_and_airborne_phases() -> None:
+    from hexapod_gait.feasibility import ActuatorLimits
+
+    wave = infeasible_schedule(_gait('wave', duty_factor=0.1, period_s=1.0))
+    assert any('stance lasts 0.1 s < minimum 0.15 s' in w for w in wave)
+    assert any('no leg on the ground 40 % of the cycle' in w for w in wave)
+    # within the limits but airborne: still infeasible
+    slow = infeasible_schedule(_gait('wave', duty_factor=0.1, period_s=2.0))
+    assert len(slow) == 1 and 'L(t) = 0' in slow[0]
+    fast = infeasible_schedule(_gait('tripod', period_s=0.2222))
+    assert len(fast) == 3 and any('4.5 Hz > maximum 3 Hz' in w for w in fast)
+    assert infeasible_schedule(_gait('tripod', period_s=0.2222),
+                               ActuatorLimits(0.1, 0.1, 5.0)) == []
+    assert infeasible_schedule(_gait('tripod', period_s=1.0)) == []
+    assert infeasible_schedule(_gait('wave', duty_factor=1 / 6, period_s=1.2)) == []  # L = 1
+    # a RHex's clock (step length 0, flight phases when running) is not a stepping gait
+    assert infeasible_schedule(_gait('buehler', duty_factor=0.3, period_s=0.3)) == []
+
+
+def _sim(args, capsys):
+    from hexapod_bench_drivers.sim_cli import main as sim_main
+    rc = sim_main(['robot', '--duration', '2', '--no-progress', *args])
+    return rc, capsys.readouterr().err
+
+
+def test_sim_refuses_infeasible_gaits_unless_allowed(tmp_path, capsys) -> None:
+    rc, err = _sim(['--out', str(tmp_path / 'w'), '--gait', 'wave', '--duty-factor', '0.1'],
+                   capsys)
+    assert rc == 2 and not (tmp_path / 'w').exists()
+    assert 'infeasible' in err and 'L(t) = 0' in err and '--allow-infeasible' in err
+    rc, err = _sim(['--out', str(tmp_path / 'f'), '--speed', '0.9'], capsys)
+    assert rc == 2 and 'stance lasts 0.1111 s' in err and '4.5 Hz > maximum 3 Hz' in err
+    rc, err = _sim(['--out', str(tmp_path / 'f'), '--speed', '0.9', '--allow-infeasible'],
+                   capsys)
+    assert rc == 0 and (tmp_path / 'f').is_dir() and 'warning' in err and 'infeasible' in err
+    rc, err = _sim(['--out', str(tmp_path / 'ok'), '--speed', '0.6'], capsys)   # the limit
+    assert rc == 0 and 'infeasible' not in err
+
+
+def test_energy_warns_on_an_infeasible_robot_run(tmp_path, capsys) -> None:
+    from hexapod_energy.cli import main as energy_main
+
+    assert _sim(['--out', str(tmp_path / 'bad'), '--gait', 'wave', '--duty-factor', '0.1',
+                 '--period', '2', '--duration', '4', '--allow-infeasible'], capsys)[0] == 0
+    assert _sim(['--out', str(tmp_path / 'good'), '--duration', '4'], capsys)[0] == 0
+    out = tmp_path / 'e'
+    assert energy_main(['--robot', str(tmp_path / 'bad'), str(tmp_path / 'good'),
+                        '--robot-mass', '2.183', '--out', str(out), '--no-progress']) == 0
+    doc = json.loads((out / 'energy.json').read_text())
+    bad = [w for w in doc['warnings'] if 'infeasible schedule' in w]
+    assert len(bad) == 1 and 'bad' in bad[0] and 'L(t) = 0' in bad[0]
+    runs = {r['bag'].rsplit('/', 1)[-1]: r for r in doc['robot_runs']}
+    assert any('infeasible schedule' in n for n in runs['bad']['notes'])
+    assert not any('infeasible' in n for n in runs['good']['notes'])
+    # --limits are the robot's: loose enough limits leave only the airborne phase
+    out2 = tmp_path / 'e2'
+    assert energy_main(['--robot', str(tmp_path / 'bad'), '--robot-mass', '2.183',
+                        '--limits', '0.01', '0.01', '50', '--out', str(out2),
+                        '--no-progress']) == 0
+    doc2 = json.loads((out2 / 'energy.json').read_text())
+    (w,) = [w for w in doc2['warnings'] if 'infeasible schedule' in w]
+    assert 'L(t) = 0' in w and 'minimum' not in w
+
+
+if __name__ == '__main__':
+    raise SystemExit(pytest.main([__file__, '-q']))
