@@ -115,3 +115,33 @@ def test_single_tripod_parts_of_overlapping_stances():
     left = [s for s in st if s.tripod == 'left']
     assert len(left) == 1
     assert (left[0].touchdown_s, left[0].liftoff_s) == pytest.approx((0.2, 0.5))
+
+
+def test_clock_edges_from_100hz_commands_below_the_sample_spacing():
+    """An outside review: the paper's clock edges sat halfway between the two 100 Hz command
+    samples around each switch (up to 5 ms off; stance 160 or 170 ms for the clock's 162.5).
+    A steady clock's edges now come from every cycle's brackets together (a vernier): within
+    1 ms of the clock's own; a clock that changes speed keeps the sampled target."""
+    from slip_identification.stance import steady_clock
+
+    clock = BUEHLER_PRESETS['jogging']
+    tc = np.arange(0.0, 12.0, 0.01)
+    v = clock.target_speed(tc, 'left')
+    fitted = steady_clock(tc, v)
+    assert fitted is not None
+    true = clock.stance_windows(0.0, 12.0, 'left')
+    mid_td, mid_lo = edges_from_target(tc, v)
+    for mid, col, kind in ((mid_td, 0, 'touchdown'), (mid_lo, 1, 'liftoff')):
+        mid = mid[(mid > 0.5) & (mid < 11.5)]
+        ref = true[:, col]
+        old = np.array([np.min(np.abs(ref - g)) for g in mid])
+        assert np.max(old) > 2e-3                                    # the old way
+        new = fitted.snap(mid, kind, 0.005 + 1e-6)
+        err = np.array([np.min(np.abs(ref - g)) for g in new])
+        assert np.mean(new != mid) > 0.9 and np.max(err[new != mid]) < 1e-3, err
+        assert np.median(err) < 0.3 * np.median(old)
+    fine = np.arange(0.5, 11.5, 1e-3)
+    assert np.mean(fitted.target(fine) != clock.target_speed(fine, 'left')) < 0.01
+    # a clock that slows down halfway: no single period, None
+    v2 = np.where(tc < 2.5, v, clock.target_speed(2.5 + 0.8 * (tc - 2.5), 'left'))
+    assert steady_clock(tc, v2) is None
