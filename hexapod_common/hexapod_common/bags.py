@@ -812,15 +812,15 @@ class SampleColumns:
 
     def stacked(self, name: str) -> Any:
         """An array field as one 2-D array (n, length) when every row has the same length,
-        else None."""
+        else (and without samples) None."""
         import numpy as np
 
+        if not self._n:
+            return None
         j = self._fields.index(name)
         if self._kinds[j] != 'a':
             return None
         buf, offsets = self._seal()[j]
-        if not self._n:
-            return buf.reshape(0, 0)
         width = offsets[1] - offsets[0]
         if offsets[-1] != width * self._n:
             return None
