@@ -374,6 +374,7 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
                     'frequency_hz': float(msg.frequency),
                     'duty_factor': float(msg.duty_factor),
                     'step_length_m': float(msg.step_length),
+                    'step_height_m': float(msg.step_height),
                 })
     notes_out: list[str] = []
     if tip_topic == '/joint_states':
@@ -706,9 +707,14 @@ def bench_phase_samples(
             duty = 0.5
             if s['frequency_hz'] > 0 and st.size:
                 guessed.append(float(np.mean(st)))
-        samples.append(phase_powers(
+        sample = phase_powers(
             data.battery_t_s[pm], power[pm], t_tip, st, session_id=s['session_id'],
-            load_kg=s['load_kg'], frequency_hz=s['frequency_hz'], duty_factor=duty))
+            load_kg=s['load_kg'], frequency_hz=s['frequency_hz'], duty_factor=duty)
+        # the tip path walked (0 or absent: not recorded, e.g. a sessions file)
+        length, height = (float(s.get(k) or 0.0) for k in ('step_length_m', 'step_height_m'))
+        if length > 0 and height > 0:
+            sample = dataclasses.replace(sample, step_length_m=length, step_height_m=height)
+        samples.append(sample)
     if guessed:
         notes.append(f'bench duty factor not given: 0.5 assumed (Brodoline et al.\'s bench); '
                      f'the sensed stance fraction is {min(guessed):.2f} to {max(guessed):.2f}. '

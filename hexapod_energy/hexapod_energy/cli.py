@@ -388,6 +388,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             samples.extend(s)
             diags.append(d)
         model = SingleLegModel(folds=args.folds).fit(samples) if bench_bags else None
+        if model is not None:
+            model.bench_leg_ = leg   # the leg whose joint paths map other step geometries
         bar.update(1)
         doc['bench'] = ({'bags': [b for b, _ in bench_bags], 'diagnostics': diags,
                          'fit': model.summary()} if model is not None else None)
@@ -446,8 +448,9 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                     except (ValueError, ImportError) as err:
                         doc.setdefault('warnings', []).append(f'{path}: no P_out model: {err}')
                 if gait is not None:  # a schedule the robot cannot walk (--limits, L(t) = 0)
+                    from hexapod_energy.prediction import geometry_limits
                     from hexapod_energy.recommend import infeasible_schedule
-                    bad = infeasible_schedule(gait, limits)
+                    bad = infeasible_schedule(gait, geometry_limits(model, gait, limits))
                     if bad:
                         notes.insert(0, 'infeasible schedule, not a gait the robot can '
                                         'walk: ' + '; '.join(bad))

@@ -66,6 +66,15 @@ class LegDescription:
             kinematics=LegKinematics(self.dh),
             trajectory_factory=partial(LegTrajectory, neutral_tip_m=self.neutral_tip_m), **kw)
 
+    def path_kwargs(self) -> dict[str, Any]:
+        """``kinematics`` and ``trajectory_factory`` of this leg for
+        :func:`hexapod_energy.prediction.phase_path`."""
+        from hexapod_gait.kinematics import LegKinematics
+        from hexapod_gait.trajectory import LegTrajectory
+
+        return {'kinematics': LegKinematics(self.dh),
+                'trajectory_factory': partial(LegTrajectory, neutral_tip_m=self.neutral_tip_m)}
+
     def summary(self) -> dict[str, Any]:
         """JSON-able description (``energy.json`` ``leg``)."""
         return {'name': self.name, 'a_m': list(self.dh.a_m),

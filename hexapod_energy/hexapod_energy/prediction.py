@@ -11,6 +11,16 @@ carried by each stance leg (Eq. 2) and ``m_sw`` the load of a swinging leg: 0 by
 in the air carries nothing; ``swing_load='carried'`` uses ``m_c`` as some readings of the paper
 do).
 
+Step geometry. The bench walks one tip path (the paper: 100 mm steps, 40 mm lift), so its
+surfaces hold for that path; a robot walking another step length or height moves its joints
+farther or less far in the same phase time. A phase of duration ``T`` along a joint path of
+length ``J = sum_i integral |dq_i|`` (the leg's inverse kinematics over the phase) is read on
+the surface at ``T J_bench / J``, the duration in which the bench's path is covered at the same
+joint speeds (:func:`phase_duration_scales`; the model's ``bench_step_`` gives the bench's
+geometry, the paths are taken at the run's duty factor). On the simulated AntBot at 0.15-0.45
+m/s this brought 70 and 140 mm steps and 20 and 60 mm lifts from -18 .. +20 % to -8 .. +2 %
+(the 100 mm runs -2 .. -4 %). A model that does not know its bench's geometry is used as is.
+
 Output power, Eq. 6 summed over the legs: every leg follows the same joint path in its own leg
 phase (the single-leg method's premise), shifted by its phase offset; while in stance it carries
 ``m_c(L(t))`` at the cycle phase it is at.  See :mod:`hexapod_energy.dynamics` for the
@@ -43,7 +53,9 @@ __all__ = [
     'PhasePowerModel',
     'RobotSpec',
     'bench_domain_check',
+    'geometry_limits',
     'carried_mass_profile_kg',
+    'phase_duration_scales',
     'phase_path',
     'power_breakdown_w',
     'predict_power_in_w',
@@ -155,7 +167,8 @@ def _phase_terms(model: PhasePowerModel, gait: Any, *, total_mass_kg: float,
         raise InvalidInputError(f"swing_load must be 'zero' or 'carried', got {swing_load!r}")
     stance, swing = np.zeros_like(periods), np.zeros_like(periods)
     hold_st, hold_sw = np.zeros_like(periods), np.zeros_like(periods)
-    t_st, t_sw = beta * periods, (1.0 - beta) * periods
+    k_st, k_sw = phase_duration_scales(model, gait)
+    t_st, t_sw = k_st * beta * periods, k_sw * (1.0 - beta) * periods
     for w, big_l in zip(widths, supporting):
         if w <= 0:
             continue
@@ -239,14 +252,92 @@ def bench_domain_check(
         or [0.0]
     swing_loads = loads if swing_load == 'carried' else [0.0]
     beta = gait.duty_factor
+    k_st, k_sw = phase_duration_scales(model, gait)
     out = []
     for period in periods:
-        t_st, t_sw = beta * period, (1.0 - beta) * period
+        t_st, t_sw = k_st * beta * period, k_sw * (1.0 - beta) * period
         reasons = check('stance', t_st, loads[0]) + check('swing', t_sw, swing_loads[0])
         for m in loads[1:]:
             reasons += [r for r in check('stance', t_st, m) if 'load' in r]
         out.append(list(dict.fromkeys(reasons)))
     return out
+
+
+#: step lengths and heights within this fraction of the bench's are taken as the bench's
+STEP_GEOMETRY_TOLERANCE = 0.005
+
+
+def phase_duration_scales(model: Any, gait: Any) -> tuple[float, float]:
+    """Factors ``(k_stance, k_swing)`` on the phase durations at which Eq. 1 reads the bench
+    surfaces for ``gait``'s step length and height (module docstring): the bench's joint path
+    over the phase divided by the gait's, both at the gait's duty factor, with the leg of
+    the robot's leg. ``(1, 1)`` when the model does not know
+    its bench's geometry (``bench_step_`` None or absent), the gait has no step (a
+    clock-driven schedule), or the geometry is the bench's. ``model.bench_leg_`` (a
+    :class:`~hexapod_energy.leg_description.LegDescription`, default AntBot's leg) gives the
+    kinematics and tip path."""
+    geo = getattr(model, 'bench_step_', None)
+    length = float(getattr(gait, 'step_length_m', 0.0) or 0.0)
+    height = float(getattr(gait, 'step_height_m', 0.0) or 0.0)
+    if geo is None or not length > 0 or not height >= 0:
+        return 1.0, 1.0
+    lb, hb = float(geo[0]), float(geo[1])
+    if abs(length - lb) <= STEP_GEOMETRY_TOLERANCE * lb and \
+            abs(height - hb) <= STEP_GEOMETRY_TOLERANCE * max(hb, 1e-9):
+        return 1.0, 1.0
+    from hexapod_gait.errors import HexapodGaitError
+
+    leg = getattr(model, 'bench_leg_', None)
+    beta = float(gait.duty_factor)
+    try:
+        bench = _joint_paths(beta, lb, hb, leg)
+        own = _joint_paths(beta, length, height, leg)
+    except HexapodGaitError:
+        # a path the robot's leg cannot reach (another robot's leg on the bench's step):
+        # nothing to map; the prediction's own reach check says so where it matters
+        return 1.0, 1.0
+    if not (own[0] > 0 and own[1] > 0 and bench[0] > 0 and bench[1] > 0):
+        return 1.0, 1.0
+    return bench[0] / own[0], bench[1] / own[1]
+
+
+def geometry_limits(model: Any, gait: Any, limits: Any) -> Any:
+    """Actuator limits for ``gait``'s step geometry: the minimal phase durations of
+    ``limits`` (``hexapod_gait.feasibility.ActuatorLimits``, measured on the bench's tip path,
+    e.g. the paper's 0.15 s stance and 0.16 s swing at 100 mm) are where the joints reach
+    their top speed, so a path ``1/k`` times as long needs ``1/k`` times as long
+    (:func:`phase_duration_scales`); the step-frequency limit is kept. ``limits`` unchanged
+    when the geometry is the bench's or unknown. (A 140 mm step on AntBot's leg: stance 0.22 s,
+    swing 0.19 s; the top speed at beta 0.5 0.63 m/s, not 0.93.)"""
+    import dataclasses
+
+    k_st, k_sw = phase_duration_scales(model, gait)
+    if k_st == 1.0 and k_sw == 1.0:
+        return limits
+    return dataclasses.replace(limits, min_stance_s=limits.min_stance_s / k_st,
+                               min_swing_s=limits.min_swing_s / k_sw)
+
+
+_JOINT_PATHS: dict[tuple[Any, ...], tuple[float, float]] = {}
+
+
+def _joint_paths(beta: float, length: float, height: float, leg: Any
+                 ) -> tuple[float, float]:
+    """Joint-space path lengths ``sum_i integral |dq_i/dphi| dphi`` [rad] of one leg over its
+    stance and over its swing (tripod leg 0; the path does not depend on the gait's legs)."""
+    key = (round(beta, 9), round(length, 9), round(height, 9), id(leg))
+    if key not in _JOINT_PATHS:
+        from hexapod_gait.gait import make_gait
+
+        gait = make_gait('tripod', duty_factor=beta, period_s=1.0, step_length_m=length,
+                         step_height_m=height)
+        kw = leg.path_kwargs() if leg is not None else {}
+        phase, _, d1, _, stance = phase_path(gait, n_samples=400, **kw)
+        speed = np.sum(np.abs(d1), axis=1) / phase.size
+        if len(_JOINT_PATHS) > 4096:
+            _JOINT_PATHS.clear()
+        _JOINT_PATHS[key] = (float(np.sum(speed[stance])), float(np.sum(speed[~stance])))
+    return _JOINT_PATHS[key]
 
 
 def carried_mass_profile_kg(

@@ -30,6 +30,7 @@ from hexapod_energy.prediction import (
     OutputPowerModel,
     PhasePowerModel,
     bench_domain_check,
+    geometry_limits,
     predict_power_in_w,
 )
 
@@ -137,7 +138,8 @@ def _evaluate(
     except InvalidGaitError as err:
         return 'invalid', str(err)
     try:
-        check_feasible(gait, limits)
+        # the limits hold for the bench's tip path: scaled to this step's joint path
+        check_feasible(gait, geometry_limits(phase_power, gait, limits))
     except InfeasibleGaitError as err:
         return 'limits', str(err)
     if gait.min_supporting_legs() < min_supporting_legs:

@@ -191,6 +191,10 @@ class PhaseSample:
     p_mean_w: float
     stance_fraction: float
     samples: int
+    #: the tip path the leg walked (nan: not recorded): the surfaces hold for this geometry,
+    #: another step length or height is mapped onto it (:mod:`hexapod_energy.prediction`)
+    step_length_m: float = math.nan
+    step_height_m: float = math.nan
 
 
 def phase_powers(
@@ -460,6 +464,8 @@ class SingleLegModel:
     cv_rmse_w_ : {'stance': {kind: rmse}, 'swing': {...}}  [W]
     fit_rmse_w_ : {'stance': rmse, 'swing': rmse}  in-sample [W]
     basal_power_w_ : {load_kg: mean power of its 0 Hz session}  [W]
+    bench_step_ : (step length, step height) [m] the walking sessions walked, or None when
+        they did not record it (:func:`bench_step_geometry`)
     domain_ : {'stance'|'swing': {'rate_hz': (lo, hi), 'load_kg': (lo, hi)}}, the measured
         range of each surface's sessions (``rate = 1 / T_phase``); :meth:`outside_domain`
         says how far a prediction reaches beyond it
@@ -529,6 +535,7 @@ class SingleLegModel:
             if s.frequency_hz <= 0:
                 basal.setdefault(s.load_kg, []).append(s.p_mean_w)
         self.basal_power_w_ = {k: float(np.mean(v)) for k, v in sorted(basal.items())}
+        self.bench_step_ = bench_step_geometry(samples)
         return self
 
     def _fit(self, phase: str) -> _PhaseFit:
@@ -607,7 +614,29 @@ class SingleLegModel:
             'basal_power_w': {f'{k:.3f}': v for k, v in self.basal_power_w_.items()},
             'domain': {p: {k: list(v) for k, v in d.items()} for p, d in self.domain_.items()},
             'sessions': [asdict(s) for s in self.samples_],
+            'step_geometry_m': (None if self.bench_step_ is None else
+                                {'step_length': self.bench_step_[0],
+                                 'step_height': self.bench_step_[1]}),
         }
+
+
+def bench_step_geometry(samples: Sequence[PhaseSample]) -> tuple[float, float] | None:
+    """The step length and height [m] the bench's walking sessions walked (their medians),
+    None when a session did not record them. Sessions of different geometries would mix
+    tip paths in one surface: :class:`InvalidInputError` (the bench plan must hold one)."""
+    walk = [s for s in samples if s.frequency_hz > 0]
+    if not walk or not all(math.isfinite(s.step_length_m) and math.isfinite(s.step_height_m)
+                           and s.step_length_m > 0 for s in walk):
+        return None
+    lengths = np.array([s.step_length_m for s in walk])
+    heights = np.array([s.step_height_m for s in walk])
+    for name, x in (('step length', lengths), ('step height', heights)):
+        if np.ptp(x) > 0.02 * max(float(np.max(np.abs(x))), 1e-9):
+            raise InvalidInputError(
+                f'bench sessions walked different {name}s ({np.min(x):.4g}-{np.max(x):.4g} '
+                'm): the phase surfaces are fitted over durations and loads of one tip path; '
+                'give the sessions of one geometry')
+    return float(np.median(lengths)), float(np.median(heights))
 
 
 def samples_from_mapping(rows: Sequence[Mapping[str, Any]]) -> list[PhaseSample]:

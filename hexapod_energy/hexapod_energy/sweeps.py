@@ -38,6 +38,7 @@ from hexapod_energy.prediction import (
     OutputPowerModel,
     PhasePowerModel,
     bench_domain_check,
+    geometry_limits,
     predict_power_in_w,
 )
 
@@ -237,6 +238,11 @@ def sweep_curve(
         raise InvalidInputError(
             f'{spec.label}: robot mass {robot_kg:.4g} kg <= {spec.leg_count} '
             f'legs x {m_leg:.4g} kg = {legs_kg:.4g} kg')
+    # the limits were measured on the bench's tip path: another step geometry reaches the
+    # joints' top speed at other phase durations
+    shape = make_gait(spec.gait, leg_count=spec.leg_count, duty_factor=spec.duty_factor,
+                      step_length_m=spec.step_length_m, step_height_m=spec.step_height_m)
+    lim = geometry_limits(phase_power, shape, lim)
     v_max = max_speed_mps(spec.duty_factor, spec.step_length_m, lim)
     if v_max <= min_speed_mps:
         raise InvalidInputError(
