@@ -414,6 +414,18 @@ def _geometry_overrides(args: argparse.Namespace) -> dict[str, Any]:
     return out
 
 
+def _positive_kg(text: str) -> float:
+    """``--mass``: a finite mass > 0 (``nan``, 0 or a negative one was taken as given and
+    reported as every bag refused, with NaN written into slip.json)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'not a number: {text!r}') from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f'must be a finite mass > 0 kg, got {text}')
+    return value
+
+
 def run_command(args: argparse.Namespace) -> int:
     """Handler of ``hexapod-analyze slip``; returns the exit code."""
     from tqdm import tqdm
@@ -530,7 +542,8 @@ def add_cli(subparsers: Any) -> None:
                    help='straight-run limit on lateral deviation [m]')
     p.add_argument('--box', type=float, nargs=6, metavar=('X0', 'Y0', 'Z0', 'X1', 'Y1', 'Z1'),
                    help='permissible box in the mocap frame [m] (default 2 x 1 x 1 m)')
-    p.add_argument('--mass', type=float, default=EDUBOT_MASS_KG, help='robot mass [kg]')
+    p.add_argument('--mass', type=_positive_kg, default=EDUBOT_MASS_KG,
+                   help='robot mass [kg], > 0')
     p.add_argument('--model', default='slip', help="'slip' or 'slip+leg_damping' etc.")
     p.add_argument('--no-position-fit', action='store_true',
                    help='skip the second estimator (initial state free)')

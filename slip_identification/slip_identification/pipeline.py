@@ -650,11 +650,19 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
     fin_raw = np.isfinite(t_raw) & np.all(np.isfinite(pm), axis=1)
     dt_raw = float(np.median(np.diff(np.sort(t_raw[fin_raw])))) if fin_raw.sum() > 2 else 0.01
 
+    t_tracked = (float(np.min(t_raw[fin_raw])), float(np.max(t_raw[fin_raw]))) \
+        if fin_raw.any() else (math.inf, -math.inf)
+
     def why_not_whole(a: float, b: float) -> str:
-        # a sample of the window (or its neighbours) tracked but outside the box: it left
-        # the volume; otherwise the tracking lost it there
+        # a sample of the window (or its neighbours) tracked but outside the box, or a window
+        # reaching before the first or after the last tracked sample (a system that publishes
+        # nothing outside its volume): it entered or left the volume; otherwise the tracking
+        # lost it there
         near = fin_raw & (t_raw >= a - 1.5 * dt_raw) & (t_raw <= b + 1.5 * dt_raw)
-        return 'outside_volume' if np.any(near & ~inside) else 'mocap_gap'
+        if np.any(near & ~inside) or a < t_tracked[0] + 0.5 * dt_raw or \
+                b > t_tracked[1] - 0.5 * dt_raw:
+            return 'outside_volume'
+        return 'mocap_gap'
 
     stances: list[Stance] = []
     for k, w in enumerate(stance_windows):

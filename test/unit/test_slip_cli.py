@@ -54,3 +54,17 @@ def test_slip_command_writes_schema_and_refuses_missing_topic(tmp_path):
     for s in doc['stances']:  # fitted from the geometric windows (stance samples at 1 kHz)
         assert min(abs(s['touchdown'] - t) for t in geo_td) <= 1e-3
     assert (out / 'fig9_nerr_vs_sr.png').is_file()
+
+
+@pytest.mark.parametrize('mass', ['nan', '0', '-1', 'inf', 'heavy'])
+def test_a_bad_mass_is_an_option_error(tmp_path, mass, capsys):
+    """--mass nan, 0 or -1 was reported as every bag refused, exit 2, and slip.json was
+    written with "mass_kg": NaN (not JSON); it is an option error now, before any bag."""
+    parser = argparse.ArgumentParser(prog='hexapod-analyze')
+    add_cli(parser.add_subparsers(dest='cmd'))
+    with pytest.raises(SystemExit) as ex:
+        parser.parse_args(['slip', str(tmp_path / 'no_bag'), '--out', str(tmp_path / 'o'),
+                           f'--mass={mass}'])
+    assert ex.value.code == 2
+    assert '--mass' in capsys.readouterr().err
+    assert not (tmp_path / 'o').exists()

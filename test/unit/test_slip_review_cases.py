@@ -198,3 +198,17 @@ def test_ground_from_the_mocap_origin_is_said_with_the_com_height(jogging):
     res_geo = analyze_run(raised, box=BOX, offset_s='auto', geometry=geo, position_fit=False)
     assert 'com_height_m' not in res_geo.frame
     assert not any('ground height taken from the mocap origin' in n for n in res_geo.notes)
+
+
+def test_stances_cut_by_the_start_or_end_of_tracking_are_outside_volume(jogging):
+    """An outside review: a motion-capture system that publishes nothing outside its volume
+    (the simulator's) left the stances straddling the entry and the exit labelled
+    'mocap_gap' with the paper's edges, although no sample was lost; they are
+    'outside_volume' (a dropout inside the run stays 'mocap_gap':
+    test_labhex_mocap_dropout_stances_listed_with_reasons)."""
+    rd = run_data_from_sim(jogging)
+    res = analyze_run(rd, box=BOX, offset_s=jogging.truth['clock_offset_s'],
+                      position_fit=False, edges='paper')
+    reasons = [s['reason'] for s in res.skipped]
+    assert 'mocap_gap' not in reasons
+    assert 'outside_volume' in reasons
