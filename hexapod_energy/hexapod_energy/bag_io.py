@@ -1098,6 +1098,14 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
                      'window spans one; the cycles across them were left out (windows '
                      'spanning a schedule change)')
     payload = _find_number(custom, ('payload_kg', 'payload'))
+    odd = acc.odometry_disagreements_
+    if odd:
+        sched, odom = (float(np.median([x[i] for x in odd])) for i in (0, 1))
+        notes.append(f'/odom gives {odom:.3g} m/s where the gait schedule gives {sched:.3g} '
+                     f'({100 * (odom / sched - 1):+.0f} %, median of {len(odd)} window(s)): '
+                     'the schedule\'s speed is used (the paper\'s v = step length / (beta T); '
+                     'motion capture, /mocap/body, would decide); with the odometry\'s, CoT, '
+                     'CoT/M and specific resistance scale by the inverse ratio')
 
     def run_of(k: int) -> RobotRun:
         gait_k, t_seg0, _, wins = segments[k]

@@ -281,6 +281,9 @@ BATTERY_GAP_NOTE = 'battery samples missing over part of the window (a recording
 TIME_JUMP_S = 1.0
 #: longest window [s]: older samples are dropped (the buffers' bound)
 MAX_WINDOW_S = 60.0
+#: an /odom speed this far (fraction) from the gait schedule's is reported (the schedule's is
+#: used: mocap, else the schedule, else odometry)
+ODOM_DISAGREE = 0.05
 #: battery stamps [s] without a cycle-source sample before that is noted
 CYCLE_QUIET_S = 5.0
 
@@ -364,6 +367,10 @@ class DescriptorAccumulator:
     _ref_gait: GaitPhaseSample | None = field(default=None, init=False)
     #: schedule breaks: (time [s], reason) where no window may span
     schedule_breaks_: list[tuple[float, str]] = field(default_factory=list, init=False)
+    #: windows whose /odom speed differs from the schedule's used one by more than
+    #: ODOM_DISAGREE: (schedule speed, odometry speed) [m/s]
+    odometry_disagreements_: list[tuple[float, float]] = field(default_factory=list,
+                                                               init=False)
     _window_start: float | None = field(default=None, init=False)
     _odom: list[tuple[float, float, float, float]] = field(default_factory=list, init=False)
     _tracker: JointCycleTracker | None = field(default=None, init=False)
@@ -804,12 +811,22 @@ class DescriptorAccumulator:
         schedule = self._gait is not None and (self._gait.speed_mps > 0 or
                                                self._gait.period_s <= 0)
         for source, track in (('mocap', self._poses), ('odometry', self._odom)):
-            if source == 'odometry' and schedule:
-                # the schedule ranks before odometry, so bags and live runs with /gait/phase
-                # give the numbers they always gave
-                assert self._gait is not None
-                return self._gait.speed_mps, 'gait_schedule'
             poses = sorted(p for p in track if t0 <= p[0] <= t1)
+            if source == 'odometry' and schedule:
+                # the schedule ranks before odometry (the paper's v = step / (beta T); an
+                # odometry is often the same kinematics integrated); a disagreement is kept
+                assert self._gait is not None
+                v_sched = self._gait.speed_mps
+                if len(poses) >= 2 and v_sched > 0 and poses[-1][0] > poses[0][0]:
+                    d = [b - a for a, b in zip(poses[0][1:3], poses[-1][1:3])]
+                    v_odom = math.hypot(*d) / (poses[-1][0] - poses[0][0])
+                    twist = np.array([p[3] for p in poses], dtype=float)
+                    twist = twist[np.isfinite(twist)]
+                    if v_odom < ODOM_STILL_MPS and twist.size:   # a velocity-only odometry
+                        v_odom = float(np.mean(twist))
+                    if abs(v_odom - v_sched) > ODOM_DISAGREE * v_sched:
+                        self.odometry_disagreements_.append((v_sched, v_odom))
+                return v_sched, 'gait_schedule'
             if len(poses) >= 2 and poses[0][0] - t0 < 0.1 * (t1 - t0) and \
                     t1 - poses[-1][0] < 0.1 * (t1 - t0):
                 n = 3 if source == 'mocap' else 2

@@ -120,3 +120,27 @@ def test_a_standing_robot_gets_windows_of_its_input_power() -> None:
     assert walk and all(d.t_end_s - d.window_s >= 4.0 for d in walk)
     assert all(round(d.speed_mps, 4) == 0.2 for d in walk)
     assert [why for _, why in acc.schedule_breaks_] == ['gait stand -> alternating']
+
+
+@pytest.mark.parametrize('twist_only', [False, True])
+def test_odometry_off_the_schedule_is_reported(twist_only: bool) -> None:
+    """An outside review: with /gait/phase present an /odom at 0.18 m/s was ignored in
+    silence (the schedule's 0.2 m/s used, CoT/M 10 % low). The schedule still ranks first
+    (the paper's v = step / (beta T)), but a disagreement over 5 % is kept, pose or twist."""
+    from hexapod_common.conversions import OdometrySample
+
+    acc = DescriptorAccumulator(mass_kg=2.2, current_sign='ros')
+    out, phase = [], 0.0
+    for k in range(400):
+        t = 0.01 * k
+        out += acc.add_gait_phase(gait(t, 'alternating', 1.0, 0.5, phase))
+        out += acc.add_battery(battery(t + 1e-4))
+        x = 0.0 if twist_only else 0.18 * t
+        acc.add_odometry(OdometrySample(t + 2e-4, 'odom', 'base', np.array([x, 0.0, 0.0]),
+                                        np.array([0.0, 0.0, 0.0, 1.0]),
+                                        np.array([0.18, 0.0, 0.0]), np.zeros(3)))
+        phase += 0.01
+    assert out and all(d.speed_source == 'gait_schedule' for d in out)
+    assert all(round(d.speed_mps, 4) == 0.2 for d in out)
+    assert len(acc.odometry_disagreements_) == len(out)
+    assert all(abs(v - 0.18) < 0.005 for _, v in acc.odometry_disagreements_)
