@@ -229,10 +229,11 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
                         'tips carry only m_c g')
     p.add_argument('--limits', type=float, nargs=3, default=None,
                    metavar=('MIN_SWING_S', 'MIN_STANCE_S', 'MAX_FREQ_HZ'),
-                   help='actuator limits of --sweep and --recommend: shortest swing [s], '
-                        'shortest stance [s], highest step frequency [Hz] (default AntBot\'s '
-                        'servo limits 0.16 0.15 3; they set the sweeps\' maximum speeds and '
-                        'which gaits are feasible)')
+                   help='actuator limits: shortest swing [s], shortest stance [s] (on the '
+                        'bench\'s step; other steps scale with their joint path), highest step '
+                        'frequency [Hz] (default AntBot\'s servo limits 0.16 0.15 3); they set '
+                        'the sweeps\' maximum speeds, the gaits --recommend may choose, and '
+                        'the infeasible-schedule warning of robot runs')
     p.add_argument('--power-out', choices=('auto', 'effort', 'model'), default='auto',
                    help='P_out source: joint effort x velocity (positive part), the Eq. 6 '
                         'inverse-dynamics model, or auto (default: effort when the bag has '
@@ -548,7 +549,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             doc['plots'] += [str(p.relative_to(out)) for p in prediction_plot(
                 [r['speed'] for r in runs], meas, pred, out / 'prediction',
                 labels=[_run_label(r, speed=False) for r in runs],
-                title=f'Eq. 1 prediction against measurement ({robot_name})')]
+                title=f'Eq. 1 prediction against measurement ({robot_name})',
+                outside=[bool(r.get('prediction_outside_bench')) for r in runs])]
             labels = [_run_label(r) for r in runs]
             doc['plots'] += [str(p.relative_to(out)) for p in watts_plot(
                 labels, [r['power_breakdown_w'] for r in runs], meas,

@@ -395,9 +395,14 @@ class PolySurface:
         xq, _ = _check_xy(x)
         return self._design(xq) @ self.coef_
 
+    #: the regressors of ``coef``, in order (``f`` the phase rate 1 / T_phase [Hz], ``m`` the
+    #: load [kg]; P in W)
+    TERMS = ('1', 'f', 'f^2', 'm', 'm f', 'f^3', 'm f^2')
+
     def to_dict(self) -> dict[str, Any]:
-        return {'kind': 'poly' if self.degree == 2 else 'poly3',
-                'coef': [float(c) for c in getattr(self, 'coef_', [])]}
+        coef = [float(c) for c in getattr(self, 'coef_', [])]
+        return {'kind': 'poly' if self.degree == 2 else 'poly3', 'coef': coef,
+                'terms': list(self.TERMS[:len(coef)])}
 
 
 def cross_validated_rmse(
@@ -614,6 +619,9 @@ class SingleLegModel:
             'basal_power_w': {f'{k:.3f}': v for k, v in self.basal_power_w_.items()},
             'domain': {p: {k: list(v) for k, v in d.items()} for p, d in self.domain_.items()},
             'sessions': [asdict(s) for s in self.samples_],
+            # the chosen surfaces themselves (a polynomial's coefficients; LOWESS is
+            # re-fitted from 'sessions' with its span), to re-evaluate Eq. 1 from the JSON
+            'surfaces': {p: self._fit(p).model.to_dict() for p in ('stance', 'swing')},
             'step_geometry_m': (None if self.bench_step_ is None else
                                 {'step_length': self.bench_step_[0],
                                  'step_height': self.bench_step_[1]}),

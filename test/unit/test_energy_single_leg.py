@@ -168,3 +168,26 @@ def test_bench_domain_check_of_gaits() -> None:
             return np.ones_like(t)
 
     assert bench_domain_check(Analytic(), quad, total_mass_kg=1.5) == [[]]
+
+
+def test_summary_holds_the_surfaces_and_the_step_geometry() -> None:
+    """An outside review: energy.json's bench fit held no surface coefficients, so Eq. 1
+    could not be re-evaluated from it; the chosen surfaces are in the summary now, with the
+    regressors' names, and the tip path the sessions walked (None when not recorded)."""
+    import dataclasses
+
+    model = SingleLegModel().fit(_plan())
+    surf = model.summary()['surfaces']
+    assert surf['stance']['kind'] == 'poly'
+    t_st, load = np.array([0.2, 0.7]), np.array([0.05, 0.4])
+    terms = {'1': 1.0, 'f': 1 / t_st, 'f^2': 1 / t_st ** 2, 'm': load, 'm f': load / t_st}
+    again = sum(c * terms[n] for c, n in zip(surf['stance']['coef'], surf['stance']['terms']))
+    assert_allclose(again, model.p_stance_w(t_st, load), rtol=1e-12)
+    assert model.summary()['step_geometry_m'] is None
+    walked = [dataclasses.replace(s, step_length_m=0.1, step_height_m=0.04) for s in _plan()]
+    assert SingleLegModel().fit(walked).summary()['step_geometry_m'] == \
+        {'step_length': 0.1, 'step_height': 0.04}
+    mixed = [dataclasses.replace(s, step_length_m=0.1 + 0.04 * (k % 2), step_height_m=0.04)
+             for k, s in enumerate(_plan())]
+    with pytest.raises(InvalidInputError, match='different step lengths'):
+        SingleLegModel().fit(mixed)
