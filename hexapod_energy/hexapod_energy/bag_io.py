@@ -1083,13 +1083,19 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
             f'(need /gait/phase wrapping at least twice and /battery_state across it){hint}'
         )
     segments = _schedule_segments(windows, changes)
+    # a standing robot is a run of its own (its input power, speed 0) when it stood for at
+    # least MIN_STAND_WINDOWS windows; a pause between two walks is not
+    short = [sg for sg in segments if sg[0].period_s <= 0 and sg[2] < MIN_STAND_WINDOWS]
+    segments = [sg for sg in segments if sg not in short]
     if not segments:
         raise BagContentError(f'bag {path}: no whole gait cycle under one walking schedule '
-                              '(the schedule on /gait/phase changes within every cycle, or '
-                              'the robot stands)')
-    n_mixed = sum(1 for d in all_windows if _window_schedule(d, changes) is None)
+                              '(the schedule on /gait/phase changes within every cycle) and no '
+                              f'{MIN_STAND_WINDOWS} s of standing')
+    n_mixed = sum(1 for d in all_windows if _window_schedule(d, changes) is None) + \
+        sum(sg[2] for sg in short)
     if n_mixed:
-        notes.append(f'{n_mixed} window(s) spanning a schedule change (or standing) left out')
+        notes.append(f'{n_mixed} window(s) spanning a schedule change (or a short stop) left '
+                     'out')
     breaks = acc.schedule_breaks_
     if breaks:
         shown = '; '.join(f'{why} at {t:.2f} s' for t, why in breaks[:3])
@@ -1271,8 +1277,9 @@ def _schedule_label(g: Any) -> str:
 
 
 def _window_schedule(d: Any, changes: list[tuple[float, tuple[Any, ...], Any]]) -> Any:
-    """The /gait/phase sample of the one walking schedule in force over window ``d``, None
-    when the schedule changes inside it or is standing (period 0)."""
+    """The /gait/phase sample of the one schedule in force over window ``d`` (standing,
+    period 0, included: its windows are DescriptorAccumulator.STAND_WINDOW_S long), None when
+    the schedule changes inside it."""
     t0, t1 = d.t_end_s - d.window_s, d.t_end_s
     times = [c[0] for c in changes]
     k0 = int(np.searchsorted(times, t0 + 1e-9, side='right')) - 1
@@ -1281,8 +1288,11 @@ def _window_schedule(d: Any, changes: list[tuple[float, tuple[Any, ...], Any]]) 
         k0 = 0
     if not all(_same_schedule(changes[k][1], changes[k0][1]) for k in range(k0, k1 + 1)):
         return None
-    g = changes[k0][2]
-    return g if g.period_s > 0 else None
+    return changes[k0][2]
+
+
+#: standing windows (1 s each) a stop needs to be a run of its own
+MIN_STAND_WINDOWS = 3
 
 
 def _schedule_segments(windows: list[Any], changes: list[tuple[float, tuple[Any, ...], Any]]

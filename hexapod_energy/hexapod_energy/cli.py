@@ -422,10 +422,29 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                     notes.append(f'payload {run_.payload_kg:g} kg from the bag\'s metadata '
                                  '(--robot-payload overrides it)')
                 mass = robot.total_mass_kg(payload)
-                gait = gait_from_sample(run_.gait) if run_.gait is not None else \
-                    _given_gait(args, run_, notes)
+                standing = run_.gait is not None and run_.gait.period_s <= 0
+                gait = None if standing else gait_from_sample(run_.gait) \
+                    if run_.gait is not None else _given_gait(args, run_, notes)
                 predicted = p_model = math.nan
                 breakdown = None
+                if standing:
+                    # every leg holds its share of the body: the bench's 0 Hz sessions
+                    # (basal power at a load) predict it; the joints do no work
+                    p_model = 0.0
+                    legs_st = len(run_.gait.leg_names) or 6
+                    basal = getattr(model, 'basal_power_at_w', None)
+                    held = ''
+                    if basal is not None and math.isfinite(float(basal(0.0))):
+                        from hexapod_gait.gait import carried_mass_per_leg_kg
+                        m_c = float(carried_mass_per_leg_kg(mass, robot.leg_mass_kg,
+                                                            np.array([legs_st]))[0])
+                        b_w = legs_st * float(basal(max(m_c - args.load_offset, 0.0)))
+                        held = (f'; {legs_st} legs at the bench\'s 0 Hz power for the '
+                                f'{m_c:.3g} kg each holds would draw {b_w:.3g} W, '
+                                f'unloaded {legs_st * float(basal(0.0)):.3g} W')
+                    notes.append(f'the robot stands ({run_.windows} window(s) of 1 s): its '
+                                 'input power, speed 0 (CoT undefined); Eq. 1 is for walking, '
+                                 'no prediction' + held)
                 if gait is not None and model is None:
                     notes.append('no bench bags (--bench): no Eq. 1 prediction')
                 outside: list[str] = []
@@ -481,10 +500,13 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                                 speed_mps=run_.speed_mps)
                 legs = _leg_count(args, run_) if run_.gait is None else None
                 runs.append({
-                    'bag': str(path), 'gait': gait.name if gait else None,
-                    'leg_count': gait.leg_count if gait else legs,
+                    'bag': str(path),
+                    'gait': gait.name if gait else ('stand' if standing else None),
+                    'leg_count': gait.leg_count if gait else
+                    (len(run_.gait.leg_names) or None if standing else legs),
                     'duty_factor': gait.duty_factor if gait else None,
-                    'period_s': gait.period_s if gait else run_.extra.get('period_s'),
+                    'period_s': gait.period_s if gait else
+                    (0.0 if standing else run_.extra.get('period_s')),
                     'step_length_m': gait.step_length_m if gait else None,
                     'payload_kg': payload, 'mass_kg': mass,
                     'windows': run_.windows, 'window_s': run_.window_s,

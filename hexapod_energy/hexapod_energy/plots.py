@@ -415,6 +415,7 @@ def measured_runs_plot(labels: Sequence[str], power_in_w: Sequence[float],
             (axes[0], power_in_w, 'measured P_in [W]', '#1f77b4'),
             (axes[1], cot_per_mass, 'CoT/M [J/(m kg)]', '#ff7f0e')):
         vals = np.asarray(values, dtype=float)
+        vals = np.where(np.isfinite(vals), vals, np.nan)   # a standing run's CoT is infinite
         bars = ax.bar(x, np.nan_to_num(vals, nan=0.0), 0.6, color=color)
         for b, v in zip(bars, vals):
             ax.annotate('n/a' if not np.isfinite(v) else f'{v:.3g}',

@@ -216,3 +216,27 @@ def test_default_robot_mass_is_said(bags, tmp_path, capsys):
     assert not any('robot mass not given' in w for w in doc.get('warnings', []))
     assert main(['--robot', str(root / 'robot0'), '--robot-mass', '-1', '--out',
                  str(tmp_path / 'c'), '--no-progress']) == 2
+
+
+def test_a_standing_robot_is_a_run_of_its_input_power(tmp_path, capsys) -> None:
+    """A standing robot bag (/gait/phase period 0) was refused ('no whole gait cycle'): the
+    power a robot draws standing (electronics, servos holding the body) is a figure users
+    measure. It is a run now: measured P_in, speed 0, CoT null, no Eq. 1 prediction (a note
+    gives what the bench's 0 Hz sessions would say)."""
+    from hexapod_bench_drivers.robot_sim import RobotConfig, simulate_robot
+    from hexapod_bench_drivers.sim_bag import write_trace
+
+    bag = tmp_path / 'stand'
+    tr = simulate_robot(5.0, RobotConfig(period_s=0.0), seed=2)
+    write_trace(tr, bag)
+    out = tmp_path / 'out'
+    assert main(['--robot', str(bag), '--robot-mass', '2.183', '--out', str(out),
+                 '--no-progress']) == 0
+    run_ = json.loads((out / 'energy.json').read_text())['robot_runs'][0]
+    assert run_['gait'] == 'stand' and run_['period_s'] == 0.0 and run_['speed'] == 0.0
+    truth = float(np.mean(-tr.battery_voltage_v[tr.t_s > 1.0] *
+                          tr.battery_current_a[tr.t_s > 1.0]))
+    assert run_['measured_power_in_w'] == pytest.approx(truth, rel=0.02)
+    assert run_['specific_cost_of_transport'] is None
+    assert run_['predicted_power_in_w'] is None
+    assert any('the robot stands' in n for n in run_['notes'])
