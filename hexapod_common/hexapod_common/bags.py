@@ -640,6 +640,7 @@ class SampleColumns:
         self._dtypes: list[Any] = []
         self._n = 0
         self._views: list[Any] | None = None   # 'a' fields after sealing: (buffer, offsets)
+        self._getters: list[Callable[[int], Any]] = []
 
     # -- writing -----------------------------------------------------------------------------
     def append(self, sample: Any) -> None:
@@ -651,9 +652,12 @@ class SampleColumns:
         elif type(sample) is not self._cls:
             raise TypeError(f'SampleColumns of {self._cls.__name__} given a '
                             f'{type(sample).__name__}')
+        kinds, cols = self._kinds, self._cols
         for j, name in enumerate(self._fields):
             value = getattr(sample, name)
-            if not self._put(j, value):
+            if kinds[j] == 'f' and type(value) is float:   # most fields: inline
+                cols[j].append(value)
+            elif not self._put(j, value):
                 self._to_list(j)
                 self._cols[j].append(value)
         self._n += 1
@@ -733,6 +737,8 @@ class SampleColumns:
 
     # -- reading -----------------------------------------------------------------------------
     def _seal(self) -> list[Any]:
+        import array
+
         import numpy as np
 
         if self._views is None:
@@ -748,9 +754,22 @@ class SampleColumns:
                     np.zeros(0, dtype=np.int64)
                 offsets = np.zeros(lens.size + 1, dtype=np.int64)
                 np.cumsum(lens, out=offsets[1:])
-                views.append((buf, offsets.tolist()))
+                # array.array: 8 bytes an offset, indexed as Python ints
+                views.append((buf, array.array('q', offsets.tobytes())))
             self._views = views
+            self._getters = [self._getter(j) for j in range(len(self._fields))]
         return self._views
+
+    def _getter(self, j: int) -> Callable[[int], Any]:
+        """Field ``j`` of row ``k`` (after sealing)."""
+        kind, col = self._kinds[j], self._cols[j]
+        if kind in ('f', 'i', 'l'):
+            return col.__getitem__
+        if kind == 'o':
+            table = self._tables[j][1]
+            return lambda k: table[col[k]]
+        buf, offsets = self._views[j]   # type: ignore[index]
+        return lambda k: buf[offsets[k]:offsets[k + 1]]
 
     def _value(self, j: int, k: int) -> Any:
         kind = self._kinds[j]
@@ -772,13 +791,13 @@ class SampleColumns:
         if not 0 <= k < self._n:
             raise IndexError('SampleColumns index out of range')
         self._seal()
-        return self._cls(*[self._value(j, k) for j in range(len(self._fields))])
+        return self._cls(*[get(k) for get in self._getters])
 
     def __iter__(self) -> Iterator[Any]:
         self._seal()
-        nf = range(len(self._fields))
+        cls, getters = self._cls, self._getters
         for k in range(self._n):
-            yield self._cls(*[self._value(j, k) for j in nf])
+            yield cls(*[get(k) for get in getters])
 
     # -- columns -----------------------------------------------------------------------------
     def column(self, name: str) -> Any:
@@ -843,6 +862,8 @@ class SampleColumns:
         else:
             self._cols[j] = [v + dt for v in self.column(name)]
             self._kinds[j] = 'l'
+            if self._views is not None:
+                self._getters[j] = self._getter(j)
 
 
 def _hashable(value: Any) -> bool:
