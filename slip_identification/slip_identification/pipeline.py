@@ -41,7 +41,7 @@ from .stance import (
     StanceWindow,
     best_shift,
     edges_from_target,
-    steady_clock,
+    refine_clock_edges,
     single_tripod_stances,
     tripod_stance_windows,
 )
@@ -606,15 +606,12 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                 ) -> FloatArray:
             return np.interp(t, tgt_t, tgt_v)
 
-        clock = steady_clock(tgt_t, tgt_v)
-        shift = best_shift(tj, speed[tp], clock.target if clock is not None else tgt)
+        shift = best_shift(tj, speed[tp], tgt)
         td, lo = edges_from_target(tgt_t + shift, tgt_v)
-        if clock is not None:
-            # a steady clock: its edges from every cycle's samples together, not each one
-            # halfway between two command samples (up to 5 ms off at 100 Hz)
-            half = 0.5 * float(np.median(np.diff(tgt_t))) + 1e-6
-            td = clock.snap(td - shift, 'touchdown', half) + shift
-            lo = clock.snap(lo - shift, 'liftoff', half) + shift
+        # a steady clock: its edges from its cycles' samples together, not each one halfway
+        # between two command samples (up to 5 ms off at 100 Hz)
+        td, lo = refine_clock_edges(tgt_t, tgt_v, td - shift, lo - shift)
+        td, lo = td + shift, lo + shift
         res.shift_s[tp] = shift
         windows[tp] = tripod_stance_windows(td, lo)
     stance_windows = single_tripod_stances(windows, res.shift_s) if has_clock else []

@@ -23,12 +23,13 @@ from .errors import SlipDataError
 
 __all__ = [
     'StanceWindow',
-    'best_shift',
     'SteadyClock',
+    'best_shift',
     'edges_from_target',
-    'steady_clock',
     'longest_free_segment',
+    'refine_clock_edges',
     'single_tripod_stances',
+    'steady_clock',
     'tripod_stance_windows',
 ]
 
@@ -115,7 +116,10 @@ def _bracketed_edges(t: FloatArray, v: FloatArray, thr: float
 
 #: a clock edge replaces the sampled one when the samples pin it within this fraction of
 #: the sampled edge's own half-width (half a command spacing)
-CLOCK_EDGE_GAIN = 0.8
+CLOCK_EDGE_GAIN = 0.5
+#: cycles fitted together by :func:`refine_clock_edges` (the polygon's cost grows with the
+#: cube of its edges; a slow drift of the clock stays within a block)
+CLOCK_BLOCK_CYCLES = 16
 
 
 @dataclass(frozen=True)
@@ -174,15 +178,6 @@ class SteadyClock:
         pred, unc = self.nearest(e, kind)
         ok = (np.abs(pred - e) <= half_width_s) & (unc <= CLOCK_EDGE_GAIN * half_width_s)
         return np.where(ok, pred, e)
-
-
-def _bracketed_edges(t: FloatArray, v: FloatArray, thr: float
-                     ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """The sample pairs each threshold crossing lies between: (falling a, b, rising a, b)."""
-    s = v - thr
-    cross = np.flatnonzero(np.sign(s[:-1]) != np.sign(s[1:]))
-    fall = s[cross] > 0
-    return t[cross][fall], t[cross + 1][fall], t[cross][~fall], t[cross + 1][~fall]
 
 
 def _feasible_polygon(j: FloatArray, a: FloatArray, b: FloatArray, t_lo: float, t_hi: float
@@ -254,6 +249,39 @@ def steady_clock(t_s: ArrayLike, target_speed: ArrayLike) -> SteadyClock | None:
         return None               # no single period fits every bracket
     return SteadyClock(t_ref_s=t_ref, touchdown_vertices=vf, liftoff_vertices=vr,
                        slow=lo_v, fast=hi_v)
+
+
+def refine_clock_edges(t_s: ArrayLike, target_speed: ArrayLike, touchdown_s: ArrayLike,
+                       liftoff_s: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """Sampled clock edges (halfway between two command samples, :func:`edges_from_target`
+    on ``t_s``) moved onto the steady clock of their block of :data:`CLOCK_BLOCK_CYCLES`
+    cycles where its samples pin them tighter (:func:`steady_clock`, :meth:`SteadyClock.snap`);
+    kept elsewhere. Bounded cost on long runs; a clock that changes speed changes it between
+    blocks or leaves its block unrefined."""
+    t = np.asarray(t_s, dtype=float)
+    v = np.asarray(target_speed, dtype=float)
+    td = np.asarray(touchdown_s, dtype=float).copy()
+    lo = np.asarray(liftoff_s, dtype=float).copy()
+    if t.size < 10 or td.size < 3:
+        return td, lo
+    half = 0.5 * float(np.median(np.diff(t))) + 1e-6
+    period = float(np.median(np.diff(td)))
+    if not period > 0:
+        return td, lo
+    span = CLOCK_BLOCK_CYCLES * period
+    n_blocks = max(1, int(np.ceil((t[-1] - t[0]) / span)))
+    edges = np.linspace(t[0], t[-1] + 1e-9, n_blocks + 1)
+    for a, b in zip(edges[:-1], edges[1:]):
+        # the block's samples with half a cycle either side, so its edge brackets are whole
+        sel = (t >= a - 0.5 * period) & (t <= b + 0.5 * period)
+        clock = steady_clock(t[sel], v[sel])
+        if clock is None:
+            continue
+        for arr, kind in ((td, 'touchdown'), (lo, 'liftoff')):
+            inside = (arr >= a) & (arr < b)
+            if np.any(inside):
+                arr[inside] = clock.snap(arr[inside], kind, half)
+    return td, lo
 
 
 def tripod_stance_windows(touchdown_s: ArrayLike, liftoff_s: ArrayLike) -> FloatArray:

@@ -145,3 +145,33 @@ def test_clock_edges_from_100hz_commands_below_the_sample_spacing():
     # a clock that slows down halfway: no single period, None
     v2 = np.where(tc < 2.5, v, clock.target_speed(2.5 + 0.8 * (tc - 2.5), 'left'))
     assert steady_clock(tc, v2) is None
+
+
+def test_clock_refinement_is_bounded_on_long_runs_and_safe_when_the_clock_changes():
+    """A review of the vernier: one polygon over a whole run grew with the cube of its edges
+    (a 300 s bag asked for 11 GiB), and a clock whose period changed by 0.5 % halfway was
+    snapped onto one fitted clock (edges up to 7.3 ms off, the midpoints 4.9). Blocks of
+    CLOCK_BLOCK_CYCLES cycles bound both."""
+    import tracemalloc
+
+    from slip_identification.stance import refine_clock_edges
+
+    clock = BUEHLER_PRESETS['running']
+    tc = np.arange(0.0, 300.0, 0.01)
+    v = clock.target_speed(tc, 'left')
+    td, lo = edges_from_target(tc, v)
+    tracemalloc.start()
+    new_td, _ = refine_clock_edges(tc, v, td, lo)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak < 50e6 and np.mean(new_td != td) > 0.5
+    for f in (1.002, 1.005, 1.01):
+        warp = np.where(tc[:1000] < 5.0, tc[:1000], 5.0 + f * (tc[:1000] - 5.0))
+        vc = clock.target_speed(warp, 'left')
+        fine = np.arange(0.0, 10.5, 1e-5)
+        true_td, _ = edges_from_target(fine, clock.target_speed(
+            np.where(fine < 5.0, fine, 5.0 + f * (fine - 5.0)), 'left'))
+        mid, mlo = edges_from_target(tc[:1000], vc)
+        got, _ = refine_clock_edges(tc[:1000], vc, mid, mlo)
+        err = lambda e: max(np.min(np.abs(true_td - x)) for x in e[(e > 0.3) & (e < 9.7)])
+        assert err(got) <= err(mid) + 1e-4, f
