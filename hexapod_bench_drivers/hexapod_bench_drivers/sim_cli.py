@@ -156,10 +156,22 @@ def _infeasible(gait: Any) -> list[str]:
     from hexapod_gait.feasibility import ANTBOT_LIMITS, feasibility_violations
 
     lim = ANTBOT_LIMITS
+    try:
+        # the limits are phase durations on AntBot's 100 mm, 40 mm tip path: another step
+        # reaches the servos' top speed at other durations, as hexapod-analyze energy says
+        from hexapod_energy.prediction import geometry_limits
+
+        class _AntBotBench:
+            bench_step_ = (0.10, 0.04)
+
+        lim = geometry_limits(_AntBotBench(), gait, lim)
+    except ImportError:   # pragma: no cover - the energy package is installed alongside
+        pass
     out = feasibility_violations(gait, lim)
     if out:
-        out[-1] += (f" (AntBot's servo limits: swing >= {lim.min_swing_s:g} s, stance >= "
-                    f'{lim.min_stance_s:g} s, <= {lim.max_step_frequency_hz:g} Hz)')
+        out[-1] += (f" (AntBot's servo limits on this step's joint path: swing >= "
+                    f'{lim.min_swing_s:.3g} s, stance >= {lim.min_stance_s:.3g} s, <= '
+                    f'{lim.max_step_frequency_hz:g} Hz)')
     bp, supporting = gait.support_profile()
     airborne = float(np.diff(np.append(np.asarray(bp, float), 1.0))[supporting == 0].sum())
     if airborne > 1e-9:

@@ -156,11 +156,13 @@ class BenchSessionSpec:
     frequency_hz: float | None = None
     duty_factor: float | None = None
     step_length_m: float | None = None
+    step_height_m: float | None = None
 
 
 def read_bench_sessions_file(path: str | Path) -> dict[str, BenchSessionSpec]:
     """Bench bags and their sessions from a CSV file: a header with ``bag`` and ``load_kg``
-    and optionally ``frequency_hz``, ``duty_factor``, ``step_length_m`` (an empty cell is
+    and optionally ``frequency_hz``, ``duty_factor``, ``step_length_m``, ``step_height_m``
+    (the tip path the leg walked: other step geometries are mapped onto it; an empty cell is
     unknown), one row per bag. Relative bag paths are taken from the file's folder (or, when
     not found there, the working directory). Returns ``{bag path: spec}`` in file order."""
     import csv
@@ -180,7 +182,8 @@ def read_bench_sessions_file(path: str | Path) -> dict[str, BenchSessionSpec]:
     rows = list(reader)
     if not rows or not {'bag', 'load_kg'} <= set(rows[0]):
         raise BagContentError(f'bench sessions file {path}: expected a CSV header with bag and '
-                              'load_kg (optional: frequency_hz, duty_factor, step_length_m)')
+                              'load_kg (optional: frequency_hz, duty_factor, step_length_m, '
+                              'step_height_m)')
     out: dict[str, BenchSessionSpec] = {}
     for i, row in enumerate(rows, start=2):
         def num(key: str, required: bool = False) -> float | None:
@@ -211,7 +214,8 @@ def read_bench_sessions_file(path: str | Path) -> dict[str, BenchSessionSpec]:
         if beta is not None and not 0.0 < beta < 1.0:
             raise BagContentError(f'bench sessions file {path}, line {i}: duty_factor = '
                                   f'{beta}: expected 0 < beta < 1')
-        out[bag_path] = BenchSessionSpec(load, num('frequency_hz'), beta, num('step_length_m'))
+        out[bag_path] = BenchSessionSpec(load, num('frequency_hz'), beta, num('step_length_m'),
+                                         num('step_height_m'))
     return out
 
 
@@ -285,6 +289,7 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
 
     periods: list[float] = []
     duties: list[float] = []
+    steps: list[tuple[float, float]] = []   # /gait/phase step length and height [m]
     no_header: dict[str, int] = {}
     joint_rows: list[tuple[float, float, float, float]] = []
     tip_leg: list[str] = []
@@ -331,6 +336,9 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
                 duty = float(msg.duty_factor)
                 if math.isfinite(duty) and 0 < duty < 1:
                     duties.append(duty)
+                geo = (float(msg.step_length), float(msg.step_height))
+                if all(math.isfinite(x) and x > 0 for x in geo):
+                    steps.append(geo)
                 schedule.append((stamped(stamp_to_s(msg.header.stamp), m),
                                  tuple(msg.leg_names), tuple(bool(x) for x in msg.in_stance)))
                 continue
@@ -401,7 +409,7 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
     bat = [(b.t_s, b.voltage_v, b.current_a) for _, _, _, b in combined]
     if session is not None:
         ses = _session_from_spec(path, session, bat, frc, tip, periods, notes_out,
-                                 duties=duties)
+                                 duties=duties, steps=steps)
     for name, rows in (('/battery_state', bat), ('/bench/ground_force', frc),
                        (tip_topic, tip), ('/bench/session', ses)):
         if not rows:
@@ -494,12 +502,14 @@ def _tip_rows_from_joints(rows: list[tuple[float, float, float, float]], leg_dh:
 def _session_from_spec(path: str | Path, spec: BenchSessionSpec,
                        bat: list[tuple[float, float, float]], frc: list[tuple[float, float]],
                        tip: list[tuple[float, float]], periods: list[float],
-                       notes: list[str], *, duties: Sequence[float] = ()
+                       notes: list[str], *, duties: Sequence[float] = (),
+                       steps: Sequence[tuple[float, float]] = ()
                        ) -> list[dict[str, Any]]:
     """The one walking session of a bag without ``/bench/session`` (see
     :class:`BenchSessionSpec`); its frequency's source goes into ``notes``. The duty factor:
     the spec's, else ``/gait/phase``'s (``duties``), else unknown (0: the phase split then
-    takes the measured stance fraction)."""
+    takes the measured stance fraction). The step length and height: the spec's, else
+    ``/gait/phase``'s (``steps``), else unknown (0: other step geometries are not mapped)."""
     if not (bat and frc and tip):
         return []   # the caller names the empty topic
     if spec.frequency_hz is not None:
@@ -525,7 +535,10 @@ def _session_from_spec(path: str | Path, spec: BenchSessionSpec,
     return [{'t_s': t0, 'session_id': Path(path).name, 'state': 'walking',
              'load_kg': spec.load_kg, 'frequency_hz': freq,
              'duty_factor': spec.duty_factor or (float(np.median(duties)) if duties else 0.0),
-             'step_length_m': spec.step_length_m or 0.0},
+             'step_length_m': spec.step_length_m or (
+                 float(np.median([g[0] for g in steps])) if steps else 0.0),
+             'step_height_m': spec.step_height_m or (
+                 float(np.median([g[1] for g in steps])) if steps else 0.0)},
             {'t_s': t_end, 'session_id': Path(path).name, 'state': 'end'}]
 
 

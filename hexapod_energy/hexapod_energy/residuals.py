@@ -144,6 +144,7 @@ class GivenGait:
     duty_factor: float
     step_length_m: float
     leg_count: int | None = None   # None: from joint names L1..Lk/R1..Rk_<joint>
+    step_height_m: float = 0.04    # the lift (Eq. 1 maps another one onto the bench's path)
 
 
 def _joint_schedule(path: str | Path, t: np.ndarray, given: GivenGait
@@ -172,7 +173,8 @@ def _joint_schedule(path: str | Path, t: np.ndarray, given: GivenGait
     name = 'alternating' if given.name == 'tripod' and legs != 6 else given.name
     try:
         gait = make_gait(name, leg_count=legs, duty_factor=given.duty_factor,
-                         step_length_m=given.step_length_m)
+                         step_length_m=given.step_length_m,
+                         step_height_m=given.step_height_m)
     except ValueError as err:
         raise ResidualDataError(f'--gait {given.name} ({legs} legs): {err}') from err
     edges = sorted((d.t_end_s - d.window_s, d.t_end_s) for r in runs

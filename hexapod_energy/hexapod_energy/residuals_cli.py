@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -224,8 +225,12 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                                     'gait of robot bags without /gait/phase)')
         from hexapod_energy.residuals import GivenGait
 
+        height = getattr(args, 'step_height', None)
+        if height is not None and not (math.isfinite(height) and height > 0):
+            raise InvalidInputError(f'--step-height must be > 0 m, got {height}')
         gait = GivenGait(args.gait, args.duty_factor, args.step_length,
-                         getattr(args, 'legs', None))
+                         getattr(args, 'legs', None),
+                         0.04 if height is None else float(height))
     from hexapod_common.bags import message_progress
 
     quiet = getattr(args, 'no_progress', False)

@@ -83,3 +83,16 @@ def test_energy_warns_on_an_infeasible_robot_run(tmp_path, capsys) -> None:
 
 if __name__ == '__main__':
     raise SystemExit(pytest.main([__file__, '-q']))
+
+
+def test_sim_and_energy_agree_on_other_step_geometries(tmp_path, capsys) -> None:
+    """A review: the simulator checked AntBot's limits as phase durations whatever the step,
+    energy scales them to the step's joint path (geometry_limits): 140 mm steps at 0.8 m/s
+    were simulated and then called infeasible, 70 mm at beta 0.7 and 0.2 m/s refused and then
+    called feasible. Both now read the limits on the step's own path."""
+    rc, err = _sim(['--out', str(tmp_path / 'a'), '--speed', '0.8', '--step-length', '0.14'],
+                   capsys)
+    assert rc == 2 and 'on this step\'s joint path' in err
+    rc, err = _sim(['--out', str(tmp_path / 'b'), '--speed', '0.2', '--duty-factor', '0.7',
+                    '--step-length', '0.07'], capsys)
+    assert rc == 0 and 'infeasible' not in err

@@ -199,3 +199,31 @@ def test_a_bag_without_sessions_given_with_bench_names_the_option(bench, tmp_pat
     bag, _, _ = _walking_bags(root / 'orig', tmp_path, drop_gait=False)[0]
     with pytest.raises(BagContentError, match='--bench-sessions CSV'):
         read_bench_bag(bag)
+
+
+@pytest.mark.parametrize('drop_gait', [False, True])
+def test_one_session_bags_keep_their_step_geometry(bench, tmp_path, drop_gait):
+    """A review of the step-geometry mapping: a bench given with --bench-sessions never knew
+    its step length and height (the CSV's step_length_m alone, no height, the bags' own
+    /gait/phase unused), so other steps were read at their durations alone in silence. The
+    geometry now comes from /gait/phase, else from the file's step_length_m and
+    step_height_m; without either, energy.json warns."""
+    root, _ = bench
+    bags = _walking_bags(root / 'orig', tmp_path, drop_gait=drop_gait)
+    csv = tmp_path / 'sessions.csv'
+    head = 'bag,load_kg' + ('' if not drop_gait else ',step_length_m,step_height_m')
+    rows = [f'{b.name},{load}' + ('' if not drop_gait else ',0.1,0.04') for b, load, _ in bags]
+    csv.write_text('\n'.join([head, *rows]) + '\n')
+    assert main(['--bench-sessions', str(csv), '--out', str(tmp_path / 'out'),
+                 '--no-progress']) == 0
+    doc = json.loads((tmp_path / 'out' / 'energy.json').read_text())
+    assert doc['bench']['fit']['step_geometry_m'] == {'step_length': 0.1, 'step_height': 0.04}
+    assert not any('record no step length' in w for w in doc.get('warnings', []))
+    if drop_gait:   # neither /gait/phase nor the columns: unknown, and said
+        csv.write_text('\n'.join(['bag,load_kg', *[f'{b.name},{load}' for b, load, _ in bags]])
+                       + '\n')
+        assert main(['--bench-sessions', str(csv), '--out', str(tmp_path / 'o2'),
+                     '--no-progress']) == 0
+        doc = json.loads((tmp_path / 'o2' / 'energy.json').read_text())
+        assert doc['bench']['fit']['step_geometry_m'] is None
+        assert any('record no step length' in w for w in doc['warnings'])
