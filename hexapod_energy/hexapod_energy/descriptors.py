@@ -365,6 +365,8 @@ class DescriptorAccumulator:
     _last_phase: tuple[float, float] | None = field(default=None, init=False)
     # the schedule the current run of windows is under (see _schedule_break)
     _ref_gait: GaitPhaseSample | None = field(default=None, init=False)
+    # start [s] of the current standing stretch (None: standing since the first sample)
+    _stand_anchor: float | None = field(default=None, init=False)
     #: schedule breaks: (time [s], reason) where no window may span
     schedule_breaks_: list[tuple[float, str]] = field(default_factory=list, init=False)
     #: windows whose /odom speed differs from the schedule's used one by more than
@@ -642,20 +644,21 @@ class DescriptorAccumulator:
         why = self._schedule_break(sample)
         if why:
             # no window spans it: the one in progress is dropped, the next starts at the
-            # next wrap of the new schedule
+            # next wrap of the new schedule; a standing stretch starts here (its windows
+            # count from it; the last one before a break is dropped like a walking cycle's,
+            # it would be read with the next schedule's speed)
             self._boundaries.append(math.nan)
             self.schedule_breaks_.append((sample.t_s, why))
             self._ref_gait = sample
+            if sample.period_s <= 0:
+                self._stand_anchor = sample.t_s
+                self._boundaries.append(sample.t_s)
         elif self._last_phase is not None and sample.period_s <= 0 and \
                 sample.t_s > self._last_phase[0]:
-            # standing (period 0): no cycle wraps; windows of STAND_WINDOW_S on the schedule's
-            # clock, so the standing robot's input power (basal electronics and the servos
-            # holding the body) is measured too, with speed 0 (CoT undefined)
-            t_prev = self._last_phase[0]
-            k_prev = math.floor(t_prev / self.STAND_WINDOW_S)
-            k_now = math.floor(sample.t_s / self.STAND_WINDOW_S)
-            self._boundaries.extend(self.STAND_WINDOW_S * k for k in range(k_prev + 1,
-                                                                           k_now + 1))
+            # standing (period 0): no cycle wraps; windows of STAND_WINDOW_S from the start of
+            # the standing, so the standing robot's input power (basal electronics and the
+            # servos holding the body) is measured too, with speed 0 (CoT undefined)
+            self._stand_boundaries(sample.t_s)
         elif self._last_phase is not None:
             t_prev, phase_prev = self._last_phase
             if sample.t_s > t_prev and sample.cycle_phase < phase_prev - 0.5:
@@ -669,6 +672,16 @@ class DescriptorAccumulator:
 
     #: window length [s] while the schedule stands still (period 0): no cycle to average over
     STAND_WINDOW_S = 1.0
+
+    def _stand_boundaries(self, t_s: float) -> None:
+        """Standing-window boundaries from the last /gait/phase sample up to ``t_s``:
+        multiples of STAND_WINDOW_S from the standing's start (``_stand_anchor``)."""
+        assert self._last_phase is not None
+        anchor = self._stand_anchor if self._stand_anchor is not None else 0.0
+        w = self.STAND_WINDOW_S
+        k_prev = math.floor((self._last_phase[0] - anchor) / w + 1e-9)
+        k_now = math.floor((t_s - anchor) / w + 1e-9)
+        self._boundaries.extend(anchor + w * k for k in range(k_prev + 1, k_now + 1))
 
     #: a schedule value (period, duty factor, step length) moving by more than this fraction
     #: from the one the windows started under breaks them (a transition, a new command)

@@ -144,3 +144,18 @@ def test_odometry_off_the_schedule_is_reported(twist_only: bool) -> None:
     assert all(round(d.speed_mps, 4) == 0.2 for d in out)
     assert len(acc.odometry_disagreements_) == len(out)
     assert all(abs(v - 0.18) < 0.005 for _, v in acc.odometry_disagreements_)
+
+
+def test_standing_windows_start_where_the_robot_stops() -> None:
+    """A review: standing windows sat on whole seconds and the first boundary after the
+    break was skipped, so a stop at 3.0 s lost its first second; they count from the stop."""
+    acc = DescriptorAccumulator(mass_kg=2.2, current_sign='ros')
+    feed(acc, 0.0, 3.25, 'alternating', 1.0, 0.5)
+    stand = []
+    for k in range(300):
+        t = 3.25 + 0.01 * k
+        stand += acc.add_gait_phase(gait(t, 'stand', 0.0, 0.5, 0.0))
+        stand += acc.add_battery(battery(t + 1e-4))
+    feed(acc, 6.25, 8.0, 'alternating', 1.0, 0.5)
+    starts = [round(d.t_end_s - d.window_s, 6) for d in stand]
+    assert starts[:2] == [3.25, 4.25] and all(d.speed_mps == 0.0 for d in stand)
