@@ -461,19 +461,23 @@ def open_reader(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[str]]
 
 
 #: the label of :func:`message_progress`'s bars while one is active
-_MESSAGE_BAR: ContextVar[str | None] = ContextVar('hexapod_message_bar', default=None)
+_MESSAGE_BAR: ContextVar[str | Callable[[int], Any] | None] = ContextVar(
+    'hexapod_message_bar', default=None)
 
 
 @contextmanager
-def message_progress(desc: str, *, disable: bool = False) -> Iterator[None]:
+def message_progress(desc: str, *, disable: bool = False,
+                     callback: Callable[[int], Any] | None = None) -> Iterator[None]:
     """While active, every :func:`iter_messages` of this thread shows a progress bar of the
     messages read (stderr, below the command's own bar, total from the bag's message counts):
     a single large bag then shows its progress, not ``0/1`` for minutes.
 
     ``disable`` (a command's ``--no-progress``) and a stderr that is not a terminal show none.
+    ``callback`` instead receives the number of messages read every 4096 and at the end (a
+    worker process reporting to its parent's bar, ``slip --jobs``).
     """
     on = not disable and hasattr(sys.stderr, 'isatty') and sys.stderr.isatty()
-    token = _MESSAGE_BAR.set(desc if on else None)
+    token = _MESSAGE_BAR.set(callback if callback is not None else desc if on else None)
     try:
         yield
     finally:
@@ -508,6 +512,10 @@ def iter_messages(reader: AnyReader, topics: Sequence[str] | None = None,
     """
     conns = [c for c in reader.connections if topics is None or c.topic in topics]
     bar_desc = _MESSAGE_BAR.get() if progress is None else None
+    if callable(bar_desc):
+        yield from iter_messages(reader, topics, start_ns, stop_ns, dedupe=dedupe,
+                                 duplicates=duplicates, progress=bar_desc)
+        return
     if bar_desc is not None:
         from tqdm import tqdm
 

@@ -73,7 +73,7 @@ import json
 import math
 import multiprocessing
 from collections import Counter
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, wait
 from pathlib import Path
 from typing import Any
 
@@ -414,6 +414,31 @@ def _geometry_overrides(args: argparse.Namespace) -> dict[str, Any]:
     return out
 
 
+def _analyze_reporting(path: str, options: dict[str, Any], queue: Any) -> dict[str, Any]:
+    """:func:`analyze_bag` in a ``--jobs`` worker, the messages it reads counted to
+    ``queue`` (the parent's bar)."""
+    from hexapod_common.bags import message_progress
+
+    with message_progress('', callback=queue.put):
+        return analyze_bag(path, options)
+
+
+def _message_total(bags: list[str]) -> int:
+    """Messages of the topics ``slip`` reads in ``bags`` (0 when a bag cannot be opened:
+    its worker reports the error)."""
+    from hexapod_common.bags import open_reader
+
+    total = 0
+    for b in bags:
+        try:
+            with open_reader(b) as reader:
+                total += sum(int(getattr(c, 'msgcount', 0) or 0) for c in reader.connections
+                             if c.topic in (*TOPICS, '/gait/phase'))
+        except Exception:  # noqa: BLE001 - the analysis names the bad bag
+            continue
+    return total
+
+
 def _positive_kg(text: str) -> float:
     """``--mass``: a finite mass > 0 (``nan``, 0 or a negative one was taken as given and
     reported as every bag refused, with NaN written into slip.json)."""
@@ -452,18 +477,32 @@ def run_command(args: argparse.Namespace) -> int:
         # process already using GNU OpenMP')
         ctx = multiprocessing.get_context('forkserver')
         pool = ProcessPoolExecutor(max_workers=args.jobs, mp_context=ctx)
+        manager = ctx.Manager()
         try:
-            futs = [pool.submit(analyze_bag, b, options) for b in bags]
-            for fut in tqdm(futs, desc='slip', unit='bag'):
-                results.append(fut.result())
+            # the workers report the messages they read to one bar here (a long bag shows
+            # its progress, not 0/N bags for minutes)
+            queue = manager.Queue()
+            futs = [pool.submit(_analyze_reporting, b, options, queue) for b in bags]
+            with tqdm(total=len(bags), desc='slip', unit='bag') as bar_bags, \
+                    tqdm(total=_message_total(bags) or None, desc='slip: messages',
+                         unit='msg', unit_scale=True, leave=False) as bar_msgs:
+                pending = set(futs)
+                while pending:
+                    done, pending = wait(pending, timeout=0.25)
+                    bar_bags.update(len(done))
+                    while not queue.empty():
+                        bar_msgs.update(queue.get_nowait())
+            results.extend(fut.result() for fut in futs)
         except KeyboardInterrupt:
             # Ctrl-C: the bags not started are dropped and the running workers stopped,
             # not waited for (they kept going 14 s)
             pool.shutdown(wait=False, cancel_futures=True)
             for proc in list(getattr(pool, '_processes', {}).values()):
                 proc.terminate()
+            manager.shutdown()
             raise
         pool.shutdown()
+        manager.shutdown()
     else:
         from hexapod_common.bags import message_progress
 

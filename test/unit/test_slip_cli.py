@@ -68,3 +68,20 @@ def test_a_bad_mass_is_an_option_error(tmp_path, mass, capsys):
     assert ex.value.code == 2
     assert '--mass' in capsys.readouterr().err
     assert not (tmp_path / 'o').exists()
+
+
+def test_jobs_workers_report_the_messages_they_read(tmp_path):
+    """`slip --jobs N` showed no per-message progress inside its workers (a long bag sat at
+    0/N bags); each worker now counts what it reads to its parent's bar."""
+    import queue
+
+    from slip_identification.cli import _analyze_reporting, _message_total
+
+    bag = edubot_sim.write_edubot_bag(tmp_path / 'run', 'running', duration_s=3.0, seed=1)
+    q: queue.Queue = queue.Queue()
+    out = _analyze_reporting(str(bag), {}, q)
+    assert 'error' not in out
+    counts = []
+    while not q.empty():
+        counts.append(q.get_nowait())
+    assert sum(counts) == _message_total([str(bag)]) > 0
