@@ -22,7 +22,7 @@ import math
 import numbers
 import os
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any, TypeVar
 
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
@@ -356,16 +356,9 @@ def find_params_class(node_factory: Callable[..., Any]) -> type | None:
     bases; else the one dataclass of :func:`param` fields in the factory's module.
     """
     import importlib
-    import inspect
     import re
 
-    classes = inspect.getmro(node_factory) if inspect.isclass(node_factory) else (node_factory,)
-    for cls in classes:
-        init = getattr(cls, '__init__', None) if inspect.isclass(cls) else cls
-        try:
-            source = inspect.getsource(init)  # type: ignore[arg-type]
-        except (OSError, TypeError):
-            continue
+    for cls, source in _init_sources(node_factory):
         module = importlib.import_module(getattr(cls, '__module__', '') or '__main__')
         for name in re.findall(r'declare_params\(\s*self\s*,\s*(\w+)', source):
             found = getattr(module, name, None)
@@ -377,22 +370,29 @@ def find_params_class(node_factory: Callable[..., Any]) -> type | None:
     return candidates[0] if len(candidates) == 1 else None
 
 
+def _init_sources(node_factory: Callable[..., Any]) -> Iterator[tuple[Any, str]]:
+    """``(class, source of its __init__)`` of a node class and its bases (or of a factory
+    function), skipping those without readable source."""
+    import inspect
+
+    classes = inspect.getmro(node_factory) if inspect.isclass(node_factory) else (node_factory,)
+    for cls in classes:
+        init = getattr(cls, '__init__', None) if inspect.isclass(cls) else cls
+        try:
+            yield cls, inspect.getsource(init)  # type: ignore[arg-type]
+        except (OSError, TypeError):
+            continue
+
+
 def writable_params(node_factory: Callable[..., Any], cls: type) -> set[str]:
     """Names of ``cls``'s fields a run-time ``ros2 param set`` changes (module doc): the
     ``live`` ones, and every field not ``read_only`` when the node's ``declare_params`` call
     passes ``on_change`` (read from its source, as :func:`find_params_class`)."""
-    import inspect
     import re
 
     fields = dataclasses.fields(cls)  # type: ignore[arg-type]
     live = {f.name for f in fields if f.metadata.get('live', False)}
-    classes = inspect.getmro(node_factory) if inspect.isclass(node_factory) else (node_factory,)
-    for klass in classes:
-        init = getattr(klass, '__init__', None) if inspect.isclass(klass) else klass
-        try:
-            source = inspect.getsource(init)  # type: ignore[arg-type]
-        except (OSError, TypeError):
-            continue
+    for _klass, source in _init_sources(node_factory):
         call = re.search(r'declare_params\(\s*self\s*,\s*' + re.escape(cls.__name__) +
                          r'\b([^)]*)\)', source)
         if call is not None:
