@@ -584,7 +584,9 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 labels=[_run_label(r, speed=False) for r in runs],
                 title=f'Eq. 1 prediction against measurement ({robot_name})',
                 outside=[bool(r.get('prediction_outside_bench')) for r in runs])]
-            labels = [_run_label(r) for r in runs]
+            # a run whose prediction extrapolates the bench says so under its bar
+            labels = [_run_label(r) + ('\n(extrapolated)' if r.get('prediction_outside_bench')
+                                       else '') for r in runs]
             doc['plots'] += [str(p.relative_to(out)) for p in watts_plot(
                 labels, [r['power_breakdown_w'] for r in runs], meas,
                 [r['power_out_w'] for r in runs], out / 'where_the_watts_go',

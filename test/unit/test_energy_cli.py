@@ -119,10 +119,25 @@ def test_energy_json_prediction_and_schema(bags) -> None:
     assert saved['prediction_error']['relative_rmse'] < 0.02
 
 
-def test_a_run_slower_than_the_bench_is_flagged(bags, tmp_path) -> None:
+def test_a_run_slower_than_the_bench_is_flagged(bags, tmp_path, monkeypatch) -> None:
     """The bench walked at 0.5-3 Hz (phases 0.167-1 s): a run at a 3 s period (1.5 s
     phases) is predicted by extrapolating both surfaces, which the run and a warning say; the
-    runs inside the bench's range carry no reason."""
+    runs inside the bench's range carry no reason. The where-the-watts-go bars and the
+    prediction plot mark it too."""
+    import hexapod_energy.plots as plots
+
+    seen: dict[str, object] = {}
+
+    def spy(name):
+        real = getattr(plots, name)
+
+        def wrapped(*a, **kw):
+            seen[name] = (a, kw)
+            return real(*a, **kw)
+        return wrapped
+
+    monkeypatch.setattr(plots, 'watts_plot', spy('watts_plot'))
+    monkeypatch.setattr(plots, 'prediction_plot', spy('prediction_plot'))
     root, _ = bags
     _write_robot(tmp_path / 'slow', 3.0)
     doc = run(build_parser().parse_args([
@@ -135,6 +150,9 @@ def test_a_run_slower_than_the_bench_is_flagged(bags, tmp_path) -> None:
     assert any('extrapolates the bench surfaces' in w and 'slow' in w
                for w in doc['warnings'])
     assert doc['bench']['fit']['domain']['stance']['rate_hz'] == [1.0, 6.0]
+    labels = seen['watts_plot'][0][0]
+    assert [lb.endswith('(extrapolated)') for lb in labels] == [False, True]
+    assert seen['prediction_plot'][1]['outside'] == [False, True]
 
 
 def test_missing_topic_is_named(bags, tmp_path, capsys) -> None:
