@@ -10,30 +10,7 @@ from numpy.testing import assert_allclose
 from hexapod_energy.plots import four_quadrant_figure
 from hexapod_energy.prediction import OutputPowerModel
 from hexapod_energy.sweeps import run_standard_sweeps, standard_sweeps
-
-
-class Phase:
-    """Basal 1.9 W per leg plus rate- and load-dependent parts (test_energy_sweeps)."""
-
-    def p_stance_w(self, t, m):
-        f = 1 / np.asarray(t)
-        return 1.9 + 0.45 * f + 0.05 * f**2 + 2.0 * np.asarray(m) * (1 + 0.2 * f)
-
-    def p_swing_w(self, t, m):
-        f = 1 / np.asarray(t)
-        return 1.9 + 0.5 * f + 0.06 * f**2 + 0 * np.asarray(m)
-
-
-class StubTrajectory:
-    def __init__(self, gait, leg_index, **_kw):
-        self.s = gait.step_length_m / 0.1
-
-    def joints(self, t):
-        t = np.asarray(t, float)[:, None]
-        w = 2 * np.pi
-        a = np.array([0.3, 0.25, -0.35]) * self.s
-        q0 = np.array([0.0, 0.3, -1.6])
-        return q0 + a * np.sin(w * t), a * w * np.cos(w * t), -a * w**2 * np.sin(w * t)
+from test_energy_sweeps import Phase, StubTrajectory  # the analytic phase model
 
 
 @pytest.fixture(scope='module')
