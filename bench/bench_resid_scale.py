@@ -58,7 +58,8 @@ def build_windows_baseline(runs: Sequence[R.ResidualRun], *, temp_ref_c: float |
         'run', 't_s', 'duration_s', 'measured_w', 'predicted_w', 'step_frequency_hz',
         'speed_mps', 'current_sq_a2', 'temp_excess_k', 'stance_fraction')}
     extra: dict[str, list[float]] = {'supply_dv_v': [], 'supply_sat_v2': [],
-                                     'saturated_drives': [], 'elapsed_energy_j': []}
+                                     'saturated_drives': [], 'elapsed_energy_j': [],
+                                     'temp_excess_mean_k': [], 'winding_excess_w': []}
     with_slope = all(r.mass_slope_w_per_kg is not None for r in runs)
     if with_slope:
         extra['mass_slope_w_per_kg'] = []
@@ -94,7 +95,10 @@ def build_windows_baseline(runs: Sequence[R.ResidualRun], *, temp_ref_c: float |
             'measured_w': r.power_w, 'predicted_w': r.predicted_w, 'step_frequency_hz': freq,
             'speed_mps': speed, 'current_sq_a2': r.current_a ** 2, 'temp_excess_k': texcess,
         }
+        dt_mean = texcess / max(r.servo_count, 1)
         sub_extra = {'supply_dv_v': r.voltage_v - v_s,
+                     'temp_excess_mean_k': dt_mean,
+                     'winding_excess_w': dt_mean * r.predicted_w,
                      'supply_sat_v2': sat_counts[ri] * (r.voltage_v ** 2 - v_s ** 2),
                      'saturated_drives': sat_counts[ri],
                      'elapsed_energy_j': np.concatenate([[0.0], np.cumsum(

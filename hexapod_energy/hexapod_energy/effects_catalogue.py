@@ -18,6 +18,8 @@ thermal_drift       sum_i (T_i - T_ref) from /servo_status [K];   ``w_per_k`` [W
                     its variation must explain too
 thermal_drift       energy drawn since the run's start [kJ], only  ``w_per_kj`` [W/kJ]
                     without /servo_status (ThermalDriftTime)
+hot_windings        mean_i (T_i - T_ref) x P_pred [K W]; its      ``per_k`` [1/K]
+                    variation must explain too
 kinematic_error     step frequency 1/T from /gait/phase [Hz]      ``w_per_hz`` [W/Hz]
 supply_resistance   -I^2 [A^2], only when V falls with I          ``resistance_ohm`` [ohm] from
                                                                   the V-I slope, and
@@ -55,6 +57,7 @@ __all__ = [
     'BasalPower',
     'CarriedMass',
     'EnergyEffect',
+    'HotWindings',
     'KinematicError',
     'LegAnomaly',
     'ModelOffset',
@@ -149,6 +152,12 @@ class EnergyEffect:
         """Whether the bags give this effect's regressor (and any evidence it needs)."""
         return True
 
+    def variation_columns(self, table: WindowTable) -> np.ndarray:
+        """The part of :meth:`columns` that the effect's own cause varies (the test of
+        :attr:`needs_variation`): by default the columns minus their means."""
+        x = self.columns(table)
+        return x - np.mean(x, axis=0)
+
     def columns(self, table: WindowTable) -> np.ndarray:
         """Regressor columns (n, k) whose coefficients this effect fits."""
         raise NotImplementedError
@@ -220,6 +229,55 @@ class ThermalDrift(EnergyEffect):
 
     def params(self, coef, stderr, table):  # type: ignore[no-untyped-def]
         return {'w_per_k': float(coef[0])}, {'w_per_k': float(stderr[0])}
+
+
+#: Largest relative rise of a servo's input power per kelvin of winding temperature that
+#: :class:`HotWindings` may fit [1/K]: all of it copper loss, copper resistance +0.393 %/K and
+#: a ferrite magnet's flux -0.2 %/K (the current for a torque, squared: +0.4 %/K), rounded up.
+MAX_WINDING_COEFF_PER_K = 0.01
+
+
+class HotWindings(EnergyEffect):
+    """Servo windings warmer than on the bench: ``P += per_k * mean_i (T_i - T_ref) * P_pred``
+    [1/K].
+
+    A DC motor's copper resistance rises 0.393 %/K and its magnet's flux falls (NdFeB about
+    0.1 %/K, ferrite 0.2 %/K), so every torque costs more current and more copper loss when
+    the windings are hot: the bench's powers, measured at ``T_ref`` (26 +- 1 degC in
+    Brodoline et al.'s protocol), grow with the temperature in proportion to what the servos
+    spend. The regressor is the robot's mean servo temperature above the bench's times the
+    predicted power, window by window; ``per_k`` is bounded by
+    :data:`MAX_WINDING_COEFF_PER_K`. A robot whose servos are warm from earlier walking draws
+    more at every speed, more the more it spends (simulated AntBot at 50 degC against a
+    27 degC bench: +2.9 W at 28 W, +0.42 %/K of the predicted power); :class:`ThermalDrift`
+    (a constant per kelvin and servo) read it as 0.0063 W/K with a ``speed_friction`` beside
+    it to follow its growth with speed.
+
+    Like :class:`ThermalDrift` it must be explained by the temperature's variation too
+    (``needs_variation``: the mean temperature difference times the predicted power is the
+    shape of a sensor gain, ``power_gain``)."""
+
+    name, unit = 'hot_windings', '1/K'
+    upper = MAX_WINDING_COEFF_PER_K
+    needs_variation = True
+
+    def applicable(self, table: WindowTable) -> bool:
+        x = table.extra.get('winding_excess_w')
+        dt = table.extra.get('temp_excess_mean_k')
+        return bool(x is not None and dt is not None and np.all(np.isfinite(x))
+                    and np.all(np.isfinite(dt)) and np.ptp(dt) > 1.0)
+
+    def columns(self, table: WindowTable) -> np.ndarray:
+        return np.asarray(table.extra['winding_excess_w'], dtype=float)[:, None]
+
+    def variation_columns(self, table: WindowTable) -> np.ndarray:
+        # the temperature's variation only: a constant difference times P_pred is a gain
+        dt = np.asarray(table.extra['temp_excess_mean_k'], dtype=float)
+        return self.columns(table) - float(np.mean(dt)) * \
+            np.asarray(table.predicted_w, dtype=float)[:, None]
+
+    def params(self, coef, stderr, table):  # type: ignore[no-untyped-def]
+        return {'per_k': float(coef[0])}, {'per_k': float(stderr[0])}
 
 
 class ThermalDriftTime(EnergyEffect):
@@ -413,7 +471,7 @@ def default_catalogue(leg_names: tuple[str, ...] = ()) -> list[EnergyEffect]:
     physical effect of the robot; a caller who wants the transfer bias fitted adds it.
     """
     effects: list[EnergyEffect] = [BasalPower(), ThermalDrift(), ThermalDriftTime(),
-                                   KinematicError(), SupplyResistance(), SpeedFriction(),
+                                   HotWindings(), KinematicError(), SupplyResistance(), SpeedFriction(),
                                    CarriedMass(), PowerGain()]
     effects += [LegAnomaly(leg_index=j, leg=n) for j, n in enumerate(leg_names)]
     effects.append(TimeOffset())

@@ -689,12 +689,15 @@ def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = Non
 
     ``extra`` holds the supply-resistance regressors (window means): ``supply_dv_v`` the
     voltage sag ``V - V_s`` [V] and ``supply_sat_v2`` the saturated drives' ``n_sat (V^2 -
-    V_s^2)`` [V^2] (see :class:`SupplyResistanceDrive`)."""
+    V_s^2)`` [V^2] (see :class:`SupplyResistanceDrive`); ``temp_excess_mean_k`` the mean servo
+    temperature above ``temp_ref_c`` [K] and ``winding_excess_w`` its product with the
+    predicted power [K W] (:class:`~hexapod_energy.effects_catalogue.HotWindings`)."""
     cols: dict[str, list[Any]] = {k: [] for k in (
         'run', 't_s', 'duration_s', 'measured_w', 'predicted_w', 'step_frequency_hz',
         'speed_mps', 'current_sq_a2', 'temp_excess_k', 'stance_fraction')}
     extra: dict[str, list[float]] = {'supply_dv_v': [], 'supply_sat_v2': [],
-                                     'saturated_drives': [], 'elapsed_energy_j': []}
+                                     'saturated_drives': [], 'elapsed_energy_j': [],
+                                     'temp_excess_mean_k': [], 'winding_excess_w': []}
     with_slope = all(r.mass_slope_w_per_kg is not None for r in runs)
     if with_slope:
         extra['mass_slope_w_per_kg'] = []
@@ -736,7 +739,10 @@ def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = Non
             'measured_w': r.power_w, 'predicted_w': r.predicted_w, 'step_frequency_hz': freq,
             'speed_mps': speed, 'current_sq_a2': r.current_a ** 2, 'temp_excess_k': texcess,
         }
+        dt_mean = texcess / max(r.servo_count, 1)
         sub_extra = {'supply_dv_v': r.voltage_v - v_s,
+                     'temp_excess_mean_k': dt_mean,
+                     'winding_excess_w': dt_mean * r.predicted_w,
                      'supply_sat_v2': sat_counts[ri] * (r.voltage_v ** 2 - v_s ** 2),
                      'saturated_drives': sat_counts[ri],
                      'elapsed_energy_j': np.concatenate([[0.0], np.cumsum(
@@ -1358,17 +1364,17 @@ SUPPLY_MISMATCH = 0.03
 
 
 class _Centered(EnergyEffect):
-    """``effect`` with its columns minus their means over ``table`` (its variation only, with
-    the effect's own sign): the test of :attr:`EnergyEffect.needs_variation`."""
+    """``effect`` with its columns' variation only (:meth:`EnergyEffect.variation_columns`,
+    by default minus their means over ``table``, with the effect's own sign): the test of
+    :attr:`EnergyEffect.needs_variation`."""
 
     def __init__(self, effect: EnergyEffect, table: WindowTable) -> None:
         self.effect = effect
         self.name = f'{effect.name}_variation'
         self.unit = effect.unit
-        self._mean = np.mean(effect.columns(table), axis=0)
 
     def columns(self, table: WindowTable) -> np.ndarray:
-        return self.effect.columns(table) - self._mean
+        return self.effect.variation_columns(table)
 
     def params(self, coef, stderr, table):  # type: ignore[no-untyped-def]
         return self.effect.params(coef, stderr, table)

@@ -36,7 +36,8 @@ on another floor) the summary says so and gives its shape.
 (at least 90 % of the held-out error the added effect removed): the runs cannot tell them
 apart, and the summary says so. Energy candidates: ``basal_power``, ``thermal_drift`` (on the
 servo temperatures, or without ``/servo_status`` on the energy drawn since the run started),
-``kinematic_error``, ``supply_resistance``, ``speed_friction``, ``carried_mass`` (an undeclared
+``hot_windings`` (servos warmer than the bench's: the predicted power times their mean excess
+temperature, ``per_k`` [1/K]), ``kinematic_error``, ``supply_resistance``, ``speed_friction``, ``carried_mass`` (an undeclared
 payload, in kg, from the bench model's own mass sensitivity), ``leg_anomaly`` (per leg) and
 ``time_offset`` (:mod:`hexapod_energy.effects_catalogue`).
 
