@@ -7,9 +7,18 @@ and serves the master side from a background thread: it parses instruction packe
 since its last access. Any client that opens :attr:`ServoBusEmulator.port_name` as a serial port
 (the real ``dynamixel_sdk`` PortHandler, pyserial, the driver node) talks to it as to real servos.
 
-Instructions served. Protocol 1.0: PING, READ, WRITE, REG_WRITE, ACTION, SYNC_WRITE. Protocol 2.0:
-PING (also broadcast), READ, WRITE, REG_WRITE, ACTION, REBOOT, SYNC_READ, SYNC_WRITE, BULK_READ,
-BULK_WRITE. Status Return Level is honoured.
+Instructions served (ROBOTIS e-Manual, Protocol 1.0 and 2.0 pages). Protocol 1.0: PING, READ,
+WRITE, REG_WRITE, ACTION, FACTORY_RESET (all registers to their defaults, ID back to 1),
+SYNC_WRITE, BULK_READ (MX servos only: AX/RX servos have no Bulk Read and stay silent, as for any
+broadcast; each listed servo answers after the previous one's status, so the chain stops at a
+silent one). REBOOT is not a Protocol 1.0 MX/AX instruction (the SDK's 1.0 ``reboot`` sends
+nothing): Instruction Error. Protocol 2.0: PING (also broadcast), READ, WRITE, REG_WRITE, ACTION,
+FACTORY_RESET (0xFF all, 0x01 all but ID, 0x02 all but ID and baud rate; broadcast Reset-all is
+ignored from firmware v42), REBOOT, CLEAR (multi-turn revolution count; Result Fail while the
+servo moves), SYNC_READ, SYNC_WRITE, BULK_READ, BULK_WRITE, FAST_SYNC_READ and FAST_BULK_READ
+(one combined status packet from ID 0xFE; X430/540 firmware v45+, XL330 v46+; MX(2.0) has
+neither and stays silent). Any other instruction to one servo gets Instruction Error; broadcast
+instructions get status packets only for PING and the reads. Status Return Level is honoured.
 
 Fault injection per servo (:meth:`ServoBusEmulator.inject`): ``no_answer`` (silent),
 ``bad_checksum`` (reply with a corrupted checksum/CRC), ``error_bits`` (hardware error flags in
@@ -20,7 +29,8 @@ after a delay, holding the bus as a slow servo does), ``overheat`` (present temp
 :attr:`ServoBusEmulator.adapter_latency_s` delays every reply on its way to the host without
 holding the bus, as a USB adapter's latency timer does (FTDI/U2D2: 16 ms by default on Linux).
 :attr:`EmulatedServo.read_hook` is called before a servo answers a READ, Sync Read or Bulk
-Read (a test can stamp each reply, e.g. count requests in Present Position).
+Read, fast ones included (a test can stamp each reply, e.g. count requests in Present
+Position).
 
 Physics: :class:`hexapod_bench_drivers.servo_model.ServoModel` when importable (the simulator's
 electromechanical model), else :class:`FirstOrderServo`, a first-order stand-in. Either sits
@@ -82,6 +92,8 @@ __all__ = [
     'EmulatedServo',
     'crc16',
     'emulator_process',
+    'fast_read_supported',
+    'p1_bulk_read_supported',
     'make_physics',
     'p1_checksum',
     'p1_packet',
@@ -92,12 +104,38 @@ FAULT_KINDS = ('no_answer', 'bad_checksum', 'error_bits', 'late_reply', 'overhea
 
 BROADCAST_ID = 0xFE
 INST_PING, INST_READ, INST_WRITE, INST_REG_WRITE, INST_ACTION = 0x01, 0x02, 0x03, 0x04, 0x05
-INST_REBOOT, INST_STATUS = 0x08, 0x55
+INST_FACTORY_RESET, INST_REBOOT, INST_CLEAR, INST_STATUS = 0x06, 0x08, 0x10, 0x55
 INST_SYNC_READ, INST_SYNC_WRITE, INST_BULK_READ, INST_BULK_WRITE = 0x82, 0x83, 0x92, 0x93
+INST_FAST_SYNC_READ, INST_FAST_BULK_READ = 0x8A, 0x9A
 
 P1_ERR_CHECKSUM, P1_ERR_RANGE, P1_ERR_INSTRUCTION = 0x10, 0x08, 0x40
-P2_ERR_INSTRUCTION, P2_ERR_CRC, P2_ERR_DATA_RANGE, P2_ERR_ACCESS = 0x02, 0x03, 0x04, 0x07
+P2_ERR_RESULT_FAIL, P2_ERR_INSTRUCTION, P2_ERR_CRC, P2_ERR_DATA_RANGE = 0x01, 0x02, 0x03, 0x04
+P2_ERR_DATA_LENGTH, P2_ERR_ACCESS = 0x05, 0x07
 P2_ALERT = 0x80
+
+#: Protocol 2.0 Factory Reset options: registers each one keeps (e-Manual, Factory Reset 0x06)
+P2_FACTORY_RESET_KEEP: dict[int, frozenset[str]] = {
+    0xFF: frozenset(), 0x01: frozenset({'id'}), 0x02: frozenset({'id', 'baud_rate'})}
+#: Protocol 2.0 Clear: option 0x01 and its fixed bytes reset the multi-turn revolution count
+P2_CLEAR_MULTI_TURN = bytes([0x01, 0x44, 0x58, 0x4C, 0x22])
+#: lowest firmware version with Clear (0x10) and with Broadcast + Reset-all refused (e-Manual:
+#: MX(2.0) and X series from v42)
+P2_CLEAR_MIN_FIRMWARE = 42
+#: Fast Sync Read / Fast Bulk Read: lowest firmware version per model family (e-Manual:
+#: X430/540 series v45, X330 v46; MX(2.0) is not listed and does not have them)
+P2_FAST_READ_MIN_FIRMWARE: dict[str, int] = {
+    'XL430': 45, 'XM430': 45, 'XH430': 45, 'XC430': 45, 'XM540': 45, 'XL330': 46}
+
+
+def p1_bulk_read_supported(table: ControlTable) -> bool:
+    """Protocol 1.0 Bulk Read (0x92) is MX firmware only; AX and RX servos do not have it."""
+    return table.protocol == 1 and table.model_name.startswith('MX')
+
+
+def fast_read_supported(table: ControlTable, firmware_version: int) -> bool:
+    """Whether a Protocol 2.0 servo of ``table`` with this firmware serves Fast Sync/Bulk Read."""
+    minimum = P2_FAST_READ_MIN_FIRMWARE.get(table.model_name[:5])
+    return table.protocol == 2 and minimum is not None and firmware_version >= minimum
 
 
 # --- packet codecs ---------------------------------------------------------------------------
@@ -325,6 +363,7 @@ class EmulatedServo:
     registered: tuple[int, bytes] | None = field(init=False, default=None)
     physics_error: int = field(init=False, default=0)
     #: called (under the bus lock) before the servo answers a READ, Sync Read or Bulk Read
+    #: (Fast Sync/Bulk Read and Protocol 1.0 Bulk Read included)
     read_hook: Callable[[EmulatedServo], None] | None = field(init=False, default=None)
 
     def __post_init__(self) -> None:
@@ -410,6 +449,22 @@ class _Group:
         self.r_hw = r.get('hardware_error_status')
         self.r_mode = r.get('operating_mode')   # Protocol 2.0
         self.r_p1_current = r.get('current')   # MX-64/MX-106 on Protocol 1.0 (2048 = 0 A)
+
+    def shift_position(self, servo: EmulatedServo, delta_rad: float) -> None:
+        """Move ``servo``'s physics position (and ServoModel's setpoint) by ``-delta_rad``.
+
+        Used by Clear (multi-turn): the shaft does not move, only the count the servo keeps.
+        """
+        k = next(i for i, s in enumerate(self.servos) if s is servo)
+        phys: Any = self.physics
+        if hasattr(phys, 'state') and hasattr(phys, 'set_state'):   # ServoModel
+            state = phys.state()
+            for key in ('motor_position_rad', '_setpoint_rad'):
+                if key in state:
+                    state[key][k] -= delta_rad
+            phys.set_state(state)
+        elif hasattr(phys, 'position_rad'):   # FirstOrderServo
+            phys.position_rad[k] -= delta_rad
 
     def step(self, dt_s: float, supply_voltage_v: float) -> None:
         """Advance the physics by ``dt_s`` and write the present-value registers."""
@@ -546,6 +601,10 @@ class ServoBusEmulator:
         #: delay of every reply on its way to the host [s], not holding the bus (USB latency)
         self.adapter_latency_s = 0.0
         self._outbox: list[tuple[float, bytes]] = []   # (due time, reply) under latency
+        #: servos pushed off their ID when a Factory Reset gave another servo the same ID (a
+        #: real bus then has two servos answering at one ID; the emulator keeps the reset one)
+        self.displaced: list[EmulatedServo] = []
+        self._group_of = {id(s): g for g in self._groups for s in g.servos}
         self._master, self._slave = os.openpty()
         tty.setraw(self._slave)
         self.port_name = os.ttyname(self._slave)
@@ -763,8 +822,20 @@ class ServoBusEmulator:
             for s in self.servos.values():
                 self._action(s)
             return []
+        if pkt.instruction == INST_BULK_READ and pkt.servo_id == BROADCAST_ID:
+            return self._p1_bulk_read(p)
+        if pkt.instruction == INST_FACTORY_RESET and pkt.servo_id == BROADCAST_ID:
+            for s in list(self.servos.values()):
+                self._factory_reset(s, frozenset())
+            return []
         if servo is None:
             return []
+        if pkt.instruction == INST_FACTORY_RESET:
+            # Reply first (from the old ID, at the old Status Return Level), then reset: all
+            # registers to their defaults, the ID to 1 (Protocol 1.0 has no options).
+            reply = self._status(servo, 0)
+            self._factory_reset(servo, frozenset())
+            return reply
         if pkt.instruction == INST_PING:
             return self._status(servo, 0, is_ping=True)
         if pkt.instruction == INST_READ and len(p) == 2:
@@ -787,6 +858,164 @@ class ServoBusEmulator:
         if servo.registered is not None:
             self._write(servo, servo.registered[0], servo.registered[1])
             servo.registered = None
+
+    def _p1_bulk_read(self, p: bytes) -> list[tuple[float, bytes]]:
+        """Protocol 1.0 Bulk Read: params [0x00, len1, id1, addr1, len2, id2, addr2, ...].
+
+        Each listed servo answers with a normal status packet once the previous one's status
+        has gone by (e-Manual), so the chain stops at the first servo that does not answer: an
+        absent ID, an AX/RX servo (no Bulk Read: silent, as for any broadcast), Status Return
+        Level 0 or an injected ``no_answer``. An ID listed again is skipped (e-Manual: only its
+        first entry is processed).
+        """
+        out: list[tuple[float, bytes]] = []
+        seen: set[int] = set()
+        for k in range(1, len(p) - 2, 3):
+            length, servo_id, address = p[k], p[k + 1], p[k + 2]
+            if servo_id in seen:
+                continue
+            seen.add(servo_id)
+            s = self.servos.get(servo_id)
+            if s is None or not p1_bulk_read_supported(s.table):
+                break
+            err = self._access(s, address, length, write=False)
+            if s.read_hook is not None:
+                s.read_hook(s)
+            data = bytes(s.memory[address:address + length]) if err == 0 else b''
+            reply = self._status(s, err, data, is_read=True)
+            if not reply:
+                break
+            out += reply
+        return out
+
+    def _factory_reset(self, servo: EmulatedServo, keep: frozenset[str]) -> None:
+        """Writable registers back to their ControlTable defaults, except those in ``keep``.
+
+        The defaults are the emulator's power-on values from control_tables (Return Delay Time
+        0 and Baud Rate 1 / 3 there; the pty has no baud rate or reply delay). Read-only items
+        (model number, firmware, present values) are the servo's own and stay. A pending
+        REG_WRITE is dropped. Protocol 2.0 firmware reboots after the reset (e-Manual), which
+        also clears an injected ``error_bits`` fault as REBOOT does. A changed ID re-addresses
+        the servo (see :attr:`ServoBusEmulator.displaced`).
+        """
+        self._advance()
+        for name, reg in servo.table.registers.items():
+            if reg.writable and name not in keep:
+                _put(servo.memory, reg, reg.default)
+        servo.registered = None
+        if servo.protocol == 2:
+            servo.faults.pop('error_bits', None)
+        new_id = servo.get('id')
+        if new_id != servo.servo_id:
+            del self.servos[servo.servo_id]
+            other = self.servos.get(new_id)
+            if other is not None:
+                self.displaced.append(other)
+            servo.servo_id = new_id
+            self.servos[new_id] = servo
+
+    def _p2_factory_reset(self, servo: EmulatedServo, p: bytes,
+                          broadcast: bool) -> list[tuple[float, bytes]]:
+        """Protocol 2.0 Factory Reset of ``servo``: reply first, then reset.
+
+        Options (e-Manual): 0xFF all, 0x01 all but ID, 0x02 all but ID and baud rate. Broadcast
+        with 0xFF is ignored from firmware v42. The e-Manual names no torque-on refusal (it does
+        for Control Table Backup), so none is made. An option outside the three, or a missing
+        one, is answered with Data Range / Data Length Error and changes nothing (what real
+        firmware answers there is not documented).
+        """
+        if len(p) != 1:
+            return [] if broadcast else self._status(servo, P2_ERR_DATA_LENGTH)
+        keep = P2_FACTORY_RESET_KEEP.get(p[0])
+        if keep is None:
+            return [] if broadcast else self._status(servo, P2_ERR_DATA_RANGE)
+        if broadcast and p[0] == 0xFF and servo.get('firmware_version') >= P2_CLEAR_MIN_FIRMWARE:
+            return []
+        reply = [] if broadcast else self._status(servo, 0)
+        self._factory_reset(servo, keep)
+        return reply
+
+    def _p2_clear(self, servo: EmulatedServo, p: bytes,
+                  broadcast: bool) -> list[tuple[float, bytes]]:
+        """Protocol 2.0 Clear 0x01 (multi-turn): Present Position to its value within one turn.
+
+        e-Manual: MX(2.0) and X series from firmware v42 (older: Instruction Error); only while
+        the servo is stopped (Moving = 0), else Result Fail and nothing changes. Torque may be
+        on (ROBOTIS' clear_multi_turn example clears a servo holding position): the emulator
+        then shifts Goal Position by the same whole turns so the servo keeps holding still
+        (the firmware's internal handling of the goal is not documented). Other parameters
+        (reserved options) are answered with Data Range Error.
+        """
+        if servo.get('firmware_version') < P2_CLEAR_MIN_FIRMWARE:
+            return [] if broadcast else self._status(servo, P2_ERR_INSTRUCTION)
+        if bytes(p) != P2_CLEAR_MULTI_TURN:
+            return [] if broadcast else self._status(servo, P2_ERR_DATA_RANGE)
+        self._advance(force=True)
+        if servo.get('moving'):
+            return [] if broadcast else self._status(servo, P2_ERR_RESULT_FAIL)
+        table = servo.table
+        position = servo.get('present_position')
+        turns_ticks = position - position % table.ticks_per_span
+        if turns_ticks:
+            self._group_of[id(servo)].shift_position(servo, turns_ticks * table.rad_per_tick)
+            servo.set('present_position', position - turns_ticks)
+            goal = servo.get('goal_position') - turns_ticks
+            servo.set('goal_position', max(-EXTENDED_POSITION_LIMIT,
+                                           min(EXTENDED_POSITION_LIMIT, goal)))
+        return [] if broadcast else self._status(servo, 0)
+
+    def _fast_read(self, requests: list[tuple[int, int, int]]) -> list[tuple[float, bytes]]:
+        """Fast Sync Read / Fast Bulk Read: one status packet (ID 0xFE) for all listed servos.
+
+        Wire format (e-Manual): header, ID 0xFE, LEN = 1 + sum(4 + length_i), INST 0x55, then
+        per servo ``[error, id, data..., crc_l, crc_h]``, where each CRC is the CRC-16 of the
+        packet up to it (the last one is the packet's CRC), no byte stuffing. Every servo sends
+        its own segment; the chain stops at a servo that does not answer (absent, a model or
+        firmware without fast reads, Status Return Level 0, ``no_answer``), leaving the host a
+        packet shorter than its LEN. ``late_reply`` delays that servo's segment,
+        ``bad_checksum`` corrupts its CRC on the wire, ``error_bits`` sets its alert bit. A
+        read outside the table gives Access Error and zeros in that servo's segment (keeping
+        the segment length the host expects). A repeated ID is skipped.
+        """
+        unique: list[tuple[int, int, int]] = []
+        for req in requests:
+            if all(req[0] != u[0] for u in unique):
+                unique.append(req)
+        if not unique:
+            return []
+        length = 1 + sum(4 + n for _, _, n in unique)
+        packet = bytearray(b'\xff\xff\xfd\x00') + bytes(
+            [BROADCAST_ID, length & 0xFF, length >> 8, INST_STATUS])
+        segments: list[tuple[float, int]] = []   # (delay, end offset in packet)
+        corrupt: list[int] = []
+        for servo_id, address, n in unique:
+            s = self.servos.get(servo_id)
+            if s is None or not fast_read_supported(s.table, s.get('firmware_version')):
+                break
+            err = self._access(s, address, n, write=False)
+            if s.read_hook is not None:
+                s.read_hook(s)
+            if s.get('status_return_level') == 0 or s.take_fault('no_answer') is not None:
+                break
+            data = bytes(s.memory[address:address + n]) if err == 0 else bytes(n)
+            alert = P2_ALERT if s.hardware_errors() else 0
+            packet += bytes([err | alert, s.servo_id]) + data
+            crc = crc16(packet)
+            packet += bytes([crc & 0xFF, crc >> 8])
+            if s.take_fault('bad_checksum') is not None:
+                corrupt.append(len(packet) - 1)
+            late = s.take_fault('late_reply')
+            if 'error_bits' in s.faults:
+                s.take_fault('error_bits')
+            segments.append((late.delay_s if late is not None else 0.0, len(packet)))
+        for i in corrupt:
+            packet[i] ^= 0x5A
+        out: list[tuple[float, bytes]] = []
+        start = 0
+        for delay_s, end in segments:
+            out.append((delay_s, bytes(packet[start:end])))
+            start = end
+        return out
 
     def _handle_p2(self, pkt: _Packet) -> list[tuple[float, bytes]]:
         p = pkt.params
@@ -821,13 +1050,23 @@ class ServoBusEmulator:
             if inst == INST_SYNC_READ and len(p) >= 4:
                 address, length = u16(p[0:2], 'little'), u16(p[2:4], 'little')
                 return self._multi_read([(i, address, length) for i in p[4:]])
-            if inst == INST_BULK_READ:
+            if inst in (INST_BULK_READ, INST_FAST_BULK_READ):
                 reqs = [(p[k], u16(p[k + 1:k + 3], 'little'), u16(p[k + 3:k + 5], 'little'))
                         for k in range(0, len(p) - 4, 5)]
-                return self._multi_read(reqs)
+                return (self._multi_read(reqs) if inst == INST_BULK_READ
+                        else self._fast_read(reqs))
+            if inst == INST_FAST_SYNC_READ and len(p) >= 4:
+                address, length = u16(p[0:2], 'little'), u16(p[2:4], 'little')
+                return self._fast_read([(i, address, length) for i in p[4:]])
             if inst == INST_ACTION:
                 for s in self.servos.values():
                     self._action(s)
+            if inst == INST_FACTORY_RESET:
+                for s in list(self.servos.values()):
+                    self._p2_factory_reset(s, p, broadcast=True)
+            if inst == INST_CLEAR:
+                for s in list(self.servos.values()):
+                    self._p2_clear(s, p, broadcast=True)
             return []
         if servo is None:
             return []
@@ -852,6 +1091,10 @@ class ServoBusEmulator:
             servo.faults.pop('error_bits', None)
             servo.set('torque_enable', 0)
             return self._status(servo, 0)
+        if inst == INST_FACTORY_RESET:
+            return self._p2_factory_reset(servo, p, broadcast=False)
+        if inst == INST_CLEAR:
+            return self._p2_clear(servo, p, broadcast=False)
         return self._status(servo, P2_ERR_INSTRUCTION)
 
     def _ping_reply(self, servo: EmulatedServo) -> list[tuple[float, bytes]]:
