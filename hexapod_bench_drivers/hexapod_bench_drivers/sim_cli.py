@@ -7,7 +7,8 @@ Examples::
     hexapod-sim robot --out fast --speed 0.9 --allow-infeasible   # beyond the servo limits
 
 ``robot`` refuses (exit 2) a gait the project calls infeasible: a phase shorter than AntBot's
-servo limits allow (swing 0.16 s, stance 0.15 s, 3 Hz; ``hexapod_gait.feasibility``) or a part
+servo limits allow (swing 0.16 s, stance 0.15 s, 3 Hz; ``hexapod_gait.feasibility``; with
+``--servo`` another preset scaled by its no-load speed, :func:`servo_limits`) or a part
 of the cycle with no leg on the ground (L(t) = 0); ``--allow-infeasible`` simulates it anyway,
 with a warning on stderr.
     hexapod-sim bench --out plan --loads 0,0.095,0.515 --frequencies 0,1,3 --duration 20
@@ -79,8 +80,9 @@ def build_parser() -> argparse.ArgumentParser:
     robot.add_argument('--payload', type=float, default=0.0, help='[kg]')
     robot.add_argument('--battery', action='store_true', help='3S LiPo instead of a 11.9 V supply')
     robot.add_argument('--allow-infeasible', action='store_true',
-                       help='simulate a gait beyond the servo limits (swing >= 0.16 s, stance '
-                            '>= 0.15 s, <= 3 Hz) or with no leg on the ground at some phase; '
+                       help='simulate a gait beyond the servo limits (AX-18A: swing >= 0.16 '
+                            's, stance >= 0.15 s, <= 3 Hz; other --servo presets scaled by '
+                            'their no-load speed) or with no leg on the ground at some phase; '
                             'refused (exit 2) without it')
     robot.set_defaults(func=_run_robot)
 
@@ -146,16 +148,36 @@ def _finish(args: argparse.Namespace, trace: Any, effects: Any, t0: float) -> in
     return 0
 
 
-def _infeasible(gait: Any) -> list[str]:
+def servo_limits(servo: str = 'ax18a') -> Any:
+    """AntBot's actuator limits (``hexapod_gait.feasibility.ANTBOT_LIMITS``, AX-18A) for the
+    servo preset ``servo``: phase durations scaled by the AX-18A's no-load speed over the
+    preset's at their voltage (and the step frequency by its inverse), since the shortest
+    phase is set by how fast the joints can turn. AX-12A (59 rpm against 97): swing >= 0.263 s,
+    stance >= 0.247 s, <= 1.82 Hz."""
+    from hexapod_gait.feasibility import ANTBOT_LIMITS, ActuatorLimits
+
+    from .servo_model import ServoParams
+
+    ref, own = ServoParams.ax18a(), ServoParams.by_name(servo)
+    ratio = ((ref.no_load_speed_rad_s / ref.rated_voltage_v)
+             / (own.no_load_speed_rad_s / own.rated_voltage_v))
+    if abs(ratio - 1.0) < 1e-12:
+        return ANTBOT_LIMITS
+    return ActuatorLimits(ANTBOT_LIMITS.min_swing_s * ratio, ANTBOT_LIMITS.min_stance_s * ratio,
+                          ANTBOT_LIMITS.max_step_frequency_hz / ratio)
+
+
+def _infeasible(gait: Any, servo: str = 'ax18a') -> list[str]:
     """Why the project calls ``gait`` infeasible: AntBot's servo limits
-    (``hexapod_gait.feasibility``) and phases with no leg on the ground (L(t) = 0); empty
-    when it is not (or when standing, ``gait`` None)."""
+    (``hexapod_gait.feasibility``) for the servo preset (:func:`servo_limits`) and phases with
+    no leg on the ground (L(t) = 0); empty when it is not (or when standing, ``gait``
+    None)."""
     if gait is None:
         return []
     import numpy as np
-    from hexapod_gait.feasibility import ANTBOT_LIMITS, feasibility_violations
+    from hexapod_gait.feasibility import feasibility_violations
 
-    lim = ANTBOT_LIMITS
+    lim = servo_limits(servo)
     try:
         # the limits are phase durations on AntBot's 100 mm, 40 mm tip path: another step
         # reaches the servos' top speed at other durations, as hexapod-analyze energy says
@@ -169,7 +191,9 @@ def _infeasible(gait: Any) -> list[str]:
         pass
     out = feasibility_violations(gait, lim)
     if out:
-        out[-1] += (f" (AntBot's servo limits on this step's joint path: swing >= "
+        whose = "AntBot's servo limits" if servo.lower() in ('ax18a', 'ax-18a') else \
+            f"AntBot's servo limits for {servo} servos"
+        out[-1] += (f' ({whose} on this step\'s joint path: swing >= '
                     f'{lim.min_swing_s:.3g} s, stance >= {lim.min_stance_s:.3g} s, <= '
                     f'{lim.max_step_frequency_hz:g} Hz)')
     bp, supporting = gait.support_profile()
@@ -190,7 +214,7 @@ def _run_robot(args: argparse.Namespace) -> int:
                          supply='battery' if args.battery else 'supply', servo=args.servo,
                          rate_hz=args.rate)
     gait = config.gait_pattern()
-    why = _infeasible(gait)
+    why = _infeasible(gait, args.servo)
     if why:
         what = (f'{gait.name} gait, duty factor {gait.duty_factor:g}, period '
                 f'{gait.period_s:.4g} s, {gait.leg_count} legs')

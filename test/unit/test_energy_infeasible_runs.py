@@ -56,6 +56,29 @@ def test_sim_refuses_infeasible_gaits_unless_allowed(tmp_path, capsys) -> None:
     assert rc == 0 and 'infeasible' not in err
 
 
+def test_sim_limits_follow_the_servo_preset(tmp_path, capsys) -> None:
+    """The simulator checked every servo preset against the AX-18A's limits: an AX-12A robot
+    (59 rpm no-load against 97) was simulated at 0.5 m/s. The limits now scale with the
+    preset's no-load speed."""
+    from hexapod_bench_drivers.sim_cli import servo_limits
+    from hexapod_gait.feasibility import ANTBOT_LIMITS
+
+    assert servo_limits('ax18a') == ANTBOT_LIMITS
+    ax12 = servo_limits('ax12a')
+    assert ax12.min_swing_s == pytest.approx(0.16 * 97 / 59)
+    assert ax12.max_step_frequency_hz == pytest.approx(3.0 * 59 / 97)
+    rc, err = _sim(['--out', str(tmp_path / 'a'), '--speed', '0.5', '--servo', 'ax12a'],
+                   capsys)
+    assert rc == 2 and 'for ax12a servos' in err and 'swing >= 0.263 s' in err
+    rc, err = _sim(['--out', str(tmp_path / 'b'), '--speed', '0.5'], capsys)
+    assert rc == 0 and 'infeasible' not in err
+    rc, err = _sim(['--out', str(tmp_path / 'c'), '--speed', '0.3', '--servo', 'ax12a'],
+                   capsys)
+    assert rc == 0 and 'infeasible' not in err
+    rc, err = _sim(['--out', str(tmp_path / 'd'), '--servo', 'nosuch'], capsys)
+    assert rc == 2 and 'nosuch' in err and 'Traceback' not in err
+
+
 def test_energy_warns_on_an_infeasible_robot_run(tmp_path, capsys) -> None:
     from hexapod_energy.cli import main as energy_main
 
