@@ -328,6 +328,17 @@ class DescriptorAccumulator:
         gives one; 0 = unknown.
     cycle_settings
         Settings of the joint-derived cycles.
+    limits
+        Actuator limits (``hexapod_gait.feasibility.ActuatorLimits``, phase durations on the
+        bench's 100 mm / 40 mm tip path, scaled to each schedule's step by
+        :func:`hexapod_energy.prediction.geometry_limits`); None: AntBot's. Every new schedule
+        on ``/gait/phase`` is checked against them and against phases with no leg on the ground
+        (:func:`hexapod_energy.recommend.infeasible_schedule`, as ``hexapod-analyze energy``
+        checks a bag's): an infeasible one is noted once (``notes_``), its windows are still
+        computed.
+    leg
+        The robot's leg (:class:`hexapod_energy.leg_description.LegDescription`) for that
+        scaling; None: AntBot's.
     """
 
     mass_kg: float
@@ -342,7 +353,12 @@ class DescriptorAccumulator:
     time_jump_s: float = TIME_JUMP_S
     max_window_s: float = MAX_WINDOW_S
     quiet_s: float = CYCLE_QUIET_S
+    limits: Any = None
+    leg: Any = None
     sign_: float | None = field(default=None, init=False)
+    #: schedules found infeasible: (time [s], reasons)
+    infeasible_: list[tuple[float, list[str]]] = field(default_factory=list, init=False)
+    _checked: set[tuple[Any, ...]] = field(default_factory=set, init=False)
     #: events worth a warning (time jumps, a quiet cycle source, given-up windows), in order
     notes_: list[str] = field(default_factory=list, init=False)
     #: backward time jumps seen: (stream, previous stamp, new stamp) [s]
@@ -641,7 +657,10 @@ class DescriptorAccumulator:
                 self._boundaries = []
                 self._window_start = None
         self._gait = sample
+        first = self._ref_gait is None
         why = self._schedule_break(sample)
+        if first or why:
+            self._check_feasible(sample)
         if why:
             # no window spans it: the one in progress is dropped, the next starts at the
             # next wrap of the new schedule; a standing stretch starts here (its windows
@@ -669,6 +688,40 @@ class DescriptorAccumulator:
         if self._last_phase is None or sample.t_s > self._last_phase[0]:
             self._last_phase = (sample.t_s, sample.cycle_phase)
         return self._emit()
+
+    def _check_feasible(self, sample: GaitPhaseSample) -> None:
+        """Note (once per schedule) a schedule the robot cannot walk (see ``limits``)."""
+        key = (sample.gait, tuple(sample.leg_names), round(sample.period_s, 4),
+               round(sample.duty_factor, 4), round(sample.step_length_m, 4),
+               round(sample.step_height_m, 4))
+        if key in self._checked or not sample.period_s > 0:
+            return
+        self._checked.add(key)
+        from hexapod_gait.errors import HexapodGaitError
+        from hexapod_gait.feasibility import ANTBOT_LIMITS
+
+        from hexapod_energy.prediction import geometry_limits
+        from hexapod_energy.recommend import infeasible_schedule
+
+        class _Bench:   # the limits' tip path: AntBot's bench, 100 mm steps, 40 mm lift
+            bench_step_ = (0.10, 0.04)
+            bench_leg_ = self.leg
+
+        try:
+            gait = gait_from_sample(sample)
+            bad = infeasible_schedule(gait, geometry_limits(
+                _Bench(), gait, self.limits if self.limits is not None else ANTBOT_LIMITS))
+        except (HexapodGaitError, ValueError) as err:
+            self.notes_.append(f'gait schedule at {sample.t_s:.3f} s not checked against '
+                               f'the actuator limits: {err}')
+            return
+        if bad:
+            self.infeasible_.append((sample.t_s, bad))
+            self.notes_.append(
+                f'infeasible gait schedule from {sample.t_s:.3f} s ({sample.gait}, period '
+                f'{sample.period_s:.4g} s, duty factor {sample.duty_factor:.4g}, step '
+                f'{1e3 * sample.step_length_m:.4g} mm), not a gait the robot can walk: '
+                + '; '.join(bad) + ' (its windows are still computed)')
 
     #: window length [s] while the schedule stands still (period 0): no cycle to average over
     STAND_WINDOW_S = 1.0

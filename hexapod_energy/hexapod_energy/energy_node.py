@@ -25,6 +25,11 @@ from the new time; a window is at most 60 s long and older samples are dropped, 
 stay bounded when ``/gait/phase`` stops, which is logged as a warning while the battery keeps
 coming (:mod:`hexapod_energy.descriptors`).
 
+A schedule on ``gait/phase`` that the robot cannot walk (beyond the actuator ``limits``, by
+default AntBot's servos', on the schedule's step; or with no leg on the ground at some phase)
+is warned about once per schedule, as ``hexapod-analyze energy`` warns about a bag's; its
+windows are still published.
+
 Masses: ``mass`` is the whole robot with its payload; not given, AntBot's 2.183 kg is assumed
 with a warning at start (as the offline ``hexapod-analyze energy`` warns without
 ``--robot-mass``). The Eq. 6 P_out model is for a robot of ``robot_mass`` carrying
@@ -73,6 +78,8 @@ from hexapod_common.node_utils import (
     param,
     run_node,
 )
+from hexapod_gait.feasibility import ActuatorLimits
+
 from hexapod_energy.descriptors import DescriptorAccumulator, Descriptors, model_power_out
 from hexapod_energy.leg_description import antbot_leg, load_leg_description
 
@@ -123,6 +130,13 @@ class EnergyParams:
         '', "the robot's leg for the Eq. 6 P_out model: a YAML/JSON leg file "
         '(hexapod_energy.leg_description: DH table, link masses, stance pose); empty: AntBot',
         read_only=True)
+    limits: list[float] = param(
+        [0.16, 0.15, 3.0], "actuator limits MIN_SWING_S MIN_STANCE_S MAX_FREQ_HZ on the bench's "
+        "100 mm tip path (default AntBot's servos, as hexapod-analyze energy --limits): a "
+        'schedule on gait/phase beyond them (or with no leg on the ground) is warned about',
+        read_only=True,
+        validate=lambda v: None if len(v) == 3 and all(x > 0 for x in v)
+        else 'expected 3 values > 0 (min swing [s], min stance [s], max step frequency [Hz])')
     battery_source: str = param(
         '', 'keep only this battery of battery_state (header.frame_id, else location or '
         'serial_number); empty: several batteries on the topic are summed',
@@ -170,14 +184,15 @@ class EnergyMonitorNode(Node):
         for warning in self.start_warnings:
             self.get_logger().warning(warning)
         model = None
+        leg = load_leg_description(p.leg_file) if p.leg_file else antbot_leg()
         if p.power_out_source != 'effort':
-            leg = load_leg_description(p.leg_file) if p.leg_file else antbot_leg()
             model = model_power_out(leg.output_power_model(self.robot_mass_kg),
                                     robot_mass_kg=self.robot_mass_kg)
         self.core = DescriptorAccumulator(mass_kg=p.mass, cycles=p.cycles,
                                           current_sign=p.current_sign, power_out_model=model,
                                           power_out_source=p.power_out_source,
-                                          cycle_source=p.cycle_source, speed_mps=p.speed)
+                                          cycle_source=p.cycle_source, speed_mps=p.speed,
+                                          limits=ActuatorLimits(*p.limits), leg=leg)
         # several batteries on one topic are summed, or one kept (hexapod_common.battery)
         self.batteries = BatteryCombiner(select=p.battery_source or None)
         self._battery_notes = 0

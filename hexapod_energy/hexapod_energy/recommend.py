@@ -97,13 +97,16 @@ def infeasible_schedule(gait: Any, limits: Any | None = None) -> list[str]:
     run's schedule: its measured descriptors are those of a gait the project calls
     infeasible (a wave at duty factor 0.1 gave CoT/M 29.0 J/(m kg), better than any feasible
     gait).  Standing (period 0) and clock-driven schedules (a RHex's Buehler clock: step
-    length 0, rotating legs that may run with a flight phase) are not checked."""
+    length 0, rotating legs that may run with a flight phase) are not checked, nor the
+    ground contact of a schedule of fewer than 4 legs (a single-leg bench, a biped)."""
     from hexapod_gait.feasibility import ANTBOT_LIMITS, feasibility_violations
 
     if not (gait.period_s > 0 and gait.step_length_m > 0) or gait.name == 'buehler':
         return []
     lim = ANTBOT_LIMITS if limits is None else limits
     out = list(feasibility_violations(gait, lim))
+    if len(gait.leg_names) < 4:
+        return out
     bp, supporting = gait.support_profile()
     widths = np.diff(np.append(np.asarray(bp, float), 1.0))
     airborne = float(widths[np.asarray(supporting) == 0].sum())

@@ -212,6 +212,38 @@ def test_energy_monitor_p_out_model_equals_the_offline_command(tmp_path: Any) ->
     assert live[0].power_out < 0.99 * antbot
 
 
+@pytest.mark.timeout(60)
+def test_energy_monitor_warns_on_an_infeasible_schedule() -> None:
+    """The live monitor computed a tripod at 4.5 Hz without a word (the offline command warned
+    on its bag): each infeasible schedule is now noted once, under the ``limits`` parameter."""
+    from hexapod_interfaces.msg import GaitPhase
+
+    def phase(t: float, period: float) -> GaitPhase:
+        msg = GaitPhase()
+        msg.header.stamp.sec, msg.header.stamp.nanosec = 1 + int(t), int(1e9 * (t % 1.0))
+        msg.gait, msg.period, msg.duty_factor = 'tripod', period, 0.5
+        msg.step_length, msg.step_height, msg.cycle_phase = 0.1, 0.04, (t / period) % 1.0
+        msg.leg_names = ['L1', 'L2', 'L3', 'R1', 'R2', 'R3']
+        msg.phase_offsets = [0.0, 0.5, 0.0, 0.5, 0.0, 0.5]
+        msg.in_stance = [True, False, True, False, True, False]
+        msg.supporting_legs = 3
+        return msg
+
+    with ros_env('review_feasible') as env:
+        node = _energy(env, mass=2.183)
+        for k in range(20):
+            node._on_gait(phase(0.01 * k, 0.2222))
+        assert len(node.core.infeasible_) == 1
+        assert any('4.5 Hz > maximum 3 Hz' in n for n in node.core.notes_)
+        loose = _energy(env, mass=2.183, limits=[0.1, 0.1, 5.0])
+        for k in range(20):
+            loose._on_gait(phase(0.01 * k, 0.2222))
+        assert loose.core.infeasible_ == []
+        slow = _energy(env, mass=2.183)
+        slow._on_gait(phase(0.0, 1.0))
+        assert slow.core.infeasible_ == []
+
+
 # --- sim_robot ------------------------------------------------------------------------------
 
 def _commands(names: list[str]) -> JointState:

@@ -5,6 +5,7 @@ better than any feasible gait)."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import pytest
@@ -119,3 +120,47 @@ def test_sim_and_energy_agree_on_other_step_geometries(tmp_path, capsys) -> None
     rc, err = _sim(['--out', str(tmp_path / 'b'), '--speed', '0.2', '--duty-factor', '0.7',
                     '--step-length', '0.07'], capsys)
     assert rc == 0 and 'infeasible' not in err
+
+
+def _phase(t, gait, period, beta, step=0.1, legs=('L1', 'L2', 'L3', 'R1', 'R2', 'R3')):
+    import numpy as np
+
+    from hexapod_common.conversions import GaitPhaseSample
+    from hexapod_gait.gait import make_gait
+
+    g = make_gait(gait, duty_factor=beta, period_s=period, step_length_m=step,
+                  step_height_m=0.04)
+    return GaitPhaseSample(t_s=t, gait=gait, period_s=period, duty_factor=beta,
+                           step_length_m=step, step_height_m=0.04, sweep_angle_rad=0.0,
+                           leg_offset_rad=0.0, cycle_phase=(t / period) % 1.0,
+                           leg_names=tuple(legs), phase_offsets=np.asarray(g.phase_offsets),
+                           in_stance=np.zeros(len(legs), bool), supporting_legs=3)
+
+
+def test_live_monitor_notes_an_infeasible_schedule_once() -> None:
+    """The live energy_monitor computed an infeasible schedule's windows without a word (the
+    offline command warned): the core now notes each infeasible schedule once, with the
+    reasons the offline check gives, and keeps computing its windows."""
+    from hexapod_energy.descriptors import DescriptorAccumulator
+    from hexapod_gait.feasibility import ActuatorLimits
+
+    acc = DescriptorAccumulator(mass_kg=2.183)
+    for k in range(50):      # a feasible tripod: nothing
+        acc.add_gait_phase(_phase(0.01 * k, 'tripod', 1.0, 0.5))
+    assert acc.infeasible_ == [] and not any('infeasible' in n for n in acc.notes_)
+    for k in range(50, 150):  # a wave at beta 0.1: limits and airborne phases, noted once
+        acc.add_gait_phase(_phase(0.01 * k, 'wave', 1.0, 0.1))
+    assert len(acc.infeasible_) == 1 and acc.infeasible_[0][0] == 0.5
+    [note] = [n for n in acc.notes_ if 'infeasible' in n]
+    assert 'stance lasts 0.1 s < minimum 0.15 s' in note and 'L(t) = 0' in note
+    # a tripod at 0.9 m/s (period 0.2222 s) beyond AntBot's limits, within looser ones
+    fast = DescriptorAccumulator(mass_kg=2.183)
+    fast.add_gait_phase(_phase(0.0, 'tripod', 0.2222, 0.5))
+    assert any('4.5 Hz > maximum 3 Hz' in n for n in fast.notes_)
+    loose = DescriptorAccumulator(mass_kg=2.183, limits=ActuatorLimits(0.1, 0.1, 5.0))
+    loose.add_gait_phase(_phase(0.0, 'tripod', 0.2222, 0.5))
+    assert loose.infeasible_ == []
+    # a standing schedule is not checked
+    stand = DescriptorAccumulator(mass_kg=2.183)
+    stand.add_gait_phase(dataclasses.replace(_phase(0.0, 'tripod', 1.0, 0.5), period_s=0.0))
+    assert stand.infeasible_ == [] and stand.notes_ == []
