@@ -464,9 +464,8 @@ class SampleView:
             onehot[:, ri] = 1.0
             xs.append(np.hstack([onehot, f]))
             ys.append((r.power_w - r.predicted_w)[keep])
-            if tk.size:
-                held.append(np.floor((tk - tk[0]) / self.block_s).astype(int) % self.every
-                            == self.every - 1)
+            held.append(np.floor((tk - (tk[0] if tk.size else 0.0)) / self.block_s)
+                        .astype(int) % self.every == self.every - 1)
         return np.vstack(xs), np.concatenate(ys), np.concatenate(held)
 
     def _sse(self, runs: Sequence[ResidualRun], lag_s: float
@@ -1457,6 +1456,17 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
 
     spec = (robot_spec_cls or RobotSpec)(mass_kg=robot_mass_kg)
     total_kg = spec.total_mass_kg(payload_kg)
+    for r in runs:
+        # each run's first second is skipped (build_windows' settle) and its windows are
+        # whole half cycles: a bag too short for one of them is named, not a numpy error
+        period = float(np.median(r.period_s)) if r.t_s.size else 0.0
+        need = 1.0 + (period if period > 0 else 0.5)
+        span = float(r.t_s[-1] - r.t_s[0]) if r.t_s.size > 1 else 0.0
+        if span < need:
+            raise ResidualDataError(
+                f'robot bag {r.name}: {span:.2f} s of battery data, too short for the loop '
+                f'(it skips each run\'s first 1 s and needs a whole cycle after it: at least '
+                f'{need:.2f} s; record longer runs or leave this bag out)')
     for r in runs:
         r.predicted_w = predict_run_w(r, model, total_mass_kg=total_kg,
                                       leg_mass_kg=spec.leg_mass_kg,

@@ -93,3 +93,22 @@ def test_one_run_and_short_runs(runs):
     assert u['pattern'] == 'run_offsets' and u['per_run'][0]['mean_w'] < -0.9
     u = unexplained_residual(np.zeros(2, int), np.arange(2.0), np.ones(2), mean_power_w=30.0)
     assert not u['significant'] and np.isnan(u['noise_w'])
+
+
+def test_offsets_with_a_faint_trend_are_told_as_offsets():
+    """+2.5 W in one run and a heating slope of a few hundredths of a watt per minute in each
+    (outside review): the BIC took the trend for 0.1 % more, and the summary said 'it drifts
+    within runs (+0.13 W/min ...)' of what is 99.7 % offsets between runs."""
+    rng = np.random.default_rng(4)
+    run = np.repeat(np.arange(3), N)
+    t = np.tile(np.arange(N) * 0.35 + 1.0, 3)
+    r = (np.where(run == 0, 2.5, -0.2) + 0.004 * t + rng.normal(0.0, 0.005, run.size))
+    u = check(run, t, r)
+    assert u['significant'] and u['pattern'] == 'run_offsets'
+    assert_allclose([x['mean_w'] for x in u['per_run']], [2.5, -0.2, -0.2], atol=0.05)
+    assert 'differs between runs' in unexplained_text(u)
+    # a trend that carries the leftover is still told as one, with each run's mean
+    r2 = 0.05 * t * np.where(run == 1, -1.0, 1.0) + rng.normal(0.0, 0.005, run.size)
+    u2 = check(run, t, r2)
+    assert u2['pattern'] == 'trend'
+    assert '+3.00 W/min about' in unexplained_text(u2)

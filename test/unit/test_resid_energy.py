@@ -497,3 +497,14 @@ def test_battery_stamps_jittered_against_the_gait(bench, clean_bags, tmp_path):
     print(f"\njittered clean: final {u['rmse_w']:.3f} W, noise {u['noise_w']:.3f} W")
     assert u['noise_w'] < 0.08 and not u['significant']
     assert doc['effects_added'] == [] or doc['heldout']['rmse_before'] < 0.2
+
+
+def test_a_bag_too_short_for_one_window_is_named(bench, clean_bags, tmp_path):
+    """A 0.6 s robot bag gave numpy's 'need at least one array to concatenate' alone and an
+    IndexError (exit 1) beside other bags (outside review); now a refusal naming the bag."""
+    short = tmp_path / 'short'
+    write_trace(simulate_robot(0.6, RobotConfig(period_s=0.5), seed=60), short)
+    for bags in ([short], [short, *clean_bags]):
+        with pytest.raises(R.ResidualDataError, match=r'short: 0\.\d+ s of battery data, too '
+                                                       r'short for the loop'):
+            loop(bench, bags)
