@@ -1072,7 +1072,7 @@ class EffectSelection:
                 if same:
                     rec['indistinguishable_from'] = same
                     ok = False
-                if ok and e.needs_variation:
+                if ok and e.needs_variation_on(table):
                     _, _, term_v, _ = self._fit(selected + [_Centered(e, table)], table, train)
                     rmse_v = float(np.sqrt(np.mean((y[held] - term_v[held]) ** 2)))
                     if not rmse_v < cur_rmse * (1 - self.min_improvement):
@@ -1082,7 +1082,7 @@ class EffectSelection:
                                        'offset')
                 if ok:
                     passing[ci] = rec
-                if ok and e.selectable and (best is None or rmse < best[0]):
+                if ok and e.selectable_on(table) and (best is None or rmse < best[0]):
                     best = (rmse, ci, dbic)
             if best is None:
                 break
@@ -1112,6 +1112,12 @@ class EffectSelection:
             records[ci]['note'] = ('added, then dropped: the effects added after it explain '
                                    'what it did (with them it no longer lowers the error)')
             alternatives.pop(e.name, None)
+        # an effect the loop added is not also an alternative to another
+        added_names = {e.name for e in selected}
+        for name in list(alternatives):
+            alternatives[name] = [a for a in alternatives[name] if a['name'] not in added_names]
+            if not alternatives[name]:
+                del alternatives[name]
         coef, se, term, _ = self._fit(selected, table, train)
         # collapse the per-leg candidates into one leg_anomaly entry (the best or selected leg)
         out: list[dict[str, Any]] = []
@@ -1259,6 +1265,15 @@ def energy_loop_document(table: WindowTable, sel: EffectSelection,
     doc['unexplained'] = unexplained_residual(table.run, table.t_s, r1, run_names=run_names,
                                               mean_power_w=float(np.mean(table.measured_w)),
                                               run_t0_s=run_t0_s)
+    dt = table.extra.get('temp_excess_mean_k')
+    if dt is not None and np.all(np.isfinite(dt)) and np.asarray(dt).size:
+        dt = np.asarray(dt, dtype=float)
+        names = list(run_names) if run_names is not None else []
+        doc['servo_temperature'] = {
+            'excess_over_bench_k': float(np.mean(dt)),
+            'per_run': [{'run': names[k] if k < len(names) else f'run {k}',
+                         'excess_k': float(np.mean(dt[table.run == k]))}
+                        for k in np.unique(table.run)]}
     doc['summary'] = summary_text(doc)
     return doc
 
@@ -1267,7 +1282,30 @@ def summary_text(doc: dict[str, Any]) -> str:
     """The plain-words paragraph of a ``residuals.json`` document."""
     left = unexplained_text(doc.get('unexplained') or {}, doc['unit'],
                             effects_added=bool(doc.get('effects_added')))
-    return _summary_effects(doc) + (' ' + left if left else '')
+    return _summary_effects(doc) + _temperature_text(doc) + (' ' + left if left else '')
+
+
+def _temperature_text(doc: dict[str, Any]) -> str:
+    """A sentence on servos warmer or cooler than the bench's (more than 3 K on average):
+    their copper and magnets change every watt by about 0.4 %/K, whatever the loop named."""
+    from hexapod_energy.effects_catalogue import HotWindings
+
+    st = doc.get('servo_temperature') or {}
+    mean = st.get('excess_over_bench_k')
+    if mean is None or not abs(mean) > HotWindings.MIN_UNIFORM_K:
+        return ''
+    runs = ', '.join(f"{Path(str(r['run'])).name} {r['excess_k']:+.1f} K"
+                     for r in st.get('per_run', []))
+    added = 'hot_windings' in doc.get('effects_added', [])
+    return (f" The robot's servos were {abs(mean):.1f} K {'warmer' if mean > 0 else 'cooler'} "
+            f'than the bench\'s on average ({runs})' + (
+                '.' if added else
+                ': hot windings (copper resistance and magnet flux change every watt by about '
+                '0.4 %/K) '
+                + ('are named above as an alternative.'
+                   if any(x['name'] == 'hot_windings' for a in doc.get('added_params', [])
+                          for x in a.get('alternatives', []))
+                   else 'may account for part of the residual.')))
 
 
 def _summary_effects(doc: dict[str, Any]) -> str:

@@ -23,7 +23,14 @@ SLIP, SLIP + leg damping and SLIP + hip torque (:mod:`slip_identification.residu
                                  "alternatives"?: [{"name", "heldout_rmse", "params",
                                                     "stderr", "share"}],
                                  "collinearity"?: {...}}],
+     (energy, with /servo_status:) "servo_temperature": {"excess_over_bench_k",
+                                   "per_run": [{"run", "excess_k"}]},
      (slip:) "bags", "stances": {"count", "heldout"}, ...}
+
+A candidate record with ``"dropped": true`` was added, then dropped by the backward step (the
+effects added after it explain what it did). ``hot_windings`` on servos that are all about as
+warm (a spread under 1 K) but more than 3 K from the bench's is named as an alternative only,
+like ``power_gain``; the summary then gives the servos' temperature excess.
 
 ``unexplained`` (energy): what the added effects left, against the windows' noise
 (:mod:`hexapod_energy.unexplained`): ``{"rmse_w", "noise_w", "structured_w", "significant",

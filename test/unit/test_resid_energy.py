@@ -225,6 +225,23 @@ def test_an_effect_the_selected_ones_already_span_is_not_added():
     np.testing.assert_allclose(sel.final_params_[0][0]['power_w'], 3.0, atol=0.2)
 
 
+def test_uniformly_warm_servos_are_named_beside_what_is_added(bench, tmp_path):
+    """Clean runs whose servos all sit at 45 degC (a robot that walked before the recording)
+    against a 27 degC bench: the temperature does not vary, so hot windings cannot be told
+    from a gain or a kinematic error; they used to be 'not applicable' and the summary never
+    said the servos were 18 K warmer (outside review). Now hot_windings is named as an
+    alternative at the copper-and-magnet fraction, the summary gives the temperatures, and no
+    effect is both added and an alternative."""
+    doc = loop(bench, robot_bags(tmp_path / 'warm45', [], temps=(45.0, 45.0, 45.0)))
+    assert 'hot_windings' not in doc['effects_added'] and doc['effects_added']
+    alts = [x for a in doc['added_params'] for x in a.get('alternatives', [])]
+    [hot] = [x for x in alts if x['name'] == 'hot_windings']
+    assert 0.003 <= hot['params']['per_k'] <= 0.0055
+    assert all(x['name'] not in doc['effects_added'] for x in alts)
+    assert doc['servo_temperature']['excess_over_bench_k'] == pytest.approx(18.0, abs=0.5)
+    assert "servos were 18.0 K warmer than the bench's" in doc['summary']
+
+
 def test_an_effect_the_later_ones_explain_is_dropped():
     """Backward step: a kinematic error chosen first on a warming robot's runs stayed in the
     report at 0 +- 0.018 W/Hz once a thermal drift and a basal power stood beside it. Here the
