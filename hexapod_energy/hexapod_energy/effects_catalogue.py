@@ -423,9 +423,31 @@ class LegAnomaly(EnergyEffect):
     def params(self, coef, stderr, table):  # type: ignore[no-untyped-def]
         col = table.stance_fraction[:, self.leg_index]
         same = [n for j, n in enumerate(table.leg_names) if j != self.leg_index
-                and np.allclose(table.stance_fraction[:, j], col, atol=0.05)]
+                and (np.allclose(table.stance_fraction[:, j], col, atol=0.05)
+                     or _within_run_r(table, j, self.leg_index) >= SAME_STANCE_R)]
         return ({'leg': self.leg, 'power_w': float(coef[0]), 'same_stance_as': same},
                 {'power_w': float(stderr[0])})
+
+
+#: legs whose in-stance fractions follow each other this closely within runs (correlation of
+#: the window columns, each run's mean removed) are named as the same stance timing: the
+#: half-cycle windows cannot tell them apart
+SAME_STANCE_R = 0.9
+
+
+def _within_run_r(table: WindowTable, a: int, b: int) -> float:
+    """Correlation of legs ``a`` and ``b``'s in-stance fractions over the windows, each run's
+    mean removed (0 when either does not vary). A wave or tetrapod gait's half-cycle windows
+    see which half of the cycle a leg swings in, not which leg: across runs of several gaits
+    an anomaly of L1 was named L3 with no other leg said (an outside review)."""
+    x = table.stance_fraction[:, [a, b]].astype(float)
+    for k in np.unique(table.run):
+        m = table.run == k
+        x[m] -= x[m].mean(axis=0)
+    sa, sb = float(np.sqrt(np.sum(x[:, 0] ** 2))), float(np.sqrt(np.sum(x[:, 1] ** 2)))
+    if sa <= 1e-12 or sb <= 1e-12:
+        return 0.0
+    return float(np.sum(x[:, 0] * x[:, 1]) / (sa * sb))
 
 
 class CarriedMass(EnergyEffect):

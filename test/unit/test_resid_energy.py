@@ -525,3 +525,27 @@ def test_a_bag_too_short_for_one_window_is_named(bench, clean_bags, tmp_path):
         with pytest.raises(R.ResidualDataError, match=r'short: 0\.\d+ s of battery data, too '
                                                        r'short for the loop'):
             loop(bench, bags)
+
+
+def test_legs_the_half_cycle_windows_cannot_tell_apart_are_named():
+    """Across runs of several gaits no two legs have equal in-stance fractions, so an anomaly
+    was named on one leg with ``same_stance_as: []`` (outside review: L2 for R3). Legs whose
+    fractions follow each other within every run are now named with it."""
+    from hexapod_energy.effects_catalogue import LegAnomaly, WindowTable
+
+    n = 40
+    half = np.tile([1.0, 0.0], n // 2)
+    run = np.repeat([0, 1], n // 2)
+    # L1 and R3 swing in the same half of each run, at other fractions in the two runs
+    frac = np.column_stack([np.where(run == 0, 0.5 + 0.5 * half, 0.67 + 0.33 * half),
+                            1.0 - half, 0.5 + 0.0 * half, 0.5 + 0.0 * half, 1.0 - half,
+                            np.where(run == 0, 0.4 + 0.5 * half, 0.7 + 0.3 * half)])
+    table = WindowTable(
+        run=run, t_s=np.tile(np.arange(n // 2) * 0.5, 2), duration_s=np.full(n, 0.5),
+        measured_w=np.full(n, 31.0), predicted_w=np.full(n, 30.0),
+        step_frequency_hz=np.ones(n), speed_mps=np.full(n, 0.1), current_sq_a2=np.ones(n),
+        temp_excess_k=np.full(n, np.nan), stance_fraction=frac,
+        leg_names=('L1', 'L2', 'L3', 'R1', 'R2', 'R3'))
+    params, _ = LegAnomaly(leg_index=0, leg='L1').params(np.array([1.0]), np.array([0.1]),
+                                                          table)
+    assert params['same_stance_as'] == ['R3']
