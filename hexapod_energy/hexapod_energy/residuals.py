@@ -1222,6 +1222,15 @@ def energy_loop_document(table: WindowTable, sel: EffectSelection,
     candidates = list(sel.candidates_)
     added_params = [{'name': e.name, 'params': p, 'stderr': s}
                     for e, (p, s) in zip(sel.selected_, sel.final_params_)]
+    i = 0
+    for a, e in zip(added_params, sel.selected_):
+        k = e.columns(table).shape[1]
+        c = np.asarray(sel.coef_[i:i + k])
+        i += k
+        if math.isfinite(e.upper) and e.upper > 0 and c.size and \
+                np.any(c >= e.upper * (1 - 1e-9)):
+            # the residual asks for more than the effect's physical range gives
+            a['at_bound'] = 'upper'
     for a in added_params:
         alts = getattr(sel, 'alternatives_', {}).get(a['name'])
         if alts:
@@ -1359,6 +1368,9 @@ def _summary_effects(doc: dict[str, Any]) -> str:
                            f"contribution follows {earlier}'s (r = {coll['correlation']:+.2f}): "
                            'these runs cannot tell a separate effect from a correction of '
                            f"{earlier}'s model."))
+        elif a.get('at_bound') == 'upper':
+            parts.append(f"{a['name']} ({ps}, at the top of its physical range: the residual "
+                         'asks for more than it can give)')
         else:
             parts.append(f"{a['name']} ({ps})")
     with_ = f" (with {' and '.join(n for n, _ in doubts)}, below)" if doubts else ''

@@ -22,7 +22,9 @@ SLIP, SLIP + leg damping and SLIP + hip torque (:mod:`slip_identification.residu
      (energy:) "added_params": [{"name", "params", "stderr",
                                  "alternatives"?: [{"name", "heldout_rmse", "params",
                                                     "stderr", "share"}],
-                                 "collinearity"?: {...}}],
+                                 "collinearity"?: {...},
+                                 "at_bound"?: "upper" (the coefficient at the top of the
+                                 effect's physical range)}],
      (energy, with /servo_status:) "servo_temperature": {"excess_over_bench_k",
                                    "per_run": [{"run", "excess_k"}]},
      (slip:) "bags", "stances": {"count", "heldout"}, ...}

@@ -549,3 +549,28 @@ def test_legs_the_half_cycle_windows_cannot_tell_apart_are_named():
     params, _ = LegAnomaly(leg_index=0, leg='L1').params(np.array([1.0]), np.array([0.1]),
                                                           table)
     assert params['same_stance_as'] == ['R3']
+
+
+def test_an_effect_at_the_top_of_its_range_says_so():
+    """hot_windings sat at its 1 %/K bound (0.01 +- 0.0016) without a word (outside review):
+    an effect whose coefficient reaches its upper bound is marked and the summary says the
+    residual asks for more than it can give."""
+    from hexapod_energy.effects_catalogue import HotWindings, WindowTable
+
+    n = 60
+    run = np.repeat([0, 1, 2], n // 3)
+    dt = np.repeat([20.0, 0.0, 10.0], n // 3) + np.tile(np.linspace(0, 2, n // 3), 3)
+    pred = np.repeat([30.0, 35.0, 45.0], n // 3)
+    measured = pred * (1 + 0.03 * dt) + np.random.default_rng(0).normal(0, 0.02, n)
+    table = WindowTable(
+        run=run, t_s=np.tile(np.arange(n // 3) * 0.5, 3), duration_s=np.full(n, 0.5),
+        measured_w=measured, predicted_w=pred, step_frequency_hz=np.ones(n),
+        speed_mps=np.full(n, 0.1), current_sq_a2=np.ones(n), temp_excess_k=18 * dt,
+        stance_fraction=np.full((n, 6), 0.5), leg_names=('L1', 'L2', 'L3', 'R1', 'R2', 'R3'),
+        extra={'temp_excess_mean_k': dt, 'winding_excess_w': dt * pred})
+    held = np.tile(np.arange(n // 3) % 3 == 2, 3)
+    sel = R.EffectSelection(catalogue=[HotWindings()]).fit(table, held)
+    doc = R.energy_loop_document(table, sel, held)
+    [hot] = doc['added_params']
+    assert hot['params']['per_k'] == pytest.approx(0.01) and hot['at_bound'] == 'upper'
+    assert 'at the top of its physical range' in doc['summary']
