@@ -455,6 +455,18 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                     notes.append(f'the robot stands ({run_.windows} window(s) of 1 s): its '
                                  'input power, speed 0 (CoT undefined); Eq. 1 is for walking, '
                                  'no prediction' + held)
+                # a RHex-class robot's Buehler clock (rotating legs, no step length): Eq. 1
+                # and the Eq. 6 model are for stepping servo legs (an EduBot run was predicted
+                # at 62.8 W for 34.5 W measured, its P_out 0 W: new-user review)
+                clock = gait is not None and (gait.name == 'buehler' or
+                                              not gait.step_length_m > 0)
+                walked = gait   # the schedule as recorded, for the JSON
+                if clock:
+                    notes.append('a Buehler clock (rotating legs, no step length): the '
+                                 'single-leg bench method (Eq. 1) and the Eq. 6 P_out model '
+                                 'are for stepping servo legs: no prediction, P_out from the '
+                                 'joint efforts only')
+                    gait = None
                 if gait is not None and model is None:
                     notes.append('no bench bags (--bench): no Eq. 1 prediction')
                 outside: list[str] = []
@@ -487,8 +499,10 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 for note in notes:
                     doc.setdefault('warnings', []).append(f'{path}: {note}')
                 effort_ok = math.isfinite(run_.power_out_w) and args.power_out != 'model'
+                # a continuously rotating leg does little negative work: the PWM-load test
+                # (net / positive power near 1) is for position-controlled servos
                 why = implausible_effort_power(run_.power_out_w, run_.power_in_w,
-                                               _net_joint_power_w(run_))
+                                               math.nan if clock else _net_joint_power_w(run_))
                 if effort_ok and args.power_out == 'auto' and why:
                     effort_ok = False
                     doc.setdefault('warnings', []).append(
@@ -511,14 +525,14 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 legs = _leg_count(args, run_) if run_.gait is None else None
                 runs.append({
                     'bag': str(path),
-                    'gait': gait.name if gait else ('stand' if standing else None),
-                    'leg_count': gait.leg_count if gait else
+                    'gait': walked.name if walked else ('stand' if standing else None),
+                    'leg_count': walked.leg_count if walked else
                     (len(run_.gait.leg_names) or None if standing else legs),
-                    'duty_factor': gait.duty_factor if gait else None,
-                    'period_s': gait.period_s if gait else
+                    'duty_factor': walked.duty_factor if walked else None,
+                    'period_s': walked.period_s if walked else
                     (0.0 if standing else run_.extra.get('period_s')),
-                    'step_length_m': gait.step_length_m if gait else None,
-                    'step_height_m': gait.step_height_m if gait else None,
+                    'step_length_m': walked.step_length_m if walked else None,
+                    'step_height_m': walked.step_height_m if walked else None,
                     'payload_kg': payload, 'mass_kg': mass,
                     'windows': run_.windows, 'window_s': run_.window_s,
                     'measured_power_in_w': run_.power_in_w, 'predicted_power_in_w': predicted,

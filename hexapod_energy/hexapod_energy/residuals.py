@@ -236,6 +236,12 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
     per_joint: dict[str, tuple[array.array, array.array]] = {}
     with open_reader(path) as reader:
         present = sorted({c.topic for c in reader.connections})
+        if any(c.topic in ('/bench/session', '/bench/ground_force') and c.msgcount
+               for c in reader.connections):
+            # read as a robot it was a standing 'robot' with a named effect (new-user review)
+            raise BagContentError(
+                f'bag {path} is a single-leg bench bag (/bench/session, /bench/ground_force), '
+                'not a robot run: give it with --bench')
         gait_msgs = sum(c.msgcount for c in reader.connections if c.topic == '/gait/phase')
         use_given = gait is not None and gait_msgs == 0
         for topic in ('/battery_state', '/gait/phase'):
@@ -1512,6 +1518,15 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
         period = float(np.median(r.period_s)) if r.t_s.size else 0.0
         need = 1.0 + (period if period > 0 else 0.5)
         span = float(r.t_s[-1] - r.t_s[0]) if r.t_s.size > 1 else 0.0
+        walking = r.period_s > 0
+        if r.gait == 'buehler' or (np.any(walking) and
+                                   np.all(r.step_length_m[walking] <= 0)):
+            # a RHex-class robot's rotating legs: a 62.8 W prediction for 34.5 W measured was
+            # 'explained' by a 106 A electronics current (new-user review)
+            raise ResidualDataError(
+                f'robot bag {r.name} walks a Buehler clock (rotating legs, no step length): '
+                'the single-leg bench method predicts stepping servo legs; for a RHex-class '
+                'robot use residuals --slip')
         if span < need:
             raise ResidualDataError(
                 f'robot bag {r.name}: {span:.2f} s of battery data, too short for the loop '

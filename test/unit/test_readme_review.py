@@ -1,0 +1,54 @@
+"""New-user README review (2026-11-26): a bench bag or a RHex-class robot's bag given to the
+servo hexapod's energy analyses, and a RHex's P_out."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from hexapod_bench_drivers.bench_sim import BenchPlan, simulate_bench
+from hexapod_bench_drivers.edubot_bag import write_edubot_bag
+from hexapod_bench_drivers.sim_bag import write_trace
+from hexapod_energy import residuals as R
+from hexapod_energy.cli import main as energy_main
+from hexapod_energy.errors import BagContentError
+
+
+@pytest.fixture(scope='module')
+def bags(tmp_path_factory) -> dict[str, Path]:
+    root = tmp_path_factory.mktemp('readme_review')
+    plan = BenchPlan(loads_kg=(0.0, 0.2, 0.4), frequencies_hz=(0.0, 0.75, 1.5, 2.25), walk_s=3.0)
+    write_trace(simulate_bench(plan, seed=1), root / 'bench')
+    write_edubot_bag(root / 'edubot', 'running', duration_s=4.0, seed=3)
+    return {'bench': root / 'bench', 'edubot': root / 'edubot'}
+
+
+def test_residuals_refuse_a_bench_bag_as_a_robot_run(bags) -> None:
+    """It was read as a standing robot and 'missed speed_friction' (exit 0)."""
+    with pytest.raises(BagContentError, match='single-leg bench bag.*give it with --bench'):
+        R.read_residual_run(bags['bench'])
+
+
+def test_residuals_refuse_a_buehler_clock_run(bags) -> None:
+    """An EduBot run against the servo bench 'missed supply_resistance' with a 106 A
+    electronics current (exit 0)."""
+    with pytest.raises(R.ResidualDataError, match='Buehler clock.*residuals --slip'):
+        R.run_energy_loop([bags['bench']], [bags['edubot']], None)
+
+
+def test_energy_on_a_rhex_run_gives_effort_p_out_and_no_servo_prediction(bags, tmp_path):
+    """The hip torques (net / positive joint power 0.91) were refused as 'AX-series PWM load'
+    and the AntBot leg's Eq. 6 model gave P_out 0 W and efficiency 0; the run was predicted at
+    62.8 W by the servo bench for 34.5 W measured (82 % 'prediction error')."""
+    out = tmp_path / 'out'
+    assert energy_main(['--bench', str(bags['bench']), '--robot', str(bags['edubot']),
+                        '--robot-mass', '3.31', '--out', str(out), '--no-progress']) == 0
+    doc = json.loads((out / 'energy.json').read_text())
+    [run] = doc['robot_runs']
+    assert run['gait'] == 'buehler' and run['predicted_power_in_w'] is None
+    assert run['power_out_source'] == 'effort' and run['power_out_w'] > 5.0
+    assert 0.1 < run['efficiency'] < 0.6
+    assert any('Buehler clock' in n for n in run['notes'])
+    assert not any('PWM' in w for w in doc.get('warnings', []))
