@@ -10,6 +10,8 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/config', ['config/dynamixel_driver.yaml',
+                                               'config/hexapod_ax18a_joints.yaml']),
     ],
     install_requires=['setuptools'],
     zip_safe=True,

@@ -185,12 +185,34 @@ def parse_joint_map(data: Mapping[str, Any]) -> tuple[JointConfig, ...]:
     return tuple(out)
 
 
+def config_file(path: str | Path) -> Path:
+    """``path`` as given when it exists (absolute, or relative to the working directory),
+    else the package's own ``config/`` file of that name (the source tree's, or the installed
+    ``share/hexapod_bench_drivers/config``): ``dynamixel_driver.yaml`` names
+    ``hexapod_ax18a_joints.yaml``, which the README's command, run from the repository root,
+    could not find (new-user review)."""
+    given = Path(path).expanduser()
+    if given.is_absolute() or given.exists():
+        return given
+    candidates = [Path(__file__).resolve().parents[1] / 'config' / given]
+    try:
+        from ament_index_python.packages import get_package_share_directory
+
+        candidates.append(Path(get_package_share_directory('hexapod_bench_drivers'))
+                          / 'config' / given)
+    except Exception:   # noqa: BLE001 - no ament index (a plain pip install): not there
+        pass
+    return next((c for c in candidates if c.exists()), given)
+
+
 def load_joint_map(path: str | Path) -> tuple[JointConfig, ...]:
-    """Joint map from a YAML file (see :func:`parse_joint_map`)."""
+    """Joint map from a YAML file (see :func:`parse_joint_map`; a relative path not found
+    from the working directory is looked up in the package's ``config/``,
+    :func:`config_file`)."""
     import yaml
 
     try:
-        data = yaml.safe_load(Path(path).read_text())
+        data = yaml.safe_load(config_file(path).read_text())
     except (OSError, yaml.YAMLError) as err:
         raise JointMapError(f'joint map {str(path)!r}: cannot read: {err}') from err
     return parse_joint_map(data or {})

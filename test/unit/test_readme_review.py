@@ -52,3 +52,22 @@ def test_energy_on_a_rhex_run_gives_effort_p_out_and_no_servo_prediction(bags, t
     assert 0.1 < run['efficiency'] < 0.6
     assert any('Buehler clock' in n for n in run['notes'])
     assert not any('PWM' in w for w in doc.get('warnings', []))
+
+
+def test_the_driver_params_file_finds_its_joint_map_from_anywhere(tmp_path, monkeypatch):
+    """``dynamixel_driver --ros-args --params-file hexapod_bench_drivers/config/
+    dynamixel_driver.yaml`` from the repository root stopped with 'joint map
+    hexapod_ax18a_joints.yaml: cannot read': the name is resolved in the package's config/."""
+    import yaml
+
+    from hexapod_bench_drivers.dynamixel_bus import JointMapError, load_joint_map
+
+    cfg = Path(__file__).resolve().parents[2] / 'hexapod_bench_drivers' / 'config'
+    params = yaml.safe_load((cfg / 'dynamixel_driver.yaml').read_text())
+    name = params['dynamixel_driver']['ros__parameters']['joints_file']
+    monkeypatch.chdir(tmp_path)
+    assert len(load_joint_map(name)) == 18
+    (tmp_path / name).write_text('joints: {L1_coxa: {id: 7}}\n')   # a local file wins
+    assert [j.servo_id for j in load_joint_map(name)] == [7]
+    with pytest.raises(JointMapError, match='nosuch.yaml'):
+        load_joint_map('nosuch.yaml')
