@@ -239,8 +239,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         if reason := _check_window(args, node.source):
             print(f'bag_replay: error: {reason}', file=sys.stderr)
             return 2
-        if args.wait_subscribers:
-            node.wait_for_subscribers(args.wait_subscribers)
+        if args.wait_subscribers and not node.wait_for_subscribers(args.wait_subscribers):
+            short = {t: p.get_subscription_count() for t, p in node.pubs.items()
+                     if p.get_subscription_count() < args.wait_subscribers}
+            # it waited 10 s without a word and replayed (new-user review)
+            print('bag_replay: warning: after 10 s, fewer than '
+                  f'{args.wait_subscribers} subscriber(s) on ' + ', '.join(
+                      f'{t} ({c})' for t, c in sorted(short.items()))
+                  + '; replaying anyway (--topics selects the topics a node reads)',
+                  file=sys.stderr)
         counts = node.run()
         total = sum(counts.values())
         print(f'replayed {total} messages: ' +

@@ -14,7 +14,7 @@ plots, PNG + SVG) and the Fig. 7D power map; ``--recommend`` -> minimum-CoT/M ga
 
 Bench bags recorded without ``/bench/session`` (another lab's bench, one bag per session) are
 given with ``--bench-sessions CSV`` (columns ``bag,load_kg[,frequency_hz,duty_factor,
-step_length_m]``, :func:`hexapod_energy.bag_io.read_bench_sessions_file`); they are read as one
+step_length_m,step_height_m]``, :func:`hexapod_energy.bag_io.read_bench_sessions_file`); they are read as one
 bench when their times do not overlap (:func:`hexapod_energy.bag_io.merge_bench_data`).
 
 ``--sweep`` and ``--recommend`` are for the robot described: its mass (``--robot-mass``, default
@@ -182,7 +182,8 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
                         'get their measured descriptors but no Eq. 1 prediction')
     p.add_argument('--bench-sessions', default=None, metavar='CSV',
                    help='bench bags recorded without /bench/session (one bag per session): a '
-                        'CSV with columns bag,load_kg[,frequency_hz,duty_factor,step_length_m]; '
+                        'CSV with columns bag,load_kg[,frequency_hz,duty_factor,step_length_m,'
+                        'step_height_m]; '
                         'an empty frequency comes from /gait/phase or the leg tip\'s period')
     p.add_argument('--robot', nargs='*', default=[], metavar='BAG',
                    help='robot bags to compare with the Eq. 1 prediction')
@@ -356,6 +357,12 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         _check_mass(robot, args.legs, '--legs')
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    # plots an earlier run wrote into this folder and this one may not (no --sweep now): they
+    # stayed, and report.html showed them beside the new energy.json (new-user review)
+    for stale in [*out.glob('four_quadrant_*.png'), *out.glob('four_quadrant_*.svg'),
+                  *(out / f'{n}.{e}' for n in ('power_map', 'prediction', 'where_the_watts_go')
+                    for e in ('png', 'svg'))]:
+        stale.unlink(missing_ok=True)
     n_steps = len(bench_bags) + len(args.robot) + 1 + (16 if args.sweep else 0) + \
         (1 if args.recommend else 0)
     bar = tqdm(total=n_steps, desc='energy', unit='step', disable=args.no_progress,

@@ -492,6 +492,6 @@ def _save(fig: Any, out_stem: str | Path) -> list[Path]:
     stem.parent.mkdir(parents=True, exist_ok=True)
     paths = [stem.with_suffix('.png'), stem.with_suffix('.svg')]
     for path in paths:
-        fig.savefig(path, dpi=110)
+        fig.savefig(path, dpi=110, bbox_inches='tight', pad_inches=0.1)
     plt.close(fig)
     return paths

@@ -71,3 +71,19 @@ def test_the_driver_params_file_finds_its_joint_map_from_anywhere(tmp_path, monk
     assert [j.servo_id for j in load_joint_map(name)] == [7]
     with pytest.raises(JointMapError, match='nosuch.yaml'):
         load_joint_map('nosuch.yaml')
+
+
+def test_energy_clears_its_old_plots_from_a_reused_folder(bags, tmp_path):
+    """An earlier --sweep's four-quadrant plots stayed in a re-used --out folder and
+    report.html showed them beside the new energy.json; other files are left alone."""
+    out = tmp_path / 'out'
+    out.mkdir()
+    for name in ('four_quadrant_duty_factor.png', 'four_quadrant_duty_factor.svg',
+                 'power_map.png', 'notes.txt'):
+        (out / name).write_text('old')
+    assert energy_main(['--robot', str(bags['edubot']), '--robot-mass', '3.31', '--out',
+                        str(out), '--no-progress']) == 0
+    assert not (out / 'four_quadrant_duty_factor.png').exists()
+    assert not (out / 'four_quadrant_duty_factor.svg').exists()
+    assert not (out / 'power_map.png').exists()
+    assert (out / 'notes.txt').read_text() == 'old'
