@@ -1168,6 +1168,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     with ServoBusEmulator.of_model(args.model, _parse_ids(args.ids),
                                    supply_voltage_v=args.supply_voltage) as emu:
         print(emu.port_name, flush=True)
+        # the port name alone left a new user guessing how to point the driver at it
+        first = next(iter(emu.servos.values()), None)
+        protocol = 2 if first is not None and first.table.protocol == 2 else 1
+        print(f'serving {len(emu.servos)} emulated {args.model} servo(s); try: '
+              f'dynamixel_driver --ros-args -p port:={emu.port_name} -p protocol:={protocol} '
+              '-p joints_file:=hexapod_ax18a_joints.yaml (Ctrl-C stops)', file=sys.stderr,
+              flush=True)
         try:
             while True:
                 time.sleep(3600)

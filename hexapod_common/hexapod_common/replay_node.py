@@ -220,15 +220,26 @@ def _check_window(args: argparse.Namespace, source: ReplaySource) -> str | None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     import rclpy
-    from rclpy.utilities import remove_ros_args
 
     raw = list(sys.argv[1:] if argv is None else argv)
-    args = parse_args(remove_ros_args(['bag_replay', *raw])[1:])
+    # only the --ros-args part goes to rcl: a plain '--remap /a:=/b' of ours was read by rcl as
+    # its deprecated remapping syntax too (a warning printed twice, new-user review)
+    ros_part: list[str] = []
+    own: list[str] = []
+    inside = False
+    for a in raw:
+        if a == '--ros-args':
+            inside = True
+        elif a == '--' and inside:
+            inside = False
+            continue
+        (ros_part if inside else own).append(a)
+    args = parse_args(own)
     if reason := check_args(args):
         print(f'bag_replay: error: {reason}', file=sys.stderr)
         return 2
     use_replay_profile()
-    rclpy.init(args=['bag_replay', *raw])
+    rclpy.init(args=['bag_replay', *ros_part])
     node = None
     try:
         node = BagReplayNode(args.bag, args.options, progress_every_s=args.progress_every)
