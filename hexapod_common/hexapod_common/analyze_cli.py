@@ -142,6 +142,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.battery_source is not None:
         os.environ[BATTERY_SOURCE_ENV] = args.battery_source
     if args.remap or args.namespace or args.mocap_tf:
+        for warning in _unmatched_topic_mappings(args):
+            print(f'hexapod-analyze: warning: {warning}', file=sys.stderr)
+    if args.remap or args.namespace or args.mocap_tf:
         # every bag reader of this process and of its workers (--jobs) reads the contract names
         try:
             remap = parse_remap(args.remap)
@@ -166,6 +169,51 @@ def main(argv: Sequence[str] | None = None) -> int:
                 os.environ.pop(key, None)
             else:
                 os.environ[key] = value
+
+
+def _bag_paths(args: argparse.Namespace) -> list[str]:
+    """The command's arguments that name existing bags (folders or .bag/.mcap/.db3 files)."""
+    out: list[str] = []
+    for key, value in vars(args).items():
+        if key in ('out', 'func', 'command'):
+            continue
+        for v in value if isinstance(value, list) else [value]:
+            if isinstance(v, str) and os.path.exists(v) and (
+                    os.path.isdir(v) or v.endswith(('.bag', '.mcap', '.db3'))):
+                out.append(v)
+    return out
+
+
+def _unmatched_topic_mappings(args: argparse.Namespace) -> list[str]:
+    """Warnings for a ``--remap`` source, ``--namespace`` or ``--mocap-tf`` that no given bag
+    has (a typo was silent: the analysis then refused the bag for a topic it does have, or
+    ran without motion capture; new-user review)."""
+    from hexapod_common.bags import open_reader
+
+    topics: set[str] = set()
+    paths = _bag_paths(args)
+    for path in paths:
+        try:
+            with open_reader(path, remap={}, namespace='') as reader:
+                topics |= {c.topic for c in reader.connections}
+        except Exception:   # noqa: BLE001 - the command names an unreadable bag itself
+            continue
+    if not topics:
+        return []
+    out = []
+    try:
+        remap = parse_remap(args.remap)
+    except ValueError:
+        remap = {}
+    for src in sorted(remap):
+        if src not in topics:
+            out.append(f'--remap {src}:={remap[src]}: no given bag has {src}')
+    ns = '/' + args.namespace.strip('/') if args.namespace.strip('/') else ''
+    if ns and not any(t.startswith(ns + '/') for t in topics):
+        out.append(f'--namespace {args.namespace}: no topic of the given bags starts with {ns}/')
+    if args.mocap_tf and '/tf' not in topics:
+        out.append(f'--mocap-tf {args.mocap_tf}: no given bag has /tf')
+    return out
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -87,3 +87,19 @@ def test_energy_clears_its_old_plots_from_a_reused_folder(bags, tmp_path):
     assert not (out / 'four_quadrant_duty_factor.svg').exists()
     assert not (out / 'power_map.png').exists()
     assert (out / 'notes.txt').read_text() == 'old'
+
+
+def test_a_topic_mapping_that_matches_nothing_is_warned_about(bags, tmp_path, capsys):
+    """``--namespace /antbot`` or ``--remap /lab/power:=...`` with a typo was silent."""
+    from hexapod_common.analyze_cli import main as analyze_main
+
+    args = ['energy', '--robot', str(bags['edubot']), '--robot-mass', '3.31', '--out',
+            str(tmp_path / 'o'), '--no-progress']
+    assert analyze_main(['--remap', '/lab/power:=/battery_state', '--namespace', '/antbot',
+                         '--mocap-tf', 'world:base_link', *args]) == 0
+    err = capsys.readouterr().err
+    assert '--remap /lab/power:=/battery_state: no given bag has /lab/power' in err
+    assert '--namespace /antbot: no topic of the given bags starts with /antbot/' in err
+    assert '--mocap-tf world:base_link: no given bag has /tf' in err
+    assert analyze_main(['--remap', '/mocap/body:=/mocap/body', *args]) == 0
+    assert 'warning: --remap' not in capsys.readouterr().err
