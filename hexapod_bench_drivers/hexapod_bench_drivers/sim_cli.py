@@ -76,7 +76,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help='body speed [m/s], > 0; overrides --period')
     robot.add_argument('--step-length', type=float, default=0.10, help='[m]')
     robot.add_argument('--step-height', type=float, default=0.04, help='[m]')
-    robot.add_argument('--legs', type=int, default=6, help='leg count (4, 6, 8)')
+    robot.add_argument('--legs', type=int, default=6,
+                       help='leg count, an even number >= 2 (default 6)')
     robot.add_argument('--payload', type=float, default=0.0, help='[kg]')
     robot.add_argument('--battery', action='store_true', help='3S LiPo instead of a 11.9 V supply')
     robot.add_argument('--allow-infeasible', action='store_true',

@@ -529,6 +529,9 @@ def write_report(out_dir: str | Path) -> Path:
         When the folder is missing or holds neither results nor plots.
     """
     out = Path(out_dir)
+    if out.is_file():
+        raise FileNotFoundError(f'{out} is a file: give the analysis folder that holds it '
+                                f'({out.parent})')
     if not out.is_dir():
         raise FileNotFoundError(f'no such analysis folder: {out}')
     parts = ['<!doctype html><meta charset="utf-8"><title>hexapod analysis report</title>',
