@@ -832,10 +832,14 @@ def _sweep(doc: dict[str, Any], model: Any, opm: Any, out: Path, bar: Any,
 def _handler(args: argparse.Namespace) -> int:
     from hexapod_common.errors import HexapodError
 
+    out = Path(args.out)
+    existed = out.exists()
     try:
         doc = run(args)
     except (EnergyError, HexapodError, ValueError) as err:
         print(f'hexapod-analyze energy: error: {err}', file=sys.stderr)
+        if not existed and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()   # a refused run leaves no empty --out folder behind
         return 2
     err = doc.get('prediction_error')
     line = f"wrote {Path(args.out) / 'energy.json'}"

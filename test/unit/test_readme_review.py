@@ -103,3 +103,11 @@ def test_a_topic_mapping_that_matches_nothing_is_warned_about(bags, tmp_path, ca
     assert '--mocap-tf world:base_link: no given bag has /tf' in err
     assert analyze_main(['--remap', '/mocap/body:=/mocap/body', *args]) == 0
     assert 'warning: --remap' not in capsys.readouterr().err
+
+
+def test_a_refused_energy_run_leaves_no_empty_out_folder(bags, tmp_path, capsys):
+    out = tmp_path / 'never'
+    assert energy_main(['--robot', str(bags['bench']), '--out', str(out),
+                        '--no-progress']) == 2
+    assert 'single-leg bench bag' in capsys.readouterr().err
+    assert not out.exists()
