@@ -131,9 +131,29 @@ def _spell_out_mappings(argv: Sequence[str]) -> list[str]:
     return out
 
 
+_GLOBAL_OPTIONS = ('--remap', '--namespace', '--joint-map', '--mocap-tf', '--battery-source')
+
+
+def _misplaced_global(argv: Sequence[str]) -> str:
+    """A global option given after the command name ('' when none): argparse said only
+    'unrecognized arguments' (new-user review)."""
+    cmd = next((i for i, a in enumerate(argv) if a in PROVIDERS), None)
+    if cmd is None:
+        return ''
+    for a in argv[cmd + 1:]:
+        opt = a.split('=', 1)[0]
+        if opt in _GLOBAL_OPTIONS:
+            return (f'{opt} goes before the command name: hexapod-analyze {opt} ... '
+                    f'{argv[cmd]} ...')
+    return ''
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(_spell_out_mappings(sys.argv[1:] if argv is None else argv))
+    raw = list(sys.argv[1:] if argv is None else argv)
+    if why := _misplaced_global(raw):
+        parser.error(why)
+    args = parser.parse_args(_spell_out_mappings(raw))
     if not getattr(args, 'func', None):
         parser.print_help()
         return 2

@@ -111,3 +111,12 @@ def test_a_refused_energy_run_leaves_no_empty_out_folder(bags, tmp_path, capsys)
                         '--no-progress']) == 2
     assert 'single-leg bench bag' in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_a_global_option_after_the_command_name_says_where_it_goes(capsys):
+    from hexapod_common.analyze_cli import main as analyze_main
+
+    with pytest.raises(SystemExit) as exc:
+        analyze_main(['energy', '--robot', 'r', '--remap', '/a:=/b', '--out', 'o'])
+    assert exc.value.code == 2
+    assert '--remap goes before the command name' in capsys.readouterr().err
