@@ -77,7 +77,8 @@ such fallback is listed in the run's ``notes``.
                       P_in - P_out, are null when P_out is unknown: source "none"),
                       "specific_resistance", "cycle_source" ("gait_phase" | "joints"),
                       "speed_source" (mocap | odometry | odometry_twist | gait_schedule |
-                      given | none),
+                      given | none; the windows' sources joined by '+' when they differ,
+                      e.g. "mocap+none": mocap where it tracked, no speed elsewhere),
                       "notes" [str] (this run's input fallbacks),
                       "segment": {"index", "of", "t_start_s", "t_end_s"} (a bag whose
                       /gait/phase changes walking schedule gives one run per schedule;

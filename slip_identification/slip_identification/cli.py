@@ -535,7 +535,8 @@ def add_cli(subparsers: Any) -> None:
     p = subparsers.add_parser('slip', help='per-stance SLIP fits (Komsuoglu et al.)',
                               description=__doc__,
                               formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument('bags', nargs='+', help='rosbag2 folders')
+    p.add_argument('bags', nargs='+', help='bags: rosbag2 folders (sqlite3 or mcap) or ROS 1 '
+                   '.bag files')
     p.add_argument('--out', required=True, help='output folder')
     p.add_argument('--jobs', type=int, default=1, help='bags analysed in parallel')
     p.add_argument('--offset', default='auto',
