@@ -4,7 +4,7 @@ A plan (YAML) is the product loads x frequencies (x duty factors x step lengths)
 load first so the operator changes the weight as rarely as possible::
 
     loads_kg: [0.0, 0.095, 0.141]
-    frequencies_hz: [0.5, 1.0, 1.5]
+    frequencies_hz: [0.0, 0.5, 1.0, 1.5]   # 0: the basal session (the leg stands at its load)
     duty_factors: [0.5]            # optional, default [0.5]
     step_lengths_m: [0.1]          # optional, default [0.1]
     step_height_m: 0.04
@@ -101,9 +101,10 @@ def load_plan(source: str | Path | Mapping[str, Any]) -> BenchPlan:
     steps = _floats(data, 'step_lengths_m', [0.1])
     height = float(data.get('step_height_m', 0.04))
     duration = float(data.get('walk_duration_s', 60.0))
-    if any(x < 0 for x in loads) or any(f <= 0 for f in freqs) or duration <= 0:
-        raise PlanError('plan: loads_kg >= 0, frequencies_hz > 0 and walk_duration_s > 0 '
-                        f'expected; got {loads}, {freqs}, {duration}')
+    if any(x < 0 for x in loads) or any(f < 0 for f in freqs) or duration <= 0:
+        raise PlanError('plan: loads_kg >= 0, frequencies_hz >= 0 (0: the basal session, the '
+                        'leg standing at its load) and walk_duration_s > 0 expected; got '
+                        f'{loads}, {freqs}, {duration}')
     if any(not 0 < b < 1 for b in betas):
         raise PlanError(f'plan: duty_factors must be in (0, 1), got {betas}')
     sessions = tuple(

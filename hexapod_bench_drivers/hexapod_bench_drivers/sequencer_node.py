@@ -14,7 +14,9 @@
 
 - ``gait_node`` (e.g. ``gait_scheduler``): the sequencer drives the walk by setting that node's
   ``period``, ``duty_factor``, ``step_length`` and ``step_height`` parameters to the session's
-  gait while heating/walking, and ``step_length = step_height = 0`` (standing) otherwise.
+  gait while heating/walking, and ``step_length = step_height = 0`` (standing) otherwise. A
+  0 Hz session (the paper's basal session) is recorded standing at its load, its heating
+  walked at ``HEAT_FREQUENCY_HZ``.
 
 Time is the node clock (simulated time with ``use_sim_time``), so a simulator running faster
 than real time runs the plan in accelerated time.
@@ -54,6 +56,7 @@ from rcl_interfaces.srv import SetParameters
 from rosgraph_msgs.msg import Clock
 from std_srvs.srv import SetBool, Trigger
 
+from hexapod_bench_drivers.dynamixel_bus import config_file
 from hexapod_bench_drivers.sequencer import (
     BenchSequencer,
     SequencerCommand,
@@ -65,6 +68,9 @@ __all__ = ['SIM_EPOCH_S', 'BenchSequencerNode', 'BenchSequencerParams', 'main']
 
 #: Clock time of the embedded simulator's t = 0 [s] (the bag time of its per-session bags).
 SIM_EPOCH_S = 1_700_000_000.0
+
+#: step frequency [Hz] that heats the servos into the gate before a basal (0 Hz) session
+HEAT_FREQUENCY_HZ = 1.0
 
 # Relative names, so that the node's namespace applies (as to every topic of the drivers).
 DEFAULT_RECORD = ('joint_states', 'joint_commands', 'servo_status', 'battery_state',
@@ -108,7 +114,7 @@ class BenchSequencerNode(Node):
         super().__init__('bench_sequencer', context=context,
                          parameter_overrides=parameter_overrides, namespace=namespace, **kw)
         p = self.params = declare_params(self, BenchSequencerParams)
-        plan = load_plan(p.plan_file)
+        plan = load_plan(config_file(p.plan_file))   # bench_plan.yaml: the package config
         self.sim_run: Any = None
         if p.backend == 'sim':
             from hexapod_bench_drivers.bench_sim import BenchConfig
@@ -246,10 +252,15 @@ class BenchSequencerNode(Node):
         if s is None:                   # done or aborted: stand with the last gait's timing
             assert sent is not None
             values = (sent[0], sent[1], 0.0, 0.0)
-        elif cmd.walk:
+        elif cmd.walk and s.frequency_hz > 0:
             values = (1.0 / s.frequency_hz, s.duty_factor, s.step_length_m, s.step_height_m)
+        elif cmd.walk and not cmd.record:
+            # heating before a basal (0 Hz) session: walk at HEAT_FREQUENCY_HZ, then stand
+            values = (1.0 / HEAT_FREQUENCY_HZ, s.duty_factor, s.step_length_m, s.step_height_m)
         else:
-            values = (1.0 / s.frequency_hz, s.duty_factor, 0.0, 0.0)
+            # holding (and the basal session itself): the gait's step is 0, the leg stands
+            values = (1.0 / s.frequency_hz if s.frequency_hz > 0 else 1.0, s.duty_factor,
+                      0.0, 0.0)
         if values == self._gait_sent or not self.gait_client.service_is_ready():
             return
         names = ('period', 'duty_factor', 'step_length', 'step_height')

@@ -94,3 +94,34 @@ def test_bench_sequencer_executable_exits_when_the_plan_is_done(tmp_path):
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert 'plan done: 1 sessions completed' in proc.stderr + proc.stdout
     assert json.loads((tmp_path / 'state.json').read_text())['completed']
+
+
+@pytest.mark.timeout(120)
+def test_a_basal_0_hz_session_is_planned_and_recorded(tmp_path):
+    """The plan refused frequencies_hz 0 ('> 0 expected'), so a real bench run by the sequencer
+    could not record the paper's basal session, which the single-leg method needs (new-user
+    review: no plan example in the README). A 0 Hz session now stands at its load."""
+    import shutil
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from hexapod_energy.bag_io import read_bench_bag
+
+    plan = tmp_path / 'plan.yaml'
+    plan.write_text('loads_kg: [0.2]\nfrequencies_hz: [0.0, 2.0]\nwalk_duration_s: 1.0\n')
+    exe = shutil.which('bench_sequencer') or str(Path(sys.executable).parent / 'bench_sequencer')
+    proc = subprocess.run(
+        [exe, '--ros-args', '-r', '__ns:=/seqbasal', '-p', f'plan_file:={plan}',
+         '-p', f'state_file:={tmp_path / "state.json"}', '-p', f'output_dir:={tmp_path / "bags"}',
+         '-p', 'backend:=sim', '-p', 'rate_hz:=500.0', '-p', 'sim_initial_temperature_c:=26.0'],
+        capture_output=True, text=True, timeout=100)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert 'plan done: 2 sessions completed' in proc.stderr + proc.stdout
+    bags = sorted((tmp_path / 'bags').iterdir())
+    basal = [b for b in bags if '_f0.00Hz' in b.name]
+    assert len(basal) == 1
+    data = read_bench_bag(basal[0])
+    assert data.sessions and {round(float(s['frequency_hz']), 3) for s in data.sessions
+                              if s.get('state', 'walking') == 'walking'} == {0.0}
+    assert data.battery_t_s.size >= 40     # 1 s of the 50 Hz power monitor
