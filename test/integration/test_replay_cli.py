@@ -200,3 +200,10 @@ def test_a_long_replay_prints_progress_lines(tmp_path):
     assert f'replayed {total} messages' in proc.stdout
     quiet = run('bag_replay', str(bag), '--progress-every', '0')
     assert quiet.returncode == 0 and 'messages sent' not in quiet.stderr
+    # a --start/--end window: progress through the window (it gave the whole bag's 7 %)
+    win = run('bag_replay', str(bag), '--progress-every', '0.000001', '--start', '2',
+              '--end', '4')
+    assert win.returncode == 0, win.stderr
+    last = [ln for ln in win.stderr.splitlines() if 'messages sent' in ln][-1]
+    m = re.search(r'of the window 2\.0-4\.0 s \((\d+) %\)', last)
+    assert m and int(m.group(1)) >= 90, last
