@@ -75,22 +75,28 @@ def test_sim_backend_runs_the_plan_killed_and_resumed(tmp_path):
         assert samples[0].p_stance_w > 0.5
 
 
-@pytest.mark.timeout(120)
-def test_bench_sequencer_executable_exits_when_the_plan_is_done(tmp_path):
-    """The console script (run_node) returns 0 once the plan is done instead of spinning on."""
+def _run_sim_sequencer(tmp_path, plan_text: str, namespace: str):
+    """The bench_sequencer console script on the sim backend with ``plan_text``; its result."""
     import shutil
     import subprocess
     import sys
     from pathlib import Path
 
     plan = tmp_path / 'plan.yaml'
-    plan.write_text('loads_kg: [0.0]\nfrequencies_hz: [2.0]\nwalk_duration_s: 1.0\n')
+    plan.write_text(plan_text)
     exe = shutil.which('bench_sequencer') or str(Path(sys.executable).parent / 'bench_sequencer')
-    proc = subprocess.run(
-        [exe, '--ros-args', '-r', '__ns:=/seqexit', '-p', f'plan_file:={plan}',
+    return subprocess.run(
+        [exe, '--ros-args', '-r', f'__ns:={namespace}', '-p', f'plan_file:={plan}',
          '-p', f'state_file:={tmp_path / "state.json"}', '-p', f'output_dir:={tmp_path / "bags"}',
          '-p', 'backend:=sim', '-p', 'rate_hz:=500.0', '-p', 'sim_initial_temperature_c:=26.0'],
         capture_output=True, text=True, timeout=100)
+
+
+@pytest.mark.timeout(120)
+def test_bench_sequencer_executable_exits_when_the_plan_is_done(tmp_path):
+    """The console script (run_node) returns 0 once the plan is done instead of spinning on."""
+    proc = _run_sim_sequencer(
+        tmp_path, 'loads_kg: [0.0]\nfrequencies_hz: [2.0]\nwalk_duration_s: 1.0\n', '/seqexit')
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert 'plan done: 1 sessions completed' in proc.stderr + proc.stdout
     assert json.loads((tmp_path / 'state.json').read_text())['completed']
@@ -101,21 +107,11 @@ def test_a_basal_0_hz_session_is_planned_and_recorded(tmp_path):
     """The plan refused frequencies_hz 0 ('> 0 expected'), so a real bench run by the sequencer
     could not record the paper's basal session, which the single-leg method needs (new-user
     review: no plan example in the README). A 0 Hz session now stands at its load."""
-    import shutil
-    import subprocess
-    import sys
-    from pathlib import Path
-
     from hexapod_energy.bag_io import read_bench_bag
 
-    plan = tmp_path / 'plan.yaml'
-    plan.write_text('loads_kg: [0.2]\nfrequencies_hz: [0.0, 2.0]\nwalk_duration_s: 1.0\n')
-    exe = shutil.which('bench_sequencer') or str(Path(sys.executable).parent / 'bench_sequencer')
-    proc = subprocess.run(
-        [exe, '--ros-args', '-r', '__ns:=/seqbasal', '-p', f'plan_file:={plan}',
-         '-p', f'state_file:={tmp_path / "state.json"}', '-p', f'output_dir:={tmp_path / "bags"}',
-         '-p', 'backend:=sim', '-p', 'rate_hz:=500.0', '-p', 'sim_initial_temperature_c:=26.0'],
-        capture_output=True, text=True, timeout=100)
+    proc = _run_sim_sequencer(
+        tmp_path, 'loads_kg: [0.2]\nfrequencies_hz: [0.0, 2.0]\nwalk_duration_s: 1.0\n',
+        '/seqbasal')
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert 'plan done: 2 sessions completed' in proc.stderr + proc.stdout
     bags = sorted((tmp_path / 'bags').iterdir())
