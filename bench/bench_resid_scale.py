@@ -59,7 +59,8 @@ def build_windows_baseline(runs: Sequence[R.ResidualRun], *, temp_ref_c: float |
         'speed_mps', 'current_sq_a2', 'temp_excess_k', 'stance_fraction')}
     extra: dict[str, list[float]] = {'supply_dv_v': [], 'supply_sat_v2': [],
                                      'saturated_drives': [], 'elapsed_energy_j': [],
-                                     'temp_excess_mean_k': [], 'winding_excess_w': []}
+                                     'temp_excess_mean_k': [], 'winding_excess_w': [],
+                                     'duty_factor': [], 'step_length_m': []}
     with_slope = all(r.mass_slope_w_per_kg is not None for r in runs)
     if with_slope:
         extra['mass_slope_w_per_kg'] = []
@@ -101,6 +102,7 @@ def build_windows_baseline(runs: Sequence[R.ResidualRun], *, temp_ref_c: float |
                      'winding_excess_w': dt_mean * r.predicted_w,
                      'supply_sat_v2': sat_counts[ri] * (r.voltage_v ** 2 - v_s ** 2),
                      'saturated_drives': sat_counts[ri],
+                     'duty_factor': r.duty_factor, 'step_length_m': r.step_length_m,
                      'elapsed_energy_j': np.concatenate([[0.0], np.cumsum(
                          0.5 * (r.power_w[1:] + r.power_w[:-1]) * np.diff(r.t_s))])}
         if with_slope:
