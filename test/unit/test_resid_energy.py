@@ -359,7 +359,8 @@ def test_cli_writes_the_schema_and_plots(bench, tmp_path, capsys):
     names = {c['name'] for c in doc['candidates']}
     assert names == {'basal_power', 'thermal_drift', 'hot_windings', 'kinematic_error',
                      'supply_resistance', 'speed_friction', 'leg_anomaly', 'time_offset',
-                     'carried_mass', 'power_gain', 'swing_reversal'}
+                     'carried_mass', 'power_gain', 'swing_reversal',
+                     'standing_hold'}
     assert doc['effects_added'][0] == 'supply_resistance'
     assert 'reduced held-out error from' in doc['summary']
     for p in doc['plots']:
