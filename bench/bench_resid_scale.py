@@ -145,7 +145,8 @@ def build_windows_baseline(runs: Sequence[R.ResidualRun], *, temp_ref_c: float |
     arrays['run'] = arrays['run'].astype(int)
     return WindowTable(**arrays, leg_names=runs[0].leg_names, supply_slope_ohm=slope,
                        supply_slope_stderr_ohm=se,
-                       extra={k: np.array(v) for k, v in extra.items()})
+                       extra={**{k: np.array(v) for k, v in extra.items()},
+                              'windows_per_cycle': tuple(2 for _ in runs)})
 
 
 def max_difference(a: WindowTable, b: WindowTable) -> float:

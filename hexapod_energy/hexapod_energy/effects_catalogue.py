@@ -155,6 +155,9 @@ class EnergyEffect:
     #: True: added only when its columns minus their means (their variation over the windows)
     #: also lower the held-out error: a near-constant column must not pass for an offset
     needs_variation = False
+    #: True (with ``needs_variation``): its variation is tested beside a free offset, as its
+    #: column is of one sign by nature (what an offset leaves must follow it)
+    variation_beside_offset = False
     #: True: a transfer error of the bench-derived model that every candidate may be fitted
     #: beside (a candidate that passes only with it adds both; ``EffectSelection``)
     companion = False
@@ -514,6 +517,7 @@ class SwingReversal(EnergyEffect):
 
     name, unit = 'swing_reversal', 'J s/m'
     needs_variation = True
+    variation_beside_offset = True
     companion = True
     #: the column's spread [W per J s/m, i.e. m/s^2] below which it is not a candidate
     MIN_SPREAD = 0.05

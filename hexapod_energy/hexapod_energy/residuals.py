@@ -2,10 +2,13 @@
 
 1. **Residual.** The whole-robot prediction of the single-leg method (Eq. 1 on the bench
    surfaces, evaluated per sample with the support count ``L(t)`` of ``/gait/phase``) against
-   the robot's measured ``P_in`` from ``/battery_state``: per sample, and per *window* of half
-   a gait cycle (cycle phase [0, 0.5) and [0.5, 1); 0.5 s when standing). The model predicts
-   cycle averages, so selection and errors use the windows; half cycles keep one tripod's
-   stance apart from the other's (a leg's anomaly shows).
+   the robot's measured ``P_in`` from ``/battery_state``: per sample, and per *window* of a
+   gait phase: ``1 / k`` of the cycle for a gait whose legs touch down at ``k`` evenly spaced
+   phases (a tripod's half cycles, a tetrapod's thirds, a wave's sixths:
+   :func:`windows_per_cycle`), half cycles otherwise, 0.5 s when standing. The model predicts
+   phase averages, so selection and errors use the windows; each window holds the swings of
+   one group of legs, so a leg's anomaly shows and names its group (half cycles of a wave
+   gait named an anomaly of L1 "R3, or L1 or L2").
 2. **Trace.** Every candidate of :mod:`hexapod_energy.effects_catalogue` is fitted on the
    residual of a training split (time blocks of each run: every third block held out),
    coefficients bounded to their physical sign (``scipy.optimize.lsq_linear``);
@@ -713,9 +716,39 @@ def source_voltage_v(run: ResidualRun, resistance_ohm: float, lag: int = 0) -> f
     return float(np.mean(run.voltage_v[lag:] + resistance_ohm * run.current_a[:n - lag]))
 
 
+def windows_per_cycle(run: ResidualRun, *, tol: float = 0.05) -> int:
+    """Windows per gait cycle for :func:`build_windows`: the number ``k`` of distinct
+    touchdown phases of the legs when every one lies on a multiple of ``1 / k`` of the cycle
+    (a wave gait's six, a tetrapod's three, a tripod's two), so that each window holds the
+    swings of one group of legs; 2 (half cycles) otherwise."""
+    walking = run.period_s > 0
+    st = run.in_stance
+    if not np.any(walking) or st.ndim != 2 or st.shape[0] < 3:
+        return 2
+    rise = np.diff(st.astype(np.int8), axis=0) > 0
+    rise &= walking[1:, None] & walking[:-1, None]
+    ph = np.broadcast_to(run.cycle_phase[1:, None], rise.shape)[rise] % 1.0
+    if ph.size == 0:
+        return 2
+    # the touchdown phases, rounded to 1 % of the cycle, grouped
+    bins = np.unique(np.round(ph * 100.0).astype(int) % 100)
+    groups = [b for i, b in enumerate(bins) if i == 0 or b - bins[i - 1] > 2]
+    if len(groups) > 2 and bins[-1] - bins[0] > 97:   # the first group wraps past 1.0
+        groups = groups[1:]
+    k = len(groups)
+    if not 2 <= k <= st.shape[1]:
+        return 2
+    offs = np.array(groups) / 100.0 * k
+    if np.max(np.abs(offs - np.round(offs))) > tol * k:
+        return 2
+    return int(k)
+
+
 def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = None,
-                  settle_s: float = 1.0) -> WindowTable:
-    """Half-cycle windows of every run (runs must carry ``predicted_w``).
+                  settle_s: float = 1.0, phase_windows: bool = True) -> WindowTable:
+    """Gait-phase windows of every run (runs must carry ``predicted_w``): ``1 /
+    windows_per_cycle(run)`` of the cycle (``phase_windows``; else half cycles), whole
+    windows only, means over their exact span; 0.5 s blocks while standing.
 
     ``extra`` holds the supply-resistance regressors (window means): ``supply_dv_v`` the
     voltage sag ``V - V_s`` [V] and ``supply_sat_v2`` the saturated drives' ``n_sat (V^2 -
@@ -732,6 +765,7 @@ def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = Non
     with_slope = all(r.mass_slope_w_per_kg is not None for r in runs)
     if with_slope:
         extra['mass_slope_w_per_kg'] = []
+    per_cycle: list[int] = []
     with_hold = all(r.standing_holding_w is not None for r in runs)
     if with_hold:
         extra['standing_holding_w'] = []
@@ -751,15 +785,17 @@ def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = Non
         keep = r.t_s >= starts[k] + settle_s
         t = r.t_s[keep]
         walking = r.period_s[keep] > 0
-        # window label: half-cycle count (walking), 0.5 s blocks (standing)
-        half = np.floor(r.cycle_phase[keep] * 2.0)
+        # window label: gait-phase window count (walking), 0.5 s blocks (standing)
+        k_w = windows_per_cycle(r) if phase_windows else 2
+        per_cycle.append(k_w)
+        half = np.floor(r.cycle_phase[keep] * k_w)
         wraps = np.concatenate([[0], np.cumsum(np.diff(half) != 0)])
         label = np.where(walking, wraps, np.floor((t - t[0]) / 0.5) + 1e6)
         _, inv, counts = np.unique(label, return_inverse=True, return_counts=True)
         # a window is full when it holds 60 % of the samples its length should give (half a
         # period walking, 0.5 s standing): a bag that changes speed keeps its fast windows
         dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
-        span = np.where(walking, 0.5 * r.period_s[keep], 0.5)
+        span = np.where(walking, r.period_s[keep] / k_w, 0.5)
         expected = np.maximum(span / max(dt, 1e-9), 1.0)
         full = counts[inv] >= 0.6 * np.minimum(expected, np.max(counts))
         ref = temp_ref_c if temp_ref_c is not None else \
@@ -795,7 +831,7 @@ def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = Non
         if np.any(walking):
             ph = r.cycle_phase[keep]
             wrap = np.concatenate([[0.0], np.cumsum(np.diff(ph) < -0.5)])
-            hu = 2.0 * (ph + wrap)
+            hu = k_w * (ph + wrap)
         # each column restricted to the kept samples once, then every window reads its own
         # samples only (sorted by window: linear in the run's length, not samples x windows)
         sub_kept = {k: np.asarray(arr)[keep] for k, arr in sub.items()}
@@ -835,7 +871,8 @@ def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = Non
     arrays['run'] = arrays['run'].astype(int)
     return WindowTable(**arrays, leg_names=runs[0].leg_names, supply_slope_ohm=slope,
                        supply_slope_stderr_ohm=se,
-                       extra={k: np.array(v) for k, v in extra.items()})
+                       extra={**{k: np.array(v) for k, v in extra.items()},
+                              'windows_per_cycle': tuple(per_cycle)})
 
 
 def _window_groups(inv: np.ndarray, full: np.ndarray) -> list[np.ndarray]:
@@ -1109,9 +1146,7 @@ class EffectSelection:
                     rec['indistinguishable_from'] = same
                     ok = False
                 if ok and e.needs_variation_on(table):
-                    _, _, term_v, _ = self._fit(selected + [_Centered(e, table)], table, train)
-                    rmse_v = float(np.sqrt(np.mean((y[held] - term_v[held]) ** 2)))
-                    if not rmse_v < cur_rmse * (1 - self.min_improvement):
+                    if not self._variation_explains(e, selected, table, train, held, cur_rmse):
                         ok = False
                         rec['note'] = ('only the constant part of its regressor lowers the '
                                        'error (its variation does not): not told from an '
@@ -1206,6 +1241,29 @@ class EffectSelection:
         self.collinearity_ = self._collinearity(selected, coef, table)
         return self
 
+    def _variation_explains(self, effect: EnergyEffect, base: Sequence[EnergyEffect],
+                            table: WindowTable, train: np.ndarray, held: np.ndarray,
+                            ref_rmse: float) -> bool:
+        """The test of :attr:`EnergyEffect.needs_variation`: beside ``base``, the effect's
+        variation alone (:class:`_Centered`) lowers the held-out error below ``ref_rmse`` by
+        ``min_improvement``. An effect whose constant part is expected
+        (:attr:`EnergyEffect.variation_beside_offset`) is tested beside a free offset instead:
+        its variation must explain what an offset leaves (swing_reversal on tetrapod runs at
+        three periods followed the runs' -2.2, -1.3, -1.0 W within 0.3 W, but the variation
+        alone could not lower an error that was mostly the offset)."""
+        y = table.residual_w
+        imp = 1 - self.min_improvement
+
+        def rmse(effects: Sequence[EnergyEffect]) -> float:
+            term = self._fit(effects, table, train)[2]
+            return float(np.sqrt(np.mean((y[held] - term[held]) ** 2)))
+
+        if getattr(effect, 'variation_beside_offset', False):
+            off = _FreeOffset()
+            return rmse(list(base) + [off, _Centered(effect, table)]) < \
+                rmse(list(base) + [off]) * imp
+        return rmse(list(base) + [_Centered(effect, table)]) < ref_rmse * imp
+
     def _companion_pair(self, cands: Sequence[EnergyEffect], selected: list[EnergyEffect],
                         table: WindowTable, train: np.ndarray, held: np.ndarray,
                         cur_rmse: float, cur_bic: float, best_rmse: float | None
@@ -1252,13 +1310,12 @@ class EffectSelection:
                       and (best_rmse is None or rmse < best_rmse * imp)
                       and not self._indistinguishable(e, selected + group, table, train))
                 if ok and e.needs_variation_on(table):
-                    ok = score(selected + [_Centered(e, table)] + group)[0] < r_c * imp
+                    ok = self._variation_explains(e, selected + group, table, train, held, r_c)
                 for c in group:
                     if ok and c.needs_variation_on(table):
                         rest = [x for x in group if x is not c]
-                        r_wo = score(selected + [e] + rest)[0]
-                        ok = score(selected + [e] + rest + [_Centered(c, table)])[0] < \
-                            r_wo * imp
+                        ok = self._variation_explains(c, selected + [e] + rest, table, train,
+                                                      held, score(selected + [e] + rest)[0])
                 if not ok:
                     continue
                 params = self._params(trial, coef, se, table)[len(selected):]
@@ -1392,7 +1449,11 @@ def energy_loop_document(table: WindowTable, sel: EffectSelection,
         'heldout': {'rmse_before': sel.rmse_heldout_before_,
                     'rmse_after': sel.rmse_heldout_after_},
         'windows': {'count': int(r0.size), 'heldout': int(held.sum()),
-                    'kind': 'half gait cycle (0.5 s standing)'},
+                    'kind': 'gait phase: 1/k of the cycle, k the legs\' evenly spaced '
+                            'touchdown phases (2 for a tripod; half cycles when uneven); '
+                            '0.5 s standing',
+                    'per_cycle': sorted({int(k) for k in table.extra.get(
+                        'windows_per_cycle', [2])})},
         'added_params': added_params,
     }
     if view is not None:
@@ -1599,6 +1660,20 @@ def run_energy_loop(bench_bags: Sequence[str | Path], robot_bags: Sequence[str |
 #: a robot supply this far (relative) from the bench's is said: the bench surfaces hold at the
 #: bench's voltage (a servo's drive losses and speed depend on it)
 SUPPLY_MISMATCH = 0.03
+
+
+class _FreeOffset(EnergyEffect):
+    """A constant of either sign (the reference of :meth:`EffectSelection._variation_explains`
+    for effects whose constant part is expected)."""
+
+    name, unit = 'offset', 'W'
+    lower, upper = float('-inf'), float('inf')
+
+    def columns(self, table: WindowTable) -> np.ndarray:
+        return np.ones((table.t_s.shape[0], 1))
+
+    def params(self, coef, stderr, table):  # type: ignore[no-untyped-def]
+        return {'offset_w': float(coef[0])}, {'offset_w': float(stderr[0])}
 
 
 class _Centered(EnergyEffect):

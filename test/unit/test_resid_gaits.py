@@ -160,3 +160,50 @@ def test_a_standing_run_beside_walking_ones(bench, tmp_path, effects):
         assert doc['effects_added'] == ['standing_hold']
     assert not doc['unexplained']['significant']
     assert 'standing_hold' in doc['summary']
+
+
+def test_windows_per_cycle_follow_the_gait(tmp_path):
+    """One window per group of legs that touch down together: a tripod's halves, a
+    tetrapod's thirds, a wave's sixths (8 legs: eighths); half cycles for uneven phases."""
+    cases = [(dict(period_s=1.0), 2), (dict(gait='tetrapod', duty_factor=2 / 3), 3),
+             (dict(gait='wave', duty_factor=5 / 6, period_s=1.5), 6),
+             (dict(gait='wave', duty_factor=7 / 8, period_s=2.0, leg_count=8), 8)]
+    for i, (cfg, k) in enumerate(cases):
+        path = tmp_path / f'r{i}'
+        write_trace(simulate_robot(3.0, RobotConfig(**cfg), seed=1), path)
+        run = R.read_residual_run(path)
+        assert R.windows_per_cycle(run) == k, cfg
+    # touchdowns at 0, 0.5 and 0.2 of the cycle: not evenly spaced, half cycles
+    phase = np.linspace(0.0, 3.0, 301) % 1.0
+    st = np.column_stack([(phase - o) % 1.0 < 0.6 for o in (0.0, 0.5, 0.2)])
+    uneven = R.ResidualRun(name='u', t_s=np.linspace(0, 3, 301), power_w=np.ones(301),
+                           voltage_v=np.ones(301), current_a=np.ones(301),
+                           period_s=np.ones(301), duty_factor=np.full(301, 0.6),
+                           step_length_m=np.full(301, 0.1), cycle_phase=phase, in_stance=st,
+                           supporting=st.sum(axis=1), temp_sum_c=np.zeros(301),
+                           servo_count=9, leg_names=('a', 'b', 'c'),
+                           phase_offsets=(0.0, 0.5, 0.2), gait='x')
+    assert R.windows_per_cycle(uneven) == 2
+
+
+@pytest.mark.parametrize('gait, beta, leg, names', [
+    ('wave', 5 / 6, 'L1', {'L1'}),          # half cycles: "R3, or L1 or L2"
+    ('tetrapod', 2 / 3, 'R3', {'R3', 'L2'}),  # half cycles: a kinematic error
+])
+def test_a_leg_anomaly_on_runs_of_one_gait_names_its_group(bench, tmp_path, gait, beta, leg,
+                                                           names):
+    bags = []
+    for i, period in enumerate((1.2, 1.5, 2.0) if gait == 'wave' else (0.7, 0.9, 1.2)):
+        path = tmp_path / f'run{i}'
+        write_trace(simulate_robot(RUN_S, RobotConfig(gait=gait, duty_factor=beta,
+                                                      period_s=period),
+                                   effects=parse_effects([f'leg_anomaly={leg}:2']),
+                                   seed=40 + i), path)
+        bags.append(path)
+    doc = loop(bench, bags)
+    a = added(doc, 'leg_anomaly')['params']
+    print(f"\n{gait}: added {doc['effects_added']}; leg {a['leg']} or {a['same_stance_as']}: "
+          f"{a['power_w']:.2f} W; windows per cycle {doc['windows']['per_cycle']}")
+    assert doc['effects_added'][0] == 'leg_anomaly'
+    assert {a['leg'], *a['same_stance_as']} == names
+    assert a['power_w'] == pytest.approx(2.0, rel=0.15)
