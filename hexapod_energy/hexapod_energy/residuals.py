@@ -865,7 +865,7 @@ def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = Non
                     extra[k].append(_span_mean(ts, arr[lo:hi], ta, tb))
             cols['stance_fraction'].append(stance_kept[idx].mean(axis=0))
     if not cols['run']:
-        raise ResidualDataError('robot bags give no complete half-cycle window after the '
+        raise ResidualDataError('robot bags give no complete gait-phase window after the '
                                 f'first {settle_s} s; record longer runs')
     arrays = {k: np.array(v) for k, v in cols.items()}
     arrays['run'] = arrays['run'].astype(int)
@@ -932,7 +932,7 @@ def split_mask(table: WindowTable, *, block_s: float = 2.0, every: int = 3) -> n
     if n_test < 4 or n_train < 8:
         raise ResidualDataError(
             f'too little robot data to split: {n_train} training and {n_test} held-out '
-            f'half-cycle windows (need >= 8 and >= 4); record at least {3 * block_s:.0f} s of '
+            f'gait-phase windows (need >= 8 and >= 4); record at least {3 * block_s:.0f} s of '
             'walking after the first second')
     return held
 
@@ -1526,7 +1526,7 @@ def _summary_effects(doc: dict[str, Any]) -> str:
     if not [a for a in doc['effects_added'] if a != 'time_offset']:
         if doc['effects_added']:
             return intro + ('No other candidate effect lowered the held-out error of the '
-                            f"half-cycle windows significantly (RMSE {h['rmse_before']:.3g} "
+                            f"gait-phase windows significantly (RMSE {h['rmse_before']:.3g} "
                             f'{unit}).')
         return intro + ('No candidate effect lowered the held-out error significantly, so none '
                         f"was added (held-out RMSE {h['rmse_before']:.3g} {unit}).")
@@ -1892,10 +1892,10 @@ def plot_energy_loop(table: WindowTable, sel: EffectSelection, held: np.ndarray,
                     color=col[k])
     ax.plot(idx[held], r0[held], 'x', ms=3, color='k')
     ax.axhline(0.0, color='0.3', lw=0.6)
-    robust(ax, [r0, r1], 'residual per half cycle [W]')
+    robust(ax, [r0, r1], 'residual per gait-phase window [W]')
     ax.set_xlabel('window (runs in order, boundaries dashed)')
     added = ', '.join(e.name for e in (sel.selected_ or [])) or 'none'
-    ax.set_title(f'Per half cycle: before (filled) and after (hollow) the added effects '
+    ax.set_title(f'Per window: before (filled) and after (hollow) the added effects '
                  f'({added})', fontsize=10, pad=14)
     ax.legend(handles=[Line2D([], [], ls='', marker='o', ms=4, color='0.3', label='before'),
                        Line2D([], [], ls='', marker='s', ms=4, mfc='none', color='0.3',
