@@ -47,10 +47,15 @@ apart, and the summary says so. Energy candidates: ``basal_power``, ``thermal_dr
 servo temperatures, or without ``/servo_status`` on the energy drawn since the run started),
 ``hot_windings`` (servos warmer than the bench's: the predicted power times their mean excess
 temperature, ``per_k`` [1/K]), ``kinematic_error``, ``supply_resistance``, ``speed_friction``, ``carried_mass`` (an undeclared
-payload, in kg, from the bench model's own mass sensitivity), ``leg_anomaly`` (per leg) and
-``time_offset`` (:mod:`hexapod_energy.effects_catalogue`).
+payload, in kg, from the bench model's own mass sensitivity), ``leg_anomaly`` (per leg),
+``swing_reversal`` (a swing after a slower stance than the bench's costs less, ``j_per_mps``
+[J s/m]: the bench's transfer error at other duty factors), ``standing_hold`` (a standing
+robot's holding power against the bench's 0 Hz sessions, ``holding_change`` -1 to +1) and
+``time_offset`` (:mod:`hexapod_energy.effects_catalogue`). A candidate that passes only beside
+``swing_reversal`` or ``standing_hold`` is added with it (its record says ``added_with``).
 
-Energy residuals are measured minus predicted ``P_in`` per half gait cycle [W] (``bias`` is
+Energy residuals are measured minus predicted ``P_in`` per gait-phase window [W] (``1/k`` of
+the cycle, ``windows.per_cycle``: 2 for a tripod, 3 a tetrapod, 6 a wave; ``bias`` is
 their mean); SLIP residuals are the per-stance nerr. Exit codes: 0 success, 2 input refused
 (missing topic or session, too little data), 1 an unforeseen failure (a bug), 130 interrupted.
 """
