@@ -53,6 +53,7 @@ walking sessions), so ``thermal_drift`` is the extra power relative to the bench
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -208,14 +209,14 @@ class ModelOffset(EnergyEffect):
     ``P += offset_w`` with ``offset_w <= 0`` [W].
 
     The transfer error of the single-leg method (a tip-load convention that does not match the
-    robot, surface smoothing at the robot's operating point). Only negative: a positive
-    constant is extra consumption and is named :class:`BasalPower`, which shares this column,
-    so the two never compete for the same sign.
+    robot, surface smoothing at the robot's operating point, a duty factor the bench did not
+    walk: :class:`SwingReversal`). Only negative: a positive constant is extra consumption and
+    is named :class:`BasalPower`, which shares this column, so the two never compete for the
+    same sign.
     """
 
     name, unit = 'model_offset', 'W'
     lower, upper = float('-inf'), 0.0
-
     def columns(self, table: WindowTable) -> np.ndarray:
         return np.ones((table.t_s.shape[0], 1))
 
@@ -509,50 +510,88 @@ class SwingReversal(EnergyEffect):
     by 1.3 W and beta 0.7 tripods by 1.2 W, nearly all in the swing (an outside review: runs
     of several gaits put a spurious undeclared mass or friction beside hidden effects).
 
-    The column is signed (less power after slower stances), the coefficient >= 0. Only a
-    candidate with the bench's duty factor and step length known (``extra['bench_duty_factor']``,
-    ``extra['bench_step_length_m']``) and robot windows at another stance speed; like
-    :class:`ThermalDrift` its variation must explain too (``needs_variation``): on runs of one
-    gait and one period it is a constant, which stands for any offset."""
+    The column is signed (less power after slower stances), the coefficient >= 0 and at most
+    ``j_max`` (:attr:`MAX_SWING_SHARE` of the bench's own swing energy per m/s of stance speed;
+    at the bound the summary says so). Both stance speeds are taken on the bench's step length:
+    a longer step also lengthens the swing, a geometry the bench surfaces do not know, and
+    tripod runs at 0.14 m read it as 5.8 J s/m (an outside review). Only a candidate with the
+    bench's duty factor and step length known (``extra['bench_duty_factor']``,
+    ``extra['bench_step_length_m']``, one duty factor on the bench) and robot runs at another
+    duty factor. On runs of one duty factor its column is exactly a speed friction's ``v^2``
+    shape with the other sign (r = -1.000 on wave runs): a hidden friction or kinematic error
+    there reads as a smaller one or a basal power beside it, and the summary says that these
+    runs cannot tell them apart (:func:`~hexapod_energy.residuals.summary_text`). Its
+    variation must explain what an offset leaves (``needs_variation``)."""
 
     name, unit = 'swing_reversal', 'J s/m'
     needs_variation = True
     variation_beside_offset = True
     companion = True
+    #: the coefficient is ``j / j_max`` in [0, 1] (the column is scaled by ``j_max``)
+    upper = 1.0
+    #: ``j_max``: this share of a bench swing's energy per m/s of the stance speed before it
+    #: (``extra['bench_swing_j_per_mps']``, the median over the bench's sessions of
+    #: ``P_sw T_sw / v_b``): the reversal is a part of the swing (simulated AX-18A leg: 7-14 %)
+    MAX_SWING_SHARE = 0.3
+    #: a bench whose walking sessions' duty factors span more than this has no single reference
+    MAX_BENCH_SPREAD = 0.05
+    #: a candidate on runs of one duty factor too when it is not the bench's (its column is
+    #: then a friction's v^2 shape with the other sign: the summary says so)
+    single_duty_factor = True
     #: the column's spread [W per J s/m, i.e. m/s^2] below which it is not a candidate
     MIN_SPREAD = 0.05
 
     def _x(self, table: WindowTable) -> np.ndarray | None:
+        """The column in J s/m units (before scaling by ``j_max``), or None when the windows
+        cannot carry it."""
         ex = table.extra
-        need = ('duty_factor', 'step_length_m', 'bench_duty_factor', 'bench_step_length_m')
+        need = ('duty_factor', 'bench_duty_factor', 'bench_step_length_m')
         if any(k not in ex for k in need):
             return None
+        if float(ex.get('bench_duty_factor_spread', 0.0)) > self.MAX_BENCH_SPREAD:
+            return None       # a bench of several duty factors: no single reference
         beta = np.asarray(ex['duty_factor'], dtype=float)
         beta_b, step_b = float(ex['bench_duty_factor']), float(ex['bench_step_length_m'])
         f = np.asarray(table.step_frequency_hz, dtype=float)
         if not (0.0 < beta_b < 1.0 and step_b > 0.0):
             return None
         walking = (f > 0) & (beta > 0) & (beta < 1)
-        t_sw = np.where(walking, (1.0 - np.where(walking, beta, 0.5)) / np.where(walking, f, 1.0),
-                        1.0)
+        betas = np.unique(np.round(beta[walking], 2))
+        if betas.size < 2 and not (betas.size == 1 and self.single_duty_factor and
+                                   abs(float(betas[0]) - beta_b) > self.MAX_BENCH_SPREAD):
+            return None       # one duty factor: its column is a speed friction's shape
+        b = np.where(walking, beta, 0.5)
+        period = 1.0 / np.where(walking, f, 1.0)
+        t_sw = (1.0 - b) * period
         n_sw = table.stance_fraction.shape[1] - np.sum(table.stance_fraction, axis=1)
+        # both stance speeds on the bench's step: a step-length mismatch lengthens the swing
+        # too (the bench surfaces do not know it) and is not this effect's to claim
+        v_st = step_b / (b * period)
         v_b = step_b * (1.0 - beta_b) / (beta_b * t_sw)
-        x = np.where(walking, n_sw / t_sw * (np.asarray(table.speed_mps, dtype=float) - v_b),
-                     0.0)
+        x = np.where(walking, n_sw / t_sw * (v_st - v_b), 0.0)
         return x if np.all(np.isfinite(x)) else None
+
+    def _j_max(self, table: WindowTable) -> float:
+        j = float(table.extra.get('bench_swing_j_per_mps', math.nan))
+        return self.MAX_SWING_SHARE * j if math.isfinite(j) and j > 0 else math.nan
 
     def applicable(self, table: WindowTable) -> bool:
         x = self._x(table)
-        return bool(x is not None and np.ptp(x) > self.MIN_SPREAD)
+        return bool(x is not None and math.isfinite(self._j_max(table))
+                    and np.ptp(x) > self.MIN_SPREAD)
 
     def columns(self, table: WindowTable) -> np.ndarray:
         x = self._x(table)
-        return (np.zeros(table.t_s.shape[0]) if x is None else x)[:, None]
+        if x is None or not math.isfinite(self._j_max(table)):
+            return np.zeros((table.t_s.shape[0], 1))
+        return (x * self._j_max(table))[:, None]
 
     def params(self, coef, stderr, table):  # type: ignore[no-untyped-def]
-        return ({'j_per_mps': float(coef[0]),
+        j_max = self._j_max(table)
+        return ({'j_per_mps': float(coef[0]) * j_max, 'j_max_per_mps': j_max,
                  'bench_duty_factor': float(table.extra['bench_duty_factor'])},
-                {'j_per_mps': float(stderr[0]), 'bench_duty_factor': 0.0})
+                {'j_per_mps': float(stderr[0]) * j_max, 'j_max_per_mps': 0.0,
+                 'bench_duty_factor': 0.0})
 
 
 class StandingHold(EnergyEffect):

@@ -1024,6 +1024,9 @@ class EffectSelection:
         A candidate whose regressor columns lie within this uncentred multiple correlation of
         the selected effects' span is not added (:meth:`_indistinguishable`): the runs cannot
         tell it from them; its record says ``indistinguishable_from``.
+    max_companion_r : float
+        A candidate is not fitted beside companions whose span holds its column within this
+        uncentred correlation (:meth:`_follows`).
     alternative_share : float
         Another candidate that passes both thresholds in the round an effect is added, and
         removes at least this share of the held-out error the added effect removes, is
@@ -1050,6 +1053,7 @@ class EffectSelection:
     max_collinearity: float = 0.9
     alternative_share: float = 0.9
     max_span_r: float = 0.995
+    max_companion_r: float = 0.95
     history_: list[dict[str, Any]] = field(default_factory=list, repr=False)
 
     def _fit(self, effects: Sequence[EnergyEffect], table: WindowTable, train: np.ndarray
@@ -1202,6 +1206,7 @@ class EffectSelection:
             ci = cands.index(e)
             records[ci]['selected'] = False
             records[ci]['dropped'] = True
+            records[ci].pop('added_with', None)
             records[ci]['note'] = ('added, then dropped: the effects added after it explain '
                                    'what it did (with them it no longer lowers the error)')
             alternatives.pop(e.name, None)
@@ -1240,6 +1245,24 @@ class EffectSelection:
         self.final_params_ = self._params(selected, coef, se, table)
         self.collinearity_ = self._collinearity(selected, coef, table)
         return self
+
+    def _follows(self, effect: EnergyEffect, group: Sequence[EnergyEffect],
+                 table: WindowTable, train: np.ndarray) -> bool:
+        """Whether ``effect``'s column lies within :attr:`max_companion_r` (uncentred multiple
+        correlation over the training windows) of the companions' span: a near-constant
+        column beside a negative offset (``model_offset``) fits any slope with the pair's
+        difference (clean tetrapod runs read 1.02 kg of undeclared mass beside -2.84 W)."""
+        base = np.hstack([c.columns(table) for c in group])[train]
+        new = effect.columns(table)[train]
+        if new.shape[1] == 0 or base.shape[1] == 0:
+            return False
+        proj, *_ = np.linalg.lstsq(base, new, rcond=None)
+        fitted = base @ proj
+        norms = np.sum(new * new, axis=0)
+        if not np.all(norms > 0):
+            return False
+        r = np.sqrt(np.clip(np.sum(fitted * fitted, axis=0) / norms, 0.0, 1.0))
+        return bool(np.any(r >= self.max_companion_r))
 
     def _variation_explains(self, effect: EnergyEffect, base: Sequence[EnergyEffect],
                             table: WindowTable, train: np.ndarray, held: np.ndarray,
@@ -1308,7 +1331,8 @@ class EffectSelection:
                 ok = (dbic < -self.min_delta_bic and rmse < cur_rmse * imp
                       and bic - bic_c < -self.min_delta_bic and rmse < r_c * imp
                       and (best_rmse is None or rmse < best_rmse * imp)
-                      and not self._indistinguishable(e, selected + group, table, train))
+                      and not self._indistinguishable(e, selected + group, table, train)
+                      and not self._follows(e, group, table, train))
                 if ok and e.needs_variation_on(table):
                     ok = self._variation_explains(e, selected + group, table, train, held, r_c)
                 for c in group:
@@ -1567,6 +1591,13 @@ def _summary_effects(doc: dict[str, Any]) -> str:
                          'asks for more than it can give)')
         else:
             parts.append(f"{a['name']} ({ps})")
+    dfs = doc.get('duty_factors') or {}
+    if len(dfs.get('runs', [])) == 1 and abs(dfs['runs'][0] - dfs['bench']) > 0.05:
+        others.append(f"Every run walks duty factor {dfs['runs'][0]:g}, which the bench "
+                      f"({dfs['bench']:g}) did not: the bench's error there (swing_reversal, "
+                      'less power after slower stances) grows with step frequency as a friction '
+                      'or a kinematic error does, so these runs cannot tell them apart; a run '
+                      "at the bench's duty factor beside them would.")
     if 'swing_reversal' in doc['effects_added']:
         others.append('swing_reversal is not a fault: the bench, walked at one duty factor, '
                       'prices a swing by its duration alone, but a swing after a slower stance '
@@ -1776,6 +1807,14 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
     doc = energy_loop_document(table, sel, held, view, run_names=[r.name for r in runs],
                                run_t0_s=[float(r.t_s[0]) for r in runs])
     doc['load_offset_kg'] = load_offset_kg
+    bg = _bench_gait(model)
+    walking_beta = [float(b) for r in runs for b in np.unique(np.round(
+        r.duty_factor[r.period_s > 0], 2))]
+    if bg and walking_beta:
+        doc['duty_factors'] = {'bench': bg['bench_duty_factor'],
+                               'bench_spread': bg['bench_duty_factor_spread'],
+                               'runs': sorted(set(walking_beta))}
+        doc['summary'] = summary_text(doc)
     if hasattr(model, 'spans'):
         doc['bench_model'] = {'spans': list(model.spans), 'chosen': model.chosen_}
     doc['per_run'] = [{'bag': r.name, 'gait': r.gait,
@@ -1812,8 +1851,19 @@ def _bench_gait(model: Any) -> dict[str, float]:
     step = [float(s.step_length_m) for s in walking if float(s.step_length_m) > 0.0]
     if not beta or not step:
         return {}
-    return {'bench_duty_factor': float(np.median(beta)),
-            'bench_step_length_m': float(np.median(step))}
+    out = {'bench_duty_factor': float(np.median(beta)),
+           'bench_duty_factor_spread': float(np.ptp(beta)),
+           'bench_step_length_m': float(np.median(step))}
+    # a bench swing's energy per m/s of the stance speed before it (the scale of
+    # SwingReversal's bound)
+    j = [float(s.p_swing_w) * float(s.t_swing_s) * float(s.t_stance_s)
+         / float(s.step_length_m)
+         for s in walking if 0.0 < float(s.duty_factor) < 1.0 and float(s.step_length_m) > 0
+         and float(s.t_swing_s) > 0 and float(s.t_stance_s) > 0
+         and math.isfinite(float(s.p_swing_w))]
+    if j:
+        out['bench_swing_j_per_mps'] = float(np.median(j))
+    return out
 
 
 def _jsonable(obj: Any) -> Any:

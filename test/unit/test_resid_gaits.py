@@ -32,7 +32,8 @@ def _table(speed, freq, beta, step, stance, bench_gait=(0.5, 0.1)) -> WindowTabl
     n = len(speed)
     extra = {'duty_factor': np.asarray(beta, float), 'step_length_m': np.asarray(step, float)}
     if bench_gait is not None:
-        extra.update(bench_duty_factor=bench_gait[0], bench_step_length_m=bench_gait[1])
+        extra.update(bench_duty_factor=bench_gait[0], bench_step_length_m=bench_gait[1],
+                     bench_swing_j_per_mps=5.0)
     z = np.zeros(n)
     return WindowTable(run=np.arange(n), t_s=z, duration_s=z + 1, measured_w=z, predicted_w=z,
                        step_frequency_hz=np.asarray(freq, float),
@@ -48,16 +49,25 @@ def test_the_column_is_zero_where_the_robot_walks_as_the_bench_did():
     t = _table(speed=[0.2, 0.1 / 0.75, 0.28, 0.0], freq=[1.0, 1.0, 1.0, 0.0],
                beta=[0.5, 0.75, 0.5, 0.0], step=[0.1, 0.1, 0.14, 0.0],
                stance=[[0.5, 0.5], [0.75, 0.75], [0.5, 0.5], [1.0, 1.0]])
-    x = SwingReversal().columns(t)[:, 0]
+    e = SwingReversal()
+    x = e.columns(t)[:, 0]
+    j_max = e.MAX_SWING_SHARE * 5.0       # the column is scaled to the coefficient's bound
     # beta 0.75: 0.5 legs swing for 0.25 s (2 swings/s) after a 0.133 m/s stance, where the
-    # bench's 0.25 s swing followed a 0.4 m/s one; the 0.14 m step: one leg swinging for
-    # 0.5 s (2 swings/s) after 0.28 m/s, the bench's 0.5 s swing after 0.2 m/s
-    assert x == pytest.approx([0.0, 2.0 * (0.1 / 0.75 - 0.4), 2.0 * (0.28 - 0.2), 0.0])
-    assert SwingReversal().applicable(t)
-    assert not SwingReversal().applicable(_table([0.2], [1.0], [0.5], [0.1], [[0.5, 0.5]]))
-    assert not SwingReversal().applicable(_table([0.13, 0.2], [1.0, 1.0], [0.75, 0.5],
-                                                 [0.1, 0.1], [[0.75, 0.75], [0.5, 0.5]],
-                                                 bench_gait=None))
+    # bench's 0.25 s swing followed a 0.4 m/s one; the 0.14 m step at beta 0.5 is not this
+    # effect's (both speeds on the bench's step: its longer swing is a geometry of its own)
+    assert x == pytest.approx([0.0, 2.0 * (0.1 / 0.75 - 0.4) * j_max, 0.0, 0.0])
+    assert e.applicable(t)
+    assert e.params(np.array([0.5]), np.array([0.1]), t)[0]['j_per_mps'] == \
+        pytest.approx(0.5 * j_max)
+    # not a candidate: one duty factor (its column would be a speed friction's v^2), no bench
+    # gait, a bench of several duty factors
+    assert not e.applicable(_table([0.2, 0.13], [1.0, 0.8], [0.5, 0.5], [0.1, 0.1],
+                                   [[0.5, 0.5], [0.5, 0.5]]))
+    two = ([0.13, 0.2], [1.0, 1.0], [0.75, 0.5], [0.1, 0.1], [[0.75, 0.75], [0.5, 0.5]])
+    assert not e.applicable(_table(*two, bench_gait=None))
+    mixed_bench = _table(*two)
+    mixed_bench.extra['bench_duty_factor_spread'] = 0.2
+    assert not e.applicable(mixed_bench)
 
 
 def test_a_bench_swing_costs_less_after_a_slower_stance(tmp_path):
