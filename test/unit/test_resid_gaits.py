@@ -217,3 +217,23 @@ def test_a_leg_anomaly_on_runs_of_one_gait_names_its_group(bench, tmp_path, gait
     assert doc['effects_added'][0] == 'leg_anomaly'
     assert {a['leg'], *a['same_stance_as']} == names
     assert a['power_w'] == pytest.approx(2.0, rel=0.15)
+
+
+def test_runs_of_one_duty_factor_the_bench_did_not_walk_say_what_they_cannot_tell(bench,
+                                                                                  tmp_path):
+    """On wave runs alone swing_reversal's column is a speed friction's v^2 with the other
+    sign: a hidden 1.5 W/Hz kinematic error reads as a basal power beside it (an outside
+    review). The loop cannot tell them apart there, and says so."""
+    bags = []
+    for i, period in enumerate((1.2, 1.5, 2.0)):
+        path = tmp_path / f'run{i}'
+        write_trace(simulate_robot(RUN_S, RobotConfig(gait='wave', duty_factor=5 / 6,
+                                                      period_s=period),
+                                   effects=parse_effects(['kinematic_error=1.5']),
+                                   seed=50 + i), path)
+        bags.append(path)
+    doc = loop(bench, bags)
+    print('\n', doc['summary'])
+    assert doc['duty_factors']['runs'] == [0.83] and doc['duty_factors']['bench'] == 0.5
+    assert 'Every run walks duty factor 0.83, which the bench (0.5) did not' in doc['summary']
+    assert "a run at the bench's duty factor beside them would" in doc['summary']
