@@ -237,3 +237,15 @@ def test_runs_of_one_duty_factor_the_bench_did_not_walk_say_what_they_cannot_tel
     assert doc['duty_factors']['runs'] == [0.83] and doc['duty_factors']['bench'] == 0.5
     assert 'Every run walks duty factor 0.83, which the bench (0.5) did not' in doc['summary']
     assert "a run at the bench's duty factor beside them would" in doc['summary']
+
+
+def test_the_energy_command_notes_a_duty_factor_the_bench_did_not_walk(bench):
+    from types import SimpleNamespace
+
+    from hexapod_energy.cli import _duty_factor_note
+
+    assert _duty_factor_note(bench['model'], SimpleNamespace(duty_factor=0.5)) is None
+    note = _duty_factor_note(bench['model'], SimpleNamespace(duty_factor=5 / 6))
+    assert 'duty factor 0.83, which the bench did not walk (0.5)' in note
+    assert 'likely high' in note and 'swing_reversal' in note
+    assert 'likely low' in _duty_factor_note(bench['model'], SimpleNamespace(duty_factor=0.3))
