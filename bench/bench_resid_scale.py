@@ -78,8 +78,9 @@ def build_windows_baseline(runs: Sequence[R.ResidualRun], *, temp_ref_c: float |
         t = r.t_s[keep]
         walking = r.period_s[keep] > 0
         half = np.floor(r.cycle_phase[keep] * 2.0)
-        wraps = np.concatenate([[0], np.cumsum(np.diff(half) != 0)])
-        label = np.where(walking, wraps, np.floor((t - t[0]) / 0.5) + 1e6)
+        wraps = np.concatenate([[0], np.cumsum((np.diff(half) != 0) |
+                                               (np.diff(k[keep]) != 0))])
+        label = np.where(walking, wraps, np.floor((t - t[0]) / 0.5) + 1e6) + k[keep] * 1e9
         _, inv, counts = np.unique(label, return_inverse=True, return_counts=True)
         dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
         span = np.where(walking, 0.5 * r.period_s[keep], 0.5)
@@ -112,6 +113,10 @@ def build_windows_baseline(runs: Sequence[R.ResidualRun], *, temp_ref_c: float |
             ph = r.cycle_phase[keep]
             wrap = np.concatenate([[0.0], np.cumsum(np.diff(ph) < -0.5)])
             hu = 2.0 * (ph + wrap)
+            seg = k[keep]       # no exact span across a schedule change (as build_windows)
+            border = np.flatnonzero(np.diff(seg) != 0)
+            hu[border] = np.nan
+            hu[border + 1] = np.nan
         for w in np.unique(inv[full]):
             m = inv == w
             m &= full

@@ -716,32 +716,65 @@ def source_voltage_v(run: ResidualRun, resistance_ohm: float, lag: int = 0) -> f
     return float(np.mean(run.voltage_v[lag:] + resistance_ohm * run.current_a[:n - lag]))
 
 
-def windows_per_cycle(run: ResidualRun, *, tol: float = 0.05) -> int:
-    """Windows per gait cycle for :func:`build_windows`: the number ``k`` of distinct
-    touchdown phases of the legs when every one lies on a multiple of ``1 / k`` of the cycle
-    (a wave gait's six, a tetrapod's three, a tripod's two), so that each window holds the
-    swings of one group of legs; 2 (half cycles) otherwise."""
+def windows_per_cycle(run: ResidualRun) -> int:
+    """Windows per gait cycle of ``run`` for :func:`build_windows` (its whole length; see
+    :func:`gait_windows`)."""
+    return gait_windows(run)[0]
+
+
+def gait_windows(run: ResidualRun, mask: np.ndarray | None = None) -> tuple[int, float]:
+    """``(k, shift)``: the gait-phase windows of the samples in ``mask`` (default all).
+
+    ``k`` is the number of distinct touchdown phases of the legs when they are evenly spaced,
+    ``1 / k`` of the cycle apart (a tripod's two, a tetrapod's three, a wave's six), and
+    ``shift`` [cycles] where the first window starts (touchdowns off the grid of multiples of
+    ``1 / k``: a wave whose legs all start 1/12 later); each window then holds the swings of
+    one group of legs. ``(2, 0.0)`` (half cycles) otherwise. A touchdown is placed half way
+    between the samples around the rising edge of ``in_stance``, and touchdowns within
+    1.5 samples (at least 2 % of the cycle) are one group: at 20-50 Hz a wave's sixths were
+    split into twelve and fell back to half cycles (an outside review).
+    """
     walking = run.period_s > 0
+    if mask is not None:
+        walking = walking & mask
     st = run.in_stance
-    if not np.any(walking) or st.ndim != 2 or st.shape[0] < 3:
-        return 2
-    rise = np.diff(st.astype(np.int8), axis=0) > 0
-    rise &= walking[1:, None] & walking[:-1, None]
-    ph = np.broadcast_to(run.cycle_phase[1:, None], rise.shape)[rise] % 1.0
-    if ph.size == 0:
-        return 2
-    # the touchdown phases, rounded to 1 % of the cycle, grouped
-    bins = np.unique(np.round(ph * 100.0).astype(int) % 100)
-    groups = [b for i, b in enumerate(bins) if i == 0 or b - bins[i - 1] > 2]
-    if len(groups) > 2 and bins[-1] - bins[0] > 97:   # the first group wraps past 1.0
-        groups = groups[1:]
-    k = len(groups)
+    if st.ndim != 2 or np.count_nonzero(walking) < 3:
+        return 2, 0.0
+    both = walking[1:] & walking[:-1]
+    ph = np.asarray(run.cycle_phase, dtype=float)
+    step = (ph[1:] - ph[:-1]) % 1.0
+    if not np.any(both):
+        return 2, 0.0
+    d = float(np.median(step[both]))
+    rise = (np.diff(st.astype(np.int8), axis=0) > 0) & both[:, None]
+    i = np.nonzero(rise)[0]
+    if i.size == 0:
+        return 2, 0.0
+    mid = np.sort((ph[i] + 0.5 * step[i]) % 1.0)
+    tol = max(0.02, 1.5 * d)
+    gaps = np.diff(np.concatenate([mid, [mid[0] + 1.0]]))
+    cuts = np.flatnonzero(gaps > tol)
+    if cuts.size == 0:
+        return 2, 0.0
+    # groups between the cuts (circular: the last group continues into the first)
+    start = (cuts[-1] + 1) % mid.size
+    order = np.roll(np.arange(mid.size), -start)
+    unwrapped = mid[order] + np.concatenate([[0.0], np.cumsum(np.diff(mid[order]) < 0)])
+    bounds = np.flatnonzero(np.diff(unwrapped) > tol) + 1
+    centres = np.array([float(np.mean(g)) % 1.0 for g in np.split(unwrapped, bounds)])
+    k = centres.size
     if not 2 <= k <= st.shape[1]:
-        return 2
-    offs = np.array(groups) / 100.0 * k
-    if np.max(np.abs(offs - np.round(offs))) > tol * k:
-        return 2
-    return int(k)
+        return 2, 0.0
+    ang = 2.0 * np.pi * centres * k
+    c = (math.atan2(float(np.mean(np.sin(ang))), float(np.mean(np.cos(ang))))
+         / (2.0 * np.pi)) % 1.0
+    dev = ((centres * k - c + 0.5) % 1.0) - 0.5
+    slack = max(0.1, 1.5 * d * k)
+    if np.max(np.abs(dev)) > slack:
+        return 2, 0.0
+    if min(c, 1.0 - c) <= slack:
+        c = 0.0                    # on the grid (a half sample's bias of the mid-points)
+    return int(k), float(c / k)
 
 
 def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = None,
@@ -785,12 +818,22 @@ def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = Non
         keep = r.t_s >= starts[k] + settle_s
         t = r.t_s[keep]
         walking = r.period_s[keep] > 0
-        # window label: gait-phase window count (walking), 0.5 s blocks (standing)
-        k_w = windows_per_cycle(r) if phase_windows else 2
-        per_cycle.append(k_w)
-        half = np.floor(r.cycle_phase[keep] * k_w)
-        wraps = np.concatenate([[0], np.cumsum(np.diff(half) != 0)])
-        label = np.where(walking, wraps, np.floor((t - t[0]) / 0.5) + 1e6)
+        # window label: gait-phase window count (walking), 0.5 s blocks (standing), within
+        # each schedule segment (a window never spans a stop or a gait change: one walking
+        # window across a stand read +17 W, another lasted 9.5 s), with each segment's own
+        # windows per cycle (a bag of tripod then wave was cut in sixths throughout)
+        seg = k[keep]
+        k_w = np.full(t.size, 2.0)
+        shift = np.zeros(t.size)
+        for sgi in np.unique(seg):
+            kk, sh = gait_windows(r, k == sgi) if phase_windows else (2, 0.0)
+            k_w[seg == sgi], shift[seg == sgi] = kk, sh
+        if np.any(walking):
+            per_cycle.extend(sorted({int(x) for x in k_w[walking]}))
+        ph_s = (r.cycle_phase[keep] - shift) % 1.0
+        half = np.floor(ph_s * k_w)
+        wraps = np.concatenate([[0], np.cumsum((np.diff(half) != 0) | (np.diff(seg) != 0))])
+        label = np.where(walking, wraps, np.floor((t - t[0]) / 0.5) + 1e6) + seg * 1e9
         _, inv, counts = np.unique(label, return_inverse=True, return_counts=True)
         # a window is full when it holds 60 % of the samples its length should give (half a
         # period walking, 0.5 s standing): a bag that changes speed keeps its fast windows
@@ -829,9 +872,13 @@ def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = Non
         # 0.017 -> 0.32 W and hid what the exact stamps showed)
         hu = np.full(t.size, np.nan)
         if np.any(walking):
-            ph = r.cycle_phase[keep]
-            wrap = np.concatenate([[0.0], np.cumsum(np.diff(ph) < -0.5)])
-            hu = k_w * (ph + wrap)
+            wrap = np.concatenate([[0.0], np.cumsum(np.diff(ph_s) < -0.5)])
+            hu = k_w * (ph_s + wrap)
+            # no exact span across a schedule change: the samples on either side of it
+            # belong to other segments (their mean is taken over the window's samples)
+            border = np.flatnonzero(np.diff(seg) != 0)
+            hu[border] = np.nan
+            hu[border + 1] = np.nan
         # each column restricted to the kept samples once, then every window reads its own
         # samples only (sorted by window: linear in the run's length, not samples x windows)
         sub_kept = {k: np.asarray(arr)[keep] for k, arr in sub.items()}

@@ -249,3 +249,64 @@ def test_the_energy_command_notes_a_duty_factor_the_bench_did_not_walk(bench):
     assert 'duty factor 0.83, which the bench did not walk (0.5)' in note
     assert 'likely high' in note and 'swing_reversal' in note
     assert 'likely low' in _duty_factor_note(bench['model'], SimpleNamespace(duty_factor=0.3))
+
+
+def _synthetic(segments, rate_hz=100.0) -> R.ResidualRun:
+    """A run of schedule segments (duration s, period s (0 standing), duty factor, the legs'
+    phase offsets), stance from the offsets, 20 W measured and predicted."""
+    cols: dict[str, list] = {k: [] for k in ('t', 'phase', 'period', 'beta', 'stance')}
+    t0, ph = 0.0, 0.0
+    for dur, period, beta, offs in segments:
+        t = t0 + np.arange(int(round(dur * rate_hz))) / rate_hz
+        p = (ph + (t - t0) / period) % 1.0 if period > 0 else np.full(t.size, ph)
+        st = (np.ones((t.size, 6), bool) if period <= 0 else
+              ((p[:, None] - np.asarray(offs)[None, :]) % 1.0) < beta)
+        for key, val in (('t', t), ('phase', p), ('period', np.full(t.size, period)),
+                         ('beta', np.full(t.size, beta)), ('stance', st)):
+            cols[key].append(val)
+        t0, ph = t[-1] + 1.0 / rate_hz, float(p[-1])
+    t = np.concatenate(cols['t'])
+    st = np.concatenate(cols['stance'])
+    n = t.size
+    run = R.ResidualRun(name='synthetic', t_s=t, voltage_v=np.full(n, 12.0),
+                        current_a=np.full(n, 20.0 / 12.0), power_w=np.full(n, 20.0),
+                        cycle_phase=np.concatenate(cols['phase']),
+                        period_s=np.concatenate(cols['period']),
+                        duty_factor=np.concatenate(cols['beta']),
+                        step_length_m=np.full(n, 0.1), in_stance=st,
+                        supporting=st.sum(axis=1), temp_sum_c=np.full(n, 26.0 * 18),
+                        servo_count=18, leg_names=('L1', 'L2', 'L3', 'R1', 'R2', 'R3'),
+                        phase_offsets=(), gait='x')
+    run.predicted_w = np.full(n, 20.0)
+    return run
+
+
+TRIPOD = (0.0, 0.5, 0.0, 0.5, 0.0, 0.5)
+WAVE = (1 / 3, 1 / 6, 0.0, 5 / 6, 2 / 3, 0.5)
+
+
+def test_each_schedule_segment_has_its_own_windows_and_none_spans_a_stop():
+    """An outside review: a bag of tripod then wave was cut in sixths throughout (the
+    tripod's windows read +-8 W); a walking window spanned a stand (9.5 s, +17 W)."""
+    run = _synthetic([(6.0, 1.0, 0.5, TRIPOD), (4.0, 0.0, 0.5, TRIPOD),
+                      (9.0, 1.5, 5 / 6, WAVE)])
+    table = R.build_windows([run], temp_ref_c=26.0)
+    assert table.extra['windows_per_cycle'] == (2, 6)
+    walking = table.step_frequency_hz > 0
+    period = 1.0 / table.step_frequency_hz[walking]
+    k = np.where(period < 1.2, 2, 6)
+    assert np.all(table.duration_s[walking] <= period / k * 1.02 + 0.011)
+    assert np.all(table.duration_s[~walking] <= 0.5)
+
+
+@pytest.mark.parametrize('rate_hz', [100.0, 25.0])
+def test_touchdowns_off_the_grid_and_slow_sampling_keep_the_gait_windows(rate_hz):
+    # a wave whose legs all start 1/12 of the cycle later: sixths shifted by 1/12
+    shifted = tuple((o + 1 / 12) % 1.0 for o in WAVE)
+    k, shift = R.gait_windows(_synthetic([(12.0, 0.9, 5 / 6, shifted)], rate_hz))
+    assert k == 6 and shift == pytest.approx(1 / 12, abs=0.5 / (0.9 * rate_hz) + 1e-3)
+    assert R.gait_windows(_synthetic([(12.0, 0.9, 5 / 6, WAVE)], rate_hz)) == (6, 0.0)
+    assert R.gait_windows(_synthetic([(12.0, 0.9, 0.5, TRIPOD)], rate_hz)) == (2, 0.0)
+    if rate_hz >= 100:   # (at 25 Hz, 2.2 samples apart, 0.9 and 0.0, 0.4 and 0.5 merge)
+        uneven = (0.0, 0.2, 0.4, 0.5, 0.7, 0.9)
+        assert R.gait_windows(_synthetic([(12.0, 0.9, 0.75, uneven)], rate_hz)) == (2, 0.0)
