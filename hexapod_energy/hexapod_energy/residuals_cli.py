@@ -27,6 +27,12 @@ SLIP, SLIP + leg damping and SLIP + hip torque (:mod:`slip_identification.residu
                                  effect's physical range)}],
      (energy, with /servo_status:) "servo_temperature": {"excess_over_bench_k",
                                    "per_run": [{"run", "excess_k"}]},
+     (energy:) "per_run": [{"bag", "gait", "period_s", "measured_w", "predicted_w",
+                            "sample_rmse_w", "stream_lag_s", "notes", "outside_bench":
+                            [where its schedule reads the bench surfaces outside the
+                            bench's sessions]}],
+     (energy:) "windows": {"count", "heldout", "kind", "per_cycle"},
+     (energy:) "duty_factors": {"bench", "bench_spread", "runs"},
      (slip:) "bags", "stances": {"count", "heldout"}, ...}
 
 A candidate record with ``"dropped": true`` was added, then dropped by the backward step (the

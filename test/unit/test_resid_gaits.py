@@ -310,3 +310,19 @@ def test_touchdowns_off_the_grid_and_slow_sampling_keep_the_gait_windows(rate_hz
     if rate_hz >= 100:   # (at 25 Hz, 2.2 samples apart, 0.9 and 0.0, 0.4 and 0.5 merge)
         uneven = (0.0, 0.2, 0.4, 0.5, 0.7, 0.9)
         assert R.gait_windows(_synthetic([(12.0, 0.9, 0.75, uneven)], rate_hz)) == (2, 0.0)
+
+
+def test_runs_predicted_outside_the_bench_are_named(bench, tmp_path):
+    """A fast wave (0.083 s swings, the bench's shortest 0.22 s) was predicted at twice the
+    measured power and read as a 5 kg undeclared mass, the extrapolation unsaid."""
+    path = tmp_path / 'fast'
+    write_trace(simulate_robot(8.0, RobotConfig(gait='wave', duty_factor=5 / 6, period_s=0.5),
+                               seed=60), path)
+    inside = tmp_path / 'tripod'
+    write_trace(simulate_robot(8.0, RobotConfig(period_s=1.0), seed=61), inside)
+    doc = loop(bench, [path, inside])
+    fast, tri = doc['per_run']
+    assert any('swing 0.0833 s outside' in x for x in fast['outside_bench'])
+    assert tri['outside_bench'] == []
+    assert "1 of 2 runs are predicted outside the bench's sessions" in doc['summary']
+    assert R.summary_text(doc) == doc['summary']
