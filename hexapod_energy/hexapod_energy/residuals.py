@@ -984,6 +984,25 @@ def split_mask(table: WindowTable, *, block_s: float = 2.0, every: int = 3) -> n
     return held
 
 
+def _span_r(effect: EnergyEffect, others: Sequence[EnergyEffect], table: WindowTable,
+            train: np.ndarray) -> np.ndarray | None:
+    """Per column of ``effect``, its uncentred multiple correlation with the span of
+    ``others``' columns over the training windows (1 for an all-zero column); None when
+    either has no column."""
+    if not others:
+        return None
+    base = np.hstack([e.columns(table) for e in others])[train]
+    new = effect.columns(table)[train]
+    if new.shape[1] == 0 or base.shape[1] == 0:
+        return None
+    proj, *_ = np.linalg.lstsq(base, new, rcond=None)
+    fitted = base @ proj
+    norms = np.sum(new * new, axis=0)
+    r2 = np.where(norms > 0, np.sum(fitted * fitted, axis=0) / np.where(norms > 0, norms, 1.0),
+                  1.0)
+    return np.sqrt(np.clip(r2, 0.0, 1.0))
+
+
 def _metrics(r: np.ndarray) -> dict[str, float]:
     return {'rmse': float(np.sqrt(np.mean(r ** 2))), 'mae': float(np.mean(np.abs(r))),
             'bias': float(np.mean(r))}
@@ -1127,6 +1146,16 @@ class EffectSelection:
             stderr = np.full(coef.shape, np.nan)
         return coef, stderr, x @ coef, sse
 
+    def _score(self, effects: Sequence[EnergyEffect], table: WindowTable, train: np.ndarray,
+               held: np.ndarray) -> tuple[float, float, np.ndarray, np.ndarray]:
+        """Held-out RMSE, training BIC, coefficients and their standard errors of
+        ``effects`` fitted together."""
+        coef, se, term, sse = self._fit(effects, table, train)
+        k = coef.size + sum(1 for e in effects if e.name == 'time_offset')
+        y = table.residual_w
+        return (float(np.sqrt(np.mean((y[held] - term[held]) ** 2))),
+                _bic(sse, int(train.sum()), k), coef, se)
+
     def _indistinguishable(self, effect: EnergyEffect, selected: Sequence[EnergyEffect],
                            table: WindowTable, train: np.ndarray) -> list[str]:
         """The selected effects whose regressors already span ``effect``'s: every column of
@@ -1135,18 +1164,8 @@ class EffectSelection:
         (the bench's mass sensitivity over tripod runs, 1.7-2.0 W/kg) is what a constant
         already explains; adding it would only split the first effect's coefficient by the
         residual's small curvature. [] when it adds something of its own."""
-        if not selected:
-            return []
-        base = np.hstack([e.columns(table) for e in selected])[train]
-        new = effect.columns(table)[train]
-        if new.shape[1] == 0 or base.shape[1] == 0:
-            return []
-        proj, *_ = np.linalg.lstsq(base, new, rcond=None)
-        fitted = base @ proj
-        norms = np.sum(new * new, axis=0)
-        r2 = np.where(norms > 0, np.sum(fitted * fitted, axis=0) / np.where(norms > 0, norms,
-                                                                              1.0), 1.0)
-        if np.all(np.sqrt(np.clip(r2, 0.0, 1.0)) >= self.max_span_r):
+        r = _span_r(effect, selected, table, train)
+        if r is not None and np.all(r >= self.max_span_r):
             return [e.name for e in selected]
         return []
 
@@ -1299,17 +1318,8 @@ class EffectSelection:
         correlation over the training windows) of the companions' span: a near-constant
         column beside a negative offset (``model_offset``) fits any slope with the pair's
         difference (clean tetrapod runs read 1.02 kg of undeclared mass beside -2.84 W)."""
-        base = np.hstack([c.columns(table) for c in group])[train]
-        new = effect.columns(table)[train]
-        if new.shape[1] == 0 or base.shape[1] == 0:
-            return False
-        proj, *_ = np.linalg.lstsq(base, new, rcond=None)
-        fitted = base @ proj
-        norms = np.sum(new * new, axis=0)
-        if not np.all(norms > 0):
-            return False
-        r = np.sqrt(np.clip(np.sum(fitted * fitted, axis=0) / norms, 0.0, 1.0))
-        return bool(np.any(r >= self.max_companion_r))
+        r = _span_r(effect, group, table, train)
+        return bool(r is not None and np.any(r >= self.max_companion_r))
 
     def _variation_explains(self, effect: EnergyEffect, base: Sequence[EnergyEffect],
                             table: WindowTable, train: np.ndarray, held: np.ndarray,
@@ -1321,12 +1331,10 @@ class EffectSelection:
         its variation must explain what an offset leaves (swing_reversal on tetrapod runs at
         three periods followed the runs' -2.2, -1.3, -1.0 W within 0.3 W, but the variation
         alone could not lower an error that was mostly the offset)."""
-        y = table.residual_w
         imp = 1 - self.min_improvement
 
         def rmse(effects: Sequence[EnergyEffect]) -> float:
-            term = self._fit(effects, table, train)[2]
-            return float(np.sqrt(np.mean((y[held] - term[held]) ** 2)))
+            return self._score(effects, table, train, held)[0]
 
         if getattr(effect, 'variation_beside_offset', False):
             off = _FreeOffset()
@@ -1349,8 +1357,6 @@ class EffectSelection:
         hidden 1.5 W/Hz kinematic error (its column rising where swing_reversal's falls) was
         read as a speed friction of 7.8 N s/m, and neither alone fitted the runs; beside a
         standing run a hidden 3 W basal power read as a 1.9 W/Hz kinematic error."""
-        y = table.residual_w
-        n = int(train.sum())
         comps = [c for c in cands if getattr(c, 'companion', False) and c not in selected]
         if not comps:
             return None
@@ -1358,10 +1364,7 @@ class EffectSelection:
 
         def score(effects: Sequence[EnergyEffect]) -> tuple[float, float, np.ndarray,
                                                               np.ndarray]:
-            coef, se, term, sse = self._fit(effects, table, train)
-            k = coef.size + sum(1 for e in effects if e.name == 'time_offset')
-            return (float(np.sqrt(np.mean((y[held] - term[held]) ** 2))), _bic(sse, n, k),
-                    coef, se)
+            return self._score(effects, table, train, held)
 
         imp = 1 - self.min_improvement
         found = None
@@ -1418,15 +1421,11 @@ class EffectSelection:
         ``min_delta_bic``). An effect chosen first can be explained away by later ones: a
         kinematic error chosen on a warming robot's runs was reported at 0 +- 0.018 W/Hz
         once a thermal drift and a basal power stood beside it."""
-        y = table.residual_w
-        n = int(train.sum())
         keep = list(selected)
         dropped: list[EnergyEffect] = []
 
         def score(effects: Sequence[EnergyEffect]) -> tuple[float, float]:
-            coef, _, term, sse = self._fit(effects, table, train)
-            k = coef.size + sum(1 for e in effects if e.name == 'time_offset')
-            return float(np.sqrt(np.mean((y[held] - term[held]) ** 2))), _bic(sse, n, k)
+            return self._score(effects, table, train, held)[:2]
 
         while len(keep) > 1:
             rmse, bic = score(keep)
