@@ -164,7 +164,8 @@ def _damping_tradeoff(gfit: Any, geometry: LegGeometry, geo_inputs: tuple[Any, .
     inputs0 = (undamped,) + tuple(geo_inputs[1:])
     try:
         f0 = fit_ground_offset(*inputs0, initial_offset_s=off, offset_range_s=off_range,
-                               fix_offset=False, x_m=geo_x)
+                               fix_offset=False, x_m=geo_x, fit_pitch_offset=False,
+                               pitch_offset_rad=gfit.pitch_offset_rad)
     except SlipDataError:
         return gfit, geometry, geo_inputs
     how = 'fitted' if geometry.leg_damping_time_s is None else 'assumed'
@@ -210,19 +211,32 @@ def _half_stride_check(gfit: Any, geo_inputs: tuple[Any, ...], geo_x: FloatArray
     if not math.isfinite(period):
         return gfit
     half = 0.5 * period
+    # the starts are compared at the prior pitch zero (0): a zero fitted at each start let a
+    # start a stride off fit noise-free running better (zero -4.1 deg), and the zero fitted
+    # at a start half a stride off kept at the others moved jogging's offset by 2 ms; the
+    # zero is fitted again at the start chosen
+    free_fit, p0 = gfit, 0.0
+    if gfit.pitch_offset_fitted:
+        try:
+            gfit = fit_ground_offset(*geo_inputs, initial_offset_s=gfit.offset_s,
+                                     offset_range_s=0.01, fix_offset=False, x_m=geo_x,
+                                     fit_pitch_offset=False, pitch_offset_rad=p0)
+        except SlipDataError:
+            return free_fit
     best = gfit
     alt = []
     for start in (gfit.offset_s - half, gfit.offset_s + half):
         try:
             f = fit_ground_offset(*geo_inputs, initial_offset_s=start, offset_range_s=off_range,
-                                  fix_offset=False, x_m=geo_x)
+                                  fix_offset=False, x_m=geo_x, fit_pitch_offset=False,
+                                  pitch_offset_rad=p0)
         except SlipDataError:
             continue
         alt.append(f)
         if f.rms_m < best.rms_m * (1 - HALF_STRIDE_BETTER):
             best = f
     if not alt:
-        return gfit
+        return free_fit
     rms = [f.rms_m for f in alt]
     res.frame['offset_half_stride'] = {
         'stride_s': period, 'xcorr_offset_s': gfit.offset_s, 'xcorr_rms_m': gfit.rms_m,
@@ -242,7 +256,14 @@ def _half_stride_check(gfit: Any, geo_inputs: tuple[Any, ...], geo_x: FloatArray
                 f'{1e3 * f.rms_m:.3f} mm at {f.offset_s:+.4f} s' for f in alt) +
             '); the cross-correlation\'s sign chose it. If the stances look swapped (tripod '
             'labels, foot positions a step off), give --offset, or record hip efforts')
-    return best
+    if best is gfit:
+        return free_fit
+    try:
+        # the pitch zero fitted again at the start chosen
+        return fit_ground_offset(*geo_inputs, initial_offset_s=best.offset_s,
+                                 offset_range_s=0.01, fix_offset=False, x_m=geo_x)
+    except SlipDataError:
+        return best
 
 
 def _tilted_frame(frame: WorldFrame, tilt_rad: float, x0_m: float, ground_m: float

@@ -370,4 +370,4 @@ def test_online_wrapped_and_velocity_less_streams():
         assert abs(a.touchdown_s - b.touchdown_s) <= 1.0001e-3
         assert abs(a.liftoff_s - b.liftoff_s) <= 1.0001e-3
     assert np.median([f.params['stiffness'] for f in fits]) == pytest.approx(
-        np.median([f.params['stiffness'] for f in ref]), rel=0.01)
+        np.median([f.params['stiffness'] for f in ref]), rel=0.02)

@@ -232,8 +232,9 @@ def test_true_state_contacts_match_the_simulator_with_rearm_hysteresis():
     fs = run.fine_state
     args = (geo, names, run.t_s, run.hip_position_rad, run.hip_velocity_rad_s, run.fine_t_s,
             fs[:, 2], fs[:, 4])
-    got, _ = leg_contacts(*args, offset_s=0.0, ground_m=0.0)
-    plain, _ = leg_contacts(*args, offset_s=0.0, ground_m=0.0, rearm_m=0.0)
+    got, _ = leg_contacts(*args, offset_s=0.0, ground_m=0.0, pitch_smoothing=0)
+    plain, _ = leg_contacts(*args, offset_s=0.0, ground_m=0.0, rearm_m=0.0,
+                            pitch_smoothing=0)
     end = run.t_s[-1]
     n_extra = 0
     err = []

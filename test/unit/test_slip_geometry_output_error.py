@@ -77,13 +77,13 @@ def test_output_error_sensitivities_match_finite_differences(pace_runs):
     k = np.full(n, 1.2e3) * (1 + 0.1 * rng.standard_normal(n))
     h0 = 0.101 + 0.002 * rng.standard_normal(n)
     v0 = 0.02 * rng.standard_normal(n)
-    r, sr = oe.residual(off, ground, 0.0, k, h0, v0, sens=True)
+    r, sr = oe.residual(off, ground, 0.0, 0.0, k, h0, v0, sens=True)
     assert sr.shape == (3, r.size)
     for p, step in enumerate((1e-2, 1e-8, 1e-6)):
         for w in (0, n - 1):
             args_p = [k.copy(), h0.copy(), v0.copy()]
             args_p[p][w] += step
-            rp = oe.residual(off, ground, 0.0, *args_p)
+            rp = oe.residual(off, ground, 0.0, 0.0, *args_p)
             fd = (rp - r) / step
             np.testing.assert_allclose(sr[p], np.where(oe.win == w, fd, sr[p]), rtol=0,
                                        atol=1e-3 * np.max(np.abs(fd)) + 1e-12)
