@@ -24,7 +24,10 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
                 "frame": {"tilt_deg", "yaw_deg", "origin_m", "ground_source"
                           (geometry|mocap_origin), "ground_m", "geometry_rms_m",
                           "offset_initial", "ground_tilt_rad" and "rotation" (geometry:
-                          the frame turned by the ground's fitted slope), "steady_start_s"
+                          the frame turned by the ground's fitted slope),
+                          "pitch_offset_deg" and "pitch_offset_source" (given|fitted|
+                          assumed: the rigid body's pitch zero against the hip line,
+                          --pitch-offset), "steady_start_s"
                           (--steady-only), "offset_half_stride" (no hip efforts: the
                           offset fitted from half a stride either side, {"stride_s",
                           "xcorr_offset_s", "xcorr_rms_m", "alias_offsets_s",
@@ -303,6 +306,19 @@ def _f(x: float) -> float | None:
     return float(x) if math.isfinite(float(x)) else None
 
 
+def _pitch_offset_arg(text: str) -> str:
+    """``--pitch-offset``: 'auto' or a finite angle within +-45 deg."""
+    if text == 'auto':
+        return text
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'auto' or degrees, got {text!r}") from None
+    if not (math.isfinite(v) and abs(v) <= 45.0):
+        raise argparse.ArgumentTypeError(f'a pitch offset within +-45 deg, got {text!r}')
+    return text
+
+
 def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
     """Analyse one bag; returns a JSON-able dict (``error`` set when the bag is refused)."""
     from hexapod_common.errors import HexapodError
@@ -346,7 +362,8 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
                           max_lateral_m=options.get('max_lateral', 0.05),
                           position_fit=options.get('position_fit', True), geometry=geometry,
                           steady_only=options.get('steady_only', False),
-                          check_body_up=body_up == 'auto')
+                          check_body_up=body_up == 'auto',
+                          pitch_offset_rad=options.get('pitch_offset_rad'))
     except (SlipError, HexapodError, ValueError, OSError) as err:  # a truncated bag too
         return {'bag': path, 'error': str(err)}
     notes = list(run.notes) + geometry_notes + list(res.notes)
@@ -468,7 +485,9 @@ def run_command(args: argparse.Namespace) -> int:
                'mass_kg': args.mass, 'model': args.model, 'position_fit': not args.no_position_fit,
                'box_lower': args.box[:3] if args.box else None,
                'box_upper': args.box[3:] if args.box else None,
-               'steady_only': args.steady_only, 'body_up': args.body_up}
+               'steady_only': args.steady_only, 'body_up': args.body_up,
+               'pitch_offset_rad': (None if args.pitch_offset == 'auto'
+                                    else math.radians(float(args.pitch_offset)))}
     bags = [str(b) for b in args.bags]
     results: list[dict[str, Any]] = []
     if args.jobs > 1 and len(bags) > 1:
@@ -559,6 +578,12 @@ def add_cli(subparsers: Any) -> None:
                         'naming the up axis; z: z without that check). The rigid body\'s '
                         'forward axis does not matter: the pitch is the up axis\'s tilt towards '
                         'the run')
+    p.add_argument('--pitch-offset', default='auto', type=_pitch_offset_arg, metavar='DEG',
+                   help="the rigid body's pitch zero against the robot's hip line [deg] (its "
+                        'pitch, nose down positive, while the hips are level), known and kept; '
+                        "'auto' (default): 0, fitted beside it when the body-height fit "
+                        'supports a zero 0.25 deg or more away (runs[].frame.pitch_offset_deg, '
+                        'a note)')
     p.add_argument('--geometry', choices=('edubot', 'none'), default='edubot',
                    help="robot description for the geometric edges/offset: 'edubot' "
                         '(slip_identification.geometry.LegGeometry defaults, fields overridden by '

@@ -271,7 +271,11 @@ class GeometryFit:
     outside the windows, above the tilted ground), the noise-free height :func:`leg_contacts`
     can use; ``dropped_windows``: windows left out as outliers; ``tilt_rad``: the ground's
     slope along +x in the given frame (fitted when x is given), the heights above it are
-    ``z - tilt_rad (x - tilt_x0_m)`` and the pitch from it ``pitch + tilt_rad``.
+    ``z - tilt_rad (x - tilt_x0_m)`` and the pitch from it ``pitch + tilt_rad +
+    pitch_offset_rad``; ``pitch_offset_rad``: the motion-capture rigid body's pitch zero
+    against the hip line (its pitch while the hips are level), the prior or, when
+    ``pitch_offset_fitted``, fitted (standard error ``pitch_offset_se_rad``, from the
+    Jacobian: autocorrelated residuals make it optimistic).
     """
 
     offset_s: float
@@ -286,6 +290,7 @@ class GeometryFit:
     tilt_x0_m: float = 0.0
     pitch_offset_rad: float = 0.0
     pitch_offset_fitted: bool = False
+    pitch_offset_se_rad: float = math.nan
 
 
 class _Body:
@@ -739,8 +744,7 @@ def _refine_output_error(body: _Body, masks: list[NDArray[np.bool_]], tf: FloatA
                          height_m: FloatArray, *, fit_offset: bool, fit_tilt: bool,
                          fit_pitch0: bool, merge: int = 1, outlier_factor: float = 2.0,
                          margin_s: float = 5e-3
-                         ) -> tuple[float, float, float, float, float, FloatArray, int, int,
-                                    int]:
+                         ) -> tuple[Any, ...]:
     """Output-error refinement (:class:`_OutputError`) from the equation-error fit.
 
     ``masks``, ``k0`` (stiffness over mass per window) and ``height_m`` (fitted height on
@@ -752,8 +756,9 @@ def _refine_output_error(body: _Body, masks: list[NDArray[np.bool_]], tf: FloatA
     median window's are dropped and the fit repeated once. Returns offset, ground, tilt,
     pitch offset, residual RMS [m], the
     simulated height on ``tf`` (input frame, NaN outside the windows), the windows used and
-    those dropped; raises :class:`SlipDataError` when the fit fails or moves the offset by
-    more than ``margin_s``.
+    those dropped, the residual samples and the pitch offset's standard error [rad] (NaN
+    when it is not fitted); raises :class:`SlipDataError` when the fit fails or moves the
+    offset by more than ``margin_s``.
     """
     if merge > 1:
         # consecutive gap-free windows joined in groups of ``merge`` (stiffness: their mean)
@@ -841,9 +846,20 @@ def _refine_output_error(body: _Body, masks: list[NDArray[np.bool_]], tf: FloatA
                 body, [masks[i] for i in keep], tf, offset_s, ground_m, tilt_rad, pitch0_rad,
                 tau_s, k0[keep], height_m, fit_offset=fit_offset, fit_tilt=fit_tilt,
                 fit_pitch0=fit_pitch0, outlier_factor=0.0, margin_s=margin_s)
-            return out[:-2] + (n_w - keep.size, out[-1])
+            return out[:7] + (n_w - keep.size,) + out[8:]
     rms = float(np.sqrt(np.mean(res.fun ** 2))) * 1e-3
-    return d, g, tl, p0, rms, oe.height_grid(d, g, tl, p0, k, h, v), n_w, 0, int(res.fun.size)
+    p0_se = math.nan
+    if fit_pitch0:
+        # the pitch offset's standard error [rad] from the Jacobian at the solution
+        jm = np.asarray(res.jac)
+        var = float(res.fun @ res.fun) / max(res.fun.size - x0.size, 1)
+        try:
+            cov = np.linalg.pinv(jm.T @ jm) * var
+            p0_se = math.sqrt(max(float(cov[gi.index(3), gi.index(3)]), 0.0)) * 1e-3
+        except np.linalg.LinAlgError:
+            pass
+    return (d, g, tl, p0, rms, oe.height_grid(d, g, tl, p0, k, h, v), n_w, 0,
+            int(res.fun.size), p0_se)
 
 
 FIT_MODELS = ('linear', 'clipped')
@@ -1111,7 +1127,7 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
         body.set_tilt(tilt, p0)
         mse, n_s, ratio, h_t, h_z, k_w = _cost(body, masks, tf, d, g, model=model, tau_s=tau,
                                                full=True, per_window_k=True)
-        n_used, n_drop, refined = len(masks), 0, False
+        n_used, n_drop, refined, p0_se = len(masks), 0, False, math.nan
         if refine == 'output':
             try:
                 out = _refine_output_error(
@@ -1122,11 +1138,11 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
             except SlipDataError:
                 out = None  # keep the equation-error fit
             if out is not None:
-                d, g, tilt, p0, rms, h_z, n_used, n_drop, n_s = out
+                d, g, tilt, p0, rms, h_z, n_used, n_drop, n_s, p0_se = out
                 mse = rms * rms
                 h_t = tf + d
                 refined = True
-        return d, g, tilt, p0, mse, n_s, ratio, h_t, h_z, n_used, n_drop, refined
+        return d, g, tilt, p0, mse, n_s, ratio, h_t, h_z, n_used, n_drop, p0_se, refined
 
     x_prior = nelder_mead(False, x0)
     fits = [final(False, x_prior)]
@@ -1146,9 +1162,10 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
         rng = float(pitch_offset_range_rad)
         centre = prior + float(np.clip(-np.median(body.b_raw) - tl_b - prior, -rng, rng))
         body.set_tilt(tl_b, centre)
-        d_b, g_b = ((x_prior[0] * 1e-3, g_b) if fix_offset else
-                    coarse(initial_offset_s, g_b - 0.015, g_b + 0.015))
         step = math.radians(1.0)
+        d_b = x_prior[0] * 1e-3
+        if abs(centre - prior) > 0.5 * step and not fix_offset:
+            d_b, g_b = coarse(initial_offset_s, g_b - 0.015, g_b + 0.015)
         p0_s, g_b = scan(centre + np.arange(-rng, rng + 1e-12, step), set_pitch0, d_b, g_b,
                          half_m=8e-3)
         if abs(p0_s - centre) > 0.5 * step and not fix_offset:
@@ -1159,8 +1176,8 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
         x1[:4] = [d_b * 1e3, g_b * 1e3, tl_b * 1e3, p0_s * 1e3]
         alt = final(True, nelder_mead(True, x1))
         fixed = fits[0]
-        if abs(alt[3] - prior) < PITCH_OFFSET_MIN_RAD:
-            better = False  # within the free zero's own scatter
+        if abs(alt[3] - prior) < max(PITCH_OFFSET_MIN_RAD, 3.0 * alt[-2]):
+            better = False  # within the free zero's own scatter, or its standard error's
         elif alt[-1] != fixed[-1]:
             better = bool(alt[-1])  # the one the output-error refinement converged on
         else:
@@ -1169,13 +1186,14 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
         if better:
             fits = [alt]
             pitch_fitted = True
-    d, g, tilt, p0, mse, n_s, ratio, h_t, h_z, n_used, n_drop, _ = fits[0]
+    d, g, tilt, p0, mse, n_s, ratio, h_t, h_z, n_used, n_drop, p0_se, _ = fits[0]
     dropped += n_drop
     body.set_tilt(tilt, p0)
     return GeometryFit(offset_s=d, ground_m=g, rms_m=math.sqrt(mse), windows=n_used,
                        damping_ratio_s=ratio, height_t_s=h_t, height_m=h_z,
                        dropped_windows=dropped, tilt_rad=tilt, tilt_x0_m=body.x0,
-                       pitch_offset_rad=p0, pitch_offset_fitted=pitch_fitted)
+                       pitch_offset_rad=p0, pitch_offset_fitted=pitch_fitted,
+                       pitch_offset_se_rad=p0_se if pitch_fitted else math.nan)
 
 
 def leg_contacts(geometry: LegGeometry, joint_names: tuple[str, ...], joint_t_s: ArrayLike,

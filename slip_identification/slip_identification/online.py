@@ -111,6 +111,9 @@ class OnlineSlip:
         Robot description for the geometric edges (module docs); needs ``ground_m``.
     ground_m : float, optional
         Ground height in the world frame (its plane through the mocap origin) [m].
+    pitch_offset_rad : float
+        The rigid body's pitch zero against the hip line [rad] (an offline analysis'
+        ``frame['pitch_offset_deg']``), for the geometric contacts.
     geometry_window_s : float
         Buffer span [s] searched for geometric contacts on each step.
     world_frame : WorldFrame, optional
@@ -127,13 +130,14 @@ class OnlineSlip:
                  shift_every_s: float = 0.25, frame_every_s: float = 1.0,
                  frame_min_s: float = 0.5, spline_pad_s: float = 0.05,
                  geometry: LegGeometry | None = None, ground_m: float | None = None,
-                 geometry_window_s: float = 1.0,
+                 geometry_window_s: float = 1.0, pitch_offset_rad: float = 0.0,
                  world_frame: WorldFrame | None = None,
                  time_jump_s: float = TIME_JUMP_S) -> None:
         if (geometry is None) != (ground_m is None):
             raise SlipError('geometric edges need both geometry and ground_m (or neither)')
         self.geometry = geometry
         self.ground_m = ground_m
+        self.pitch_offset_rad = float(pitch_offset_rad)
         self.geometry_window_s = geometry_window_s
         self._geo_since_s: float | None = None
         self.model = model if model is not None else SlipModel()
@@ -396,7 +400,8 @@ class OnlineSlip:
         try:
             contacts, unknown = leg_contacts(self.geometry, self.names, tj[sj], q, vj[sj],
                                              tm[sm], z, pitch, offset_s=0.0,
-                                             ground_m=self.ground_m)
+                                             ground_m=self.ground_m,
+                                             pitch_offset_rad=self.pitch_offset_rad)
         except SlipError:
             return None
         ss = single_support(contacts, TRIPODS, unknown)

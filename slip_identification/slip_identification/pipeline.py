@@ -197,7 +197,7 @@ def _stride_period_s(tj: FloatArray, speed: dict[str, FloatArray]) -> float:
 
 def _half_stride_check(gfit: Any, geo_inputs: tuple[Any, ...], geo_x: FloatArray,
                        speed: dict[str, FloatArray], tj: FloatArray, off_range: float,
-                       res: RunResult) -> Any:
+                       res: RunResult, p0_kw: dict[str, Any] | None = None) -> Any:
     """The cross-correlation's offset against starts half a stride either side.
 
     In the sagittal plane the two tripods (front and rear legs of one side with the other
@@ -215,7 +215,8 @@ def _half_stride_check(gfit: Any, geo_inputs: tuple[Any, ...], geo_x: FloatArray
     # start a stride off fit noise-free running better (zero -4.1 deg), and the zero fitted
     # at a start half a stride off kept at the others moved jogging's offset by 2 ms; the
     # zero is fitted again at the start chosen
-    free_fit, p0 = gfit, 0.0
+    p0_kw = p0_kw or {}
+    free_fit, p0 = gfit, float(p0_kw.get('pitch_offset_rad', 0.0))
     if gfit.pitch_offset_fitted:
         try:
             gfit = fit_ground_offset(*geo_inputs, initial_offset_s=gfit.offset_s,
@@ -261,7 +262,7 @@ def _half_stride_check(gfit: Any, geo_inputs: tuple[Any, ...], geo_x: FloatArray
     try:
         # the pitch zero fitted again at the start chosen
         return fit_ground_offset(*geo_inputs, initial_offset_s=best.offset_s,
-                                 offset_range_s=0.01, fix_offset=False, x_m=geo_x)
+                                 offset_range_s=0.01, fix_offset=False, x_m=geo_x, **p0_kw)
     except SlipDataError:
         return best
 
@@ -416,8 +417,14 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                 max_lateral_m: float = 0.05, position_fit: bool = True,
                 min_stance_s: float = 0.02, edges: str = 'auto',
                 geometry: LegGeometry | None = None, steady_only: bool = False,
-                check_body_up: bool = True) -> RunResult:
+                check_body_up: bool = True,
+                pitch_offset_rad: float | None = None) -> RunResult:
     """Preprocess one run, extract single-tripod stances, fit each (see module docs).
+
+    ``pitch_offset_rad``: the motion-capture rigid body's pitch zero against the robot's hip
+    line (its pitch when the hips are level), known and kept; None (default): 0, fitted
+    beside it by the geometric fit when the data support it (:func:`.geometry.
+    fit_ground_offset`), reported in ``frame['pitch_offset_deg']``.
 
     ``check_body_up``: refuse a run whose body z axis does not look like the robot's up
     (:func:`_check_body_up`); False when the user has said which body axis is up.
@@ -574,9 +581,11 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                       tm[inside], pw[:, 2], pitch)
         geo_x = pw[:, 0].copy()
         off_range = 0.1 if init == 'xcorr' else 0.06
+        p0_kw = ({} if pitch_offset_rad is None else
+                 {'fit_pitch_offset': False, 'pitch_offset_rad': float(pitch_offset_rad)})
         gfit = fit_ground_offset(*geo_inputs, initial_offset_s=off,
                                  offset_range_s=off_range,
-                                 fix_offset=method != 'geometry', x_m=geo_x)
+                                 fix_offset=method != 'geometry', x_m=geo_x, **p0_kw)
         at_edge = (gfit.windows == 0 or abs(gfit.ground_m) > 0.04 or
                    (method == 'geometry' and abs(gfit.offset_s - off) > 0.8 * off_range))
         if at_edge:
@@ -585,7 +594,7 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
             # better fit
             wide = fit_ground_offset(*geo_inputs, initial_offset_s=off,
                                      offset_range_s=off_range, ground_range_m=(-0.25, 0.25),
-                                     fix_offset=method != 'geometry', x_m=geo_x)
+                                     fix_offset=method != 'geometry', x_m=geo_x, **p0_kw)
             if wide.rms_m < gfit.rms_m:
                 res.notes.append(
                     f'the ground fit reached the edge of its +-5 cm range (ground '
@@ -599,7 +608,15 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
             gfit, geometry, geo_inputs = _damping_tradeoff(gfit, geometry, geo_inputs, geo_x,
                                                            off, off_range, res)
         if init == 'xcorr' and method == 'geometry':
-            gfit = _half_stride_check(gfit, geo_inputs, geo_x, speed, tj, off_range, res)
+            gfit = _half_stride_check(gfit, geo_inputs, geo_x, speed, tj, off_range, res,
+                                      p0_kw)
+        if gfit.pitch_offset_fitted:
+            p0_deg = math.degrees(gfit.pitch_offset_rad)
+            res.notes.append(
+                f'the motion-capture rigid body\'s pitch is {p0_deg:+.2f} deg off the hip '
+                f'line (fitted: it lowers the body-height residual more '
+                f'than a free parameter would by chance); contacts and edges use the corrected '
+                f'pitch. If it is known, give it (--pitch-offset DEG)')
         off = gfit.offset_s
         res.ground_m = gfit.ground_m
         # the fitted ground is the frame's vertical translation and its slope along x a
@@ -609,6 +626,10 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
         res.frame.update(tilt_deg=math.degrees(frame.tilt_rad), rotation=frame.rotation.tolist(),
                          origin_m=frame.origin_m.tolist(),
                          ground_m=gfit.ground_m, ground_tilt_rad=gfit.tilt_rad,
+                         pitch_offset_deg=math.degrees(gfit.pitch_offset_rad),
+                         pitch_offset_source=('given' if pitch_offset_rad is not None else
+                                              'fitted' if gfit.pitch_offset_fitted else
+                                              'assumed'),
                          ground_source='geometry', geometry_rms_m=gfit.rms_m,
                          geometry_damping_time_s=gfit.damping_ratio_s,
                          geometry_damping_fitted=geometry.leg_damping_time_s is None)

@@ -99,6 +99,11 @@ class SlipParams:
                           "analysis' ground_m); finite: geometric stance edges from the "
                           "half-circle legs, NaN: the paper's clock edges", read_only=True,
                           finite=False)
+    pitch_offset: float = param(0.0, "the motion-capture rigid body's pitch zero against the "
+                                'hip line [deg] (an offline slip analysis\' '
+                                'runs[].frame.pitch_offset_deg; geometric edges)', read_only=True,
+                                validate=lambda v: None if abs(v) <= 45.0
+                                else 'expected a value within +-45 deg')
     leg_radius: float = param(LegGeometry.leg_radius_m, 'arc radius R of the half-circle '
                               'leg [m] (geometric edges)', validate=_positive, read_only=True)
     hip_x: list[float] = param(list(LegGeometry.hip_x_m), 'hip x front, middle, rear from '
@@ -161,7 +166,8 @@ class SlipFitterNode(Node):
         self.core = OnlineSlip(SlipModel.from_name(p.model, mass_kg=p.mass),
                                box=Box(tuple(b[:3]), tuple(b[3:])),
                                mocap_offset_s=p.mocap_offset, margin_s=p.margin,
-                               geometry=geo, ground_m=p.ground if geo is not None else None)
+                               geometry=geo, ground_m=p.ground if geo is not None else None,
+                               pitch_offset_rad=math.radians(p.pitch_offset))
         self.pub = self.create_publisher(SlipFit, 'slip/fit', RELIABLE_QOS)
         self.create_subscription(JointState, 'joint_states', self._on_js, SENSOR_QOS)
         self.create_subscription(JointState, 'joint_commands', self._on_cmd, SENSOR_QOS)
