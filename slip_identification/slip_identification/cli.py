@@ -339,6 +339,10 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
                                     mass_kg=options.get('mass_kg', EDUBOT_MASS_KG))
         geometry = None
         geometry_notes: list[str] = []
+        if options.get('pitch_offset_rad') is not None and \
+                options.get('geometry', 'edubot') != 'edubot':
+            geometry_notes.append('--pitch-offset is not used without a leg geometry (it '
+                                  'corrects the pitch of the geometric contacts)')
         if options.get('geometry', 'edubot') == 'edubot':
             tau = options.get('leg_damping_time', 'default')
             overrides = dict(options.get('geometry_overrides') or {})
@@ -579,11 +583,12 @@ def add_cli(subparsers: Any) -> None:
                         'forward axis does not matter: the pitch is the up axis\'s tilt towards '
                         'the run')
     p.add_argument('--pitch-offset', default='auto', type=_pitch_offset_arg, metavar='DEG',
-                   help="the rigid body's pitch zero against the robot's hip line [deg] (its "
-                        'pitch, nose down positive, while the hips are level), known and kept; '
-                        "'auto' (default): 0, fitted beside it when the body-height fit "
-                        'supports a zero 0.25 deg or more away (runs[].frame.pitch_offset_deg, '
-                        'a note)')
+                   help="the correction added to the motion-capture rigid body's pitch [deg] "
+                        'so that it reads 0 while the robot\'s hips are level: minus the '
+                        'pitch (nose down positive) it reports then; known and kept, not '
+                        "checked. 'auto' (default): 0, and a correction fitted beside it kept "
+                        'when the body-height fit clearly prefers it (runs[].frame.'
+                        'pitch_offset_deg, a note). Needs --geometry')
     p.add_argument('--geometry', choices=('edubot', 'none'), default='edubot',
                    help="robot description for the geometric edges/offset: 'edubot' "
                         '(slip_identification.geometry.LegGeometry defaults, fields overridden by '

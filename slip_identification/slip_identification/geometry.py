@@ -192,8 +192,11 @@ PITCH_SMOOTHING_S = 0.07
 #: pitch by default: simulated motion capture (0.2 mm markers 0.25 m apart) reads 0.67 mrad,
 #: the simulator's noise-free pitch 0.01-0.15 mrad at 100-120 Hz
 PITCH_NOISE_MIN_RAD = 3e-4
-#: half-width of the scan for the rigid body's pitch zero against the hip line [rad]
+#: half-width of the scan for the rigid body's pitch zero against the hip line [rad], around
+#: the zero that levels the median pitch (itself within PITCH_OFFSET_CENTRE_RAD of the prior:
+#: clipped at 4 deg, a rigid body 6 deg off was found at 3.1 deg and a walk's offset 36 ms off)
 PITCH_OFFSET_RANGE_RAD = math.radians(4.0)
+PITCH_OFFSET_CENTRE_RAD = math.radians(12.0)
 #: a fitted pitch zero closer than this to the prior is not kept [rad]: on simulated runs with
 #: a known zero the free fit scatters by 0.1-0.2 deg (start-up transients), and kept there it
 #: cost a pace run every edge within 5 ms
@@ -1196,7 +1199,8 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
         # body) leave it a second ground height: not tried.
         g_b, tl_b = x_prior[1] * 1e-3, x_prior[2] * 1e-3
         rng = float(pitch_offset_range_rad)
-        centre = prior + float(np.clip(-np.median(body.b_raw) - tl_b - prior, -rng, rng))
+        centre = prior + float(np.clip(-np.median(body.b_raw) - tl_b - prior,
+                                       -PITCH_OFFSET_CENTRE_RAD, PITCH_OFFSET_CENTRE_RAD))
         body.set_tilt(tl_b, centre)
         step = math.radians(1.0)
         d_b = x_prior[0] * 1e-3
@@ -1215,7 +1219,9 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
         if abs(alt[3] - prior) < max(PITCH_OFFSET_MIN_RAD, 3.0 * alt[-2]):
             better = False  # within the free zero's own scatter, or its standard error's
         elif alt[-1] != fixed[-1]:
-            better = bool(alt[-1])  # the one the output-error refinement converged on
+            # the one the output-error refinement converged on (the other's residual is the
+            # equation-error fit's, not comparable)
+            better = bool(alt[-1])
         else:
             n_s = max(min(fixed[5], alt[5]), 2)
             better = alt[4] > 0 and n_s * math.log(fixed[4] / alt[4]) > math.log(n_s)

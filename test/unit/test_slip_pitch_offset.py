@@ -122,12 +122,12 @@ def test_analysis_reports_the_fitted_zero_and_takes_a_given_one(runs):
     assert res.frame['pitch_offset_source'] == 'fitted'
     assert res.frame['pitch_offset_deg'] == pytest.approx(-3.0, abs=0.15)
     assert abs(res.offset_s - run.truth['clock_offset_s']) <= 2e-3
-    assert any('deg off the hip line' in n and '--pitch-offset' in n for n in res.notes)
+    assert any('pitch is corrected by' in n and '--pitch-offset' in n for n in res.notes)
     given = analyze_run(rd, box=box, offset_s='geometry', geometry=geo, position_fit=False,
                         pitch_offset_rad=math.radians(-3.0))
     assert given.frame['pitch_offset_source'] == 'given'
     assert given.frame['pitch_offset_deg'] == pytest.approx(-3.0)
-    assert not any('deg off the hip line' in n for n in given.notes)
+    assert not any('pitch is corrected by' in n for n in given.notes)
     assert _pitch_offset_arg('auto') == 'auto' and _pitch_offset_arg('-1.5') == '-1.5'
     import argparse
     for bad in ('nan', '90', 'up'):
