@@ -74,9 +74,12 @@ than the tilt-coupled frame's own 0.3-0.7 mrad, so it is not kept there (pace, w
 running; seeds 1-12). Rigid bodies 1 and 3 deg off: the zero within 0.15 deg and the offset
 within 2 ms on 10 of 12 runs (running, pace, walk, seeds 1-2; pace seed 2 at 3 deg 4.2 ms, its
 start-up transient tilting the frame; walk seed 2 at 3 deg 0.8 deg off, its edges lost). The
-half-stride starts (no hip efforts) are compared at the prior zero (a free zero let a start a
-stride off fit noise-free running better). The fit then takes about twice as long (3-5 s per
-4.5 s run).
+half-stride starts (no hip efforts) are compared at one zero, the first fit's (a free zero at
+each start let a start a stride off fit noise-free running better). The fit then takes about
+twice as long (3-5 s per 4.5 s run). An outside review (0.3-3 deg, four gaits): offset within
+2 ms in 54 of 56 cases (32 with the zero held at 0); the zero 0.55-0.8 deg off on running
+(harmless there), its Jacobian standard error optimistic (0.005-0.012 deg); 6 deg missed
+(walk offsets 36-93 ms off; the median-level centre does not follow the rigid body there).
 
 Pitch noise (:func:`leg_contacts`): with the true pitch every steady stance of pace and walk
 (seeds 1-6) is within 5 ms; the measured pitch carries the mocap's orientation noise (0.74
