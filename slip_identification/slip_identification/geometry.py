@@ -161,7 +161,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -912,6 +912,24 @@ REFINE_MODES = ('none', 'output')
 OUTPUT_WINDOW_S = 0.2
 
 
+class _Stage(NamedTuple):
+    """One candidate of :func:`fit_ground_offset` (the pitch zero at the prior, or free)."""
+
+    d: float
+    g: float
+    tilt: float
+    p0: float
+    mse: float
+    n_samples: int
+    ratio: float
+    h_t: FloatArray
+    h_z: FloatArray
+    n_used: int
+    n_drop: int
+    p0_se: float
+    refined: bool
+
+
 def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint_t_s: ArrayLike,
                       joint_position: ArrayLike, joint_velocity: ArrayLike,
                       mocap_t_s: ArrayLike, height_m: ArrayLike, pitch_rad: ArrayLike, *,
@@ -982,10 +1000,16 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
     tilt_range_rad : float
         Half-width of the coarse tilt scan [rad].
     pitch_smoothing : int
-        Samples of the local quadratic through the pitch (0: none, the default). The pitch
-        from a marker baseline is noisier than the positions (0.2 mm markers 0.25 m apart:
-        0.8 mrad, or 0.16 mm at a hip 0.2 m from the COM); 7 samples at 120 Hz (58 ms) halve
-        that noise (:data:`PITCH_SMOOTHING` on why it is off).
+        Samples of the local quadratic through the pitch (0: none, the default; None: as
+        :func:`leg_contacts` does, :func:`auto_pitch_smoothing`). Smoothing the pitch here
+        changed nothing on the simulated edges (module docs).
+    fit_pitch_offset : bool
+        Try the rigid body's pitch zero free beside ``pitch_offset_rad`` (module docs);
+        False: keep ``pitch_offset_rad``.
+    pitch_offset_rad : float
+        The prior (or known) pitch zero [rad]: the correction added to the pitch.
+    pitch_offset_range_rad : float
+        Half-width of the zero's scan around the zero that levels the median pitch [rad].
     refine : str, optional
         ``'output'`` (the default with ``model='clipped'``): the equation-error fit above is
         refined by an output-error fit (module docs): the vertical dynamics are simulated
@@ -1162,7 +1186,7 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
             x[i] = float(vi)
         return x
 
-    def final(free_p0: bool, x: list[float]) -> tuple[Any, ...]:
+    def final(free_p0: bool, x: list[float]) -> _Stage:
         # the equation-error fit at ``x``, then its output-error refinement
         d, g, tilt, p0 = x[0] * 1e-3, x[1] * 1e-3, x[2] * 1e-3, x[3] * 1e-3
         tau = max(x[4] * 1e-3, 0.0) if tau_fit else tau_s
@@ -1184,7 +1208,8 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
                 mse = rms * rms
                 h_t = tf + d
                 refined = True
-        return d, g, tilt, p0, mse, n_s, ratio, h_t, h_z, n_used, n_drop, p0_se, refined
+        return _Stage(d, g, tilt, p0, mse, n_s, ratio, h_t, h_z, n_used, n_drop, p0_se,
+                      refined)
 
     x_prior = nelder_mead(False, x0)
     fits = [final(False, x_prior)]
@@ -1219,26 +1244,27 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
         x1[:4] = [d_b * 1e3, g_b * 1e3, tl_b * 1e3, p0_s * 1e3]
         alt = final(True, nelder_mead(True, x1))
         fixed = fits[0]
-        if abs(alt[3] - prior) < max(PITCH_OFFSET_MIN_RAD, 3.0 * alt[-2]):
+        if abs(alt.p0 - prior) < max(PITCH_OFFSET_MIN_RAD, 3.0 * alt.p0_se):
             better = False  # within the free zero's own scatter, or its standard error's
-        elif alt[-1] != fixed[-1]:
+        elif alt.refined != fixed.refined:
             # the one the output-error refinement converged on (the other's residual is the
             # equation-error fit's, not comparable)
-            better = bool(alt[-1])
+            better = alt.refined
         else:
-            n_s = max(min(fixed[5], alt[5]), 2)
-            better = alt[4] > 0 and n_s * math.log(fixed[4] / alt[4]) > math.log(n_s)
+            n_s = max(min(fixed.n_samples, alt.n_samples), 2)
+            better = alt.mse > 0 and n_s * math.log(fixed.mse / alt.mse) > math.log(n_s)
         if better:
             fits = [alt]
             pitch_fitted = True
-    d, g, tilt, p0, mse, n_s, ratio, h_t, h_z, n_used, n_drop, p0_se, _ = fits[0]
-    dropped += n_drop
-    body.set_tilt(tilt, p0)
-    return GeometryFit(offset_s=d, ground_m=g, rms_m=math.sqrt(mse), windows=n_used,
-                       damping_ratio_s=ratio, height_t_s=h_t, height_m=h_z,
-                       dropped_windows=dropped, tilt_rad=tilt, tilt_x0_m=body.x0,
-                       pitch_offset_rad=p0, pitch_offset_fitted=pitch_fitted,
-                       pitch_offset_se_rad=p0_se if pitch_fitted else math.nan)
+    st = fits[0]
+    dropped += st.n_drop
+    body.set_tilt(st.tilt, st.p0)
+    return GeometryFit(offset_s=st.d, ground_m=st.g, rms_m=math.sqrt(st.mse),
+                       windows=st.n_used, damping_ratio_s=st.ratio, height_t_s=st.h_t,
+                       height_m=st.h_z, dropped_windows=dropped, tilt_rad=st.tilt,
+                       tilt_x0_m=body.x0, pitch_offset_rad=st.p0,
+                       pitch_offset_fitted=pitch_fitted,
+                       pitch_offset_se_rad=st.p0_se if pitch_fitted else math.nan)
 
 
 def leg_contacts(geometry: LegGeometry, joint_names: tuple[str, ...], joint_t_s: ArrayLike,
@@ -1261,7 +1287,9 @@ def leg_contacts(geometry: LegGeometry, joint_names: tuple[str, ...], joint_t_s:
     lifted off lands again only after its lowest point has cleared the ground by ``rearm_m``
     (default ``geometry.rearm_clearance_m``): a hysteresis against contacts chattering on
     height noise, and a leaning leg that has sprung off while its rest shape still reaches
-    below the ground does not count as landed.
+    below the ground does not count as landed. ``pitch_offset_rad`` (default: ``fit.
+    pitch_offset_rad``, else 0) is added to the pitch; ``pitch_smoothing`` None (default)
+    smooths a noisy pitch (:func:`auto_pitch_smoothing`), 0 leaves it as it is.
 
     Returns
     -------
