@@ -169,6 +169,7 @@ from scipy.interpolate import CubicHermiteSpline, CubicSpline
 from scipy.optimize import least_squares, minimize, minimize_scalar
 from scipy.signal import savgol_filter
 
+from ._geometry_kernels import HAVE_NUMBA, simulate_windows
 from .errors import SlipDataError
 from .stance import longest_free_segment
 
@@ -187,6 +188,9 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 GRAVITY_M_S2 = 9.81
+#: run the output-error refinement's simulation compiled when numba is installed (the numpy
+#: loop otherwise; the two agree to rounding, test_slip_geometry_kernel.py)
+COMPILED_SIMULATION = True
 #: span of the pitch smoother [s] (:func:`leg_contacts`' default): a local quadratic over the
 #: odd number of mocap samples nearest to it (9 at 120 Hz; module docs), used when the pitch's
 #: noise is above :data:`PITCH_NOISE_MIN_RAD`
@@ -673,8 +677,12 @@ class _OutputError:
                  v0: FloatArray, sens: bool = False) -> tuple[FloatArray, ...]:
         """Heights above the ground and velocities, (n_steps, W) each, from grid ``i0``; with
         ``sens`` also their derivatives by each window's (k, h0, v0), (n_steps, 3, W) each
-        (the discrete map differentiated exactly)."""
+        (the discrete map differentiated exactly). Compiled (:mod:`._geometry_kernels`) when
+        numba is installed and :data:`COMPILED_SIMULATION` is true, else the numpy loop."""
         tau, dt = self.tau, self.step
+        if COMPILED_SIMULATION and HAVE_NUMBA:
+            return simulate_windows(q, qd, self.i0, self.n_steps, k, h0, v0, tau, dt,
+                                    GRAVITY_M_S2, sens)
         hh = np.empty((self.n_steps, self.n_w))
         vv = np.empty_like(hh)
         qg, qdg = q[self.grid_i], qd[self.grid_i]  # (n_steps, W, L)

@@ -1,0 +1,78 @@
+"""The geometric fit's output-error simulation compiled (numba) against its numpy loop: same
+heights, velocities and sensitivities on windows in contact, in flight and past the grid's
+end; and the whole ground and offset fit the same either way."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from slip_identification import geometry
+from slip_identification._geometry_kernels import HAVE_NUMBA
+
+pytestmark = pytest.mark.skipif(not HAVE_NUMBA, reason='numba not installed')
+
+
+class _Stub(geometry._OutputError):
+    """The simulation alone: grid indices and sizes without a body."""
+
+    def __init__(self, i0, n_steps, n_grid, tau, step):  # noqa: D107
+        self.i0 = np.asarray(i0)
+        self.n_steps = n_steps
+        self.n_w = self.i0.size
+        self.tau, self.step = tau, step
+        self.grid_i = np.minimum(self.i0[None, :] + np.arange(n_steps)[:, None], n_grid - 1)
+
+
+def _both(monkeypatch, oe, *args, sens):
+    monkeypatch.setattr(geometry, 'COMPILED_SIMULATION', False)
+    ref = oe.simulate(*args, sens=sens)
+    monkeypatch.setattr(geometry, 'COMPILED_SIMULATION', True)
+    return ref, oe.simulate(*args, sens=sens)
+
+
+@pytest.mark.parametrize('sens', [False, True])
+def test_compiled_simulation_matches_the_numpy_loop(monkeypatch, sens) -> None:
+    rng = np.random.default_rng(3)
+    n_grid, n_leg, step = 900, 6, 1e-3
+    t = np.arange(n_grid) * step
+    # legs' reach oscillating about the start height: contacts switch on and off
+    q = 0.1 + 0.004 * np.sin(2 * np.pi * 3 * t[:, None] + rng.uniform(0, 6, n_leg))
+    qd = np.gradient(q, step, axis=0)
+    i0 = np.array([0, 150, 400, 820])          # the last runs past the grid's end
+    oe = _Stub(i0, 200, n_grid, tau=0.01, step=step)
+    k = np.array([900.0, 1500.0, 0.0, 1200.0])  # one window without stiffness: ballistic
+    h0 = np.array([0.1, 0.098, 0.12, 0.101])
+    v0 = np.array([0.0, 0.05, -0.1, 0.02])
+    ref, out = _both(monkeypatch, oe, q, qd, k, h0, v0, sens=sens)
+    assert len(ref) == len(out) == (4 if sens else 2)
+    for a, b in zip(ref, out):
+        assert a.shape == b.shape
+        np.testing.assert_allclose(b, a, rtol=1e-12, atol=1e-14)
+    # the case exercises contact and flight
+    hh = out[0]
+    assert np.any(q[np.minimum(i0 + 50, n_grid - 1)] > hh[50][:, None])
+    assert np.any(np.all(q[np.minimum(i0 + 50, n_grid - 1)] < hh[50][:, None], axis=1))
+
+
+def test_fit_same_with_the_compiled_simulation(monkeypatch) -> None:
+    edubot_sim = pytest.importorskip('hexapod_bench_drivers.edubot_sim')
+    from slip_identification.pipeline import _up_from_quats
+    from slip_identification.preprocess import fit_world_frame
+
+    run = edubot_sim.simulate_edubot_batch('pace', duration_s=2.5, seeds=(1,))[0]
+    frame = fit_world_frame(run.mocap_position_m, up_mocap=_up_from_quats(run.mocap_quat_xyzw))
+    pw = frame.to_world(run.mocap_position_m)
+    pitch = geometry.body_pitch_rad(frame.rotation, run.mocap_quat_xyzw)
+    geo = geometry.LegGeometry.from_params(run.params)
+    names = tuple(f'{leg}_hip' for leg in run.leg_names)
+    args = (geo, names, run.t_s, run.hip_position_rad, run.hip_velocity_rad_s, run.mocap_t_s,
+            pw[:, 2], pitch)
+    kw = dict(initial_offset_s=0.0, offset_range_s=0.06, x_m=pw[:, 0], fit_pitch_offset=False)
+    fits = []
+    for compiled in (False, True):
+        monkeypatch.setattr(geometry, 'COMPILED_SIMULATION', compiled)
+        fits.append(geometry.fit_ground_offset(*args, **kw))
+    a, b = fits
+    assert b.offset_s == pytest.approx(a.offset_s, abs=1e-9)
+    assert b.ground_m == pytest.approx(a.ground_m, abs=1e-9)
