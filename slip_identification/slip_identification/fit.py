@@ -32,7 +32,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -594,20 +594,8 @@ class SlipFitter:
             label=s.label, rss=rss)
 
 
-def _hermite_positions(t_grid0: float, dt_s: float, traj: FloatArray, t_s: FloatArray
-                       ) -> FloatArray:
-    """Positions ``[bx, bz]`` at ``t_s`` from grid states ``traj`` (n, 4) by cubic Hermite."""
-    n = traj.shape[0]
-    u = (np.asarray(t_s) - t_grid0) / dt_s
-    i = np.clip(np.floor(u).astype(int), 0, n - 2)
-    s = (u - i)[:, None]
-    h00 = 2 * s**3 - 3 * s**2 + 1
-    h10 = (s**3 - 2 * s**2 + s) * dt_s
-    h01 = -2 * s**3 + 3 * s**2
-    h11 = (s**3 - s**2) * dt_s
-    pos = traj[:, [0, 2]]
-    vel = traj[:, [1, 3]]
-    return h00 * pos[i] + h10 * vel[i] + h01 * pos[i + 1] + h11 * vel[i + 1]
+#: relative forward-difference step of the position fit's Jacobian (scipy's '2-point')
+_FD_STEP = float(np.sqrt(np.finfo(float).eps))
 
 
 class SlipPositionFitter:
@@ -642,12 +630,16 @@ class SlipPositionFitter:
         self.compiled = compiled
 
     def _traj(self, p: FloatArray, x0: FloatArray, n: int, dt_s: float) -> FloatArray:
+        return self._trajs(p[None, :], x0[None, :], n, dt_s)[0]
+
+    def _trajs(self, p: FloatArray, x0: FloatArray, n: int, dt_s: float) -> FloatArray:
+        """States (M, n, 4) for rows of physical parameters ``p`` from states ``x0``."""
         model = self.model
         if _kernels.HAVE_NUMBA and self.compiled:
-            return _kernels.trajectory(_physical5(p[None, :], model)[0],
-                                       np.ascontiguousarray(x0), n, dt_s, self.stride,
-                                       1.0 / model.mass_kg, model.gravity_mps2)
-        return model.simulate_batch(x0[None, :], p[None, :], n, dt_s, stride=self.stride)[:, :, 0]
+            return _kernels.trajectories(_physical5(p, model), np.ascontiguousarray(x0), n,
+                                         dt_s, self.stride, 1.0 / model.mass_kg,
+                                         model.gravity_mps2)
+        return np.moveaxis(model.simulate_batch(x0, p, n, dt_s, stride=self.stride), 2, 0)
 
     def fit(self, stances: Sequence[Stance]) -> Self:
         """Fit every stance; invalid ones raise :class:`StanceRejectedError`."""
@@ -674,19 +666,49 @@ class SlipPositionFitter:
         p0 = np.zeros(npar)
         p0[:3] = (K0_NPM, L0_M, fx0)
         z0 = np.concatenate([p0, xe[0]]) / scale
+        # cubic Hermite from the grid to the observation times (weights computed once)
+        u = (t_obs - t[0]) / dt
+        ih = np.clip(np.floor(u).astype(int), 0, n - 2)
+        sh = (u - ih)[:, None]
+        w_h = (2 * sh**3 - 3 * sh**2 + 1, (sh**3 - 2 * sh**2 + sh) * dt,
+               -2 * sh**3 + 3 * sh**2, (sh**3 - sh**2) * dt)
+        y_flat = y_obs.ravel()
+
+        def residuals(zs: FloatArray) -> FloatArray:
+            """(M, 2 m) residuals of the rows of scaled parameters ``zs`` (M, P + 4)."""
+            vs = zs * scale
+            out = np.ones((zs.shape[0], y_flat.size))
+            ok = (vs[:, 0] > 0) & (vs[:, 1] > 0)
+            if ok.any():
+                with np.errstate(all='ignore'):
+                    tr = self._trajs(vs[ok, :npar], vs[ok, npar:], n, dt)
+                    pos, vel = tr[:, :, [0, 2]], tr[:, :, [1, 3]]
+                    r = (w_h[0] * pos[:, ih] + w_h[1] * vel[:, ih] + w_h[2] * pos[:, ih + 1]
+                         + w_h[3] * vel[:, ih + 1]).reshape(tr.shape[0], -1) - y_flat
+                out[ok] = np.where(np.isfinite(r), r, 1.0)
+            return out
+
+        last: list[Any] = [None, None]
 
         def residual(z: FloatArray) -> FloatArray:
-            v = z * scale
-            if v[0] <= 0 or v[1] <= 0:
-                return np.full(2 * t_obs.size, 1.0)
-            with np.errstate(all='ignore'):
-                traj = self._traj(v[:npar], v[npar:], n, dt)
-                r = (_hermite_positions(t[0], dt, traj, t_obs) - y_obs).ravel()
-            return np.where(np.isfinite(r), r, 1.0)
+            r = residuals(z[None, :])[0]
+            last[:] = [z.copy(), r]
+            return r
 
         lower = np.full(z0.size, -np.inf)
         lower[:2] = 1e-6
-        res = least_squares(residual, z0, bounds=(lower, np.inf), method='trf',
+
+        def jacobian(z: FloatArray) -> FloatArray:
+            # forward differences with scipy's '2-point' steps, every column in one batch
+            f0 = last[1] if last[0] is not None and np.array_equal(last[0], z) else \
+                residual(z)
+            h = _FD_STEP * np.where(z >= 0, 1.0, -1.0) * np.maximum(1.0, np.abs(z))
+            h = np.where(z + h < lower, -h, h)
+            h = (z + h) - z
+            zs = z[None, :] + np.diag(h)
+            return ((residuals(zs) - f0[None, :]) / h[:, None]).T
+
+        res = least_squares(residual, z0, jac=jacobian, bounds=(lower, np.inf), method='trf',
                             x_scale='jac', xtol=1e-10, ftol=1e-12, gtol=1e-12, max_nfev=400)
         v = res.x * scale
         r = res.fun
