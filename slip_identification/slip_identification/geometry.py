@@ -165,7 +165,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.interpolate import CubicHermiteSpline, CubicSpline
+from scipy.interpolate import CubicHermiteSpline, CubicSpline, PPoly
 from scipy.optimize import least_squares, minimize, minimize_scalar
 from scipy.signal import savgol_filter
 
@@ -383,10 +383,19 @@ class _Body:
         if pitch_smoothing > 2:
             self.b_raw = _smooth_segments(self.tm, self.b_raw, pitch_smoothing)
         self.x0 = float(np.mean(self.x))
+        # the splines are linear in their data: the tilted height's and the shifted pitch's
+        # are combinations of these three (no spline built per trial tilt)
+        self._zc = CubicSpline(self.tm, self.z_raw).c
+        self._xc = CubicSpline(self.tm, self.x).c
+        self._bc = CubicSpline(self.tm, self.b_raw).c
         self.tilt = math.nan
         self.pitch0 = 0.0
         self.set_tilt(0.0)
         self._phi_key: Any = None
+        self._h_version = 0
+        self._gap_tf: Any = None
+        self._gap_key: Any = None
+        self._gap0 = np.zeros((0, len(self.legs)))
         self._h_t = np.zeros(0)
         self._h_z = np.zeros(0)
         self._phi_cache = np.zeros((0, len(self.legs)))
@@ -403,15 +412,20 @@ class _Body:
         if tilt_rad != self.tilt:
             self.tilt = float(tilt_rad)
             self.z = self.z_raw - self.tilt * (self.x - self.x0)
-            self.zs = CubicSpline(self.tm, self.z)
+            zc = self._zc - self.tilt * self._xc
+            zc[-1] += self.tilt * self.x0  # x0 may be set after construction
+            self.zs = PPoly.construct_fast(zc, self.tm)
         self.pitch0 = p0
         self.b = self.b_raw + self.tilt + self.pitch0
-        self.bs = CubicSpline(self.tm, self.b)
+        bc = self._bc.copy()
+        bc[-1] += self.tilt + self.pitch0
+        self.bs = PPoly.construct_fast(bc, self.tm)
 
     def use_height(self, t_s: FloatArray, height_m: FloatArray) -> None:
         """Use ``height_m`` at ``t_s`` (mocap clock) where finite instead of the spline."""
         ok = np.isfinite(t_s) & np.isfinite(height_m)
         self._h_t, self._h_z = np.asarray(t_s)[ok], np.asarray(height_m)[ok]
+        self._h_version += 1
 
     def height(self, tt: FloatArray) -> FloatArray:
         """Body height at mocap-clock times ``tt``: the spline, or the fitted height."""
@@ -432,16 +446,22 @@ class _Body:
 
     def gaps(self, tf: FloatArray, offset_s: float, ground_m: float) -> FloatArray:
         """(n, L) hip height minus rest height [m] at proprio times ``tf`` (+inf where the
-        mocap does not cover ``tf + offset_s``: no contact is assumed there)."""
-        tt = tf + offset_s
-        z = self.height(tt) - ground_m
-        b = self.bs(tt)
-        hip = (z[:, None] - self.hx[None, :] * np.sin(b)[:, None]
-               + self.geo.hip_z_m * np.cos(b)[:, None])
-        psi = self.hip_angles(tf) + b[:, None] + self.geo.hip_zero_rad
-        gap = hip - rest_height_m(psi, self.geo.leg_radius_m)
-        gap[(tt < self.tm[0]) | (tt > self.tm[-1])] = np.inf
-        return gap
+        mocap does not cover ``tf + offset_s``: no contact is assumed there).
+
+        The ground only shifts the result: the gaps above ``ground_m = 0`` are cached for the
+        last (grid, offset, tilt, pitch zero, height) and the ground subtracted."""
+        key = (offset_s, self.tilt, self.pitch0, self._h_version)
+        if self._gap_tf is not tf or self._gap_key != key:
+            tt = tf + offset_s
+            z = self.height(tt)
+            b = self.bs(tt)
+            hip = (z[:, None] - self.hx[None, :] * np.sin(b)[:, None]
+                   + self.geo.hip_z_m * np.cos(b)[:, None])
+            psi = self.hip_angles(tf) + b[:, None] + self.geo.hip_zero_rad
+            gap = hip - rest_height_m(psi, self.geo.leg_radius_m)
+            gap[(tt < self.tm[0]) | (tt > self.tm[-1])] = np.inf
+            self._gap0, self._gap_tf, self._gap_key = gap, tf, key
+        return self._gap0 - ground_m
 
 
 def pitch_noise_rad(pitch_rad: ArrayLike) -> float:
@@ -534,6 +554,25 @@ def _force(body: _Body, tf: FloatArray, offset_s: float, ground_m: float, model:
     return pen.sum(axis=1)
 
 
+_WINDOW_INDEX: list[Any] = [(None, None)]  # one (masks, index) tuple, swapped whole
+
+
+def _window_index(masks: list[NDArray[np.bool_]]) -> tuple[list[FloatArray], NDArray[np.intp],
+                                                         NDArray[np.intp], NDArray[np.intp]]:
+    """Each window's sample indices, all of them (windows are contiguous, in time order),
+    the windows' sizes and start positions in that list; cached for the last list of masks
+    (the fits evaluate one list many times)."""
+    cached_masks, cached = _WINDOW_INDEX[0]
+    if cached_masks is masks:
+        return cached
+    idx = [np.flatnonzero(k) for k in masks]
+    sel = np.concatenate(idx)
+    sizes = np.array([i.size for i in idx])
+    bounds = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    _WINDOW_INDEX[0] = (masks, (idx, sel, sizes, bounds))
+    return idx, sel, sizes, bounds
+
+
 def _cost(body: _Body, masks: list[NDArray[np.bool_]], tf: FloatArray,
           offset_s: float, ground_m: float, *, model: str = 'linear', tau_s: float = 0.0,
           full: bool = False, per_window: bool = False, per_window_k: bool = False) -> Any:
@@ -549,10 +588,7 @@ def _cost(body: _Body, masks: list[NDArray[np.bool_]], tf: FloatArray,
     pen = _force(body, tf, offset_s, ground_m, model, tau_s)
     i1 = np.concatenate([[0.0], np.cumsum(0.5 * (pen[1:] + pen[:-1])) * step_s])
     i2 = np.concatenate([[0.0], np.cumsum(0.5 * (i1[1:] + i1[:-1])) * step_s])
-    idx = [np.flatnonzero(k) for k in masks]
-    sel = np.concatenate(idx)  # windows are contiguous, in time order
-    sizes = np.array([i.size for i in idx])
-    bounds = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    idx, sel, sizes, bounds = _window_index(masks)
     ts = body.tm[sel] - offset_s
     t0 = np.repeat(ts[bounds], sizes)
 

@@ -1,6 +1,9 @@
-"""The geometric fit's output-error simulation compiled (numba) against its numpy loop: same
-heights, velocities and sensitivities on windows in contact, in flight and past the grid's
-end; and the whole ground and offset fit the same either way."""
+"""The geometric fit's fast paths against the straightforward ones: the output-error
+simulation compiled (numba) against its numpy loop (same heights, velocities and
+sensitivities on windows in contact, in flight and past the grid's end; the whole ground and
+offset fit the same either way); the tilted height's and shifted pitch's splines combined from
+splines of the data against splines built on the tilted data (also with the tilt's reference
+x moved after construction, as leg_contacts does); the cached gaps against fresh ones."""
 
 from __future__ import annotations
 
@@ -55,7 +58,8 @@ def test_compiled_simulation_matches_the_numpy_loop(monkeypatch, sens) -> None:
     assert np.any(np.all(q[np.minimum(i0 + 50, n_grid - 1)] < hh[50][:, None], axis=1))
 
 
-def test_fit_same_with_the_compiled_simulation(monkeypatch) -> None:
+@pytest.fixture(scope='module')
+def pace_args():
     edubot_sim = pytest.importorskip('hexapod_bench_drivers.edubot_sim')
     from slip_identification.pipeline import _up_from_quats
     from slip_identification.preprocess import fit_world_frame
@@ -68,7 +72,35 @@ def test_fit_same_with_the_compiled_simulation(monkeypatch) -> None:
     names = tuple(f'{leg}_hip' for leg in run.leg_names)
     args = (geo, names, run.t_s, run.hip_position_rad, run.hip_velocity_rad_s, run.mocap_t_s,
             pw[:, 2], pitch)
-    kw = dict(initial_offset_s=0.0, offset_range_s=0.06, x_m=pw[:, 0], fit_pitch_offset=False)
+    # the lab's origin far from the run (x about 2.4 m): the tilt's reference x matters
+    return args, pw[:, 0] + 2.4
+
+
+def test_tilted_splines_and_cached_gaps(pace_args) -> None:
+    from scipy.interpolate import CubicSpline
+
+    args, x = pace_args
+    body = geometry._Body(*args, x_m=x)
+    tt = np.linspace(body.tm[0] - 0.01, body.tm[-1] + 0.01, 2001)   # extrapolated ends too
+    tf = np.arange(body.tm[0] + 0.05, body.tm[-1] - 0.05, 1e-3)
+    for x0 in (None, 1.0):
+        if x0 is not None:
+            body.x0 = x0
+        for tilt, p0 in ((0.003, 0.0), (-0.002, 0.05), (0.0, -0.01)):
+            body.set_tilt(tilt, p0)
+            z = body.z_raw - tilt * (body.x - body.x0)
+            np.testing.assert_allclose(body.zs(tt), CubicSpline(body.tm, z)(tt), atol=1e-12)
+            b = CubicSpline(body.tm, body.b_raw + tilt + p0)
+            np.testing.assert_allclose(body.bs(tt), b(tt), atol=1e-12)
+            for d, g in ((0.0, 0.0), (0.003, 0.01), (0.003, -0.02)):
+                cached = body.gaps(tf, d, g)
+                body._gap_key = None
+                np.testing.assert_allclose(cached, body.gaps(tf, d, g), atol=1e-12)
+
+
+def test_fit_same_with_the_compiled_simulation(monkeypatch, pace_args) -> None:
+    args, x = pace_args
+    kw = dict(initial_offset_s=0.0, offset_range_s=0.06, x_m=x, fit_pitch_offset=False)
     fits = []
     for compiled in (False, True):
         monkeypatch.setattr(geometry, 'COMPILED_SIMULATION', compiled)
