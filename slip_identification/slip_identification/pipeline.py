@@ -18,7 +18,14 @@ from numpy.typing import NDArray
 from .energetics import battery_power_w, specific_resistance
 from .errors import SlipDataError, StanceRejectedError
 from .fit import SlipFitResult, SlipFitter, SlipPositionFitter, Stance, validate_stance
-from .geometry import LegGeometry, body_pitch_rad, fit_ground_offset, leg_contacts, single_support
+from .geometry import (
+    GeometryFit,
+    LegGeometry,
+    body_pitch_rad,
+    fit_ground_offset,
+    leg_contacts,
+    single_support,
+)
 from .model import SlipModel
 from .proprio_edges import (
     alternating_touchdowns,
@@ -408,6 +415,41 @@ def _resolve_box(pm: FloatArray, box: Box | None, res: RunResult) -> Box:
     return box
 
 
+#: a given pitch zero (--pitch-offset) and the one the data prefer further apart than this
+#: get a note [deg]: a free zero scatters by 0.1-0.2 deg on slow gaits and is up to 0.8 deg
+#: off on simulated running
+PITCH_OFFSET_CHECK_DEG = 1.0
+
+
+def _check_given_pitch_offset(gfit: GeometryFit, geo_inputs: tuple[Any, ...], geo_x: FloatArray,
+                              off: float, off_range: float, fit_offset: bool, given_rad: float,
+                              res: RunResult) -> None:
+    """Fit the rigid body's pitch zero beside the given one (the given one its prior): when the
+    data keep a zero more than :data:`PITCH_OFFSET_CHECK_DEG` away (a wrong sign, a zero
+    measured on another rigid body), say so with the stream offset of both; the given zero is
+    used either way (``frame['pitch_offset_check_deg']``: the data's zero, None when the
+    data do not move it from the given one)."""
+    try:
+        free = fit_ground_offset(*geo_inputs, initial_offset_s=off, offset_range_s=off_range,
+                                 fix_offset=not fit_offset, x_m=geo_x, fit_pitch_offset=True,
+                                 pitch_offset_rad=given_rad)
+    except SlipDataError as err:
+        res.notes.append(f'the given pitch zero could not be checked against the data ({err})')
+        return
+    data_deg = math.degrees(free.pitch_offset_rad)
+    res.frame['pitch_offset_check_deg'] = data_deg if free.pitch_offset_fitted else None
+    if free.pitch_offset_fitted and \
+            abs(data_deg - math.degrees(given_rad)) > PITCH_OFFSET_CHECK_DEG:
+        msg = (f'the given pitch zero ({math.degrees(given_rad):+.2f} deg, --pitch-offset) '
+               f'disagrees with the data, which prefer {data_deg:+.2f} deg')
+        if fit_offset:
+            msg += (f' (stream offset {1e3 * gfit.offset_s:+.1f} ms with the given zero, '
+                    f'{1e3 * free.offset_s:+.1f} ms with the data\'s)')
+        res.notes.append(msg + '; the given zero is used. Check its sign (minus the pitch the '
+                         'rigid body reports while the hips are level) or use '
+                         '--pitch-offset auto')
+
+
 def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None = None,
                 offset_s: float | str = 0.0, offset_lag_s: float = 0.0,
                 max_lateral_m: float = 0.05, position_fit: bool = True,
@@ -606,6 +648,9 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
         if init == 'xcorr' and method == 'geometry':
             gfit = _half_stride_check(gfit, geo_inputs, geo_x, speed, tj, off_range, res,
                                       p0_kw)
+        if pitch_offset_rad is not None:
+            _check_given_pitch_offset(gfit, geo_inputs, geo_x, off, off_range,
+                                      method == 'geometry', float(pitch_offset_rad), res)
         if gfit.pitch_offset_fitted:
             p0_deg = math.degrees(gfit.pitch_offset_rad)
             res.notes.append(

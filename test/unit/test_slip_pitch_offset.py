@@ -105,7 +105,7 @@ def test_pitch_noise_gates_the_contacts_pitch_smoother(runs):
 
 def test_analysis_reports_the_fitted_zero_and_takes_a_given_one(runs):
     """The slip analysis (the command's path) names the fitted zero in the run's frame and a
-    note, and keeps a zero given with --pitch-offset."""
+    note, and keeps a zero given with --pitch-offset, checked against the data."""
     import dataclasses
 
     from slip_identification.cli import _pitch_offset_arg
@@ -128,6 +128,17 @@ def test_analysis_reports_the_fitted_zero_and_takes_a_given_one(runs):
     assert given.frame['pitch_offset_source'] == 'given'
     assert given.frame['pitch_offset_deg'] == pytest.approx(-3.0)
     assert not any('pitch is corrected by' in n for n in given.notes)
+    assert not any('disagrees with the data' in n for n in given.notes)
+    # a given zero with the wrong sign is used, but checked against the data: a note with
+    # the zero the data prefer (before, it put a walk's offset 21.6 ms off without a word)
+    wrong = analyze_run(rd, box=box, offset_s='geometry', geometry=geo, position_fit=False,
+                        pitch_offset_rad=math.radians(3.0))
+    assert wrong.frame['pitch_offset_source'] == 'given'
+    assert wrong.frame['pitch_offset_deg'] == pytest.approx(3.0)
+    assert wrong.frame['pitch_offset_check_deg'] == pytest.approx(-3.0, abs=0.3)
+    note = [n for n in wrong.notes if 'disagrees with the data' in n]
+    assert len(note) == 1 and '+3.00 deg' in note[0] and 'stream offset' in note[0], wrong.notes
+    print(note[0])
     assert _pitch_offset_arg('auto') == 'auto' and _pitch_offset_arg('-1.5') == '-1.5'
     import argparse
     for bad in ('nan', '90', 'up'):
