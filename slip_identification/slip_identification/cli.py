@@ -24,10 +24,14 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
                 "frame": {"tilt_deg", "yaw_deg", "origin_m", "ground_source"
                           (geometry|mocap_origin), "ground_m", "geometry_rms_m",
                           "offset_initial", "ground_tilt_rad" and "rotation" (geometry:
-                          the frame turned by the ground's fitted slope),
+                          the frame turned by the ground's slope), "ground_tilt_source"
+                          (strides|fitted: from whole strides' mean heights, or fitted
+                          with the body-height dynamics),
                           "pitch_offset_deg" and "pitch_offset_source" (given|fitted|
                           assumed: the rigid body's pitch zero against the hip line,
-                          --pitch-offset), "steady_start_s"
+                          --pitch-offset), "pitch_offset_check_deg" (a given zero: the
+                          one the data prefer, null when they keep the given one),
+                          "steady_start_s"
                           (--steady-only), "offset_half_stride" (no hip efforts: the
                           offset fitted from half a stride either side, {"stride_s",
                           "xcorr_offset_s", "xcorr_rms_m", "alias_offsets_s",

@@ -670,6 +670,7 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
         res.frame.update(tilt_deg=math.degrees(frame.tilt_rad), rotation=frame.rotation.tolist(),
                          origin_m=frame.origin_m.tolist(),
                          ground_m=gfit.ground_m, ground_tilt_rad=gfit.tilt_rad,
+                         ground_tilt_source=gfit.tilt_source,
                          pitch_offset_deg=math.degrees(gfit.pitch_offset_rad),
                          pitch_offset_source=('given' if pitch_offset_rad is not None else
                                               'fitted' if gfit.pitch_offset_fitted else
