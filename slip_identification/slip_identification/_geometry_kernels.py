@@ -22,6 +22,26 @@ except ImportError:  # pragma: no cover - exercised when numba is absent
     HAVE_NUMBA = False
 
 
+def _legs_force(q, qd, r, z, v, tau):  # type: ignore[no-untyped-def]
+    """Sum over the legs in contact of ``p + tau p'`` at grid row ``r`` for height ``z`` and
+    velocity ``v`` (``p = q - z`` and the force both positive), and their number."""
+    ff = 0.0
+    n_on = 0
+    for j in range(q.shape[1]):
+        p = q[r, j] - z
+        f = p + tau * (qd[r, j] - v)
+        if p > 0.0 and f > 0.0:
+            ff += f
+            n_on += 1
+    return ff, n_on
+
+
+if HAVE_NUMBA:
+    _legs = njit(cache=True, inline='always')(_legs_force)
+else:  # pragma: no cover
+    _legs = _legs_force
+
+
 def _simulate_windows(q, qd, i0, n_steps, k, h0, v0, tau, dt, g, sens,  # type: ignore
                       hh, vv, sh, sv):
     """Fill ``hh``, ``vv`` (n_steps, W) and, with ``sens``, ``sh``, ``sv`` (n_steps, 3, W).
@@ -29,8 +49,7 @@ def _simulate_windows(q, qd, i0, n_steps, k, h0, v0, tau, dt, g, sens,  # type: 
     ``q``, ``qd`` (N, L): each leg's rest height plus the hip's height over the COM and its
     rate on the grid; window ``w`` starts at grid index ``i0[w]`` (indices past the grid's
     end are clamped to its last point, as the numpy loop's ``grid_i``)."""
-    n_grid, n_leg = q.shape
-    last = n_grid - 1
+    last = q.shape[0] - 1
     for w in range(i0.shape[0]):
         kw = k[w]
         z = h0[w]
@@ -43,14 +62,7 @@ def _simulate_windows(q, qd, i0, n_steps, k, h0, v0, tau, dt, g, sens,  # type: 
         dv2 = 1.0
         # acceleration at step 0
         r = min(i0[w], last)
-        ff = 0.0
-        n_on = 0
-        for j in range(n_leg):
-            p = q[r, j] - z
-            f = p + tau * (qd[r, j] - v)
-            if p > 0.0 and f > 0.0:
-                ff += f
-                n_on += 1
+        ff, n_on = _legs(q, qd, r, z, v, tau)
         a = kw * ff - g
         kn = kw * n_on
         da0 = -kn * (dz0 + tau * dv0) + ff
@@ -71,14 +83,7 @@ def _simulate_windows(q, qd, i0, n_steps, k, h0, v0, tau, dt, g, sens,  # type: 
             r = min(i0[w] + s + 1, last)
             zp = z + dt * v
             vp = v + dt * a
-            ffp = 0.0
-            n_on = 0
-            for j in range(n_leg):
-                p = q[r, j] - zp
-                f = p + tau * (qd[r, j] - vp)
-                if p > 0.0 and f > 0.0:
-                    ffp += f
-                    n_on += 1
+            ffp, n_on = _legs(q, qd, r, zp, vp, tau)
             ap = kw * ffp - g
             knp = kw * n_on
             z = z + 0.5 * dt * (v + vp)
@@ -99,14 +104,7 @@ def _simulate_windows(q, qd, i0, n_steps, k, h0, v0, tau, dt, g, sens,  # type: 
                 dv0 = dv0 + 0.5 * dt * (da0 + dap0)
                 dv1 = dv1 + 0.5 * dt * (da1 + dap1)
                 dv2 = dv2 + 0.5 * dt * (da2 + dap2)
-            ff = 0.0
-            n_on = 0
-            for j in range(n_leg):
-                p = q[r, j] - z
-                f = p + tau * (qd[r, j] - v)
-                if p > 0.0 and f > 0.0:
-                    ff += f
-                    n_on += 1
+            ff, n_on = _legs(q, qd, r, z, v, tau)
             a = kw * ff - g
             kn = kw * n_on
             if sens:
