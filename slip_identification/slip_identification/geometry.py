@@ -193,6 +193,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.integrate import cumulative_trapezoid
 from scipy.interpolate import CubicHermiteSpline, CubicSpline, PPoly
 from scipy.optimize import least_squares, minimize, minimize_scalar
 from scipy.signal import savgol_filter
@@ -401,21 +402,21 @@ def stride_slope_rad(t_s: ArrayLike, height_m: ArrayLike, x_m: ArrayLike, pitch_
     t0 = steady_start_s(t, b, period_s)
     if not math.isfinite(t0) or t[-1] - t0 < STRIDE_SLOPE_MIN_PERIODS * period_s:
         return None
-    dt = float(np.median(np.diff(t)))
-    gaps = t[:-1][np.diff(t) > 2.5 * dt]
-    gap_ends = t[1:][np.diff(t) > 2.5 * dt]
-    zs, xs = [], []
-    n = max(int(round(period_s / dt)) * 4, 100)
-    for a in np.arange(t0, t[-1] - period_s + 1e-9, step_s):
-        if np.any((gap_ends > a) & (gaps < a + period_s)):
-            continue
-        tg = np.linspace(a, a + period_s, n)
-        zs.append(float(np.mean(np.interp(tg, t, z))))
-        xs.append(float(np.mean(np.interp(tg, t, x))))
-    if len(zs) < 2 or not np.ptp(xs) > 0 or \
-            float(np.ptp(x[t >= t0])) < STRIDE_SLOPE_MIN_TRAVEL_M:
+    if float(np.ptp(x[t >= t0])) < STRIDE_SLOPE_MIN_TRAVEL_M:
         return None
-    return float(np.polyfit(np.asarray(xs), np.asarray(zs), 1)[0])
+    # window means of the linear interpolant: differences of its running integral
+    dt = float(np.median(np.diff(t)))
+    jump = np.diff(t) > 2.5 * dt
+    a = np.arange(t0, t[-1] - period_s + 1e-9, step_s)
+    crossed = (t[1:][jump][None, :] > a[:, None]) & (t[:-1][jump][None, :] < a[:, None] + period_s)
+    a = a[~np.any(crossed, axis=1)]
+    if a.size < 2:
+        return None
+    means = [np.diff(np.interp([a, a + period_s], t, cumulative_trapezoid(v, t, initial=0.0)),
+                     axis=0)[0] / period_s for v in (x, z)]
+    if not np.ptp(means[0]) > 0:
+        return None
+    return float(np.polyfit(means[0], means[1], 1)[0])
 
 
 class _Body:
@@ -1179,14 +1180,6 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
     body = _Body(geometry, tuple(joint_names), joint_t_s, joint_position, joint_velocity,
                  mocap_t_s, height_m, pitch_rad, x_m, pitch_smoothing)
     tilt_source = 'fitted' if fit_tilt else 'none'
-    stride_slope = None
-    if fit_tilt and tilt_from_strides:
-        # the hips' mean speed from the measured velocities (positions may wrap)
-        rate = float(np.mean(np.abs(np.mean(body.phi(body.t_j, 1), axis=0))))
-        if rate > 1.0:  # rad/s: the hips turn (a rotating-leg gait)
-            slope = stride_slope_rad(body.tm, body.z_raw, body.x, body.b_raw,
-                                     2 * math.pi / rate)
-            stride_slope = slope
     masks = _windows(body.tm, window_s)
     lo_j, hi_j = body.t_j[0], body.t_j[-1]
     t_lo = max(body.tm[0], lo_j + initial_offset_s + offset_range_s + 0.02)
@@ -1289,7 +1282,15 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
 
     tilt_grid = np.linspace(-tilt_range_rad, tilt_range_rad, 7)
     tilt0 = 0.0
-    if stride_slope is not None and not flight:
+    stride_slope = None
+    if fit_tilt and tilt_from_strides and not flight:
+        # the stride period from the hips' mean speed (measured velocities: positions may
+        # wrap), when they turn (a rotating-leg gait)
+        rate = float(np.mean(np.abs(np.mean(body.phi(body.t_j, 1), axis=0))))
+        if rate > 1.0:
+            stride_slope = stride_slope_rad(body.tm, body.z_raw, body.x, body.b_raw,
+                                            2 * math.pi / rate)
+    if stride_slope is not None:
         # without flight phases the body-height dynamics pin the ground's slope weakly (0.5-0.7
         # mrad off on simulated pace and walk, against 0.05-0.2 mrad from whole strides; with
         # flight phases the ballistic windows pin it: running and jogging fit it)
