@@ -109,6 +109,13 @@ legs carry the body: after touchdown its penetration grows 0.05 mm in 5 ms, so 0
 height bias is 5-10 ms), running and jogging 100 %; rigid bodies turned -10..+10 deg (pace
 and walk, seeds 1-2): pace edges 125 -> 128 of 144, walk unchanged, offsets unchanged.
 
+Edges pooled over strides (:func:`leg_contacts` ``pool_steady``, :func:`_pool_edges`): those
+walk misses are flat crossings, and in steady state a leg lands at the same phase every
+stride (within 0.5 ms on the simulator), so each steady edge is combined with the same leg's
+other steady edges, weighted by its own variance (height error over the gap's rate) against
+the stride-to-stride variance the edges show. Walk 95 -> 100 % over seeds 1-12 (held out
+13-24: walk 100 %, pace 93 -> 95 %), running, jogging and pace unchanged.
+
 Pitch noise (:func:`leg_contacts`): with the true pitch every steady stance of pace and walk
 (seeds 1-6) is within 5 ms; the measured pitch carries the mocap's orientation noise (0.74
 mrad on the simulator, 0.15 mm at a hip 0.2 m out). The contacts smooth the pitch with a
@@ -1473,7 +1480,8 @@ def leg_contacts(geometry: LegGeometry, joint_names: tuple[str, ...], joint_t_s:
                  ground_m: float, step_s: float = 5e-4, fit: GeometryFit | None = None,
                  x_m: ArrayLike | None = None, tilt_rad: float | None = None,
                  rearm_m: float | None = None, pitch_smoothing: int | None = None,
-                 pitch_offset_rad: float | None = None
+                 pitch_offset_rad: float | None = None, pool_steady: bool = True,
+                 info: dict[str, Any] | None = None
                  ) -> tuple[dict[str, FloatArray], FloatArray]:
     """Per-leg contact intervals where the hip is below the leg's rest height, (k, 2) [s].
 
@@ -1490,6 +1498,10 @@ def leg_contacts(geometry: LegGeometry, joint_names: tuple[str, ...], joint_t_s:
     below the ground does not count as landed. ``pitch_offset_rad`` (default: ``fit.
     pitch_offset_rad``, else 0) is added to the pitch; ``pitch_smoothing`` None (default)
     smooths a noisy pitch (:func:`auto_pitch_smoothing`), 0 leaves it as it is.
+
+    ``pool_steady`` (with ``fit``, on rotating legs): in steady state each edge is pooled with
+    the same leg's same edges at other strides, weighted by how sharply its own crossing is
+    determined (:func:`_pool_edges`); ``info`` (a dict) receives what that did.
 
     Returns
     -------
@@ -1546,7 +1558,99 @@ def leg_contacts(geometry: LegGeometry, joint_names: tuple[str, ...], joint_t_s:
             ends.append(float(tf[-1]))
         iv = np.array(list(zip(starts, ends)), dtype=float).reshape(-1, 2)
         out[leg] = _rearmed(iv, tf, s, known, rearm)
+    if pool_steady and fit is not None:
+        _pool_edges(body, tf, gaps, known, out, offset_s, fit.rms_m, info)
     return out, np.array(unknown, dtype=float)
+
+
+#: an edge's crossing rate is the gap's change over this span on its in-contact side [s]
+POOL_RATE_SPAN_S = 5e-3
+#: floor of the stride-to-stride scatter of an edge's hip angle, as time at the edge's hip
+#: speed [s]: an edge determined better than this keeps most of its own estimate
+POOL_MIN_SCATTER_S = 1e-3
+#: edges of one leg and kind needed in steady state before they are pooled
+POOL_MIN_EDGES = 3
+
+
+def _pool_edges(body: _Body, tf: FloatArray, gaps: FloatArray, known: NDArray[np.bool_],
+                out: dict[str, FloatArray], offset_s: float, height_rms_m: float,
+                info: dict[str, Any] | None) -> None:
+    """Pool each steady-state edge with the same leg's same edges at other strides (in place).
+
+    An edge is a zero crossing of the gap (hip height minus rest height); a height error dh
+    moves it by dh / r, with r the gap's rate on the in-contact side. A leg that lands while
+    the others carry the body sinks slowly (simulated walk: 0.05 mm in 5 ms), so 0.1-0.3 mm
+    of mocap noise moves its touchdown by 5-10 ms, where a leg landing under load is within
+    a millisecond. In steady state the motion repeats with the gait period, so the leg lands
+    and lifts off at the same phase every stride (simulated walk: within 0.5 ms). Each edge's
+    phase (its time less whole periods) is combined with the weighted mean of that leg's
+    steady edges of the same kind, as in a random-effects model: its own variance (height
+    error over rate) against the stride-to-stride variance estimated from the edges
+    (DerSimonian-Laird, floored at :data:`POOL_MIN_SCATTER_S`). Sharp edges keep their own
+    estimate, flat ones move toward the strides'. The height error is the body-height fit's
+    residual RMS and the pitch noise at the hip. Only runs whose hips turn: each leg's period
+    is the time its hip takes for whole turns over the steady part (from the pitch,
+    :func:`.steady.steady_start_s`); an edge that would cross its neighbour stays.
+    """
+    v = body.phi(body.t_j, 1)  # the measured hip speeds (positions may wrap)
+    if not np.all(np.abs(np.mean(v, axis=0)) > 1.0) or not math.isfinite(height_rms_m):
+        return
+    period = 2 * math.pi / float(np.mean(np.abs(np.mean(v, axis=0))))
+    t_steady = steady_start_s(body.tm, body.b_raw, period) - offset_s
+    if not math.isfinite(t_steady):
+        return
+    step = float(tf[1] - tf[0])
+    n_span = max(1, int(round(POOL_RATE_SPAN_S / step)))
+    sigma_b = pitch_noise_rad(body.b_raw)
+    moved = []
+    for j, leg in enumerate(body.legs):
+        iv = out[leg]
+        s_j = body.t_j >= t_steady
+        if iv.shape[0] < POOL_MIN_EDGES or s_j.sum() < 10:
+            continue
+        # the leg's period: whole turns of its hip over the steady part
+        turn = np.sign(np.mean(v[s_j, j])) * cumulative_trapezoid(v[s_j, j], body.t_j[s_j],
+                                                                  initial=0.0)
+        n_turns = int(turn[-1] // (2 * math.pi))
+        if n_turns < 1 or not np.all(np.diff(turn) >= 0):
+            continue
+        period_j = float(np.interp(2 * math.pi * n_turns, turn, body.t_j[s_j])
+                         - body.t_j[s_j][0]) / n_turns
+        sig_h = math.hypot(height_rms_m, sigma_b * float(body.hx[j]))
+        for col, side in ((0, 1), (1, -1)):  # touchdown: contact after; lift-off: before
+            t = iv[:, col]
+            i = np.searchsorted(tf, t)
+            k = i + n_span if side > 0 else i - 1 - n_span
+            inner = (t >= t_steady) & (i >= 1) & (i < tf.size) & (k >= 0) & (k < tf.size)
+            idx = np.flatnonzero(inner)
+            lo_i, hi_i = np.minimum(i[idx] - 1, k[idx]), np.maximum(i[idx], k[idx])
+            idx = idx[[bool(np.all(known[a:b + 1])) for a, b in zip(lo_i, hi_i)]]
+            if idx.size < POOL_MIN_EDGES:
+                continue
+            r = np.abs(gaps[k[idx], j]) / (n_span * step)  # the gap is 0 at the edge
+            var = (sig_h / np.maximum(r, 1e-9)) ** 2
+            # phase: time less whole periods since the first
+            y = t[idx] - t[idx[0]]
+            y = y - period_j * np.round(y / period_j)
+            w = 1.0 / var
+            mean = float(np.sum(w * y) / np.sum(w))
+            q = float(np.sum(w * (y - mean) ** 2))
+            c = float(np.sum(w) - np.sum(w ** 2) / np.sum(w))
+            tau2 = max((q - (y.size - 1)) / c if c > 0 else 0.0, POOL_MIN_SCATTER_S ** 2)
+            w_re = 1.0 / (var + tau2)
+            mean = float(np.sum(w_re * y) / np.sum(w_re))
+            t_new = t[idx] + (mean - y) * var / (tau2 + var)
+            for m, tn in zip(idx, t_new):
+                lo_b = iv[m, 0] if col == 1 else (iv[m - 1, 1] if m > 0 else -math.inf)
+                hi_b = iv[m, 1] if col == 0 else (iv[m + 1, 0] if m + 1 < iv.shape[0]
+                                                  else math.inf)
+                if lo_b < tn < hi_b:
+                    moved.append(abs(tn - iv[m, col]))
+                    iv[m, col] = tn
+    if info is not None:
+        info['pooled_edges'] = len(moved)
+        info['pooled_moved_over_1ms'] = int(np.sum(np.array(moved) > 1e-3))
+        info['pooled_max_move_s'] = float(max(moved, default=0.0))
 
 
 def _rearmed(iv: FloatArray, tf: FloatArray, gap: FloatArray, known: NDArray[np.bool_],

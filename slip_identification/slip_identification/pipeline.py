@@ -709,8 +709,12 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
     gap_stances: list[tuple[str, float, float, str]] = []
     if geo_inputs:
         # heights in geo_inputs are those before the ground was moved
+        pooled: dict[str, Any] = {}
         contacts, unknown = leg_contacts(*geo_inputs, offset_s=res.offset_s,
-                                         ground_m=res.ground_m, fit=gfit, x_m=geo_x)
+                                         ground_m=res.ground_m, fit=gfit, x_m=geo_x,
+                                         info=pooled)
+        if pooled:
+            res.frame['edges_pooled'] = pooled
         cut: list[tuple[str, float, float]] = []
         ss = single_support(contacts, TRIPODS, unknown, dropped=cut)
         res.geometry_windows = sorted(
