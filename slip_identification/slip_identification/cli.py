@@ -23,6 +23,9 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
                 "speed_mps", "sr", "current_sign",
                 "frame": {"tilt_deg", "yaw_deg", "origin_m", "ground_source"
                           (geometry|mocap_origin), "ground_m", "geometry_rms_m",
+                          "geometry_noise_m" (the height's white noise, from its fourth
+                          differences), "geometry_fit_poor" (rms over 3 times that noise,
+                          at least 0.3 mm: offset, ground and edges unreliable, with a note),
                           "offset_initial", "ground_tilt_rad" and "rotation" (geometry:
                           the frame turned by the ground's slope), "ground_tilt_source"
                           (strides|fitted: from whole strides' mean heights, or fitted

@@ -24,6 +24,7 @@ from .geometry import (
     body_pitch_rad,
     fit_ground_offset,
     leg_contacts,
+    pitch_noise_rad,
     single_support,
 )
 from .model import SlipModel
@@ -421,6 +422,33 @@ def _resolve_box(pm: FloatArray, box: Box | None, res: RunResult) -> Box:
 PITCH_OFFSET_CHECK_DEG = 1.0
 
 
+#: the geometric fit's residual RMS over the body height's white noise above which the fit
+#: is reported as not explaining the data (simulated gaits: 0.8-1.2; a gait that stumbles onto
+#: its belly: 5-12)
+GEOMETRY_RESIDUAL_RATIO = 3.0
+
+
+def _check_geometry_residual(gfit: GeometryFit, height_m: FloatArray, res: RunResult) -> None:
+    """A note when the body-height residual is well above the mocap's white noise (from the
+    heights' fourth differences): the legs' geometry and springs do not explain the body's
+    motion, and the offset, ground, pitch zero and edges from them are unreliable.
+    ``frame['geometry_noise_m']``, ``frame['geometry_fit_poor']``."""
+    noise = pitch_noise_rad(height_m)  # white noise of any smooth sampled signal
+    poor = bool(gfit.rms_m > GEOMETRY_RESIDUAL_RATIO * max(noise, 1e-4))
+    res.frame['geometry_noise_m'] = noise
+    res.frame['geometry_fit_poor'] = poor
+    if poor:
+        res.notes.append(
+            f'the geometric fit does not explain the body height: residual '
+            f'{1e3 * gfit.rms_m:.2f} mm RMS against {1e3 * noise:.2f} mm of motion-capture '
+            f'noise, over {gfit.windows} windows. The stream offset ({gfit.offset_s:+.4f} s), '
+            f'ground, slope ({math.degrees(gfit.tilt_rad):+.2f} deg), rigid-body pitch zero '
+            f'({math.degrees(gfit.pitch_offset_rad):+.2f} deg) and stance edges from it are '
+            f'unreliable. Causes seen on simulated runs: a gait that is not steady (the body '
+            f'stumbling onto its belly), a wrong leg geometry (--leg-radius, --hip-x, --hip-z, '
+            f'--hip-zero); give the offset (--offset S) if it is known')
+
+
 def _check_given_pitch_offset(gfit: GeometryFit, geo_inputs: tuple[Any, ...], geo_x: FloatArray,
                               off: float, off_range: float, fit_offset: bool, given_rad: float,
                               res: RunResult) -> None:
@@ -661,6 +689,7 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                 f'contacts and edges use the corrected pitch. If it is known, give it '
                 f'(--pitch-offset DEG, minus the pitch the rigid body reports while the hips '
                 f'are level)')
+        _check_geometry_residual(gfit, geo_inputs[6], res)
         off = gfit.offset_s
         res.ground_m = gfit.ground_m
         # the fitted ground is the frame's vertical translation and its slope along x a
