@@ -11,26 +11,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from slip_identification.geometry import (
-    LegGeometry,
-    body_pitch_rad,
-    fit_ground_offset,
-    leg_contacts,
-)
-from slip_identification.pipeline import _up_from_quats
-from slip_identification.preprocess import fit_world_frame
+from slip_identification.geometry import fit_ground_offset, leg_contacts
+from slip_sim_inputs import geometry_args
 
 edubot_sim = pytest.importorskip('hexapod_bench_drivers.edubot_sim')
 
 
 def _fitted(gait: str, seed: int):
     run = edubot_sim.simulate_edubot(gait, duration_s=4.5, seed=seed)
-    frame = fit_world_frame(run.mocap_position_m, up_mocap=_up_from_quats(run.mocap_quat_xyzw))
-    pw = frame.to_world(run.mocap_position_m)
-    pitch = body_pitch_rad(frame.rotation, run.mocap_quat_xyzw)
-    names = tuple(f'{leg}_hip' for leg in run.leg_names)
-    args = (LegGeometry.from_params(run.params), names, run.t_s, run.hip_position_rad,
-            run.hip_velocity_rad_s, run.mocap_t_s, pw[:, 2], pitch)
+    args, pw, _ = geometry_args(run)
     fit = fit_ground_offset(*args, initial_offset_s=0.0, offset_range_s=0.06, x_m=pw[:, 0])
     return run, args, fit, pw[:, 0]
 

@@ -15,14 +15,8 @@ import math
 import numpy as np
 import pytest
 
-from slip_identification.geometry import (
-    LegGeometry,
-    body_pitch_rad,
-    fit_ground_offset,
-    stride_slope_rad,
-)
-from slip_identification.pipeline import _up_from_quats
-from slip_identification.preprocess import fit_world_frame
+from slip_identification.geometry import fit_ground_offset, stride_slope_rad
+from slip_sim_inputs import geometry_args
 
 
 def _periodic(t, period, slope, speed=0.3, phase=0.0):
@@ -62,12 +56,7 @@ def test_no_slope_without_steady_strides_or_travel():
 def test_fit_takes_the_strides_slope_on_simulated_pace():
     edubot_sim = pytest.importorskip('hexapod_bench_drivers.edubot_sim')
     run = edubot_sim.simulate_edubot('pace', duration_s=4.5, seed=1)
-    frame = fit_world_frame(run.mocap_position_m, up_mocap=_up_from_quats(run.mocap_quat_xyzw))
-    pw = frame.to_world(run.mocap_position_m)
-    pitch = body_pitch_rad(frame.rotation, run.mocap_quat_xyzw)
-    names = tuple(f'{leg}_hip' for leg in run.leg_names)
-    args = (LegGeometry.from_params(run.params), names, run.t_s, run.hip_position_rad,
-            run.hip_velocity_rad_s, run.mocap_t_s, pw[:, 2], pitch)
+    args, pw, frame = geometry_args(run)
     kw = dict(initial_offset_s=0.0, offset_range_s=0.06, x_m=pw[:, 0])
     # the truth: the ground's normal in the mocap frame against the fitted frame's x axis
     normal = np.array(run.truth['frame']['mocap_from_ground_rotation'])[:, 2]
