@@ -5,7 +5,7 @@ Figures printed (pytest -s). The issue's bars get one test each at the end (3 se
 jogging, pace, walk; stances counted from the steady state on, slip_identification.steady):
 the ground height (frame translation) within 2 mm and the offset within 2 ms are met on all
 (with the output-error refinement of the ground and offset fit, geometry.py); the edges within
-5 ms for 95 % of stances on all four gaits (pooled over 12 seeds pace 99 %, the others 100 %).
+5 ms for 95 % of stances on all four gaits (100 % on each over seeds 1-12).
 Figures in the bar tests' docstrings.
 
 Legacy estimators on the retuned simulator (0.105 m legs, stances of 35-70 ms, 60 % aerial):
@@ -271,8 +271,8 @@ def test_issue_bar_edges_within_5ms(bar_figures):
     """Touchdown and lift-off within 5 ms for >= 95 % of single-support stances (geometric
     edges, steady state): all four gaits, 3 seeds each (100 % on each; pace since the ground's
     slope comes from whole strides, walk since the edges are pooled over strides: 100 / 80 /
-    100 % before, a front leg landing 8.8 ms late on seed 2). Pooled over seeds 1-12: running,
-    jogging and walk 100 %, pace 99 %."""
+    100 % before, a front leg landing 8.8 ms late on seed 2). Over seeds 1-12: 100 % on each
+    gait."""
     for gait in BAR_GAITS:
         for seed in BAR_SEEDS:
             f = bar_figures[gait, seed]
