@@ -488,6 +488,8 @@ class _Body:
         self._h_z = np.zeros(0)
         self._phi_cache = np.zeros((0, len(self.legs)))
         self.hx = np.array([geometry.hip_x_of(leg) for leg in self.legs])
+        # the fits' last list of window masks and its indices (_window_index)
+        self.window_index: tuple[Any, Any] = (None, None)
 
     def set_tilt(self, tilt_rad: float, pitch_offset_rad: float | None = None) -> None:
         """Ground rising along +x by ``tilt_rad`` in the given frame: heights above a level
@@ -642,22 +644,20 @@ def _force(body: _Body, tf: FloatArray, offset_s: float, ground_m: float, model:
     return pen.sum(axis=1)
 
 
-_WINDOW_INDEX: list[Any] = [(None, None)]  # one (masks, index) tuple, swapped whole
-
-
-def _window_index(masks: list[NDArray[np.bool_]]) -> tuple[list[FloatArray], NDArray[np.intp],
-                                                         NDArray[np.intp], NDArray[np.intp]]:
+def _window_index(body: _Body, masks: list[NDArray[np.bool_]]
+                  ) -> tuple[list[FloatArray], NDArray[np.intp], NDArray[np.intp],
+                             NDArray[np.intp]]:
     """Each window's sample indices, all of them (windows are contiguous, in time order),
-    the windows' sizes and start positions in that list; cached for the last list of masks
-    (the fits evaluate one list many times)."""
-    cached_masks, cached = _WINDOW_INDEX[0]
+    the windows' sizes and start positions in that list; cached on ``body`` for the last list
+    of masks (the fits evaluate one list many times)."""
+    cached_masks, cached = body.window_index
     if cached_masks is masks:
         return cached
     idx = [np.flatnonzero(k) for k in masks]
     sel = np.concatenate(idx)
     sizes = np.array([i.size for i in idx])
     bounds = np.concatenate([[0], np.cumsum(sizes)[:-1]])
-    _WINDOW_INDEX[0] = (masks, (idx, sel, sizes, bounds))
+    body.window_index = (masks, (idx, sel, sizes, bounds))
     return idx, sel, sizes, bounds
 
 
@@ -676,7 +676,7 @@ def _cost(body: _Body, masks: list[NDArray[np.bool_]], tf: FloatArray,
     pen = _force(body, tf, offset_s, ground_m, model, tau_s)
     i1 = np.concatenate([[0.0], np.cumsum(0.5 * (pen[1:] + pen[:-1])) * step_s])
     i2 = np.concatenate([[0.0], np.cumsum(0.5 * (i1[1:] + i1[:-1])) * step_s])
-    idx, sel, sizes, bounds = _window_index(masks)
+    idx, sel, sizes, bounds = _window_index(body, masks)
     ts = body.tm[sel] - offset_s
     t0 = np.repeat(ts[bounds], sizes)
 
