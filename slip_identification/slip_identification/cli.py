@@ -376,7 +376,8 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
                           position_fit=options.get('position_fit', True), geometry=geometry,
                           steady_only=options.get('steady_only', False),
                           check_body_up=body_up == 'auto',
-                          pitch_offset_rad=options.get('pitch_offset_rad'))
+                          pitch_offset_rad=options.get('pitch_offset_rad'),
+                          pool_edges=options.get('pool_edges', True))
     except (SlipError, HexapodError, ValueError, OSError) as err:  # a truncated bag too
         return {'bag': path, 'error': str(err)}
     notes = list(run.notes) + geometry_notes + list(res.notes)
@@ -499,6 +500,7 @@ def run_command(args: argparse.Namespace) -> int:
                'box_lower': args.box[:3] if args.box else None,
                'box_upper': args.box[3:] if args.box else None,
                'steady_only': args.steady_only, 'body_up': args.body_up,
+               'pool_edges': not args.no_edge_pooling,
                'pitch_offset_rad': (None if args.pitch_offset == 'auto'
                                     else math.radians(float(args.pitch_offset)))}
     bags = [str(b) for b in args.bags]
@@ -629,6 +631,11 @@ def add_cli(subparsers: Any) -> None:
     p.add_argument('--steady-only', action='store_true',
                    help="skip stances before the steady state (reason 'transient'; the body "
                         'pitch repeats from one clock period to the next)')
+    p.add_argument('--no-edge-pooling', action='store_true',
+                   help='geometry edges from each stride alone: steady-state edges are '
+                        'otherwise shrunk toward the same leg\'s at other strides as far as '
+                        'the height noise leaves them undetermined (a study of stride-to-'
+                        'stride variability wants them alone)')
     p.set_defaults(func=run_command)
 
 

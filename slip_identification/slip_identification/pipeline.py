@@ -484,13 +484,16 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                 min_stance_s: float = 0.02, edges: str = 'auto',
                 geometry: LegGeometry | None = None, steady_only: bool = False,
                 check_body_up: bool = True,
-                pitch_offset_rad: float | None = None) -> RunResult:
+                pitch_offset_rad: float | None = None, pool_edges: bool = True) -> RunResult:
     """Preprocess one run, extract single-tripod stances, fit each (see module docs).
 
     ``pitch_offset_rad``: the motion-capture rigid body's pitch zero against the robot's hip
     line (its pitch when the hips are level), known and kept; None (default): 0, fitted
     beside it by the geometric fit when the data support it (:func:`.geometry.
     fit_ground_offset`), reported in ``frame['pitch_offset_deg']``.
+
+    ``pool_edges``: geometry edges in steady state pooled over strides (:func:`.geometry.
+    leg_contacts` ``pool_steady``; ``frame['edges_pooled']``); False keeps each stride's own.
 
     ``check_body_up``: refuse a run whose body z axis does not look like the robot's up
     (:func:`_check_body_up`); False when the user has said which body axis is up.
@@ -741,7 +744,7 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
         pooled: dict[str, Any] = {}
         contacts, unknown = leg_contacts(*geo_inputs, offset_s=res.offset_s,
                                          ground_m=res.ground_m, fit=gfit, x_m=geo_x,
-                                         info=pooled)
+                                         pool_steady=pool_edges, info=pooled)
         if pooled:
             res.frame['edges_pooled'] = pooled
         cut: list[tuple[str, float, float]] = []

@@ -150,3 +150,23 @@ def test_noisy_mocap_pooled_edges_closer_to_the_truth():
     rms = {k: 1e3 * math.sqrt(float(np.mean(v))) for k, v in sq.items()}
     print(f'\nleg edges RMS: pooled {rms[True]:.2f} ms, not pooled {rms[False]:.2f} ms')
     assert rms[True] < 0.8 * rms[False]
+
+
+def test_bag_analysis_pools_unless_told_not_to(tmp_path):
+    """`hexapod-analyze slip` pools by default (slip.json's run frame says how much) and keeps
+    each stride's own edges with --no-edge-pooling (a study of stride-to-stride variability):
+    on walk seed 2 the one stance the pooling moves ends 6 ms earlier, at the truth."""
+    from hexapod_common.analyze_cli import build_parser
+    from slip_identification.cli import analyze_bag
+
+    edubot_sim.write_edubot_bag(tmp_path / 'w', 'walk', duration_s=4.5, seed=2)
+    opts = {'offset': 'auto', 'edges': 'geometry', 'steady_only': True}
+    pooled = analyze_bag(str(tmp_path / 'w'), opts)
+    alone = analyze_bag(str(tmp_path / 'w'), {**opts, 'pool_edges': False})
+    assert pooled['run']['frame']['edges_pooled']['pooled_edges'] > 20
+    assert 'edges_pooled' not in alone['run']['frame']
+    moves = [1e3 * (a['liftoff'] - b['liftoff'])
+             for a, b in zip(pooled['stances'], alone['stances'])]
+    assert len(moves) == 5 and min(moves) < -5.0 and sorted(np.abs(moves))[-2] < 1.0
+    args = build_parser().parse_args(['slip', 'x', '--out', str(tmp_path), '--no-edge-pooling'])
+    assert args.no_edge_pooling
