@@ -223,6 +223,7 @@ __all__ = [
     'rest_height_m',
     'single_support',
     'stride_slope_rad',
+    'unwrap_with_speed',
 ]
 
 FloatArray = NDArray[np.float64]
@@ -427,6 +428,23 @@ def stride_slope_rad(t_s: ArrayLike, height_m: ArrayLike, x_m: ArrayLike, pitch_
     return float(np.polyfit(means[0], means[1], 1)[0])
 
 
+def unwrap_with_speed(t_s: FloatArray, angle_rad: FloatArray, speed_rad_s: FloatArray
+                      ) -> FloatArray:
+    """Angles (n, m) with wraps removed: each step's whole turns taken off where the measured
+    step and the speeds' trapezoid over it differ by more than half a turn (a driver that
+    wraps to (-pi, pi] or [0, 2 pi); the speeds carry the turns across a sampling gap too,
+    where np.unwrap would not). Continuous angles come back unchanged."""
+    if angle_rad.shape[0] < 2:
+        return angle_rad
+    dq = np.diff(angle_rad, axis=0)
+    pred = 0.5 * (speed_rad_s[1:] + speed_rad_s[:-1]) * np.diff(t_s)[:, None]
+    turns = np.round((dq - pred) / (2 * math.pi))
+    if not np.any(turns):
+        return angle_rad
+    return angle_rad - 2 * math.pi * np.concatenate(
+        [np.zeros((1, angle_rad.shape[1])), np.cumsum(turns, axis=0)])
+
+
 class _Body:
     """Splines of mocap height and pitch (mocap clock) and of hip angles (proprio clock)."""
 
@@ -451,7 +469,7 @@ class _Body:
         keep = np.concatenate([[True], np.diff(tj[o]) > 0])
         o = o[keep]
         self.t_j = tj[o]
-        self.phi = CubicHermiteSpline(tj[o], q[o], v[o])
+        self.phi = CubicHermiteSpline(tj[o], unwrap_with_speed(tj[o], q[o], v[o]), v[o])
         tm = np.asarray(mocap_t_s, dtype=float)
         z = np.asarray(height_m, dtype=float)
         b = np.asarray(pitch_rad, dtype=float)
@@ -1571,6 +1589,10 @@ POOL_RATE_SPAN_S = 5e-3
 POOL_MIN_SCATTER_S = 1e-3
 #: edges of one leg and kind needed in steady state before they are pooled
 POOL_MIN_EDGES = 3
+#: no edge is moved further than this [s]: pooling takes out the noise of flat crossings
+#: (simulated walk: up to 9 ms); edges further apart than that disagree for another reason
+#: (three noisy 3 s pace lift-offs, two of them 80-93 ms off, moved the good one 66 ms)
+POOL_MAX_MOVE_S = 0.015
 #: an edge further than this many of its own standard deviations from its strides' median
 #: phase is taken as a real change (a speed change, a stumble) and not moved
 POOL_MAX_SIGMAS = 4.0
@@ -1595,10 +1617,11 @@ def _pool_edges(body: _Body, tf: FloatArray, gaps: FloatArray, known: NDArray[np
     pulled good edges toward bad ones), the stride-to-stride variance is what the phases'
     robust spread (1.4826 MAD) leaves beyond it, at least :data:`POOL_MIN_SCATTER_S`. An edge
     further than :data:`POOL_MAX_SIGMAS` own standard deviations from the median (a speed
-    change, a stumble) is not moved, nor one that would cross its neighbour. Only runs whose
-    hips turn: each leg's period is the time its hip takes for whole turns over the steady
-    part (:func:`.steady.steady_start_s`, from the pitch). Contacts cut by the span's ends or
-    by mocap gaps are left out.
+    change, a stumble) is not moved, nor one that would move more than
+    :data:`POOL_MAX_MOVE_S` or cross its neighbour. Only runs whose hips turn: each leg's
+    period is the time its hip takes for whole turns over the steady part
+    (:func:`.steady.steady_start_s`, from the pitch). Contacts cut by the span's ends or by
+    mocap gaps are left out.
     """
     v = body.phi(body.t_j, 1)  # the measured hip speeds (positions may wrap)
     if not np.all(np.abs(np.mean(v, axis=0)) > 1.0) or not math.isfinite(height_rms_m):
@@ -1655,6 +1678,8 @@ def _pool_edges(body: _Body, tf: FloatArray, gaps: FloatArray, known: NDArray[np
                 if abs(ym - centre) > POOL_MAX_SIGMAS * sigma:
                     continue
                 tn = t[m] + shrink * (centre - ym)
+                if abs(tn - t[m]) > POOL_MAX_MOVE_S:
+                    continue
                 lo_b = iv[m, 0] if col == 1 else (iv[m - 1, 1] if m > 0 else -math.inf)
                 hi_b = iv[m, 1] if col == 0 else (iv[m + 1, 0] if m + 1 < iv.shape[0]
                                                   else math.inf)

@@ -170,3 +170,21 @@ def test_bag_analysis_pools_unless_told_not_to(tmp_path):
     assert len(moves) == 5 and min(moves) < -5.0 and sorted(np.abs(moves))[-2] < 1.0
     args = build_parser().parse_args(['slip', 'x', '--out', str(tmp_path), '--no-edge-pooling'])
     assert args.no_edge_pooling
+
+
+def test_no_edge_moves_further_than_the_cap():
+    """Pace, 3 s, seed 7, 0.5 mm of position noise: L3 has three steady lift-offs, two of them
+    80-93 ms off, so their median is a bad one and the good one (15 ms off) was moved 66 ms
+    (outside review); no edge moves more than POOL_MAX_MOVE_S now."""
+    from slip_identification.geometry import POOL_MAX_MOVE_S
+
+    run = edubot_sim.simulate_edubot('pace', duration_s=3.0, seed=7)
+    rng = np.random.default_rng(1007)
+    noisy = dataclasses.replace(run, mocap_position_m=run.mocap_position_m + rng.normal(
+        0.0, math.sqrt(0.5e-3 ** 2 - 0.2e-3 ** 2), run.mocap_position_m.shape))
+    args, pw, _ = geometry_args(noisy)
+    fit = fit_ground_offset(*args, initial_offset_s=0.0, offset_range_s=0.06, x_m=pw[:, 0])
+    info: dict = {}
+    _contacts(args, fit, pw[:, 0], info=info)
+    assert info['pooled_edges'] > 0
+    assert info['pooled_max_move_s'] <= POOL_MAX_MOVE_S
