@@ -37,8 +37,9 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
                           "steady_start_s"
                           (--steady-only), "edges_pooled" (geometry edges pooled with
                           the same leg's at other strides in steady state: {"pooled_edges",
-                          "pooled_moved_over_1ms", "pooled_max_move_s"}), "offset_half_stride" (no hip efforts: the
-                          offset fitted from half a stride either side, {"stride_s",
+                          "pooled_moved_over_1ms", "pooled_max_move_s"}),
+                          "offset_half_stride" (no hip efforts: the offset fitted from
+                          half a stride either side, {"stride_s",
                           "xcorr_offset_s", "xcorr_rms_m", "alias_offsets_s",
                           "alias_rms_m", "chosen_offset_s"}), "offset_damping_tradeoff"
                           (damping time assumed or fitted, against undamped legs:

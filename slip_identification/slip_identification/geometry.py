@@ -121,7 +121,7 @@ Pitch noise (:func:`leg_contacts`): with the true pitch every steady stance of p
 (seeds 1-6) is within 5 ms; the measured pitch carries the mocap's orientation noise (0.74
 mrad on the simulator, 0.15 mm at a hip 0.2 m out). The contacts smooth the pitch with a
 local quadratic over :data:`PITCH_SMOOTHING_S` (70 ms: 9 samples at 120 Hz) when its noise,
-read from the fourth differences (:func:`pitch_noise_rad`), is above 0.3 mrad (noise-free
+read from the fourth differences (:func:`white_noise_std`), is above 0.3 mrad (noise-free
 pitch: 0.01-0.17 mrad at 100-120 Hz, left as it is: smoothed, noise-free running at 100 Hz
 fitted a start a stride off better). Pace 88 -> 95 %, walk 83 -> 97 % of steady stances
 within 5 ms pooled over seeds 1-6; seeds 7-12 (not used for the choice) 89 -> 97 % and
@@ -216,7 +216,7 @@ __all__ = [
     'LegGeometry',
     'body_pitch_rad',
     'auto_pitch_smoothing',
-    'pitch_noise_rad',
+    'white_noise_std',
     'FIT_MODELS',
     'fit_ground_offset',
     'leg_contacts',
@@ -572,11 +572,12 @@ class _Body:
         return self._gap0 - ground_m
 
 
-def pitch_noise_rad(pitch_rad: ArrayLike) -> float:
-    """Standard deviation of white noise on a sampled pitch [rad], from the median absolute
-    deviation of its fourth differences (a smooth pitch's fourth differences are small at
-    100 Hz and above: 0.01-0.15 mrad on the simulated EduBot gaits)."""
-    b = np.asarray(pitch_rad, dtype=float)
+def white_noise_std(signal: ArrayLike) -> float:
+    """Standard deviation of white noise on a smooth sampled signal (a pitch [rad], a height
+    [m]), from the median absolute deviation of its fourth differences (a smooth signal's
+    fourth differences are small at 100 Hz and above: the simulated EduBot's pitch 0.01-0.15
+    mrad, its height a few micrometres)."""
+    b = np.asarray(signal, dtype=float)
     b = b[np.isfinite(b)]
     if b.size < 10:
         return 0.0
@@ -586,9 +587,9 @@ def pitch_noise_rad(pitch_rad: ArrayLike) -> float:
 
 def auto_pitch_smoothing(t_s: ArrayLike, pitch_rad: ArrayLike) -> int:
     """Samples of the default pitch smoother (:data:`PITCH_SMOOTHING_S`): 0 when the pitch's
-    noise (:func:`pitch_noise_rad`) is below :data:`PITCH_NOISE_MIN_RAD`."""
+    noise (:func:`white_noise_std`) is below :data:`PITCH_NOISE_MIN_RAD`."""
     t = np.asarray(t_s, dtype=float)
-    if t.size < 10 or pitch_noise_rad(pitch_rad) < PITCH_NOISE_MIN_RAD:
+    if t.size < 10 or white_noise_std(pitch_rad) < PITCH_NOISE_MIN_RAD:
         return 0
     dt = float(np.median(np.diff(t)))
     return 2 * int(round(0.5 * PITCH_SMOOTHING_S / dt)) + 1
@@ -1623,7 +1624,7 @@ def _pool_edges(body: _Body, tf: FloatArray, gaps: FloatArray, known: NDArray[np
     (:func:`.steady.steady_start_s`, from the pitch). Contacts cut by the span's ends or by
     mocap gaps are left out.
     """
-    v = body.phi(body.t_j, 1)  # the measured hip speeds (positions may wrap)
+    v = body.phi(body.t_j, 1)  # the measured hip speeds
     if not np.all(np.abs(np.mean(v, axis=0)) > 1.0) or not math.isfinite(height_rms_m):
         return
     period = 2 * math.pi / float(np.mean(np.abs(np.mean(v, axis=0))))
@@ -1632,17 +1633,17 @@ def _pool_edges(body: _Body, tf: FloatArray, gaps: FloatArray, known: NDArray[np
         return
     step = float(tf[1] - tf[0])
     n_span = max(1, int(round(POOL_RATE_SPAN_S / step)))
-    sigma_b = pitch_noise_rad(body.b_raw)
+    sigma_b = white_noise_std(body.b_raw)
     moved = []
     for j, leg in enumerate(body.legs):
         iv = out[leg]
         s_j = body.t_j >= t_steady
         if iv.shape[0] < POOL_MIN_EDGES or s_j.sum() < 10:
             continue
-        # the leg's period: whole turns of its hip over the steady part, from the unwrapped
-        # angles (integrated speeds drift: 0.3 % at 100 Hz on a duty-0.8 clock); the running
-        # maximum, as the hip may dip back for a sample
-        q_j = np.unwrap(body.phi(body.t_j[s_j])[:, j])
+        # the leg's period: whole turns of its hip over the steady part, from the angles
+        # (the spline's are unwrapped; integrated speeds drift: 0.3 % at 100 Hz on a
+        # duty-0.8 clock); the running maximum, as the hip may dip back for a sample
+        q_j = body.phi(body.t_j[s_j])[:, j]
         turn = np.maximum.accumulate(np.sign(np.mean(v[s_j, j])) * (q_j - q_j[0]))
         n_turns = int(turn[-1] // (2 * math.pi))
         if n_turns < 1:

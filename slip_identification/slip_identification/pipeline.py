@@ -24,7 +24,7 @@ from .geometry import (
     body_pitch_rad,
     fit_ground_offset,
     leg_contacts,
-    pitch_noise_rad,
+    white_noise_std,
     single_support,
 )
 from .model import SlipModel
@@ -433,7 +433,7 @@ def _check_geometry_residual(gfit: GeometryFit, height_m: FloatArray, res: RunRe
     heights' fourth differences): the legs' geometry and springs do not explain the body's
     motion, and the offset, ground, pitch zero and edges from them are unreliable.
     ``frame['geometry_noise_m']``, ``frame['geometry_fit_poor']``."""
-    noise = pitch_noise_rad(height_m)  # white noise of any smooth sampled signal
+    noise = white_noise_std(height_m)
     poor = bool(gfit.rms_m > GEOMETRY_RESIDUAL_RATIO * max(noise, 1e-4))
     res.frame['geometry_noise_m'] = noise
     res.frame['geometry_fit_poor'] = poor

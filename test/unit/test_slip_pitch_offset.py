@@ -21,7 +21,7 @@ from slip_identification.geometry import (
     auto_pitch_smoothing,
     body_pitch_rad,
     fit_ground_offset,
-    pitch_noise_rad,
+    white_noise_std,
 )
 from slip_identification.pipeline import _up_from_quats
 from slip_identification.preprocess import fit_world_frame
@@ -96,14 +96,14 @@ def test_pitch_noise_gates_the_contacts_pitch_smoother(runs):
     noise-free pitch (fast running included) is left as it is."""
     run = runs['pace']
     args, _ = _inputs(run, 0.0)
-    noisy = pitch_noise_rad(args[-1])
+    noisy = white_noise_std(args[-1])
     assert 0.5e-3 < noisy < 1.0e-3
     assert auto_pitch_smoothing(run.mocap_t_s, args[-1]) == 9
     fast = edubot_sim.simulate_edubot('running', duration_s=2.0, seed=1)
     for rate in (100.0, 120.0):
         t = np.arange(fast.fine_t_s[0], fast.fine_t_s[-1], 1.0 / rate)
         clean = np.interp(t, fast.fine_t_s, fast.fine_state[:, 4])
-        assert pitch_noise_rad(clean) < PITCH_NOISE_MIN_RAD  # 0.17 mrad at 100 Hz
+        assert white_noise_std(clean) < PITCH_NOISE_MIN_RAD  # 0.17 mrad at 100 Hz
         assert auto_pitch_smoothing(t, clean) == 0
 
 
