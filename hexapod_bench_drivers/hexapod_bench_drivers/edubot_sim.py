@@ -5,93 +5,54 @@ Core module: numpy only (the bag writer and the CLI live in :mod:`edubot_bag`, i
 
 Model
 -----
-* **Body**: a rigid sagittal body (x forward, z up) of ``mass_kg`` = 3.31 kg with pitch inertia
-  ``pitch_inertia_kgm2``; hips at ``hip_x_m`` = (+0.2, 0, -0.2) m (front, middle, rear) on the
-  body's longitudinal axis through the COM. Each tripod (left = L1, R2, L3; right = R1, L2, R3)
-  has one front, one middle and one rear leg, so in the sagittal plane the two tripods are
-  three legs each at the same three hip positions.
-* **Legs**: each half-circle (C-shaped) compliant leg of arc radius ``R`` =
-  ``leg_rest_length_m / 2`` (hip at one end of the half circle, toe at the other, hip-to-toe
-  chord ``leg_rest_length_m``) is reduced to its *virtual leg*, the spoke from the hip to the
-  point of the arc that touches the ground. Its rest shape follows the shaft angle ``psi``
-  (leg angle from the true vertical, toe behind the hip when positive):
-
-  - ``psi < 0`` (toe ahead of the hip): **toe contact**, the lowest point of the arc is the
-    toe; the spoke is the chord, length ``2R`` at angle ``psi``, the contact point fixed;
-  - ``0 <= psi < pi``: **rolling contact**, the arc rolls on the ground without slip; the
-    contact point moves forward ``R`` per radian of leg rotation, the spoke has length
-    ``2R cos(psi/2)`` at angle ``psi/2`` (it turns at half the shaft rate, RHex's rolling
-    leg), so the hip advances ``R (1 + cos psi)`` per radian instead of a pinned pole's
-    ``2R cos psi``.
-
-  The leg is compliant about that rest shape: a radial spring ``leg_stiffness_n_m`` (and
-  damping) along the spoke and a bending spring ``leg_bending_stiffness_nm_rad`` about the
-  hip between the spoke's rest angle and its actual angle. The load torque on the hip shaft is
-  the derivative of the leg's elastic energy with respect to the shaft angle plus, while
-  rolling, ``R`` times the horizontal force on the hip (the work of the rolling contact), so
-  the motor's work equals the work done on the body plus the change of elastic energy. The
-  leg is massless; its inertia is lumped into the hip shaft (``hip_inertia_kgm2``).
-  Touch-down when the lowest point of the arc reaches the ground; **lift-off** when the radial
-  force vanishes (the spoke is back at its rest length, which shrinks as the leg rolls on past
-  the vertical) or the arc turns off the ground, so a leg whose hip has turned on does not
-  stay stuck. Feet grip with Coulomb friction (see **Foot**).
-* **Angles**: hip angle ``phi`` is measured on the body from the body's downward axis, positive
-  in the direction the legs turn (the foot sweeps backward on the ground), i.e. clockwise
-  seen from the robot's right side with x to the right. Body pitch ``beta`` follows REP-103
-  (rotation about +y, positive nose-down), which is the same sense, so the leg's angle from
-  the true vertical is ``phi + beta``. The Buehler clock's slow phase spans
-  ``leg_offset - sweep/2 .. leg_offset + sweep/2`` in this coordinate (plus ``hip_zero_rad``).
-* **Hip motors** (11 W class brushed DC, the figures of a 25 mm 10-11 W 12 V graphite-brush
-  motor with a planetary gearbox, driver peak current 5 A): winding resistance, torque
-  constant, gear ratio and efficiency, viscous and Coulomb gear friction, quasi-static
-  electrics (inductance neglected: L/R is about 0.1 ms).
-* **Controller**: the RHex PD law in the normalised coordinates of Fig. 2 (hip position over pi,
-  hip speed over ``speed_norm_rad_s``, terminal voltage over 14.8 V) with the gains of Table 1,
-  times ``gain_scale`` (the firmware's unpublished scale from normalised gains to its PWM
-  units). The paper writes the speed normalisation as ``phi_dot / (10^-3 pi)``; the firmware
-  runs at 1 kHz and measures speed as the position change per 1 ms tick, so its
-  ``phi_dot`` is in rad per ms and ``(rad/ms) / (10^-3 pi)`` = ``(rad/s) / pi``: one
-  normalised speed unit is pi rad/s, the same scale as the position. The two other readings
-  were tried and rejected: taking ``phi_dot`` in rad/s (``kd`` 1000x stiffer, 141 V per
-  rad/s at ``gain_scale`` 1) turns the running/jogging hips into a current-limited speed servo
-  that loses whole turns in stance, and rad/ms without the rescale makes ``kd`` 10^6 x weaker
-  than ``kp`` (Table 1's ``kd`` would then be meaningless). The speed term is integrated
-  backward-Euler (with the back-EMF) so that stiff gains stay stable at the 1 ms step.
-* **Battery**: 4S LiPo, open-circuit ``battery_ocv_v`` and internal resistance
-  ``battery_resistance_ohm``; the H-bridges are ideal (regenerated power returns to the
-  battery); the on-board computer and electronics draw ``electronics_power_w``.
+* **Body**: rigid, sagittal (x forward, z up), ``mass_kg`` = 3.31 kg, ``pitch_inertia_kgm2``;
+  hips at ``hip_x_m`` = (+0.2, 0, -0.2) m on the body's axis through the COM. Each tripod (left
+  = L1, R2, L3; right = R1, L2, R3) has one leg at each of the three hip positions.
+* **Legs**: each half-circle compliant leg of arc radius ``R`` = ``leg_rest_length_m / 2`` (hip
+  at one end, toe at the other) is reduced to its *virtual leg*, the spoke from the hip to the
+  arc's ground point. With the shaft angle ``psi`` from the true vertical (toe behind the hip
+  when positive), ``psi < 0`` is **toe contact** (spoke = chord, length ``2R`` at angle
+  ``psi``, contact point fixed) and ``0 <= psi < pi`` **rolling contact** without slip (the
+  contact moves ``R`` per radian; spoke ``2R cos(psi/2)`` at ``psi/2``, so the hip advances
+  ``R (1 + cos psi)`` per radian, not a pinned pole's ``2R cos psi``). About that rest shape:
+  a radial spring ``leg_stiffness_n_m`` (and damping) along the spoke and a bending spring
+  ``leg_bending_stiffness_nm_rad`` about the hip. The hip load torque is the elastic energy's
+  derivative in the shaft angle plus, while rolling, ``R`` times the horizontal hip force, so
+  the motor's work equals the work on the body plus the change of elastic energy. Legs are
+  massless (inertia in ``hip_inertia_kgm2``). Touch-down when the arc's lowest point reaches
+  the ground; lift-off when the radial force vanishes or the arc turns off the ground.
+* **Angles**: hip angle ``phi`` from the body's downward axis, positive as the legs turn (foot
+  sweeping backward; clockwise seen from the right). Body pitch ``beta`` is REP-103 (about +y,
+  nose-down positive), the same sense: the leg's angle from the true vertical is ``phi + beta +
+  hip_zero_rad``. The Buehler clock's slow phase spans ``leg_offset +- sweep/2`` (plus
+  ``hip_zero_rad``) in ``phi``.
+* **Hip motors**: 11 W class brushed DC (a 25 mm 10-11 W 12 V graphite-brush motor with a
+  planetary gearbox, driver peak current 5 A): winding resistance, torque constant, gear ratio
+  and efficiency, viscous and Coulomb gear friction; inductance neglected (L/R about 0.1 ms).
+* **Controller**: the RHex PD law in the normalised coordinates of Fig. 2 (position over pi,
+  speed over ``speed_norm_rad_s``, terminal voltage over 14.8 V) with Table 1's gains times
+  ``gain_scale`` (the firmware's unpublished scale to PWM units). The paper's ``phi_dot /
+  (10^-3 pi)`` takes ``phi_dot`` in rad per 1 ms firmware tick: one speed unit is pi rad/s.
+  The speed term is integrated backward-Euler (with the back-EMF) so stiff gains stay stable.
+* **Battery**: 4S LiPo, ``battery_ocv_v`` and ``battery_resistance_ohm``; ideal H-bridges
+  (regenerated power returns to the battery); electronics draw ``electronics_power_w``.
 * **Foot**: Coulomb friction 0.8; beyond it the foot slides (relaxation toward the cone).
-* **Integration**: semi-implicit Euler at ``dt_s`` = 1 ms; the step loop is compiled with numba
-  when installed (several hundred times real time), else plain Python (about 5x real time).
+* **Integration**: semi-implicit Euler at ``dt_s`` = 1 ms; compiled with numba when installed
+  (several hundred times real time), else plain Python (about 5x real time).
 
-Constants: [a] = tuned (random search then a local search against Table 3 power and speed of
-the four gaits over three seeds, with the orderings of Table 3 and a margin of jogging over
-running power in the objective); [b] = the class of motor the paper names; [c] = from Table 3:
-jogging, pace and walk travel 0.09 .. 0.11 m per radian of the clock's slow-phase sweep
-(0.64/6.9, 0.30/2.65, 0.16/1.64 m/s over rad/s), which a rolling half-circle leg gives for
-``2 R`` = 0.10 .. 0.11 m (the hip advances ``R (1 + cos psi)`` per rad, about ``2R`` near the
-vertical); the earlier 0.146 m chord made walk and pace 40-50 % too fast; [d] = the paper's
-convention (``phi = 0``: leg pointing straight down; the slow phase is centred on ``+phi_0``,
-toe behind the hip, i.e. in the direction the leg turns); [e] = the driver's peak current,
-0.8 of the motor's stall current at 14.8 V: with the earlier 3 A limit the running gait had a
-second, stalled mode (nose up, a rear leg at the limit losing turns, 0.45 m/s at 63 W) that 4
-seeds in 10 fell into; from 4.5 A up the running is the same for every seed. The tuned ones
-are the leg's compliance, the gear ratio, the firmware gain scale and the electronics power,
-all inside the ranges stated next to them; [f] = scaled to the leg size (see the field).
+Constants (tags in :class:`EdubotParams`): [a] tuned against Table 3's power and speed of the
+four gaits and their orderings; [b] the class of motor the paper names; [c] leg size from Table
+3's travel per radian of slow-phase sweep (``2 R`` = 0.10 .. 0.11 m); [d] the paper's convention
+(``phi = 0`` straight down, slow phase centred on ``+phi_0``, toe behind the hip); [e] the
+driver's peak current (a lower limit gives the running gait a stalled mode); [f] scaled to the
+leg size. :func:`power_breakdown` shows where the power goes.
 
-Status (6 s, after the 1.5 s settle, seed 3; the range over seeds 0..5 in brackets after it;
-Table 3 last): running 31.9 W (31.9 .. 32.0; 31.6, +1 %) at 0.88 m/s (1.06, -17 %); jogging
-36.4 W (35.8 .. 36.4; 42.9, -15 %) at 0.63 (0.64, -1 %); pace 27.9 W (24.1 .. 28.5; 26.2,
-+6 %) at 0.32 (0.32 .. 0.36; 0.30, +7 %); walk 18.0 W (20.9, -14 %) at 0.18 (0.16, +14 %).
-Speeds are ordered running > jogging > pace > walk and power jogging > running > pace > walk,
-as in Table 3, for every seed. What is approximate: walk and pace are 10-20 % fast (their toe
-strut vaults the body over a pole of length 2R before the rolling starts), running 17 % slow;
-pace has two nearby modes (24 or 28 W depending on the seed); the running and jogging are
-SLIP-like with about 60 % aerial time, so single-tripod stances are short (60-70 ms, against
-the 100 ms slow phase of the running clock). The hip effort shows, besides the stance load, a
-spike when the clock switches to its fast phase (the speed term's step accelerating the
-unloaded leg, 15-20 ms after lift-off): a touchdown detector on effort onsets must skip it.
-:func:`power_breakdown` shows the sinks.
+Limitations: against Table 3, walk and pace are 10-20 % fast and running 17 % slow. Pace has
+two nearby modes (24 or 28 W, by seed). A heavy hip load (``leg_damping``, ``hip_torque``) tips
+running and jogging into a stalled mode: nose up, a rear leg at the current limit losing turns.
+The hip effort spikes as the clock enters its fast phase; effort-onset touchdown detectors must
+skip it.
+Measurements and design history: docs/edubot_sim_notes.md.
 
 Outputs are the DESIGN §4 topics as arrays: hip states at 100 Hz, battery at 100 Hz (current
 negative when discharging), and the body pose from a 120 Hz motion capture in a frame that is
@@ -100,52 +61,27 @@ rotated, tilted and offset from the ground, with a clock offset and a limited tr
 Named effects (``effects={'name': value}``; value 0 switches an effect off)
 -------------------------------------------------------------------------
 ``leg_damping`` [N s/m], default off
-    Radial viscous damping of the *tripod's* virtual leg: each leg in contact gets
-    ``value / 3`` N s/m along its spoke (on top of the structural 12.9), so a tripod of three
-    legs in contact acts as one SLIP leg with damping ``value``. The damper also loads the
-    hips: the rolling leg's rest length shrinks as it turns (``-R sin(psi/2)`` per rad), so
-    the damper resists the shaft's rotation too. It is a plain loss (power up about linearly,
-    speed down a little, the gait unchanged) over 0 .. 6 N s/m in the running (+2.6 W,
-    -0.03 m/s at 6), 0 .. 15 in the jogging (+14.5 W, -0.09 m/s at 15) and over the whole
-    range in the walk (+0.3 W at 45: its legs hardly compress). Beyond that range the extra
-    hip load tips the running (one seed in six at 9 N s/m, five in six at 15) and the jogging
-    (at 20) into the model's stalled mode, the one of note [e]: nose up, a rear leg falls
-    2 .. 7 rad behind its clock at the driver's current limit and catches up again; the power
-    then jumps (running +9 .. +57 W over 9 .. 45 N s/m, mostly copper) and does not grow
-    monotonically with the value, because the run switches between the two modes (seed 3:
-    +30.7 W at 15, +23.5 at 20, +29.0 at 30). From 30 the jogging runs at the current limit
-    in 6-9 % of the hip samples (+38 .. +45 W). The pace has two modes of its own (24 or
-    28 W, see Status): a few N s/m move some seeds to the 24 W one (-3 W). This is the
-    controller's physics (a PD clock driving a current-limited motor), not a damping error.
+    ``value / 3`` N s/m of radial damping per contacting leg (on top of the structural 12.9; a
+    tripod acts as one SLIP leg damped by ``value``); it also resists the rolling leg's
+    rotation. A plain loss up to 6 (running) / 15 (jogging); above, the stalled mode.
 ``hip_torque`` [N m], default off
-    Extra stance hip torque, ``value / 3`` N m per leg in contact (``value`` per tripod), that
-    the motor delivers and the battery pays: while a leg is in contact the ground resists its
-    forward rotation with a constant couple of ``value / 3`` N m (a rolling resistance of the
-    C-leg, a stance load the sagittal SLIP lacks; the couple's reaction reaches the body
-    through the motor like the rest of the hip torque), and the firmware feeds the same torque
-    forward, a voltage ``R * (value/3) / (N * kt * eta)`` (the torque at stall), so the loop
-    keeps tracking its clock. The stance hip effort rises by about ``value / 3`` per leg and
-    the battery power by the copper and gear losses of that torque plus its work, while the
-    body's motion stays nearly the same (seed 3: walk 0.3 -> +0.103 N m, +5.6 W; jogging
-    0.3 -> +0.104 N m, +4.9 W; walk 1.0 -> +0.350 N m, +25 W). Like ``leg_damping`` it loads
-    the hips: from 0.3 in the running and 0.6 in the jogging a run can tip into the stalled
-    mode (the effort and the power then rise more, the speed drops).
+    ``value / 3`` N m per contacting leg: a ground couple against its forward rotation that the
+    motor delivers (voltage feed-forward ``R * (value/3) / (N * kt * eta)``) and the battery
+    pays. From 0.3 (running) / 0.6 (jogging) a run can tip into the stalled mode.
 ``time_offset`` [s], default **on**, 0.025 s
-    Motion-capture clock minus proprioception clock: a mocap sample of the body at true time
-    ``t`` carries the stamp ``t + value``.
+    Mocap clock minus proprioception clock: a body sample at true time ``t`` is stamped
+    ``t + value``.
 ``mocap_noise`` [m], default **on**, 0.0002 m
-    Standard deviation of white Gaussian noise on each mocap position axis (and
-    ``value / 0.25 m`` rad on the orientation, for a marker baseline of 0.25 m).
+    White Gaussian noise std per mocap position axis (``value / 0.25 m`` rad on the
+    orientation, for a marker baseline of 0.25 m).
 ``mocap_misalignment`` [deg], default **on**, 3 deg
-    Tilt of the mocap frame's xy-plane against the ground about a seeded horizontal axis by
-    ``value`` degrees, with a seeded yaw of the run direction in [-30, 30] deg and the ground
-    plane seeded 5 to 30 mm off the mocap z = 0 plane. ``0`` gives mocap = ground frame
-    (shifted in x and y only so the run crosses the tracking volume).
+    Tilt of the mocap xy-plane against the ground about a seeded horizontal axis, plus a seeded
+    run yaw in [-30, 30] deg and the ground 5 to 30 mm off mocap z = 0. ``0``: mocap = ground
+    frame (shifted in x and y only, so the run crosses the tracking volume).
 
-Ground truth (``EdubotRun.truth``; also the bag's custom metadata ``edubot_truth``, JSON) holds
-each leg's contact intervals, each tripod's contact intervals (any of its legs on the ground),
-the single-support intervals (this tripod on the ground, the other not), all in the
-proprioception clock, the mocap frame transform, the clock offset and the effects.
+Ground truth (``EdubotRun.truth``; also the bag's custom metadata ``edubot_truth``, JSON): each
+leg's and tripod's contact intervals and the single supports (proprioception clock), the mocap
+frame transform, the clock offset and the effects.
 """
 
 from __future__ import annotations

@@ -15,10 +15,10 @@ Physics, all quantities referred to the OUTPUT shaft (after the gearbox):
     ``i_nl = (c + b w_nl) / k_t`` that overcomes the gear's Coulomb ``c`` and viscous ``b``
     friction;
   - gear efficiency ``eta = k_t / k_e`` (0.93 for the AX-18A, whose calibrated constant Coulomb
-    friction takes most of the gear loss), modelled as a
-    load-dependent Coulomb friction ``(1 - eta) |k_e i|`` in the gear: the gearbox passes
-    ``eta k_e i`` when the motor drives the load, the load must supply ``(2 - eta) k_e i`` to
-    back-drive it, and at standstill the gear holds any torque inside that band (stiction).
+    friction takes most of the gear loss), modelled as a load-dependent Coulomb friction
+    ``(1 - eta) |k_e i|`` in the gear: the gearbox passes ``eta k_e i`` when the motor drives
+    the load, the load must supply ``(2 - eta) k_e i`` to back-drive it, and at standstill the
+    gear holds any torque inside that band (stiction).
 
 * **Electrical.** Inductance is neglected (L/R is about 0.1 ms): ``i = (u V - k_e w) / R(T)``
   where ``u`` in [-1, 1] is the PWM duty. The servo draws ``I_standby + max(u i, 0)`` from the
@@ -53,60 +53,13 @@ Physics, all quantities referred to the OUTPUT shaft (after the gearbox):
   (standby, copper, bridge braking, Coulomb, gear, viscous, rotor kinetic energy, load), which
   sum to the supply power; ``bench/bench_sim_breakdown.py`` prints it per gait phase and joint.
 
-Calibration against Brodoline et al.'s gait findings (``bench/bench_sim_breakdown.py``, its
-``--budget`` and ``--candidates`` modes; constants unchanged). With these constants the
-simulated AntBot reproduces the paper's whole-robot figures (standing 10.7 W, 0.6 m/s 65.4 W at
-5.7 % efficiency, CoT/M 39.7 J/(m kg) at 0.84 m/s with 140 mm steps, +1.55 W per leg after
-10 min at 3 Hz with 500 g on the bench; figures since the stance tips carry the leg's own
-weight, ``robot_sim``) but not two of its gait findings: tripod beta 0.7 at 0.26 m/s loses
-+31 % more than beta 0.5 (paper: -10 %) and the wave gait (beta 0.83) at 0.1 m/s with 0.5 kg
-+6 % more than the tripod (paper: up to -8 %; +14 % while the tips left out the leg's weight).
-The bullets below were measured before that fix.
-
-* At the same speed and 100 mm steps the stance lasts ``L / v`` whatever the duty factor, so the
-  only stance difference between the gaits is the load per stance leg, while the swings come
-  ``beta / (beta = 0.5)`` times as often and are shorter. Beta 0.7 wins only if the copper saved
-  by sharing the weight over 4.2 instead of 3 legs, at most ``(1 - 3 / 4.2)`` of the stance
-  holding copper ``R (tau / k_t)^2`` (4.3 W for the robot at 0.26 m/s: 1.7 W), outweighs the
-  extra swing power (+10.6 W: 1.84 J per 0.385 s swing of one leg, 2.29 J per 0.165 s swing).
-* The 0.165 s swing of the gait's tip spline asks 13.4 rad/s of the femur, beyond the no-load
-  speed (10.0 rad/s at 11.9 V): the spline peaks at about twice its mean speed and reaches the
-  servo's speed at a 0.22 s swing, where the paper's trajectory reaches it at 0.16 s (a
-  ``sin^2`` lift instead of the C2 spline only lowers the peak to 12.9 rad/s and beta 0.7 to
-  +28 %). The stance copper (5.0 W for the robot at beta 0.7, holding bound 2.6 W) is mostly
-  the coxa sweeping against the gear's no-load friction (0.69 of 1.19 W per stance leg; femur
-  0.16 W): load-independent, so every extra stance leg pays it.
-* A load-proportional gear friction cannot make the loaded stance carry a speed-dependent cost:
-  the stance joints transmit ``sum |tau| |w|`` = 0.13 W at 0.26 m/s and 0.30 W at 0.6 m/s (the
-  loaded femur is nearly still, the moving coxa carries no static torque), so even ``mu = 1``
-  would add under 0.3 W. The gear loss is already load-proportional here, ``(1 - eta) |k_e i|``,
-  and opposes the motion in both directions of the power flow (lifting: ``k_e i = (T + c + b w)
-  / eta``; back-driven lowering: ``(T - c - b w) / (2 - eta)``); the datasheet points bound
-  ``eta >= 0.71`` even with no friction at all (0.78 with a 0.2 A no-load current), so an output
-  efficiency of 0.5-0.7 under load is not compatible with the AX-18A datasheet.
-* Datasheet-honest no-load friction (0.2 A: Coulomb 0.07 N m, viscous 0.01 N m s/rad; the
-  ROBOTIS e-manual gives 0.18 A no-load for the 238:1 XL-320, none for the AX-18A) with a
-  dithered friction (``friction_smoothing_rad_s = 1``: the motor carries the static load) and a
-  lighter rotor (0.4e-8 kg m^2, a third of the calibrated value; the e-manual lists the AX-18A
-  motor as coreless, the AX-12A as cored) gives the wave gait -0.4 % and beta 0.7 +18 %; the swing
-  energy still rises from 0.87 J (0.385 s) to 1.25 J (0.165 s), and beta 0.7 would break even
-  only with 5.1 times the stance copper. The same servo breaks the issue's bands: 0.6 m/s draws
-  38 W at 9.3 % efficiency, CoT/M 20.9 at 0.84 m/s, and the thermal rise is -1.0 W per leg (a
-  hot winding draws less current at full duty). The 0.6 m/s swings (0.167 s) are the same as
-  the beta 0.7 swings (0.165 s), so nothing in the servo can make the one expensive and the
-  other cheap; only the stance duration differs (0.167 s against 0.385 s), and the stance
-  transmits no power to dissipate.
-* ``friction_smoothing_rad_s = 1`` alone keeps every whole-robot band (64.9 W and 5.8 % at
-  0.6 m/s, CoT/M 39.4, standing 11.1 W, thermal +1.94 W per leg), makes the wave gait save
-  1.7 % on the simulated robot and raises the +500 g load sensitivity at 0.3 m/s from +0.9 W to
-  +2.8 W (paper: about +4 W), but the bench-fitted model then over-predicts the slow robot
-  (0.1 m/s +9.4 %, worst prediction error above the 6 % guard) and gives the wave +20 %; the
-  bench's force contact lasts 0.685 of the cycle at beta 0.5 (the tip spline needs 17 % of the
-  swing to lift 3 mm), which moves swing-end and standby energy into P_stance. Measured again
-  with the leg-weight fix (README, known gaps): +0.5 kg 3.6-4.0 W, wave -3.6 % on the robot,
-  prediction 1.24 % rmse, but the model over-predicts the wave run by 13 % and the residual
-  loop's supply effect then names a spurious basal power beside the hidden resistance. It
-  stays off.
+Calibration: with the default constants the simulated AntBot reproduces Brodoline et al.'s
+whole-robot figures (standing power, power and efficiency at 0.6 m/s, CoT/M, thermal rise;
+``bench/bench_sim_breakdown.py --budget``). Limitation: it does not reproduce two of their gait
+findings (duty factor 0.7 and the wave gait cost more than the beta 0.5 tripod, not less).
+``friction_smoothing_rad_s`` defaults to 0: smoothing keeps the whole-robot figures but makes
+the bench-fitted energy model over-predict the slow robot.
+Measurements and design history: docs/servo_model_notes.md.
 
 Sign convention: ``external_torque_nm`` is the torque the outside world applies ON the output
 shaft, positive in the joint's positive direction (gravity pulling a joint down gives a negative
