@@ -24,8 +24,13 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
                 "frame": {"tilt_deg", "yaw_deg", "origin_m", "ground_source"
                           (geometry|mocap_origin), "ground_m", "geometry_rms_m",
                           "geometry_noise_m" (the height's white noise, from its fourth
-                          differences), "geometry_fit_poor" (rms over 3 times that noise,
-                          at least 0.3 mm: offset, ground and edges unreliable, with a note),
+                          differences), "geometry_residual_ratio" (rms over that noise,
+                          at least 0.1 mm; over 1.3 a note: the offset may sit in a local
+                          minimum), "geometry_fit_poor" (ratio over 3: offset, ground and
+                          edges unreliable, with a note), "offset_other_starts" (the
+                          proprioceptive estimates disagree: the fit from each,
+                          {"first_offset_s", "first_rms_m",
+                           <estimator>: {"start_s", "offset_s", "rms_m"}}),
                           "offset_initial", "ground_tilt_rad" and "rotation" (geometry:
                           the frame turned by the ground's slope), "ground_tilt_source"
                           (strides|fitted: from whole strides' mean heights, or fitted
@@ -34,9 +39,11 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
                           assumed: the rigid body's pitch zero against the hip line,
                           --pitch-offset), "pitch_offset_check_deg" (a given zero: the
                           one the data prefer, null when they keep the given one),
-                          "steady_start_s"
-                          (--steady-only), "edges_pooled" (geometry edges pooled with
-                          the same leg's at other strides in steady state: {"pooled_edges",
+                          "steady_start_s" (--steady-only; inf when no steady state),
+                          "steady_state_seen" (false: the pitch repeats in no two gait
+                          periods, with a note; null: under two periods), "edges_pooled"
+                          (geometry edges pooled with the same leg's at other strides in
+                          steady state: {"pooled_edges",
                           "pooled_moved_over_1ms", "pooled_max_move_s"}),
                           "offset_half_stride" (no hip efforts: the offset fitted from
                           half a stride either side, {"stride_s",
@@ -323,6 +330,17 @@ def _f(x: float) -> float | None:
     return float(x) if math.isfinite(float(x)) else None
 
 
+def _json_safe(obj: Any) -> Any:
+    """``obj`` with every non-finite float as None (strict JSON: no NaN or Infinity)."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_json_safe(v) for v in obj]
+    return obj
+
+
 def _pitch_offset_arg(text: str) -> str:
     """``--pitch-offset``: 'auto' or a finite angle within +-45 deg."""
     if text == 'auto':
@@ -525,9 +543,9 @@ def run_command(args: argparse.Namespace) -> int:
             # its progress, not 0/N bags for minutes)
             queue = manager.Queue()
             futs = [pool.submit(_analyze_reporting, b, options, queue) for b in bags]
-            with tqdm(total=len(bags), desc='slip', unit='bag') as bar_bags, \
+            with tqdm(total=len(bags), desc='slip', unit='bag', disable=None) as bar_bags, \
                     tqdm(total=_message_total(bags) or None, desc='slip: messages',
-                         unit='msg', unit_scale=True, leave=False) as bar_msgs:
+                         unit='msg', unit_scale=True, leave=False, disable=None) as bar_msgs:
                 pending = set(futs)
                 while pending:
                     done, pending = wait(pending, timeout=0.25)
@@ -549,7 +567,7 @@ def run_command(args: argparse.Namespace) -> int:
         from hexapod_common.bags import message_progress
 
         with message_progress('slip: bag'):   # the messages of a long bag as they are read
-            for b in tqdm(bags, desc='slip', unit='bag'):
+            for b in tqdm(bags, desc='slip', unit='bag', disable=None):
                 results.append(analyze_bag(b, options))
     stances = [s for r in results for s in r.get('stances', [])]
     skipped = [s for r in results for s in r.get('skipped', [])]
@@ -562,7 +580,8 @@ def run_command(args: argparse.Namespace) -> int:
            'skipped': skipped, 'skipped_counts': dict(Counter(s['reason'] for s in skipped)),
            'failed_bags': [{'bag': r['bag'], 'error': r['error']} for r in results
                            if 'error' in r]}
-    (out / 'slip.json').write_text(json.dumps(doc, indent=1), encoding='utf-8')
+    (out / 'slip.json').write_text(json.dumps(_json_safe(doc), indent=1, allow_nan=False),
+                                  encoding='utf-8')
     if rows:
         plot_figures(rows, out)
     for f in doc['failed_bags']:

@@ -11,185 +11,62 @@ and a leg touches the ground iff its hip is lower above the ground than that res
 lifts off when the hip rises back above it (its radial force vanishes). The rest height changes
 fast in the clock's fast phase, so lift-off is a sharp crossing there. Hip heights come from
 the motion-capture COM height and pitch and the hips' places on the body
-(:class:`LegGeometry`, the robot description).
+(:class:`LegGeometry`, the robot description). A leg that has lifted off lands again only once
+its lowest point has cleared the ground by ``LegGeometry.rearm_clearance_m`` (2 mm): a leaning
+leg can spring off while its rest shape still reaches below the ground.
 
-Ground height and stream offset (:func:`fit_ground_offset`): the ground is not visible to the
-motion capture, and the mocap clock is offset from the proprioception clock. Both are fitted to
-the body's vertical motion: in proprioception time, every leg's penetration
+Ground height and stream offset (:func:`fit_ground_offset`): the ground is invisible to the
+motion capture, whose clock is offset from the proprioception clock. Every leg's penetration
 ``p_j(t) = max(0, rest_j(t) - hip height_j(t))`` follows from the hip angles and the mocap body
 (shifted by the offset ``d``, lowered by the ground height ``g``); the vertical dynamics
 ``m (z'' + g) = k_w sum_j max(0, p_j + tau p_j')`` (a leg cannot pull; ``tau`` the leg's
-damping over stiffness, from the description or fitted; a stiffness per window) integrated
-twice, plus a free height and velocity per window, is linear in its coefficients for given
-``(d, g)``, which minimise the residual sum of squares (coarse grid, outlier windows dropped,
-then Nelder-Mead). Windows run between the middles of flight phases (ballistic ends: one per
-stance) when the gait has them, else 0.1 s (over longer windows small force-model errors,
-integrated twice, dominate). The hip angles move fast in the fast phase, so contact timing --
-and with it ``d`` -- is well determined; ``g`` is fixed by where contacts begin and end. With
-``tau`` fitted, ``d`` is less certain: a damper advances the force like a clock shift.
+damping over stiffness; a stiffness per window), integrated twice plus a free height and
+velocity per window, are linear in their coefficients for given ``(d, g)``, which minimise the
+residual (coarse grid, outlier windows dropped, then Nelder-Mead). Windows run between the
+middles of flight phases when the gait has them, else 0.1 s (over longer windows force-model
+errors, integrated twice, dominate). Contact timing in the fast phase determines ``d``; ``g``
+is fixed by where contacts begin and end. A fitted ``tau`` makes ``d`` less certain.
 
-That fit is an EQUATION-ERROR fit: the measured (noisy) heights enter the regressors too
-(each leg's penetration), and its ground is biased (errors in variables: -0.3 to -0.5 mm on
-simulated pace). It is refined by an OUTPUT-ERROR fit (``refine='output'``, the default):
-per window the dynamics ``h'' = k sum_j max(0, p_j + tau p_j') - g0`` are integrated on the
-1 kHz grid (Heun, all windows at once) with each penetration taken from the SIMULATED height
-``h`` (rest height and hip lever from the measured hip angles and pitch), and offset, ground,
-tilt and each window's stiffness, start height and velocity minimise the simulated minus the
-measured height (Levenberg-Marquardt from the equation-error fit; the window parameters'
-Jacobian from the simulation's sensitivities). Height noise then enters the target only.
-Without flight phases the output-error windows are the 0.1 s windows joined in pairs
-(``output_window_s``, 0.2 s): with 0.1 s windows (about 12 mocap samples against three free
-parameters each) the output-error ground scattered widely (pace seed 5: +0.9 mm, 0 % of
-stances within 5 ms; pace 69 %, walk 67 % over seeds 1-6); 0.2 / 0.3 / 0.4 s gave pace 91 /
-80 / 81 %, walk 83 / 83 / 87 % (seeds 1-6). Windows the simulation cannot follow (RMS above
-twice the median window's) are dropped once, as in the equation-error fit.
+This equation-error fit has the noisy measured heights in its regressors, so its ground is
+biased (errors in variables). The OUTPUT-ERROR refinement (``refine='output'``, the default)
+integrates ``h'' = k sum_j max(0, p_j + tau p_j') - g0`` per window on the 1 kHz grid (Heun, all
+windows at once) with the penetrations from the SIMULATED height ``h``, and fits offset, ground,
+tilt and each window's stiffness, start height and velocity to the measured height
+(Levenberg-Marquardt from the equation-error fit), so height noise enters the target only.
+Without flight phases its windows are the 0.1 s windows joined in pairs (``output_window_s``,
+0.2 s; 0.1 s leaves about 12 samples for three free parameters). Windows the simulation cannot
+follow (RMS above twice the median window's) are dropped once.
 
-Ground slope: a world frame levelled on the COM path is tilted by the path's own slope (the
-body height drifting over the run: 0.07 deg on simulated walk; a start-up transient: 0.26 deg
-on pace), which raises the front hips against the rear ones; with the COM's x given,
-:func:`fit_ground_offset` fits that slope (``tilt_rad``) with the ground height and offset.
+Ground slope (``tilt_rad``): a world frame levelled on the COM path is tilted by the path's own
+slope. Without flight phases, when the steady part (:func:`.steady.steady_start_s`) spans 1.5
+periods and 0.1 m, the slope comes from whole strides (:func:`stride_slope_rad`,
+``tilt_from_strides``: one-period mean heights against their mean x); the fitted slope is kept
+instead only when it lowers the residual by more than a parameter's price. With flight phases
+the ballistic windows pin the slope and it is fitted.
 
-Contact hysteresis: a leg that has lifted off lands again only after its lowest point has
-cleared the ground by ``LegGeometry.rearm_clearance_m`` (2 mm). A leaning leg can spring off
-(radial force gone) while its rest shape still reaches below the ground; without the
-hysteresis the crossing model reports it as landed again (extra contacts on simulated pace).
-With the simulator's true body state, rest-height crossings plus this hysteresis reproduce
-the leg contacts of simulated pace and walk (touchdowns within 0.2 ms, 89 % of pace lift-offs
-within 0.5 ms, the rest up to 45 ms late: lift-offs other than the radial force vanishing),
-so the legs' bending compliance is not modelled: the leaning spoke's late geometric lift-offs
-were mostly these re-contacts.
+Rigid body's pitch zero (``pitch_offset_rad``, :class:`GeometryFit`): a rigid body's up axis
+need not be normal to the hip line; the hip heights then carry ``hip_x * sin(zero)``. The zero
+is tried free beside the prior (default 0): offset searched from where the median pitch is
+level, a 1-degree scan, then both fits with the zero (and slope) free, with a second start
+from a level ground when the median pitch is over half a degree from the prior. The better free
+fit is kept when it beats the Bayesian information criterion's price of a parameter and lies
+0.25 deg or more and three standard errors from the prior. Limitation: its Jacobian standard
+error is optimistic.
 
-Rigid body's pitch zero (``pitch_offset_rad``, :class:`GeometryFit`): a motion-capture rigid
-body is defined by its markers or by how the robot stood when it was created, so its up axis
-need not be normal to the hip line; the hip heights then carry ``hip_x * sin(zero)`` (3.5 mm
-per degree at a hip 0.2 m out). With a rigid body 3 deg off, a simulated walk's offset was
-36 ms off (pace 12 ms) and no edge within 5 ms. :func:`fit_ground_offset` fits the zero beside
-the prior (``pitch_offset_rad``, default 0): from where the body's median pitch is level, an
-offset search there, a 1-degree scan and the offset searched again when it moved, then the
-same equation-error and output-error fits with the zero free; the free fit is kept when it
-lowers the residual by more than the Bayesian information criterion's price of a parameter,
-lies 0.25 deg or more from the prior and beyond three standard errors. On level rigid bodies
-(delta 0) the free zero scatters by 0.1-0.2 deg (2-3 mrad, 4 ms at a slow rear crossing), more
-than the tilt-coupled frame's own 0.3-0.7 mrad, so it is not kept there (pace, walk, jogging,
-running; seeds 1-12). Rigid bodies 1 and 3 deg off: the zero within 0.15 deg and the offset
-within 2 ms on 10 of 12 runs (running, pace, walk, seeds 1-2; pace seed 2 at 3 deg 4.2 ms, its
-start-up transient tilting the frame; walk seed 2 at 3 deg 0.8 deg off, its edges lost). The
-half-stride starts (no hip efforts) are compared at one zero, the first fit's (a free zero at
-each start let a start a stride off fit noise-free running better). An outside review (0.3-3
-deg, four gaits): offset within 2 ms in 54 of 56 cases (32 with the zero held at 0); the zero
-0.55-0.8 deg off on running (harmless there), its Jacobian standard error optimistic
-(0.005-0.012 deg); 6 deg missed (walk offsets 36-93 ms off). The cause of the misses: the
-free fit started from the prior fit's ground, slope and offset, which had absorbed the wrong
-zero (walk at 6 deg: ground 20 mm high, slope 15 mrad, offset 82 ms off, and the offset
-search around that ground never reached the truth). When the median pitch is more than half
-a degree from the prior, the free fit now also starts again from a level ground at the centre
-(the ground grid and the offset search as the prior fit's start), and the better of the two
-free fits is compared with the prior's (running's offset came from the first start, a walk's
-from the second). Seeds 1-2, four gaits, rigid bodies -10 to +10 deg: the offset within 2 ms
-for 31 of 32 runs at 6 and 10 deg (before 21; pace seed 2 at -10 deg 3.4 ms), walk edges
-within 5 ms at 0.3-3 deg 57 -> 79 %, no change elsewhere; level rigid bodies (seeds 7-14, four
-gaits) keep the prior on all 32, offsets within 1.9 ms. Fit time (compiled output-error
-simulation, cached gaps): 0.9-1.8 s per 4.5 s run with the zero tried.
+Edges (:func:`leg_contacts`): in steady state a leg lands at the same phase every stride, so
+with ``pool_steady`` each leg's steady edges of one kind are shrunk toward their median phase
+(:func:`_pool_edges`), by their own variance (height error over the gap's median rate) against
+the stride-to-stride spread. The pitch is smoothed by a local quadratic over
+:data:`PITCH_SMOOTHING_S` when its noise (:func:`white_noise_std`) is above
+:data:`PITCH_NOISE_MIN_RAD`; the ground and offset fit takes the raw pitch.
 
-Ground slope from whole strides (:func:`stride_slope_rad`, ``tilt_from_strides``): with the
-true slope of the ground in the run's frame every steady pace stance (seeds 1-12) and 98 % of
-walk stances are within 5 ms; the slope fitted with the body-height dynamics was 0.5-0.7 mrad
-off on some runs without flight phases (pace seeds 1-3: +0.53 to +0.72; walk seed 10: -0.66),
-0.1-0.4 mm at the run's ends. In steady state the body's mean height over a gait period is the
-same every stride, so the means over one-period windows against their mean x give the slope:
-median error 0.05 mrad (pace) and 0.08 mrad (walk), at most 0.23 (seeds 1-12). It is taken on
-runs without flight phases when the steady part (:func:`.steady.steady_start_s`, the period
-from the hips' mean speed) spans 1.5 periods and 0.1 m; the fitted slope is tried beside it
-and kept when it lowers the residual by more than a parameter's price (a rigid body's pitch
-zero a few tenths of a degree off is partly taken up by a free slope), and with the pitch zero
-free the slope is free too. With flight phases (running, jogging) the ballistic windows pin
-the slope and it is fitted as before. Steady stances within 5 ms over seeds 1-12: pace 96 ->
-99 %, walk 95 % (its misses: the other tripod's front leg landing 5-9 ms late while the other
-legs carry the body: after touchdown its penetration grows 0.05 mm in 5 ms, so 0.1-0.3 mm of
-height bias is 5-10 ms), running and jogging 100 %; rigid bodies turned -10..+10 deg (pace
-and walk, seeds 1-2): pace edges 125 -> 128 of 144, walk unchanged, offsets unchanged.
-
-Edges pooled over strides (:func:`leg_contacts` ``pool_steady``, :func:`_pool_edges`): those
-walk misses are flat crossings, and in steady state a leg lands at the same phase every
-stride (within 0.5 ms on the simulator), so each leg's steady edges of one kind are shrunk
-toward their median phase, by their own variance (height error over the gap's median rate)
-against the stride-to-stride variance their spread shows. Seeds 1-12: walk 95 -> 100 %,
-pace 99 -> 100 %, running and jogging 100 %; held out 13-30: pace 112 -> 117 of 120, walk 90
-of 90.
-
-Pitch noise (:func:`leg_contacts`): with the true pitch every steady stance of pace and walk
-(seeds 1-6) is within 5 ms; the measured pitch carries the mocap's orientation noise (0.74
-mrad on the simulator, 0.15 mm at a hip 0.2 m out). The contacts smooth the pitch with a
-local quadratic over :data:`PITCH_SMOOTHING_S` (70 ms: 9 samples at 120 Hz) when its noise,
-read from the fourth differences (:func:`white_noise_std`), is above 0.3 mrad (noise-free
-pitch: 0.01-0.17 mrad at 100-120 Hz, left as it is: smoothed, noise-free running at 100 Hz
-fitted a start a stride off better). Pace 88 -> 95 %, walk 83 -> 97 % of steady stances
-within 5 ms pooled over seeds 1-6; seeds 7-12 (not used for the choice) 89 -> 97 % and
-90 -> 93 %; running and jogging stay at 100 %. 5 / 7 / 9 / 13 / 15 samples at 120 Hz gave
-pace 88 / 90 / 95 / 90 / 88 % and walk 97 / 97 / 97 / 90 / 87 % (seeds 1-6); a smoothing
-spline with its
-parameter from generalised cross-validation left the pitch as it was (the pitch has real fast
-changes at touchdowns). The ground and offset fit takes the raw pitch (smoothing it there
-changed nothing on the edges).
-
-Measured on simulated EduBot runs (4.5 s, default effects, seeds 1-3, offset searched from
-0 +- 60 ms, stances from the steady state on (:mod:`.steady`); test/unit/
-test_slip_edges_offset.py; bench/bench_slip_geometry.py), with the output-error refinement:
-ground height within 0.15 mm on all four gaits (seeds 1-6); offset +0.6 to +0.7 ms on
-running, +1.1 to +1.4 ms on jogging, -0.2 to -0.4 ms on pace, -0.1 / -1.2 / -0.8 ms on walk;
-single-support touchdown and lift-off within 5 ms for 100 % of running and jogging stances,
-pace 78 / 100 / 100 % (3 steady stances on seeds 2-3) and walk 100 / 80 / 100 % with the
-pitch smoother (above; before it 56 / 100 / 100 % and 80 / 80 / 100 %, 91 % and 83 % over
-seeds 1-6; seeds 7-12, not used while developing it: pace 89 %, walk 90 %, running and
-jogging 100 %, ground within 0.25 mm, offsets within 1.9 ms). The equation-error fit alone
-(``refine='none'``): ground within 0.3 mm (0.42 over seeds 1-6, 0.3-0.4 mm low on pace);
-walk offset -1.0 / -4.3 /
--1.0 ms; pace 44 / 100 / 67 %, walk 40 / 20 / 80 % (65 % and 60 % over seeds 1-6; seeds 7-12:
-80 % and 37 %). With the refinement the fit takes 1.5-2 times as long (1-3 s per 4.5 s run).
-Its offset is 0.2-0.6 ms later than the equation-error one on running and jogging (also with
-noise-free heights: a model effect, within the 2 ms bar). With the simulator's true body state
-the same crossings are within 0.5 ms on pace and walk: their touchdowns and lift-offs are slow
-crossings, where 0.1-0.3 mm of height, ground or pitch error (mocap noise 0.2 mm and 0.8 mrad)
-is several ms, and lightly loaded legs hover at their rest height for long stretches. Tried
-and not kept (before the output-error refinement): the pitch smoothed (local quadratic; kept
-since, above), the raw smoothed height instead of the
-fitted one, touchdowns refined to hip effort onsets, a ground correction from effort onsets,
-the vertical force weighted by the spoke's cos^2 (each helped one gait and hurt another over
-6 seeds).
-
-Why pace single supports start early (seeds 1, 5, 6; scripts /tmp/pace/*.py of the session
-that measured it): on pace a single support starts when the OTHER tripod's rear leg (L3/R3)
-lifts off, a crossing at 80 mm/s (0.4 mm of hip height is 5 ms). At the true crossings the
-rear hip is estimated 0.26 mm too high on average over seeds 1-6 (42 steady stances): ground
-+0.30 mm (the fitted ground 0.3-0.4 mm too low on seeds 1, 4, 5, 6), fitted height -0.06,
-tilt lever +0.02, pitch lever +0.01 (pitch noise +-0.15 mm per crossing, no bias); per seed
-the sum over the crossing rate matches the edge error (seed 5: +0.54 mm, -6.8 ms predicted,
--6.6 measured). The offset is not involved (the true offset changes nothing). Replacing only
-the ground by the truth: 60 -> 90 % within 5 ms (seeds 1, 4, 5, 6: 56 -> 92 %); ground and
-pitch: 98 %. The ground's bias is the height noise entering the force model: with noise-free
-heights (the simulator's) the fit finds the ground within 0.06 mm on pace seeds 1 and 5, so
-the contact and force model are right; with 0.2 mm noise in the target only -0.09 / +0.01 mm,
-in the force's penetrations only +0.72 / +0.75, in both (as here) -0.50 / -0.34 mm: two
-errors-in-variables effects of opposite sign that nearly cancel. Tried and not kept: the
-first fit's (noise-free) height as the penetrations' height (ground +0.4 to +1.0 mm, pace 60
--> 69 % after one pass, 50 % after two), the heights smoothed for the penetrations (the ground
-moves monotonically with the smoothing, -0.5 mm raw to +0.9 mm at 13 samples: no
-tuning-free choice; a GCV smoothing spline over-smooths), SIMEX (extra height noise of 1 and
-2 times 0.2 mm, linear extrapolation to no noise: ground -0.33 -> -0.19 mm, pace 60 -> 76 %,
-seed 1 44 -> 67 %, seven fits instead of one). Kept: the output-error refinement (above), which
-has no penetrations from measured heights: pace ground -0.26 -> +0.01 mm on average (seeds
-1-6; at most 0.13 mm off), pace 65 -> 91 % within 5 ms. With iid 0.2 mm noise added to the
-simulator's true height (true pitch) on pace seeds 1 and 5 (3 noise draws each, 0.1 s windows)
-the equation-error ground was -0.42 mm on average (spread 0.12), the converged output-error
-one +0.06 mm (spread 0.22). Tried with it and not kept: 0.1 s output-error windows (above), one
-stiffness shared by all windows (worse residual, pace seed 5 ground +0.6 mm), a trust-region
-solver stopped early (pace 87 % at xtol 1e-6, 72 % at 1e-10: the figures depended on how far
-it moved from the equation-error start; Levenberg-Marquardt converges to the profile optimum).
-The pitch in the penetrations is still the measured one (not modelled: with 0.1 s windows
-the true pitch moved pace seed 5's output-error optimum from about +0.9 to +0.8 mm only).
+Limitations: slow crossings (pace and walk edges) turn 0.1-0.3 mm of height, ground or pitch
+error into several ms; the penetrations use the measured pitch; the legs' bending compliance
+is not modelled.
 
 Core module: numpy/scipy only (does not import the simulator: pass its parameters to
 :meth:`LegGeometry.from_params`).
+Measurements and design history: docs/slip_geometry_notes.md.
 """
 
 from __future__ import annotations
@@ -209,7 +86,7 @@ from scipy.signal import savgol_filter
 from ._geometry_kernels import HAVE_NUMBA, simulate_windows
 from .errors import SlipDataError
 from .stance import longest_free_segment
-from .steady import steady_start_s
+from .steady import steady_start_s, white_noise_std
 
 __all__ = [
     'GeometryFit',
@@ -570,19 +447,6 @@ class _Body:
             gap[(tt < self.tm[0]) | (tt > self.tm[-1])] = np.inf
             self._gap0, self._gap_tf, self._gap_key = gap, tf, key
         return self._gap0 - ground_m
-
-
-def white_noise_std(signal: ArrayLike) -> float:
-    """Standard deviation of white noise on a smooth sampled signal (a pitch [rad], a height
-    [m]), from the median absolute deviation of its fourth differences (a smooth signal's
-    fourth differences are small at 100 Hz and above: the simulated EduBot's pitch 0.01-0.15
-    mrad, its height a few micrometres)."""
-    b = np.asarray(signal, dtype=float)
-    b = b[np.isfinite(b)]
-    if b.size < 10:
-        return 0.0
-    d4 = np.diff(b, 4)
-    return float(1.4826 * np.median(np.abs(d4 - np.median(d4))) / math.sqrt(70.0))
 
 
 def auto_pitch_smoothing(t_s: ArrayLike, pitch_rad: ArrayLike) -> int:

@@ -44,7 +44,7 @@ from .preprocess import (
     permissible_mask,
     sagittal_state,
 )
-from .steady import steady_start_s
+from .steady import steady_start_s, steady_windows
 from .stance import (
     StanceWindow,
     best_shift,
@@ -190,6 +190,55 @@ def _damping_tradeoff(gfit: Any, geometry: LegGeometry, geo_inputs: tuple[Any, .
     if take0:
         return f0, undamped, inputs0
     return gfit, geometry, geo_inputs
+
+
+def _other_starts(gfit: Any, geo_inputs: tuple[Any, ...], geo_x: FloatArray,
+                  starts: dict[str, float], off_range: float, res: RunResult,
+                  p0_kw: dict[str, Any]) -> Any:
+    """The geometric fit from the other proprioceptive estimates of the offset, when they lie
+    outside the first fit's search range; the start that fits clearly better is kept (else
+    None).
+
+    The fit searches +-60 ms around the first estimate, the hip-effort contacts; when that
+    estimate is further off the fit stays in a local minimum. On a reviewer's clock (10.5
+    rad/s, duty 0.5) the contact estimate was 75 ms off and the fit settled 118 ms off (body
+    height rms 0.342 mm against 0.232 mm of noise) while the joint estimate was 0.2 ms off (fit
+    from it: 0.219 mm). The starts are compared at the prior pitch zero (a zero fitted in the
+    local minimum favours it), and the zero is fitted again at a start chosen
+    (``frame['offset_other_starts']``).
+    """
+    far = {k: v for k, v in starts.items() if abs(v - gfit.offset_s) > off_range}
+    if not far:
+        return None
+    p0 = float(p0_kw.get('pitch_offset_rad', 0.0))
+    best, tried = gfit, {}
+    for name, start in far.items():
+        try:
+            f = fit_ground_offset(*geo_inputs, initial_offset_s=start, offset_range_s=off_range,
+                                  fix_offset=False, x_m=geo_x, fit_pitch_offset=False,
+                                  pitch_offset_rad=p0)
+        except SlipDataError:
+            continue
+        tried[name] = {'start_s': start, 'offset_s': f.offset_s, 'rms_m': f.rms_m}
+        if f.rms_m < best.rms_m * (1 - HALF_STRIDE_BETTER):
+            best = f
+    if not tried:
+        return None
+    res.frame['offset_other_starts'] = {'first_offset_s': gfit.offset_s,
+                                        'first_rms_m': gfit.rms_m, **tried}
+    if best is gfit:
+        return None
+    res.notes.append(
+        f'the offset estimates disagree; the geometric fit from the first '
+        f'({gfit.offset_s:+.4f} s, body-height rms {1e3 * gfit.rms_m:.3f} mm) was in a local '
+        f'minimum, the fit from another fits clearly better: {best.offset_s:+.4f} s, '
+        f'{1e3 * best.rms_m:.3f} mm (' + ', '.join(
+            f"{k} {v['start_s']:+.4f} s" for k, v in tried.items()) + ')')
+    try:
+        return fit_ground_offset(*geo_inputs, initial_offset_s=best.offset_s,
+                                 offset_range_s=0.01, fix_offset=False, x_m=geo_x, **p0_kw)
+    except SlipDataError:
+        return best
 
 
 def _stride_period_s(tj: FloatArray, speed: dict[str, FloatArray]) -> float:
@@ -426,16 +475,24 @@ PITCH_OFFSET_CHECK_DEG = 1.0
 #: is reported as not explaining the data (simulated gaits: 0.8-1.2; a gait that stumbles onto
 #: its belly: 5-12)
 GEOMETRY_RESIDUAL_RATIO = 3.0
+#: ... and above which it is reported as suspect: the offset may sit in a local minimum
+#: (simulated gaits at their fitted offsets: 0.76-1.19 over four gaits, seeds 1-8; a
+#: reviewer's clock whose first estimate was 75-160 ms off: 1.45-1.56)
+GEOMETRY_RESIDUAL_HIGH = 1.3
 
 
 def _check_geometry_residual(gfit: GeometryFit, height_m: FloatArray, res: RunResult) -> None:
     """A note when the body-height residual is well above the mocap's white noise (from the
-    heights' fourth differences): the legs' geometry and springs do not explain the body's
-    motion, and the offset, ground, pitch zero and edges from them are unreliable.
-    ``frame['geometry_noise_m']``, ``frame['geometry_fit_poor']``."""
+    heights' fourth differences): over :data:`GEOMETRY_RESIDUAL_RATIO` times the legs'
+    geometry and springs do not explain the body's motion, and the offset, ground, pitch zero
+    and edges from them are unreliable; over :data:`GEOMETRY_RESIDUAL_HIGH` times the fit is
+    suspect. ``frame['geometry_noise_m']``, ``frame['geometry_residual_ratio']``,
+    ``frame['geometry_fit_poor']``."""
     noise = white_noise_std(height_m)
-    poor = bool(gfit.rms_m > GEOMETRY_RESIDUAL_RATIO * max(noise, 1e-4))
+    ratio = float(gfit.rms_m / max(noise, 1e-4))
+    poor = bool(ratio > GEOMETRY_RESIDUAL_RATIO)
     res.frame['geometry_noise_m'] = noise
+    res.frame['geometry_residual_ratio'] = ratio
     res.frame['geometry_fit_poor'] = poor
     if poor:
         res.notes.append(
@@ -447,6 +504,14 @@ def _check_geometry_residual(gfit: GeometryFit, height_m: FloatArray, res: RunRe
             f'unreliable. Causes seen on simulated runs: a gait that is not steady (the body '
             f'stumbling onto its belly), a wrong leg geometry (--leg-radius, --hip-x, --hip-z, '
             f'--hip-zero); give the offset (--offset S) if it is known')
+    elif ratio > GEOMETRY_RESIDUAL_HIGH:
+        res.notes.append(
+            f'the geometric fit leaves {ratio:.2f} times the motion-capture noise '
+            f'({1e3 * gfit.rms_m:.3f} mm RMS against {1e3 * noise:.3f} mm; fits of steady '
+            f'simulated gaits leave 0.8-1.2 times): the stream offset ({gfit.offset_s:+.4f} s) '
+            f'may sit in a local minimum of the fit (simulated runs like this were 100-160 ms '
+            f'off) or the legs do not explain all of the body\'s motion. Compare the offsets '
+            f'of the other estimators (--offset contact, --offset joint) or give the offset')
 
 
 def _check_given_pitch_offset(gfit: GeometryFit, geo_inputs: tuple[Any, ...], geo_x: FloatArray,
@@ -476,6 +541,30 @@ def _check_given_pitch_offset(gfit: GeometryFit, geo_inputs: tuple[Any, ...], ge
         res.notes.append(msg + '; the given zero is used. Check its sign (minus the pitch the '
                          'rigid body reports while the hips are level) or use '
                          '--pitch-offset auto')
+
+
+def _check_transient(t_s: FloatArray, pitch_rad: FloatArray, period_s: float,
+                     res: RunResult) -> None:
+    """Note a run whose body pitch repeats in no two consecutive gait periods (a start-up or
+    speed transient throughout the motion capture: :func:`.steady.steady_windows`); sets
+    ``frame['steady_state_seen']`` (None when under two periods are covered)."""
+    t0, d, swing, steady = steady_windows(t_s, pitch_rad, period_s)
+    if t0.size == 0:
+        res.frame['steady_state_seen'] = None
+        return
+    k = int(np.argmin(d))
+    res.frame['steady_state_seen'] = bool(steady[k])
+    if steady[k]:
+        return
+    res.notes.append(
+        f'no steady state in the motion capture: in its most repeatable window the body pitch '
+        f'differs from one gait period ({period_s:.3f} s) to the next by '
+        f'{math.degrees(d[k]):.2f} deg RMS, more than its own swing ({math.degrees(swing[k]):.2f} '
+        f'deg; steady runs differ by a fraction of it). The robot is still settling into its '
+        f'gait or changing speed over the whole recording: the stream offset, ground, slope '
+        f'and stance edges are fitted to a transient (simulated 3 s pace runs like this were '
+        f'4-27 ms off) and the SLIP fits describe no steady gait; record longer in the volume '
+        f'(--steady-only skips every stance of such a run)')
 
 
 def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None = None,
@@ -672,6 +761,17 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                     f'{wide.ground_m:+.3f} m, offset {wide.offset_s:+.3f} s, rms '
                     f'{1e3 * wide.rms_m:.2f} mm (the mocap origin is not on the floor)')
                 gfit = wide
+        if method == 'geometry' and init in ('contact', 'joint'):
+            others: dict[str, float] = {}
+            for name in ('contact', 'joint'):
+                if name != init:
+                    try:
+                        others[name] = estimate(name)
+                    except SlipDataError:
+                        pass
+            other = _other_starts(gfit, geo_inputs, geo_x, others, off_range, res, p0_kw)
+            if other is not None:
+                gfit, off = other, other.offset_s
         if (geometry.leg_damping_time_s is None or geometry.damping_assumed) and \
                 method == 'geometry':
             gfit, geometry, geo_inputs = _damping_tradeoff(gfit, geometry, geo_inputs, geo_x,
@@ -758,11 +858,14 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                                            res.paper_windows)
     t_in0, t_in1 = track.t_s[0], track.t_s[-1]
     t_steady = -math.inf
+    tds = (np.asarray(windows['left'], dtype=float).reshape(-1, 2)[:, 0] if has_clock else
+           np.array([w.touchdown_s for w in stance_windows if w.tripod == 'left']))
+    period = float(np.median(np.diff(tds))) if tds.size >= 3 else math.nan
+    body_pitch = body_pitch_rad(frame.rotation, quats)
+    if math.isfinite(period):
+        _check_transient(tm[inside], body_pitch, period, res)
     if steady_only:
-        tds = (np.asarray(windows['left'], dtype=float).reshape(-1, 2)[:, 0] if has_clock else
-               np.array([w.touchdown_s for w in stance_windows if w.tripod == 'left']))
-        period = float(np.median(np.diff(tds))) if tds.size >= 3 else math.nan
-        t_steady = (steady_start_s(tm[inside], body_pitch_rad(frame.rotation, quats), period)
+        t_steady = (steady_start_s(tm[inside], body_pitch, period, check_floor=True)
                     if math.isfinite(period) else math.inf)
         res.frame['steady_start_s'] = t_steady
     # raw mocap samples (all, in or out of the box) on the proprio clock, for skip reasons
