@@ -301,7 +301,7 @@ def _run_cli(args: argparse.Namespace) -> int:
         try:
             from tqdm import tqdm
             iterator: Any = tqdm(list(enumerate(targets)), desc='edubot runs', unit='run',
-                                 disable=len(targets) < 2)
+                                 disable=len(targets) < 2 or None)
         except ImportError:  # pragma: no cover
             iterator = enumerate(targets)
         for i, target in iterator:

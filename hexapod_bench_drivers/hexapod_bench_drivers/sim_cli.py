@@ -121,7 +121,7 @@ class _Progress:
             except ImportError:
                 return
             self.bar = tqdm(total=total, desc=label, unit='sample', file=sys.stderr,
-                            leave=False)
+                            leave=False, disable=None)
 
     def __call__(self, n: int) -> None:
         if self.bar is not None:

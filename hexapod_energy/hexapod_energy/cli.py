@@ -14,8 +14,9 @@ plots, PNG + SVG) and the Fig. 7D power map; ``--recommend`` -> minimum-CoT/M ga
 
 Bench bags recorded without ``/bench/session`` (another lab's bench, one bag per session) are
 given with ``--bench-sessions CSV`` (columns ``bag,load_kg[,frequency_hz,duty_factor,
-step_length_m,step_height_m]``, :func:`hexapod_energy.bag_io.read_bench_sessions_file`); they are read as one
-bench when their times do not overlap (:func:`hexapod_energy.bag_io.merge_bench_data`).
+step_length_m,step_height_m]``, :func:`hexapod_energy.bag_io.read_bench_sessions_file`);
+they are read as one bench when their times do not overlap
+(:func:`hexapod_energy.bag_io.merge_bench_data`).
 
 ``--sweep`` and ``--recommend`` are for the robot described: its mass (``--robot-mass``, default
 AntBot's 2.183 kg with a warning), its leg (``--leg``), its leg count (``--legs N``, else the
@@ -366,7 +367,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         stale.unlink(missing_ok=True)
     n_steps = len(bench_bags) + len(args.robot) + 1 + (16 if args.sweep else 0) + \
         (1 if args.recommend else 0)
-    bar = tqdm(total=n_steps, desc='energy', unit='step', disable=args.no_progress,
+    bar = tqdm(total=n_steps, desc='energy', unit='step', disable=args.no_progress or None,
                file=sys.stderr)
     # a second bar of the messages read: one long bag shows progress, not 0/2 for minutes
     from contextlib import ExitStack

@@ -52,8 +52,9 @@ on another floor) the summary says so and gives its shape.
 apart, and the summary says so. Energy candidates: ``basal_power``, ``thermal_drift`` (on the
 servo temperatures, or without ``/servo_status`` on the energy drawn since the run started),
 ``hot_windings`` (servos warmer than the bench's: the predicted power times their mean excess
-temperature, ``per_k`` [1/K]), ``kinematic_error``, ``supply_resistance``, ``speed_friction``, ``carried_mass`` (an undeclared
-payload, in kg, from the bench model's own mass sensitivity), ``leg_anomaly`` (per leg),
+temperature, ``per_k`` [1/K]), ``kinematic_error``, ``supply_resistance``,
+``speed_friction``, ``carried_mass`` (an undeclared payload, in kg, from the bench model's own
+mass sensitivity), ``leg_anomaly`` (per leg),
 ``swing_reversal`` (a swing after a slower stance than the bench's costs less, ``j_per_mps``
 [J s/m]: the bench's transfer error at other duty factors), ``standing_hold`` (a standing
 robot's holding power against the bench's 0 Hz sessions, ``holding_change`` -1 to +1) and
@@ -232,7 +233,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             raise InvalidInputError('give either --slip BAG... or --bench/--robot BAG..., '
                                     'not both')
         with tqdm(total=len(args.slip), desc='residuals', unit='bag', file=sys.stderr,
-                  disable=getattr(args, 'no_progress', False)) as bar:
+                  disable=getattr(args, 'no_progress', False) or None) as bar:
             return run_slip_loop(list(args.slip), args.out, plots=not args.no_plots,
                                  box=args.box, progress=bar.update)
     if not args.bench or not args.robot:
@@ -256,7 +257,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
 
     quiet = getattr(args, 'no_progress', False)
     with tqdm(total=len(args.bench) + len(args.robot) + 1, desc='residuals', unit='step',
-              file=sys.stderr, disable=quiet) as bar, \
+              file=sys.stderr, disable=quiet or None) as bar, \
             message_progress('residuals: bag', disable=quiet):   # messages of a long bag
         return run_energy_loop(args.bench, args.robot, args.out,
                                robot_mass_kg=args.robot_mass, payload_kg=args.robot_payload,
