@@ -300,8 +300,9 @@ def _run_cli(args: argparse.Namespace) -> int:
             out.mkdir(parents=True)
         try:
             from tqdm import tqdm
+            from hexapod_common.progress import bar_options
             iterator: Any = tqdm(list(enumerate(targets)), desc='edubot runs', unit='run',
-                                 disable=len(targets) < 2 or None)
+                                 **bar_options(len(targets) < 2))
         except ImportError:  # pragma: no cover
             iterator = enumerate(targets)
         for i, target in iterator:

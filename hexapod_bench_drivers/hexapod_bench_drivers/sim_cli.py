@@ -118,10 +118,11 @@ class _Progress:
         if enabled:
             try:
                 from tqdm import tqdm
+                from hexapod_common.progress import bar_options
             except ImportError:
                 return
             self.bar = tqdm(total=total, desc=label, unit='sample', file=sys.stderr,
-                            leave=False, disable=None)
+                            leave=False, **bar_options())
 
     def __call__(self, n: int) -> None:
         if self.bar is not None:

@@ -306,6 +306,7 @@ def _jsonable(obj: Any) -> Any:
 def run(args: argparse.Namespace) -> dict[str, Any]:
     """Carry out the analysis; returns the ``energy.json`` document (also written)."""
     from tqdm import tqdm
+    from hexapod_common.progress import bar_options
 
     from hexapod_common.errors import HexapodError
 
@@ -367,7 +368,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         stale.unlink(missing_ok=True)
     n_steps = len(bench_bags) + len(args.robot) + 1 + (16 if args.sweep else 0) + \
         (1 if args.recommend else 0)
-    bar = tqdm(total=n_steps, desc='energy', unit='step', disable=args.no_progress or None,
+    bar = tqdm(total=n_steps, desc='energy', unit='step', **bar_options(args.no_progress),
                file=sys.stderr)
     # a second bar of the messages read: one long bag shows progress, not 0/2 for minutes
     from contextlib import ExitStack

@@ -227,13 +227,14 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     from hexapod_energy.residuals import run_energy_loop
 
     from tqdm import tqdm
+    from hexapod_common.progress import bar_options
 
     if args.slip:
         if args.bench or args.robot:
             raise InvalidInputError('give either --slip BAG... or --bench/--robot BAG..., '
                                     'not both')
         with tqdm(total=len(args.slip), desc='residuals', unit='bag', file=sys.stderr,
-                  disable=getattr(args, 'no_progress', False) or None) as bar:
+                  **bar_options(getattr(args, 'no_progress', False))) as bar:
             return run_slip_loop(list(args.slip), args.out, plots=not args.no_plots,
                                  box=args.box, progress=bar.update)
     if not args.bench or not args.robot:
@@ -257,7 +258,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
 
     quiet = getattr(args, 'no_progress', False)
     with tqdm(total=len(args.bench) + len(args.robot) + 1, desc='residuals', unit='step',
-              file=sys.stderr, disable=quiet or None) as bar, \
+              file=sys.stderr, **bar_options(quiet)) as bar, \
             message_progress('residuals: bag', disable=quiet):   # messages of a long bag
         return run_energy_loop(args.bench, args.robot, args.out,
                                robot_mass_kg=args.robot_mass, payload_kg=args.robot_payload,

@@ -511,6 +511,7 @@ def _positive_kg(text: str) -> float:
 def run_command(args: argparse.Namespace) -> int:
     """Handler of ``hexapod-analyze slip``; returns the exit code."""
     from tqdm import tqdm
+    from hexapod_common.progress import bar_options
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -543,9 +544,10 @@ def run_command(args: argparse.Namespace) -> int:
             # its progress, not 0/N bags for minutes)
             queue = manager.Queue()
             futs = [pool.submit(_analyze_reporting, b, options, queue) for b in bags]
-            with tqdm(total=len(bags), desc='slip', unit='bag', disable=None) as bar_bags, \
+            with tqdm(total=len(bags), desc='slip', unit='bag', **bar_options()) as bar_bags, \
                     tqdm(total=_message_total(bags) or None, desc='slip: messages',
-                         unit='msg', unit_scale=True, leave=False, disable=None) as bar_msgs:
+                         unit='msg', unit_scale=True, leave=False,
+                         **bar_options()) as bar_msgs:
                 pending = set(futs)
                 while pending:
                     done, pending = wait(pending, timeout=0.25)
@@ -567,7 +569,7 @@ def run_command(args: argparse.Namespace) -> int:
         from hexapod_common.bags import message_progress
 
         with message_progress('slip: bag'):   # the messages of a long bag as they are read
-            for b in tqdm(bags, desc='slip', unit='bag', disable=None):
+            for b in tqdm(bags, desc='slip', unit='bag', **bar_options()):
                 results.append(analyze_bag(b, options))
     stances = [s for r in results for s in r.get('stances', [])]
     skipped = [s for r in results for s in r.get('skipped', [])]

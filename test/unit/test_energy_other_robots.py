@@ -17,7 +17,12 @@ from hexapod_energy.cli import build_parser, main
 from hexapod_energy.errors import InvalidInputError
 from hexapod_energy.prediction import OutputPowerModel
 from hexapod_energy.recommend import recommend_gait
-from hexapod_energy.sweeps import STANDARD_SWEEPS, SweepSpec, run_standard_sweeps
+from hexapod_energy.sweeps import (
+    GAIT_TYPE_MIN_SPEED_MPS,
+    STANDARD_SWEEPS,
+    SweepSpec,
+    run_standard_sweeps,
+)
 
 SHORT_LEG = """name: ShortReach
 a_m: [0.02, 0.05, 0.06]
@@ -118,7 +123,8 @@ def test_standard_sweeps_follow_the_leg_count() -> None:
     assert standard_sweeps(8)['gait_type'][1].duty_factor == pytest.approx(0.875)
     # AntBot's set is the paper's, unchanged
     assert STANDARD_SWEEPS == standard_sweeps(6)
-    assert STANDARD_SWEEPS['gait_type'][1] == SweepSpec('wave beta 0.83', 'wave', 6, 0.83)
+    assert STANDARD_SWEEPS['gait_type'][1] == SweepSpec('wave beta 0.83', 'wave', 6, 0.83,
+                                                        min_speed_mps=GAIT_TYPE_MIN_SPEED_MPS)
     assert STANDARD_SWEEPS['duty_factor'][0].gait == 'tripod'
 
 
@@ -303,3 +309,28 @@ def test_each_gaits_typical_duty_factor_is_a_candidate(opm) -> None:
     assert only.best.duty_factor == pytest.approx(0.875)
     d = rec.to_dict()
     assert d['leg_count'] == 8 and d['robot_mass_kg'] == pytest.approx(opm.robot.mass_kg)
+
+
+def test_progress_bars_in_a_log_refresh_once_a_minute(tmp_path):
+    """A bar written to a file (``make demo > log``) refreshes at most once a minute besides its
+    first and last state; on a terminal as tqdm does; --no-progress turns it off."""
+    import io
+
+    from tqdm import tqdm
+
+    from hexapod_common.progress import LOG_REFRESH_S, bar_options
+
+    class Tty(io.StringIO):
+        def isatty(self) -> bool:
+            return True
+
+    assert bar_options(True) == {'disable': True}
+    assert bar_options(stream=Tty()) == {}
+    log = io.StringIO()
+    assert bar_options(stream=log)['mininterval'] == LOG_REFRESH_S >= 30
+    with tqdm(total=5000, file=log, desc='work', **bar_options(stream=log)) as bar:
+        for _ in range(5000):
+            bar.update(1)
+    # the first and the last state reach the log
+    frames = [f for f in log.getvalue().split('\r') if f.strip()]
+    assert 'work:   0%' in frames[0] and 'work: 100%' in frames[-1]
