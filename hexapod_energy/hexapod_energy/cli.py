@@ -796,7 +796,13 @@ def _sweep(doc: dict[str, Any], model: Any, opm: Any, out: Path, bar: Any,
 
     from hexapod_energy.plots import four_quadrant_plot, power_map_plot
     from hexapod_energy.recommend import default_gait_name
-    from hexapod_energy.sweeps import DEFAULT_PAYLOADS_KG, run_standard_sweeps, standard_sweeps
+    from hexapod_energy.sweeps import (
+        DEFAULT_PAYLOADS_KG,
+        GAIT_TYPE_MIN_SPEED_MPS,
+        MIN_SPEED_MPS,
+        run_standard_sweeps,
+        standard_sweeps,
+    )
 
     lim = ANTBOT_LIMITS if limits is None else limits
     specs = standard_sweeps(leg_count)
@@ -817,7 +823,8 @@ def _sweep(doc: dict[str, Any], model: Any, opm: Any, out: Path, bar: Any,
             'duty_factor': f'{alt}, {leg_count} legs, step 100 mm, step height 40 mm',
             'step_length': f'{alt}, {leg_count} legs, beta 0.5, step height 40 mm',
             'gait_type': f'{leg_count} legs, step 100 mm ({alt} beta 0.5, wave beta {wave:g} '
-                         'and 0.5)',
+                         f'and 0.5), from {GAIT_TYPE_MIN_SPEED_MPS:g} m/s (the others from '
+                         f'{MIN_SPEED_MPS:g})',
             'leg_count': 'alternating, beta 0.5, step 100 mm (4, 6 and 8 legs whatever the '
                          "robot's)",
             'power_map': f'{alt}, {leg_count} legs, beta 0.5, step 100 mm'},

@@ -57,7 +57,9 @@ __all__ = [
 MIN_SPEED_MPS = 0.05
 #: the gait-type sweep (3C) starts lower: the wave gait's saving under load lies at the slowest
 #: speeds (simulated AntBot with 0.5 kg, P_loss: -12 % at 0.02 m/s, -9 % at 0.04, -5 % at 0.06,
-#: even at 0.08, +6 % at 0.1; the paper: up to -8 % below 0.13 m/s)
+#: even at 0.08, +6 % at 0.1; the paper: up to -8 % below 0.13 m/s). Below the bench's slowest
+#: walking session the curves read the surfaces between it and the standing session (flagged
+#: outside the bench, dotted and clipped in the plots)
 GAIT_TYPE_MIN_SPEED_MPS = 0.02
 DEFAULT_PAYLOADS_KG = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5)
 

@@ -29,7 +29,7 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
                           minimum), "geometry_fit_poor" (ratio over 3: offset, ground and
                           edges unreliable, with a note), "offset_other_starts" (the
                           proprioceptive estimates disagree: the fit from each,
-                          {"first_offset_s", "first_rms_m",
+                          {"first_start_s", "first_offset_s", "first_rms_m",
                            <estimator>: {"start_s", "offset_s", "rms_m"}}),
                           "offset_initial", "ground_tilt_rad" and "rotation" (geometry:
                           the frame turned by the ground's slope), "ground_tilt_source"
@@ -39,9 +39,10 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
                           assumed: the rigid body's pitch zero against the hip line,
                           --pitch-offset), "pitch_offset_check_deg" (a given zero: the
                           one the data prefer, null when they keep the given one),
-                          "steady_start_s" (--steady-only; inf when no steady state),
+                          "steady_start_s" (--steady-only; null when no steady state),
                           "steady_state_seen" (false: the pitch repeats in no two gait
-                          periods, with a note; null: under two periods), "edges_pooled"
+                          periods, with a note; null: under two periods or no gait period),
+                          "edges_pooled"
                           (geometry edges pooled with the same leg's at other strides in
                           steady state: {"pooled_edges",
                           "pooled_moved_over_1ms", "pooled_max_move_s"}),

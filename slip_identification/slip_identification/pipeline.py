@@ -192,53 +192,54 @@ def _damping_tradeoff(gfit: Any, geometry: LegGeometry, geo_inputs: tuple[Any, .
     return gfit, geometry, geo_inputs
 
 
-def _other_starts(gfit: Any, geo_inputs: tuple[Any, ...], geo_x: FloatArray,
+#: a fit from another estimate replaces the first only when it lands this far from it [s]
+OTHER_START_MIN_MOVE_S = 0.005
+
+
+def _other_starts(gfit: Any, geo_inputs: tuple[Any, ...], geo_x: FloatArray, first_s: float,
                   starts: dict[str, float], off_range: float, res: RunResult,
                   p0_kw: dict[str, Any]) -> Any:
-    """The geometric fit from the other proprioceptive estimates of the offset, when they lie
-    outside the first fit's search range; the start that fits clearly better is kept (else
-    None).
+    """The geometric fit from the other proprioceptive estimates of the offset; the one that
+    fits clearly better and lands elsewhere is kept (else None).
 
-    The fit searches +-60 ms around the first estimate, the hip-effort contacts; when that
-    estimate is further off the fit stays in a local minimum. On a reviewer's clock (10.5
-    rad/s, duty 0.5) the contact estimate was 75 ms off and the fit settled 118 ms off (body
-    height rms 0.342 mm against 0.232 mm of noise) while the joint estimate was 0.2 ms off (fit
-    from it: 0.219 mm). The starts are compared at the prior pitch zero (a zero fitted in the
-    local minimum favours it), and the zero is fitted again at a start chosen
-    (``frame['offset_other_starts']``).
+    The fit searches +-60 ms around the first estimate (``first_s``, the hip-effort
+    contacts); when that estimate is further off, the fit stays in a local minimum. On a
+    reviewer's clock (10.5 rad/s, duty 0.5) the contact estimate was 75 ms off and the fit
+    settled 118 ms off (body-height rms 0.342 mm against 0.232 mm of noise) while the joint
+    estimate was 0.2 ms off. Another estimate is tried when it lies outside the first's
+    search range; it is fitted as the first
+    was (the same pitch-zero handling), and kept when its rms is 5 % lower and its offset
+    more than :data:`OTHER_START_MIN_MOVE_S` away (a fit over other windows that lands on
+    the first offset again is no evidence; ``frame['offset_other_starts']``).
     """
-    far = {k: v for k, v in starts.items() if abs(v - gfit.offset_s) > off_range}
+    far = {k: v for k, v in starts.items() if abs(v - first_s) > off_range}
     if not far:
         return None
-    p0 = float(p0_kw.get('pitch_offset_rad', 0.0))
     best, tried = gfit, {}
     for name, start in far.items():
         try:
             f = fit_ground_offset(*geo_inputs, initial_offset_s=start, offset_range_s=off_range,
-                                  fix_offset=False, x_m=geo_x, fit_pitch_offset=False,
-                                  pitch_offset_rad=p0)
+                                  fix_offset=False, x_m=geo_x, **p0_kw)
         except SlipDataError:
             continue
         tried[name] = {'start_s': start, 'offset_s': f.offset_s, 'rms_m': f.rms_m}
-        if f.rms_m < best.rms_m * (1 - HALF_STRIDE_BETTER):
+        if f.rms_m < best.rms_m * (1 - HALF_STRIDE_BETTER) and \
+                abs(f.offset_s - gfit.offset_s) > OTHER_START_MIN_MOVE_S:
             best = f
     if not tried:
         return None
-    res.frame['offset_other_starts'] = {'first_offset_s': gfit.offset_s,
+    res.frame['offset_other_starts'] = {'first_start_s': first_s,
+                                        'first_offset_s': gfit.offset_s,
                                         'first_rms_m': gfit.rms_m, **tried}
     if best is gfit:
         return None
     res.notes.append(
-        f'the offset estimates disagree; the geometric fit from the first '
-        f'({gfit.offset_s:+.4f} s, body-height rms {1e3 * gfit.rms_m:.3f} mm) was in a local '
-        f'minimum, the fit from another fits clearly better: {best.offset_s:+.4f} s, '
-        f'{1e3 * best.rms_m:.3f} mm (' + ', '.join(
+        f'the offset estimates disagree: the geometric fit from the first ({first_s:+.4f} s) '
+        f'settled at {gfit.offset_s:+.4f} s (body-height rms {1e3 * gfit.rms_m:.3f} mm), the '
+        f'fit from another fits clearly better and is kept: {best.offset_s:+.4f} s, '
+        f'{1e3 * best.rms_m:.3f} mm (starts ' + ', '.join(
             f"{k} {v['start_s']:+.4f} s" for k, v in tried.items()) + ')')
-    try:
-        return fit_ground_offset(*geo_inputs, initial_offset_s=best.offset_s,
-                                 offset_range_s=0.01, fix_offset=False, x_m=geo_x, **p0_kw)
-    except SlipDataError:
-        return best
+    return best
 
 
 def _stride_period_s(tj: FloatArray, speed: dict[str, FloatArray]) -> float:
@@ -561,10 +562,11 @@ def _check_transient(t_s: FloatArray, pitch_rad: FloatArray, period_s: float,
         f'differs from one gait period ({period_s:.3f} s) to the next by '
         f'{math.degrees(d[k]):.2f} deg RMS, more than its own swing ({math.degrees(swing[k]):.2f} '
         f'deg; steady runs differ by a fraction of it). The robot is still settling into its '
-        f'gait or changing speed over the whole recording: the stream offset, ground, slope '
-        f'and stance edges are fitted to a transient (simulated 3 s pace runs like this were '
-        f'4-27 ms off) and the SLIP fits describe no steady gait; record longer in the volume '
-        f'(--steady-only skips every stance of such a run)')
+        f'gait or changing speed over the whole recording, or its gait does not repeat from '
+        f'stride to stride: the stream offset, ground, slope and stance edges are fitted to '
+        f'no steady motion (simulated 3 s pace runs like this were 4-27 ms off) and the SLIP '
+        f'fits describe no steady gait; record longer in the volume (--steady-only skips '
+        f'every stance of such a run)')
 
 
 def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None = None,
@@ -769,7 +771,8 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                         others[name] = estimate(name)
                     except SlipDataError:
                         pass
-            other = _other_starts(gfit, geo_inputs, geo_x, others, off_range, res, p0_kw)
+            other = _other_starts(gfit, geo_inputs, geo_x, off, others, off_range, res,
+                                  p0_kw)
             if other is not None:
                 gfit, off = other, other.offset_s
         if (geometry.leg_damping_time_s is None or geometry.damping_assumed) and \
@@ -864,6 +867,8 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
     body_pitch = body_pitch_rad(frame.rotation, quats)
     if math.isfinite(period):
         _check_transient(tm[inside], body_pitch, period, res)
+    else:
+        res.frame['steady_state_seen'] = None
     if steady_only:
         t_steady = (steady_start_s(tm[inside], body_pitch, period, check_floor=True)
                     if math.isfinite(period) else math.inf)
