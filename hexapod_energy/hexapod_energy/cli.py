@@ -97,6 +97,12 @@ such fallback is listed in the run's ``notes``.
                   "max_step_frequency_hz"}, "limits_source" (AntBot's servo limits, or
                   --limits), "held_fixed": {"<sweep name>": str}, "skipped" [str]},
                                                               # with --sweep
+      "gait_type_comparison": {"base", "other" (curve labels: the alternating gait at beta
+                  0.5, the wave gait at its typical duty factor), "speeds_mps",
+                  "payloads_kg", "ratio" (n_speed x n_payload: CoT/M other / base, below 1
+                  where the wave is cheaper), "outside_bench" (either curve extrapolated),
+                  "below_one_until_mps" [per payload, null: never cheaper], "best_ratio",
+                  "best_speed_mps"},           # with --sweep; plot gait_type_comparison.png
       "power_map": {"speeds_mps", "payloads_kg", "power_out_w" (n_speed x n_payload),
                     "seconds", "gait", "leg_count", "duty_factor",
                     "step_length_m"},                         # with --sweep
@@ -794,12 +800,13 @@ def _sweep(doc: dict[str, Any], model: Any, opm: Any, out: Path, bar: Any,
     from hexapod_gait.feasibility import ANTBOT_LIMITS
     from hexapod_gait.gait import make_gait
 
-    from hexapod_energy.plots import four_quadrant_plot, power_map_plot
+    from hexapod_energy.plots import comparison_plot, four_quadrant_plot, power_map_plot
     from hexapod_energy.recommend import default_gait_name
     from hexapod_energy.sweeps import (
         DEFAULT_PAYLOADS_KG,
         GAIT_TYPE_MIN_SPEED_MPS,
         MIN_SPEED_MPS,
+        compare_curves,
         run_standard_sweeps,
         standard_sweeps,
     )
@@ -841,6 +848,18 @@ def _sweep(doc: dict[str, Any], model: Any, opm: Any, out: Path, bar: Any,
         paths = four_quadrant_plot(curves[name], out / f'four_quadrant_{name}',
                                    title=titles.get(name, name))
         doc['plots'] += [str(p.relative_to(out)) for p in paths]
+    gait_curves = curves.get('gait_type') or []
+    if len(gait_curves) >= 2 and gait_curves[0].spec.gait != gait_curves[1].spec.gait:
+        # Fig. 3C's question in one line per payload: where the wave gait loses less
+        try:
+            cmp = compare_curves(gait_curves[0], gait_curves[1])
+        except EnergyError as err:
+            doc.setdefault('warnings', []).append(f'gait-type comparison skipped: {err}')
+        else:
+            doc['gait_type_comparison'] = {
+                k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in cmp.items()}
+            doc['plots'] += [str(p.relative_to(out))
+                             for p in comparison_plot(cmp, out / 'gait_type_comparison')]
     speeds = np.linspace(0.1, 0.6, 50)
     payloads = np.linspace(0.0, 0.5, 50)
     t0 = time.perf_counter()

@@ -34,7 +34,8 @@ import numpy as np  # noqa: E402
 
 from hexapod_energy.sweeps import SweepCurve  # noqa: E402
 
-__all__ = ['four_quadrant_figure', 'four_quadrant_plot', 'measured_runs_plot',
+__all__ = ['comparison_plot', 'four_quadrant_figure', 'four_quadrant_plot',
+           'measured_runs_plot',
            'power_map_plot', 'prediction_figure', 'prediction_plot', 'watts_figure',
            'watts_plot']
 
@@ -316,6 +317,37 @@ def power_map_plot(
              f'{grams[0]:.0f} to {grams[-1]:.0f} g' if change.size else '')
     head = 'Robot output power (Eq. 6)' + (f': {gait_label}' if gait_label else '')
     ax.set_title(head + (f'\n{line2}' if line2 else ''), fontsize=10)
+    fig.tight_layout()
+    return _save(fig, out_stem)
+
+
+def comparison_plot(cmp: dict[str, Any], out_stem: str | Path) -> list[Path]:
+    """One curve's CoT/M over another's against speed, a line per payload
+    (:func:`~hexapod_energy.sweeps.compare_curves`): below 1 the first named is cheaper;
+    dotted where either extrapolates the bench."""
+    v = np.asarray(cmp['speeds_mps'], dtype=float)
+    ratio = np.asarray(cmp['ratio'], dtype=float)
+    outside = np.asarray(cmp['outside_bench'], dtype=bool)
+    grams = 1000.0 * np.asarray(cmp['payloads_kg'], dtype=float)
+    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    colors = plt.cm.viridis(np.linspace(0.0, 0.85, max(grams.size, 1)))
+    for j, g in enumerate(grams):
+        for mask, style in ((~outside[:, j], '-'), (outside[:, j], ':')):
+            # each run extended by one point so that solid and dotted parts join
+            y = np.where(np.convolve(mask, [1, 1, 1], 'same') > 0, ratio[:, j], np.nan)
+            ax.plot(v, y, style, color=colors[j], lw=1.8,
+                    label=f'{g:.0f} g' if style == '-' else None)
+    ax.axhline(1.0, color='k', lw=0.8)
+    ax.set_xlabel('speed v [m/s]')
+    ax.set_ylabel(f"CoT/M {cmp['other']} / {cmp['base']}")
+    ends = [u for u in cmp['below_one_until_mps'] if u is not None]
+    span = (f'{min(ends):.3f} m/s' if ends and max(ends) - min(ends) < 5e-4 else
+            f'{min(ends):.3f}-{max(ends):.3f} m/s over the payloads' if ends else '')
+    line2 = f"{cmp['other']} cheaper up to {span}" if ends else f"{cmp['other']} never cheaper"
+    ax.set_title(f"{cmp['other']} against {cmp['base']}\n{line2} (dotted: outside the bench)",
+                 fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(title='payload', fontsize=8, ncol=2)
     fig.tight_layout()
     return _save(fig, out_stem)
 

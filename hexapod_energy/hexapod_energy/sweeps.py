@@ -49,6 +49,7 @@ __all__ = [
     'STANDARD_SWEEPS',
     'SweepCurve',
     'SweepSpec',
+    'compare_curves',
     'run_standard_sweeps',
     'standard_sweeps',
     'sweep_curve',
@@ -354,3 +355,57 @@ def run_standard_sweeps(
             if progress is not None:
                 progress.update(1)
     return out
+
+
+def compare_curves(base: SweepCurve, other: SweepCurve, *, n_speeds: int = 60
+                   ) -> dict[str, Any]:
+    """``other``'s CoT/M over ``base``'s at the speeds both reach, per payload (Fig. 3C's
+    question: at which speeds does the wave gait lose less than the tripod?).
+
+    Both curves must share their payloads. Returns ``speeds_mps`` (n,), ``payloads_kg`` (m,),
+    ``ratio`` (n, m: ``other / base``, below 1 where ``other`` is cheaper), ``outside_bench``
+    (n, m: either curve extrapolated there), and per payload ``below_one_until_mps`` (the
+    highest speed of the first run of speeds where ``other`` is cheaper, None when it never
+    is) and ``best_ratio`` with ``best_speed_mps``.
+
+    Raises
+    ------
+    InvalidInputError
+        If the payloads differ or the curves share no speed range.
+    """
+    pay = np.asarray(base.payloads_kg, dtype=float)
+    if pay.shape != np.shape(other.payloads_kg) or not np.allclose(pay, other.payloads_kg):
+        raise InvalidInputError(f'{base.spec.label!r} and {other.spec.label!r}: the curves '
+                                'have different payloads')
+    lo = max(float(base.speeds_mps[0]), float(other.speeds_mps[0]))
+    hi = min(float(base.speeds_mps[-1]), float(other.speeds_mps[-1]))
+    if not hi > lo:
+        raise InvalidInputError(f'{base.spec.label!r} and {other.spec.label!r} share no '
+                                'speed range')
+    v = np.linspace(lo, hi, n_speeds)
+
+    def at(c: SweepCurve, values: np.ndarray) -> np.ndarray:
+        return np.column_stack([np.interp(v, c.speeds_mps, values[:, j])
+                                for j in range(pay.size)])
+
+    ratio = at(other, other.cot_per_mass) / at(base, base.cot_per_mass)
+    outside = np.zeros(ratio.shape, dtype=bool)
+    for c in (base, other):
+        if c.outside_bench is not None:
+            outside |= at(c, np.asarray(c.outside_bench, dtype=float)) > 0.0
+    until: list[float | None] = []
+    for j in range(pay.size):
+        below = ratio[:, j] < 1.0
+        if not below.any():
+            until.append(None)
+            continue
+        first = int(np.argmax(below))
+        run_end = first + int(np.argmin(below[first:])) - 1 if not below[first:].all() \
+            else v.size - 1
+        until.append(float(v[run_end]))
+    best = np.argmin(ratio, axis=0)
+    return {'base': base.spec.label, 'other': other.spec.label,
+            'speeds_mps': v, 'payloads_kg': pay, 'ratio': ratio, 'outside_bench': outside,
+            'below_one_until_mps': until,
+            'best_ratio': [float(ratio[i, j]) for j, i in enumerate(best)],
+            'best_speed_mps': [float(v[i]) for i in best]}

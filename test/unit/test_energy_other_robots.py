@@ -215,6 +215,12 @@ def test_a_curve_the_leg_cannot_walk_is_skipped_with_a_warning(opm, tmp_path) ->
     assert any("'step 140 mm' skipped" in w for w in doc['warnings'])
     assert doc['sweep_settings']['skipped'] == [w for w in doc['warnings'] if 'skipped' in w]
     assert 'four_quadrant_step_length.png' in doc['plots']
+    # Fig. 3C's comparison: one line per payload, wave over tripod
+    cmp = doc['gait_type_comparison']
+    assert cmp['base'] == 'tripod beta 0.5' and cmp['other'] == 'wave beta 0.83'
+    assert len(cmp['below_one_until_mps']) == len(cmp['payloads_kg'])
+    assert 'gait_type_comparison.png' in doc['plots']
+    assert (tmp_path / 'gait_type_comparison.png').stat().st_size > 10_000
 
 
 # ---------------------------------------------------------------- 6: P_out unknown is null
