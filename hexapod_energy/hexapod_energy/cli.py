@@ -138,6 +138,7 @@ from typing import Any
 import numpy as np
 
 from hexapod_energy.descriptors import gait_from_sample, implausible_effort_power
+from hexapod_common.jsondoc import json_safe
 from hexapod_energy.errors import EnergyError
 
 __all__ = ['add_cli', 'build_parser', 'gait_from_sample', 'main', 'run']
@@ -289,24 +290,6 @@ def build_parser() -> argparse.ArgumentParser:
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     _add_arguments(p)
     return p
-
-
-def _finite(x: float) -> float | None:
-    return float(x) if x is not None and math.isfinite(x) else None
-
-
-def _jsonable(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, (np.floating, float)):
-        return _finite(float(obj))
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    return obj
 
 
 def run(args: argparse.Namespace) -> dict[str, Any]:
@@ -655,7 +638,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     finally:
         reading.close()
         bar.close()
-    (out / 'energy.json').write_text(json.dumps(_jsonable(doc), indent=1))
+    (out / 'energy.json').write_text(json.dumps(json_safe(doc), indent=1))
     return doc
 
 

@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import lsq_linear
 
+from hexapod_common.jsondoc import json_safe
 from hexapod_energy.effects_catalogue import EnergyEffect, WindowTable, default_catalogue
 from hexapod_energy.errors import BagContentError, InvalidInputError
 from hexapod_energy.unexplained import unexplained_residual, unexplained_text
@@ -1899,8 +1900,8 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
                                                  doc['unexplained'], runs, out))
         import json
 
-        (out / 'residuals.json').write_text(json.dumps(_jsonable(doc), indent=2) + '\n')
-    return _jsonable(doc)
+        (out / 'residuals.json').write_text(json.dumps(json_safe(doc), indent=2) + '\n')
+    return json_safe(doc)
 
 
 def _outside_bench(runs: Sequence[ResidualRun], model: Any, total_kg: float,
@@ -1961,20 +1962,6 @@ def _bench_gait(model: Any) -> dict[str, float]:
     if j:
         out['bench_swing_j_per_mps'] = float(np.median(j))
     return out
-
-
-def _jsonable(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, (float, np.floating)):
-        return float(obj) if math.isfinite(float(obj)) else None
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    return obj
 
 
 def plot_energy_loop(table: WindowTable, sel: EffectSelection, held: np.ndarray,

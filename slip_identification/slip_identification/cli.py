@@ -100,6 +100,8 @@ from typing import Any
 
 import numpy as np
 
+from hexapod_common.jsondoc import json_safe
+
 from .energetics import gait_table, plot_figures
 from .errors import MissingTopicError, SlipDataError, SlipError
 from .model import EDUBOT_MASS_KG, SlipModel
@@ -329,17 +331,6 @@ def _gait_name(phase: Any) -> str:
 
 def _f(x: float) -> float | None:
     return float(x) if math.isfinite(float(x)) else None
-
-
-def _json_safe(obj: Any) -> Any:
-    """``obj`` with every non-finite float as None (strict JSON: no NaN or Infinity)."""
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: _json_safe(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_json_safe(v) for v in obj]
-    return obj
 
 
 def _pitch_offset_arg(text: str) -> str:
@@ -583,7 +574,7 @@ def run_command(args: argparse.Namespace) -> int:
            'skipped': skipped, 'skipped_counts': dict(Counter(s['reason'] for s in skipped)),
            'failed_bags': [{'bag': r['bag'], 'error': r['error']} for r in results
                            if 'error' in r]}
-    (out / 'slip.json').write_text(json.dumps(_json_safe(doc), indent=1, allow_nan=False),
+    (out / 'slip.json').write_text(json.dumps(json_safe(doc), indent=1, allow_nan=False),
                                   encoding='utf-8')
     if rows:
         plot_figures(rows, out)

@@ -207,10 +207,10 @@ def _other_starts(gfit: Any, geo_inputs: tuple[Any, ...], geo_x: FloatArray, fir
     reviewer's clock (10.5 rad/s, duty 0.5) the contact estimate was 75 ms off and the fit
     settled 118 ms off (body-height rms 0.342 mm against 0.232 mm of noise) while the joint
     estimate was 0.2 ms off. Another estimate is tried when it lies outside the first's
-    search range; it is fitted as the first
-    was (the same pitch-zero handling), and kept when its rms is 5 % lower and its offset
-    more than :data:`OTHER_START_MIN_MOVE_S` away (a fit over other windows that lands on
-    the first offset again is no evidence; ``frame['offset_other_starts']``).
+    search range; it is fitted as the first was (the same pitch-zero handling), and kept
+    when its rms is 5 % lower and its offset more than :data:`OTHER_START_MIN_MOVE_S` away
+    (a fit over other windows that lands on the first offset again is no evidence;
+    ``frame['offset_other_starts']``).
     """
     far = {k: v for k, v in starts.items() if abs(v - first_s) > off_range}
     if not far:
@@ -548,10 +548,12 @@ def _check_transient(t_s: FloatArray, pitch_rad: FloatArray, period_s: float,
                      res: RunResult) -> None:
     """Note a run whose body pitch repeats in no two consecutive gait periods (a start-up or
     speed transient throughout the motion capture: :func:`.steady.steady_windows`); sets
-    ``frame['steady_state_seen']`` (None when under two periods are covered)."""
+    ``frame['steady_state_seen']`` (None without a period or under two periods covered)."""
+    res.frame['steady_state_seen'] = None
+    if not math.isfinite(period_s):
+        return
     t0, d, swing, steady = steady_windows(t_s, pitch_rad, period_s)
     if t0.size == 0:
-        res.frame['steady_state_seen'] = None
         return
     k = int(np.argmin(d))
     res.frame['steady_state_seen'] = bool(steady[k])
@@ -865,13 +867,12 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
            np.array([w.touchdown_s for w in stance_windows if w.tripod == 'left']))
     period = float(np.median(np.diff(tds))) if tds.size >= 3 else math.nan
     body_pitch = body_pitch_rad(frame.rotation, quats)
-    if math.isfinite(period):
-        _check_transient(tm[inside], body_pitch, period, res)
-    else:
-        res.frame['steady_state_seen'] = None
+    _check_transient(tm[inside], body_pitch, period, res)
     if steady_only:
-        t_steady = (steady_start_s(tm[inside], body_pitch, period, check_floor=True)
-                    if math.isfinite(period) else math.inf)
+        # a run with no steady window (the check above) has no steady part
+        t_steady = (steady_start_s(tm[inside], body_pitch, period)
+                    if math.isfinite(period) and res.frame['steady_state_seen'] is not False
+                    else math.inf)
         res.frame['steady_start_s'] = t_steady
     # raw mocap samples (all, in or out of the box) on the proprio clock, for skip reasons
     t_raw = np.asarray(run.mocap_t_s, dtype=float) - res.offset_s
