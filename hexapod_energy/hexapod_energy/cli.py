@@ -315,8 +315,16 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     )
     from hexapod_energy.single_leg import SingleLegModel
 
-    if args.recommend and (args.speed is None or args.speed <= 0):
-        raise EnergyError('--recommend needs --speed V with V > 0 [m/s]')
+    if args.recommend and (args.speed is None or not (math.isfinite(args.speed) and
+                                                      args.speed > 0)):
+        raise EnergyError(f'--recommend needs --speed V with V > 0 [m/s], got {args.speed}')
+    # a negative or NaN payload used to give a lighter robot (or NaN descriptors) and exit 0
+    for flag, value in (('--payload', args.payload),
+                        ('--robot-payload', getattr(args, 'robot_payload', None))):
+        if value is not None and not (math.isfinite(value) and value >= 0):
+            raise EnergyError(f'{flag} must be >= 0 kg, got {value}')
+    if not math.isfinite(getattr(args, 'load_offset', 0.0)):
+        raise EnergyError(f'--load-offset must be finite, got {args.load_offset}')
     specs = read_bench_sessions_file(args.bench_sessions) \
         if getattr(args, 'bench_sessions', None) else {}
     bench_bags = [(str(b), None) for b in args.bench] + list(specs.items())

@@ -19,6 +19,8 @@ count, robot mass and limits it used.
 
 from __future__ import annotations
 
+import math
+
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
@@ -205,14 +207,19 @@ def recommend_gait(
     Raises
     ------
     InvalidInputError
-        If the speed is not positive or no candidate is feasible at that speed (the message
-        says why the configurations were rejected).
+        If the speed is not positive, the payload negative (either not finite) or no
+        candidate is feasible at that speed (the message says why the configurations were
+        rejected).
     """
     from hexapod_gait.feasibility import ANTBOT_LIMITS
     from hexapod_gait.gait import typical_duty_factor
 
-    if speed_mps <= 0:
-        raise InvalidInputError(f'speed_mps must be > 0, got {speed_mps}')
+    if not (math.isfinite(speed_mps) and speed_mps > 0):
+        raise InvalidInputError(f'speed_mps must be finite and > 0, got {speed_mps}')
+    if not (math.isfinite(payload_kg) and payload_kg >= 0):
+        # a negative payload made a lighter robot and a recommendation for it (mass 1.18 kg
+        # for AntBot with -1 kg), without a word
+        raise InvalidInputError(f'payload_kg must be finite and >= 0, got {payload_kg}')
     lim = ANTBOT_LIMITS if limits is None else limits
     min_sup = min(min_supporting_legs, leg_count // 2)
     best: Candidate | None = None
@@ -283,9 +290,10 @@ def _rejections(why: dict[str, list[str]], gaits: Sequence[str], limits: Any) ->
     if not why:
         return f'no configuration was searched (gaits {tuple(gaits)})'
     kinds = {'invalid': 'are not gaits for this leg count',
-             'limits': ('exceed the actuator limits (min swing {:g} s, min stance {:g} s, max '
-                        '{:g} Hz)').format(limits.min_swing_s, limits.min_stance_s,
-                                           limits.max_step_frequency_hz),
+             'limits': ('exceed the actuator limits (min swing {:g} s, min stance {:g} s on '
+                        "the bench's step, scaled to each step's joint path; max {:g} Hz)"
+                        ).format(limits.min_swing_s, limits.min_stance_s,
+                                 limits.max_step_frequency_hz),
              'support': 'support the body on too few legs',
              'unreachable': 'have a leg path out of reach'}
     parts = [f'{len(v)} {kinds[k]} (e.g. {v[0]})' for k, v in why.items()]

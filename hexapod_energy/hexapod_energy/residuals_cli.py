@@ -240,6 +240,13 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     if not args.bench or not args.robot:
         raise InvalidInputError('the energy loop needs both --bench BAG... and --robot BAG... '
                                 '(or use --slip BAG...)')
+    # a negative or NaN mass or payload used to run the loop on a lighter robot, exit 0
+    if not (math.isfinite(args.robot_mass) and args.robot_mass > 0):
+        raise InvalidInputError(f'--robot-mass must be > 0 kg, got {args.robot_mass}')
+    if not (math.isfinite(args.robot_payload) and args.robot_payload >= 0):
+        raise InvalidInputError(f'--robot-payload must be >= 0 kg, got {args.robot_payload}')
+    if not math.isfinite(args.load_offset):
+        raise InvalidInputError(f'--load-offset must be finite, got {args.load_offset}')
     given = [getattr(args, k, None) for k in ('gait', 'duty_factor', 'step_length')]
     gait = None
     if any(v is not None for v in given):
