@@ -4,6 +4,7 @@ then replayed offline through a fresh energy_monitor: the descriptors agree to 1
 The simulated AX-18A servos report their load (PWM fraction) as effort, which is not a torque, so
 the monitor takes P_out from the Eq. 6 model (``power_out_source=model``); a second check runs
 the same bag with ``auto`` (efforts present -> effort-based P_out), equal live and offline too.
+Run for the tripod (beta 0.5) and the wave gait (beta 5/6, one leg in swing at a time).
 """
 
 from __future__ import annotations
@@ -25,7 +26,6 @@ from hexapod_gait.gait_node import GaitSchedulerNode
 
 FIELDS = ('window', 'mass', 'speed', 'power_in', 'power_out', 'power_loss', 'efficiency',
           'cost_of_transport', 'specific_cost_of_transport', 'specific_resistance')
-PERIOD_S = 0.5
 PAYLOAD_KG = 0.2
 
 
@@ -43,7 +43,9 @@ def _same(a, b) -> None:
 
 
 @pytest.mark.timeout(180)
-def test_live_sim_descriptors_equal_offline(tmp_path) -> None:
+@pytest.mark.parametrize('gait_name, beta, period_s', [('tripod', 0.5, 0.5),
+                                                       ('wave', 5 / 6, 1.0)])
+def test_live_sim_descriptors_equal_offline(tmp_path, gait_name, beta, period_s) -> None:
     bag = tmp_path / 'live'
     topics = ['gait/phase', 'joint_states', 'battery_state']
     with ros_env('energy_live') as env:
@@ -53,7 +55,8 @@ def test_live_sim_descriptors_equal_offline(tmp_path) -> None:
         energy = env.make(EnergyMonitorNode, parameter_overrides=_monitor_params('model'))
         out = Collector(env, EnergeticDescriptors, 'energy/descriptors')
         gait = env.make(GaitSchedulerNode, parameter_overrides=[
-            Parameter('period', value=PERIOD_S)])
+            Parameter('period', value=period_s), Parameter('gait', value=gait_name),
+            Parameter('duty_factor', value=beta)])
         sim = env.make(SimRobotNode, parameter_overrides=[
             Parameter('payload', value=PAYLOAD_KG)])
         namespace = env.namespace
@@ -68,13 +71,13 @@ def test_live_sim_descriptors_equal_offline(tmp_path) -> None:
         assert energy.dropped == 0
 
     expected = OutputPowerModel().power_out_w(
-        make_gait('tripod', period_s=PERIOD_S), payload_kg=PAYLOAD_KG)
+        make_gait(gait_name, period_s=period_s, duty_factor=beta), payload_kg=PAYLOAD_KG)
     print(f'\nlive windows {len(live)}; model P_out {expected:.4f} W')
     for msg in live:
         print(f'  window {msg.window:.3f} s: P_in {msg.power_in:.3f} W, P_out '
               f'{msg.power_out:.4f} W, eta {msg.efficiency:.4f}, speed {msg.speed:.3f} m/s, '
               f'CoT/M {msg.specific_cost_of_transport:.2f}')
-        assert msg.window == pytest.approx(PERIOD_S, abs=0.02)
+        assert msg.window == pytest.approx(period_s, abs=0.02)
         assert msg.power_out == pytest.approx(expected, rel=1e-12)
         assert 15.0 < msg.power_in < 80.0
         assert 0.003 < msg.efficiency < 0.07
