@@ -80,6 +80,9 @@ such fallback is listed in the run's ``notes``.
                       "speed_source" (mocap | odometry | odometry_twist | gait_schedule |
                       given | none; the windows' sources joined by '+' when they differ,
                       e.g. "mocap+none": mocap where it tracked, no speed elsewhere),
+                      "speed_span": {"windows", "window_s", "power_in_w", "power_out_w"}
+                      (the windows with a known speed, when only some have one: both costs
+                      of transport and the specific resistance are over these) or null,
                       "notes" [str] (this run's input fallbacks),
                       "segment": {"index", "of", "t_start_s", "t_end_s"} (a bag whose
                       /gait/phase changes walking schedule gives one run per schedule;
@@ -126,6 +129,7 @@ unforeseen failure (a bug), 130 interrupted.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import re
@@ -532,6 +536,22 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 # the accumulator used robot.mass_kg; descriptors are recomputed with the payload
                 d = descriptors(power_in_w=run_.power_in_w, power_out_w=p_out, mass_kg=mass,
                                 speed_mps=run_.speed_mps)
+                span = run_.extra.get('speed_span')
+                if span is not None:
+                    # speed known over part of the run: what divides by it is over that part
+                    d_span = descriptors(
+                        power_in_w=span['power_in_w'], mass_kg=mass, speed_mps=run_.speed_mps,
+                        power_out_w=span['power_out_w'] if source == 'effort' else p_out)
+                    d = dataclasses.replace(
+                        d, cost_of_transport_j_per_m=d_span.cost_of_transport_j_per_m,
+                        specific_cost_of_transport_j_per_m_kg=(
+                            d_span.specific_cost_of_transport_j_per_m_kg),
+                        specific_resistance=d_span.specific_resistance)
+                    notes.append(
+                        f"speed known in {span['windows']} of {run_.windows} windows: cost of "
+                        f"transport and specific resistance over those ({span['window_s']:.2f} "
+                        f"s, P_in {span['power_in_w']:.2f} W there, {run_.power_in_w:.2f} W "
+                        'over the run)')
                 legs = _leg_count(args, run_) if run_.gait is None else None
                 runs.append({
                     'bag': str(path),
@@ -561,6 +581,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                     'specific_resistance': d.specific_resistance,
                     'cycle_source': run_.extra.get('cycle_source', 'gait_phase'),
                     'speed_source': run_.extra.get('speed_source', ''),
+                    'speed_span': run_.extra.get('speed_span'),
                     'notes': notes,
                     'segment': run_.extra.get('segment'),
                 })
