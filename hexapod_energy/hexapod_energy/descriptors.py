@@ -60,7 +60,11 @@ sample before the cut is kept for interpolation),
 and a pending window that would be longer is given up (the cycle source paused: counted in
 ``dropped_windows_``). While the cycle source (``/gait/phase``; on the joint path
 ``/joint_states``) has been quiet for ``quiet_s`` of battery stamps, a note says so, once per
-pause.
+pause; so does ``/battery_state`` quiet for ``quiet_s`` while the cycle source goes on (a power
+monitor stopped: no window can complete). A window across a gap in ``/battery_state`` (an
+interval over 5 times the stream's usual one) is flagged (``BATTERY_GAP_NOTE``), also one with
+no sample at all inside the gap; the offline reader and ``energy_monitor`` leave such windows
+out.
 
 Cycle boundaries (``cycle_source``): ``gait_phase`` takes them from the wraps of the
 ``/gait/phase`` cycle phase; ``joints`` from the joint positions alone
@@ -74,6 +78,7 @@ gait schedule), with a warning.
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -368,6 +373,9 @@ class DescriptorAccumulator:
     #: samples dropped because they were stamped before a time jump but arrived after it
     _clk: StreamClock = field(init=False)
     _quiet_noted: bool = field(default=False, init=False)
+    _battery_quiet_noted: bool = field(default=False, init=False)
+    # the last /battery_state intervals [s], for the gap check (the buffer is trimmed)
+    _battery_steps: deque[float] = field(default_factory=lambda: deque(maxlen=64), init=False)
     sign_note_: str = field(default='', init=False)
     _battery: list[tuple[float, float]] = field(default_factory=list, init=False)
     _pending_battery: list[BatterySample] = field(default_factory=list, init=False)
@@ -437,6 +445,8 @@ class DescriptorAccumulator:
                            'accumulation restarted from the new time')
         # (the stream clock has started again from t and marked the other streams' stale)
         self._quiet_noted = False
+        self._battery_quiet_noted = False
+        self._battery_steps.clear()
         self._pending_battery = []
         self._battery = []
         self._joint = []
@@ -502,11 +512,30 @@ class DescriptorAccumulator:
                 f'can complete a window (gait node stopped?); data older than '
                 f'{self.max_window_s:g} s is dropped')
 
+    def _check_battery_quiet(self, t: float) -> None:
+        """Note (once per pause) ``/battery_state`` quiet for ``quiet_s`` while the cycle
+        source goes on: no window can complete (before, the monitor fell silent without a
+        word)."""
+        last = self._clk.last.get('battery_state')
+        ref = last if last is not None else self._clk.first
+        if ref is None or t - ref < self.quiet_s or self._battery_quiet_noted:
+            return
+        self._battery_quiet_noted = True
+        what = ('no /battery_state yet' if last is None else
+                f'no /battery_state for {t - ref:.1f} s')
+        self.notes_.append(
+            f'{what} while the gait cycles go on: no window can complete (power monitor '
+            'stopped, or its topic named otherwise?); windows across the gap will be left out')
+
     # -- inputs ----------------------------------------------------------------------------
     def add_battery(self, sample: BatterySample) -> list[Descriptors]:
         """Add one battery sample; returns the windows this sample completes."""
+        prev = self._clk.last.get('battery_state')
         if not self._clk.observe('battery_state', sample.t_s):
             return []
+        if prev is not None and sample.t_s > prev:
+            self._battery_steps.append(sample.t_s - prev)
+        self._battery_quiet_noted = False
         self._check_quiet(sample.t_s)
         self._bound()
         if self.sign_ is None:
@@ -556,6 +585,8 @@ class DescriptorAccumulator:
         """
         if not self._clk.observe('joint_states', sample.t_s):
             return []
+        if self.joint_cycles_:
+            self._check_battery_quiet(sample.t_s)
         if sample.effort.size and sample.velocity.size == sample.effort.size:
             power = np.asarray(sample.effort, dtype=float) * np.asarray(sample.velocity,
                                                                         dtype=float)
@@ -647,6 +678,7 @@ class DescriptorAccumulator:
         """Add a gait schedule sample; a wrap of the cycle phase marks a cycle boundary."""
         if not self._clk.observe('gait/phase', sample.t_s):
             return []
+        self._check_battery_quiet(sample.t_s)
         if self.cycle_source == 'joints':
             self._gait = sample
             return []
@@ -804,17 +836,24 @@ class DescriptorAccumulator:
         t, p = t[order], p[order]
         grid = np.concatenate(([t0], t[(t > t0) & (t < t1)], [t1]))
         power_in = float(np.trapezoid(np.interp(grid, t, p), grid) / (t1 - t0))
-        if grid.size - 2 < MIN_BATTERY_SAMPLES_PER_WINDOW:
-            warnings.append(SLOW_BATTERY_NOTE)
-        elif t.size >= 3:
+        gap = False
+        if t.size >= 2:
             # the samples around and inside the window: a gap much longer than the stream's
-            # own interval means P_in was interpolated across missing data
+            # own interval means P_in was interpolated across missing data. Checked for
+            # windows with few samples too: a window wholly inside a gap holds none, and was
+            # taken for a slow monitor's (a 5 s gap in a 15 s AntBot bag: 7 windows
+            # interpolated between the gap's ends, P_in 31.6 W against 35.0 W)
             i0 = max(int(np.searchsorted(t, t0, side='right')) - 1, 0)
             i1 = min(int(np.searchsorted(t, t1, side='left')), t.size - 1)
             steps = np.diff(t[i0:i1 + 1])
-            typical = float(np.median(np.diff(t)))
-            if steps.size and float(np.max(steps)) > max(BATTERY_GAP_INTERVALS * typical, 0.25):
-                warnings.append(BATTERY_GAP_NOTE)
+            typical = float(np.median(self._battery_steps)) if self._battery_steps else \
+                float(np.median(np.diff(t)))
+            gap = bool(steps.size) and \
+                float(np.max(steps)) > max(BATTERY_GAP_INTERVALS * typical, 0.25)
+        if gap:
+            warnings.append(BATTERY_GAP_NOTE)
+        elif grid.size - 2 < MIN_BATTERY_SAMPLES_PER_WINDOW:
+            warnings.append(SLOW_BATTERY_NOTE)
         if power_in < 0:
             warnings.append(f'negative mean input power {power_in:.3f} W: check the battery '
                             'current sign convention (parameter current_sign)')

@@ -80,7 +80,12 @@ from hexapod_common.node_utils import (
 )
 from hexapod_gait.feasibility import ActuatorLimits
 
-from hexapod_energy.descriptors import DescriptorAccumulator, Descriptors, model_power_out
+from hexapod_energy.descriptors import (
+    BATTERY_GAP_NOTE,
+    DescriptorAccumulator,
+    Descriptors,
+    model_power_out,
+)
 from hexapod_energy.leg_description import antbot_leg, load_leg_description
 
 __all__ = ['EnergyMonitorNode', 'EnergyParams', 'descriptors_to_msg', 'main']
@@ -202,6 +207,8 @@ class EnergyMonitorNode(Node):
         self.pub = self.create_publisher(EnergeticDescriptors, 'energy/descriptors',
                                          RELIABLE_QOS)
         self.dropped = 0
+        #: windows not published: across a gap in /battery_state (P_in would be interpolated)
+        self.gap_windows = 0
         self._sign_logged = False
         self._notes_logged = 0
         self._warned: dict[str, int] = {}  # warning kind -> windows seen with it
@@ -255,6 +262,11 @@ class EnergyMonitorNode(Node):
                 if n == 1 or n in (10, 100, 1000) or n % 10000 == 0:
                     self.get_logger().warning(warning if n == 1 else
                                               f'{warning} [{n} windows so far]')
+            if BATTERY_GAP_NOTE in d.warnings:
+                # its P_in would be interpolated over missing battery data: not published,
+                # as the offline analysis leaves it out
+                self.gap_windows += 1
+                continue
             self.pub.publish(descriptors_to_msg(d))
 
     def _on_battery(self, msg: BatteryState) -> None:

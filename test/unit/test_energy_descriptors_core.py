@@ -67,3 +67,47 @@ def test_zero_speed_gives_nan_not_inf():
     from hexapod_energy.descriptors import descriptors_from_powers
     r = descriptors_from_powers(power_in_w=10.0, power_out_w=1.0, speed_mps=0.0, mass_kg=2.0)
     assert math.isnan(r.specific_resistance) and math.isnan(r.cost_of_transport_j_per_m)
+
+
+def test_windows_inside_a_battery_gap_are_flagged_and_the_gap_is_said():
+    """/battery_state missing for 6 s of a 12 s run (power monitor stalled): every window
+    across the gap carries the gap warning (the offline reader and energy_monitor leave it
+    out), those wholly inside it too, and the silence is said once. Before, a window with no
+    battery sample at all was taken for a slow monitor's and its P_in interpolated between
+    the gap's ends (a 5 s gap in a simulated AntBot bag: 7 windows kept, the run's P_in 31.6 W
+    against 35.0 W), and a silent /battery_state while /gait/phase went on was not said."""
+    from hexapod_energy.descriptors import BATTERY_GAP_NOTE, SLOW_BATTERY_NOTE
+
+    acc = DescriptorAccumulator(mass_kg=2.0, current_sign='ros')
+    out = []
+    for ti in np.arange(0, 12.0, 0.01):
+        out += acc.add_gait_phase(gait(ti))
+        if not 2.05 < ti < 7.95:
+            p = 20.0 + 5.0 * np.sin(2 * np.pi * ti / 0.5)
+            out += acc.add_battery(BatterySample(ti + 1e-4, 12.0, -p / 12.0, 25.0))
+    across = [d for d in out if d.t_end_s > 2.05 and d.t_end_s - d.window_s < 7.95]
+    assert len(across) == 12
+    assert all(BATTERY_GAP_NOTE in d.warnings for d in across)
+    assert not any(SLOW_BATTERY_NOTE in d.warnings for d in out)
+    clean = [d for d in out if d not in across]
+    assert len(clean) >= 6
+    assert all(not d.warnings and d.power_in_w == pytest.approx(20.0, abs=0.05) for d in clean)
+    quiet = [n for n in acc.notes_ if 'no /battery_state for' in n]
+    assert len(quiet) == 1 and 'while the gait cycles go on' in quiet[0]
+
+
+def test_a_slow_battery_monitor_is_not_a_gap():
+    """A 1 Hz fuel gauge: windows of 0.5 s hold one sample or none; they are a slow monitor's
+    (interpolated, said), not gaps."""
+    from hexapod_energy.descriptors import BATTERY_GAP_NOTE, SLOW_BATTERY_NOTE
+
+    acc = DescriptorAccumulator(mass_kg=2.0, current_sign='ros')
+    out = []
+    for ti in np.arange(0, 12.0, 0.01):
+        out += acc.add_gait_phase(gait(ti))
+        if abs(ti - round(ti)) < 1e-9:
+            out += acc.add_battery(BatterySample(ti + 1e-4, 12.0, -20.0 / 12.0, 25.0))
+    assert len(out) >= 18
+    assert not any(BATTERY_GAP_NOTE in d.warnings for d in out)
+    assert all(SLOW_BATTERY_NOTE in d.warnings for d in out)
+    assert not [n for n in acc.notes_ if '/battery_state' in n]
