@@ -899,6 +899,7 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
 
     from hexapod_energy.descriptors import (
         BATTERY_GAP_NOTE,
+        JOINT_GAP_NOTE,
         POSITION_POWER_NOTE,
         SLOW_BATTERY_NOTE,
         DescriptorAccumulator,
@@ -1061,6 +1062,11 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
         windows = [d for d in windows if BATTERY_GAP_NOTE not in d.warnings]
         notes.append(f'{n_gap} window(s) across a gap in /battery_state (P_in would be '
                      'interpolated over missing data) left out')
+    n_gap = sum(JOINT_GAP_NOTE in d.warnings for d in windows)
+    if n_gap:
+        windows = [d for d in windows if JOINT_GAP_NOTE not in d.warnings]
+        notes.append(f'{n_gap} window(s) across a gap in /joint_states (P_out from the efforts '
+                     'would miss part of them) left out')
     n_neg = sum(d.power_in_w < 0 for d in windows)
     if n_neg:
         notes.append(f'negative mean input power in {n_neg} of {len(windows)} window(s) with '

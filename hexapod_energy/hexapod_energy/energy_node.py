@@ -82,6 +82,7 @@ from hexapod_gait.feasibility import ActuatorLimits
 
 from hexapod_energy.descriptors import (
     BATTERY_GAP_NOTE,
+    JOINT_GAP_NOTE,
     DescriptorAccumulator,
     Descriptors,
     model_power_out,
@@ -208,6 +209,7 @@ class EnergyMonitorNode(Node):
                                          RELIABLE_QOS)
         self.dropped = 0
         #: windows not published: across a gap in /battery_state (P_in would be interpolated)
+        #: or in /joint_states (P_out from the efforts would miss part of the window)
         self.gap_windows = 0
         self._sign_logged = False
         self._notes_logged = 0
@@ -262,9 +264,9 @@ class EnergyMonitorNode(Node):
                 if n == 1 or n in (10, 100, 1000) or n % 10000 == 0:
                     self.get_logger().warning(warning if n == 1 else
                                               f'{warning} [{n} windows so far]')
-            if BATTERY_GAP_NOTE in d.warnings:
-                # its P_in would be interpolated over missing battery data: not published,
-                # as the offline analysis leaves it out
+            if BATTERY_GAP_NOTE in d.warnings or JOINT_GAP_NOTE in d.warnings:
+                # its P_in would be interpolated over missing battery data, or its P_out miss
+                # joint data: not published, as the offline analysis leaves it out
                 self.gap_windows += 1
                 continue
             self.pub.publish(descriptors_to_msg(d))

@@ -111,3 +111,36 @@ def test_a_slow_battery_monitor_is_not_a_gap():
     assert not any(BATTERY_GAP_NOTE in d.warnings for d in out)
     assert all(SLOW_BATTERY_NOTE in d.warnings for d in out)
     assert not [n for n in acc.notes_ if '/battery_state' in n]
+
+
+@pytest.mark.parametrize('lag_s', [0.0, 0.3])
+def test_windows_in_a_joint_states_gap_are_flagged_not_counted_as_zero_power(lag_s):
+    """P_out from joint efforts, /joint_states missing for 2 s: the windows it covers are
+    flagged (left out offline, not published live). Before, a window with no joint sample
+    took P_out 0 W (a 2 s gap in a simulated EduBot jogging bag: the run's P_out 11.3 -> 8.5
+    W). A joint stream lagging the battery by 0.3 s (a slow servo bus) is not a gap, so a
+    window's end is checked only once a later joint sample has come: the window in which the
+    gap starts keeps the mean of its samples."""
+    from conversions_helpers import joint_sample
+    from hexapod_energy.descriptors import JOINT_GAP_NOTE
+
+    acc = DescriptorAccumulator(mass_kg=2.0, current_sign='ros', power_out_source='effort')
+    events = []
+    for ti in np.arange(0, 8.0, 0.01):
+        events.append((ti, 'g'))
+        events.append((ti + 1e-4, 'b'))
+        if not 3.05 < ti < 4.95:
+            events.append((ti + 2e-4 + lag_s, 'j'))
+    out = []
+    for te, kind in sorted(events):
+        if kind == 'g':
+            out += acc.add_gait_phase(gait(te))
+        elif kind == 'b':
+            out += acc.add_battery(BatterySample(te, 12.0, -20.0 / 12.0, 25.0))
+        else:
+            out += acc.add_joint_state(joint_sample(te - lag_s, 2.0))
+    flagged = [d.t_end_s for d in out if JOINT_GAP_NOTE in d.warnings]
+    kept = [d for d in out if JOINT_GAP_NOTE not in d.warnings]
+    assert flagged and min(flagged) > 3.0 and max(flagged) - 0.5 < 5.0
+    assert flagged == pytest.approx([4.0, 4.5, 5.0])
+    assert all(d.power_out_w == pytest.approx(2.0, rel=1e-9) for d in kept if d.t_end_s > 0.6)
