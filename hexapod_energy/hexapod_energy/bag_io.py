@@ -1044,6 +1044,10 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
     # efforts count only when they gave a joint power (with velocities, or without them
     # from position differences); efforts alone leave P_out unknown, not 0 W
     has_effort = acc.joint_power_samples_ > 0
+    if acc.repeated_poses_:
+        notes.append(f'{acc.repeated_poses_} /mocap/body sample(s) repeat the previous pose '
+                     'exactly (the bridge repeating its last pose after losing the body): '
+                     'left out of the speed')
     if any(POSITION_POWER_NOTE in d.warnings for d in windows):
         notes.append(POSITION_POWER_NOTE)
     if acc.nonfinite_joint_power_:

@@ -372,6 +372,8 @@ class DescriptorAccumulator:
     notes_: list[str] = field(default_factory=list, init=False)
     #: backward time jumps seen: (stream, previous stamp, new stamp) [s]
     time_jumps_: list[tuple[str, float, float]] = field(default_factory=list, init=False)
+    #: /mocap/body samples left out: the previous pose repeated exactly (tracking lost)
+    repeated_poses_: int = field(default=0, init=False)
     #: pending windows given up because they would be longer than ``max_window_s``
     dropped_windows_: int = field(default=0, init=False)
     #: samples dropped because they were stamped before a time jump but arrived after it
@@ -702,7 +704,14 @@ class DescriptorAccumulator:
         if not self._clk.observe('mocap/body', sample.t_s):
             return
         p = sample.position_m
-        self._poses.append((sample.t_s, float(p[0]), float(p[1]), float(p[2])))
+        pose = (float(p[0]), float(p[1]), float(p[2]))
+        if self._poses and self._poses[-1][1:] == pose:
+            # a pose repeated to the last bit: a bridge repeating its last pose after losing
+            # the body (real tracking noise never repeats); its new stamp would read as the
+            # body standing still
+            self.repeated_poses_ += 1
+            return
+        self._poses.append((sample.t_s, *pose))
 
     def add_gait_phase(self, sample: GaitPhaseSample) -> list[Descriptors]:
         """Add a gait schedule sample; a wrap of the cycle phase marks a cycle boundary."""

@@ -55,7 +55,9 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
                           "fitted_rms_m", "undamped_offset_s", "undamped_rms_m"}),
                           "geometry_damping_time_s", "geometry_damping_fitted",
                           "com_height_m" (mocap_origin: median COM height above the
-                          origin's plane, with a note that heights are measured from it)},
+                          origin's plane, with a note that heights are measured from it),
+                          "frozen_mocap_samples" (poses repeating the previous one exactly,
+                          a bridge that lost the body: left out as missing data, a note)},
                 "ground_m" [m, fitted ground height in the path frame, null without it],
                 "paper_edges": [{"tripod", "touchdown", "liftoff"}],    # side by side:
                 "geometry_edges": [{"tripod", "touchdown", "liftoff"}], # single support

@@ -62,7 +62,14 @@ from .geometry import LegGeometry, body_pitch_rad, leg_contacts, single_support
 from .joints import JointFrameAssembler, missing_joints
 from .model import SlipModel
 from .pipeline import TRIPODS, _tripod_mean, _up_from_quats
-from .preprocess import Box, WorldFrame, fit_world_frame, permissible_mask, sagittal_state
+from .preprocess import (
+    Box,
+    WorldFrame,
+    fit_world_frame,
+    frozen_pose_mask,
+    permissible_mask,
+    sagittal_state,
+)
 from .stance import (
     StanceWindow,
     best_shift,
@@ -328,7 +335,7 @@ class OnlineSlip:
                  and w.touchdown_s >= max(tj[0], tm[0])]
         if not ready:
             return []
-        inside = permissible_mask(pm, self.box)
+        inside = permissible_mask(pm, self.box) & ~frozen_pose_mask(pm, qm)
         if self._first_inside_s is None and np.any(inside):
             self._first_inside_s = float(tm[np.argmax(inside)])
         frame_ready = (self._frame is not None or (
@@ -383,7 +390,7 @@ class OnlineSlip:
         q = np.array([x[2] for x in self._js])[sj]
         if not np.all(np.isfinite(q)):
             return None
-        inside = permissible_mask(pm, self.box)
+        inside = permissible_mask(pm, self.box) & ~frozen_pose_mask(pm, qm)
         if self._first_inside_s is None and np.any(inside):
             self._first_inside_s = float(tm[np.argmax(inside)])
         if self._frame is None and (self._first_inside_s is None

@@ -41,6 +41,7 @@ from .preprocess import (
     check_straight,
     estimate_offset,
     fit_world_frame,
+    frozen_pose_mask,
     permissible_mask,
     sagittal_state,
 )
@@ -670,6 +671,14 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
     pm = np.asarray(run.mocap_position_m, dtype=float)
     box = _resolve_box(pm, box, res)
     inside = permissible_mask(pm, box)
+    frozen = frozen_pose_mask(pm, run.mocap_quat_xyzw)
+    if frozen.any():
+        inside &= ~frozen
+        res.notes.append(
+            f'{int(frozen.sum())} motion-capture sample(s) repeat the previous pose exactly '
+            '(the bridge repeating its last pose after losing the body): left out as missing '
+            'data, a stance across them is a mocap gap')
+        res.frame['frozen_mocap_samples'] = int(frozen.sum())
     if inside.sum() < 10:
         raise SlipDataError(f'run {run.label!r}: {int(inside.sum())} mocap samples inside the '
                             'permissible box, need >= 10')
@@ -876,7 +885,7 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
         res.frame['steady_start_s'] = t_steady
     # raw mocap samples (all, in or out of the box) on the proprio clock, for skip reasons
     t_raw = np.asarray(run.mocap_t_s, dtype=float) - res.offset_s
-    fin_raw = np.isfinite(t_raw) & np.all(np.isfinite(pm), axis=1)
+    fin_raw = np.isfinite(t_raw) & np.all(np.isfinite(pm), axis=1) & ~frozen
     dt_raw = float(np.median(np.diff(np.sort(t_raw[fin_raw])))) if fin_raw.sum() > 2 else 0.01
 
     t_tracked = (float(np.min(t_raw[fin_raw])), float(np.max(t_raw[fin_raw]))) \

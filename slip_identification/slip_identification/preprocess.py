@@ -38,6 +38,7 @@ __all__ = [
     'check_straight',
     'estimate_offset',
     'fit_world_frame',
+    'frozen_pose_mask',
     'permissible_mask',
     'resample_cubic',
     'sagittal_state',
@@ -134,6 +135,40 @@ def permissible_mask(p_mocap_m: ArrayLike, box: Box) -> NDArray[np.bool_]:
     lo = np.asarray(box.lower_m)
     hi = np.asarray(box.upper_m)
     return np.all(np.isfinite(p), axis=1) & np.all((p >= lo) & (p <= hi), axis=1)
+
+
+#: a pose repeated exactly this many times in a row (the first sample of the run besides) is
+#: a motion-capture bridge repeating its last pose after losing the body
+FROZEN_POSE_REPEATS = 2
+
+
+def frozen_pose_mask(p_mocap_m: ArrayLike, quat_xyzw: ArrayLike | None = None, *,
+                     min_repeats: int = FROZEN_POSE_REPEATS) -> NDArray[np.bool_]:
+    """True for samples that repeat the previous sample's pose exactly (position, and the
+    quaternion when given) in a run of at least ``min_repeats`` such repeats, shape (n,).
+
+    A bridge that loses the rigid body may go on publishing its last pose (VRPN servers do)
+    instead of nothing or NaN; real tracking never repeats a pose to the last bit (its noise
+    is tens of micrometres). Those samples are missing data: a stance across them is a
+    mocap gap. Before, they were taken as a body standing still in mid-stride (three 0.15 s
+    freezes in a simulated jogging run: two stances with nerr up to 0.48 against 0.07 and the
+    mean stiffness 14 % low, with no note).
+    """
+    p = np.asarray(p_mocap_m, dtype=float)
+    cols = [p.reshape(len(p), -1)]
+    if quat_xyzw is not None:
+        cols.append(np.asarray(quat_xyzw, dtype=float).reshape(len(p), -1))
+    x = np.hstack(cols)
+    same = np.zeros(len(x), dtype=bool)
+    if len(x) > 1:
+        same[1:] = np.all(x[1:] == x[:-1], axis=1)
+    out = np.zeros(len(x), dtype=bool)
+    # runs of repeats: mark those at least min_repeats long
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], same.astype(np.int8), [0]))))
+    for a, b in zip(edges[::2], edges[1::2]):
+        if b - a >= min_repeats:
+            out[a:b] = True
+    return out
 
 
 def fit_world_frame(p_mocap_m: ArrayLike, *, up_mocap: ArrayLike | None = None,

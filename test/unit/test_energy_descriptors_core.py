@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -144,3 +145,29 @@ def test_windows_in_a_joint_states_gap_are_flagged_not_counted_as_zero_power(lag
     assert flagged and min(flagged) > 3.0 and max(flagged) - 0.5 < 5.0
     assert flagged == pytest.approx([4.0, 4.5, 5.0])
     assert all(d.power_out_w == pytest.approx(2.0, rel=1e-9) for d in kept if d.t_end_s > 0.6)
+
+
+def test_a_frozen_mocap_pose_is_not_a_body_standing_still():
+    """A bridge repeating its last pose after losing the body, over a window's end: the
+    repeats are left out (counted), so the window's speed is from the poses tracked (the run
+    gets no speed there rather than a low one). Before, the repeats' new stamps read as the
+    body standing still: 0.16 m/s for 0.4 m/s."""
+    from hexapod_common.conversions import PoseSample
+
+    acc = DescriptorAccumulator(mass_kg=2.0, current_sign='ros')
+    out = []
+    last = None
+    for ti in np.arange(0, 3.0, 0.01):
+        g = gait(ti)
+        out += acc.add_gait_phase(dataclasses.replace(g, step_length_m=0.0))  # a clock gait
+        out += acc.add_battery(BatterySample(ti + 1e-4, 12.0, -20.0 / 12.0, 25.0))
+        x = np.array([0.4 * ti, 0.0, 0.1])
+        if 1.7 < ti < 2.0 and last is not None:
+            x = last                                   # tracking lost: the last pose again
+        last = x
+        acc.add_pose(PoseSample(ti + 2e-4, 'world', x, np.array([0.0, 0.0, 0.0, 1.0])))
+    assert acc.repeated_poses_ >= 25
+    by_end = {round(d.t_end_s, 3): d for d in out}
+    assert by_end[1.5].speed_mps == pytest.approx(0.4, rel=1e-6)
+    assert math.isnan(by_end[2.0].speed_mps) and by_end[2.0].speed_source == 'none'
+    assert by_end[2.5].speed_mps == pytest.approx(0.4, rel=1e-6)
