@@ -156,13 +156,20 @@ ANTBOT_MASS_KG = 2.183
 def _leg_count(args: argparse.Namespace, run_: Any) -> int | None:
     """Legs of a run without /gait/phase: ``--legs``, else counted from joint names that
     follow the contract (``L1..Lk``/``R1..Rk`` + ``_<joint>``), else None."""
-    if getattr(args, 'legs', None):
-        return int(args.legs)
     names = list(run_.extra.get('joint_names', []))
     matches = [_CONTRACT_JOINT.match(n) for n in names]
-    if not names or not all(matches):
-        return None
-    return len({m.group(1) + m.group(2) for m in matches if m})
+    found = len({m.group(1) + m.group(2) for m in matches if m}) \
+        if names and all(matches) else None
+    if getattr(args, 'legs', None):
+        if found is not None and found != int(args.legs):
+            # --legs used to override the names silently (6 contract legs read as 4:
+            # 24.1 W predicted for 35.1 W)
+            raise EnergyError(
+                f'--legs {args.legs}, but the joint names of {run_.path} give {found} legs '
+                f'({", ".join(names[:4])}{", ..." if len(names) > 4 else ""}); --legs is for '
+                'joint names that do not follow L1..Lk/R1..Rk_<joint>')
+        return int(args.legs)
+    return found
 
 
 def add_given_gait_arguments(p: argparse.ArgumentParser, purpose: str,
@@ -319,6 +326,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     )
     from hexapod_energy.single_leg import SingleLegModel
 
+    if getattr(args, 'folds', 5) < 2:
+        raise EnergyError(f'--folds must be >= 2 (k-fold cross-validation), got {args.folds}')
     if args.recommend and (args.speed is None or not (math.isfinite(args.speed) and
                                                       args.speed > 0)):
         raise EnergyError(f'--recommend needs --speed V with V > 0 [m/s], got {args.speed}')
@@ -359,8 +368,22 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         if args.legs < 2 or args.legs % 2:
             raise EnergyError(f'--legs must be an even number >= 2, got {args.legs}')
         _check_mass(robot, args.legs, '--legs')
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    if args.load_offset > 0:
+        from hexapod_gait.gait import carried_mass_per_leg_kg
+
+        n_legs = int(getattr(args, 'legs', None) or 6)
+        m_c = float(carried_mass_per_leg_kg(robot.mass_kg, robot.leg_mass_kg,
+                                            np.array([n_legs // 2]))[0])
+        if args.load_offset >= m_c:
+            # it was clamped to a 0 kg load without a word (--load-offset 1e9: 23.4 W
+            # predicted for 24.9 W, no extrapolation warning)
+            raise EnergyError(
+                f'--load-offset {args.load_offset:g} kg is not below the mass a stance leg '
+                f'carries ({m_c:.3g} kg with {n_legs // 2} of {n_legs} legs down, no payload): '
+                'every stance would read the bench at a load of 0 kg or less')
+    from hexapod_common.outdir import prepare_out_dir
+
+    out = prepare_out_dir(args.out)   # a file by that name, no permission: refused up front
     # plots an earlier run wrote into this folder and this one may not (no --sweep now): they
     # stayed, and report.html showed them beside the new energy.json (new-user review)
     for stale in [*out.glob('four_quadrant_*.png'), *out.glob('four_quadrant_*.svg'),
@@ -381,6 +404,10 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     doc: dict[str, Any] = {'schema': 'hexapod_energy.energy/1', 'plots': []}
     if mass_warning:
         doc['warnings'] = [mass_warning]
+    if not args.recommend and (args.speed is not None or args.payload):
+        doc.setdefault('warnings', []).append(
+            '--speed and --payload are for --recommend (the target speed and payload), '
+            'ignored without it; the robot runs\' payload is --robot-payload')
     try:
         samples, diags = [], []
         one_session = []
@@ -524,6 +551,18 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                                               else 'P_out unknown'))
                 if effort_ok:
                     p_out, source = run_.power_out_w, 'effort'
+                elif math.isfinite(p_model) and run_.power_in_w > 0 and \
+                        p_model >= run_.power_in_w:
+                    # the model's output above the measured input is impossible: the mass,
+                    # payload or leg described is not this robot's (a 1000 kg payload gave
+                    # efficiency 1.004 and a negative cost of transport, without a word)
+                    p_out, source = math.nan, 'none'
+                    notes.append(
+                        f'the Eq. 6 model gives P_out {p_model:.3g} W, not below the measured '
+                        f'P_in {run_.power_in_w:.3g} W (efficiency >= 1 is impossible): the '
+                        f'mass ({mass:g} kg with the payload), payload or leg given is not '
+                        "this robot's; P_out, efficiency and the costs of transport unknown")
+                    doc.setdefault('warnings', []).append(f'{path}: {notes[-1]}')
                 elif math.isfinite(p_model):
                     p_out, source = p_model, 'model'
                     if getattr(args, 'leg', None) is None:
@@ -679,6 +718,9 @@ def _actuator_limits(args: argparse.Namespace) -> tuple[Any, str]:
     if given is None:
         return ANTBOT_LIMITS, ("AntBot's servo limits (hexapod_gait ANTBOT_LIMITS; --limits "
                                'for another robot)')
+    if not all(math.isfinite(float(x)) for x in given):
+        raise EnergyError(f'--limits MIN_SWING_S MIN_STANCE_S MAX_FREQ_HZ must be finite, got '
+                          f'{list(given)}')
     try:
         lim = ActuatorLimits(*(float(x) for x in given))
     except ValueError as err:
@@ -794,6 +836,18 @@ def _given_gait(args: argparse.Namespace, run_: Any, notes: list[str],
         source = 'given by --legs' if getattr(args, 'legs', None) else 'from the joint names'
         raise EnergyError(f'--gait {args.gait} for {run_.path} ({legs} legs {source}): '
                           f'{err}') from err
+    from hexapod_energy.prediction import _joint_paths
+    from hexapod_gait.errors import HexapodGaitError
+
+    if model is not None:
+        try:
+            # a step the leg cannot reach (--step-length 5) was predicted like the bench's
+            _joint_paths(gait.duty_factor, gait.step_length_m, gait.step_height_m,
+                         getattr(model, 'bench_leg_', None))
+        except HexapodGaitError as err:
+            raise EnergyError(f'--step-length {gait.step_length_m:g} m / --step-height '
+                              f'{gait.step_height_m:g} m: out of the leg\'s reach ({err})'
+                              ) from err
     notes.append(f'gait {gait.name} (beta {gait.duty_factor}, step {gait.step_length_m} m) as '
                  f'given, step height {height:g} m ({height_src}), {legs} legs '
                  f'{"given by --legs" if getattr(args, "legs", None) else "from the joint names"}'

@@ -169,14 +169,22 @@ def _joint_schedule(path: str | Path, t: np.ndarray, given: GivenGait
     runs = read_robot_segments(path, mass_kg=1.0, cycle_source='joints')
     names = list(runs[0].extra.get('joint_names', []))
     legs = given.leg_count
+    found = [re.match(r'^([LR])(\d+)_\w+$', n) for n in names]
+    from_names = len({m.group(1) + m.group(2) for m in found if m}) \
+        if names and all(found) else None
+    if legs is not None and from_names is not None and legs != from_names:
+        # --legs used to override the joint names silently (a 6-leg bag read as 4 legs)
+        raise ResidualDataError(
+            f'robot bag {path}: --legs {legs}, but its joint names give {from_names} legs '
+            f'({", ".join(names[:4])}{", ..." if len(names) > 4 else ""}); --legs is for '
+            'joint names that do not follow L1..Lk/R1..Rk_<joint>')
     if legs is None:
-        found = [re.match(r'^([LR])(\d+)_\w+$', n) for n in names]
-        if not names or not all(found):
+        if from_names is None:
             raise ResidualDataError(
                 f'robot bag {path}: the joint names ({", ".join(names[:4])}'
                 f'{", ..." if len(names) > 4 else ""}) do not follow L1..Lk/R1..Rk_<joint>, so '
                 'the leg count is unknown: give --legs N (or --joint-map)')
-        legs = len({m.group(1) + m.group(2) for m in found if m})
+        legs = from_names
     name = 'alternating' if given.name == 'tripod' and legs != 6 else given.name
     try:
         gait = make_gait(name, leg_count=legs, duty_factor=given.duty_factor,
@@ -1816,9 +1824,32 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
     ``bench_voltage_v``: the bench's supply voltage, checked against the robot runs'.
     ``bench_notes``: bench bag -> how it was read (``per_bench`` in the document when any)."""
     from hexapod_energy.prediction import RobotSpec
+    from hexapod_gait.gait import carried_mass_per_leg_kg
 
     spec = (robot_spec_cls or RobotSpec)(mass_kg=robot_mass_kg)
     total_kg = spec.total_mass_kg(payload_kg)
+    legs = {r.name: int(r.in_stance.shape[1]) for r in runs if r.in_stance.ndim == 2}
+    if len(set(legs.values())) > 1:
+        # one robot per loop: runs of different leg counts made a numpy shape error
+        raise ResidualDataError(
+            'the robot bags describe robots of different leg counts (' + ', '.join(
+                f'{n}: {k}' for n, k in legs.items()) + '); the loop is for one robot: '
+            'give bags of one robot (or the --legs their joint names give)')
+    for n_legs in sorted(set(legs.values())):
+        if spec.mass_kg <= n_legs * spec.leg_mass_kg:
+            # energy refuses it too; the carried mass went negative and was clamped to 0
+            raise ResidualDataError(
+                f'robot mass {spec.mass_kg:.4g} kg (payload excluded) <= {n_legs} legs x '
+                f'{spec.leg_mass_kg:.4g} kg: the legs alone outweigh the robot; check '
+                '--robot-mass and --legs')
+    for n_legs in sorted(set(legs.values())):
+        m_c = float(carried_mass_per_leg_kg(total_kg, spec.leg_mass_kg,
+                                            np.array([max(n_legs // 2, 1)]))[0])
+        if load_offset_kg >= m_c:
+            raise ResidualDataError(
+                f'--load-offset {load_offset_kg:g} kg is not below the mass a stance leg '
+                f'carries ({m_c:.3g} kg with {max(n_legs // 2, 1)} of {n_legs} legs down): '
+                'every stance would read the bench at a load of 0 kg or less')
     for r in runs:
         # each run's first second is skipped (build_windows' settle) and its windows are
         # whole half cycles: a bag too short for one of them is named, not a numpy error

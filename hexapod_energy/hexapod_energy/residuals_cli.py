@@ -229,10 +229,13 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     from tqdm import tqdm
     from hexapod_common.progress import bar_options
 
+    from hexapod_common.outdir import prepare_out_dir
+
     if args.slip:
         if args.bench or args.robot:
             raise InvalidInputError('give either --slip BAG... or --bench/--robot BAG..., '
                                     'not both')
+        prepare_out_dir(args.out)   # before the analysis, not after it
         with tqdm(total=len(args.slip), desc='residuals', unit='bag', file=sys.stderr,
                   **bar_options(getattr(args, 'no_progress', False))) as bar:
             return run_slip_loop(list(args.slip), args.out, plots=not args.no_plots,
@@ -247,6 +250,17 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         raise InvalidInputError(f'--robot-payload must be >= 0 kg, got {args.robot_payload}')
     if not math.isfinite(args.load_offset):
         raise InvalidInputError(f'--load-offset must be finite, got {args.load_offset}')
+    legs = getattr(args, 'legs', None)
+    if legs is not None:
+        from hexapod_energy.prediction import RobotSpec
+
+        leg_kg = RobotSpec(mass_kg=args.robot_mass).leg_mass_kg
+        if legs < 2 or legs % 2 or legs * leg_kg >= args.robot_mass:
+            # --legs 1e9 built a billion-leg gait before anything checked it (OOM)
+            raise InvalidInputError(
+                f'--legs must be an even number >= 2 whose legs ({leg_kg:.3g} kg each) weigh '
+                f'less than the robot ({args.robot_mass:g} kg), got {legs}')
+    prepare_out_dir(args.out)
     given = [getattr(args, k, None) for k in ('gait', 'duty_factor', 'step_length')]
     gait = None
     if any(v is not None for v in given):

@@ -95,6 +95,7 @@ import dataclasses
 import json
 import math
 import multiprocessing
+import sys
 from collections import Counter
 from concurrent.futures import ProcessPoolExecutor, wait
 from pathlib import Path
@@ -450,19 +451,65 @@ def _geometry_overrides(args: argparse.Namespace) -> dict[str, Any]:
     """LegGeometry fields given on the command line (another RHex-class robot's legs)."""
     out: dict[str, Any] = {}
     if getattr(args, 'leg_radius', None) is not None:
-        if not args.leg_radius > 0:
-            raise SlipDataError(f'--leg-radius must be > 0 m, got {args.leg_radius}')
+        # a radius of 1e9 m was taken (a 0.2 mm rms claimed with it)
+        if not (math.isfinite(args.leg_radius) and 0 < args.leg_radius <= 2.0):
+            raise SlipDataError(f'--leg-radius must be in (0, 2] m, got {args.leg_radius}')
         out['leg_radius_m'] = float(args.leg_radius)
     if getattr(args, 'hip_x', None) is not None:
         front, middle, rear = (float(v) for v in args.hip_x)
-        if not front > middle > rear:
-            raise SlipDataError(f'--hip-x expects front > middle > rear [m], got {args.hip_x}')
+        if not (all(math.isfinite(v) and abs(v) <= 5.0 for v in (front, middle, rear))
+                and front > middle > rear):
+            raise SlipDataError(f'--hip-x expects front > middle > rear within +-5 m, got '
+                                f'{args.hip_x}')
         out['hip_x_m'] = (front, middle, rear)
     if getattr(args, 'hip_z', None) is not None:
+        # NaN or 1e9 analysed nothing and exited 0
+        if not (math.isfinite(args.hip_z) and abs(args.hip_z) <= 2.0):
+            raise SlipDataError(f'--hip-z must be within +-2 m, got {args.hip_z}')
         out['hip_z_m'] = float(args.hip_z)
     if getattr(args, 'hip_zero', None) is not None:
+        if not (math.isfinite(args.hip_zero) and abs(args.hip_zero) <= 2 * math.pi):
+            raise SlipDataError(f'--hip-zero must be within +-2 pi rad, got {args.hip_zero}')
         out['hip_zero_rad'] = float(args.hip_zero)
     return out
+
+
+def _check_options(args: argparse.Namespace) -> None:
+    """Refuse option values that cannot work, naming the option, before any bag is read
+    (an outside review: NaN offsets ended in 'arange: cannot compute length', a NaN lateral
+    bound turned the straight-run check off, a negative damping time was used, an inverted
+    --box blamed the bag)."""
+    def finite(name: str, value: float, lo: float, hi: float, what: str) -> None:
+        if not (math.isfinite(value) and lo <= value <= hi):
+            raise SlipDataError(f'{name} must be {what}, got {value}')
+
+    if args.offset not in ('auto', 'contact', 'joint', 'xcorr', 'geometry'):
+        try:
+            value = float(args.offset)
+        except ValueError:
+            raise SlipDataError(f"--offset must be seconds or auto, contact, joint, xcorr, "
+                                f'geometry, got {args.offset!r}') from None
+        finite('--offset', value, -3600.0, 3600.0, 'seconds within +-1 h')
+    finite('--offset-lag', args.offset_lag, -1.0, 1.0, 'seconds within +-1 s')
+    finite('--max-lateral', args.max_lateral, 1e-6, 10.0, 'in (0, 10] m')
+    if args.leg_damping_time not in ('fit', 'none', 'default'):
+        try:
+            value = float(args.leg_damping_time)
+        except ValueError:
+            raise SlipDataError(f"--leg-damping-time must be seconds, fit, none or default, "
+                                f'got {args.leg_damping_time!r}') from None
+        finite('--leg-damping-time', value, 0.0, 1.0, 'in [0, 1] s')
+    if args.mass > 1000:
+        raise SlipDataError(f'--mass must be a robot mass up to 1000 kg, got {args.mass}')
+    if args.box:
+        lo, hi = args.box[:3], args.box[3:]
+        if not (all(math.isfinite(v) for v in args.box) and all(a < b for a, b in zip(lo, hi))):
+            raise SlipDataError(f'--box X0 Y0 Z0 X1 Y1 Z1 needs finite corners with X0 < X1, '
+                                f'Y0 < Y1, Z0 < Z1, got {args.box}')
+    if args.jobs < 1:
+        raise SlipDataError(f'--jobs must be >= 1, got {args.jobs}')
+    if not str(args.model).startswith('slip'):
+        raise SlipDataError(f"--model must name a SLIP model (slip...), got {args.model!r}")
 
 
 def _analyze_reporting(path: str, options: dict[str, Any], queue: Any) -> dict[str, Any]:
@@ -507,12 +554,15 @@ def run_command(args: argparse.Namespace) -> int:
     from tqdm import tqdm
     from hexapod_common.progress import bar_options
 
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    from hexapod_common.outdir import prepare_out_dir
+
+    _check_options(args)
+    geometry_overrides = _geometry_overrides(args)
+    out = prepare_out_dir(args.out)   # before the analysis, not after it
     methods = ('auto', 'contact', 'joint', 'xcorr', 'geometry')
     options = {'offset': args.offset if args.offset in methods else float(args.offset),
                'edges': args.edges, 'geometry': args.geometry,
-               'geometry_overrides': _geometry_overrides(args),
+               'geometry_overrides': geometry_overrides,
                'leg_damping_time': (None if args.leg_damping_time in ('fit', 'none')
                                     else 'default' if args.leg_damping_time == 'default'
                                     else float(args.leg_damping_time)),
@@ -581,7 +631,7 @@ def run_command(args: argparse.Namespace) -> int:
     if rows:
         plot_figures(rows, out)
     for f in doc['failed_bags']:
-        print(f"slip: refused {f['bag']}: {f['error']}")
+        print(f"slip: refused {f['bag']}: {f['error']}", file=sys.stderr)
     print(f'slip: {len(stances)} stances fitted, {len(skipped)} skipped, '
           f"{len(doc['failed_bags'])} bag(s) refused -> {out / 'slip.json'}")
     return 0 if len(doc['failed_bags']) < len(bags) else 2   # every bag refused: input

@@ -1,3 +1,5 @@
+import re
+
 import pytest
 from hexapod_common.analyze_cli import main as analyze
 
@@ -51,3 +53,73 @@ def test_recommend_gait_refuses_a_negative_payload():
         recommend_gait(None, None, speed_mps=0.3, payload_kg=-1.0)
     with pytest.raises(InvalidInputError, match='speed_mps must be finite and > 0'):
         recommend_gait(None, None, speed_mps=float('nan'))
+
+
+@pytest.mark.parametrize('argv, says', [
+    (['slip', '{tmp}/b', '--hip-z=nan'], '--hip-z must be within +-2 m, got nan'),
+    (['slip', '{tmp}/b', '--hip-zero=inf'], '--hip-zero must be within +-2 pi rad'),
+    (['slip', '{tmp}/b', '--leg-radius=1e9'], '--leg-radius must be in (0, 2] m'),
+    (['slip', '{tmp}/b', '--offset=nan'], '--offset must be seconds within +-1 h, got nan'),
+    (['slip', '{tmp}/b', '--offset-lag=nan'], '--offset-lag must be seconds within +-1 s'),
+    (['slip', '{tmp}/b', '--max-lateral=nan'], '--max-lateral must be in (0, 10] m'),
+    (['slip', '{tmp}/b', '--leg-damping-time=-1'], '--leg-damping-time must be in [0, 1] s'),
+    (['slip', '{tmp}/b', '--leg-damping-time=abc'], "--leg-damping-time must be seconds"),
+    (['slip', '{tmp}/b', '--box', '1', '0.5', '0.5', '0', '0', '0'],
+     '--box X0 Y0 Z0 X1 Y1 Z1 needs finite corners'),
+    (['slip', '{tmp}/b', '--jobs', '0'], '--jobs must be >= 1, got 0'),
+    (['slip', '{tmp}/b', '--model', 'bogus'], "--model must name a SLIP model"),
+    (['slip', '{tmp}/b', '--mass', '1e9'], '--mass must be a robot mass up to 1000 kg'),
+    (['energy', '--bench', '{tmp}/b', '--folds', '0'], '--folds must be >= 2'),
+    (['energy', '--bench', '{tmp}/b', '--limits', '0.16', '0.15', 'inf'],
+     '--limits MIN_SWING_S MIN_STANCE_S MAX_FREQ_HZ must be finite'),
+    (['energy', '--bench', '{tmp}/b', '--load-offset', '5'],
+     '--load-offset 5 kg is not below the mass a stance leg carries'),
+    (['residuals', '--bench', '{tmp}/b', '--robot', '{tmp}/r', '--legs', '1000000000'],
+     '--legs must be an even number >= 2 whose legs'),
+    (['energy', '--robot', '{tmp}/r', '--out', '{tmp}/afile'], 'is a file, not a folder'),
+    (['slip', '{tmp}/b', '--out', '{tmp}/afile'], 'is a file, not a folder'),
+    (['residuals', '--bench', '{tmp}/b', '--robot', '{tmp}/r', '--out', '{tmp}/afile'],
+     'is a file, not a folder'),
+])
+def test_option_values_that_cannot_work_are_refused_naming_the_option(argv, says, tmp_path,
+                                                                       capsys):
+    """From an outside review of every option: each of these ran (exit 0 with nothing or
+    nonsense, a numpy message, an OOM) or blamed the bag; now exit 2 with one line naming
+    the option, before any bag is read."""
+    (tmp_path / 'afile').write_text('x')
+    args = [a.format(tmp=tmp_path) for a in argv]
+    if '--out' not in args:
+        args += ['--out', str(tmp_path / 'o')]
+    rc = analyze(args)
+    err = capsys.readouterr().err
+    assert rc == 2, err
+    assert says in err and 'Traceback' not in err
+
+
+def _run_with_legs(name: str, legs: int):
+    import numpy as np
+
+    from hexapod_energy.residuals import ResidualRun
+
+    n = 50
+    z = np.zeros(n)
+    return ResidualRun(name=name, t_s=np.arange(n) * 0.01, voltage_v=z + 12, current_a=z + 2,
+                       power_w=z + 24, cycle_phase=z, period_s=z + 0.5, duty_factor=z + 0.5,
+                       step_length_m=z + 0.1, in_stance=np.ones((n, legs), bool),
+                       supporting=z.astype(int) + legs // 2, temp_sum_c=z, servo_count=0,
+                       leg_names=tuple(f'L{i}' for i in range(legs)),
+                       phase_offsets=(0.0,) * legs, gait='tripod')
+
+
+@pytest.mark.parametrize('runs, kw, says', [
+    ([('a', 6), ('b', 4)], {}, 'different leg counts (a: 6, b: 4)'),
+    ([('a', 6)], {'robot_mass_kg': 0.5}, 'the legs alone outweigh the robot'),
+    ([('a', 6)], {'load_offset_kg': 5.0}, '--load-offset 5 kg is not below'),
+])
+def test_the_residual_loop_refuses_runs_it_cannot_describe(runs, kw, says):
+    """Runs of a 6- and a 4-leg robot made a numpy shape error; a robot lighter than its
+    legs, or a load offset above a stance leg's load, ran with the load clamped to 0 kg."""
+    from hexapod_energy.residuals import ResidualDataError, energy_loop_from_runs
+
+    with pytest.raises(ResidualDataError, match=re.escape(says)):
+        energy_loop_from_runs(None, [_run_with_legs(n, k) for n, k in runs], None, **kw)

@@ -140,3 +140,30 @@ def test_the_step_height_of_a_run_without_gait_phase(bags, tmp_path):
     assert lab['step_height_m'] == pytest.approx(0.04) and lab60['step_height_m'] == 0.06
     assert any("step height 0.04 m (the bench's)" in n for n in lab['notes'])
     assert lab60['predicted_power_in_w'] > 1.05 * lab['predicted_power_in_w']
+
+
+def test_legs_against_the_joint_names_and_unreachable_steps_are_refused(bags, tmp_path,
+                                                                         capsys):
+    """An outside review: ``--legs 4`` on a bag whose contract joint names give 6 legs read
+    it as a 4-leg robot (24.1 W predicted for 35.1 W), and ``--step-length 5`` was predicted
+    like the bench's 0.1 m step; both exit 2 now, naming the flag."""
+    base = ['--bench', str(bags / 'bench'), '--robot', str(bags / 'lab_odom'),
+            '--out', str(tmp_path / 'o'), '--no-progress', '--gait', 'tripod',
+            '--duty-factor', '0.5']
+    assert main(base + ['--step-length', '0.1', '--legs', '4']) == 2
+    assert '--legs 4, but the joint names' in capsys.readouterr().err
+    assert main(base + ['--step-length', '5']) == 2
+    assert "--step-length 5 m / --step-height 0.04 m: out of the leg's reach" in \
+        capsys.readouterr().err
+
+
+def test_a_model_output_above_the_input_is_not_an_efficiency(bags, tmp_path):
+    """A 1000 kg payload made the Eq. 6 model's P_out exceed the measured P_in: efficiency
+    1.004 and a negative cost of transport, without a word. Now P_out is unknown (null
+    efficiency and costs) with a warning naming the mass."""
+    doc = _run(bags, tmp_path / 'o', str(bags / 'robot_gait'), '--robot-payload', '1000')
+    run = doc['robot_runs'][0]
+    assert run['power_out_source'] == 'none'
+    assert run['power_out_w'] is None and run['efficiency'] is None
+    assert run['specific_cost_of_transport'] is None
+    assert any('efficiency >= 1 is impossible' in w for w in doc['warnings'])
