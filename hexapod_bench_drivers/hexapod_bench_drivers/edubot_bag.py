@@ -41,9 +41,11 @@ import numpy as np
 from hexapod_bench_drivers import sim_cdr as cdr
 from hexapod_bench_drivers.edubot_sim import (
     EDUBOT_EFFECTS,
+    MAX_DURATION_S,
     EdubotParams,
     EdubotRun,
     EdubotSimError,
+    resolve_effects,
     simulate_edubot,
 )
 
@@ -60,6 +62,8 @@ __all__ = [
 
 EFFECTS_KEY = 'hexapod_sim.effects'
 TRUTH_KEY = 'hexapod_sim.edubot_truth'
+#: Most runs of one ``--runs``.
+MAX_RUNS = 1000
 
 
 def effects_json(effects: Mapping[str, float]) -> str:
@@ -270,7 +274,7 @@ def add_cli(subparsers: Any) -> None:
     p.add_argument('--gait', default='running', choices=['running', 'jogging', 'pace', 'walk'],
                    help='Table 1 gait (default running)')
     p.add_argument('--duration', type=float, default=6.0,
-                   help='simulated seconds per run (default 6)')
+                   help=f'simulated seconds per run, 0.02 to {MAX_DURATION_S:g} (default 6)')
     p.add_argument('--effect', action='append', metavar='NAME=VALUE',
                    help='set an effect (repeatable; 0 = off). ' + _effects_help())
     p.add_argument('--seed', type=int, default=0,
@@ -279,18 +283,44 @@ def add_cli(subparsers: Any) -> None:
                         'open-circuit voltage (15.6 +- 0.2 V) and the initial speed '
                         '(+-10 %%), which pick the gait\'s mode where it has two '
                         '(pace: 24 or 28 W), as well as the mocap frame and noise')
-    p.add_argument('--runs', type=int, default=1, help='number of runs (default 1)')
+    p.add_argument('--runs', type=int, default=1,
+                   help=f'number of runs, 1 to {MAX_RUNS} (default 1)')
     p.add_argument('--storage', default='mcap', choices=['mcap', 'sqlite3'])
     p.set_defaults(func=_run_cli)
+
+
+def _check_cli(args: argparse.Namespace) -> str | None:
+    """Why ``args`` cannot give a run, naming the option, else None (before simulating)."""
+    params = EdubotParams()
+    duration = args.duration
+    if not (math.isfinite(duration) and duration > 0):
+        return f'--duration must be a finite number > 0 s, got {duration:g}'
+    if duration * params.proprio_rate_hz < 2:
+        return (f'--duration {duration:g} s holds fewer than 2 samples at '
+                f'{params.proprio_rate_hz:g} Hz: at least {2 / params.proprio_rate_hz:g} s')
+    if duration > MAX_DURATION_S:
+        return (f'--duration {duration:g} s is more than {MAX_DURATION_S:g} s (a run crosses '
+                'the 2 m tracking volume in seconds; 600 s take about 0.3 GB of memory)')
+    if not 1 <= args.runs <= MAX_RUNS:
+        return f'--runs must be from 1 to {MAX_RUNS}, got {args.runs}'
+    if args.seed < 0:
+        return f'--seed must be >= 0, got {args.seed}'
+    return None
 
 
 def _run_cli(args: argparse.Namespace) -> int:
     import sys
 
+    from hexapod_common.jsondoc import json_safe
+
     try:
+        if reason := _check_cli(args):
+            raise EdubotSimError(reason)
         effects = parse_effect_args(args.effect)
-        if args.runs < 1:
-            raise EdubotSimError(f'--runs must be >= 1, got {args.runs}')
+        try:
+            resolve_effects(effects)
+        except EdubotSimError as err:
+            raise EdubotSimError(f'--effect: {err}') from None
         out = Path(args.out)
         if out.exists():
             raise EdubotSimError(f'--out {out} exists; refusing to overwrite')
@@ -310,8 +340,11 @@ def _run_cli(args: argparse.Namespace) -> int:
                                   seed=args.seed + i)
             write_run(target, run, storage=args.storage)
             summ = run.truth.get('summary', {})
-            print(json.dumps({'bag': str(target), 'gait': args.gait, 'seed': args.seed + i,
-                              'duration_s': args.duration, **summ}))
+            # strict JSON: a stalled run has no speed, its specific resistance is null, not
+            # Infinity
+            print(json.dumps(json_safe({'bag': str(target), 'gait': args.gait,
+                                        'seed': args.seed + i, 'duration_s': args.duration,
+                                        **summ})))
     except EdubotSimError as err:
         print(f'hexapod-sim edubot: error: {err}', file=sys.stderr)
         return 2

@@ -102,9 +102,11 @@ __all__ = [
     'EdubotParams',
     'EdubotRun',
     'EdubotSimError',
+    'MAX_DURATION_S',
     'TABLE1_GAINS',
     'TABLE3',
     'add_cli',
+    'effect_ranges',
     'power_breakdown',
     'resolve_clock',
     'resolve_effects',
@@ -115,6 +117,9 @@ __all__ = [
 ]
 
 GRAVITY_M_S2 = 9.81
+#: Longest run [s]: the robot crosses the 2 m tracking volume in seconds, and a simulated
+#: second holds about 0.4 MB (1e9 s asked for 7 TiB).
+MAX_DURATION_S = 600.0
 EDUBOT_LEG_NAMES: tuple[str, ...] = ('L1', 'L2', 'L3', 'R1', 'R2', 'R3')
 _TRIPODS: dict[str, tuple[str, ...]] = {'left': ('L1', 'R2', 'L3'), 'right': ('R1', 'L2', 'R3')}
 _LEG_TRIPOD = tuple('left' if leg in _TRIPODS['left'] else 'right' for leg in EDUBOT_LEG_NAMES)
@@ -234,9 +239,32 @@ EDUBOT_EFFECTS: dict[str, EdubotEffect] = {e.name: e for e in (
 )}
 
 
-def resolve_effects(effects: Mapping[str, float] | None) -> dict[str, float]:
-    """Every effect's value: the defaults overridden by ``effects``; unknown names refused."""
+def effect_ranges(params: EdubotParams = EdubotParams()) -> dict[str, tuple[float, float, str]]:
+    """Each effect's meaningful range ``(low, high, why)`` for the robot ``params``.
+
+    Beyond these the run stops being the robot (review: ``hip_torque=100`` charged the battery
+    from the legs, ``leg_damping=1e9`` drove the body backwards at 227 m/s).
+    """
+    # the hips cannot deliver more than the motor's torque at the driver's current limit
+    leg_nm = (params.motor_current_limit_a * params.motor_torque_constant_nm_a
+              * params.gear_ratio * params.gear_efficiency)
+    return {
+        'leg_damping': (0.0, 100.0, 'a plain loss up to tens of N s/m, the stalled mode beyond'),
+        'hip_torque': (0.0, round(3 * leg_nm, 2),
+                       f'3 stance legs x {leg_nm:.3g} N m, the hip torque at the driver\'s '
+                       f'{params.motor_current_limit_a:g} A current limit'),
+        'time_offset': (-1e5, 1e5, 'about a day: no clock offset of one recording'),
+        'mocap_noise': (0.0, 0.1, 'a larger noise is no motion capture'),
+        'mocap_misalignment': (0.0, 45.0, 'a tilt of the mocap plane against the ground'),
+    }
+
+
+def resolve_effects(effects: Mapping[str, float] | None,
+                    params: EdubotParams = EdubotParams()) -> dict[str, float]:
+    """Every effect's value: the defaults overridden by ``effects``; unknown names and values
+    out of :func:`effect_ranges` refused."""
     out = {name: eff.default for name, eff in EDUBOT_EFFECTS.items()}
+    ranges = effect_ranges(params)
     for name, value in (effects or {}).items():
         if name not in EDUBOT_EFFECTS:
             raise EdubotSimError(
@@ -244,6 +272,11 @@ def resolve_effects(effects: Mapping[str, float] | None) -> dict[str, float]:
         value = float(value)
         if not math.isfinite(value) or (value < 0 and name != 'time_offset'):
             raise EdubotSimError(f'effect {name!r} must be a finite value >= 0, got {value!r}')
+        lo, hi, why = ranges.get(name, (-math.inf, math.inf, ''))
+        if not lo <= value <= hi:
+            unit = EDUBOT_EFFECTS[name].unit
+            raise EdubotSimError(f'effect {name!r} = {value:g} {unit} is out of range: expected '
+                                 f'{lo:g} to {hi:g} {unit} ({why})')
         out[name] = value
     return out
 
@@ -826,10 +859,16 @@ def simulate_edubot_batch(gait: Any, *, duration_s: float,
     or 28 W).
     """
     name, clock = resolve_clock(gait)
-    eff = resolve_effects(effects)
+    eff = resolve_effects(effects, params)
     if not (isinstance(duration_s, (int, float)) and math.isfinite(duration_s)
             and duration_s > 0):
         raise EdubotSimError(f'duration_s must be a positive number, got {duration_s!r}')
+    if duration_s > MAX_DURATION_S:
+        raise EdubotSimError(f'duration_s {duration_s:g} s is more than {MAX_DURATION_S:g} s '
+                             '(one run through the motion-capture volume)')
+    if duration_s * params.proprio_rate_hz < 2:
+        raise EdubotSimError(f'duration_s {duration_s:g} s holds fewer than 2 samples at '
+                             f'{params.proprio_rate_hz:g} Hz')
     seeds = [int(s) for s in seeds]
     if not seeds:
         raise EdubotSimError('seeds must not be empty')

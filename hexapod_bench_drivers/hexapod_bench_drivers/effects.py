@@ -114,6 +114,15 @@ _SPECS = (
 EFFECTS: Mapping[str, EffectSpec] = {spec.name: spec for spec in _SPECS}
 
 
+#: Largest magnitude of an effect's value, and why: a stamp moved by more than this is no clock
+#: offset or transport delay of one recording (1e9 s overflowed the int32 stamp seconds and left a
+#: half-written bag behind).
+_MAX_ABS: dict[str, tuple[float, str]] = {
+    'time_offset': (1e5, 'about a day: a larger offset is no clock offset of one recording'),
+    'sensor_latency': (1e5, 'about a day: a larger delay is no transport delay'),
+}
+
+
 def _parse_value(spec: EffectSpec, text: str) -> Any:
     if spec.kind == 'leg_watts':
         leg, sep, watts = text.partition(':')
@@ -134,6 +143,10 @@ def _parse_value(spec: EffectSpec, text: str) -> Any:
     if spec.name in ('supply_resistance', 'speed_friction', 'sensor_noise', 'sensor_latency') \
             and value < 0.0:
         raise EffectError(f'effect {spec.name}={text!r}: expected a value >= 0 {spec.unit}')
+    if spec.name in _MAX_ABS and abs(value) > _MAX_ABS[spec.name][0]:
+        limit, why = _MAX_ABS[spec.name]
+        raise EffectError(f'effect {spec.name}={text!r}: expected |value| <= {limit:g} '
+                          f'{spec.unit} ({why})')
     return value
 
 

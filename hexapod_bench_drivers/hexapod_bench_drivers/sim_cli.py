@@ -10,8 +10,15 @@ Examples::
 servo limits allow (swing 0.16 s, stance 0.15 s, 3 Hz; ``hexapod_gait.feasibility``; with
 ``--servo`` another preset scaled by its no-load speed, :func:`servo_limits`) or a part
 of the cycle with no leg on the ground (L(t) = 0); ``--allow-infeasible`` simulates it anyway,
-with a warning on stderr.
+with a warning on stderr. ``bench`` refuses a step frequency far beyond them (phases under
+half the limits, :data:`BENCH_LIMIT_MARGIN`; a test rig may walk past the robot's limits: the
+paper's plan goes to 3.3 Hz; ``--allow-infeasible`` simulates it anyway).
     hexapod-sim bench --out plan --loads 0,0.095,0.515 --frequencies 0,1,3 --duration 20
+
+Values that cannot work are refused up front (exit 2, one line naming the option): besides
+the signs, a run of fewer than 2 or more than 2e6 samples (``--duration`` x ``--rate``), more
+than 24 h or 10 kHz, ``--legs`` outside 2..64, a ``--payload`` over 10 times the robot's mass
+and bench ``--loads`` over 5 kg. A run that fails leaves no bag behind.
 
 Prints one JSON line per bag: robot and bench the bag path, message counts and the effects that
 were on; edubot the bag, gait, seed, duration, power, speed and specific resistance.
@@ -23,9 +30,7 @@ import argparse
 import importlib
 import json
 import math
-import os
 import sys
-import tempfile
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -101,6 +106,9 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument('--leg', default='R2')
     bench.add_argument('--max-cool', type=float, default=1800.0,
                        help='longest cooling between sessions [s]')
+    bench.add_argument('--allow-infeasible', action='store_true',
+                       help='simulate step frequencies whose phases are under half the servo '
+                            'limits (refused, exit 2, without it)')
     bench.set_defaults(func=_run_bench)
 
     try:
@@ -169,11 +177,11 @@ def servo_limits(servo: str = 'ax18a') -> Any:
                           ANTBOT_LIMITS.max_step_frequency_hz / ratio)
 
 
-def _infeasible(gait: Any, servo: str = 'ax18a') -> list[str]:
+def _infeasible(gait: Any, servo: str = 'ax18a', *, support: bool = True) -> list[str]:
     """Why the project calls ``gait`` infeasible: AntBot's servo limits
-    (``hexapod_gait.feasibility``) for the servo preset (:func:`servo_limits`) and phases with
-    no leg on the ground (L(t) = 0); empty when it is not (or when standing, ``gait``
-    None)."""
+    (``hexapod_gait.feasibility``) for the servo preset (:func:`servo_limits`) and, with
+    ``support``, phases with no leg on the ground (L(t) = 0); empty when it is not (or when
+    standing, ``gait`` None)."""
     if gait is None:
         return []
     import numpy as np
@@ -198,6 +206,8 @@ def _infeasible(gait: Any, servo: str = 'ax18a') -> list[str]:
         out[-1] += (f' ({whose} on this step\'s joint path: swing >= '
                     f'{lim.min_swing_s:.3g} s, stance >= {lim.min_stance_s:.3g} s, <= '
                     f'{lim.max_step_frequency_hz:g} Hz)')
+    if not support:
+        return out
     bp, supporting = gait.support_profile()
     airborne = float(np.diff(np.append(np.asarray(bp, float), 1.0))[supporting == 0].sum())
     if airborne > 1e-9:
@@ -207,6 +217,12 @@ def _infeasible(gait: Any, servo: str = 'ax18a') -> list[str]:
 
 def _run_robot(args: argparse.Namespace) -> int:
     from .robot_sim import RobotConfig, RobotSimulator
+    mass = float(RobotConfig.robot_mass_kg)
+    if args.payload > MAX_PAYLOAD_RATIO * mass:
+        print(f'hexapod-sim robot: error: --payload {args.payload:g} kg is more than '
+              f'{MAX_PAYLOAD_RATIO:g} x the robot\'s mass ({mass:g} kg): at most '
+              f'{MAX_PAYLOAD_RATIO * mass:.4g} kg', file=sys.stderr)
+        return 2
     effects = parse_effects(args.effect, simulator='robot')
     config = RobotConfig(leg_count=args.legs, gait=args.gait, duty_factor=args.duty_factor,
                          period_s=args.period,
@@ -236,8 +252,42 @@ def _run_robot(args: argparse.Namespace) -> int:
     return _finish(args, trace, effects, t0)
 
 
+#: a bench session is refused when its phases are shorter than this fraction of the servo's
+#: minimal phase durations (or its step frequency this many times the limit's): a test rig may
+#: walk a leg past the robot's limits (the paper's plan goes to 3.3 Hz), not at 1e9 Hz
+BENCH_LIMIT_MARGIN = 2.0
+
+
+def _bench_infeasible(args: argparse.Namespace) -> list[str]:
+    """The step frequencies of ``args`` far beyond what the bench leg can walk: phases under
+    1 / :data:`BENCH_LIMIT_MARGIN` of the servo limits (:func:`_infeasible` of the gait at
+    that frequency over the margin; a single leg needs no support), each with why; empty
+    when all are within it."""
+    from hexapod_gait.gait import make_gait
+    out = []
+    for f in sorted(set(args.frequencies)):
+        if f <= 0:
+            continue     # 0 Hz: the standing (basal) session
+        gait = make_gait('tripod', duty_factor=args.duty_factor,
+                         period_s=BENCH_LIMIT_MARGIN / f,
+                         step_length_m=args.step_length, step_height_m=args.step_height)
+        why = _infeasible(gait, args.servo, support=False)
+        if why:
+            out.append(f'{f:g} Hz: phases under 1/{BENCH_LIMIT_MARGIN:g} of the servo limits')
+    return out
+
+
 def _run_bench(args: argparse.Namespace) -> int:
     from .bench_sim import BenchConfig, BenchPlan, BenchSimulator
+    why = _bench_infeasible(args)
+    if why:
+        if not args.allow_infeasible:
+            print('hexapod-sim bench: error: --frequencies far beyond what the leg can walk: '
+                  + ' | '.join(why) + ' (--allow-infeasible simulates them anyway)',
+                  file=sys.stderr)
+            return 2
+        print('hexapod-sim bench: warning: simulating infeasible --frequencies '
+              '(--allow-infeasible): ' + ' | '.join(why), file=sys.stderr)
     effects = parse_effects(args.effect, simulator='bench')
     plan = BenchPlan(loads_kg=args.loads, frequencies_hz=args.frequencies,
                      walk_s=args.duration, duty_factor=args.duty_factor,
@@ -255,11 +305,24 @@ def _run_bench(args: argparse.Namespace) -> int:
     return _finish(args, trace, effects, t0)
 
 
+#: Longest ``--duration`` [s] and highest ``--rate`` [Hz].
+MAX_DURATION_S = 86400.0
+MAX_RATE_HZ = 10_000.0
+#: Most output samples of one run (``--duration`` x ``--rate``, a bench plan's sessions
+#: included): a robot sample holds about 2.2 kB until the bag is written, so 2e6 take about
+#: 4.5 GB and 10 minutes (1e9 s ended in a MemoryError traceback).
+MAX_SAMPLES = 2_000_000
+#: Heaviest robot payload, in robot masses.
+MAX_PAYLOAD_RATIO = 10.0
+
 #: Numeric options of the subcommands and what they must be (checked before simulating);
 #: an option a subcommand lacks, or left at None, is skipped. Every value must be finite.
 _NUMBER_RULES: dict[str, tuple[str, Callable[[float], bool]]] = {
-    'duration': ('> 0', lambda v: v > 0),
-    'rate': ('> 0', lambda v: v > 0),
+    'duration': (f'> 0 and <= {MAX_DURATION_S:g} s (24 h)', lambda v: 0 < v <= MAX_DURATION_S),
+    'rate': (f'> 0 and <= {MAX_RATE_HZ:g} Hz', lambda v: 0 < v <= MAX_RATE_HZ),
+    'legs': ('that is even and from 2 to 64', lambda v: 2 <= v <= 64 and v % 2 == 0),
+    'seed': ('>= 0', lambda v: v >= 0),
+    'runs': ('from 1 to 1000', lambda v: 1 <= v <= 1000),
     'speed': ('> 0', lambda v: v > 0),
     'period': ('>= 0 (0 = stand)', lambda v: v >= 0),
     'duty_factor': ('in (0, 1)', lambda v: 0 < v < 1),
@@ -267,7 +330,8 @@ _NUMBER_RULES: dict[str, tuple[str, Callable[[float], bool]]] = {
     'step_height': ('>= 0', lambda v: v >= 0),
     'payload': ('>= 0', lambda v: v >= 0),
     'max_cool': ('>= 0', lambda v: v >= 0),
-    'loads': ('>= 0', lambda v: v >= 0),
+    'loads': ('>= 0 and <= 5 kg (the paper\'s stage carries up to 0.515 kg)',
+              lambda v: 0 <= v <= 5.0),
     'frequencies': ('>= 0', lambda v: v >= 0),
 }
 
@@ -283,7 +347,29 @@ def _check_numbers(args: argparse.Namespace) -> str | None:
                 continue
             if not math.isfinite(v) or not ok(v):
                 option = '--' + name.replace('_', '-')
-                return f'{option} must be a finite number {rule}, got {v:g}'
+                got = f'{v:g}' if isinstance(v, float) else str(v)
+                return f'{option} must be a finite number {rule}, got {got}'
+    return None
+
+
+def _check_samples(args: argparse.Namespace) -> str | None:
+    """Why ``--duration`` x ``--rate`` gives too few samples to write or too many to hold,
+    else None (the subcommands with a ``--rate``)."""
+    rate = getattr(args, 'rate', None)
+    duration = getattr(args, 'duration', None)
+    if rate is None or duration is None:
+        return None
+    per_run = duration * rate
+    what = f'--duration {duration:g} s at --rate {rate:g} Hz'
+    if per_run < 2:
+        return f'{what} holds {per_run:.3g} samples, fewer than 2: the bag would be empty'
+    total = per_run
+    if getattr(args, 'loads', None) and getattr(args, 'frequencies', None):
+        total *= len(args.loads) * len(args.frequencies)
+        what += f' x {len(args.loads) * len(args.frequencies)} sessions'
+    if total > MAX_SAMPLES:
+        return (f'{what} is {total:.3g} samples, more than {MAX_SAMPLES:g} (about 2 kB of '
+                'memory each): shorten the run or lower the rate')
     return None
 
 
@@ -292,31 +378,60 @@ def _check_out(out: str) -> str | None:
     path = Path(out)
     if path.exists() or path.is_symlink():
         return f'--out {out} exists; refusing to overwrite (remove it or choose another name)'
-    parent = path.absolute().parent
-    while not parent.exists() and parent != parent.parent:
-        parent = parent.parent   # the bag writer creates the missing folders
-    if not parent.is_dir():
-        return f'--out {out}: {parent} is not a folder'
-    try:
-        os.rmdir(tempfile.mkdtemp(prefix='.hexapod-sim-', dir=parent))
-    except OSError as err:
-        return f'--out {out}: cannot create a folder in {parent} ({err.strerror or err})'
-    return None
+    from hexapod_common.outdir import creatable_problem
+
+    return creatable_problem(out)
+
+
+def _created_by_run(out: str) -> list[Path]:
+    """The folders a run writing ``out`` creates (``out`` and its missing parents), outermost
+    last; taken before the run, so that a failed run removes only what it made."""
+    made = []
+    path = Path(out).absolute()
+    while not path.exists() and path != path.parent:
+        made.append(path)
+        path = path.parent
+    return made
+
+
+def _remove_partial(made: list[Path]) -> None:
+    """Remove what a failed run left: the bag folder and the parents it created (if empty)."""
+    import shutil
+    if not made:
+        return
+    shutil.rmtree(made[0], ignore_errors=True)
+    for folder in made[1:]:
+        try:
+            folder.rmdir()
+        except OSError:
+            break     # not empty (someone else's now) or already gone
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     # refuse before simulating: a bench plan takes minutes before the bag is written
-    reason = _check_numbers(args) or _check_out(args.out)
+    reason = _check_numbers(args) or _check_samples(args) or _check_out(args.out)
     if reason:
         print(f'hexapod-sim {args.command}: error: {reason}', file=sys.stderr)
         return 2
+    made = _created_by_run(args.out)
+    rc = 1
     try:
-        return int(args.func(args))
-    except (EffectError, ValueError) as err:
-        print(f'hexapod-sim: error: {err}', file=sys.stderr)
-        return 2
+        rc = int(args.func(args))
+    except EffectError as err:
+        print(f'hexapod-sim {args.command}: error: --effect: {err}', file=sys.stderr)
+        rc = 2
+    except ValueError as err:
+        print(f'hexapod-sim {args.command}: error: {err}', file=sys.stderr)
+        rc = 2
+    except KeyboardInterrupt:
+        print(f'hexapod-sim {args.command}: interrupted; no bag written', file=sys.stderr)
+        rc = 130
+    finally:
+        if rc != 0:
+            _remove_partial(made)   # a failed run leaves no half-written bag behind
+    return rc
 
 
 if __name__ == '__main__':

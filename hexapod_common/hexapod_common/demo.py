@@ -47,6 +47,54 @@ def _say(text: str) -> None:
     print(text, flush=True)
 
 
+#: Longest live graph [s] (wall time: the demo waits for it).
+MAX_LIVE_SECONDS = 600.0
+
+
+def check_args(args: argparse.Namespace) -> str | None:
+    """Why an option of ``hexapod-demo`` cannot work, naming it, else None: checked before the
+    live graph starts (``--speed 0`` walked at 0.2 m/s while saying 0, ``--speed nan`` ended in
+    a ParameterError traceback from inside the graph, ``--live-seconds 1e9`` never ended)."""
+    from hexapod_gait.errors import HexapodGaitError
+    from hexapod_gait.feasibility import ActuatorLimits, period_for_speed
+    from hexapod_gait.gait_node import GaitParams
+
+    from hexapod_bench_drivers.effects import EffectError, parse_effects
+
+    live = args.live_seconds
+    if not (math.isfinite(live) and 0 < live <= MAX_LIVE_SECONDS):
+        return (f'--live-seconds must be a finite number > 0 and <= {MAX_LIVE_SECONDS:g} s '
+                f'(wall time of the live graph), got {live:g}')
+    # the gait the live gait_scheduler walks: its defaults and actuator limits
+    g = GaitParams()
+    limits = ActuatorLimits(g.min_swing, g.min_stance, g.max_step_frequency)
+    speed = args.speed
+    if not (math.isfinite(speed) and speed > 0):
+        return f'--speed must be a finite number > 0 m/s, got {speed:g}'
+    try:
+        period = period_for_speed(speed, g.duty_factor, g.step_length, limits)
+    except HexapodGaitError as err:
+        return f'--speed: {g.gait} gait on {g.leg_count} legs: {err}'
+    if 2 * period > live:
+        return (f'--speed {speed:g} m/s walks a {period:.3g} s gait cycle: the {live:g} s live '
+                f'graph (--live-seconds) would not see 2 cycles; give at least '
+                f'{2 * g.step_length / (g.duty_factor * live):.3g} m/s or more --live-seconds')
+    try:
+        parse_effects([args.hidden_effect], simulator='robot')
+    except EffectError as err:
+        return f'--hidden-effect: {err}'
+    return _check_out(Path(args.out))
+
+
+def _check_out(out: Path) -> str | None:
+    """Why the output folder ``out`` cannot be used, else None (nothing is created)."""
+    from hexapod_common.outdir import creatable_problem
+
+    if out.exists() and not out.is_dir():
+        return f'--out {out} is a file, not a folder'
+    return None if out.is_dir() else creatable_problem(out)
+
+
 def run_live(out: Path, seconds: float, speed_mps: float) -> tuple[Path, list[Any]]:
     """Run the live graph for ``seconds`` of wall time; returns the bag and the descriptors."""
     import rclpy
@@ -264,10 +312,12 @@ def _say_slip(slip: dict[str, Any]) -> None:
     order = {g: k for k, g in enumerate(TABLE3)}
     for gait, row in sorted(slip['gaits'].items(), key=lambda kv: order.get(kv[0], 99)):
         ref = TABLE3.get(gait, (math.nan,) * 3)
-        _say(f'   {gait:8s} {int(row.get("stances", 0)):6d}   {row.get("nerr_mean", math.nan):.3f} '
+        sr_ref = ref[1] / (EDUBOT_MASS_KG * 9.81 * ref[2])
+        _say(f'   {gait:8s} {int(row.get("stances", 0)):6d}   '
+             f'{row.get("nerr_mean", math.nan):.3f} '
              f'({ref[0]:.3f})  {row.get("power_w_mean", math.nan):5.1f} ({ref[1]:5.1f})  '
              f'{row.get("speed_mps_mean", math.nan):.2f} ({ref[2]:.2f})   '
-             f'{row.get("sr_mean", math.nan):.2f} ({ref[1] / (EDUBOT_MASS_KG * 9.81 * ref[2]):.2f})')
+             f'{row.get("sr_mean", math.nan):.2f} ({sr_ref:.2f})')
     if slip.get('skipped_counts'):
         _say(f'   skipped stances: {slip["skipped_counts"]}')
 
@@ -276,12 +326,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog='hexapod-demo', description=__doc__.split('\n')[0])
     parser.add_argument('--out', default='demo_out', help='output folder (default demo_out)')
     parser.add_argument('--live-seconds', type=float, default=6.0,
-                        help='wall-clock seconds of the live graph (default 6)')
-    parser.add_argument('--speed', type=float, default=0.3, help='walking speed [m/s]')
+                        help='wall-clock seconds of the live graph, > 0 and <= '
+                             f'{MAX_LIVE_SECONDS:g} (default 6)')
+    parser.add_argument('--speed', type=float, default=0.3,
+                        help='walking speed of the live graph [m/s], > 0 and feasible for '
+                             'the tripod gait (AntBot: <= 0.6), at least 2 cycles in '
+                             '--live-seconds (default 0.3)')
     parser.add_argument('--hidden-effect', default='supply_resistance=0.35',
                         help='effect put in the robot data and not told to the analysis')
     parser.add_argument('--quick', action='store_true', help='smaller bench plan')
     args = parser.parse_args(argv)
+    if reason := check_args(args):
+        print(f'hexapod-demo: error: {reason}', file=sys.stderr)
+        return 2
     out = Path(args.out)
     if out.exists() and any(out.iterdir()):
         stamp = time.strftime('%Y%m%d-%H%M%S')

@@ -3,13 +3,17 @@
 Usage: ``bag_recorder -o BAG [--topics T ...] [--storage mcap|sqlite3] [--flush-period S]``
 (or the same as ROS parameters ``output``, ``topics``, ``storage``, ``flush_period``).
 Storage files are closed every ``flush_period`` seconds, so a killed recorder loses at most
-that much. An existing bag is never overwritten.
+that much. An existing bag is never overwritten. An output that cannot be created (an existing
+path, a folder that cannot be written) or a ``--flush-period`` that is not a finite number > 0
+is refused before recording (exit 2, one line naming the option).
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import sys
+from pathlib import Path
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -23,7 +27,7 @@ from hexapod_common.errors import HexapodError, UnknownTypeError
 from hexapod_common.node_utils import declare_params, param
 from hexapod_common.ros_types import CONTRACT_TOPICS, ros_message_class
 
-__all__ = ['BagRecorderNode', 'RecorderParams', 'main']
+__all__ = ['BagRecorderNode', 'RecorderParams', 'check_args', 'main']
 
 
 def _storage_ok(value: str) -> str | None:
@@ -110,6 +114,23 @@ class BagRecorderNode(Node):
         super().destroy_node()
 
 
+def check_args(args: argparse.Namespace) -> str | None:
+    """Why the command-line options cannot be recorded with, naming the option, else None
+    (nothing is created)."""
+    if args.flush_period is not None and not (math.isfinite(args.flush_period)
+                                              and args.flush_period > 0):
+        return f'--flush-period must be a finite number > 0 s, got {args.flush_period:g}'
+    if not args.output:
+        return None     # from the ROS parameter 'output', checked by the node
+    out = Path(args.output)
+    if out.is_symlink() or out.exists():
+        what = 'a folder (an existing bag?)' if out.is_dir() else 'a file'
+        return f'-o {out} exists and is {what}; refusing to overwrite it'
+    from hexapod_common.outdir import creatable_problem
+
+    return creatable_problem(out, '-o')
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     import rclpy
     from rclpy.executors import ExternalShutdownException
@@ -120,8 +141,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument('-o', '--output', help='bag folder to create')
     parser.add_argument('--topics', nargs='*', help='topics (default: every contract topic)')
     parser.add_argument('--storage', choices=('mcap', 'sqlite3'))
-    parser.add_argument('--flush-period', type=float)
+    parser.add_argument('--flush-period', type=float,
+                        help='seconds between storage file closes, > 0 (default 1)')
     args = parser.parse_args(remove_ros_args(['bag_recorder', *raw])[1:])
+    if reason := check_args(args):
+        print(f'bag_recorder: error: {reason}', file=sys.stderr)
+        return 2
     overrides = []
     if args.output:
         overrides.append(Parameter('output', value=args.output))
@@ -129,7 +154,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         overrides.append(Parameter('topics', value=list(args.topics)))
     if args.storage:
         overrides.append(Parameter('storage', value=args.storage))
-    if args.flush_period:
+    if args.flush_period is not None:
         overrides.append(Parameter('flush_period', value=args.flush_period))
     rclpy.init(args=['bag_recorder', *raw])
     node = None
@@ -140,6 +165,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         pass
     except (HexapodError, ValueError) as err:
         print(f'bag_recorder: error: {err}', file=sys.stderr)
+        return 2
+    except OSError as err:
+        # the output cannot be written after all (the checks above passed: a race)
+        print(f'bag_recorder: error: {err.filename or "output"}: cannot write the bag '
+              f'({err.strerror or err})', file=sys.stderr)
         return 2
     finally:
         if node is not None:

@@ -5,16 +5,21 @@ A ROS 1 ``.bag`` is accepted too: its messages are converted to ROS 2 CDR on the
 
 Usage: ``bag_replay BAG [--rate R] [--topics T ...] [--remap FROM:=TO ...] [--start S]
 [--end S] [--no-clock] [--wait-subscribers N] [--progress-every S]``. Rate 0 (default) is as
-fast as possible. A negative rate or offset is refused, and so is a ``--start`` past the bag's
-end (exit 2). Every ``--progress-every`` seconds (default 5, 0 = never) a line on stderr says
-how many messages were sent of how many and how far into the bag the replay is.
+fast as possible. A negative rate or offset is refused, and so is a rate below
+:data:`MIN_RATE` other than 0 (1e-6 would replay a 2 s bag in 23 days) and a ``--start`` past
+the bag's end (exit 2). Every ``--progress-every`` seconds (default 5, 0 = never) a line on
+stderr says how many messages were sent of how many and how far into the bag the replay is,
+also while it waits for a message that is not due yet. Ctrl-C stops it with exit code 130,
+SIGTERM with 143 (the messages sent so far on stderr), also in the middle of a long wait.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
+import threading
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -26,10 +31,15 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from hexapod_common.errors import HexapodError
 from hexapod_common.node_utils import LATCHED_QOS
-from hexapod_common.replay import ReplayOptions, ReplaySource, pace
+from hexapod_common.replay import ReplayOptions, ReplaySource
 
-__all__ = ['BagReplayNode', 'FASTDDS_PROFILE', 'check_args', 'main', 'parse_args',
+__all__ = ['BagReplayNode', 'FASTDDS_PROFILE', 'MIN_RATE', 'check_args', 'main', 'parse_args',
            'use_replay_profile']
+
+#: Slowest replay rate other than 0 (as fast as possible): 1 s of the bag per 1000 s.
+MIN_RATE = 1e-3
+#: Longest single sleep while waiting for a message that is not due yet [s].
+_WAIT_SLICE_S = 0.5
 
 #: Fast DDS writer profile with a 2 ms heartbeat period. Acknowledgements answer heartbeats, and
 #: with the default 3 s period a replayer waiting for acks crawls (measured: 3000 messages to
@@ -106,8 +116,12 @@ class BagReplayNode(Node):
         n = 0
         every = self.progress_every_s
         next_report = wall_t0 + every if every > 0 else float('inf')
+        last_ns = bag_t0
         for item in self.source.messages():
-            pace(self.options.rate, bag_t0, wall_t0, item.stamp_ns)
+            if self.options.rate > 0:
+                next_report = self._wait_due(item.stamp_ns, bag_t0, wall_t0, n, last_ns,
+                                             next_report)
+            last_ns = item.stamp_ns
             if self.clock_pub is not None:
                 clock = Clock()
                 clock.clock.sec, clock.clock.nanosec = divmod(item.stamp_ns, 1_000_000_000)
@@ -125,18 +139,40 @@ class BagReplayNode(Node):
         self._wait_acked(dirty)
         return dict(self.published)
 
+    def _wait_due(self, stamp_ns: int, bag_t0: int, wall_t0: float, sent: int, last_ns: int,
+                  next_report: float) -> float:
+        """Sleep until ``stamp_ns`` is due at the rate (``replay.pace``) in slices of at most
+        :data:`_WAIT_SLICE_S`: a progress line when one is due while waiting (a slow rate
+        waits long between two messages), and a stop when the context is shut down. Returns
+        the time of the next progress line."""
+        from rclpy.executors import ExternalShutdownException
+
+        due = wall_t0 + (stamp_ns - bag_t0) * 1e-9 / self.options.rate
+        while (now := time.monotonic()) < due:
+            if not self.context.ok():
+                raise ExternalShutdownException()
+            if now >= next_report:
+                self._report(sent, last_ns, wall_t0, wait_s=due - now)
+                next_report = now + self.progress_every_s
+            time.sleep(max(0.0, min(due - now, next_report - now, _WAIT_SLICE_S)))
+        return next_report
+
     def total_messages(self) -> int:
         """Messages of the replayed topics in the whole bag (0 when the bag does not say)."""
         return sum(c.msgcount for c in self.source.reader.connections
                    if c.topic in self.source.types)
 
-    def _report(self, sent: int, stamp_ns: int, wall_t0: float) -> None:
-        """One progress line: messages sent of the total, bag time reached, rate."""
+    def _report(self, sent: int, stamp_ns: int, wall_t0: float,
+                wait_s: float | None = None) -> None:
+        """One progress line: messages sent of the total, bag time reached, rate (and, while
+        waiting, when the next message is due)."""
         span_s = max(0, self.source.end_ns - self.source.start_ns) * 1e-9
         bag_s = max(0, stamp_ns - self.source.start_ns) * 1e-9
         wall_s = max(time.monotonic() - wall_t0, 1e-9)
         out = self.progress_file or sys.stderr
         a, b = self.options.start_offset_s, self.options.end_offset_s
+        waiting = '' if wait_s is None else \
+            f'; the next message is due in {wait_s:,.1f} s (--rate {self.options.rate:g})'
         if a > 0 or b > 0:
             # a --start/--end window: progress through it, not through the whole bag (it said
             # '832 / 12,300 (7 %)' of a window of 1,645 messages: new-user review)
@@ -144,12 +180,12 @@ class BagReplayNode(Node):
             frac = (bag_s - a) / (hi - a) if hi > a else 1.0
             print(f'bag_replay: {sent:,} messages sent, bag time {bag_s:.1f} s of the window '
                   f'{a:.1f}-{hi:.1f} s ({100.0 * min(max(frac, 0.0), 1.0):.0f} %), '
-                  f'{sent / wall_s:,.0f} msg/s', file=out, flush=True)
+                  f'{sent / wall_s:,.0f} msg/s{waiting}', file=out, flush=True)
             return
         total = self.total_messages()
         of = f' / {total:,} ({100.0 * sent / total:.0f} %)' if total else ''
         print(f'bag_replay: {sent:,}{of} messages sent, bag time {bag_s:.1f} / {span_s:.1f} s, '
-              f'{sent / wall_s:,.0f} msg/s', file=out, flush=True)
+              f'{sent / wall_s:,.0f} msg/s{waiting}', file=out, flush=True)
 
     def _wait_acked(self, topics: set[str]) -> None:
         pubs = [self.pubs[t] for t in topics]
@@ -212,6 +248,9 @@ def check_args(args: argparse.Namespace) -> str | None:
             extra = ' (1 = real time, 0 = as fast as possible)' if name == 'rate' else ''
             return f'--{name.replace("_", "-")} must be a finite number >= 0{extra}, ' \
                 f'got {value:g}'
+    if 0 < args.rate < MIN_RATE:
+        return (f'--rate must be 0 (as fast as possible) or >= {MIN_RATE:g} (1 s of the bag per '
+                f'{1 / MIN_RATE:g} s), got {args.rate:g}')
     if args.end and args.end <= args.start:
         return f'--end {args.end:g} s must be after --start {args.start:g} s (0 = to the end)'
     if args.wait_subscribers < 0:
@@ -228,8 +267,29 @@ def _check_window(args: argparse.Namespace, source: ReplaySource) -> str | None:
     return None
 
 
+class _Terminated(Exception):
+    """SIGTERM arrived (raised by :func:`_on_sigterm` in the main thread)."""
+
+
+def _on_sigterm(signum: int, frame: Any) -> None:
+    raise _Terminated()
+
+
+def _catch_sigterm() -> tuple[bool, Any]:
+    """Make SIGTERM raise :class:`_Terminated` in the main thread; returns whether it did and
+    the handler to put back (not in the main thread, where handlers cannot be set). rclpy's
+    own handler only shut the context down, which a replay sleeping until its next message
+    never saw: it ignored SIGTERM (review: SIGKILL needed)."""
+    if threading.current_thread() is not threading.main_thread():
+        return False, None
+    previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    # None: a handler set outside Python (rclpy's), which rclpy puts back itself at shutdown
+    return True, signal.SIG_DFL if previous is None else previous
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     import rclpy
+    from rclpy.executors import ExternalShutdownException
 
     raw = list(sys.argv[1:] if argv is None else argv)
     # only the --ros-args part goes to rcl: a plain '--remap /a:=/b' of ours was read by rcl as
@@ -250,6 +310,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     use_replay_profile()
     rclpy.init(args=['bag_replay', *ros_part])
+    caught, previous = _catch_sigterm()
     node = None
     try:
         node = BagReplayNode(args.bag, args.options, progress_every_s=args.progress_every)
@@ -283,9 +344,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     except HexapodError as err:
         print(f'bag_replay: error: {err}', file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        return 130
+    except (KeyboardInterrupt, ExternalShutdownException):
+        return 130      # Ctrl-C: rclpy's handler shuts the context down (seen while waiting)
+    except _Terminated:
+        sent = sum(node.published.values()) if node is not None else 0
+        print(f'bag_replay: stopped (SIGTERM) after {sent} messages', file=sys.stderr)
+        return 143
     finally:
+        if caught:
+            signal.signal(signal.SIGTERM, previous)
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
