@@ -208,6 +208,7 @@ def phase_powers(
     frequency_hz: float,
     duty_factor: float,
     normalise: str = 'nominal',
+    max_label_gap_s: float | None = None,
 ) -> PhaseSample:
     """Average power of the stance and of the swing of one session.
 
@@ -231,6 +232,10 @@ def phase_powers(
         Input power samples of the session [s], [W].
     t_label_s, stance : array (m,)
         Label stamps [s] (on the power clock) and stance labels.
+    max_label_gap_s : float, optional
+        Power samples farther than this from every label sample (a gap in the labels' stream:
+        a force sensor or the tip tracking lost for a while) are left out rather than given
+        the label of the gap's end.
     """
     tp, p = np.asarray(t_power_s, float), np.asarray(power_w, float)
     tl, st = np.asarray(t_label_s, float), np.asarray(stance, bool)
@@ -249,6 +254,10 @@ def phase_powers(
     else:
         idx = right
     lab = st[idx]
+    if max_label_gap_s is not None and len(tl):
+        near = np.abs(tl[idx] - tp) <= max_label_gap_s
+        if near.any() and not near.all():
+            p, lab = p[near], lab[near]
     if normalise == 'nominal' and 0.0 < duty_factor < 1.0 and lab.any() and (~lab).any():
         p_st = float(np.mean(p * lab) / duty_factor)
         p_sw = float(np.mean(p * ~lab) / (1.0 - duty_factor))

@@ -63,3 +63,26 @@ def test_load_offset_shifts_the_stance_load() -> None:
                              load_offset_kg=leg)
     assert paper == pytest.approx(3 * (2 + 4 * m_c) + 3 * 3.0, rel=1e-12)
     assert paper - net == pytest.approx(3 * 4.0 * leg, rel=1e-12)
+
+
+def test_power_in_a_label_gap_is_left_out_not_given_the_gaps_edge_label() -> None:
+    """Labels (the force sensor or the tip tracking) missing for 1.4 s of a 4 s session: the
+    power samples in the gap took the label of the nearest sample at its edge (a 1.5 s force
+    gap on the simulated bench: stance fraction 0.71 -> 0.57, P_stance -18 %, silently); with
+    ``max_label_gap_s`` they are left out."""
+    t, p, tl, st = _session(0.5)
+    keep = (tl < 1.2) | (tl >= 2.6)
+    kw = dict(session_id='s', load_kg=0.1, frequency_hz=1.0, duty_factor=0.5,
+              normalise='detected')
+    bad = phase_powers(t, p, tl[keep], st[keep], **kw)
+    good = phase_powers(t, p, tl[keep], st[keep], max_label_gap_s=0.1, **kw)
+    assert good.p_stance_w == pytest.approx(3.0) and good.p_swing_w == pytest.approx(9.0)
+    assert bad.p_stance_w > 3.5     # swing power labelled stance across the gap
+
+
+def test_tip_samples_inside_a_force_gap_are_found() -> None:
+    from hexapod_energy.bag_io import _far_from
+
+    ref = np.concatenate([np.arange(0.0, 1.0, 0.01), np.arange(2.5, 4.0, 0.01)])
+    t = np.array([-0.1, 0.5, 0.995, 1.5, 2.4, 2.505, 3.9, 4.2])
+    assert _far_from(t, ref).tolist() == [True, False, True, True, True, False, False, True]
