@@ -1028,6 +1028,7 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
             'messages' + (f' (all {n_battery} dropped)' if n_battery else '') +
             ': input power needs the battery voltage and current')
     _prepare_battery_store(path, stores, order, n_samples, notes)
+    glitch_t = _battery_glitch_stamps(stores['/battery_state'], notes)
     if current_sign == 'auto':
         # offline the whole run decides (the median of V * I), never its first samples: a
         # sensor's idle offset before the servos draw current must not flip a run's P_in
@@ -1047,6 +1048,8 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
     # each sample rebuilt from the columns as it is fed
     for topic, sample in _stamp_ordered(stores, order):
         if topic == '/battery_state':
+            if glitch_t and sample.t_s in glitch_t:
+                continue
             windows.extend(acc.add_battery(sample))
         elif topic == '/gait/phase':
             gait = sample
@@ -1247,6 +1250,27 @@ def _prepare_battery_store(path: str | Path, stores: dict[str, SampleColumns],
         return
     stores['/battery_state'] = combined
     order['/battery_state'] = array.array('q', range(n_samples, n_samples + len(combined)))
+
+
+def _battery_glitch_stamps(battery: SampleColumns, notes: list[str]) -> set[float]:
+    """Stamps of isolated battery glitches (:func:`hexapod_energy.descriptors.
+    battery_glitches`), noted; they are left out offline (the live monitor, which cannot look
+    ahead, keeps them)."""
+    from hexapod_energy.descriptors import battery_glitches
+
+    t = np.asarray(battery.column('t_s'), dtype=float)
+    p = np.asarray(battery.column('voltage_v'), dtype=float) * \
+        np.asarray(battery.column('current_a'), dtype=float)
+    o = np.argsort(t, kind='stable')
+    mask = np.zeros(t.size, dtype=bool)
+    mask[o] = battery_glitches(p[o])
+    if not mask.any():
+        return set()
+    k = int(np.flatnonzero(mask)[np.argmax(np.abs(p[mask]))])
+    notes.append(f'{int(mask.sum())} isolated /battery_state sample(s) far from their '
+                 f'neighbours (sensor glitches: e.g. {abs(p[k]):.4g} W at {t[k]:.3f} s, the '
+                 f'median {float(np.median(np.abs(p))):.3g} W) left out')
+    return set(t[mask].tolist())
 
 
 #: samples rebuilt per step of :func:`_stamp_ordered` (the order's indices as Python ints)

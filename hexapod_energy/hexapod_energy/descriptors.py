@@ -234,6 +234,35 @@ def implausible_effort_power(effort_w: float, power_in_w: float, net_w: float) -
     return ''
 
 
+#: an isolated battery sample this many robust sigmas (and the run's median |power|) away
+#: from its neighbours' median is a sensor glitch (offline readers leave it out)
+GLITCH_SIGMAS = 20.0
+#: ... when at most this many such samples come in a row (a real stall lasts longer)
+GLITCH_MAX_RUN = 2
+
+
+def battery_glitches(power_w: Any) -> np.ndarray:
+    """Mask of isolated glitches in a battery power series (time order): samples further
+    than :data:`GLITCH_SIGMAS` robust sigmas of the series' deviations from its running
+    7-sample median, and than its median absolute power, from that median, in runs of at
+    most :data:`GLITCH_MAX_RUN` samples. Three single-sample 100 A readings in a 15 s AntBot
+    bag (1,500 samples) raised its P_in by 7 % (35.0 -> 37.5 W) without a word."""
+    from scipy.ndimage import median_filter
+
+    p = np.asarray(power_w, dtype=float)
+    out = np.zeros(p.size, dtype=bool)
+    if p.size < 8 or not np.all(np.isfinite(p)):
+        return out
+    dev = p - median_filter(p, size=7, mode='nearest')
+    sigma = 1.4826 * float(np.median(np.abs(dev)))
+    far = np.abs(dev) > max(GLITCH_SIGMAS * sigma, float(np.median(np.abs(p))), 1e-9)
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], far.astype(np.int8), [0]))))
+    for a, b in zip(edges[::2], edges[1::2]):
+        if b - a <= GLITCH_MAX_RUN:
+            out[a:b] = True
+    return out
+
+
 def joint_power_out_w(effort_nm: np.ndarray, velocity_rad_s: np.ndarray) -> float:
     """Instantaneous output power of one joint sample, ``sum_i max(tau_i qdot_i, 0)`` [W]."""
     return float(np.sum(np.clip(np.asarray(effort_nm) * np.asarray(velocity_rad_s), 0.0, None)))

@@ -171,3 +171,21 @@ def test_a_frozen_mocap_pose_is_not_a_body_standing_still():
     assert by_end[1.5].speed_mps == pytest.approx(0.4, rel=1e-6)
     assert math.isnan(by_end[2.0].speed_mps) and by_end[2.0].speed_source == 'none'
     assert by_end[2.5].speed_mps == pytest.approx(0.4, rel=1e-6)
+
+
+def test_isolated_battery_glitches_are_found_and_real_transients_are_not():
+    """Three single-sample 100 A readings in a 15 s AntBot bag raised its P_in by 7 % (35.0
+    -> 37.5 W) without a word; the offline reader now leaves such samples out, noted. A gait's
+    power ripple, white noise and a 60 ms stall are not glitches."""
+    from hexapod_energy.descriptors import battery_glitches
+
+    rng = np.random.default_rng(0)
+    t = np.arange(0, 15.0, 0.01)
+    p = 35.0 + 20.0 * np.sin(2 * np.pi * 1.5 * t) + rng.normal(0, 0.5, t.size)
+    p[800:806] += 40.0                       # a stall: 60 ms of +40 W
+    assert not battery_glitches(p).any()
+    q = p.copy()
+    q[[300, 700, 1100]] = 1200.0
+    q[[500, 501]] = -900.0                   # two in a row: still a glitch
+    assert np.flatnonzero(battery_glitches(q)).tolist() == [300, 500, 501, 700, 1100]
+    assert not battery_glitches(np.full(100, 12.0)).any()   # noise-free: nothing
