@@ -123,3 +123,22 @@ def test_the_residual_loop_refuses_runs_it_cannot_describe(runs, kw, says):
 
     with pytest.raises(ResidualDataError, match=re.escape(says)):
         energy_loop_from_runs(None, [_run_with_legs(n, k) for n, k in runs], None, **kw)
+
+
+def test_a_given_offset_that_separates_the_streams_is_named_as_given():
+    """`slip --offset 1e9` was told 'give the offset (--offset SECONDS)'."""
+    import numpy as np
+
+    from slip_identification.errors import SlipDataError
+    from slip_identification.pipeline import RunData, analyze_run
+
+    t = np.arange(0, 3, 0.01)
+    n = t.size
+    run = RunData(joint_names=tuple(f'{k}_hip' for k in ('L1', 'L2', 'L3', 'R1', 'R2', 'R3')),
+                  joint_t_s=t, joint_velocity=np.ones((n, 6)), command_t_s=t,
+                  command_velocity=np.ones((n, 6)), mocap_t_s=t,
+                  mocap_position_m=np.column_stack([0.3 * t - 0.4, 0 * t, 0.1 + 0 * t]),
+                  mocap_quat_xyzw=np.tile([0, 0, 0, 1.0], (n, 1)), battery_t_s=t,
+                  battery_voltage_v=12 + 0 * t, battery_current_a=1 + 0 * t)
+    with pytest.raises(SlipDataError, match='the given offset puts them apart'):
+        analyze_run(run, offset_s=100.0, check_body_up=False)
