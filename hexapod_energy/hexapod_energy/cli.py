@@ -349,6 +349,10 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     if any(v is not None for v in given_gait) and any(v is None for v in given_gait):
         raise EnergyError('--gait, --duty-factor and --step-length go together (the gait of '
                           'robot runs without /gait/phase)')
+    if given_gait[2] is not None and not (math.isfinite(args.step_length) and
+                                          args.step_length > 0):
+        # 0 was read as a Buehler clock (no prediction) without naming the option
+        raise EnergyError(f'--step-length must be > 0 m, got {args.step_length}')
     robot_speed = getattr(args, 'robot_speed', None)
     if robot_speed is not None and not (math.isfinite(robot_speed) and robot_speed > 0):
         raise EnergyError(f'--robot-speed must be > 0 m/s, got {robot_speed}')

@@ -272,6 +272,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         height = getattr(args, 'step_height', None)
         if height is not None and not (math.isfinite(height) and height > 0):
             raise InvalidInputError(f'--step-height must be > 0 m, got {height}')
+        if not (math.isfinite(args.step_length) and args.step_length > 0):
+            raise InvalidInputError(f'--step-length must be > 0 m, got {args.step_length}')
         gait = GivenGait(args.gait, args.duty_factor, args.step_length,
                          getattr(args, 'legs', None),
                          0.04 if height is None else float(height))
