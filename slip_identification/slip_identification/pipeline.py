@@ -743,8 +743,9 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
         raise SlipDataError(
             f'run {run.label!r}: motion capture ({tm_span[0]:.3f}..{tm_span[1]:.3f} s after the '
             f'{off:+.3f} s offset) and joint states ({tj_span[0]:.3f}..{tj_span[1]:.3f} s) do '
-            'not overlap: ' + ('the given offset puts them apart (--offset SECONDS: the mocap '
-                               'clock minus the joint states\')' if method == 'given' else
+            'not overlap: ' + ('with the offset given (stamped on different clocks? --offset '
+                               'SECONDS is the mocap clock minus the joint states\')'
+                               if method == 'given' else
                                'stamped on different clocks? give the offset (--offset '
                                'SECONDS)'))
     geo_inputs: tuple[Any, ...] = ()

@@ -144,5 +144,5 @@ def test_a_given_offset_that_separates_the_streams_is_named_as_given():
                   mocap_position_m=np.column_stack([0.3 * t - 0.4, 0 * t, 0.1 + 0 * t]),
                   mocap_quat_xyzw=np.tile([0, 0, 0, 1.0], (n, 1)), battery_t_s=t,
                   battery_voltage_v=12 + 0 * t, battery_current_a=1 + 0 * t)
-    with pytest.raises(SlipDataError, match='the given offset puts them apart'):
+    with pytest.raises(SlipDataError, match='with the offset given'):
         analyze_run(run, offset_s=100.0, check_body_up=False)
