@@ -178,9 +178,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             os.environ[MOCAP_TF_ENV] = args.mocap_tf
     if args.joint_map:
         try:
-            os.environ[JOINT_MAP_ENV] = json.dumps(parse_joint_map(args.joint_map))
+            joint_map = parse_joint_map(args.joint_map)
         except ValueError as err:
             parser.error(str(err))
+        for warning in _unmatched_joint_mappings(args, joint_map):
+            print(f'hexapod-analyze: warning: {warning}', file=sys.stderr)
+        os.environ[JOINT_MAP_ENV] = json.dumps(joint_map)
     try:
         return _run(args)
     finally:
@@ -201,6 +204,36 @@ def _bag_paths(args: argparse.Namespace) -> list[str]:
             if isinstance(v, str) and os.path.exists(v) and (
                     os.path.isdir(v) or v.endswith(('.bag', '.mcap', '.db3'))):
                 out.append(v)
+    return out
+
+
+def _unmatched_joint_mappings(args: argparse.Namespace, joint_map: dict[str, str]
+                              ) -> list[str]:
+    """Warnings for a ``--joint-map`` source no given bag records on ``/joint_states`` (a
+    typo), and for a target name a bag records already (two joints would share it): both ran
+    without a word (outside review). The first 200 joint messages of each bag are read."""
+    from hexapod_common.bags import iter_messages, open_reader
+
+    names: set[str] = set()
+    for path in _bag_paths(args):
+        try:
+            with open_reader(path) as reader:
+                for k, m in enumerate(iter_messages(reader, ['/joint_states'])):
+                    names.update(str(n) for n in reader.deserialize(m.data, m.msgtype).name)
+                    if k >= 200:
+                        break
+        except Exception:   # noqa: BLE001 - the command names an unreadable bag itself
+            continue
+    if not names:
+        return []
+    out = []
+    for src, dst in sorted(joint_map.items()):
+        if src not in names:
+            out.append(f'--joint-map {src}:={dst}: no given bag records a joint {src} on '
+                       '/joint_states')
+        elif dst in names and dst not in joint_map:
+            out.append(f'--joint-map {src}:={dst}: the bags record a joint {dst} already: two '
+                       'joints would share the name')
     return out
 
 

@@ -354,8 +354,9 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         # 0 was read as a Buehler clock (no prediction) without naming the option
         raise EnergyError(f'--step-length must be > 0 m, got {args.step_length}')
     robot_speed = getattr(args, 'robot_speed', None)
-    if robot_speed is not None and not (math.isfinite(robot_speed) and robot_speed > 0):
-        raise EnergyError(f'--robot-speed must be > 0 m/s, got {robot_speed}')
+    if robot_speed is not None and not (math.isfinite(robot_speed) and 0 < robot_speed <= 20):
+        # 1e9 m/s was taken (SR 1.6e-9)
+        raise EnergyError(f'--robot-speed must be in (0, 20] m/s, got {robot_speed}')
     leg = load_leg_description(args.leg) if getattr(args, 'leg', None) else antbot_leg()
     mass_warning = ''
     if args.robot_mass is None:
@@ -366,6 +367,12 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                             'mass')
     if not (math.isfinite(args.robot_mass) and args.robot_mass > 0):
         raise EnergyError(f'--robot-mass must be > 0 kg, got {args.robot_mass}')
+    for flag, value in (('--payload', args.payload),
+                        ('--robot-payload', getattr(args, 'robot_payload', None))):
+        if value is not None and value > 10 * args.robot_mass:
+            # a 1e9 kg payload gave a 932 MW "recommendation"
+            raise EnergyError(f'{flag} {value:g} kg is over 10 times the robot\'s '
+                              f'{args.robot_mass:g} kg: not a load its legs can carry')
     robot = RobotSpec(mass_kg=args.robot_mass, leg=leg.spec)
     limits, limits_source = _actuator_limits(args)
     if getattr(args, 'legs', None) is not None:

@@ -154,3 +154,24 @@ def test_joint_map_renames_joint_states(monkeypatch) -> None:
         joint_state_from_msg(msg)
     with pytest.raises(SystemExit):
         analyze_main(['--joint-map', 'a:=L1_hip', 'b:=L1_hip', 'slip', 'x', '--out', 'y'])
+
+
+def test_joint_map_names_that_match_nothing_or_collide_are_warned(tmp_path: Path,
+                                                                  capsys) -> None:
+    """``--joint-map a:=L1_hip`` (no joint ``a`` recorded) and ``L1_hip:=L2_hip`` (the bag has
+    an ``L2_hip`` already: two joints would share the name) ran without a word."""
+    bag = tmp_path / 'j'
+    with BagWriter(bag) as w:
+        for k in range(3):
+            msg = new_msg('sensor_msgs/msg/JointState', header=stamp(k * 10_000_000),
+                          name=['L1_hip', 'L2_hip'], position=[0.0, 0.0],
+                          velocity=[0.0, 0.0], effort=[0.0, 0.0])
+            w.write('/joint_states', 'sensor_msgs/msg/JointState', msg, k * 10_000_000)
+    analyze_main(['--joint-map', 'a:=L3_hip', '--joint-map', 'L1_hip:=L2_hip', 'slip',
+                  str(bag), '--out', str(tmp_path / 'o')])
+    err = capsys.readouterr().err
+    assert '--joint-map a:=L3_hip: no given bag records a joint a' in err
+    assert '--joint-map L1_hip:=L2_hip: the bags record a joint L2_hip already' in err
+    analyze_main(['--joint-map', 'L1_hip:=R1_hip', 'slip', str(bag), '--out',
+                  str(tmp_path / 'o2')])
+    assert '--joint-map' not in capsys.readouterr().err
