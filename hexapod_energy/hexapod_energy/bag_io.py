@@ -746,11 +746,11 @@ def bench_phase_samples(
             sample = dataclasses.replace(sample, step_length_m=length, step_height_m=height)
         samples.append(sample)
     if label_gaps or force_gaps:
+        streams = (['/bench/ground_force'] if force_gaps else []) + \
+            (['/bench/leg_tip or /gait/phase'] if label_gaps - force_gaps else [])
         notes.append(f'{len(label_gaps | force_gaps)} walking session(s) with gaps in the '
-                     'phase labels (' + ('/bench/ground_force' if force_gaps else '') +
-                     (', ' if force_gaps and label_gaps - force_gaps else '') +
-                     ('/bench/leg_tip or /gait/phase' if label_gaps - force_gaps else '') +
-                     '): the power samples in the gaps are left out of the phase split')
+                     f'phase labels ({", ".join(streams)}): the power samples in the gaps are '
+                     'left out of the phase split')
     if guessed:
         notes.append(f'bench duty factor not given: 0.5 assumed (Brodoline et al.\'s bench); '
                      f'the sensed stance fraction is {min(guessed):.2f} to {max(guessed):.2f}. '

@@ -322,6 +322,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     from hexapod_energy.prediction import (
         RobotSpec,
         bench_domain_check,
+        load_offset_problem,
         power_breakdown_w,
     )
     from hexapod_energy.single_leg import SingleLegModel
@@ -331,11 +332,6 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     if args.recommend and (args.speed is None or not (math.isfinite(args.speed) and
                                                       args.speed > 0)):
         raise EnergyError(f'--recommend needs --speed V with V > 0 [m/s], got {args.speed}')
-    # a negative or NaN payload used to give a lighter robot (or NaN descriptors) and exit 0
-    for flag, value in (('--payload', args.payload),
-                        ('--robot-payload', getattr(args, 'robot_payload', None))):
-        if value is not None and not (math.isfinite(value) and value >= 0):
-            raise EnergyError(f'{flag} must be >= 0 kg, got {value}')
     if not math.isfinite(getattr(args, 'load_offset', 0.0)):
         raise EnergyError(f'--load-offset must be finite, got {args.load_offset}')
     specs = read_bench_sessions_file(args.bench_sessions) \
@@ -369,8 +365,11 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         raise EnergyError(f'--robot-mass must be > 0 kg, got {args.robot_mass}')
     for flag, value in (('--payload', args.payload),
                         ('--robot-payload', getattr(args, 'robot_payload', None))):
+        # a negative or NaN payload gave a lighter robot (or NaN descriptors) and a 1e9 kg
+        # one a 932 MW "recommendation", with exit 0
+        if value is not None and not (math.isfinite(value) and value >= 0):
+            raise EnergyError(f'{flag} must be >= 0 kg, got {value}')
         if value is not None and value > 10 * args.robot_mass:
-            # a 1e9 kg payload gave a 932 MW "recommendation"
             raise EnergyError(f'{flag} {value:g} kg is over 10 times the robot\'s '
                               f'{args.robot_mass:g} kg: not a load its legs can carry')
     robot = RobotSpec(mass_kg=args.robot_mass, leg=leg.spec)
@@ -379,19 +378,12 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         if args.legs < 2 or args.legs % 2:
             raise EnergyError(f'--legs must be an even number >= 2, got {args.legs}')
         _check_mass(robot, args.legs, '--legs')
-    if args.load_offset > 0:
-        from hexapod_gait.gait import carried_mass_per_leg_kg
-
-        n_legs = int(getattr(args, 'legs', None) or 6)
-        m_c = float(carried_mass_per_leg_kg(robot.mass_kg, robot.leg_mass_kg,
-                                            np.array([n_legs // 2]))[0])
-        if args.load_offset >= m_c:
-            # it was clamped to a 0 kg load without a word (--load-offset 1e9: 23.4 W
-            # predicted for 24.9 W, no extrapolation warning)
-            raise EnergyError(
-                f'--load-offset {args.load_offset:g} kg is not below the mass a stance leg '
-                f'carries ({m_c:.3g} kg with {n_legs // 2} of {n_legs} legs down, no payload): '
-                'every stance would read the bench at a load of 0 kg or less')
+    # a load offset above a stance leg's load was clamped to 0 kg without a word
+    # (--load-offset 1e9: 23.4 W predicted for 24.9 W, no extrapolation warning)
+    why = load_offset_problem(args.load_offset, robot.mass_kg, robot.leg_mass_kg,
+                              int(getattr(args, 'legs', None) or 6))
+    if why:
+        raise EnergyError(why)
     from hexapod_common.outdir import prepare_out_dir
 
     out = prepare_out_dir(args.out)   # a file by that name, no permission: refused up front

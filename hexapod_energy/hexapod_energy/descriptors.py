@@ -263,6 +263,23 @@ def battery_glitches(power_w: Any) -> np.ndarray:
     return out
 
 
+def _gap_in_window(t: np.ndarray, t0: float, t1: float, steps: Any) -> bool:
+    """Whether the sorted stamps ``t`` leave a gap in the window ``[t0, t1]``: an interval
+    between the last stamp before it (else ``t0``), those inside and the first after it over
+    :data:`BATTERY_GAP_INTERVALS` times the stream's usual interval (the median of
+    ``steps``) and 0.25 s, or no stamp in or after the window. The end is checked only once
+    a stamp after it has come."""
+    inside = t[(t >= t0) & (t < t1)]
+    after = t[t >= t1][:1]
+    if not inside.size and not after.size:
+        return True
+    before = t[t < t0][-1:]
+    pts = np.concatenate([before if before.size else [t0], inside, after])
+    typical = float(np.median(steps)) if len(steps) else 0.0
+    return pts.size > 1 and \
+        bool(np.max(np.diff(pts)) > max(BATTERY_GAP_INTERVALS * typical, 0.25))
+
+
 def joint_power_out_w(effort_nm: np.ndarray, velocity_rad_s: np.ndarray) -> float:
     """Instantaneous output power of one joint sample, ``sum_i max(tau_i qdot_i, 0)`` [W]."""
     return float(np.sum(np.clip(np.asarray(effort_nm) * np.asarray(velocity_rad_s), 0.0, None)))
@@ -665,21 +682,13 @@ class DescriptorAccumulator:
         self._joint.append(entry)
 
     def _joint_gap(self, t0: float, t1: float) -> bool:
-        """Whether the joint-power samples leave a gap in ``[t0, t1]`` (its start included)
-        longer than :data:`BATTERY_GAP_INTERVALS` of their usual interval and 0.25 s, or none
-        lies in or after the window: P_out from efforts would miss part of it. The window's
-        end is checked once a later sample has come (joint states may lag the battery)."""
+        """Whether the joint-power samples leave a gap in the window (:func:`_gap_in_window`):
+        P_out from efforts would miss part of it. The window's end is checked once a later
+        sample has come (joint states may lag the battery)."""
         if not self.joint_power_samples_:
             return False
-        t = np.sort([j[0] for j in self._joint])
-        before = t[t < t0]
-        inside = t[(t >= t0) & (t < t1)]
-        after = t[t >= t1]
-        if not inside.size and not after.size:
-            return True
-        pts = np.concatenate([before[-1:] if before.size else [t0], inside, after[:1]])
-        typical = float(np.median(self._joint_steps)) if self._joint_steps else 0.0
-        return bool(np.max(np.diff(pts)) > max(BATTERY_GAP_INTERVALS * typical, 0.25))
+        return _gap_in_window(np.sort([j[0] for j in self._joint]), t0, t1,
+                              self._joint_steps)
 
     def _add_position_power(self, sample: JointStateSample) -> None:
         """Joint power without velocities: per joint name, the trapezoid work
@@ -904,20 +913,11 @@ class DescriptorAccumulator:
         t, p = t[order], p[order]
         grid = np.concatenate(([t0], t[(t > t0) & (t < t1)], [t1]))
         power_in = float(np.trapezoid(np.interp(grid, t, p), grid) / (t1 - t0))
-        gap = False
-        if t.size >= 2:
-            # the samples around and inside the window: a gap much longer than the stream's
-            # own interval means P_in was interpolated across missing data. Checked for
-            # windows with few samples too: a window wholly inside a gap holds none, and was
-            # taken for a slow monitor's (a 5 s gap in a 15 s AntBot bag: 7 windows
-            # interpolated between the gap's ends, P_in 31.6 W against 35.0 W)
-            i0 = max(int(np.searchsorted(t, t0, side='right')) - 1, 0)
-            i1 = min(int(np.searchsorted(t, t1, side='left')), t.size - 1)
-            steps = np.diff(t[i0:i1 + 1])
-            typical = float(np.median(self._battery_steps)) if self._battery_steps else \
-                float(np.median(np.diff(t)))
-            gap = bool(steps.size) and \
-                float(np.max(steps)) > max(BATTERY_GAP_INTERVALS * typical, 0.25)
+        # a gap much longer than the stream's own interval means P_in was interpolated
+        # across missing data. Checked for windows with few samples too: a window wholly
+        # inside a gap holds none, and was taken for a slow monitor's (a 5 s gap in a 15 s
+        # AntBot bag: 7 windows interpolated between the gap's ends, 31.6 W for 35.0 W)
+        gap = t.size >= 2 and _gap_in_window(t, t0, t1, self._battery_steps or np.diff(t))
         if gap:
             warnings.append(BATTERY_GAP_NOTE)
         elif grid.size - 2 < MIN_BATTERY_SAMPLES_PER_WINDOW:

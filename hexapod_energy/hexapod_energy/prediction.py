@@ -301,6 +301,22 @@ def phase_duration_scales(model: Any, gait: Any) -> tuple[float, float]:
     return bench[0] / own[0], bench[1] / own[1]
 
 
+def load_offset_problem(load_offset_kg: float, mass_kg: float, leg_mass_kg: float,
+                        legs: int) -> str:
+    """Why ``load_offset_kg`` cannot work for a robot of ``mass_kg`` on ``legs`` legs (it is
+    not below what a stance leg carries with half the legs down: every stance would read the
+    bench at 0 kg or less, which the prediction clamps without a word), else ''."""
+    from hexapod_gait.gait import carried_mass_per_leg_kg
+
+    down = max(legs // 2, 1)
+    m_c = float(carried_mass_per_leg_kg(mass_kg, leg_mass_kg, np.array([down]))[0])
+    if load_offset_kg < m_c:
+        return ''
+    return (f'--load-offset {load_offset_kg:g} kg is not below the mass a stance leg carries '
+            f'({m_c:.3g} kg with {down} of {legs} legs down): every stance would read the '
+            'bench at a load of 0 kg or less')
+
+
 def geometry_limits(model: Any, gait: Any, limits: Any) -> Any:
     """Actuator limits for ``gait``'s step geometry: the minimal phase durations of
     ``limits`` (``hexapod_gait.feasibility.ActuatorLimits``, measured on the bench's tip path,

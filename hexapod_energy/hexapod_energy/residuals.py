@@ -1823,8 +1823,7 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
     """The loop on a fitted bench model and read robot runs (tests reuse one bench fit).
     ``bench_voltage_v``: the bench's supply voltage, checked against the robot runs'.
     ``bench_notes``: bench bag -> how it was read (``per_bench`` in the document when any)."""
-    from hexapod_energy.prediction import RobotSpec
-    from hexapod_gait.gait import carried_mass_per_leg_kg
+    from hexapod_energy.prediction import RobotSpec, load_offset_problem
 
     spec = (robot_spec_cls or RobotSpec)(mass_kg=robot_mass_kg)
     total_kg = spec.total_mass_kg(payload_kg)
@@ -1843,13 +1842,9 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
                 f'{spec.leg_mass_kg:.4g} kg: the legs alone outweigh the robot; check '
                 '--robot-mass and --legs')
     for n_legs in sorted(set(legs.values())):
-        m_c = float(carried_mass_per_leg_kg(total_kg, spec.leg_mass_kg,
-                                            np.array([max(n_legs // 2, 1)]))[0])
-        if load_offset_kg >= m_c:
-            raise ResidualDataError(
-                f'--load-offset {load_offset_kg:g} kg is not below the mass a stance leg '
-                f'carries ({m_c:.3g} kg with {max(n_legs // 2, 1)} of {n_legs} legs down): '
-                'every stance would read the bench at a load of 0 kg or less')
+        why = load_offset_problem(load_offset_kg, total_kg, spec.leg_mass_kg, n_legs)
+        if why:
+            raise ResidualDataError(why)
     for r in runs:
         # each run's first second is skipped (build_windows' settle) and its windows are
         # whole half cycles: a bag too short for one of them is named, not a numpy error
