@@ -64,6 +64,9 @@ CAPTIONS = (
     ('power_map', 'Robot output power over speed and payload (Eq. 6, Fig. 7D), with contours.'),
     ('prediction', 'Measured against predicted (Eq. 1) input power per robot run; the 1:1 line '
                    'is a perfect prediction.'),
+    ('power_in_over_time', 'Input power of each robot run against the time since its start: '
+                           'every gait-cycle window (thin), the medians of its tenths '
+                           '(markers) and the Eq. 1 prediction (dashed).'),
     ('measured_runs', 'Measured input power and specific cost of transport per robot run.'),
     ('where_the_watts_go', 'Where the watts go: the predicted input power split into holding, '
                            'stance and swing motion, against the measured input power.'),

@@ -83,6 +83,11 @@ such fallback is listed in the run's ``notes``.
                       "speed_span": {"windows", "window_s", "power_in_w", "power_out_w"}
                       (the windows with a known speed, when only some have one: both costs
                       of transport and the specific resistance are over these) or null,
+                      "power_in_trend": {"span_s", "windows", "bin_time_s",
+                      "bin_power_in_w" (medians of the windows' tenths), "first_w",
+                      "last_w", "change_w", "change_fraction", "change_sigma_w", "drift"
+                      (bool; a drift is also a note and a warning)} or null under 30
+                      windows or 30 s (hexapod_energy.trend; plot power_in_over_time.png),
                       "notes" [str] (this run's input fallbacks),
                       "segment": {"index", "of", "t_start_s", "t_end_s"} (a bag whose
                       /gait/phase changes walking schedule gives one run per schedule;
@@ -144,6 +149,7 @@ import numpy as np
 from hexapod_energy.descriptors import gait_from_sample, implausible_effort_power
 from hexapod_common.jsondoc import json_safe
 from hexapod_energy.errors import EnergyError
+from hexapod_energy.trend import TREND_MIN_SPAN_S, TREND_MIN_WINDOWS, power_in_trend, trend_note
 
 __all__ = ['add_cli', 'build_parser', 'gait_from_sample', 'main', 'run']
 
@@ -449,6 +455,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         opm = leg.output_power_model(args.robot_mass)
         doc['leg'] = leg.summary()
         runs = []
+        trend_series: list[dict[str, Any]] = []   # window P_in over time, for the plot
         failed: list[dict[str, str]] = []
         for path in args.robot:
             try:
@@ -594,7 +601,15 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                         f"transport and specific resistance over those ({span['window_s']:.2f} "
                         f"s, P_in {span['power_in_w']:.2f} W there, {run_.power_in_w:.2f} W "
                         'over the run)')
+                trend, series = _power_trend(run_)
+                drift = trend_note(trend)
+                if drift:
+                    notes.append(drift)
+                    doc.setdefault('warnings', []).append(f'{path}: {drift}')
                 legs = _leg_count(args, run_) if run_.gait is None else None
+                if series is not None:
+                    trend_series.append({**series, 'predicted_w': predicted,
+                                         'drift': trend['drift'], 'run': len(runs)})
                 runs.append({
                     'bag': str(path),
                     'gait': walked.name if walked else ('stand' if standing else None),
@@ -624,6 +639,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                     'cycle_source': run_.extra.get('cycle_source', 'gait_phase'),
                     'speed_source': run_.extra.get('speed_source', ''),
                     'speed_span': run_.extra.get('speed_span'),
+                    'power_in_trend': trend,
                     'notes': notes,
                     'segment': run_.extra.get('segment'),
                 })
@@ -637,6 +653,15 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             doc['failed_bags'] = failed
         for n in sorted({r['leg_count'] for r in runs if r['leg_count']}):
             _check_mass(robot, int(n), 'the robot bags')
+        if trend_series:
+            from hexapod_energy.plots import power_in_over_time_plot
+
+            for s in trend_series:
+                s['label'] = _run_label(runs[s['run']])
+            doc['plots'] += [str(p.relative_to(out)) for p in power_in_over_time_plot(
+                trend_series, out / 'power_in_over_time',
+                title=f'Input power over each run ({len(trend_series)} run(s) of at least '
+                      f'{TREND_MIN_WINDOWS} cycles and {TREND_MIN_SPAN_S:g} s)')]
         legs_n, legs_source = _robot_leg_count(args, runs, doc)
         if args.sweep or args.recommend:
             _check_mass(robot, legs_n, legs_source)
@@ -729,6 +754,22 @@ def _actuator_limits(args: argparse.Namespace) -> tuple[Any, str]:
     except ValueError as err:
         raise EnergyError(f'--limits MIN_SWING_S MIN_STANCE_S MAX_FREQ_HZ: {err}') from err
     return lim, '--limits'
+
+
+def _power_trend(run_: Any) -> tuple[dict[str, Any] | None, dict[str, Any] | None]:
+    """A robot run's input power over time (:func:`hexapod_energy.trend.power_in_trend`) and,
+    when it has one, its windows for the plot (centres from the run's start, P_in)."""
+    wins = run_.extra.get('windows') or []
+    t_end = [d.t_end_s for d in wins]
+    w_s = [d.window_s for d in wins]
+    p_in = [d.power_in_w for d in wins]
+    trend = power_in_trend(t_end, w_s, p_in)
+    if trend is None:
+        return None, None
+    t = np.asarray(t_end, dtype=float) - 0.5 * np.asarray(w_s, dtype=float)
+    t0 = float(np.nanmin(np.asarray(t_end, dtype=float) - np.asarray(w_s, dtype=float)))
+    return trend, {'time_s': t - t0, 'power_in_w': np.asarray(p_in, dtype=float),
+                   'bin_time_s': trend['bin_time_s'], 'bin_power_in_w': trend['bin_power_in_w']}
 
 
 def _check_mass(robot: Any, legs: int, source: str) -> None:

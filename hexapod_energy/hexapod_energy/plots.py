@@ -35,9 +35,8 @@ import numpy as np  # noqa: E402
 from hexapod_energy.sweeps import SweepCurve  # noqa: E402
 
 __all__ = ['comparison_plot', 'four_quadrant_figure', 'four_quadrant_plot',
-           'measured_runs_plot',
-           'power_map_plot', 'prediction_figure', 'prediction_plot', 'watts_figure',
-           'watts_plot']
+           'measured_runs_plot', 'power_in_over_time_plot', 'power_map_plot',
+           'prediction_figure', 'prediction_plot', 'watts_figure', 'watts_plot']
 
 #: optimal-point markers: key -> (legend label, marker, size, filled); drawn largest first
 #: so that coinciding optima (often all three at a curve's maximum speed) all stay visible
@@ -460,6 +459,51 @@ def measured_runs_plot(labels: Sequence[str], power_in_w: Sequence[float],
         top = np.nanmax(vals) if np.isfinite(vals).any() else 1.0
         ax.set_ylim(0.0, 1.15 * top if top > 0 else 1.0)
     fig.suptitle(title or 'Measured robot runs (no bench model: no prediction)', fontsize=10)
+    fig.tight_layout()
+    return _save(fig, out_stem)
+
+
+def power_in_over_time_plot(series: Sequence[dict[str, Any]], out_stem: str | Path, *,
+                            title: str = '') -> list[Path]:
+    """Each robot run's input power against the time since its start: every gait-cycle window
+    (thin), the medians of its tenths (markers, :func:`hexapod_energy.trend.power_in_trend`)
+    and the Eq. 1 prediction (dashed) where there is one.
+
+    Parameters
+    ----------
+    series : sequence of dict
+        One per run: ``label``, ``time_s`` and ``power_in_w`` (the windows' centres from the
+        run's start and their P_in), ``bin_time_s`` and ``bin_power_in_w``, ``predicted_w``
+        (NaN: none), ``drift`` (bool, said in the legend).
+    out_stem : str or Path
+        Output path without suffix.
+    title : str
+        Figure title.
+
+    Returns
+    -------
+    list of Path
+        The PNG and the SVG.
+    """
+    fig, ax = plt.subplots(figsize=(9.0, 4.6))
+    span = max((float(np.max(s['time_s'])) for s in series if len(s['time_s'])), default=0.0)
+    scale, unit = (60.0, 'min') if span >= 180.0 else (1.0, 's')
+    colors = plt.rcParams['axes.prop_cycle'].by_key()['color']
+    for k, s in enumerate(series):
+        c = colors[k % len(colors)]
+        ax.plot(np.asarray(s['time_s']) / scale, s['power_in_w'], '-', color=c, lw=0.6,
+                alpha=0.45)
+        ax.plot(np.asarray(s['bin_time_s']) / scale, s['bin_power_in_w'], 'o-', color=c,
+                ms=4, lw=1.4, label=s['label'] + (' (drift)' if s.get('drift') else ''))
+        pred = float(s.get('predicted_w', np.nan))
+        if np.isfinite(pred):
+            ax.axhline(pred, color=c, ls='--', lw=1.0)
+    ax.plot([], [], 'k--', lw=1.0, label='Eq. 1 prediction')
+    ax.set_xlabel(f'time since the run\'s start [{unit}]')
+    ax.set_ylabel('input power P_in [W]')
+    ax.set_title(title or 'Input power over time (windows; medians of each tenth)', fontsize=10)
+    ax.legend(fontsize=7, loc='upper left', bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+    ax.grid(alpha=0.3)
     fig.tight_layout()
     return _save(fig, out_stem)
 
