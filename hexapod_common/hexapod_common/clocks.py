@@ -26,7 +26,14 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ['ANOTHER_CLOCK_S', 'ClockCheck', 'LiveClockWatch', 'StreamClock', 'shift_rows']
+__all__ = ['ANOTHER_CLOCK_S', 'FOREIGN_CLOCK_S', 'foreign_clock_note', 'ClockCheck', 'LiveClockWatch', 'StreamClock',
+           'shift_rows']
+
+#: a live sample stamped this far [s] from every other stream's newest stamp is held back
+#: (:class:`StreamClock`): a second publisher on another clock, or the whole graph's time moved
+FOREIGN_CLOCK_S = 3600.0
+#: far samples (and samples near the others in between) that tell the two cases apart
+FOREIGN_EVIDENCE = 3
 
 #: stamp-minus-receive medians further apart than this [s] are different clocks
 ANOTHER_CLOCK_S = 1.0
@@ -130,6 +137,14 @@ class LiveClockWatch:
                 'receive times)' for note in notes]
 
 
+def foreign_clock_note(stream: str, t: float) -> str:
+    """The warning for ``stream`` found carrying two clocks (:class:`StreamClock`)."""
+    return (f'{stream} carries two clocks: samples stamped {t:.3f} s, more than '
+            f'{FOREIGN_CLOCK_S:g} s from the other topics\', between samples on theirs (a second '
+            'publisher: a driver on the wall clock beside a replay or a simulation, or another '
+            'node on this ROS domain?): its samples far from the other topics are dropped')
+
+
 class StreamClock:
     """Per-stream stamp bookkeeping of a live consumer that must survive time going backwards
     (a looped bag, a reset simulation clock): the energy monitor's accumulator and the online
@@ -141,12 +156,30 @@ class StreamClock:
     the other streams' samples still stamped on the old time are dropped (False, counted in
     ``stale_samples``) until their own stamps jump back or the new time catches up. Stamps a
     little out of order are kept.
+
+    Two publishers of one topic on different clocks (a driver on the wall clock beside a
+    replay or a simulation; another session's node on the same ROS domain): a sample more than
+    :data:`FOREIGN_CLOCK_S` from every other stream's newest stamp is dropped and held as
+    evidence. When the stream goes on with samples near the others between such samples
+    (:data:`FOREIGN_EVIDENCE` of each), it carries two clocks: ``on_foreign(stream, t)`` is
+    called once and from then on its samples far from the others are dropped (counted in
+    ``foreign_samples``). When :data:`FOREIGN_EVIDENCE` far samples come with none near, the
+    time itself moved (a simulation clock reset, a long loop): the jump is taken as above.
+    Before, every alternation restarted the consumer: no window at all, and one warning per
+    message (an outside review).
     """
 
     def __init__(self, jump_s: float,
-                 on_jump: Callable[[str, float, float], None] | None = None) -> None:
+                 on_jump: Callable[[str, float, float], None] | None = None,
+                 on_foreign: Callable[[str, float], None] | None = None) -> None:
         self.jump_s = float(jump_s)
         self.on_jump = on_jump
+        self.on_foreign = on_foreign
+        #: streams found carrying two clocks, and their samples dropped as the foreign one's
+        self.mixed: set[str] = set()
+        self.foreign_samples = 0
+        # per stream: [far samples, samples near the others since the first far one]
+        self._far: dict[str, list[int]] = {}
         #: last (largest) stamp per stream since the last jump [s]
         self.last: dict[str, float] = {}
         #: newest and first stamp of any stream since the last jump [s]
@@ -156,8 +189,39 @@ class StreamClock:
         self.stale_samples = 0
         self._stale: dict[str, float] = {}
 
+    def _foreign(self, stream: str, t: float) -> bool:
+        """Whether to drop ``t`` as stamped on another clock than the other streams' (see the
+        class doc)."""
+        ref = max((v for k, v in self.last.items() if k != stream), default=None)
+        if ref is None:
+            return False
+        far = abs(t - ref) > FOREIGN_CLOCK_S
+        state = self._far.get(stream)
+        if not far:
+            if state is not None:
+                state[1] += 1
+            return False
+        if stream in self.mixed:
+            self.foreign_samples += 1
+            return True
+        if state is None:
+            state = self._far[stream] = [0, 0]
+        state[0] += 1
+        if state[1] >= FOREIGN_EVIDENCE and state[0] >= FOREIGN_EVIDENCE:
+            self.mixed.add(stream)
+            if self.on_foreign is not None:
+                self.on_foreign(stream, t)
+        elif state[0] >= FOREIGN_EVIDENCE and state[1] == 0:
+            del self._far[stream]     # the time moved: take it
+            return False
+        self.foreign_samples += 1
+        return True
+
     def observe(self, stream: str, t: float) -> bool:
-        """Record ``t`` on ``stream``; False: drop the sample (stamped before a jump)."""
+        """Record ``t`` on ``stream``; False: drop the sample (stamped before a jump, or on
+        another clock than the other streams')."""
+        if self._foreign(stream, t):
+            return False
         last = self.last.get(stream)
         mark = self._stale.get(stream)
         if mark is not None:
@@ -176,6 +240,7 @@ class StreamClock:
             self._stale = {k: v for k, v in self.last.items()
                            if k != stream and v > t + self.jump_s}
             self.last, self.newest, self.first = {}, None, None
+            self._far = {}
             jumped, last = last, None
         self.last[stream] = t if last is None else max(last, t)
         if self.first is None:

@@ -93,6 +93,9 @@ class JointStateSample:
     position: np.ndarray
     velocity: np.ndarray
     effort: np.ndarray
+    #: what :func:`joint_state_from_msg` left out ('' when nothing): a velocity or effort
+    #: array of another length than the names
+    malformed: str = ''
 
 
 #: Environment variable holding the process-wide joint-name map (JSON object, see module doc).
@@ -139,7 +142,11 @@ def joint_map() -> dict[str, str]:
 
 
 def joint_state_from_msg(msg: Any) -> JointStateSample:
-    """Convert a JointState; raises ValueError when array lengths disagree with the names.
+    """Convert a JointState; raises ValueError when the positions' length disagrees with the
+    names. A velocity or effort array of another length (a driver filling efforts for some
+    joints only) is left out, empty, and said in ``malformed``: the positions still give the
+    gait cycles (the whole message used to be dropped, and a robot without /gait/phase got no
+    window at all).
 
     Names are renamed through the process-wide joint map (module doc) when it is set.
     """
@@ -149,13 +156,18 @@ def joint_state_from_msg(msg: Any) -> JointStateSample:
         mapping = dict(_joint_map_from(text))
         names = tuple(mapping.get(n, n) for n in names)
     arrays = []
+    bad = []
     for field in ('position', 'velocity', 'effort'):
         arr = np.asarray(getattr(msg, field), dtype=float)
         if arr.size not in (0, len(names)):
-            raise ValueError(
-                f'JointState.{field} has {arr.size} values for {len(names)} names')
+            what = f'JointState.{field} has {arr.size} values for {len(names)} names'
+            if field == 'position':
+                raise ValueError(what)
+            bad.append(what)
+            arr = np.zeros(0)
         arrays.append(arr)
-    return JointStateSample(stamp_to_s(msg.header.stamp), names, *arrays)
+    return JointStateSample(stamp_to_s(msg.header.stamp), names, *arrays,
+                            malformed='; '.join(bad) + ': left out' if bad else '')
 
 
 @dataclass(frozen=True)

@@ -959,6 +959,7 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
     seen: dict[tuple[str, bytes], None] = {}
     zero_stamps: dict[str, int] = {}
     dropped: dict[str, list[str]] = {}
+    malformed: dict[str, list[str]] = {}
     duplicates = 0
     exact: dict[str, int] = {}   # same topic, log time and bytes: dropped by iter_messages
     n_battery = 0
@@ -976,6 +977,8 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
             except (ValueError, IndexError) as err:  # a bad message is dropped, as live
                 dropped.setdefault(m.topic, []).append(str(err))
                 continue
+            if getattr(sample, 'malformed', ''):   # efforts of another length: left out
+                malformed.setdefault(m.topic, []).append(sample.malformed)
             if sample.t_s != 0.0:
                 clocks.observe(m.topic, sample.t_s, 1e-9 * m.stamp_ns)
                 # the same stamped message recorded twice (two recorders, a relay, a bridge)
@@ -1004,6 +1007,8 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
             f'dropped, e.g. {bad_battery[0]}): input power needs both voltage and current')
     for topic, errs in sorted(dropped.items()):
         notes.append(f'{len(errs)} {topic} message(s) dropped: {errs[0]}')
+    for topic, errs in sorted(malformed.items()):
+        notes.append(f'{len(errs)} {topic} message(s) with {errs[0]} (positions kept)')
     for topic, n in sorted(zero_stamps.items()):
         notes.append(f'{n} {topic} message(s) with a zero header stamp: bag receive time used')
     duplicates += sum(exact.values())

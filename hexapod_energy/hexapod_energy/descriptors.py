@@ -85,7 +85,7 @@ from typing import Any
 
 import numpy as np
 
-from hexapod_common.clocks import StreamClock
+from hexapod_common.clocks import StreamClock, foreign_clock_note
 from hexapod_common.conversions import (
     BatterySample,
     GaitPhaseSample,
@@ -106,6 +106,9 @@ __all__ = [
     'G_MPS2',
     'EFFORT_MAX_NET_FRACTION',
     'POSITION_POWER_NOTE',
+    'CLOCK_MODEL_NOTE',
+    'JOINT_WAIT_S',
+    'is_clock_schedule',
     'DescriptorAccumulator',
     'Descriptors',
     'descriptors_from_powers',
@@ -214,6 +217,27 @@ def model_power_out(output_power: Any, *, robot_mass_kg: float
     return power_out_w
 
 
+#: backward time jumps kept in ``time_jumps_`` (and noted): the latest ones
+MAX_TIME_JUMPS_KEPT = 100
+
+#: longest a complete window waits [s of battery time past its end] for joint states
+#: stamped inside it that have not arrived yet (:meth:`DescriptorAccumulator._joints_pending`)
+JOINT_WAIT_S = 1.0
+
+#: a Buehler-clock schedule has no Eq. 6 P_out model: the window's P_out is unknown
+CLOCK_MODEL_NOTE = ('a Buehler clock (rotating legs, no step length) and no usable joint '
+                    'efforts: the Eq. 6 P_out model is for stepping servo legs; P_out unknown '
+                    '(NaN)')
+
+
+def is_clock_schedule(sample: Any) -> bool:
+    """Whether a /gait/phase sample is a clock-driven schedule of rotating legs (the Buehler
+    clock of RHex-class robots: gait ``buehler``, or a walking period with no step length),
+    as ``hexapod-analyze energy`` reads a bag's."""
+    return float(sample.period_s) > 0 and (sample.gait == 'buehler' or
+                                           not float(sample.step_length_m) > 0)
+
+
 def implausible_effort_power(effort_w: float, power_in_w: float, net_w: float) -> str:
     """Why a P_out from joint efforts cannot be the joints' output power ('' if it can).
 
@@ -239,13 +263,17 @@ def implausible_effort_power(effort_w: float, power_in_w: float, net_w: float) -
 GLITCH_SIGMAS = 20.0
 #: ... when at most this many such samples come in a row (a real stall lasts longer)
 GLITCH_MAX_RUN = 2
+#: ... and such samples are at most this share of the series: more are the load's own
+#: spikes (a touchdown current sampled slowly), kept
+GLITCH_MAX_SHARE = 0.005
 
 
 def battery_glitches(power_w: Any) -> np.ndarray:
     """Mask of isolated glitches in a battery power series (time order): samples further
     than :data:`GLITCH_SIGMAS` robust sigmas of the series' deviations from its running
     7-sample median, and than its median absolute power, from that median, in runs of at
-    most :data:`GLITCH_MAX_RUN` samples. Three single-sample 100 A readings in a 15 s AntBot
+    most :data:`GLITCH_MAX_RUN` samples, unless they are more than :data:`GLITCH_MAX_SHARE` of
+    the series (the load's own spikes, kept). Three single-sample 100 A readings in a 15 s AntBot
     bag (1,500 samples) raised its P_in by 7 % (35.0 -> 37.5 W) without a word."""
     from scipy.ndimage import median_filter
 
@@ -260,17 +288,26 @@ def battery_glitches(power_w: Any) -> np.ndarray:
     for a, b in zip(edges[::2], edges[1::2]):
         if b - a <= GLITCH_MAX_RUN:
             out[a:b] = True
+    if out.sum() > GLITCH_MAX_SHARE * p.size:
+        # so many short spikes are the load's own (an EduBot's touchdown current, one 10 ms
+        # sample every 0.18 s at 100 Hz: 81 of 600 samples were left out, its P_in read
+        # 35.0 W for 40.5 W), not a sensor's rare glitches
+        out[:] = False
     return out
 
 
-def _gap_in_window(t: np.ndarray, t0: float, t1: float, steps: Any) -> bool:
+def _gap_in_window(t: np.ndarray, t0: float, t1: float, steps: Any, *,
+                   stopped: bool = False) -> bool:
     """Whether the sorted stamps ``t`` leave a gap in the window ``[t0, t1]``: an interval
     between the last stamp before it (else ``t0``), those inside and the first after it over
     :data:`BATTERY_GAP_INTERVALS` times the stream's usual interval (the median of
-    ``steps``) and 0.25 s, or no stamp in or after the window. The end is checked only once
-    a stamp after it has come."""
+    ``steps``) and 0.25 s, or no stamp in or after the window. The end is checked once a
+    stamp after it has come, or up to ``t1`` when the stream is known to have ``stopped``
+    (none came while the window waited for it)."""
     inside = t[(t >= t0) & (t < t1)]
     after = t[t >= t1][:1]
+    if stopped and not after.size:
+        after = np.array([t1])
     if not inside.size and not after.size:
         return True
     before = t[t < t0][-1:]
@@ -424,6 +461,7 @@ class DescriptorAccumulator:
     dropped_windows_: int = field(default=0, init=False)
     #: samples dropped because they were stamped before a time jump but arrived after it
     _clk: StreamClock = field(init=False)
+    _n_jumps: int = field(default=0, init=False)
     _quiet_noted: bool = field(default=False, init=False)
     _battery_quiet_noted: bool = field(default=False, init=False)
     # the last /battery_state intervals [s], for the gap check (the buffer is trimmed)
@@ -439,6 +477,11 @@ class DescriptorAccumulator:
     _poses: list[tuple[float, float, float, float]] = field(default_factory=list, init=False)
     _boundaries: list[float] = field(default_factory=list, init=False)
     _gait: GaitPhaseSample | None = field(default=None, init=False)
+    # recent /gait/phase samples: a window takes the schedule in force at its end, though it
+    # may be computed later (waiting for late joint states)
+    _gait_hist: list[GaitPhaseSample] = field(default_factory=list, init=False)
+    # per joint name, the stamp of its last joint-power sample (a window waits for them)
+    _joint_last: dict[str, float] = field(default_factory=dict, init=False)
     _last_phase: tuple[float, float] | None = field(default=None, init=False)
     # the schedule the current run of windows is under (see _schedule_break)
     _ref_gait: GaitPhaseSample | None = field(default=None, init=False)
@@ -464,7 +507,9 @@ class DescriptorAccumulator:
                                                                 init=False)
 
     def __post_init__(self) -> None:
-        self._clk = StreamClock(self.time_jump_s, self._restart)
+        self._clk = StreamClock(self.time_jump_s, self._restart,
+                                lambda stream, t: self.notes_.append(
+                                    foreign_clock_note(stream, t)))
         if self.mass_kg <= 0:
             raise ValueError(f'mass_kg must be > 0, got {self.mass_kg}')
         if self.cycles < 1:
@@ -493,9 +538,18 @@ class DescriptorAccumulator:
     def _restart(self, stream: str, last: float, t: float) -> None:
         """Time went back on ``stream`` from ``last`` to ``t``: start again from ``t``."""
         self.time_jumps_.append((stream, last, t))
-        self.notes_.append(f'time jumped back {last - t:.3f} s on {stream} ({last:.3f} s -> '
-                           f'{t:.3f} s: a looped bag or a reset simulation clock?): '
-                           'accumulation restarted from the new time')
+        self._n_jumps += 1
+        del self.time_jumps_[:-MAX_TIME_JUMPS_KEPT]   # bounded, however long it goes on
+        if self._n_jumps <= MAX_TIME_JUMPS_KEPT:
+            self.notes_.append(f'time jumped back {last - t:.3f} s on {stream} ({last:.3f} s '
+                               f'-> {t:.3f} s: a looped bag or a reset simulation clock?): '
+                               'accumulation restarted from the new time' +
+                               ('; further jumps are not noted'
+                                if self._n_jumps == MAX_TIME_JUMPS_KEPT else ''))
+        self._restart_state()
+
+    def _restart_state(self) -> None:
+        """Drop everything accumulated: time went back."""
         # (the stream clock has started again from t and marked the other streams' stale)
         self._quiet_noted = False
         self._battery_quiet_noted = False
@@ -508,6 +562,8 @@ class DescriptorAccumulator:
         self._odom = []
         self._boundaries = []
         self._gait = None
+        self._gait_hist = []
+        self._joint_last = {}
         self._last_phase = None
         self._ref_gait = None
         self._window_start = None
@@ -539,7 +595,8 @@ class DescriptorAccumulator:
         # (the battery's first entry may be the one kept before the cut: look at its second)
         if any(len(buf) > k and buf[k][0] < slack
                for buf, k in ((self._battery, 1), (self._joint, 0), (self._poses, 0),
-                              (self._odom, 0))):
+                              (self._odom, 0))) or \
+                (len(self._gait_hist) > 1 and self._gait_hist[1].t_s < slack):
             self._trim(cut, keep_s=0.0)
 
     def _cycle_streams(self) -> tuple[str, ...]:
@@ -656,13 +713,15 @@ class DescriptorAccumulator:
                 power = power[ok]
             for name in names:
                 self.joint_power_count_[name] = self.joint_power_count_.get(name, 0) + 1
+                self._joint_last[name] = max(sample.t_s, self._joint_last.get(name, -math.inf))
             if names:
                 self._push_joint((sample.t_s, names, power, False))
                 self.joint_power_samples_ += 1
         elif sample.effort.size and sample.position.size == sample.effort.size:
             self._add_position_power(sample)
         if not self.joint_cycles_:
-            return []
+            # a window waiting for this stream's late samples may be complete now
+            return self._emit() if self._window_start is not None else []
         assert self._tracker is not None
         evaluations = self._tracker.evaluations_
         new = self._tracker.add(sample.t_s, sample.names, sample.position)
@@ -683,12 +742,13 @@ class DescriptorAccumulator:
 
     def _joint_gap(self, t0: float, t1: float) -> bool:
         """Whether the joint-power samples leave a gap in the window (:func:`_gap_in_window`):
-        P_out from efforts would miss part of it. The window's end is checked once a later
-        sample has come (joint states may lag the battery)."""
+        P_out from efforts would miss part of it."""
         if not self.joint_power_samples_:
             return False
+        # the window waited for late joint states (_joints_pending) and none came past its
+        # end: the stream stopped inside it (its P_out used to be the mean of the part before)
         return _gap_in_window(np.sort([j[0] for j in self._joint]), t0, t1,
-                              self._joint_steps)
+                              self._joint_steps, stopped=True)
 
     def _add_position_power(self, sample: JointStateSample) -> None:
         """Joint power without velocities: per joint name, the trapezoid work
@@ -714,6 +774,8 @@ class DescriptorAccumulator:
             names.append(name)
             power.append(0.5 * (tau0 + float(tau)) * dq / (t - t0))
             mids.append(0.5 * (t0 + t))
+        for name in names:
+            self._joint_last[name] = t
         if names:
             # one entry per sample; its stamp is the midpoint of its joints' intervals
             self._push_joint((float(np.mean(mids)), tuple(names), np.array(power), True))
@@ -756,6 +818,7 @@ class DescriptorAccumulator:
         if not self._clk.observe('gait/phase', sample.t_s):
             return []
         self._check_battery_quiet(sample.t_s)
+        self._gait_hist.append(sample)
         if self.cycle_source == 'joints':
             self._gait = sample
             return []
@@ -900,12 +963,35 @@ class DescriptorAccumulator:
                     self._boundaries = self._boundaries[self.cycles - 1:]
                     continue
                 return out
+            if self._joints_pending(t1) and self._battery[-1][0] < t1 + JOINT_WAIT_S:
+                return out
             out.append(self._window(t0, t1))
             self._window_start = t1
             del self._boundaries[:self.cycles]
             self._trim(t1)
 
+    def _joints_pending(self, t1: float) -> bool:
+        """Whether a joint that gave power within :data:`JOINT_WAIT_S` before ``t1`` has no
+        sample at or after ``t1`` yet: its samples inside the window may still be on their
+        way. Joint states commonly arrive after the battery sample that passes the window's
+        end (a servo bus read behind a USB adapter; one message per leg, in no fixed order
+        across topics); a window closed then averaged only the part of its cycle received,
+        P_out -5.8 % with a 50 ms lag (an outside review). The offline readers feed samples
+        in stamp order and never wait."""
+        if self.power_out_source == 'model' or not self._joint_last:
+            return False
+        return any(t1 - JOINT_WAIT_S <= t < t1 for t in self._joint_last.values())
+
+    def _gait_at(self, t: float) -> GaitPhaseSample | None:
+        """The /gait/phase sample in force at ``t``: the last one stamped at or before it
+        (the latest one when none is)."""
+        for g in reversed(self._gait_hist):
+            if g.t_s <= t:
+                return g
+        return self._gait
+
     def _window(self, t0: float, t1: float) -> Descriptors:
+        gait = self._gait_at(t1)
         warnings: list[str] = []
         t = np.array([b[0] for b in self._battery])
         p = np.array([b[1] for b in self._battery])
@@ -931,8 +1017,8 @@ class DescriptorAccumulator:
             # would cover part of it (a 2 s gap in a 5.4 s EduBot bag took the run's P_out
             # from 11.3 to 8.5 W: the empty windows counted 0 W)
             warnings.append(JOINT_GAP_NOTE)
-        if joint and self._gait is not None:
-            missing = _legs_without_joints(self._gait.leg_names, joint[-1][1])
+        if joint and gait is not None:
+            missing = _legs_without_joints(gait.leg_names, joint[-1][1])
             if missing:
                 warnings.append(f'the gait schedule names legs {", ".join(missing)} that have no '
                                 f'joint on /joint_states ({len(joint[-1][1])} joints): the gait '
@@ -940,21 +1026,29 @@ class DescriptorAccumulator:
         use_model = self.power_out_source == 'model' or \
             (self.power_out_source == 'auto' and not joint)
         joint_path = self.joint_cycles_
-        has_model = self.power_out_model is not None and self._gait is not None
+        # a Buehler clock (RHex-class legs turning, no step length): the Eq. 6 model is for
+        # stepping legs (it gave 0 W), and a turning leg does little negative work, so the
+        # PWM-load test is not for it (live EduBot windows read P_out 0 W in 12 of 17, the
+        # offline command 11.6 W from the same efforts: an outside review)
+        clock = gait is not None and is_clock_schedule(gait)
+        has_model = self.power_out_model is not None and gait is not None and not clock
         net = _mean_joint_power_w(joint, signed=True) if joint else math.nan
         if joint and self.power_out_source != 'model':
             power_out = _mean_joint_power_w(joint)
             if any(j[3] for j in joint):
                 warnings.append(POSITION_POWER_NOTE)
-            why = (implausible_effort_power(power_out, power_in, net)
+            why = (implausible_effort_power(power_out, power_in, math.nan if clock else net)
                    if self.power_out_source == 'auto' else '')
             if why:
                 warnings.append(why + ('; P_out from the Eq. 6 model' if has_model else
                                        '; P_out unknown (NaN)'))
-                power_out = (float(self.power_out_model(self._gait, self.mass_kg))
+                power_out = (float(self.power_out_model(gait, self.mass_kg))
                              if has_model else math.nan)
-        elif use_model and self.power_out_model is not None and self._gait is not None:
-            power_out = float(self.power_out_model(self._gait, self.mass_kg))
+        elif use_model and has_model:
+            power_out = float(self.power_out_model(gait, self.mass_kg))
+        elif use_model and clock and self.power_out_model is not None:
+            warnings.append(CLOCK_MODEL_NOTE)
+            power_out = math.nan
         elif joint_path:
             warnings.append(('no joint efforts in the window'
                              if self.power_out_source != 'model' else 'power_out_source is model')
@@ -966,7 +1060,7 @@ class DescriptorAccumulator:
                 warnings.append('power_out_source is model but no model or gait schedule: '
                                 'P_out = 0')
             power_out = 0.0
-        speed, speed_source = self._speed_and_source(t0, t1)
+        speed, speed_source = self._speed_and_source(t0, t1, gait)
         return descriptors_from_powers(power_in_w=power_in, power_out_w=power_out,
                                        speed_mps=speed, mass_kg=self.mass_kg,
                                        window_s=t1 - t0, t_end_s=t1, cycles=self.cycles,
@@ -978,7 +1072,8 @@ class DescriptorAccumulator:
         """Speed [m/s] over the window."""
         return self._speed_and_source(t0, t1)[0]
 
-    def _speed_and_source(self, t0: float, t1: float) -> tuple[float, str]:
+    def _speed_and_source(self, t0: float, t1: float,
+                          gait: GaitPhaseSample | None = None) -> tuple[float, str]:
         """Speed [m/s] over the window and its source.
 
         A clock-driven schedule (the Buehler clock of RHex-class robots: step length 0 while
@@ -986,15 +1081,16 @@ class DescriptorAccumulator:
         (which used to average the EduBot's 0.88 m/s with zeros outside the mocap volume);
         odometry, the given speed, or unknown (NaN) stand in for it.
         """
-        schedule = self._gait is not None and (self._gait.speed_mps > 0 or
-                                               self._gait.period_s <= 0)
+        if gait is None:
+            gait = self._gait
+        schedule = gait is not None and (gait.speed_mps > 0 or gait.period_s <= 0)
         for source, track in (('mocap', self._poses), ('odometry', self._odom)):
             poses = sorted(p for p in track if t0 <= p[0] <= t1)
             if source == 'odometry' and schedule:
                 # the schedule ranks before odometry (the paper's v = step / (beta T); an
                 # odometry is often the same kinematics integrated); a disagreement is kept
-                assert self._gait is not None
-                v_sched = self._gait.speed_mps
+                assert gait is not None
+                v_sched = gait.speed_mps
                 if len(poses) >= 2 and v_sched > 0 and poses[-1][0] > poses[0][0]:
                     d = [b - a for a, b in zip(poses[0][1:3], poses[-1][1:3])]
                     v_odom = math.hypot(*d) / (poses[-1][0] - poses[0][0])
@@ -1020,7 +1116,7 @@ class DescriptorAccumulator:
                 return speed, source
         if self.speed_mps > 0:
             return self.speed_mps, 'given'
-        return (math.nan if self.joint_cycles_ or self._gait is not None else 0.0), 'none'
+        return (math.nan if self.joint_cycles_ or gait is not None else 0.0), 'none'
 
     def _trim(self, t: float, *, keep_s: float = 1.0) -> None:
         keep_from = t - keep_s
@@ -1029,4 +1125,7 @@ class DescriptorAccumulator:
             [b for b in self._battery if b[0] > t]
         self._joint = [j for j in self._joint if j[0] >= keep_from]
         self._poses = [p for p in self._poses if p[0] >= keep_from]
+        older = [k for k, g in enumerate(self._gait_hist) if g.t_s <= keep_from]
+        if older:   # keep the last one at or before keep_from: it is in force there
+            del self._gait_hist[:older[-1]]
         self._odom = [p for p in self._odom if p[0] >= keep_from]

@@ -40,7 +40,17 @@ AntBot's made a 1.6 kg robot's P_out that of a 2.183 kg one, +7.5 %). A ``robot_
 
 Several batteries on ``battery_state`` (distinct ``header.frame_id``: a servo pack and a logic
 pack) are summed as they appear (:class:`hexapod_common.battery.BatteryCombiner`, logged), or
-one is kept (parameter ``battery_source``). A topic stamped on another clock than the others
+one is kept (parameter ``battery_source``); several publishers whose messages name one battery
+(an empty frame_id) are reported once as an error (their samples would read as the mean).
+
+Joint states arriving after the battery sample that ends a window (a servo bus behind a USB
+adapter, one message per leg) are waited for: a window is computed once every joint that gave
+power has a sample past its end, or :data:`hexapod_energy.descriptors.JOINT_WAIT_S` of battery
+time later (then the stream stopped inside it: flagged as a joint gap). A JointState whose
+velocity or effort array has another length than its names keeps its positions (warned). A
+topic carrying two clocks (a second publisher stamped more than an hour from the others) has
+its far samples dropped, said once (:class:`hexapod_common.clocks.StreamClock`). On a Buehler
+clock schedule the efforts are not put to the PWM-load test and the Eq. 6 model is not used. A topic stamped on another clock than the others
 (a board without time synchronisation) is reported once, as an error: its messages cannot be
 matched live (the offline readers re-stamp it from the bag's receive times).
 """
@@ -208,6 +218,8 @@ class EnergyMonitorNode(Node):
         self.pub = self.create_publisher(EnergeticDescriptors, 'energy/descriptors',
                                          RELIABLE_QOS)
         self.dropped = 0
+        #: JointStates whose velocity or effort array was left out (another length)
+        self.malformed_joint_states = 0
         #: windows not published: across a gap in /battery_state (P_in would be interpolated)
         #: or in /joint_states (P_out from the efforts would miss part of the window)
         self.gap_windows = 0
@@ -215,7 +227,11 @@ class EnergyMonitorNode(Node):
         self._notes_logged = 0
         self._warned: dict[str, int] = {}  # warning kind -> windows seen with it
         self._zero_stamp_topics: set[str] = set()
-        self.create_subscription(BatteryState, 'battery_state', self._on_battery, SENSOR_QOS)
+        self._battery_sub = self.create_subscription(BatteryState, 'battery_state',
+                                                     self._on_battery, SENSOR_QOS)
+        self._battery_msgs = 0
+        #: set once several publishers on battery_state were seen with one battery name
+        self.battery_publishers_warned = False
         self.create_subscription(GaitPhase, 'gait/phase', self._on_gait, SENSOR_QOS)
         self.create_subscription(JointState, 'joint_states', self._on_joints, SENSOR_QOS)
         self.create_subscription(mocap_msg_class(p.mocap_type), 'mocap/body', self._on_pose,
@@ -287,6 +303,9 @@ class EnergyMonitorNode(Node):
         if self._milli is not None and self._milli != (1.0, 1.0):
             raw = dataclasses.replace(raw, voltage_v=self._milli[0] * raw.voltage_v,
                                       current_a=self._milli[1] * raw.current_a)
+        self._battery_msgs += 1
+        if self._battery_msgs in (20, 200) or self._battery_msgs % 2000 == 0:
+            self._check_battery_publishers()
         sample = self.batteries.add(raw)
         for note in self.batteries.notes[self._battery_notes:]:
             self.get_logger().warning(note)
@@ -304,6 +323,23 @@ class EnergyMonitorNode(Node):
                         '0: the monitor does not measure it; power_in 0 W is not a measurement')
         return self.core.add_battery(sample)
 
+    def _check_battery_publishers(self) -> None:
+        """Warn (once) when battery_state has several publishers but its messages name one
+        battery: their samples interleave and read as one battery, the mean of the packs, not
+        their sum (two monitors with an empty frame_id at 36 W and 6 W read 21 W: an outside
+        review)."""
+        if self.battery_publishers_warned or len(self.batteries.sources_) > 1:
+            return
+        n = self.count_publishers(self._battery_sub.topic_name)
+        if n > 1:
+            self.battery_publishers_warned = True
+            name = self.batteries.sources_[0] if self.batteries.sources_ else ''
+            self.get_logger().error(
+                f'{n} publishers on {self._battery_sub.topic_name} name one battery '
+                f'(frame_id {name!r}): their samples interleave and are read as one battery '
+                '(the mean of the packs, not their sum); give each monitor its own '
+                'header.frame_id (they are then summed) or keep one with -p battery_source')
+
     def _on_gait(self, msg: GaitPhase) -> None:
         self._publish(self._guard('GaitPhase',
                                   lambda m: self.core.add_gait_phase(
@@ -311,9 +347,17 @@ class EnergyMonitorNode(Node):
                                   msg))
 
     def _on_joints(self, msg: JointState) -> None:
-        self._publish(self._guard('JointState', lambda m: self.core.add_joint_state(
-                                      self._restamp('joint_states', joint_state_from_msg(m))),
-                                  msg))
+        self._publish(self._guard('JointState', self._add_joints, msg))
+
+    def _add_joints(self, msg: JointState) -> list[Descriptors]:
+        sample = joint_state_from_msg(msg)
+        if sample.malformed:
+            self.malformed_joint_states += 1
+            self.get_logger().warning(
+                f'joint_states: {sample.malformed} (positions kept; P_out from efforts '
+                f'misses these messages) [{self.malformed_joint_states} so far]',
+                throttle_duration_sec=5.0)
+        return self.core.add_joint_state(self._restamp('joint_states', sample))
 
     def _on_odom(self, msg: Odometry) -> None:
         self._guard('Odometry', lambda m: self.core.add_odometry(

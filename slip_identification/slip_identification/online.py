@@ -54,7 +54,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hexapod_common.clocks import StreamClock
+from hexapod_common.clocks import StreamClock, foreign_clock_note
 
 from .errors import SlipDataError, SlipError
 from .fit import SlipFitResult, SlipFitter, Stance, validate_stance
@@ -180,7 +180,9 @@ class OnlineSlip:
         self.warnings: list[str] = []
         #: backward time jumps: (stream, previous stamp, new stamp) [s]
         self.time_jumps: list[tuple[str, float, float]] = []
-        self._clk = StreamClock(time_jump_s, self._restart)
+        self._clk = StreamClock(time_jump_s, self._restart,
+                                lambda stream, t: self.warnings.append(
+                                    foreign_clock_note(stream, t)))
         self._old_notes: list[str] = []
 
     @property
