@@ -61,9 +61,38 @@ Current-based Position (5) modes goals span +-1 048 575 ticks (multi-turn); a se
 that ignores Goal Position (0 current, 1 velocity, 16 PWM) is still read, but its goals and
 torque on are refused, named in :attr:`DynamixelBus.refused` and noted.
 
+Protocol 1.0 wheel mode (CW and CCW Angle Limit both 0: the servo ignores Goal Position and
+turns endlessly at Moving Speed) is read at open and refused the same way; Moving Speed is never
+written to such a servo.
+
 Torque on is checked by reading Torque Enable back: a servo that keeps it at 0 with a hardware
 error (X series in hardware-error shutdown stays off until REBOOT) is reported as failed, with
-the error in ``ServoHealth.torque_error``.
+the error in ``ServoHealth.torque_error``. Torque Enable is read back again when a servo answers
+after a failed cycle or silence (a power-cycled servo comes back with Torque Enable 0) and when
+it raises a new hardware error flag (Alarm Shutdown turns torque off): ``torque_enabled`` follows
+the register, and torque lost that the driver had turned on is reported in
+``ServoHealth.torque_lost`` (never turned on again by the bus: call ``set_torque(True)``).
+
+Run-time transitions (a servo going silent or answering again, a hardware error flag appearing or
+clearing, torque lost, the loop rate falling below :data:`RATE_LOW_FRACTION` of the requested
+rate, given ``rate_hz``; a corrupted instruction reported by a servo) are queued for the log once
+per transition, throttled per kind and servo (:class:`EventLog`, :meth:`DynamixelBus.take_events`).
+
+The port: an ``OSError`` from the serial device (a USB adapter unplugged: EIO) closes the bus and
+raises :class:`PortLostError`, which names the port; later torque writes are skipped.
+
+Adapter echo: a half-duplex adapter without direction control returns every transmitted byte.
+A received packet equal to the instruction just sent is that echo: skipped (never taken for a
+reply, not counted as late), noted once.
+
+Duplicate IDs: a second status packet of an ID, as long as its last reply taken, while no later
+request went to that ID, is a second servo at that ID: counted in
+``ServoHealth.duplicate_replies`` (not as a late reply, the margin is kept), noted once, and the
+servo's readings are marked failed for :data:`DUPLICATE_HOLD_CYCLES` cycles (either servo may
+have answered). Two replies that collide on the wire arrive corrupt: that case still reads as a
+silent servo. A reply of the requested ID that carries an instruction or checksum error and no
+data (the servo received a corrupted instruction) is counted in
+``ServoHealth.rejected_instructions`` and retried, not taken as late.
 """
 
 from __future__ import annotations
@@ -73,7 +102,9 @@ import os
 import re
 import select
 import time
-from collections.abc import Iterable, Mapping, Sequence
+from collections import deque
+from collections.abc import Callable, Hashable, Iterable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -89,6 +120,7 @@ from hexapod_bench_drivers.control_tables import (
     GOAL_POSITION_MODES,
     MULTI_TURN_MODES,
     OPERATING_MODES,
+    P2_STATUS_ERRORS,
     ControlTable,
     ControlTableError,
     decode_error_flags,
@@ -97,13 +129,19 @@ from hexapod_bench_drivers.control_tables import (
 
 __all__ = [
     'BusError',
+    'DUPLICATE_HOLD_CYCLES',
     'DynamixelBus',
+    'EVENT_LOG_INTERVAL_S',
+    'EventLog',
     'FastPortHandler',
     'JointConfig',
     'JointMapError',
     'MAX_MARGIN_MS',
     'PROBE_MARGIN_MS',
     'PollResult',
+    'PortLostError',
+    'RATE_LOW_FRACTION',
+    'RateMonitor',
     'ServoHealth',
     'ServoReading',
     'load_joint_map',
@@ -126,6 +164,106 @@ SYSFS_USB_SERIAL = Path('/sys/bus/usb-serial/devices')
 
 class BusError(RuntimeError):
     """The port cannot be opened, or no configured servo answers."""
+
+
+class PortLostError(BusError):
+    """The serial device failed while the bus was open (a USB adapter unplugged): closed."""
+
+
+#: a run-time event of one kind and servo is logged at most once per this long; the state it
+#: settled in is logged once the time is up [s]
+EVENT_LOG_INTERVAL_S = 5.0
+#: the loop rate is reported low below this fraction of the requested rate ...
+RATE_LOW_FRACTION = 0.8
+#: ... and recovered at or above this fraction (hysteresis)
+RATE_OK_FRACTION = 0.9
+#: cycles a servo's readings stay marked failed after a second reply to one request
+DUPLICATE_HOLD_CYCLES = 10
+
+
+class EventLog:
+    """Run-time transitions as log lines: one per transition, throttled per key.
+
+    A key logs at most ``burst`` lines per ``interval_s`` (2: going wrong and recovering are
+    both logged at once); a transition beyond that is held back, and the last one held is
+    logged once the interval allows (with the number of transitions held), so the log ends
+    in the state the bus is in.
+    """
+
+    def __init__(self, interval_s: float = EVENT_LOG_INTERVAL_S, burst: int = 2,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.interval_s = float(interval_s)
+        self.burst = max(1, int(burst))
+        self.clock = clock
+        self._recent: dict[Hashable, deque[float]] = {}
+        self._held: dict[Hashable, tuple[str, str, int]] = {}
+        self._lines: list[tuple[str, str]] = []
+
+    def _room(self, key: Hashable, now: float) -> bool:
+        recent = self._recent.setdefault(key, deque())
+        while recent and now - recent[0] >= self.interval_s:
+            recent.popleft()
+        return len(recent) < self.burst
+
+    def event(self, key: Hashable, level: str, message: str) -> None:
+        """A transition: ``level`` 'warning' (trouble) or 'info' (recovered)."""
+        now = self.clock()
+        if key not in self._held and self._room(key, now):
+            self._recent[key].append(now)
+            self._lines.append((level, message))
+        else:
+            held = self._held.get(key)
+            self._held[key] = (level, message, 1 + (held[2] if held else 0))
+
+    def take(self) -> list[tuple[str, str]]:
+        """The (level, message) lines due now, each returned once."""
+        now = self.clock()
+        for key, (level, message, count) in list(self._held.items()):
+            if self._room(key, now):
+                del self._held[key]
+                self._recent[key].append(now)
+                self._lines.append((level, f'{message} ({count} transitions within '
+                                           f'{self.interval_s:g} s logged as one)'))
+        out, self._lines = self._lines, []
+        return out
+
+
+class RateMonitor:
+    """Achieved read-loop rate over a sliding window against the requested rate.
+
+    :meth:`tick` at every cycle; a 'warning' event when the rate falls below
+    :data:`RATE_LOW_FRACTION` of the requested one, 'info' when it is back at
+    :data:`RATE_OK_FRACTION`. ``None`` otherwise.
+    """
+
+    def __init__(self, requested_hz: float, window_s: float = 2.0) -> None:
+        self.requested_hz = float(requested_hz)
+        self.window_s = float(window_s)
+        self._ticks: deque[float] = deque()
+        self.low = False
+        self.achieved_hz = math.nan
+
+    def tick(self, now_s: float, cycle_ms: float = math.nan,
+             servos: int = 0) -> tuple[str, str] | None:
+        t = self._ticks
+        t.append(now_s)
+        while len(t) > 2 and now_s - t[1] >= self.window_s:
+            t.popleft()
+        if now_s - t[0] < self.window_s:
+            return None
+        self.achieved_hz = (len(t) - 1) / (now_s - t[0])
+        if not self.low and self.achieved_hz < RATE_LOW_FRACTION * self.requested_hz:
+            self.low = True
+            took = f'; a read cycle takes {cycle_ms:.1f} ms' if math.isfinite(cycle_ms) else ''
+            return ('warning', f'read loop at {self.achieved_hz:.1f} Hz, requested '
+                    f'{self.requested_hz:g} Hz ({servos} servos{took}): the bus cannot keep '
+                    'up; lower rate_hz, check for silent or slow servos (the reply margin), '
+                    'set the USB latency timer to 1 ms or raise the baud rate')
+        if self.low and self.achieved_hz >= RATE_OK_FRACTION * self.requested_hz:
+            self.low = False
+            return ('info', f'read loop back at {self.achieved_hz:.1f} Hz (requested '
+                    f'{self.requested_hz:g} Hz)')
+        return None
 
 
 class JointMapError(ValueError):
@@ -267,6 +405,10 @@ class FastPortHandler(PortHandler):
         # Some SDK releases flush the output here; unread input is what must go.
         self.ser.reset_input_buffer()
 
+    def writePort(self, packet: Any) -> int:  # noqa: N802 (SDK API)
+        self.last_tx = bytes(packet)   # to recognise an adapter's echo of it
+        return self.ser.write(packet)  # type: ignore[no-any-return]
+
     def readPort(self, length: int) -> bytes:  # noqa: N802 (SDK API)
         if self.ser.in_waiting == 0:
             left_ms = self.packet_timeout - self.getTimeSinceStart()
@@ -301,6 +443,14 @@ class ServoHealth:
     operating_mode: int = -1
     #: why the last torque-on failed when the servo answered (hardware error, mode), else ''
     torque_error: str = ''
+    #: torque the driver turned on that the servo no longer has (power cycled, hardware error
+    #: shutdown), else ''; cleared by the next successful set_torque
+    torque_lost: str = ''
+    #: second status packets to one request (two servos at one ID), see DUPLICATE_HOLD_CYCLES
+    duplicate_replies: int = 0
+    #: replies reporting that the servo received a corrupted instruction (checksum / CRC /
+    #: instruction error, no data): noise on the way to the servo; retried
+    rejected_instructions: int = 0
 
 
 @dataclass(frozen=True)
@@ -342,6 +492,8 @@ class _Servo:
     refusal: str = ''   # why an answering servo's model was refused (names the known models)
     #: why the servo's goals and torque on are refused while it is still read (its mode)
     command_refusal: str = ''
+    last_duplicate_cycle: int = field(default=-10**9)   # cycle of its last second reply
+    silent_since_cycle: int = 0
 
 
 class DynamixelBus:
@@ -366,6 +518,9 @@ class DynamixelBus:
         A silent servo is tried again every this many cycles.
     temperature_limit_c : float
         Above it: torque off and abort (see module doc).
+    rate_hz : float, optional
+        The rate :meth:`poll` is called at; given, a loop rate well below it is reported
+        (:class:`RateMonitor`, :meth:`take_events`).
     port_handler : PortHandler, optional
         Injected for tests; default FastPortHandler.
     """
@@ -373,7 +528,7 @@ class DynamixelBus:
     def __init__(self, port_name: str, joints: Sequence[JointConfig], *, protocol: int = 1,
                  baud_rate: int = 1_000_000, timeout_margin_ms: float = 5.0, retries: int = 1,
                  silent_after: int = 3, probe_interval_cycles: int = 50,
-                 temperature_limit_c: float = 70.0,
+                 temperature_limit_c: float = 70.0, rate_hz: float | None = None,
                  port_handler: PortHandler | None = None) -> None:
         if protocol not in (1, 2):
             raise ValueError(f'protocol: expected 1 or 2, got {protocol!r}')
@@ -409,6 +564,17 @@ class DynamixelBus:
         self._failed_tx_ms: float | None = None  # when the last unanswered one was sent [ms]
         self._measuring_round_trip = False
         self._round_trip_ms = 0.0                # slowest reply beyond its wire time at open
+        #: run-time transitions for the log (see :meth:`take_events`)
+        self.events = EventLog()
+        self.rate = RateMonitor(rate_hz) if rate_hz else None
+        #: the adapter echoes transmitted bytes (seen at least once; the echo is skipped)
+        self.echo = False
+        #: why the port was lost (see :class:`PortLostError`), else ''
+        self.port_lost = ''
+        #: {id: status packet length} of each ID's last reply taken, while no later request
+        #: went to that ID: another packet like it is a second servo at that ID (a late reply
+        #: belongs to an unanswered request, whose retry asks for another length)
+        self._answered: dict[int, int] = {}
 
     # --- lifecycle -------------------------------------------------------------------------
     def open(self) -> DynamixelBus:
@@ -449,8 +615,27 @@ class DynamixelBus:
 
     def close(self) -> None:
         if self.is_open:
-            self.port.closePort()
             self.is_open = False
+            self.port.closePort()
+
+    @contextmanager
+    def _port_guard(self) -> Iterator[None]:
+        """An OSError of the serial device (EIO: the USB adapter unplugged) closes the bus and
+        becomes a PortLostError naming the port."""
+        try:
+            yield
+        except OSError as err:
+            name = self.port.getPortName()
+            self.port_lost = (f'port {name} lost: {type(err).__name__}: {err} (USB adapter '
+                              'unplugged or the device failed); the servos keep their last '
+                              'torque state and goals; reconnect the adapter and restart the '
+                              'driver')
+            self.is_open = False
+            try:
+                self.port.closePort()
+            except Exception:   # noqa: BLE001 - the device is gone; closing is best effort
+                pass
+            raise PortLostError(self.port_lost) from err
 
     def __enter__(self) -> DynamixelBus:
         return self.open()
@@ -506,9 +691,9 @@ class DynamixelBus:
     def _now_ms(self) -> float:
         return time.monotonic() * 1000.0
 
-    def _prepare(self) -> None:
-        """Before sending: drain a line that may still carry a late reply, drop (and count)
-        what is waiting, and stamp the request."""
+    def _prepare(self, ids: Iterable[int] = ()) -> None:
+        """Before sending (a request to ``ids``): drain a line that may still carry a late
+        reply, drop (and count) what is waiting, and stamp the request."""
         self.port.is_using = False
         if self._dirty:
             self._drain()
@@ -516,6 +701,8 @@ class DynamixelBus:
         waiting = ser.in_waiting
         if waiting:
             self._late_bytes(ser.read(waiting))
+        for sid in ids:
+            self._answered.pop(sid, None)
         self._tx_ms = self._now_ms()
 
     def _failed(self) -> None:
@@ -541,16 +728,54 @@ class DynamixelBus:
         self._dirty = False
 
     def _late_bytes(self, data: bytes) -> None:
-        """Bytes that arrived with no request waiting for them: count the status packets."""
+        """Bytes that arrived with no request waiting for them: count the status packets (the
+        adapter's echo of the last instruction skipped, a second reply counted as such)."""
+        echo = getattr(self.port, 'last_tx', b'')
+        if echo and echo in data:
+            data = data.replace(echo, b'', 1)
+            self._note_echo()
         head = b'\xff\xff\xfd\x00' if self.protocol == 2 else b'\xff\xff'
         at = 4 if self.protocol == 2 else 2
-        ids = []
+        packets = []
         k = data.find(head)
         while k >= 0 and k + at < len(data):
-            ids.append(data[k + at])
+            packets.append((data[k + at], self._packet_length(data, k)))
             k = data.find(head, k + at + 1)
-        for sid in ids:
-            self._late(sid)
+        for sid, length in packets:
+            if self._answered.get(sid, -1) == length:
+                self._duplicate(sid)
+            elif sid != 0xFE:   # the broadcast ID is never a servo's reply (an echo)
+                self._late(sid)
+
+    def _packet_length(self, data: bytes, k: int) -> int | None:
+        """Length of the packet whose header starts at ``data[k]`` (None: cut short)."""
+        if self.protocol == 2:
+            return (data[k + 5] | (data[k + 6] << 8)) + 7 if k + 6 < len(data) else None
+        return data[k + 3] + 4 if k + 3 < len(data) else None
+
+    def _duplicate(self, sid: int) -> None:
+        """A second status packet to one request: two servos answer at ``sid``."""
+        s = self._by_id.get(sid)
+        if s is None:
+            return
+        first = s.health.duplicate_replies == 0
+        s.health.duplicate_replies += 1
+        s.last_duplicate_cycle = self.cycle
+        if first:
+            self.notes.append(
+                f'{s.joint.name} (id {sid}) duplicate id? two replies came to one request: two '
+                'servos share this ID; its readings are marked failed (either servo may have '
+                'answered); give each servo its own ID (one at a time on the bus, e.g. with '
+                'Dynamixel Wizard)')
+
+    def _note_echo(self) -> None:
+        if not self.echo:
+            self.echo = True
+            self.notes.append(
+                f'port {self.port.getPortName()} echoes every transmitted byte (a half-duplex '
+                'adapter without direction control): the echo is skipped from now on, at the '
+                'cost of bus time; an adapter with echo suppression (U2D2, USB2Dynamixel) '
+                'avoids it')
 
     def _late(self, sid: int) -> None:
         """One late status packet of ``sid``: counted, and the margin raised to cover it."""
@@ -579,16 +804,53 @@ class DynamixelBus:
             if result != COMM_SUCCESS:
                 self._failed()
                 return None, 0, result
+            if bytes(rx) == getattr(self.port, 'last_tx', None):
+                # the adapter's echo of the request (an echoed PING passes for its reply)
+                self._note_echo()
+                self.port.setPacketTimeout(self._status_bytes(n_params))
+                continue
             rid = rx[P2_ID] if self.protocol == 2 else rx[P1_PKT_ID]
             params = self._params(rx)
+            error = rx[P2_ERROR if self.protocol == 2 else P1_ERROR]
             if rid == sid and len(params) == n_params:
                 self._failed_tx_ms = None
+                self._answered[rid] = len(rx)
                 if self._measuring_round_trip:
                     wire_ms = len(rx) * self.port.tx_time_per_byte
                     self._round_trip_ms = max(self._round_trip_ms,
                                               self._now_ms() - self._tx_ms - wire_ms)
-                return params, rx[P2_ERROR if self.protocol == 2 else P1_ERROR], result
-            self._late(rid)
+                return params, error, result
+            if rid == sid and not params and error & self._rejected_bits:
+                # The servo received a corrupted instruction and says so: no reply is late.
+                self._failed_tx_ms = None
+                self._rejected(sid, error)
+                return None, error, COMM_RX_CORRUPT
+            if self._answered.get(rid, -1) == len(rx):
+                self._duplicate(rid)
+            else:
+                self._late(rid)
+
+    def _rejected(self, sid: int, error: int) -> None:
+        """The servo says the instruction it received was corrupted: counted, for the log."""
+        s = self._by_id.get(sid)
+        if s is None:
+            return
+        s.health.rejected_instructions += 1
+        if self.protocol == 1:
+            what = 'checksum' if error & 0x10 else 'instruction'
+        else:
+            what = P2_STATUS_ERRORS.get(error & 0x7F, 'status')
+        self.events.event(
+            (sid, 'rejected'), 'warning',
+            f'{s.joint.name} (id {sid}) reports a {what} error on an instruction it received '
+            f'(status error {error:#04x}): noise on the way to the servo (cabling, termination, '
+            'baud rate); retried')
+
+    @property
+    def _rejected_bits(self) -> int:
+        """Status error bits of a servo that could not take the instruction it received:
+        Protocol 1.0 checksum 0x10 and instruction 0x40; Protocol 2.0 an error number."""
+        return 0x50 if self.protocol == 1 else 0x7F
 
     def _status_bytes(self, n_params: int) -> int:
         return n_params + (11 if self.protocol == 2 else 6)
@@ -600,7 +862,7 @@ class DynamixelBus:
         Not the SDK's ping: it takes any packet with the right ID for its answer (a late PING
         reply passed for the model READ)."""
         sid = s.joint.servo_id
-        self._prepare()
+        self._prepare([sid])
         if self.protocol == 2:
             tx = [0] * 10
             tx[P2_ID], tx[5], tx[6], tx[7] = sid, 3, 0, INST_PING
@@ -641,6 +903,7 @@ class DynamixelBus:
             if not self._read_status_return_level(s):
                 return False
             self._read_operating_mode(s)
+            self._read_wheel_mode(s)
             s.refusal = ''
             s.health.model = s.table.model_name
             s.health.silent = False
@@ -713,6 +976,31 @@ class DynamixelBus:
             'configuration registers')
         self.notes.append(f'{s.joint.name} (id {s.joint.servo_id}): {s.command_refusal}')
 
+    def _read_wheel_mode(self, s: _Servo) -> None:
+        """Protocol 1.0 wheel mode, CW and CCW Angle Limit both 0: goals refused (module doc)."""
+        assert s.table is not None
+        t = s.table
+        if 'cw_angle_limit' not in t.registers or 'operating_mode' in t.registers:
+            return
+        cw, ccw = t.reg('cw_angle_limit'), t.reg('ccw_angle_limit')
+        data, _ = self._read_settled(s, cw.address, ccw.address + ccw.size - cw.address)
+        if data is None:
+            self.notes.append(f'{s.joint.name} (id {s.joint.servo_id}): CW/CCW Angle Limit '
+                              f'(registers {cw.address}, {ccw.address}) not read; wheel mode '
+                              'not checked')
+            return
+        if t.decode('cw_angle_limit', data, cw.address) or t.decode('ccw_angle_limit', data,
+                                                                    cw.address):
+            s.command_refusal = ''
+            return
+        s.command_refusal = (
+            f'wheel mode: CW Angle Limit (register {cw.address}) and CCW Angle Limit (register '
+            f'{ccw.address}) are both 0, so the servo ignores Goal Position and turns endlessly '
+            'at Moving Speed: its goals and torque on are refused; set CCW Angle Limit to '
+            f'{t.max_tick} (joint mode), e.g. with Dynamixel Wizard: this driver never writes '
+            'configuration registers')
+        self.notes.append(f'{s.joint.name} (id {s.joint.servo_id}): {s.command_refusal}')
+
     @property
     def refused(self) -> dict[str, str]:
         """Joints left out (unknown model, Status Return Level 0) or whose commands are refused
@@ -766,7 +1054,7 @@ class DynamixelBus:
             extra = (k % 2 == 1) != shifted
             lo = 1 if extra and start > 0 else 0
             n = length + (1 if extra else 0)
-            self._prepare()
+            self._prepare([sid])
             result = self.packet.readTx(self.port, sid, start - lo, n)
             if result == COMM_SUCCESS:
                 self.port.setPacketTimeout(self._status_bytes(n))
@@ -782,7 +1070,7 @@ class DynamixelBus:
         A packet of another ID, a second one of an ID or one of another length is late."""
         ids = [s.joint.servo_id for s in servos]
         got: dict[int, tuple[list[int], int]] = {}
-        self._prepare()
+        self._prepare(ids)
         if self.packet.syncReadTx(self.port, start, length, ids, len(ids), False) != COMM_SUCCESS:
             return got
         pending = list(ids)
@@ -795,6 +1083,9 @@ class DynamixelBus:
                 if sid in pending and len(data) == length:
                     pending.remove(sid)
                     got[sid] = (data, rx[P2_ERROR])
+                    self._answered[sid] = len(rx)
+                elif self._answered.get(sid, -1) == len(rx):
+                    self._duplicate(int(sid))
                 else:
                     self._late(int(rx[P2_ID]))
             elif result == COMM_RX_CORRUPT and sid in pending:
@@ -819,7 +1110,15 @@ class DynamixelBus:
         return data[0] if data else s.health.last_error_flags
 
     def read_all(self) -> tuple[ServoReading, ...]:
-        """One read of every active servo, in joint-map order (NaN readings for failures)."""
+        """One read of every active servo, in joint-map order (NaN readings for failures).
+
+        PortLostError when the serial device fails (see the module doc)."""
+        if self.port_lost:
+            raise PortLostError(self.port_lost)
+        with self._port_guard():
+            return self._read_all()
+
+    def _read_all(self) -> tuple[ServoReading, ...]:
         self.cycle += 1
         active = self._active()
         raw: dict[int, tuple[list[int], int]] = {}
@@ -854,24 +1153,35 @@ class DynamixelBus:
         readings = []
         for s in self.servos:
             sid = s.joint.servo_id
-            if sid not in raw or s.table is None:
+            duplicate = self.cycle - s.last_duplicate_cycle <= DUPLICATE_HOLD_CYCLES
+            if sid not in raw or s.table is None or duplicate:
                 if s in active:
                     s.health.failed_cycles += 1
                     s.health.consecutive_failures += 1
-                    if s.health.consecutive_failures >= self.silent_after:
-                        s.health.silent = True
+                    if (s.health.consecutive_failures >= self.silent_after
+                            and not s.health.silent and not duplicate):
+                        self._went_silent(s)
                 readings.append(ServoReading(s.joint.name, sid, False,
                                              error_flags=s.health.last_error_flags))
                 continue
             data, status_error = raw[sid]
             h = s.health
             h.reads_ok += 1
+            was_failing = h.consecutive_failures > 0
+            if h.silent:
+                self.events.event((sid, 'silent'), 'info',
+                                  f'{s.joint.name} (id {sid}) answers again after '
+                                  f'{self.cycle - s.silent_since_cycle} cycles silent')
             h.consecutive_failures = 0
             h.silent = False
             flags = self._hardware_flags(s, status_error)
             if flags or (status_error & (0x7F if self.protocol == 2 else 0)):
                 h.error_replies += 1
+            new_flags = flags & ~h.last_error_flags
+            self._note_flags(s, flags)
             h.last_error_flags = flags
+            if was_failing or new_flags:
+                self._check_torque(s, came_back=was_failing)
             st = s.table.decode_present(data)
             j = s.joint
             readings.append(ServoReading(
@@ -882,6 +1192,60 @@ class DynamixelBus:
                 load_fraction=j.direction * st.load_fraction,
                 voltage_v=st.voltage_v, temperature_c=st.temperature_c, error_flags=flags))
         return tuple(readings)
+
+    def _went_silent(self, s: _Servo) -> None:
+        s.health.silent = True
+        s.silent_since_cycle = self.cycle
+        self.events.event(
+            (s.joint.servo_id, 'silent'), 'warning',
+            f'{s.joint.name} (id {s.joint.servo_id}) went silent: no reply in '
+            f'{s.health.consecutive_failures} cycles in a row; probed every '
+            f'{self.probe_interval_cycles} cycles from now on (check its cable and power)')
+
+    def _note_flags(self, s: _Servo, flags: int) -> None:
+        """A hardware error flag appearing (warning) or all clearing (info), for the log."""
+        old = s.health.last_error_flags
+        name = f'{s.joint.name} (id {s.joint.servo_id})'
+        if flags & ~old:
+            self.events.event(
+                (s.joint.servo_id, 'flags'), 'warning',
+                f'{name} reports hardware error '
+                f'{list(decode_error_flags(self.protocol, flags))} ('
+                + ('status error byte' if self.protocol == 1 else 'Hardware Error Status')
+                + f' {flags:#04x})')
+        elif old and not flags:
+            self.events.event((s.joint.servo_id, 'flags'), 'info',
+                              f'{name} hardware error flags cleared')
+
+    def _check_torque(self, s: _Servo, came_back: bool) -> None:
+        """Torque Enable (and on Protocol 2.0 Hardware Error Status) read back after a servo
+        answered again or raised a new hardware error: ``torque_enabled`` follows it, and
+        torque the driver had turned on but the servo lost is reported (``torque_lost``)."""
+        assert s.table is not None
+        reg = s.table.reg('torque_enable')
+        data, err = self._read_single(s, reg.address, 1, 1 + self.retries)
+        if data is None:
+            return   # counted; tried again on the next recovery
+        on = bool(data[0])
+        expected = s.health.torque_enabled
+        s.health.torque_enabled = on
+        if on or not expected:
+            return
+        flags = self._hardware_flags(s, err) | s.health.last_error_flags
+        names = list(decode_error_flags(self.protocol, flags))
+        if came_back:
+            why = 'came back with torque off (power cycled or hardware error?)'
+        else:
+            why = f'turned torque off itself with hardware error {names} (Alarm Shutdown)'
+        hint = ('; an X-series or MX(2.0) servo in hardware-error shutdown needs a REBOOT'
+                if self.protocol == 2 and flags else '')
+        s.health.torque_lost = (
+            f'{why}: Torque Enable (register {reg.address}) reads 0 where the driver had '
+            f'turned it on' + (f', hardware error {names}' if flags and came_back else '')
+            + f'; the joint is limp; check its power, cable and load, then call set_torque(True)'
+            + hint)
+        self.events.event((s.joint.servo_id, 'torque'), 'warning',
+                          f'{s.joint.name} (id {s.joint.servo_id}) {s.health.torque_lost}')
 
     def _note_sync_support(self, sync_answered: bool, single_answered: bool) -> None:
         """A bus whose servos answer single READs but no Sync Read for
@@ -903,9 +1267,19 @@ class DynamixelBus:
         out, self.notes = self.notes, []
         return out
 
+    def take_events(self) -> list[tuple[str, str]]:
+        """Run-time transitions due for the log, as (level, message), level 'warning' or
+        'info'; once per transition, throttled (:class:`EventLog`)."""
+        return self.events.take()
+
     def poll(self) -> PollResult:
         """read_all() then the temperature safety check (torque off and abort)."""
+        start = time.monotonic()
         readings = self.read_all()
+        if self.rate is not None:
+            line = self.rate.tick(start, 1000.0 * (time.monotonic() - start), len(self.servos))
+            if line is not None:
+                self.events.event('rate', *line)
         hot = [r for r in readings if r.ok and (r.temperature_c > self.temperature_limit_c
                                                 or r.error_flags & ERROR_OVERHEATING)]
         if not hot or self.aborted:
@@ -925,6 +1299,9 @@ class DynamixelBus:
         if r.temperature_c > self.temperature_limit_c:
             why.append(f'at {r.temperature_c:.0f} degC > limit {self.temperature_limit_c:.0f} '
                        'degC')
+        elif r.temperature_c >= self.temperature_limit_c:
+            why.append(f'at {r.temperature_c:.0f} degC, not below the limit '
+                       f'{self.temperature_limit_c:.0f} degC')
         if r.error_flags & ERROR_OVERHEATING:
             why.append(f'reports overheating (flags '
                        f'{list(decode_error_flags(self.protocol, r.error_flags))}) at '
@@ -935,13 +1312,26 @@ class DynamixelBus:
     def set_torque(self, enabled: bool, names: Iterable[str] | None = None) -> dict[str, bool]:
         """Torque Enable on (True) or off for ``names`` (all by default); per-joint success.
 
-        Turning torque on clears an abort only if no servo is above the limit any more.
+        Turning torque on clears an abort only once every servo that answers is below the
+        limit and none reports its overheating flag; else nothing is written and
+        ``abort_reason`` says which servo keeps the abort. Nothing is written once the port is
+        lost (all False).
         """
+        if not self.is_open:
+            return {n: False for n in (names if names is not None else self.joint_names)}
+        with self._port_guard():
+            return self._set_torque(enabled, names)
+
+    def _set_torque(self, enabled: bool, names: Iterable[str] | None) -> dict[str, bool]:
         if enabled and self.aborted:
-            readings = self.read_all()
-            hot = [r.name for r in readings if r.ok and r.temperature_c > self.temperature_limit_c]
+            readings = self._read_all()
+            hot = [r for r in readings if r.ok and (r.temperature_c >= self.temperature_limit_c
+                                                    or r.error_flags & ERROR_OVERHEATING)]
             if hot:
-                return {n: False for n in (names or self.joint_names)}
+                self.abort_reason = '; '.join(self._hot_reason(r) for r in hot) + (
+                    ': torque on refused, still aborted (every servo must be below the limit '
+                    'with its overheating flag cleared)')
+                return {n: False for n in (names if names is not None else self.joint_names)}
             self.aborted = False
             self.abort_reason = ''
         out = {}
@@ -962,7 +1352,7 @@ class DynamixelBus:
                 address = s.table.reg('torque_enable').address
                 value = int(bool(enabled))
                 sid = s.joint.servo_id
-                self._prepare()
+                self._prepare([sid])
                 result = self.packet.write1ByteTxOnly(self.port, sid, address, value)
                 error = 0
                 if result == COMM_SUCCESS and s.health.status_return_level >= 2:
@@ -988,6 +1378,7 @@ class DynamixelBus:
                 break
             if ok:
                 s.health.torque_enabled = bool(enabled)
+                s.health.torque_lost = ''
             out[name] = ok
         return out
 
@@ -1016,8 +1407,13 @@ class DynamixelBus:
         +-1 048 575 ticks in the multi-turn modes 4 and 5. A speed of 0 means 'as fast as
         possible' (the servos' own convention). Returns the number of servos written.
         """
-        if self.aborted:
+        if self.aborted or not self.is_open:
             return 0
+        with self._port_guard():
+            return self._write_goals(positions_rad, speeds_rad_s)
+
+    def _write_goals(self, positions_rad: Mapping[str, float],
+                     speeds_rad_s: Mapping[str, float] | None) -> int:
         groups: dict[tuple[int, int], GroupSyncWrite] = {}
         count = 0
         for name, target in positions_rad.items():

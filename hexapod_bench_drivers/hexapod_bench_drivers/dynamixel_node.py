@@ -11,13 +11,24 @@ Topics (relative names, so a namespace applies):
   Write; with ``use_command_velocity`` the |velocity| becomes the moving speed. Names not on
   this bus are ignored.
 - service ``set_torque`` (std_srvs/SetBool): torque on/off for every servo; turning torque on
-  also clears a temperature abort once all servos are below the limit. Servos the bus refused
+  also clears a temperature abort once all servos are below the limit and none reports its
+  overheating flag (else refused, "still aborted" with the reason). Servos the bus refused
   (unknown model, Status Return Level 0, an Operating Mode that ignores goals) do not make it
   fail; the message names them, and the servo's own reason when torque on fails.
 
-/diagnostics: ERROR for a servo left out (with the refusal), silent, or when aborted; WARN for
+/diagnostics: ERROR for a servo left out (with the refusal), silent, when aborted, when the port
+is lost, for a servo that lost the torque the driver turned on (``came back with torque off``,
+``torque_enabled`` then False) or for two replies to one request (``duplicate id?``); WARN for
 a servo whose commands are refused (its mode), which refused torque on (hardware error) or
 reports hardware error flags; OK otherwise.
+
+Log: start-up findings and bus notes as warnings; run-time transitions (a servo silent or back,
+a hardware error flag, torque lost, the loop rate well below ``rate_hz``) once per transition,
+throttled (warning; info on recovery).
+
+The port failing at run time (a USB adapter unplugged) is logged once as an error, published as
+ERROR on /diagnostics naming the port, and the node stops with exit code 1 (no torque write on
+the dead port at shutdown).
 
 On shutdown, torque is turned off (``shutdown_action: torque_off``) or left on (``hold``).
 All bus logic lives in :class:`hexapod_bench_drivers.dynamixel_bus.DynamixelBus`.
@@ -33,18 +44,24 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from hexapod_common.node_utils import RELIABLE_QOS, SENSOR_QOS, declare_params, param, run_node
 from hexapod_interfaces.msg import ServoStatus
 from rclpy.node import Node
+from rclpy.task import Future
 from sensor_msgs.msg import JointState
 from std_srvs.srv import SetBool
 
 from hexapod_bench_drivers.control_tables import decode_error_flags
 from hexapod_bench_drivers.dynamixel_bus import (
+    DUPLICATE_HOLD_CYCLES,
     DynamixelBus,
     PollResult,
+    PortLostError,
     ServoHealth,
     load_joint_map,
 )
 
-__all__ = ['DynamixelDriverNode', 'DynamixelDriverParams', 'main']
+__all__ = ['DynamixelDriverNode', 'DynamixelDriverParams', 'EXIT_PORT_LOST', 'main']
+
+#: exit code of the node when its port fails at run time (a USB adapter unplugged)
+EXIT_PORT_LOST = 1
 
 
 def _positive(v: float) -> str | None:
@@ -118,7 +135,9 @@ class DynamixelDriverNode(Node):
             timeout_margin_ms=p.timeout_margin_ms, retries=p.retries,
             silent_after=p.silent_after,
             probe_interval_cycles=max(1, int(round(p.probe_interval_s * p.rate_hz))),
-            temperature_limit_c=p.temperature_limit_c).open()
+            temperature_limit_c=p.temperature_limit_c, rate_hz=p.rate_hz).open()
+        #: done with the exit code when the node stops by itself (the port lost), see run_node
+        self.finished = Future()
         for h in self.bus.health():
             self.get_logger().info(f'servo id {h.servo_id}: {h.model}'
                                    + (' (silent)' if h.silent else ''))
@@ -143,8 +162,8 @@ class DynamixelDriverNode(Node):
         self.create_service(SetBool, 'set_torque', self._on_set_torque)
         self.commands_applied = 0
         self.commands_dropped = 0
-        self.create_timer(1.0 / p.rate_hz, self._on_timer)
-        self.create_timer(p.diagnostics_period_s, self._publish_diagnostics)
+        self._timers = [self.create_timer(1.0 / p.rate_hz, self._on_timer),
+                        self.create_timer(p.diagnostics_period_s, self._publish_diagnostics)]
 
     # --- callbacks -------------------------------------------------------------------------
     def _on_change(self, new: DynamixelDriverParams) -> str | None:
@@ -156,9 +175,31 @@ class DynamixelDriverNode(Node):
         return None
 
     def _on_timer(self) -> None:
-        self._publish(self.bus.poll())
+        try:
+            self._publish(self.bus.poll())
+        except PortLostError as err:
+            self._port_lost(err)
+        self._log_bus()
+
+    def _log_bus(self) -> None:
+        log = self.get_logger()
         for note in self.bus.take_notes():
-            self.get_logger().warning(note)
+            log.warning(note)
+        for level, line in self.bus.take_events():
+            if level == 'info':   # one call site per severity (rclpy requires it)
+                log.info(line)
+            else:
+                log.warning(line)
+
+    def _port_lost(self, err: PortLostError) -> None:
+        """Once: the error logged and on /diagnostics, timers stopped, the node finishes."""
+        if self.finished.done():
+            return
+        for timer in self._timers:
+            timer.cancel()
+        self.get_logger().error(str(err))
+        self._publish_diagnostics()
+        self.finished.set_result(EXIT_PORT_LOST)
 
     def _on_command(self, msg: JointState) -> None:
         try:
@@ -166,10 +207,20 @@ class DynamixelDriverNode(Node):
         except (ValueError, TypeError) as err:
             self.commands_dropped += 1
             self.get_logger().warning(f'joint_commands dropped: {err}')
+        except PortLostError as err:
+            self._port_lost(err)
 
     def _on_set_torque(self, request: Any, response: Any) -> Any:
         refused = self.bus.refused
-        results = self.bus.set_torque(bool(request.data))
+        try:
+            results = self.bus.set_torque(bool(request.data))
+        except PortLostError as err:
+            self._port_lost(err)
+            response.success, response.message = False, str(err)
+            return response
+        if self.bus.port_lost:
+            response.success, response.message = False, self.bus.port_lost
+            return response
         failed = [n for n, ok in results.items() if not ok and n not in refused]
         response.success = not failed
         why = {h.servo_id: h.torque_error for h in self.bus.health() if h.torque_error}
@@ -232,12 +283,21 @@ class DynamixelDriverNode(Node):
         d.name = f'{self.get_name()}: {name}'
         d.hardware_id = f'dynamixel id {h.servo_id}'
         flags = decode_error_flags(self.bus.protocol, h.last_error_flags)
-        if self.bus.aborted:
+        duplicate = self.bus.cycle - servo.last_duplicate_cycle <= DUPLICATE_HOLD_CYCLES
+        if self.bus.port_lost:
+            d.level, d.message = DiagnosticStatus.ERROR, self.bus.port_lost
+        elif self.bus.aborted:
             d.level, d.message = DiagnosticStatus.ERROR, f'aborted: {self.bus.abort_reason}'
         elif servo.refusal:
             d.level, d.message = DiagnosticStatus.ERROR, f'left out: {servo.refusal}'
+        elif duplicate:
+            d.level = DiagnosticStatus.ERROR
+            d.message = (f'duplicate id? {h.duplicate_replies} second replies to one request: '
+                         'two servos share this ID; readings withheld')
         elif h.silent:
             d.level, d.message = DiagnosticStatus.ERROR, 'silent: no reply'
+        elif h.torque_lost:
+            d.level, d.message = DiagnosticStatus.ERROR, h.torque_lost
         elif servo.command_refusal:
             d.level = DiagnosticStatus.WARN
             d.message = f'read only, commands refused: {servo.command_refusal}'
@@ -253,6 +313,8 @@ class DynamixelDriverNode(Node):
                   'torque_enabled': h.torque_enabled,
                   'status_return_level': h.status_return_level,
                   'late_replies': h.late_replies, 'operating_mode': h.operating_mode,
+                  'duplicate_replies': h.duplicate_replies,
+                  'rejected_instructions': h.rejected_instructions,
                   'reply_margin_ms': f'{self.bus.reply_margin_ms:.0f}'}
         d.values = [KeyValue(key=k, value=str(v)) for k, v in values.items()]
         return d
@@ -260,7 +322,10 @@ class DynamixelDriverNode(Node):
     def destroy_node(self) -> None:
         if self.bus.is_open:
             if self.params.shutdown_action == 'torque_off':
-                self.bus.set_torque(False)
+                try:
+                    self.bus.set_torque(False)
+                except PortLostError as err:
+                    self.get_logger().error(f'torque off at shutdown not sent: {err}')
             self.bus.close()
         super().destroy_node()
 

@@ -32,12 +32,22 @@ holding the bus, as a USB adapter's latency timer does (FTDI/U2D2: 16 ms by defa
 Read, fast ones included (a test can stamp each reply, e.g. count requests in Present
 Position).
 
+Bus and adapter faults: :attr:`ServoBusEmulator.echo` returns every byte the host sends before
+the replies (a half-duplex adapter without direction control);
+:attr:`ServoBusEmulator.duplicate_ids` sends every status packet of those IDs twice (a second
+servo at the ID, answering after the first); :attr:`ServoBusEmulator.corrupt_instructions`
+corrupts that many of the next instructions addressed to one servo on their way (the servo
+answers with a checksum / CRC error); :meth:`ServoBusEmulator.power_cycle` gives a servo its
+power-on RAM values (Torque Enable 0, Goal Position at the present position).
+
 Physics: :class:`hexapod_bench_drivers.servo_model.ServoModel` when importable (the simulator's
 electromechanical model), else :class:`FirstOrderServo`, a first-order stand-in. Either sits
 behind :class:`ServoPhysics`. Moving Speed / Profile Velocity limit the goal the physics tracks.
 
 Operating Mode (Protocol 2.0): in modes 0, 1 and 16 (current, velocity, PWM) a servo ignores
 Goal Position (it holds where it is); in modes 4 and 5 positions span +-1 048 575 ticks.
+Protocol 1.0 wheel mode (CW and CCW Angle Limit both 0) ignores Goal Position too (here it
+holds; a real servo turns at Moving Speed).
 
 Models: every ControlTable of :mod:`hexapod_bench_drivers.control_tables` (AX-12A/18A/12W and
 MX-28/64/106 on Protocol 1.0; MX(2.0), XL430, XM430, XH430, XC430, XM540, XL330 on 2.0), mixed
@@ -449,6 +459,8 @@ class _Group:
         self.r_hw = r.get('hardware_error_status')
         self.r_mode = r.get('operating_mode')   # Protocol 2.0
         self.r_p1_current = r.get('current')   # MX-64/MX-106 on Protocol 1.0 (2048 = 0 A)
+        self.r_cw = r.get('cw_angle_limit')    # Protocol 1.0: both limits 0 is wheel mode
+        self.r_ccw = r.get('ccw_angle_limit')
 
     def shift_position(self, servo: EmulatedServo, delta_rad: float) -> None:
         """Move ``servo``'s physics position (and ServoModel's setpoint) by ``-delta_rad``.
@@ -489,6 +501,12 @@ class _Group:
             multi = np.array([md in MULTI_TURN_MODES for md in modes])
             lo = np.where(multi, -EXTENDED_POSITION_LIMIT, lo)
             hi = np.where(multi, EXTENDED_POSITION_LIMIT, hi)
+        if self.r_mode is None and self.r_cw is not None and self.r_ccw is not None:
+            wheel = [_get(m, self.r_cw) == 0 and _get(m, self.r_ccw) == 0 for m in mems]
+            if any(wheel):   # wheel mode ignores Goal Position (here: holds)
+                here = (np.array([_get(m, self.r_pos) for m in mems], dtype=float)
+                        - t.center_tick) * t.rad_per_tick
+                goal = np.where(wheel, here, goal)
         torque = np.array([s.external_torque_nm for s in self.servos])
         out = phys.step(dt_s, goal, torque, supply_voltage_v)
         errors = getattr(out, 'error', None)
@@ -601,6 +619,12 @@ class ServoBusEmulator:
         #: delay of every reply on its way to the host [s], not holding the bus (USB latency)
         self.adapter_latency_s = 0.0
         self._outbox: list[tuple[float, bytes]] = []   # (due time, reply) under latency
+        #: return every received byte before replying (a half-duplex adapter's echo)
+        self.echo = False
+        #: IDs whose status packets are sent twice (two servos at one ID)
+        self.duplicate_ids: set[int] = set()
+        #: this many of the next instructions to one servo arrive corrupted
+        self.corrupt_instructions = 0
         #: servos pushed off their ID when a Factory Reset gave another servo the same ID (a
         #: real bus then has two servos answering at one ID; the emulator keeps the reset one)
         self.displaced: list[EmulatedServo] = []
@@ -684,6 +708,20 @@ class ServoBusEmulator:
                 s.faults.clear()
             self._advance(force=True)
 
+    def power_cycle(self, servo_id: int) -> None:
+        """Servo ``servo_id`` loses power and comes back: its RAM registers (Torque Enable and
+        after) to their power-on defaults, Goal Position to where it stands, faults cleared."""
+        with self.lock:
+            self._advance(force=True)
+            servo = self.servos[servo_id]
+            torque = servo.table.reg('torque_enable').address
+            for name, reg in servo.table.registers.items():
+                if reg.writable and reg.address >= torque:
+                    _put(servo.memory, reg, reg.default)
+            servo.set('goal_position', servo.get('present_position'))
+            servo.registered = None
+            servo.faults.clear()
+
     def read_register(self, servo_id: int, name: str) -> int:
         """A register as the servo holds it now (physics advanced to now)."""
         with self.lock:
@@ -722,6 +760,11 @@ class ServoBusEmulator:
                 chunk = os.read(self._master, 4096)
             except (OSError, ValueError):
                 return
+            if self.echo:
+                try:
+                    os.write(self._master, chunk)
+                except OSError:
+                    return
             buf += chunk
             while True:
                 pkt, consumed = parse(buf)
@@ -730,8 +773,14 @@ class ServoBusEmulator:
                 if pkt is None:
                     break
                 self.packets_received += 1
+                if self.corrupt_instructions > 0 and pkt.servo_id in self.servos:
+                    self.corrupt_instructions -= 1
+                    pkt = _Packet(pkt.servo_id, pkt.instruction, pkt.params, False)
                 with self.lock:
                     replies = self._handle(pkt)
+                replies = [r for reply in replies
+                           for r in ([reply, (0.0, reply[1])] if self._twin(reply[1])
+                                     else [reply])]
                 for delay_s, data in replies:
                     if delay_s > 0:
                         time.sleep(delay_s)  # a late servo holds the bus, as on real hardware
@@ -743,6 +792,13 @@ class ServoBusEmulator:
                     except OSError:
                         return
                     self.replies_sent += 1
+
+    def _twin(self, reply: bytes) -> bool:
+        """Whether ``reply`` is a status packet of an ID with a second servo on it."""
+        if not self.duplicate_ids:
+            return False
+        at = 2 if self.protocol == 1 else 4
+        return len(reply) > at and reply[at] in self.duplicate_ids
 
     def _deliver_due(self) -> None:
         """Replies held by the adapter latency whose time has come, in order."""

@@ -26,8 +26,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ['ANOTHER_CLOCK_S', 'FOREIGN_CLOCK_S', 'foreign_clock_note', 'ClockCheck', 'LiveClockWatch', 'StreamClock',
-           'shift_rows']
+__all__ = ['ANOTHER_CLOCK_S', 'FOREIGN_CLOCK_S', 'ClockCheck', 'LiveClockWatch', 'StreamClock',
+           'foreign_clock_note', 'shift_rows']
 
 #: a live sample stamped this far [s] from every other stream's newest stamp is held back
 #: (:class:`StreamClock`): a second publisher on another clock, or the whole graph's time moved

@@ -50,9 +50,11 @@ time later (then the stream stopped inside it: flagged as a joint gap). A JointS
 velocity or effort array has another length than its names keeps its positions (warned). A
 topic carrying two clocks (a second publisher stamped more than an hour from the others) has
 its far samples dropped, said once (:class:`hexapod_common.clocks.StreamClock`). On a Buehler
-clock schedule the efforts are not put to the PWM-load test and the Eq. 6 model is not used. A topic stamped on another clock than the others
-(a board without time synchronisation) is reported once, as an error: its messages cannot be
-matched live (the offline readers re-stamp it from the bag's receive times).
+clock schedule the efforts are not put to the PWM-load test and the Eq. 6 model is not used.
+
+A topic stamped on another clock than the others (a board without time synchronisation) is
+reported once, as an error: its messages cannot be matched live (the offline readers re-stamp
+it from the bag's receive times).
 """
 
 from __future__ import annotations
