@@ -214,7 +214,8 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog='bag_replay', description=__doc__.split('\n')[0])
     parser.add_argument('bag', help='rosbag2 bag folder (mcap or sqlite3) or ROS 1 .bag file')
     parser.add_argument('--rate', type=float, default=0.0,
-                        help='1 = real time, N = N times real time, 0 = as fast as possible')
+                        help='1 = real time, N = N times real time, 0 = as fast as possible '
+                        '(default 0)')
     parser.add_argument('--topics', nargs='*', default=[], help='only these topics')
     parser.add_argument('--remap', nargs='*', default=[], metavar='FROM:=TO',
                         help='publish a recorded topic under another name')

@@ -77,7 +77,22 @@ def _check_topics(reader: Any, required: Sequence[str], path: str) -> None:
     if missing:
         raise BagContentError(
             f'bag {path} lacks topic(s) {missing} needed for this analysis; it has {present}'
-        )
+            + namespace_hint(missing, present))
+
+
+def namespace_hint(missing: Sequence[str], present: Sequence[str]) -> str:
+    """'; recorded under a namespace? ...' when every missing topic is present under one
+    common prefix (a graph run in a namespace, e.g. hexapod-demo's /demo_<pid>), else ''."""
+    prefixes = set()
+    for topic in missing:
+        found = [p[:-len(topic)] for p in present if p.endswith(topic) and len(p) > len(topic)]
+        if len(found) != 1:
+            return ''
+        prefixes.add(found[0])
+    if len(prefixes) != 1:
+        return ''
+    ns = prefixes.pop()
+    return f'; recorded under a namespace? give --namespace {ns}'
 
 
 def _custom_data(reader: Any) -> dict[str, str]:

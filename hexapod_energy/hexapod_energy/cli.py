@@ -54,13 +54,17 @@ such fallback is listed in the run's ``notes``.
                 "phase_split" (schedule | contact | mixed: --phase-split),
                 "sessions", "notes" (dropped messages)}],
                 "fit": {"spans", "chosen": {"stance", "swing"},
-                "cv_rmse_w": {"stance": {"lowess", "poly"}, "swing": {...}},
+                "cv_rmse_w": {"stance": {"lowess", "poly", "poly3"}, "swing": {...}},
+                "surfaces": {"stance"|"swing": {"kind" (poly | poly3: "coef", "terms"
+                over f = 1 / T_phase [Hz] and m = load [kg]; lowess: "span")}} (the chosen
+                surfaces), "step_geometry_m": {"step_length",
+                "step_height"} (the bench leg's step),
                 "fit_rmse_w": {"stance", "swing"}, "basal_power_w": {"<load kg>": W},
                 "domain": {"stance"|"swing": {"rate_hz": [lo, hi], "load_kg": [lo, hi]}}
                 (the sessions' range; rate = 1 / T_phase),
                 "sessions": [PhaseSample fields]}},
       "robot_runs": [{"bag", "gait", "leg_count", "duty_factor", "period_s", "step_length_m",
-                      "payload_kg", "mass_kg", "windows", "window_s",
+                      "step_height_m", "payload_kg", "mass_kg", "windows", "window_s",
                       "measured_power_in_w", "predicted_power_in_w", "residual_w",
                       "power_breakdown_w": {"stance_w", "swing_w" (Eq. 1's phases),
                       "holding_w" (every leg's bench basal power at the load it carries),

@@ -191,3 +191,18 @@ def test_short_efforts_keep_the_positions() -> None:
     msg.position = [0.0] * 17
     with pytest.raises(ValueError, match='position has 17'):
         joint_state_from_msg(msg)
+
+
+def test_a_namespaced_bag_is_told_its_namespace() -> None:
+    """hexapod-demo's live bag records under /demo_<pid>: 'lacks topics' gave no hint (a
+    README review); the error now names --namespace when every missing topic is there under
+    one prefix."""
+    from hexapod_energy.bag_io import namespace_hint
+
+    present = ['/demo_9/battery_state', '/demo_9/joint_states', '/demo_9/gait/phase']
+    assert namespace_hint(['/battery_state', '/gait/phase'], present) == \
+        '; recorded under a namespace? give --namespace /demo_9'
+    assert namespace_hint(['/battery_state'], ['/a/battery_state', '/b/battery_state']) == ''
+    assert namespace_hint(['/battery_state', '/gait/phase'],
+                          ['/a/battery_state', '/b/gait/phase']) == ''
+    assert namespace_hint(['/battery_state'], ['/joint_states']) == ''
