@@ -39,6 +39,7 @@ __all__ = [
     'LATCHED_QOS',
     'RELIABLE_QOS',
     'SENSOR_QOS',
+    'close_node',
     'declare_params',
     'find_params_class',
     'mocap_msg_class',
@@ -47,6 +48,7 @@ __all__ = [
     'param',
     'params_from_overrides',
     'run_node',
+    'stopping_errors',
     'validate_params',
     'wants_help',
     'writable_params',
@@ -277,7 +279,7 @@ def run_node(node_factory: Callable[..., Any], args: Sequence[str] | None = None
     import rclpy
     from rclpy.executors import ExternalShutdownException
 
-    stopping_errors = _stopping_errors()
+    stop_errors = stopping_errors()
     rclpy.init(args=args)
     node = None
     try:
@@ -286,7 +288,7 @@ def run_node(node_factory: Callable[..., Any], args: Sequence[str] | None = None
         except (KeyboardInterrupt, ExternalShutdownException):
             raise
         except Exception as err:
-            if isinstance(err, stopping_errors) and not rclpy.ok():
+            if isinstance(err, stop_errors) and not rclpy.ok():
                 return 0     # Ctrl-C while the node was being built: a stop, not an error
             if os.environ.get(DEBUG_ENV):
                 raise
@@ -305,18 +307,18 @@ def run_node(node_factory: Callable[..., Any], args: Sequence[str] | None = None
                 rclpy.spin_until_future_complete(node, finished)
                 if finished.done():
                     return int(finished.result() or 0)
-        except stopping_errors:
+        except stop_errors:
             if rclpy.ok():
                 raise    # not a shutdown: a real error
             # the context was shut down under a callback or the wait set (Ctrl-C): a stop
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        _close(node)
+        close_node(node)
     return 0
 
 
-def _stopping_errors() -> tuple[type[BaseException], ...]:
+def stopping_errors() -> tuple[type[BaseException], ...]:
     """What rclpy raises once the context is shut down under a callback or a clean-up."""
     from rclpy.exceptions import InvalidHandle
     from rclpy.impl.implementation_singleton import rclpy_implementation
@@ -324,7 +326,7 @@ def _stopping_errors() -> tuple[type[BaseException], ...]:
     return (rclpy_implementation.RCLError, InvalidHandle)
 
 
-def _close(node: Any) -> None:
+def close_node(node: Any) -> None:
     """Destroy ``node`` and shut rclpy down, through a late Ctrl-C or an invalid context."""
     import rclpy
 
@@ -335,7 +337,7 @@ def _close(node: Any) -> None:
                 break
             except KeyboardInterrupt:
                 continue
-            except _stopping_errors():
+            except stopping_errors():
                 break        # already gone with the context
 
 

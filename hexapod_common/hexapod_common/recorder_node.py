@@ -13,8 +13,8 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from pathlib import Path
 from collections.abc import Sequence
+from pathlib import Path
 from dataclasses import dataclass
 from typing import Any
 
@@ -24,7 +24,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from hexapod_common.bags import BagWriter
 from hexapod_common.errors import HexapodError, UnknownTypeError
-from hexapod_common.node_utils import declare_params, param
+from hexapod_common.node_utils import close_node, declare_params, param, stopping_errors
 from hexapod_common.ros_types import CONTRACT_TOPICS, ros_message_class
 
 __all__ = ['BagRecorderNode', 'RecorderParams', 'check_args', 'main']
@@ -171,9 +171,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f'bag_recorder: error: {err.filename or "output"}: cannot write the bag '
               f'({err.strerror or err})', file=sys.stderr)
         return 2
+    except stopping_errors() as err:
+        # SIGINT shuts the context down under topic discovery or the wait set (a script's
+        # `kill -INT` at start-up gave a traceback and exit 1): a stop, unless still running
+        if rclpy.ok():
+            raise err
     finally:
         if node is not None:
-            node.destroy_node()
             print(f'recorded: {dict(node.counts)}', file=sys.stderr)
-        rclpy.try_shutdown()
+        close_node(node)
     return 0

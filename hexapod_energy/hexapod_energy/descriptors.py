@@ -359,6 +359,9 @@ AUTO_UNANIMOUS_SAMPLES = 3
 #: ... and each draws at least this much [W]: a sensor's idle offset (20 mA at 12 V before the
 #: servos are powered) must not decide the sign of a whole run
 AUTO_UNANIMOUS_MIN_W = 1.0
+#: with current_sign auto, this many windows in a row of negative mean input power decide the
+#: sign again (live; offline the whole run's median decides)
+AUTO_RECHECK_WINDOWS = 3
 #: a window whose battery samples leave a gap longer than this many median battery intervals
 #: (and longer than 0.25 s) interpolates P_in across a recording gap: flagged
 BATTERY_GAP_INTERVALS = 5.0
@@ -462,6 +465,7 @@ class DescriptorAccumulator:
     #: samples dropped because they were stamped before a time jump but arrived after it
     _clk: StreamClock = field(init=False)
     _n_jumps: int = field(default=0, init=False)
+    _negative_run: int = field(default=0, init=False)
     _quiet_noted: bool = field(default=False, init=False)
     _battery_quiet_noted: bool = field(default=False, init=False)
     # the last /battery_state intervals [s], for the gap check (the buffer is trimmed)
@@ -966,9 +970,32 @@ class DescriptorAccumulator:
             if self._joints_pending(t1) and self._battery[-1][0] < t1 + JOINT_WAIT_S:
                 return out
             out.append(self._window(t0, t1))
+            self._recheck_sign(out[-1])
             self._window_start = t1
             del self._boundaries[:self.cycles]
             self._trim(t1)
+
+    def _recheck_sign(self, d: Descriptors) -> None:
+        """``current_sign`` auto decides on the first samples; a robot that starts on its
+        charger (charging current, positive in the ROS convention) got the wrong sign and
+        read negative power for the whole run, warned per window (an outside review). After
+        :data:`AUTO_RECHECK_WINDOWS` windows in a row of negative mean power, the sign is
+        decided again: flipped, noted; the windows already computed stand."""
+        if self.current_sign != 'auto' or self.sign_ is None:
+            return
+        self._negative_run = self._negative_run + 1 if d.power_in_w < 0 else 0
+        if self._negative_run < AUTO_RECHECK_WINDOWS:
+            return
+        self._negative_run = 0
+        self.sign_ = -self.sign_
+        self._battery = [(t, -p) for t, p in self._battery]
+        self.sign_note_ = ''
+        self.notes_.append(
+            f'{AUTO_RECHECK_WINDOWS} windows in a row with negative mean input power: the '
+            'battery current sign decided on the first samples (a robot starting on its '
+            'charger?) is flipped, now ' + ('the ROS convention (negative while discharging)'
+                                            if self.sign_ < 0 else 'positive while '
+                                            'discharging') + '; give -p current_sign to fix it')
 
     def _joints_pending(self, t1: float) -> bool:
         """Whether a joint that gave power within :data:`JOINT_WAIT_S` before ``t1`` has no

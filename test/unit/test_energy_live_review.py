@@ -206,3 +206,21 @@ def test_a_namespaced_bag_is_told_its_namespace() -> None:
     assert namespace_hint(['/battery_state', '/gait/phase'],
                           ['/a/battery_state', '/b/gait/phase']) == ''
     assert namespace_hint(['/battery_state'], ['/joint_states']) == ''
+
+
+def test_a_robot_starting_on_its_charger_gets_its_sign_decided_again() -> None:
+    """current_sign auto decided on the first samples: +1 A (charging, ROS convention) for
+    0.5 s, then the robot walks at 3 A: every window read -36 W. After 3 negative windows in
+    a row the sign is decided again, noted, and the rest read +36 W."""
+    acc = DescriptorAccumulator(mass_kg=2.0, current_sign='auto', power_out_source='effort')
+    out = []
+    for k in range(1000):
+        t = T0 + 0.01 * k
+        out += acc.add_gait_phase(_gait(t))
+        amps = 1.0 if k < 50 else -3.0
+        out += acc.add_battery(BatterySample(t + 1e-4, 12.0, amps, 25.0))
+    p = [d.power_in_w for d in out]
+    assert len(p) >= 8
+    assert sum(x < 0 for x in p) <= 3
+    assert all(x == pytest.approx(36.0) for x in p[4:])
+    assert any('decided on the first samples' in n for n in acc.notes_)
