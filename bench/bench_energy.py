@@ -94,6 +94,11 @@ def main() -> None:
     print(f'sweep set ({n_curves} curves x 40 speeds x 6 payloads): {sweep_t:.3f} s; '
           f'speed-by-speed baseline {loop_t:.3f} s (P_out only, extrapolated); '
           f'ratio x{loop_t / sweep_t:.1f}')
+    # the analytic Phase() has no bench step geometry: the limits are AntBot's on the 100 mm
+    # path for every step; `energy --sweep` scales them by each step's tip path (140 mm:
+    # 0.63 m/s, not the 0.84 printed here)
+    print('  v_max below: AntBot\'s limits unscaled by step length (analytic phase model, no '
+          'bench geometry; energy --sweep scales them per step)')
     for name, cs in curves.items():
         print('  ' + name + ': ' + '; '.join(
             f"{c.spec.label}: v_max {c.speeds_mps[-1]:.2f} m/s, min eta {c.min_efficiency:.3f}"
