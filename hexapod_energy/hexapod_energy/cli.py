@@ -884,13 +884,13 @@ def _given_gait(args: argparse.Namespace, run_: Any, notes: list[str],
         source = 'given by --legs' if getattr(args, 'legs', None) else 'from the joint names'
         raise EnergyError(f'--gait {args.gait} for {run_.path} ({legs} legs {source}): '
                           f'{err}') from err
-    from hexapod_energy.prediction import _joint_paths
+    from hexapod_energy.prediction import joint_paths
     from hexapod_gait.errors import HexapodGaitError
 
     if model is not None:
         try:
             # a step the leg cannot reach (--step-length 5) was predicted like the bench's
-            _joint_paths(gait.duty_factor, gait.step_length_m, gait.step_height_m,
+            joint_paths(gait.duty_factor, gait.step_length_m, gait.step_height_m,
                          getattr(model, 'bench_leg_', None))
         except HexapodGaitError as err:
             raise EnergyError(f'--step-length {gait.step_length_m:g} m / --step-height '

@@ -51,6 +51,7 @@ __all__ = [
     'ANTBOT_ROBOT',
     'OutputPowerModel',
     'PhasePowerModel',
+    'joint_paths',
     'RobotSpec',
     'bench_domain_check',
     'geometry_limits',
@@ -290,8 +291,8 @@ def phase_duration_scales(model: Any, gait: Any) -> tuple[float, float]:
     leg = getattr(model, 'bench_leg_', None)
     beta = float(gait.duty_factor)
     try:
-        bench = _joint_paths(beta, lb, hb, leg)
-        own = _joint_paths(beta, length, height, leg)
+        bench = joint_paths(beta, lb, hb, leg)
+        own = joint_paths(beta, length, height, leg)
     except HexapodGaitError:
         # a path the robot's leg cannot reach (another robot's leg on the bench's step):
         # nothing to map; the prediction's own reach check says so where it matters
@@ -337,8 +338,8 @@ def geometry_limits(model: Any, gait: Any, limits: Any) -> Any:
 _JOINT_PATHS: dict[tuple[Any, ...], tuple[float, float]] = {}
 
 
-def _joint_paths(beta: float, length: float, height: float, leg: Any
-                 ) -> tuple[float, float]:
+def joint_paths(beta: float, length: float, height: float, leg: Any
+                ) -> tuple[float, float]:
     """Joint-space path lengths ``sum_i integral |dq_i/dphi| dphi`` [rad] of one leg over its
     stance and over its swing (tripod leg 0; the path does not depend on the gait's legs)."""
     key = (round(beta, 9), round(length, 9), round(height, 9), id(leg))
