@@ -8,7 +8,14 @@ Line format (one sample per line, ASCII, ``\\n`` or ``\\r\\n`` terminated)::
 load-cell amplifier reading (signed integer counts, e.g. an HX711's 24-bit value). Lines that
 start with ``#`` are comments (banners, tare messages) and are ignored. Anything else (missing
 field, non-numbers, non-ASCII bytes, a line longer than 64 bytes) is **malformed**: counted and
-skipped, never raised.
+skipped, never raised; :class:`MalformedWatch` turns a run of them with no valid line into a
+warning naming the last line seen and the expected format. A raw value at the HX711 limits
+(8388607 / -8388608, 24-bit two's complement) is a saturated amplifier: ``ForceReading.saturated``.
+
+:class:`SerialForceSource` reopens a port that fails (unplugged) with a backoff (0.5 s doubling
+to 8 s). :class:`McuClockMap` maps the microcontroller time onto the receiving clock (offset by a
+running minimum over ``window_s``; an MCU reset or a garbled time restarts it) so that samples
+received in a USB burst keep their spacing.
 
 Calibration (as on the authors' MiMiC-Ant bench, whose single load cell sits under the treadmill
 so that its reading depends on where the foot presses): a linear regression of the known force on
@@ -18,6 +25,9 @@ so that its reading depends on where the foot presses): a linear regression of t
 
 from __future__ import annotations
 
+import math
+import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -28,10 +38,15 @@ __all__ = [
     'ForceCalibration',
     'ForceLineParser',
     'ForceReading',
+    'MalformedWatch',
+    'McuClockMap',
     'SerialForceSource',
 ]
 
 MAX_LINE_BYTES = 64
+HX711_MAX_RAW = 0x7FFFFF
+HX711_MIN_RAW = -0x800000
+EXPECTED_FORMAT = "'<t_ms>,<raw>' (two integers, e.g. '1000,-12345'), '#' comments"
 
 
 @dataclass(frozen=True)
@@ -41,6 +56,11 @@ class ForceReading:
     t_mcu_s: float
     raw: int
 
+    @property
+    def saturated(self) -> bool:
+        """The HX711 output at its limit: the load is beyond the range, the value is clipped."""
+        return self.raw >= HX711_MAX_RAW or self.raw <= HX711_MIN_RAW
+
 
 class ForceLineParser:
     """Incremental parser: feed byte chunks, get complete readings; counts what it skips.
@@ -48,6 +68,8 @@ class ForceLineParser:
     Attributes
     ----------
     lines_ok, malformed, comments : int
+    last_malformed : bytes
+        The latest malformed line (its first 40 bytes).
     """
 
     def __init__(self) -> None:
@@ -55,6 +77,12 @@ class ForceLineParser:
         self.lines_ok = 0
         self.malformed = 0
         self.comments = 0
+        self.last_malformed = b''
+        self._overflow = False
+
+    def clear(self) -> None:
+        """Forget a partial line (the port was reopened)."""
+        self._buf.clear()
         self._overflow = False
 
     def feed(self, chunk: bytes) -> list[ForceReading]:
@@ -65,9 +93,10 @@ class ForceLineParser:
             if nl < 0:
                 if len(self._buf) > MAX_LINE_BYTES:
                     # A runaway line: drop what we have and the rest of it up to the next \n.
-                    self._buf.clear()
                     if not self._overflow:
                         self.malformed += 1
+                        self.last_malformed = bytes(self._buf[:40])
+                    self._buf.clear()
                     self._overflow = True
                 return out
             line = bytes(self._buf[:nl])
@@ -95,13 +124,116 @@ class ForceLineParser:
                 raise ValueError('negative time')
         except (ValueError, UnicodeDecodeError):
             self.malformed += 1
+            self.last_malformed = text[:40]
             return None
         self.lines_ok += 1
         return ForceReading(t_ms / 1000.0, raw)
 
 
+class MalformedWatch:
+    """Warn when ``threshold`` malformed lines came with no valid one, then at most every
+    ``period_s`` while more keep coming. ``check(now, parser)`` returns the warning text or
+    None. No ROS."""
+
+    def __init__(self, threshold: int = 10, period_s: float = 10.0) -> None:
+        self.threshold = int(threshold)
+        self.period_s = float(period_s)
+        self._ok0 = 0
+        self._bad0 = 0
+        self._last_warn = -math.inf
+        self._bad_warned = -1
+
+    def check(self, now: float, parser: ForceLineParser) -> str | None:
+        if parser.lines_ok != self._ok0:        # a valid line since: a new count starts
+            self._ok0, self._bad0 = parser.lines_ok, parser.malformed
+            self._last_warn = -math.inf
+            return None
+        bad = parser.malformed - self._bad0
+        if (bad < self.threshold or now - self._last_warn < self.period_s
+                or parser.malformed == self._bad_warned):
+            return None
+        self._last_warn, self._bad_warned = now, parser.malformed
+        return (f'{bad} malformed lines and no valid one ({parser.malformed} malformed in '
+                f'all); last seen: {parser.last_malformed!r}; expected {EXPECTED_FORMAT}')
+
+
+class McuClockMap:
+    """Microcontroller time -> receiving clock: ``stamp(t_mcu_s, t_recv_s)``.
+
+    The offset ``t_recv - t_mcu`` is the transmission delay plus a constant; its minimum over
+    the last ``window_s`` of MCU time is the least-delayed sample, so ``t_mcu + min offset``
+    keeps the MCU spacing of samples received in bursts and follows a slow clock drift. When a
+    less-delayed sample lowers the minimum (the first lines read late at start-up), the applied
+    offset slews down to it at 0.1 s/s (stamps may lead the reception meanwhile): stamps never
+    go back. A sample whose offset differs from the minimum by more than
+    ``jump_s`` (an MCU reset, a garbled time) is stamped at reception; ``restart_after`` such
+    samples in a row restart the map.
+    """
+
+    def __init__(self, window_s: float = 10.0, jump_s: float = 1.0,
+                 restart_after: int = 3) -> None:
+        self.window_s = float(window_s)
+        self.jump_s = float(jump_s)
+        self.restart_after = int(restart_after)
+        self._mins: deque[tuple[float, float]] = deque()   # (t_mcu, offset), offsets increasing
+        self._jumps = 0
+        self.restarts = 0
+        self.slew = 0.1                  # s of offset correction per s of MCU time
+        self._used: float | None = None  # the offset applied (slews down to the minimum)
+        self._used_t = 0.0
+        self._last_stamp = -math.inf
+
+    def stamp(self, t_mcu_s: float, t_recv_s: float) -> float:
+        return self.stamp_batch([t_mcu_s], t_recv_s)[0]
+
+    def stamp_batch(self, t_mcu_s: Any, t_recv_s: float) -> list[float]:
+        """Stamps of samples received together (one read): the map is updated with all of
+        them first, so the first of a burst is not stamped with its larger delay."""
+        restarts = self.restarts
+        ok = [self._update(float(t), t_recv_s) for t in t_mcu_s]
+        if not self._mins:
+            return [t_recv_s for _ in ok]
+        base, newest = self._mins[0][1], self._mins[-1][0]
+        if self._used is None or self.restarts != restarts or base >= self._used:
+            self._used = base
+        else:
+            # A less-delayed sample lowered the minimum: slew to it (stamps never step back).
+            step = self.slew * max(0.0, newest - self._used_t)
+            self._used = max(base, self._used - step)
+        self._used_t = newest
+        out = []
+        for t, good in zip(t_mcu_s, ok):
+            stamp = float(t) + self._used if good else t_recv_s
+            stamp = max(stamp, self._last_stamp)
+            self._last_stamp = stamp
+            out.append(stamp)
+        return out
+
+    def _update(self, t_mcu_s: float, t_recv_s: float) -> bool:
+        offset = t_recv_s - t_mcu_s
+        if self._mins:
+            base = self._mins[0][1]
+            newest = self._mins[-1][0]
+            if abs(offset - base) > self.jump_s or t_mcu_s < newest - self.jump_s:
+                self._jumps += 1
+                if self._jumps < self.restart_after:
+                    return False
+                self._mins.clear()
+                self.restarts += 1
+        self._jumps = 0
+        while self._mins and self._mins[-1][1] >= offset:
+            self._mins.pop()
+        self._mins.append((t_mcu_s, offset))
+        while self._mins[0][0] < t_mcu_s - self.window_s:
+            self._mins.popleft()
+        return True
+
+
 class SerialForceSource:
     """Non-blocking reader of a serial port feeding a ForceLineParser.
+
+    A port that fails is closed and reopened by later polls with a backoff (0.5 s, doubling up
+    to 8 s); ``poll`` never raises for it.
 
     Parameters
     ----------
@@ -110,25 +242,83 @@ class SerialForceSource:
     baud_rate : int
     serial_factory : callable, optional
         ``serial.Serial``-like constructor (tests).
+    clock : callable() -> float, optional
+        Monotonic seconds (tests).
+
+    Attributes
+    ----------
+    lost : str or None
+        Why the port is closed, while it is.
+    reconnects, failed_opens : int
     """
 
     def __init__(self, port: str, *, baud_rate: int = 115200,
-                 serial_factory: Callable[..., Any] | None = None) -> None:
+                 serial_factory: Callable[..., Any] | None = None,
+                 clock: Callable[[], float] | None = None) -> None:
         import serial
 
-        factory = serial_factory or serial.Serial
-        self.ser = factory(port, baudrate=baud_rate, timeout=0)
+        self._factory = serial_factory or serial.Serial
+        self._port_errors = (OSError, serial.SerialException)
+        self.port = port
+        self.baud_rate = int(baud_rate)
+        self._clock = clock or time.monotonic
+        self.ser: Any = self._open()
         self.parser = ForceLineParser()
+        self.lost: str | None = None
+        self.reconnects = 0
+        self.failed_opens = 0
+        self._backoff_s = 0.0
+        self._next_open = 0.0
+
+    def _open(self) -> Any:
+        ser = self._factory(self.port, baudrate=self.baud_rate, timeout=0)
+        flush = getattr(ser, 'reset_input_buffer', None)
+        if flush is not None:
+            flush()        # lines queued before the open are stale: their stamps would be wrong
+        return ser
 
     def poll(self) -> list[ForceReading]:
         """Readings from every complete line received since the last call."""
-        waiting = self.ser.in_waiting
-        if not waiting:
+        if self.ser is None and not self._reopen():
             return []
-        return self.parser.feed(self.ser.read(waiting))
+        try:
+            waiting = self.ser.in_waiting
+            if not waiting:
+                return []
+            chunk = self.ser.read(waiting)
+        except self._port_errors as err:
+            self._failed(err)
+            return []
+        return self.parser.feed(chunk)
+
+    def _failed(self, err: BaseException) -> None:
+        try:
+            self.ser.close()
+        except self._port_errors:
+            pass
+        self.ser = None
+        self.lost = f'{type(err).__name__}: {err}'
+        self.parser.clear()
+        self._backoff_s = 0.5
+        self._next_open = self._clock() + self._backoff_s
+
+    def _reopen(self) -> bool:
+        if self._clock() < self._next_open:
+            return False
+        try:
+            self.ser = self._open()
+        except self._port_errors:
+            self.failed_opens += 1
+            self._backoff_s = min(8.0, 2 * self._backoff_s)
+            self._next_open = self._clock() + self._backoff_s
+            return False
+        self.lost = None
+        self.reconnects += 1
+        return True
 
     def close(self) -> None:
-        self.ser.close()
+        if self.ser is not None:
+            self.ser.close()
 
 
 class ForceCalibration:

@@ -8,23 +8,38 @@ Zero-current offset: with ``zero_offset_samples`` > 0, the first that many readi
 the robot unpowered) are averaged into an offset, subtracted afterwards; the service
 ``calibrate_zero`` (std_srvs/Trigger) starts a new calibration at any time. Nothing is published
 while calibrating.
+
+Failed reads drop the sample (a clipped, wrapped, overrange or possibly stale value is never
+published): the first is logged at once, then one summary per 5 s, and a line on recovery; a
+chip reset (configuration rewritten) is always logged. A lost SCPI port is one error line; the
+backend reopens it with a backoff. ``/diagnostics``
+(diagnostic_msgs/DiagnosticArray, every ``diagnostics_period_s``): OK, WARN (failing reads, read
+rate below 80 % of ``rate_hz``, calibrating) or ERROR (port lost, no sample for 2 s), with the
+achieved read rate, error counts and the last values; a read rate below 80 % is also logged
+(at most every 30 s).
 """
 
 from __future__ import annotations
 
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from hexapod_common.node_utils import RELIABLE_QOS, declare_params, param, run_node
 from rclpy.node import Node
 from sensor_msgs.msg import BatteryState
 from std_srvs.srv import Trigger
 
 from hexapod_bench_drivers.power_backends import (
+    FailureLog,
     Ina2xxBackend,
     PowerBackend,
     PowerBackendError,
+    PowerPortLost,
+    PowerSample,
+    PowerSensorReset,
     ScpiSupplyBackend,
     SimPowerBackend,
     ZeroOffset,
@@ -62,6 +77,8 @@ class PowerMonitorParams:
                                         'start (0 = no calibration); a run-time change applies '
                                         'to the next calibrate_zero.', live=True)
     frame_id: str = param('', 'header.frame_id of battery_state.', live=True)
+    diagnostics_period_s: float = param(1.0, 'Period of /diagnostics [s].',
+                                        validate=lambda v: None if v > 0 else 'expected > 0')
 
 
 def make_backend(p: PowerMonitorParams) -> PowerBackend:
@@ -94,8 +111,20 @@ class PowerMonitorNode(Node):
         self._calibration: list[float] = []
         self._calibrating = p.zero_offset_samples > 0
         self.read_errors = 0
+        self.published = 0
+        self.reads = 0
+        self.failures = FailureLog(5.0)
+        self.last_sample: PowerSample | None = None
+        self.achieved_hz = float('nan')
+        self._port_lost_logged = False
+        self._last_ok = self._diag_t = time.monotonic()
+        self._diag_reads = 0
+        self._diag_windows = 0
+        self._rate_warned = -float('inf')
         self.pub = self.create_publisher(BatteryState, 'battery_state', RELIABLE_QOS)
+        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', RELIABLE_QOS)
         self.create_service(Trigger, 'calibrate_zero', self._on_calibrate)
+        # /diagnostics from the sampling timer (one timer: its period is the rate_hz contract).
         self.create_timer(1.0 / p.rate_hz, self._on_timer)
 
     def _on_calibrate(self, request: Any, response: Any) -> Any:
@@ -107,12 +136,27 @@ class PowerMonitorNode(Node):
         return response
 
     def _on_timer(self) -> None:
+        now = time.monotonic()
+        if now - self._diag_t >= self.params.diagnostics_period_s:
+            self._publish_diagnostics()
+        self.reads += 1
         try:
             sample = self.backend.read()
         except PowerBackendError as err:
             self.read_errors += 1
-            self.get_logger().warning(f'power read failed: {err}')
+            line = self.failures.failed(now, str(err))
+            if isinstance(err, PowerPortLost) and not self._port_lost_logged:
+                self._port_lost_logged = True
+                self.get_logger().error(f'{err}')
+            elif isinstance(err, PowerSensorReset) or line is not None:
+                self.get_logger().warning(f'power read failed: {line or err}')
             return
+        self._last_ok = now
+        self._port_lost_logged = False
+        recovered = self.failures.succeeded(now)
+        if recovered is not None:
+            self.get_logger().info(f'power reads {recovered}')
+        self.last_sample = sample
         if self._calibrating:
             self._calibration.append(sample.current_a)
             if len(self._calibration) >= max(10, self.params.zero_offset_samples):
@@ -135,6 +179,52 @@ class PowerMonitorNode(Node):
         for name in ('charge', 'capacity', 'design_capacity', 'percentage', 'temperature'):
             setattr(msg, name, float('nan'))
         self.pub.publish(msg)
+        self.published += 1
+
+    def _publish_diagnostics(self) -> None:
+        now = time.monotonic()
+        dt = now - self._diag_t
+        if dt > 0:
+            self.achieved_hz = (self.reads - self._diag_reads) / dt    # reads, ok or failed
+        self._diag_t, self._diag_reads = now, self.reads
+        self._diag_windows += 1
+        requested = self.params.rate_hz
+        slow = self._diag_windows > 1 and self.achieved_hz < 0.8 * requested
+        if slow and now - self._rate_warned >= 30.0:
+            self._rate_warned = now
+            self.get_logger().warning(
+                f'reading at {self.achieved_hz:.1f} Hz, below the requested rate_hz '
+                f'{requested:g} (reads take too long: lower rate_hz, or a faster link)')
+        d = DiagnosticStatus()
+        d.name = f'{self.get_name()}: {self.params.backend}'
+        d.hardware_id = str(getattr(self.backend, 'port', '') or self.params.backend)
+        lost = getattr(self.backend, 'lost', None)
+        if lost or now - self._last_ok > 2.0:
+            d.level = DiagnosticStatus.ERROR
+            d.message = (f'port lost: {lost}' if lost else
+                         f'no sample for {now - self._last_ok:.1f} s: '
+                         f'{self.failures.last_reason}')
+        elif self.failures.run:
+            d.level, d.message = DiagnosticStatus.WARN, self.failures.last_reason
+        elif slow:
+            d.level, d.message = DiagnosticStatus.WARN, 'rate below 80 % of rate_hz'
+        elif self._calibrating:
+            d.level, d.message = DiagnosticStatus.WARN, 'zero-current calibration running'
+        else:
+            d.level, d.message = DiagnosticStatus.OK, 'ok'
+        values = {'read_rate_hz': f'{self.achieved_hz:.2f}', 'rate_hz_requested': f'{requested:g}',
+                  'published': self.published, 'read_errors': self.read_errors}
+        for name in ('query_failures', 'resyncs', 'reconnects', 'resets'):
+            if hasattr(self.backend, name):
+                values[name] = getattr(self.backend, name)
+        if self.last_sample is not None:
+            values['voltage_v'] = f'{self.last_sample.voltage_v:.4f}'
+            values['current_a'] = f'{self.last_sample.current_a:+.4f}'
+        d.values = [KeyValue(key=k, value=str(v)) for k, v in values.items()]
+        arr = DiagnosticArray()
+        arr.header.stamp = self.get_clock().now().to_msg()
+        arr.status.append(d)
+        self.pub_diag.publish(arr)
 
     def destroy_node(self) -> None:
         self.backend.close()
