@@ -11,12 +11,23 @@ load first so the operator changes the weight as rarely as possible::
     walk_duration_s: 60.0
     temperature_gate_c: 26.0       # every servo within gate +- tolerance before walking
     temperature_tolerance_c: 1.0
+    temperature_limit_c: 45.0      # optional: above it while walking, the plan is aborted
+
+The plan is checked before anything moves: unknown keys (a typo would silently give a default),
+values that are not finite or out of range, gaits beyond the actuator limits or out of the leg's
+reach (:func:`hexapod_gait.config.build_gait`, the gait node's own rules) and two sessions with
+one id are refused with the reason.
 
 Per session the state machine goes (``BenchSession.state`` names)::
 
     idle (waiting for the load change, if the load differs) -> cooling (torque off) or
-    heating (walking, servos too cold) until every servo is inside the gate -> walking for
-    walk_duration_s -> cooling (torque off) until inside the gate -> next session ... -> done
+    heating (walking, servos too cold) until every servo is inside the gate -> starting (the
+    gait ramps to the session gait, unrecorded, until the caller reports it steady) -> walking
+    for walk_duration_s -> cooling (torque off) until inside the gate -> next session ... -> done
+
+``starting`` lasts until ``update(..., gait_ready=True)`` (None: at once), at most
+``stand_timeout_s`` (then the plan is aborted: the gait node does not walk the session gait),
+so a session's recording holds only the steady gait.
 
 Time is whatever the caller passes (``t_s`` from message stamps or simulated time). Progress is
 kept in a JSON state file, rewritten atomically (write + fsync + rename) each time a session
@@ -28,6 +39,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import math
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
@@ -37,12 +49,27 @@ from typing import Any
 __all__ = [
     'BenchPlan',
     'BenchSequencer',
+    'HEAT_FREQUENCY_HZ',
+    'OVERHEATING_FLAG',
+    'PLAN_KEYS',
     'PlanError',
     'SequencerCommand',
     'SessionSpec',
     'load_plan',
     'move_aside',
 ]
+
+
+#: step frequency [Hz] that heats the servos into the gate before a basal (0 Hz) session
+HEAT_FREQUENCY_HZ = 1.0
+
+#: ``ServoStatus.error`` bit of an overheating servo (Dynamixel protocol 1.0 and 2.0 alike)
+OVERHEATING_FLAG = 1 << 2
+
+#: Keys a plan may have (any other is refused: a typo would silently give the default).
+PLAN_KEYS = ('loads_kg', 'frequencies_hz', 'duty_factors', 'step_lengths_m', 'step_height_m',
+             'walk_duration_s', 'temperature_gate_c', 'temperature_tolerance_c',
+             'temperature_limit_c')
 
 
 class PlanError(ValueError):
@@ -67,6 +94,7 @@ class BenchPlan:
     sessions: tuple[SessionSpec, ...]
     temperature_gate_c: float = 26.0
     temperature_tolerance_c: float = 1.0
+    temperature_limit_c: float = 45.0
 
 
 def _floats(data: Mapping[str, Any], key: str, default: Sequence[float] | None) -> list[float]:
@@ -81,11 +109,54 @@ def _floats(data: Mapping[str, Any], key: str, default: Sequence[float] | None) 
         raise PlanError(f'plan: {key!r}: expected a list of numbers, got {value!r}') from err
     if not out:
         raise PlanError(f'plan: {key!r} is empty')
+    bad = [v for v in out if not math.isfinite(v)]
+    if bad:
+        raise PlanError(f'plan: {key!r}: expected finite numbers, got {bad[0]!r} in {out}')
     return out
 
 
-def load_plan(source: str | Path | Mapping[str, Any]) -> BenchPlan:
-    """A BenchPlan from a YAML file or a mapping (see module doc)."""
+def _float(data: Mapping[str, Any], key: str, default: float) -> float:
+    value = data.get(key, default)
+    try:
+        out = float(value)
+    except (TypeError, ValueError) as err:
+        raise PlanError(f'plan: {key!r}: expected a number, got {value!r}') from err
+    if not math.isfinite(out):
+        raise PlanError(f'plan: {key!r}: expected a finite number, got {out!r}')
+    return out
+
+
+def _check_gaits(sessions: Sequence[SessionSpec], limits: Any) -> None:
+    """Refuse a session gait the gait node would refuse (actuator limits, leg reach)."""
+    from hexapod_gait.config import build_gait
+    from hexapod_gait.errors import HexapodGaitError
+    from hexapod_gait.feasibility import ActuatorLimits
+
+    limits = limits if limits is not None else ActuatorLimits()
+
+    checked = set()
+    for s in sessions:
+        f = s.frequency_hz if s.frequency_hz > 0 else HEAT_FREQUENCY_HZ   # basal: heating walk
+        key = (f, s.duty_factor, s.step_length_m, s.step_height_m)
+        if key in checked:
+            continue
+        checked.add(key)
+        try:
+            build_gait('tripod', duty_factor=s.duty_factor, period_s=1.0 / f,
+                       step_length_m=s.step_length_m, step_height_m=s.step_height_m,
+                       limits=limits)
+        except HexapodGaitError as err:
+            raise PlanError(f'plan: session {s.session_id} ({f:g} Hz, duty factor '
+                            f'{s.duty_factor:g}, step {s.step_length_m:g} m): the gait node '
+                            f'would refuse it: {err}; change or remove it') from err
+
+
+def load_plan(source: str | Path | Mapping[str, Any], *, limits: Any = None) -> BenchPlan:
+    """A BenchPlan from a YAML file or a mapping (see module doc).
+
+    ``limits`` : :class:`hexapod_gait.feasibility.ActuatorLimits` the session gaits must meet
+    (default: the gait node's defaults).
+    """
     if isinstance(source, Mapping):
         data = source
     else:
@@ -95,24 +166,53 @@ def load_plan(source: str | Path | Mapping[str, Any]) -> BenchPlan:
             data = yaml.safe_load(Path(source).read_text()) or {}
         except (OSError, yaml.YAMLError) as err:
             raise PlanError(f'plan {str(source)!r}: cannot read: {err}') from err
+    if not isinstance(data, Mapping):
+        raise PlanError(f'plan: expected a mapping of keys {list(PLAN_KEYS)}, got {data!r}')
+    unknown = sorted(str(k) for k in data if k not in PLAN_KEYS)
+    if unknown:
+        raise PlanError(f'plan: unknown keys {unknown} (a typo would silently give the '
+                        f'default); the keys are {list(PLAN_KEYS)}')
     loads = _floats(data, 'loads_kg', None)
     freqs = _floats(data, 'frequencies_hz', None)
     betas = _floats(data, 'duty_factors', [0.5])
     steps = _floats(data, 'step_lengths_m', [0.1])
-    height = float(data.get('step_height_m', 0.04))
-    duration = float(data.get('walk_duration_s', 60.0))
+    height = _float(data, 'step_height_m', 0.04)
+    duration = _float(data, 'walk_duration_s', 60.0)
     if any(x < 0 for x in loads) or any(f < 0 for f in freqs) or duration <= 0:
         raise PlanError('plan: loads_kg >= 0, frequencies_hz >= 0 (0: the basal session, the '
                         'leg standing at its load) and walk_duration_s > 0 expected; got '
                         f'{loads}, {freqs}, {duration}')
     if any(not 0 < b < 1 for b in betas):
         raise PlanError(f'plan: duty_factors must be in (0, 1), got {betas}')
+    if any(x <= 0 for x in steps) or height < 0:
+        raise PlanError(f'plan: step_lengths_m > 0 and step_height_m >= 0 expected; got '
+                        f'{steps}, {height}')
+    gate = _float(data, 'temperature_gate_c', 26.0)
+    tol = _float(data, 'temperature_tolerance_c', 1.0)
+    limit = _float(data, 'temperature_limit_c', 45.0)
+    if tol <= 0:
+        raise PlanError(f'plan: temperature_tolerance_c must be > 0 (else the gate is never '
+                        f'met), got {tol}')
+    if limit <= gate + tol:
+        raise PlanError(f'plan: temperature_limit_c ({limit}) must be above the gate '
+                        f'temperature_gate_c + temperature_tolerance_c ({gate + tol})')
     sessions = tuple(
         SessionSpec(f'load{load:.3f}kg_f{f:.2f}Hz_b{b:.2f}_s{s:.3f}m', load, f, b, s, height,
                     duration)
         for load, f, b, s in itertools.product(loads, freqs, betas, steps))
-    return BenchPlan(sessions, float(data.get('temperature_gate_c', 26.0)),
-                     float(data.get('temperature_tolerance_c', 1.0)))
+    seen: dict[str, SessionSpec] = {}
+    for s in sessions:
+        if s.session_id in seen:
+            o = seen[s.session_id]
+            raise PlanError(
+                f'plan: two sessions have the id {s.session_id!r} (load {o.load_kg!r} and '
+                f'{s.load_kg!r} kg, {o.frequency_hz!r} and {s.frequency_hz!r} Hz, duty factor '
+                f'{o.duty_factor!r} and {s.duty_factor!r}, step {o.step_length_m!r} and '
+                f'{s.step_length_m!r} m): the second would be skipped; remove the repeat or '
+                'make the values differ in the 3rd (kg, m) or 2nd (Hz, duty) decimal')
+        seen[s.session_id] = s
+    _check_gaits(sessions, limits)
+    return BenchPlan(sessions, gate, tol, limit)
 
 
 def move_aside(path: Path) -> Path | None:
@@ -131,12 +231,14 @@ def move_aside(path: Path) -> Path | None:
 class SequencerCommand:
     """What the bench should do now.
 
-    state : BenchSession state (idle, heating, walking, cooling, done, aborted).
+    state : BenchSession state (idle, heating, starting, walking, cooling, done, aborted).
     session : the current session (None when done).
     walk : the gait must run (heating and walking).
     torque : servos powered.
     load_request_kg : the operator must put this load on the stage and confirm (else None).
     record : the current session's measurement is being recorded (walking).
+    finished_session : id of the session completed on this update (else None).
+    standing : the leg is being stood before the torque goes off (walk false, torque true).
     """
 
     state: str
@@ -146,6 +248,7 @@ class SequencerCommand:
     load_request_kg: float | None = None
     record: bool = False
     finished_session: str | None = None
+    standing: bool = False
 
 
 @dataclass
@@ -167,14 +270,28 @@ class BenchSequencer:
     """
 
     def __init__(self, plan: BenchPlan, *, state_file: str | Path | None = None,
-                 initial_load_kg: float | None = None) -> None:
+                 initial_load_kg: float | None = None, stand_timeout_s: float = 10.0,
+                 stream_timeout_s: float = 1.0) -> None:
+        if not (math.isfinite(stand_timeout_s) and stand_timeout_s > 0
+                and math.isfinite(stream_timeout_s) and stream_timeout_s > 0):
+            raise PlanError(f'stand_timeout_s = {stand_timeout_s!r}, stream_timeout_s = '
+                            f'{stream_timeout_s!r}: expected finite and > 0 s')
         self.plan = plan
         self.state_file = Path(state_file) if state_file is not None else None
         self.progress = self._load_progress()
         if initial_load_kg is not None:
             self.progress.current_load_kg = float(initial_load_kg)
         self.state = 'idle'
+        self.stand_timeout_s = float(stand_timeout_s)
+        self.stream_timeout_s = float(stream_timeout_s)
+        #: why the plan was aborted ('' while it is not)
+        self.abort_reason = ''
+        #: set when the stand before a torque off timed out (for the log), else ''
+        self.stand_warning = ''
         self._walk_started_s: float | None = None
+        self._starting_since_s: float | None = None
+        self._moved = False                 # walked since the torque was last off
+        self._stand_since_s: float | None = None
         self.skipped = [s.session_id for s in plan.sessions
                         if s.session_id in self.progress.completed]
 
@@ -224,12 +341,88 @@ class BenchSequencer:
         self.progress.current_load_kg = (float(load_kg) if load_kg is not None
                                          else (s.load_kg if s is not None else None))
 
-    def abort(self) -> SequencerCommand:
-        self.state = 'aborted'
-        return SequencerCommand('aborted', self.current, walk=False, torque=False)
+    def abort(self, reason: str = 'aborted by the operator') -> SequencerCommand:
+        """Stop the plan: the next updates stand the leg (if it walked), then torque off.
 
-    def update(self, t_s: float, temperatures_c: Sequence[float]) -> SequencerCommand:
-        """Advance the state machine at time ``t_s`` [s] given every servo's temperature."""
+        The current session is not counted; the state is ``aborted`` from now on.
+        """
+        if self.state != 'aborted':
+            self.state = 'aborted'
+            self.abort_reason = reason
+            self._walk_started_s = None
+        return SequencerCommand('aborted', self.current, walk=False, torque=self._moved,
+                                standing=self._moved)
+
+    def fault(self, temperatures_c: Sequence[float], error_flags: Sequence[int] = (),
+              stream_ages_s: Mapping[str, float] | None = None) -> str | None:
+        """Why the leg must stop walking now (None if nothing is wrong); see module doc."""
+        limit = self.plan.temperature_limit_c
+        flags = [(i, int(f)) for i, f in enumerate(error_flags) if int(f)]
+        if flags:
+            i, f = flags[0]
+            what = 'overheating' if f & OVERHEATING_FLAG else 'a hardware error'
+            return (f'servo {i} reports {what} (error flags 0x{f:02x}; all: '
+                    f'{[hex(int(x)) for x in error_flags]}); let it cool and check it')
+        hot = [t for t in temperatures_c if t > limit]
+        if hot:
+            return (f'servo temperature {max(hot):g} degC > temperature_limit_c {limit:g} '
+                    f'degC while walking; let the servos cool and check the leg')
+        for topic, age in (stream_ages_s or {}).items():
+            if not age <= self.stream_timeout_s:
+                return (f'no {topic} for {age:.2f} s (> {self.stream_timeout_s:g} s) while '
+                        f'walking: the session would lack data or run unwatched; check the '
+                        f'driver, then restart the plan (it resumes at this session)')
+        return None
+
+    def update(self, t_s: float, temperatures_c: Sequence[float], *,
+               error_flags: Sequence[int] = (),
+               stream_ages_s: Mapping[str, float] | None = None,
+               standing: bool | None = None,
+               gait_ready: bool | None = None) -> SequencerCommand:
+        """Advance the state machine at time ``t_s`` [s] given every servo's temperature.
+
+        error_flags : every servo's ``ServoStatus.error`` byte (any non-zero one while
+            walking aborts the plan, see module doc).
+        stream_ages_s : seconds since the last message of each watched stream
+            (``servo_status``, ``battery_state``, ...); one older than ``stream_timeout_s``
+            while walking aborts the plan.
+        standing : the leg has reached the stand (the gait node settled at step 0); None:
+            unknown, the stand before a torque off then lasts ``stand_timeout_s``.
+        gait_ready : the gait node walks the current session's gait, settled (None: unknown,
+            the recorded walk starts at once).
+        """
+        if self.state in ('heating', 'starting', 'walking'):
+            reason = self.fault(temperatures_c, error_flags, stream_ages_s)
+            if reason is not None:
+                self.abort(reason)
+        cmd = self._update(t_s, temperatures_c, gait_ready)
+        return self._stand_first(t_s, cmd, standing)
+
+    def _stand_first(self, t_s: float, cmd: SequencerCommand,
+                     standing: bool | None) -> SequencerCommand:
+        """Never cut the torque of a leg that walked before it stands (module doc)."""
+        if cmd.walk:
+            self._moved, self._stand_since_s = True, None
+            return cmd
+        if cmd.torque or not self._moved:
+            self._stand_since_s = None
+            return cmd
+        if self._stand_since_s is None:          # first tick of the stand: torque stays on
+            self._stand_since_s = t_s
+            self.stand_warning = ''
+        elif standing or t_s - self._stand_since_s >= self.stand_timeout_s:
+            if not standing:
+                self.stand_warning = (f'the leg did not report standing within '
+                                      f'stand_timeout_s = {self.stand_timeout_s:g} s: torque '
+                                      'off anyway')
+            self._moved, self._stand_since_s = False, None
+            return cmd
+        return SequencerCommand(cmd.state, cmd.session, walk=False, torque=True,
+                                load_request_kg=cmd.load_request_kg,
+                                finished_session=cmd.finished_session, standing=True)
+
+    def _update(self, t_s: float, temperatures_c: Sequence[float],
+                gait_ready: bool | None = None) -> SequencerCommand:
         if self.state == 'aborted':
             return SequencerCommand('aborted', self.current, walk=False, torque=False)
         s = self.current
@@ -245,14 +438,23 @@ class BenchSequencer:
         hot = not temperatures_c or any(not t <= g + tol for t in temperatures_c)
         if self.state in ('idle', 'done', 'heating', 'cooling_gate'):
             if self.in_gate(temperatures_c):
-                self.state = 'walking'
-                self._walk_started_s = t_s
+                self.state, self._starting_since_s = 'starting', t_s
             elif hot:
                 self.state = 'cooling_gate'
                 return SequencerCommand('cooling', s, walk=False, torque=False)
             else:
                 self.state = 'heating'   # too cold: walk (unrecorded) until warm
                 return SequencerCommand('heating', s, walk=True, torque=True)
+        if self.state == 'starting':
+            assert self._starting_since_s is not None
+            if gait_ready is False:
+                if t_s - self._starting_since_s < self.stand_timeout_s:
+                    return SequencerCommand('starting', s, walk=True, torque=True)
+                self.abort(f'the gait node did not settle at the session gait of {s.session_id} '
+                           f'within stand_timeout_s = {self.stand_timeout_s:g} s; check it '
+                           '(is it running, does it accept the gait?)')
+                return SequencerCommand('aborted', s, walk=False, torque=False)
+            self.state, self._walk_started_s = 'walking', t_s
         if self.state == 'walking':
             assert self._walk_started_s is not None
             if t_s - self._walk_started_s < s.duration_s:
@@ -264,7 +466,7 @@ class BenchSequencer:
             self.progress.completed.append(s.session_id)
             self._save_progress()
             self.state = 'idle'
-            nxt = self.update(t_s, temperatures_c)
+            nxt = self._update(t_s, temperatures_c, gait_ready)
             return SequencerCommand(nxt.state, nxt.session, nxt.walk, nxt.torque,
                                     nxt.load_request_kg, nxt.record, s.session_id)
         raise AssertionError(f'unreachable state {self.state!r}')

@@ -14,9 +14,25 @@
 
 - ``gait_node`` (e.g. ``gait_scheduler``): the sequencer drives the walk by setting that node's
   ``period``, ``duty_factor``, ``step_length`` and ``step_height`` parameters to the session's
-  gait while heating/walking, and ``step_length = step_height = 0`` (standing) otherwise. A
-  0 Hz session (the paper's basal session) is recorded standing at its load, its heating
-  walked at ``HEAT_FREQUENCY_HZ``.
+  gait while heating/walking, and ``step_length = step_height = 0`` (standing) otherwise, in one
+  ``set_parameters_atomically`` call (all or nothing). A 0 Hz session (the paper's basal
+  session) is recorded standing at its load, its heating walked at ``HEAT_FREQUENCY_HZ``. A gait
+  the gait node refuses aborts the plan (the session is not recorded under values it did not
+  walk).
+
+Safety (core: :class:`~.sequencer.BenchSequencer`):
+
+- the recording of a session starts once ``gait/phase`` shows the gait node settled at the
+  session gait (state ``starting`` until then, at most ``stand_timeout_s``);
+- stand before torque off: after a walk the leg is stood (torque on) until ``gait/phase``
+  shows the gait node settled at step 0, at most ``stand_timeout_s``, then the torque goes off;
+- while walking, an overheating servo (``servo_status`` error flags, or a temperature above the
+  plan's ``temperature_limit_c``), ``servo_status`` silent for ``stream_timeout_s``, or
+  ``battery_state`` silent as long after it was seen once, aborts the plan;
+- SIGINT / SIGTERM (console script) abort the plan: the leg stands, the torque goes off,
+  ``bench/session`` says ``aborted``, the partial bag is moved aside to
+  ``<session_id>.interrupted-N`` and the exit code is 1 (a second signal skips the wait for the
+  stand). Any abort ends the node with exit code 1, whatever ``exit_when_done``.
 
 Time is the node clock (simulated time with ``use_sim_time``), so a simulator running faster
 than real time runs the plan in accelerated time.
@@ -32,6 +48,7 @@ session's walk to ``<output_dir>/<session_id>`` with the bench topics that
 
 from __future__ import annotations
 
+import signal
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -52,25 +69,26 @@ from hexapod_interfaces.msg import BenchSession, ServoStatus
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.task import Future
-from rcl_interfaces.srv import SetParameters
+from hexapod_interfaces.msg import GaitPhase
+from rcl_interfaces.srv import SetParametersAtomically
 from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import BatteryState
 from std_srvs.srv import SetBool, Trigger
 
 from hexapod_bench_drivers.dynamixel_bus import config_file
 from hexapod_bench_drivers.sequencer import (
+    HEAT_FREQUENCY_HZ,
     BenchSequencer,
     SequencerCommand,
     load_plan,
     move_aside,
 )
 
-__all__ = ['SIM_EPOCH_S', 'BenchSequencerNode', 'BenchSequencerParams', 'main']
+__all__ = ['HEAT_FREQUENCY_HZ', 'SIM_EPOCH_S', 'BenchSequencerNode', 'BenchSequencerParams',
+           'abort_on_signals', 'main']
 
 #: Clock time of the embedded simulator's t = 0 [s] (the bag time of its per-session bags).
 SIM_EPOCH_S = 1_700_000_000.0
-
-#: step frequency [Hz] that heats the servos into the gate before a basal (0 Hz) session
-HEAT_FREQUENCY_HZ = 1.0
 
 # Relative names, so that the node's namespace applies (as to every topic of the drivers).
 DEFAULT_RECORD = ('joint_states', 'joint_commands', 'servo_status', 'battery_state',
@@ -102,8 +120,27 @@ class BenchSequencerParams:
     sim_initial_temperature_c: float = param(26.0, 'sim: servo temperature at start [degC].')
     sim_ambient_temperature_c: float = param(25.5, 'sim: air temperature [degC].')
     sim_seed: int = param(0, 'sim: noise seed.')
-    exit_when_done: bool = param(True, 'Exit (code 0; 1 if aborted) once the plan is done '
-                                 'or aborted; false keeps publishing the final state.')
+    stand_timeout_s: float = param(10.0, 'Longest wait for the leg to stand (gait/phase at step '
+                                   '0) before the torque goes off [s].',
+                                   validate=lambda v: None if v > 0 else 'expected > 0')
+    stream_timeout_s: float = param(1.0, 'While walking: servo_status (or battery_state, once '
+                                    'seen) silent this long aborts the plan [s].',
+                                    validate=lambda v: None if v > 0 else 'expected > 0')
+    exit_when_done: bool = param(True, 'Exit (code 0) once the plan is done; false keeps '
+                                 'publishing the final state. An aborted plan always exits '
+                                 '(code 1).')
+
+
+def gait_values(s: Any, state: str, walk: bool) -> tuple[float, float, float, float]:
+    """Gait node ``(period, duty_factor, step_length, step_height)`` for session ``s`` in
+    sequencer state ``state`` (``walk``: the command walks)."""
+    if walk and s.frequency_hz > 0:
+        return (1.0 / s.frequency_hz, s.duty_factor, s.step_length_m, s.step_height_m)
+    if walk and state == 'heating':
+        # heating before a basal (0 Hz) session: walk at HEAT_FREQUENCY_HZ, then stand
+        return (1.0 / HEAT_FREQUENCY_HZ, s.duty_factor, s.step_length_m, s.step_height_m)
+    # holding (and the basal session itself): the gait's step is 0, the leg stands
+    return (1.0 / s.frequency_hz if s.frequency_hz > 0 else 1.0, s.duty_factor, 0.0, 0.0)
 
 
 class BenchSequencerNode(Node):
@@ -128,16 +165,27 @@ class BenchSequencerNode(Node):
                                              cool_step_s=p.sim_cool_step_s)
             self.seq = self.sim_run.seq
         else:
-            self.seq = BenchSequencer(plan, state_file=p.state_file)
+            self.seq = BenchSequencer(plan, state_file=p.state_file,
+                                      stand_timeout_s=p.stand_timeout_s,
+                                      stream_timeout_s=p.stream_timeout_s)
         if self.seq.skipped:
             self.get_logger().info(f'resuming: {len(self.seq.skipped)} sessions already done')
         self.temperatures: list[float] = []
+        self.error_flags: list[int] = []
+        self._status_ns: int | None = None      # node clock at the last servo_status
+        self._battery_ns: int | None = None     # ... battery_state (None: never seen)
+        self._phase_standing = False            # last gait/phase at step 0
+        self._phase: GaitPhase | None = None
+        self._gait_accepted: tuple[float, ...] | None = None
+        self._abort_requests = 0
+        self._abort_logged = False
+        self._counts: dict[str, int] = {}       # messages per topic in the current bag
         self.pub = self.create_publisher(BenchSession, 'bench/session', LATCHED_QOS)
         self.create_service(Trigger, 'confirm_load', self._on_confirm)
         self.torque_client = (self.create_client(SetBool, p.torque_service)
                               if p.torque_service else None)
         self.gait_client = (self.create_client(
-            SetParameters, f'{p.gait_node.rstrip("/")}/set_parameters')
+            SetParametersAtomically, f'{p.gait_node.rstrip("/")}/set_parameters_atomically')
             if p.gait_node else None)
         self._gait_sent: tuple[float, ...] | None = None
         self._last: tuple[str, str] | None = None
@@ -150,6 +198,7 @@ class BenchSequencerNode(Node):
         #: ``exit_when_done``; ``run_node`` spins until then.
         self.finished = Future()
         self._calls: list[Any] = []        # service calls in flight (torque, gait)
+        self._calls_since_ns: int | None = None
         if self.sim_run is not None:
             from rclpy.qos import QoSProfile
 
@@ -158,11 +207,63 @@ class BenchSequencerNode(Node):
             self.create_timer(1.0 / p.rate_hz, self._on_sim_timer)
         else:
             self.create_subscription(ServoStatus, 'servo_status', self._on_status, SENSOR_QOS)
+            self.create_subscription(BatteryState, 'battery_state', self._on_battery,
+                                     SENSOR_QOS)
+            if self.gait_client is not None:
+                self.create_subscription(GaitPhase, 'gait/phase', self._on_phase, SENSOR_QOS)
             self._subscribe_recorded()
             self.create_timer(1.0 / p.rate_hz, self._on_timer)
 
     def _on_status(self, msg: ServoStatus) -> None:
         self.temperatures = [float(t) for t in msg.temperature]
+        self.error_flags = [int(e) for e in msg.error]
+        self._status_ns = self.get_clock().now().nanoseconds
+
+    def _on_battery(self, msg: BatteryState) -> None:
+        self._battery_ns = self.get_clock().now().nanoseconds
+
+    def _on_phase(self, msg: GaitPhase) -> None:
+        self._phase = msg
+        self._phase_standing = msg.step_length == 0.0 and msg.step_height == 0.0
+
+    def request_abort(self, reason: str) -> None:
+        """Abort the plan (a signal, a refused gait): stand, torque off, exit code 1.
+
+        A second request no longer waits for the stand (torque off at the next tick).
+        """
+        self._abort_requests += 1
+        if self._abort_requests > 1 and self.seq.state == 'aborted':
+            self.get_logger().error(f'{reason} again: torque off without waiting for the stand')
+        self.seq.abort(reason)       # logged by the next tick with the reason
+
+    def _gait_ready(self) -> bool:
+        """The gait node has accepted the current session's gait and walks it settled
+        (``gait/phase`` carries the target values only once the transition is over)."""
+        s = self.seq.current
+        if self.gait_client is None or s is None:
+            return True
+        values = gait_values(s, 'walking', walk=True)
+        phase = self._phase
+        return (self._gait_accepted == values and phase is not None
+                and all(abs(a - b) <= 1e-9 * max(1.0, abs(b)) for a, b in zip(
+                    (phase.period, phase.duty_factor, phase.step_length, phase.step_height),
+                    values)))
+
+    def _standing(self) -> bool:
+        """The gait node has accepted the stand and reports step 0 (no gait node: True)."""
+        if self.gait_client is None or self._abort_requests > 1:
+            return True
+        sent = self._gait_accepted
+        return (sent is not None and sent[2] == 0.0 and sent[3] == 0.0
+                and self._phase_standing)
+
+    def _ages(self, now_ns: int) -> dict[str, float]:
+        """Seconds since the last message of each watched stream."""
+        ages = {'servo_status': (now_ns - self._status_ns) * 1e-9
+                if self._status_ns is not None else float('inf')}
+        if self._battery_ns is not None:
+            ages['battery_state'] = (now_ns - self._battery_ns) * 1e-9
+        return ages
 
     def _on_confirm(self, request: Any, response: Any) -> Any:
         self.seq.confirm_load()
@@ -171,8 +272,21 @@ class BenchSequencerNode(Node):
         return response
 
     def _on_timer(self) -> None:
-        t_s = self.get_clock().now().nanoseconds * 1e-9
-        cmd = self.last_command = self.seq.update(t_s, self.temperatures)
+        now_ns = self.get_clock().now().nanoseconds
+        t_s = now_ns * 1e-9
+        ages = self._ages(now_ns)
+        # A silent driver's last temperatures are not in the gate.
+        fresh = ages['servo_status'] <= self.params.stream_timeout_s
+        cmd = self.last_command = self.seq.update(
+            t_s, self.temperatures if fresh else [],
+            error_flags=self.error_flags if fresh else [], stream_ages_s=ages,
+            standing=self._standing(), gait_ready=self._gait_ready())
+        if cmd.state == 'aborted' and not self._abort_logged:
+            self._abort_logged = True
+            self.get_logger().error(f'plan aborted: {self.seq.abort_reason}')
+        if self.seq.stand_warning:
+            self.get_logger().warning(self.seq.stand_warning)
+            self.seq.stand_warning = ''
         if cmd.finished_session:
             self.get_logger().info(f'session {cmd.finished_session} done')
         if cmd.load_request_kg is not None and self.params.auto_load_change:
@@ -214,13 +328,23 @@ class BenchSequencerNode(Node):
 
     def _check_finished(self, cmd: SequencerCommand) -> None:
         self._calls = [c for c in self._calls if not c.done()]
-        if cmd.state in ('done', 'aborted') and not self.finished.done():
-            if self._calls:             # the final torque-off / stand request is still in flight
+        now_ns = self.get_clock().now().nanoseconds
+        if not self._calls:
+            self._calls_since_ns = None
+        elif self._calls_since_ns is None:
+            self._calls_since_ns = now_ns
+        if cmd.state == 'aborted':
+            self._stop_recording(aborted=True)
+        if cmd.state in ('done', 'aborted') and not cmd.torque and not self.finished.done():
+            # the final torque-off / stand request still in flight (waited for at most
+            # stand_timeout_s: a driver that never answers must not hang the node)
+            if self._calls and (now_ns - self._calls_since_ns) * 1e-9 < \
+                    self.params.stand_timeout_s:
                 return
             self.get_logger().info(f'plan {cmd.state}: {len(self.seq.completed)} sessions '
                                    'completed')
-            if self.params.exit_when_done:
-                self._stop_recording()
+            if self.params.exit_when_done or cmd.state == 'aborted':
+                self._stop_recording(aborted=cmd.state == 'aborted')
                 self.finished.set_result(0 if cmd.state == 'done' else 1)
 
     def _publish(self, cmd: SequencerCommand, stamp: Any = None) -> None:
@@ -252,34 +376,36 @@ class BenchSequencerNode(Node):
         if s is None:                   # done or aborted: stand with the last gait's timing
             assert sent is not None
             values = (sent[0], sent[1], 0.0, 0.0)
-        elif cmd.walk and s.frequency_hz > 0:
-            values = (1.0 / s.frequency_hz, s.duty_factor, s.step_length_m, s.step_height_m)
-        elif cmd.walk and not cmd.record:
-            # heating before a basal (0 Hz) session: walk at HEAT_FREQUENCY_HZ, then stand
-            values = (1.0 / HEAT_FREQUENCY_HZ, s.duty_factor, s.step_length_m, s.step_height_m)
         else:
-            # holding (and the basal session itself): the gait's step is 0, the leg stands
-            values = (1.0 / s.frequency_hz if s.frequency_hz > 0 else 1.0, s.duty_factor,
-                      0.0, 0.0)
+            values = gait_values(s, cmd.state, cmd.walk)
         if values == self._gait_sent or not self.gait_client.service_is_ready():
             return
         names = ('period', 'duty_factor', 'step_length', 'step_height')
-        request = SetParameters.Request(parameters=[
+        request = SetParametersAtomically.Request(parameters=[
             Parameter(n, value=float(v)).to_parameter_msg() for n, v in zip(names, values)])
         call = self.gait_client.call_async(request)
-        call.add_done_callback(self._on_gait_set)
+        call.add_done_callback(lambda f, _v=values: self._on_gait_set(_v, f))
         self._calls.append(call)
         self._gait_sent = values
+        self._gait_accepted = None
 
-    def _on_gait_set(self, future: Any) -> None:
+    def _on_gait_set(self, values: tuple[float, ...], future: Any) -> None:
+        """A refused (or failed) gait aborts the plan: nothing is recorded under values the
+        leg did not walk, and a leg that cannot be stood must not go on."""
+        what = 'stand' if values[2] == 0.0 and values[3] == 0.0 else 'session gait'
+        gait = ', '.join(f'{n} {v:g}' for n, v in
+                         zip(('period', 'duty_factor', 'step_length', 'step_height'), values))
         try:
-            results = future.result().results
-        except Exception as err:  # noqa: BLE001 -- a failed call is logged, never raised
-            self.get_logger().error(f'setting the gait failed: {err}')
+            result = future.result().result
+        except Exception as err:  # noqa: BLE001 -- a failed call aborts, never raises
+            self.request_abort(f'setting the {what} ({gait}) on {self.params.gait_node} '
+                               f'failed: {err}')
             return
-        for r in results:
-            if not r.successful:
-                self.get_logger().error(f'gait node refused the session gait: {r.reason}')
+        if not result.successful:
+            self.request_abort(f'gait node {self.params.gait_node} refused the {what} '
+                               f'({gait}): {result.reason}; fix the plan or the gait node')
+        elif values == self._gait_sent:
+            self._gait_accepted = values
 
     def _set_recording(self, cmd: SequencerCommand) -> None:
         if (self.writer is not None and cmd.session is not None
@@ -292,8 +418,9 @@ class BenchSequencerNode(Node):
             path.parent.mkdir(parents=True, exist_ok=True)
             self.writer = BagWriter(path)
             self.writer.set_custom_data('bench_session', cmd.session.session_id)
+            self._counts = {}
         elif not cmd.record and self.writer is not None:
-            self._stop_recording()
+            self._stop_recording(aborted=cmd.state == 'aborted')
 
     def _subscribe_recorded(self) -> None:
         # Subscribed from the start (not per session): a new subscription needs discovery
@@ -316,20 +443,57 @@ class BenchSequencerNode(Node):
     def _record(self, topic: str, msgtype: str, data: bytes) -> None:
         if self.writer is not None:
             self.writer.write(topic, msgtype, data, self.get_clock().now().nanoseconds)
+            self._counts[topic] = self._counts.get(topic, 0) + 1
 
-    def _stop_recording(self) -> None:
-        if self.writer is not None:
-            self.writer.close()
-            self.writer = None
+    def _stop_recording(self, *, aborted: bool = False) -> None:
+        """Close the bag; an aborted session's bag is moved aside (``.interrupted-N``), and
+        a bag lacking some of the ``record_topics`` is named in the log."""
+        if self.writer is None:
+            return
+        self.writer.close()
+        self.writer = None
+        path = Path(self.params.output_dir) / self._recording_id
+        if aborted:
+            target = move_aside(path)
+            self.get_logger().error(f'session {self._recording_id} aborted: its partial bag '
+                                    f'is {target}, not counted')
+            return
+        missing = ['/' + t.lstrip('/') for t in self.params.record_topics
+                   if self._counts.get('/' + t.lstrip('/'), 0) == 0]
+        if missing:
+            self.get_logger().warning(f'session {self._recording_id}: bag {path} has no '
+                                      f'{missing}; the analysis may refuse it')
 
     def destroy_node(self) -> None:
         self._stop_recording()
         super().destroy_node()
 
 
+def abort_on_signals(node: BenchSequencerNode,
+                     signals: Sequence[int] = (signal.SIGINT, signal.SIGTERM)) -> None:
+    """SIGINT / SIGTERM abort the plan safely (:meth:`BenchSequencerNode.request_abort`)
+    instead of shutting rclpy down under a walking leg; the node then exits with code 1."""
+    from rclpy.signals import uninstall_signal_handlers
+
+    uninstall_signal_handlers()
+
+    def handler(signum: int, frame: Any) -> None:
+        node.request_abort(f'{signal.Signals(signum).name} received')
+
+    for sig in signals:
+        signal.signal(sig, handler)
+
+
+def _node_aborting_on_signals(**kw: Any) -> BenchSequencerNode:
+    """``bench_sequencer`` node built by the console script (signals abort the plan)."""
+    node = BenchSequencerNode(**kw)
+    abort_on_signals(node)
+    return node
+
+
 def main(args: Sequence[str] | None = None) -> int:
     """Console script ``bench_sequencer``."""
-    return run_node(BenchSequencerNode, args)
+    return run_node(_node_aborting_on_signals, args, params=BenchSequencerParams)
 
 
 if __name__ == '__main__':

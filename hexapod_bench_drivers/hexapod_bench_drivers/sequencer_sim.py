@@ -193,7 +193,8 @@ class SimulatedBenchRun:
 
     @property
     def done(self) -> bool:
-        return self.last is not None and self.last.state == 'done'
+        # done once the leg has stood and the torque is off (the last stand lasts one step)
+        return self.last is not None and self.last.state == 'done' and not self.last.torque
 
     def _event(self, kind: str, sid: str, detail: str = '') -> None:
         self.events.append(RunEvent(kind, sid, self.bench.t_s,
@@ -202,7 +203,8 @@ class SimulatedBenchRun:
     def step(self) -> SequencerCommand:
         """One update of the state machine, then the bench runs the command for one step."""
         bench = self.bench
-        cmd = self.seq.update(bench.t_s, bench.temperatures_c)
+        # The simulated leg stands at once (its powered standing needs no transition).
+        cmd = self.seq.update(bench.t_s, bench.temperatures_c, standing=True)
         if cmd.finished_session:
             self._event('finished', cmd.finished_session)
         if cmd.load_request_kg is not None:        # automatic load change in simulation
@@ -231,7 +233,8 @@ class SimulatedBenchRun:
         t_end = self.bench.t_s + max_sim_s
         while self.bench.t_s < t_end:
             cmd = self.step()
-            if cmd.state in ('done', 'aborted') or (stop is not None and stop(cmd)):
+            if (cmd.state in ('done', 'aborted') and not cmd.torque) or \
+                    (stop is not None and stop(cmd)):
                 return cmd
         raise RuntimeError(f'bench plan not finished after {max_sim_s} s of simulated time '
                            f'(state {self.seq.state!r}, temperatures {self.bench.temperatures_c})')

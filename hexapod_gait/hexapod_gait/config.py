@@ -1,7 +1,7 @@
 """Gait from a flat parameter set (what the gait node's parameters describe), validated.
 
 Kept out of the node so that the rules (speed chooses the period, feasibility, reach of every
-tip on the path) are tested without ROS.
+tip on the path, static support of a live robot) are tested without ROS.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from .gait import GaitPattern, make_gait
 from .kinematics import Branch, LegKinematics
 from .trajectory import ANTBOT_NEUTRAL_TIP_M, default_forward_axis, tip_path
 
-__all__ = ['build_gait', 'check_reachable']
+__all__ = ['build_gait', 'check_reachable', 'check_static_support', 'min_supporting_per_side']
 
 
 def check_reachable(
@@ -47,6 +47,36 @@ def check_reachable(
                 f'step length {gait.step_length_m:g} m / step height {gait.step_height_m:g} m '
                 f'leave the leg workspace: {err}'
             ) from err
+
+
+def min_supporting_per_side(gait: GaitPattern) -> dict[str, int]:
+    """Fewest legs in stance on each side (first letter of the leg name) over a cycle.
+
+    Exact: evaluated between the touchdown and lift-off phases of the side's legs.
+    """
+    intervals = gait._stance_intervals()
+    out: dict[str, int] = {}
+    for side in sorted({name[0] for name in gait.leg_names}):
+        legs = [iv for name, iv in zip(gait.leg_names, intervals) if name[0] == side]
+        points = sorted({0.0, 1.0} | {x for iv in legs for piece in iv for x in piece})
+        mids = [(a + b) / 2 for a, b in zip(points[:-1], points[1:]) if b > a]
+        out[side] = min(sum(any(s <= m < e for s, e in iv) for iv in legs) for m in mids)
+    return out
+
+
+def check_static_support(gait: GaitPattern) -> None:
+    """Raise :class:`InfeasibleGaitError` if at some instant every leg of one side is in swing
+    (the robot falls over that side), e.g. the wave gait at duty factor 0.5. Standing (step
+    length and height 0) always passes."""
+    if gait.step_length_m == 0.0 and gait.step_height_m == 0.0:
+        return
+    lost = [side for side, n in min_supporting_per_side(gait).items() if n == 0]
+    if lost:
+        n = gait.leg_count
+        raise InfeasibleGaitError(
+            f'gait {gait.name!r} at duty factor {gait.duty_factor:g} lifts every leg of side '
+            f'{"/".join(lost)} at once: the robot falls over; raise the duty factor (the wave '
+            f'walks at 1 - 1/n = {1 - 1 / n:.4g} on {n} legs) or choose another gait')
 
 
 def build_gait(

@@ -5,6 +5,17 @@ Publishes ``gait/phase`` (hexapod_interfaces/GaitPhase) and ``joint_commands``
 (so ``use_sim_time`` works). Parameter changes at run time start a phase-continuous transition
 (:class:`hexapod_gait.scheduler.GaitScheduler`); an infeasible request is refused with its reason
 and the gait keeps running. The science is in the core modules of :mod:`hexapod_gait`.
+
+Live-robot rules on top of the core's feasibility and reach: a gait that lifts every leg of one
+side at once (the wave at duty factor 0.5) is refused (:func:`hexapod_gait.config.
+check_static_support`); ``transition_cycles`` is at least
+:data:`~hexapod_gait.scheduler.MIN_TRANSITION_CYCLES`; ``period`` cannot change while
+``speed > 0`` (the speed chooses it). A multi-parameter change is checked as one set when sent
+in one ``set_parameters_atomically`` call (``ros2 param set`` sends one parameter at a time).
+
+Stand / stop: ``ros2 param set /gait_scheduler stand true`` (or ``step_length`` and
+``step_height`` 0) moves every tip to its neutral stance over one transition and holds it;
+``gait/phase`` then shows every leg in stance. ``stand false`` walks again.
 """
 
 from __future__ import annotations
@@ -14,6 +25,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from hexapod_interfaces.msg import GaitPhase
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
@@ -21,11 +33,11 @@ from hexapod_common.conversions import s_to_stamp
 from hexapod_common.errors import ParameterError
 from hexapod_common.node_utils import RELIABLE_QOS, declare_params, param, run_node
 from hexapod_gait.buehler import BUEHLER_PRESETS, BuehlerClock
-from hexapod_gait.config import build_gait
+from hexapod_gait.config import build_gait, check_static_support
 from hexapod_gait.errors import HexapodGaitError
 from hexapod_gait.feasibility import ActuatorLimits
 from hexapod_gait.gait import GAIT_NAMES, GaitPattern
-from hexapod_gait.scheduler import GaitScheduler, GaitState
+from hexapod_gait.scheduler import MIN_TRANSITION_CYCLES, GaitScheduler, GaitState
 
 __all__ = ['GaitParams', 'GaitSchedulerNode', 'gait_state_to_msg', 'joint_command_msg', 'main']
 
@@ -59,8 +71,12 @@ class GaitParams:
     preset: str = param('', 'Buehler preset (running, jogging, pace, walk); empty = parameters',
                         validate=lambda v: None if v in ('', *BUEHLER_PRESETS)
                         else f'expected one of {sorted(BUEHLER_PRESETS)} or empty')
-    transition_cycles: float = param(1.0, 'duration of a transition in gait periods',
-                                     validate=_positive)
+    transition_cycles: float = param(
+        1.0, f'duration of a transition in gait periods (>= {MIN_TRANSITION_CYCLES:g})',
+        validate=lambda v: None if v >= MIN_TRANSITION_CYCLES
+        else f'must be >= {MIN_TRANSITION_CYCLES:g} (faster changes jump the joints)')
+    stand: bool = param(False, 'true: stand (every tip at its neutral stance, step 0) and hold; '
+                        'false: walk the gait parameters')
     min_swing: float = param(0.16, 'actuator limit: shortest swing [s]', validate=_positive,
                              read_only=True)
     min_stance: float = param(0.15, 'actuator limit: shortest stance [s]', validate=_positive,
@@ -75,12 +91,23 @@ def _limits(p: GaitParams) -> ActuatorLimits:
 
 
 def gait_from_params(p: GaitParams) -> GaitPattern | BuehlerClock:
-    """The gait the parameters describe (raises a :class:`HexapodGaitError` with the reason)."""
-    return build_gait(p.gait, leg_count=p.leg_count, duty_factor=p.duty_factor,
-                      period_s=p.period, step_length_m=p.step_length,
-                      step_height_m=p.step_height, speed_mps=p.speed,
+    """The gait the parameters describe (raises a :class:`HexapodGaitError` with the reason).
+
+    Standing (``stand``, or step length and height 0) keeps the cycle clock at ``period``
+    (``speed`` does not apply: a stand has no speed). A walking 3-DOF gait must keep a leg on
+    the ground on each side (:func:`check_static_support`).
+    """
+    standing = p.gait != 'buehler' and (p.stand or (p.step_length == 0.0
+                                                     and p.step_height == 0.0))
+    gait = build_gait(p.gait, leg_count=p.leg_count, duty_factor=p.duty_factor,
+                      period_s=p.period, step_length_m=0.0 if standing else p.step_length,
+                      step_height_m=0.0 if standing else p.step_height,
+                      speed_mps=0.0 if standing else p.speed,
                       sweep_angle_rad=p.sweep_angle, leg_offset_rad=p.leg_offset,
                       preset=p.preset, limits=_limits(p))
+    if isinstance(gait, GaitPattern):
+        check_static_support(gait)
+    return gait
 
 
 def _stamp(msg: Any, t_ns: int | None, t_s: float) -> None:
@@ -139,6 +166,8 @@ class GaitSchedulerNode(Node):
         self.t0_ns: int | None = None
         self.t0_s: float | None = None
         p = declare_params(self, GaitParams, on_change=self._on_change)
+        # added last, so rclpy runs it before the change is applied
+        self.add_on_set_parameters_callback(self._refuse_period_in_speed_mode)
         try:
             self._gait = gait_from_params(p)
         except HexapodGaitError as err:
@@ -161,6 +190,18 @@ class GaitSchedulerNode(Node):
         """Scheduler time: seconds since the first tick (0 before it)."""
         now_ns = self.get_clock().now().nanoseconds
         return 0.0 if self.t0_ns is None else (now_ns - self.t0_ns) * 1e-9
+
+    def _refuse_period_in_speed_mode(self, parameters: list[Any]) -> SetParametersResult:
+        """Setting ``period`` while ``speed > 0`` is refused: it would be accepted and ignored
+        (the speed chooses the period), so a caller would believe it walks that period."""
+        names = {p.name: p.value for p in parameters}
+        speed = names.get('speed', self.params.speed)
+        if 'period' in names and speed > 0:
+            reason = (f'period {names["period"]} s is ignored while speed = {speed:g} m/s > 0 '
+                      '(the speed chooses the period); set speed 0 to walk a period')
+            self.get_logger().warning(f'gait change refused: {reason}')
+            return SetParametersResult(successful=False, reason=reason)
+        return SetParametersResult(successful=True)
 
     def _on_change(self, new: GaitParams) -> str | None:
         """Validate a run-time change and start a transition; a returned string refuses it."""

@@ -13,6 +13,11 @@ switching. The frequency ramp has the closed-form integral
 
 A change requested during a transition starts a new transition from the parameters of that
 instant. The leg count and the kind of legs (3-DOF pattern or Buehler clock) cannot change.
+``transition_cycles`` is at least :data:`MIN_TRANSITION_CYCLES`, so that a change cannot jump
+the joints faster than the servos follow.
+
+Standing: a 3-DOF pattern with step length and step height 0 does not move the tips; its state
+then has every leg in stance (``supporting_legs`` = every leg), whatever the cycle phase.
 """
 
 from __future__ import annotations
@@ -30,11 +35,14 @@ from .kinematics import Branch, LegKinematics
 from .legs import all_joint_names
 from .trajectory import ANTBOT_NEUTRAL_TIP_M, default_forward_axis, tip_path
 
-__all__ = ['GaitState', 'GaitScheduler', 'smoothstep']
+__all__ = ['MIN_TRANSITION_CYCLES', 'GaitState', 'GaitScheduler', 'smoothstep']
 
 _TWO_PI = 2.0 * np.pi
 # Time step of the central differences used for velocities during a transition [s].
 _FD_STEP_S = 1e-5
+#: Shortest transition, in periods of the slower gait: below it a gait change (e.g. tripod to
+#: wave) commands joint steps faster than an AX-18A follows.
+MIN_TRANSITION_CYCLES = 0.5
 
 
 def smoothstep(s: ArrayLike) -> NDArray[np.float64]:
@@ -113,7 +121,8 @@ class GaitScheduler:
         Stance midpoint of every leg in its base frame [m].
     branch : {'knee_up', 'knee_down'}
     transition_cycles : float
-        Transition duration in periods of the slower of the two gaits, > 0.
+        Transition duration in periods of the slower of the two gaits,
+        >= :data:`MIN_TRANSITION_CYCLES`.
     limits : ActuatorLimits, optional
         If given, :meth:`set_gait` (and the constructor) refuse infeasible patterns.
     """
@@ -130,10 +139,8 @@ class GaitScheduler:
         transition_cycles: float = 1.0,
         limits: ActuatorLimits | None = None,
     ) -> None:
-        if not transition_cycles > 0.0:
-            raise InvalidGaitError(f'transition_cycles must be > 0, got {transition_cycles!r}')
         self.limits = limits
-        self.transition_cycles = float(transition_cycles)
+        self.transition_cycles = transition_cycles
         self.is_buehler = isinstance(gait, BuehlerClock)
         pattern = gait.as_pattern(leg_count) if isinstance(gait, BuehlerClock) else gait
         if limits is not None and not self.is_buehler:
@@ -153,6 +160,19 @@ class GaitScheduler:
         self._c_switch = 0.0
         self._duration_s = self.transition_cycles / params.freq_hz
         self._changed = False  # no transition yet: settled at every time
+
+    @property
+    def transition_cycles(self) -> float:
+        """Transition duration in periods of the slower gait (>= MIN_TRANSITION_CYCLES)."""
+        return self._transition_cycles
+
+    @transition_cycles.setter
+    def transition_cycles(self, value: float) -> None:
+        if not float(value) >= MIN_TRANSITION_CYCLES:
+            raise InvalidGaitError(
+                f'transition_cycles must be >= {MIN_TRANSITION_CYCLES:g} (shorter changes jump '
+                f'the joints faster than the servos follow), got {value!r}')
+        self._transition_cycles = float(value)
 
     # ----------------------------------------------------------------- parameters
     @staticmethod
@@ -299,6 +319,8 @@ class GaitScheduler:
         cycle, phi = self.leg_phases(t)
         pattern, clock = self._pattern_at(t)
         in_stance = phi[0] < pattern.duty_factor
+        if not self.is_buehler and pattern.step_length_m == 0.0 and pattern.step_height_m == 0.0:
+            in_stance = np.ones_like(in_stance)     # standing: every tip on the ground
         return GaitState(
             t_s=t,
             cycle_phase=float(cycle[0]),

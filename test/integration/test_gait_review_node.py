@@ -1,0 +1,69 @@
+"""gait_scheduler node after the outside review: live-robot refusals (a side without support,
+too short transitions, period in speed mode) and a real stand (FINDINGS G1, G2, G4-G6)."""
+
+from __future__ import annotations
+
+import pytest
+from harness import Collector, ros_env
+from hexapod_interfaces.msg import GaitPhase
+from rclpy.parameter import Parameter
+
+from hexapod_common.errors import ParameterError
+from hexapod_gait.gait_node import GaitSchedulerNode
+
+
+def _overrides(**kw):
+    return [Parameter(k, value=v) for k, v in kw.items()]
+
+
+@pytest.mark.timeout(60)
+def test_wave_at_half_duty_factor_is_refused_at_start_and_at_run_time():
+    with ros_env('gaitrev') as env:
+        with pytest.raises(ParameterError, match='lifts every leg of side'):
+            GaitSchedulerNode(context=env.context, namespace=env.namespace,
+                              parameter_overrides=_overrides(gait='wave'))
+        node = env.make(GaitSchedulerNode, parameter_overrides=_overrides(rate=50.0))
+        Collector(env, GaitPhase, 'gait/phase').wait_for(env, 5)
+        [bad] = node.set_parameters([Parameter('gait', value='wave')])
+        assert not bad.successful and '1 - 1/n = 0.8333' in bad.reason
+        assert node.params.gait == 'tripod'
+        ok = node.set_parameters_atomically([Parameter('gait', value='wave'),
+                                             Parameter('duty_factor', value=5 / 6)])
+        assert ok.successful
+
+
+@pytest.mark.timeout(60)
+def test_too_short_transition_and_period_in_speed_mode_are_refused():
+    with ros_env('gaitrev') as env:
+        node = env.make(GaitSchedulerNode, parameter_overrides=_overrides(rate=50.0))
+        [bad] = node.set_parameters([Parameter('transition_cycles', value=0.001)])
+        assert not bad.successful and 'must be >= 0.5' in bad.reason
+        [ok] = node.set_parameters([Parameter('speed', value=0.3)])
+        assert ok.successful
+        [bad] = node.set_parameters([Parameter('period', value=2.0)])
+        assert not bad.successful and 'ignored while speed = 0.3 m/s' in bad.reason
+        ok = node.set_parameters_atomically([Parameter('speed', value=0.0),
+                                             Parameter('period', value=2.0)])
+        assert ok.successful and node.params.period == 2.0
+
+
+@pytest.mark.timeout(60)
+def test_stand_publishes_every_leg_in_stance_and_walks_again():
+    with ros_env('gaitrev') as env:
+        node = env.make(GaitSchedulerNode, parameter_overrides=_overrides(
+            rate=50.0, period=0.5, speed=0.0))
+        phases = Collector(env, GaitPhase, 'gait/phase')
+        phases.wait_for(env, 10)
+        assert min(m.supporting_legs for m in phases.messages[:10]) == 3
+        [ok] = node.set_parameters([Parameter('stand', value=True)])
+        assert ok.successful
+        assert env.spin_until(lambda: phases.messages[-1].step_length == 0.0
+                              and phases.messages[-1].step_height == 0.0, 20)
+        n = len(phases.messages)
+        phases.wait_for(env, n + 30)
+        for m in phases.messages[n:]:
+            assert all(m.in_stance) and m.supporting_legs == 6
+        [ok] = node.set_parameters([Parameter('stand', value=False)])
+        assert ok.successful
+        assert env.spin_until(lambda: phases.messages[-1].step_length == 0.1, 20)
+        assert env.spin_until(lambda: phases.messages[-1].supporting_legs == 3, 20)
