@@ -799,16 +799,29 @@ class DynamixelBus:
     def _receive(self, sid: int, n_params: int) -> tuple[list[int] | None, int, int]:
         """The status packet of ``sid`` with ``n_params`` parameters before the deadline set
         for the request: (parameters, error byte, result). Other packets are late, skipped."""
+        # A Protocol 1.0 PING's status packet with error byte 0x01 (Input Voltage Error: an AX
+        # servo on a 4S pack or a sagging battery) is byte for byte the PING instruction: a
+        # packet equal to the instruction is the echo only when another one follows it (a
+        # second review: such a servo was left silent and the port said to echo)
+        twin = None
         while True:
             rx, result = self._rx()
             if result != COMM_SUCCESS:
-                self._failed()
-                return None, 0, result
-            if bytes(rx) == getattr(self.port, 'last_tx', None):
-                # the adapter's echo of the request (an echoed PING passes for its reply)
-                self._note_echo()
+                if twin is None:
+                    self._failed()
+                    return None, 0, result
+                # nothing followed: it was the servo's reply
+                rx, twin, result = twin, None, COMM_SUCCESS
+            elif bytes(rx) == getattr(self.port, 'last_tx', None) and twin is None:
                 self.port.setPacketTimeout(self._status_bytes(n_params))
+                if self._ping_twin(rx):
+                    twin = rx
+                else:   # the adapter's echo of the request
+                    self._note_echo()
                 continue
+            elif twin is not None:
+                self._note_echo()         # the reply followed: the twin was the echo
+                twin = None
             rid = rx[P2_ID] if self.protocol == 2 else rx[P1_PKT_ID]
             params = self._params(rx)
             error = rx[P2_ERROR if self.protocol == 2 else P1_ERROR]
@@ -829,6 +842,12 @@ class DynamixelBus:
                 self._duplicate(rid)
             else:
                 self._late(rid)
+
+    def _ping_twin(self, rx: list[int]) -> bool:
+        """Whether ``rx`` (equal to the instruction just sent) could also be the servo's
+        reply: a Protocol 1.0 PING, whose status packet with error byte 0x01 has the same
+        bytes."""
+        return self.protocol == 1 and len(rx) == 6 and rx[P1_PKT_INSTRUCTION] == INST_PING
 
     def _rejected(self, sid: int, error: int) -> None:
         """The servo says the instruction it received was corrupted: counted, for the log."""

@@ -299,3 +299,21 @@ def test_rejected_instruction_not_a_late_reply(model, protocol):
         error = 'checksum' if protocol == 1 else 'crc_error'
         assert any(lv == 'warning' and f'reports a {error} error on an instruction' in m
                    for lv, m in bus.take_events())
+
+
+# --- second review: a Protocol 1.0 PING reply with Input Voltage Error is the PING's twin ------
+@pytest.mark.parametrize('echo', [False, True])
+def test_input_voltage_error_ping_reply_is_not_an_echo(echo):
+    """An AX servo with Input Voltage Error (bit 0x01: a 4S pack, a sagging battery) answers
+    a PING with the very bytes of the PING. The echo fix took it for the adapter's echo: the
+    servo was left silent and the port said to echo (every servo flagged: exit 2). Now such a
+    packet is the echo only when another one follows it."""
+    with ServoBusEmulator.of_model('ax18a', [1, 2, 3]) as emu:
+        emu.echo = echo
+        for sid in ((2,) if not echo else (1, 2, 3)):
+            emu.inject(sid, 'error_bits', error_bits=0x01)
+        with _bus(emu, 3, 1) as bus:
+            assert all(not h.silent for h in bus.health())
+            assert {h.model for h in bus.health()} == {emu.servo(1).table.model_name}
+            assert bus.echo == echo
+            assert all(r.ok for r in bus.poll().readings)
