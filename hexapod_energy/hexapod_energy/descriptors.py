@@ -466,6 +466,8 @@ class DescriptorAccumulator:
     _clk: StreamClock = field(init=False)
     _n_jumps: int = field(default=0, init=False)
     _negative_run: int = field(default=0, init=False)
+    # battery samples since the sign was decided with P_in >= 1 W, <= -1 W
+    _sign_votes: list[int] = field(default_factory=lambda: [0, 0], init=False)
     _quiet_noted: bool = field(default=False, init=False)
     _battery_quiet_noted: bool = field(default=False, init=False)
     # the last /battery_state intervals [s], for the gap check (the buffer is trimmed)
@@ -676,7 +678,12 @@ class DescriptorAccumulator:
 
     def _add_power(self, sample: BatterySample) -> list[Descriptors]:
         assert self.sign_ is not None
-        self._battery.append((sample.t_s, self.sign_ * sample.voltage_v * sample.current_a))
+        p = self.sign_ * sample.voltage_v * sample.current_a
+        if p >= AUTO_UNANIMOUS_MIN_W:
+            self._sign_votes[0] += 1
+        elif p <= -AUTO_UNANIMOUS_MIN_W:
+            self._sign_votes[1] += 1
+        self._battery.append((sample.t_s, p))
         return self._emit()
 
     @property
@@ -979,14 +986,21 @@ class DescriptorAccumulator:
         """``current_sign`` auto decides on the first samples; a robot that starts on its
         charger (charging current, positive in the ROS convention) got the wrong sign and
         read negative power for the whole run, warned per window (an outside review). After
-        :data:`AUTO_RECHECK_WINDOWS` windows in a row of negative mean power, the sign is
-        decided again: flipped, noted; the windows already computed stand."""
+        :data:`AUTO_RECHECK_WINDOWS` windows in a row of mean power at or below -1 W, when
+        most battery samples since the decision (of those beyond +-1 W) contradict it too, the
+        sign is decided again: flipped, noted; the windows already computed stand."""
         if self.current_sign != 'auto' or self.sign_ is None:
             return
-        self._negative_run = self._negative_run + 1 if d.power_in_w < 0 else 0
-        if self._negative_run < AUTO_RECHECK_WINDOWS:
+        negative = d.power_in_w <= -AUTO_UNANIMOUS_MIN_W
+        self._negative_run = self._negative_run + 1 if negative else 0
+        agree, against = self._sign_votes
+        # a few negative windows alone are not enough (a robot regenerating downhill or set
+        # on its charger for a while, a standing robot's sensor offset: a second review);
+        # most of the samples since the decision must contradict it too
+        if self._negative_run < AUTO_RECHECK_WINDOWS or against <= agree:
             return
         self._negative_run = 0
+        self._sign_votes = [against, agree]
         self.sign_ = -self.sign_
         self._battery = [(t, -p) for t, p in self._battery]
         self.sign_note_ = ''

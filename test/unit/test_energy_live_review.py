@@ -224,3 +224,33 @@ def test_a_robot_starting_on_its_charger_gets_its_sign_decided_again() -> None:
     assert sum(x < 0 for x in p) <= 3
     assert all(x == pytest.approx(36.0) for x in p[4:])
     assert any('decided on the first samples' in n for n in acc.notes_)
+
+
+@pytest.mark.parametrize('case', ['regen_4s', 'charger_6s_mid_run', 'stand_offset',
+                                  'stand_noise'])
+def test_the_sign_is_not_flipped_by_a_few_negative_windows(case) -> None:
+    """The first re-check flipped after any 3 negative windows (a second review): a robot
+    regenerating for 4 s, set on its charger mid-run, or standing with a 10 mA sensor offset
+    then read -36 W walking. Now most samples since the decision must contradict it too, and
+    a window must be at or below -1 W."""
+    rng = np.random.default_rng(3)
+    acc = DescriptorAccumulator(mass_kg=2.0, current_sign='auto', power_out_source='effort')
+    out = []
+    for k in range(3000):
+        t = T0 + 0.01 * k
+        out += acc.add_gait_phase(_gait(t))
+        amps = -3.0
+        if case == 'regen_4s' and 1000 <= k < 1400:
+            amps = 0.5
+        elif case == 'charger_6s_mid_run' and 1000 <= k < 1600:
+            amps = 1.0
+        elif case == 'stand_offset' and 1000 <= k < 1400:
+            amps = 0.01
+        elif case == 'stand_noise' and k >= 1000:
+            amps = rng.normal(0.0, 0.02)
+        out += acc.add_battery(BatterySample(t + 1e-4, 12.0, amps, 25.0))
+    assert acc.sign_ == -1.0
+    assert not any('decided on the first samples' in n for n in acc.notes_)
+    walking = [d.power_in_w for d in out if d.t_end_s > T0 + 17.0]
+    if case != 'stand_noise':
+        assert walking and all(x == pytest.approx(36.0) for x in walking)
