@@ -190,7 +190,11 @@ class McuClockMap:
         """Stamps of samples received together (one read): the map is updated with all of
         them first, so the first of a burst is not stamped with its larger delay."""
         restarts = self.restarts
-        ok = [self._update(float(t), t_recv_s) for t in t_mcu_s]
+        prev_used = self._used
+        ok, epochs = [], []
+        for t in t_mcu_s:
+            ok.append(self._update(float(t), t_recv_s))
+            epochs.append(self.restarts)
         if not self._mins:
             return [t_recv_s for _ in ok]
         base, newest = self._mins[0][1], self._mins[-1][0]
@@ -202,9 +206,19 @@ class McuClockMap:
             self._used = max(base, self._used - step)
         self._used_t = newest
         out = []
-        for t, good in zip(t_mcu_s, ok):
-            stamp = float(t) + self._used if good else t_recv_s
-            stamp = max(stamp, self._last_stamp)
+        for t, good, epoch in zip(t_mcu_s, ok, epochs):
+            if not good:
+                stamp = t_recv_s
+            elif epoch != self.restarts:
+                # read before a reset or a wrap inside this same batch: its own clock's offset
+                # (the new one put it the whole uptime late, and held every later stamp
+                # there: a second review)
+                stamp = float(t) + prev_used if prev_used is not None else t_recv_s
+            else:
+                stamp = float(t) + self._used
+            # never more than jump_s after its reception (the start-up slew may lead it a
+            # little), never before the previous stamp
+            stamp = max(min(stamp, t_recv_s + self.jump_s), self._last_stamp)
             self._last_stamp = stamp
             out.append(stamp)
         return out

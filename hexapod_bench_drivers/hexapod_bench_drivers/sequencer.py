@@ -271,7 +271,7 @@ class BenchSequencer:
 
     def __init__(self, plan: BenchPlan, *, state_file: str | Path | None = None,
                  initial_load_kg: float | None = None, stand_timeout_s: float = 10.0,
-                 stream_timeout_s: float = 1.0) -> None:
+                 stream_timeout_s: float = 5.0) -> None:
         if not (math.isfinite(stand_timeout_s) and stand_timeout_s > 0
                 and math.isfinite(stream_timeout_s) and stream_timeout_s > 0):
             raise PlanError(f'stand_timeout_s = {stand_timeout_s!r}, stream_timeout_s = '
@@ -369,7 +369,8 @@ class BenchSequencer:
                     f'degC while walking; let the servos cool and check the leg')
         for topic, age in (stream_ages_s or {}).items():
             if not age <= self.stream_timeout_s:
-                return (f'no {topic} for {age:.2f} s (> {self.stream_timeout_s:g} s) while '
+                return (f'no {topic} for {age:.2f} s (stream_timeout_s = '
+                        f'{self.stream_timeout_s:g} s) while '
                         f'walking: the session would lack data or run unwatched; check the '
                         f'driver, then restart the plan (it resumes at this session)')
         return None
@@ -466,7 +467,10 @@ class BenchSequencer:
             self.progress.completed.append(s.session_id)
             self._save_progress()
             self.state = 'idle'
-            nxt = self._update(t_s, temperatures_c, gait_ready)
+            # gait_ready was the finished session's: the next one's gait is not settled yet
+            # (its recording began on the ramp up when no cooling came between: a second
+            # review)
+            nxt = self._update(t_s, temperatures_c, None if gait_ready is None else False)
             return SequencerCommand(nxt.state, nxt.session, nxt.walk, nxt.torque,
                                     nxt.load_request_kg, nxt.record, s.session_id)
         raise AssertionError(f'unreachable state {self.state!r}')

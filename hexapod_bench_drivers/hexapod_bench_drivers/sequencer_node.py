@@ -123,8 +123,9 @@ class BenchSequencerParams:
     stand_timeout_s: float = param(10.0, 'Longest wait for the leg to stand (gait/phase at step '
                                    '0) before the torque goes off [s].',
                                    validate=lambda v: None if v > 0 else 'expected > 0')
-    stream_timeout_s: float = param(1.0, 'While walking: servo_status (or battery_state, once '
-                                    'seen) silent this long aborts the plan [s].',
+    stream_timeout_s: float = param(5.0, 'While walking: servo_status (or battery_state, once '
+                                    'seen) silent this long aborts the plan [s] (5 s: a 1 Hz '
+                                    'fuel gauge with jitter, a SCPI supply resynchronising).',
                                     validate=lambda v: None if v > 0 else 'expected > 0')
     exit_when_done: bool = param(True, 'Exit (code 0) once the plan is done; false keeps '
                                  'publishing the final state. An aborted plan always exits '
@@ -175,6 +176,7 @@ class BenchSequencerNode(Node):
         self._status_ns: int | None = None      # node clock at the last servo_status
         self._battery_ns: int | None = None     # ... battery_state (None: never seen)
         self._phase_standing = False            # last gait/phase at step 0
+        self._phase_seen = False                # any gait/phase message yet
         self._phase: GaitPhase | None = None
         self._gait_accepted: tuple[float, ...] | None = None
         self._abort_requests = 0
@@ -225,6 +227,7 @@ class BenchSequencerNode(Node):
     def _on_phase(self, msg: GaitPhase) -> None:
         self._phase = msg
         self._phase_standing = msg.step_length == 0.0 and msg.step_height == 0.0
+        self._phase_seen = True
 
     def request_abort(self, reason: str) -> None:
         """Abort the plan (a signal, a refused gait): stand, torque off, exit code 1.
@@ -249,10 +252,15 @@ class BenchSequencerNode(Node):
                     (phase.period, phase.duty_factor, phase.step_length, phase.step_height),
                     values)))
 
-    def _standing(self) -> bool:
-        """The gait node has accepted the stand and reports step 0 (no gait node: True)."""
-        if self.gait_client is None or self._abort_requests > 1:
+    def _standing(self) -> bool | None:
+        """The gait node has accepted the stand and reports step 0. No gait node: what
+        /gait/phase says, if anything publishes it, else None (unknown: the stand then lasts
+        stand_timeout_s; it was True, one tick, so torque could go off mid-step: a second
+        review)."""
+        if self._abort_requests > 1:
             return True
+        if self.gait_client is None:
+            return self._phase_standing if self._phase_seen else None
         sent = self._gait_accepted
         return (sent is not None and sent[2] == 0.0 and sent[3] == 0.0
                 and self._phase_standing)

@@ -151,3 +151,26 @@ def test_a_gait_that_never_settles_aborts_the_plan():
     cmd = seq.update(5.0, GATE, gait_ready=False)
     assert cmd.state == 'aborted' and cmd.torque and not cmd.record      # stands first
     assert 'did not settle at the session gait' in seq.abort_reason
+
+
+def test_the_next_session_waits_for_its_own_gait_without_cooling():
+    """A session that follows another without cooling (always after a basal one): the
+    readiness passed in was the finished session's, so the next one's recording began on
+    its ramp up (0.95 s of a 4 s bag, a second review). Now it starts in 'starting'."""
+    seq = BenchSequencer(load_plan(PLAN), initial_load_kg=0.0, stand_timeout_s=5.0)
+    seq.update(0.0, GATE, gait_ready=True)
+    first = seq.current.session_id
+    cmd = seq.update(5.0, GATE, gait_ready=True)      # the first walk ends, in the gate
+    assert seq.current is not None and seq.current.session_id != first
+    assert cmd.state == 'starting' and not cmd.record
+    cmd = seq.update(5.1, GATE, gait_ready=True)
+    assert cmd.state == 'walking' and cmd.record
+
+
+def test_a_slow_battery_monitor_does_not_abort_the_walk(tmp_path):
+    """A 1 Hz fuel gauge with jitter (1.03 s between samples) aborted a normal plan under the
+    1 s default (a second review); the default is 5 s."""
+    seq = BenchSequencer(load_plan(PLAN), initial_load_kg=0.0)
+    assert seq.fault([25.0] * 3, (), {'battery_state': 1.03, 'servo_status': 0.05}) is None
+    why = seq.fault([25.0] * 3, (), {'battery_state': 5.2})
+    assert why and 'stream_timeout_s = 5 s' in why
