@@ -148,3 +148,35 @@ def test_online_geometric_edges_against_truth():
     assert np.mean(lat_ms <= 20.0) >= 0.95
     with pytest.raises(Exception, match='ground_m'):
         OnlineSlip(box=BOX, geometry=geo)
+
+
+def test_live_review_fit_frame_and_mocap_offset_buffer():
+    """A review of the live node: (1) with geometric edges the stances were fitted in the
+    buffered frame, heights from the mocap origin's plane, so every rest length came out the
+    ground height too long (12.4 mm, 11 % of l0); the fit frame now puts the ground at z = 0
+    as the offline analysis does. (2) The mocap buffer was trimmed by the raw stamp: a capture
+    clock 5 s ahead (mocap_offset 5 s) lost every sample, one 1000 s behind grew the buffer
+    without bound."""
+    from slip_identification.geometry import LegGeometry
+
+    run = edubot_sim.simulate_edubot('running', duration_s=2.0, seed=2)
+    geo = LegGeometry.from_params(run.params)
+    core = OnlineSlip(box=BOX, geometry=geo, ground_m=0.0128)
+    pm = run.mocap_position_m
+    qm = run.mocap_quat_xyzw
+    tm = run.mocap_t_s
+    inside = np.ones(len(tm), dtype=bool)
+    world = core._world_frame(tm, pm, qm, inside)
+    fit = core._fit_frame(tm, pm, qm, inside)
+    dz = world.to_world(pm)[:, 2] - fit.to_world(pm)[:, 2]
+    assert np.allclose(dz, 0.0128, atol=1e-12)
+    counts = []
+    for offset in (0.0, 5.0, -1000.0):
+        core = OnlineSlip(box=BOX, mocap_offset_s=offset, buffer_s=0.2)
+        for t, p, q in zip(tm, pm, qm):
+            core.add_mocap(float(t) + offset, p, q)
+        kept = [m[0] for m in core._mocap]
+        assert kept and kept[-1] - kept[0] <= 0.2 + 1e-9
+        assert kept[-1] == pytest.approx(float(tm[-1]))
+        counts.append(len(kept))
+    assert counts[1] == counts[0] == counts[2]
