@@ -262,6 +262,10 @@ def test_late_ping_reply_at_open(model, protocol, name, delay_s):
     recorded Status Return Level 252 (the model number's low byte), Protocol 1.0 refused the
     servo as 'Status Return Level 0'. Now the model and level are right and torque on works."""
     with ServoBusEmulator.of_model(model, [1]) as emu:
+        # warm the emulator's and the bus's code paths first: a cold first reply (imports,
+        # compiled physics) once came beyond the 40 ms probe margin in a fresh clone's CI
+        with DynamixelBus(emu.port_name, _joints(1), protocol=protocol, timeout_margin_ms=5.0):
+            pass
         emu.inject(1, 'late_reply', count=1, delay_s=delay_s)
         with DynamixelBus(emu.port_name, _joints(1), protocol=protocol,
                           timeout_margin_ms=5.0) as bus:
