@@ -34,6 +34,8 @@ from typing import Any
 
 import numpy as np
 
+from hexapod_bench_drivers.reopen import ReopenBackoff
+
 __all__ = [
     'ForceCalibration',
     'ForceLineParser',
@@ -281,8 +283,7 @@ class SerialForceSource:
         self.lost: str | None = None
         self.reconnects = 0
         self.failed_opens = 0
-        self._backoff_s = 0.0
-        self._next_open = 0.0
+        self._backoff = ReopenBackoff(self._clock)
 
     def _open(self) -> Any:
         ser = self._factory(self.port, baudrate=self.baud_rate, timeout=0)
@@ -313,18 +314,16 @@ class SerialForceSource:
         self.ser = None
         self.lost = f'{type(err).__name__}: {err}'
         self.parser.clear()
-        self._backoff_s = 0.5
-        self._next_open = self._clock() + self._backoff_s
+        self._backoff.port_failed()
 
     def _reopen(self) -> bool:
-        if self._clock() < self._next_open:
+        if not self._backoff.due():
             return False
         try:
             self.ser = self._open()
         except self._port_errors:
             self.failed_opens += 1
-            self._backoff_s = min(8.0, 2 * self._backoff_s)
-            self._next_open = self._clock() + self._backoff_s
+            self._backoff.attempt_failed()
             return False
         self.lost = None
         self.reconnects += 1

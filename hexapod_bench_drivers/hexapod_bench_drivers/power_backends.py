@@ -42,6 +42,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from hexapod_bench_drivers.reopen import ReopenBackoff
+
 __all__ = [
     'FailureLog',
     'INA219_REGISTERS',
@@ -353,8 +355,7 @@ class ScpiSupplyBackend:
         self.reconnects = 0
         self.in_sync = True
         self.lost: str | None = None
-        self._backoff_s = 0.0
-        self._next_open = 0.0
+        self._backoff = ReopenBackoff(self._clock)
 
     def _open(self) -> Any:
         try:
@@ -371,20 +372,18 @@ class ScpiSupplyBackend:
         self.ser = None
         self.in_sync = False
         self.lost = f'{type(err).__name__}: {err}'
-        self._backoff_s = 0.5
-        self._next_open = self._clock() + self._backoff_s
+        self._backoff.port_failed()
         return PowerPortLost(f'SCPI supply on {self.port!r}: port failed ({self.lost}); '
                              'reopening it with a backoff')
 
     def _reopen(self) -> None:
-        if self._clock() < self._next_open:
+        if not self._backoff.due():
             raise PowerPortLost(f'SCPI supply on {self.port!r}: port lost ({self.lost})')
         try:
             self.ser = self._open()
         except PowerBackendError as err:
-            self._backoff_s = min(8.0, 2 * self._backoff_s)
-            self._next_open = self._clock() + self._backoff_s
-            raise PowerPortLost(f'{err}; next attempt in {self._backoff_s:g} s') from err
+            self._backoff.attempt_failed()
+            raise PowerPortLost(f'{err}; next attempt in {self._backoff.delay_s:g} s') from err
         self.lost = None
         self.reconnects += 1
 
