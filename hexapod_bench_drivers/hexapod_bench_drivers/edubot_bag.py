@@ -38,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from hexapod_common.cli_args import NumberArgumentParser
 from hexapod_bench_drivers import sim_cdr as cdr
 from hexapod_bench_drivers.edubot_sim import (
     EDUBOT_EFFECTS,
@@ -353,7 +354,7 @@ def _run_cli(args: argparse.Namespace) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Standalone entry (same as ``hexapod-sim edubot``)."""
-    parser = argparse.ArgumentParser(prog='hexapod-sim')
+    parser = NumberArgumentParser(prog='hexapod-sim')
     sub = parser.add_subparsers(dest='command', required=True)
     add_cli(sub)
     args = parser.parse_args(argv)

@@ -79,6 +79,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from hexapod_common.cli_args import NumberArgumentParser
 from hexapod_bench_drivers.control_tables import (
     ERROR_INPUT_VOLTAGE,
     ERROR_OVERHEATING,
@@ -1213,7 +1214,7 @@ def emulator_process(model: str, ids: Iterable[int], *,
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Serve an emulated bus on a pty until interrupted; prints the port name first."""
-    parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    parser = NumberArgumentParser(description=__doc__.split('\n')[0])
     parser.add_argument('--model', default='ax18a',
                         help=f'model name, one of {", ".join(sorted(MODELS_BY_NAME))} '
                              '(case and dashes ignored: MX-28, MX-64(2.0), XM430-W210)')

@@ -36,6 +36,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from hexapod_common.cli_args import NumberArgumentParser
+
 from .effects import EFFECTS, EffectError, parse_effects
 
 __all__ = ['build_parser', 'main']
@@ -67,7 +69,7 @@ def _common(p: argparse.ArgumentParser, simulator: str) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog='hexapod-sim', description=__doc__,
+    parser = NumberArgumentParser(prog='hexapod-sim', description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest='command', required=True)
 

@@ -41,6 +41,7 @@ from collections.abc import Sequence
 
 from hexapod_common.bags import REMAP_ENV, parse_remap
 from hexapod_common.battery import BATTERY_SOURCE_ENV
+from hexapod_common.cli_args import NumberArgumentParser
 from hexapod_common.errors import HexapodError
 from hexapod_common.conversions import (
     JOINT_MAP_ENV,
@@ -61,7 +62,7 @@ PROVIDERS = {
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = NumberArgumentParser(
         prog='hexapod-analyze', description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--remap', action='extend', nargs=1, default=[], metavar='FROM:=TO',

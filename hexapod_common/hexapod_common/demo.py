@@ -28,6 +28,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from hexapod_common.cli_args import NumberArgumentParser
+
 __all__ = ['main']
 
 def _energy_params() -> list:
@@ -323,7 +325,7 @@ def _say_slip(slip: dict[str, Any]) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog='hexapod-demo', description=__doc__.split('\n')[0])
+    parser = NumberArgumentParser(prog='hexapod-demo', description=__doc__.split('\n')[0])
     parser.add_argument('--out', default='demo_out', help='output folder (default demo_out)')
     parser.add_argument('--live-seconds', type=float, default=6.0,
                         help='wall-clock seconds of the live graph, > 0 and <= '

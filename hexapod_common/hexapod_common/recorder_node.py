@@ -23,6 +23,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from hexapod_common.bags import BagWriter
+from hexapod_common.cli_args import NumberArgumentParser
 from hexapod_common.errors import HexapodError, UnknownTypeError
 from hexapod_common.node_utils import close_node, declare_params, param, stopping_errors
 from hexapod_common.ros_types import CONTRACT_TOPICS, ros_message_class
@@ -137,7 +138,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from rclpy.utilities import remove_ros_args
 
     raw = list(sys.argv[1:] if argv is None else argv)
-    parser = argparse.ArgumentParser(prog='bag_recorder', description=__doc__.split('\n')[0])
+    parser = NumberArgumentParser(prog='bag_recorder', description=__doc__.split('\n')[0])
     parser.add_argument('-o', '--output', help='bag folder to create')
     parser.add_argument('--topics', nargs='*', help='topics (default: every contract topic)')
     parser.add_argument('--storage', choices=('mcap', 'sqlite3'))

@@ -29,6 +29,7 @@ from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from hexapod_common.cli_args import NumberArgumentParser
 from hexapod_common.errors import HexapodError
 from hexapod_common.node_utils import LATCHED_QOS
 from hexapod_common.replay import ReplayOptions, ReplaySource
@@ -211,7 +212,7 @@ class BagReplayNode(Node):
 
 
 def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(prog='bag_replay', description=__doc__.split('\n')[0])
+    parser = NumberArgumentParser(prog='bag_replay', description=__doc__.split('\n')[0])
     parser.add_argument('bag', help='rosbag2 bag folder (mcap or sqlite3) or ROS 1 .bag file')
     parser.add_argument('--rate', type=float, default=0.0,
                         help='1 = real time, N = N times real time, 0 = as fast as possible '

@@ -151,6 +151,7 @@ from typing import Any
 import numpy as np
 
 from hexapod_energy.descriptors import gait_from_sample, implausible_effort_power
+from hexapod_common.cli_args import NumberArgumentParser
 from hexapod_common.jsondoc import json_safe
 from hexapod_energy.errors import EnergyError
 from hexapod_energy.trend import TREND_MIN_SPAN_S, TREND_MIN_WINDOWS, power_in_trend, trend_note
@@ -307,7 +308,7 @@ def _net_joint_power_w(run_: Any) -> float:
 
 def build_parser() -> argparse.ArgumentParser:
     """Stand-alone parser (same options as ``hexapod-analyze energy``)."""
-    p = argparse.ArgumentParser(prog='hexapod-analyze energy', description=__doc__,
+    p = NumberArgumentParser(prog='hexapod-analyze energy', description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     _add_arguments(p)
     return p

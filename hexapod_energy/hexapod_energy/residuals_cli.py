@@ -77,6 +77,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from hexapod_common.cli_args import NumberArgumentParser
+
 __all__ = ['add_cli', 'build_parser', 'main', 'run', 'run_slip_loop']
 
 
@@ -128,7 +130,7 @@ def add_cli(subparsers: Any) -> argparse.ArgumentParser:
 
 def build_parser() -> argparse.ArgumentParser:
     """Stand-alone parser (same options as ``hexapod-analyze residuals``)."""
-    p = argparse.ArgumentParser(prog='hexapod-analyze residuals', description=__doc__,
+    p = NumberArgumentParser(prog='hexapod-analyze residuals', description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     _add_arguments(p)
     return p

@@ -103,6 +103,7 @@ from typing import Any
 
 import numpy as np
 
+from hexapod_common.cli_args import NumberArgumentParser
 from hexapod_common.jsondoc import json_safe
 
 from .energetics import gait_table, plot_figures
@@ -714,7 +715,7 @@ def add_cli(subparsers: Any) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Stand-alone entry: ``python -m slip_identification.cli BAG... --out DIR``."""
-    ap = argparse.ArgumentParser(prog='hexapod-analyze')
+    ap = NumberArgumentParser(prog='hexapod-analyze')
     sub = ap.add_subparsers(dest='command', required=True)
     add_cli(sub)
     args = ap.parse_args(['slip'] + (argv if argv is not None else __import__('sys').argv[1:]))
