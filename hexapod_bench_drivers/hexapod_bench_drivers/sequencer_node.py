@@ -28,7 +28,9 @@ Safety (core: :class:`~.sequencer.BenchSequencer`):
   shows the gait node settled at step 0, at most ``stand_timeout_s``, then the torque goes off;
 - while walking, an overheating servo (``servo_status`` error flags, or a temperature above the
   plan's ``temperature_limit_c``), ``servo_status`` silent for ``stream_timeout_s``, or
-  ``battery_state`` silent as long after it was seen once, aborts the plan;
+  ``battery_state`` or any of the ``record_topics`` (``bench/ground_force``,
+  ``bench/leg_tip``, ``joint_states``...; not ``bench/session``) silent as long after it was
+  seen once, aborts the plan (the session would be recorded without it);
 - SIGINT / SIGTERM (console script) abort the plan: the leg stands, the torque goes off,
   ``bench/session`` says ``aborted``, the partial bag is moved aside to
   ``<session_id>.interrupted-N`` and the exit code is 1 (a second signal skips the wait for the
@@ -123,8 +125,9 @@ class BenchSequencerParams:
     stand_timeout_s: float = param(10.0, 'Longest wait for the leg to stand (gait/phase at step '
                                    '0) before the torque goes off [s].',
                                    validate=lambda v: None if v > 0 else 'expected > 0')
-    stream_timeout_s: float = param(5.0, 'While walking: servo_status (or battery_state, once '
-                                    'seen) silent this long aborts the plan [s] (5 s: a 1 Hz '
+    stream_timeout_s: float = param(5.0, 'While walking: servo_status (or battery_state or a '
+                                    'recorded topic, once seen) silent this long aborts the '
+                                    'plan [s] (5 s: a 1 Hz '
                                     'fuel gauge with jitter, a SCPI supply resynchronising).',
                                     validate=lambda v: None if v > 0 else 'expected > 0')
     exit_when_done: bool = param(True, 'Exit (code 0) once the plan is done; false keeps '
@@ -175,6 +178,7 @@ class BenchSequencerNode(Node):
         self.error_flags: list[int] = []
         self._status_ns: int | None = None      # node clock at the last servo_status
         self._battery_ns: int | None = None     # ... battery_state (None: never seen)
+        self._seen_ns: dict[str, int] = {}      # ... each recorded topic seen so far
         self._phase_standing = False            # last gait/phase at step 0
         self._phase_seen = False                # any gait/phase message yet
         self._phase: GaitPhase | None = None
@@ -271,6 +275,8 @@ class BenchSequencerNode(Node):
                 if self._status_ns is not None else float('inf')}
         if self._battery_ns is not None:
             ages['battery_state'] = (now_ns - self._battery_ns) * 1e-9
+        for topic, seen_ns in self._seen_ns.items():
+            ages.setdefault(topic, (now_ns - seen_ns) * 1e-9)
         return ages
 
     def _on_confirm(self, request: Any, response: Any) -> Any:
@@ -449,8 +455,11 @@ class BenchSequencerNode(Node):
                 raw=True))
 
     def _record(self, topic: str, msgtype: str, data: bytes) -> None:
+        now_ns = self.get_clock().now().nanoseconds
+        if topic != '/bench/session':       # our own, latched: published on change only
+            self._seen_ns[topic.lstrip('/')] = now_ns
         if self.writer is not None:
-            self.writer.write(topic, msgtype, data, self.get_clock().now().nanoseconds)
+            self.writer.write(topic, msgtype, data, now_ns)
             self._counts[topic] = self._counts.get(topic, 0) + 1
 
     def _stop_recording(self, *, aborted: bool = False) -> None:

@@ -169,3 +169,24 @@ def test_session_gait_is_applied_atomically(tmp_path):
     assert len(phases) > 10
     assert {(m.period, m.duty_factor, m.step_length, m.step_height) for m in phases} == \
         {(0.4, 0.5, 0.1, 0.04)}
+
+
+@pytest.mark.timeout(90)
+def test_a_recorded_topic_gone_silent_while_walking_aborts_the_plan(tmp_path):
+    # /bench/ground_force stops (a load cell unplugged) mid-session: the bag would lack the
+    # force the phase split needs; it was watched only through the bag's topic count.
+    from geometry_msgs.msg import WrenchStamped
+
+    with ros_env('seqrev') as env:
+        gait, bench, node, sessions = _start(env, tmp_path, stream_timeout_s=0.3)
+        force = env.add(rclpy.create_node('fake_force', context=env.context,
+                                          namespace=env.namespace))
+        pub = force.create_publisher(WrenchStamped, 'bench/ground_force', 10)
+        force_on = [True]
+        force.create_timer(0.02, lambda: force_on[0] and pub.publish(WrenchStamped()))
+        _walk(env, gait, sessions)
+        assert env.spin_until(lambda: 'bench/ground_force' in node._seen_ns, 10)
+        assert node.seq.state != 'aborted'
+        force_on[0] = False
+        _check_safe_abort(env, tmp_path, gait, bench, node, sessions)
+        assert 'no bench/ground_force for' in node.seq.abort_reason
