@@ -885,7 +885,8 @@ def _hashable(value: Any) -> bool:
 def prepare_battery_columns(samples: SampleColumns) -> tuple[SampleColumns, list[str]]:
     """:func:`hexapod_common.battery.prepare_battery_samples` on the ``BatterySample`` columns
     of a reader. One battery in V and A (the usual case) is checked on the columns and
-    returned unchanged; otherwise (milli-units, several batteries, ``--battery-source``) the
+    returned unchanged; otherwise (milli-units, several batteries, ``--battery-source``,
+    ``present`` false somewhere) the
     samples are rebuilt for it and its result stored as columns again. Raises ValueError as
     it does."""
     import numpy as np
@@ -899,7 +900,8 @@ def prepare_battery_columns(samples: SampleColumns) -> tuple[SampleColumns, list
 
     if not len(samples):
         return samples, []
-    if len(samples.distinct('source')) == 1 and selected_source() is None:
+    if len(samples.distinct('source')) == 1 and selected_source() is None and \
+            False not in samples.distinct('present'):
         v, i = samples.column('voltage_v'), samples.column('current_a')
         if isinstance(v, np.ndarray) and isinstance(i, np.ndarray) and \
                 milli_factors(float(np.median(np.abs(v))),

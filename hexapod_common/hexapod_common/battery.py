@@ -36,7 +36,7 @@ import numpy as np
 
 from .conversions import BatterySample
 
-__all__ = ['BATTERY_SOURCE_ENV', 'MILLI_THRESHOLD', 'milli_factors', 'BatteryCombiner', 'combine_battery_samples', 'STALE_S',
+__all__ = ['AbsentBatteryFilter', 'BATTERY_SOURCE_ENV', 'MILLI_THRESHOLD', 'milli_factors', 'BatteryCombiner', 'combine_battery_samples', 'STALE_S',
            'prepare_battery_samples', 'selected_source', 'unmeasured_power']
 
 #: a source silent for longer than this (or 5 of its own sample intervals, if longer) [s]
@@ -207,6 +207,43 @@ class BatteryCombiner:
         return out
 
 
+class AbsentBatteryFilter:
+    """Leaves out the samples of a battery that is not there.
+
+    ``sensor_msgs/BatteryState.present`` False says no battery is connected (a BMS that lost
+    its pack, a hot swap): its voltage and current (often 0) are no measurement, and counted
+    they pulled the mean input power down (3 s of zeros in 30 s: -10 %). Many drivers never set
+    ``present``, so a stream that is always False is kept; a False sample is left out when its
+    source has published ``present`` True before, or when it reads 0 V and 0 A. Causal, so the
+    live node and the offline readers leave out the same samples; the hole is a gap in the
+    battery stream like a dropped NaN sample.
+    """
+
+    def __init__(self) -> None:
+        self._present: set[str] = set()
+        self.dropped = 0
+        self.first_dropped_s: float | None = None
+
+    def keep(self, sample: BatterySample) -> bool:
+        if sample.present:
+            self._present.add(sample.source)
+            return True
+        if sample.source in self._present or (sample.voltage_v == 0.0
+                                              and sample.current_a == 0.0):
+            self.dropped += 1
+            if self.first_dropped_s is None:
+                self.first_dropped_s = sample.t_s
+            return False
+        return True
+
+    def note(self) -> str | None:
+        """What was left out, or None."""
+        if not self.dropped:
+            return None
+        return (f'{self.dropped} /battery_state sample(s) with present = false (no battery; '
+                f'the first at t = {self.first_dropped_s:.3f} s) left out: not a measurement')
+
+
 def selected_source() -> str | None:
     """The battery to keep, from ``BATTERY_SOURCE_ENV`` (None: sum them all)."""
     return os.environ.get(BATTERY_SOURCE_ENV) or None
@@ -307,7 +344,13 @@ def prepare_battery_samples(samples: Sequence[BatterySample]
     input list unchanged for one battery in V and A) and notes. Raises ValueError when the
     stream measures no power (:func:`unmeasured_power`) or the chosen source is missing."""
     notes: list[str] = []
-    out = _milli_scaled(list(samples), notes) if samples else list(samples)
+    absent = AbsentBatteryFilter()
+    kept = [b for b in samples if absent.keep(b)]
+    if absent.dropped:
+        notes.append(absent.note() or '')
+    else:
+        kept = list(samples)
+    out = _milli_scaled(kept, notes) if kept else kept
     if len({b.source for b in out}) > 1 or selected_source() is not None:
         out, more = combine_battery_samples(out)
         notes.extend(more)

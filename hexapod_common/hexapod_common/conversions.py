@@ -174,13 +174,16 @@ def joint_state_from_msg(msg: Any) -> JointStateSample:
 class BatterySample:
     """``sensor_msgs/BatteryState`` as measured: voltage [V], current [A] in the message's sign;
     ``source``: which battery (``header.frame_id``, else ``location``, else ``serial_number``;
-    several on one topic are summed by :mod:`hexapod_common.battery`)."""
+    several on one topic are summed by :mod:`hexapod_common.battery`); ``present``: the
+    message's ``present`` (False: no battery there, see
+    :class:`hexapod_common.battery.AbsentBatteryFilter`)."""
 
     t_s: float
     voltage_v: float
     current_a: float
     temperature_c: float
     source: str = ''
+    present: bool = True
 
 
 def battery_from_msg(msg: Any) -> BatterySample:
@@ -189,7 +192,7 @@ def battery_from_msg(msg: Any) -> BatterySample:
     if not (math.isfinite(v) and math.isfinite(i)):
         raise ValueError(f'BatteryState without voltage/current (voltage={v}, current={i})')
     return BatterySample(stamp_to_s(msg.header.stamp), v, i, float(msg.temperature),
-                         battery_source(msg))
+                         battery_source(msg), bool(getattr(msg, 'present', True)))
 
 
 def battery_source(msg: Any) -> str:

@@ -70,7 +70,12 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from sensor_msgs.msg import BatteryState, JointState
 
-from hexapod_common.battery import MILLI_THRESHOLD, BatteryCombiner, milli_factors
+from hexapod_common.battery import (
+    MILLI_THRESHOLD,
+    AbsentBatteryFilter,
+    BatteryCombiner,
+    milli_factors,
+)
 from hexapod_common.clocks import LiveClockWatch
 from hexapod_common.conversions import (
     MOCAP_TYPES,
@@ -213,6 +218,7 @@ class EnergyMonitorNode(Node):
                                           limits=ActuatorLimits(*p.limits), leg=leg)
         # several batteries on one topic are summed, or one kept (hexapod_common.battery)
         self.batteries = BatteryCombiner(select=p.battery_source or None)
+        self._absent = AbsentBatteryFilter()   # present = false samples (no battery)
         self._battery_notes = 0
         self._clocks = LiveClockWatch()   # stamps against the node clock
         self._zero_power: int | None = 0   # leading battery samples with V * I == 0
@@ -294,6 +300,12 @@ class EnergyMonitorNode(Node):
 
     def _add_battery(self, msg: BatteryState) -> list[Descriptors]:
         raw = self._restamp('battery_state', battery_from_msg(msg))
+        if not self._absent.keep(raw):
+            if self._absent.dropped == 1:   # once: a gap in the battery stream follows
+                self.get_logger().warning(
+                    'battery_state: present = false (no battery) after the battery was '
+                    'present, or 0 V and 0 A: such samples are left out (not a measurement)')
+            return []
         if self._milli is None and (abs(raw.voltage_v) > MILLI_THRESHOLD or
                                     abs(raw.current_a) > MILLI_THRESHOLD):
             # milli-units (no pack reaches 1000 V or draws 1000 A), decided on the first such

@@ -133,3 +133,43 @@ def test_short_efforts_keep_the_positions_live() -> None:
     assert msgs and all(m.power_in == pytest.approx(24.0) for m in msgs)
     assert any('JointState.effort has 12 values for 18 names' in w for w in warnings)
     assert not any('no /gait/phase or /joint_states' in w for w in warnings)
+
+
+@pytest.mark.timeout(180)
+def test_samples_of_an_absent_battery_are_left_out_live_and_offline(tmp_path: Any) -> None:
+    """A BMS that loses its pack publishes present = false with 0 V and 0 A: 1 s of them in a
+    6 s run was counted as measured power (the reviewer's 30 s robot run: P_in -10.5 %, live
+    windows of 0.18 W). Now they are left out, live as offline (the same windows, to 1e-9),
+    and P_in stays the clean run's."""
+    from hexapod_bench_drivers.edubot_bag import write_edubot_bag
+    from hexapod_common.replay import run_offline
+    from hexapod_common.testbags import rewrite_bag
+    from hexapod_energy.cli import main as energy_main
+
+    def unplug(topic: str, msg: Any) -> None:
+        t = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+        if topic == '/battery_state' and 2.0 <= t < 3.0:
+            msg.present, msg.voltage, msg.current = False, 0.0, 0.0
+
+    clean = write_edubot_bag(tmp_path / 'clean', 'running', duration_s=6.0, seed=2)
+    bag = rewrite_bag(clean, tmp_path / 'unplugged', unplug)
+    runs = {}
+    for name in ('clean', 'unplugged'):
+        assert energy_main(['--robot', str(tmp_path / name), '--robot-mass', '3.31', '--out',
+                            str(tmp_path / f'out_{name}'), '--no-progress']) == 0
+        [runs[name]] = json.loads((tmp_path / f'out_{name}' / 'energy.json').read_text()
+                                  )['robot_runs']
+    notes = ' '.join(runs['unplugged']['notes'])
+    assert 'present = false' in notes
+    # the windows across the hole are left out, so the mean is over other windows (+2.3 %);
+    # with the zeros counted it was -17 %
+    assert runs['unplugged']['measured_power_in_w'] == pytest.approx(
+        runs['clean']['measured_power_in_w'], rel=0.05)
+    with ros_env('review_absent_battery') as env:
+        node = _energy(env, mass=3.31)
+        warnings = _capture(node, 'warning')
+        live = run_offline([node], str(bag))['/energy/descriptors']
+    assert any('present = false' in w for w in warnings)
+    assert min(m.power_in for m in live) > 0.5 * runs['clean']['measured_power_in_w']
+    mean = sum(m.power_in * m.window for m in live) / sum(m.window for m in live)
+    assert mean == pytest.approx(runs['unplugged']['measured_power_in_w'], rel=1e-9)
