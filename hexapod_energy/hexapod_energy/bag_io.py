@@ -942,6 +942,7 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
         SLOW_BATTERY_NOTE,
         DescriptorAccumulator,
         resolve_current_sign,
+        velocityless_note,
     )
 
     if cycle_source not in ('auto', 'gait_phase', 'joints'):
@@ -1096,11 +1097,16 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
                      'left out of the speed')
     if any(POSITION_POWER_NOTE in d.warnings for d in windows):
         notes.append(POSITION_POWER_NOTE)
+    if acc.velocityless_skipped_:
+        notes.append(velocityless_note(acc.velocityless_skipped_))
     if acc.nonfinite_joint_power_:
         bad = acc.nonfinite_joint_power_
         never = sorted(n for n in bad if acc.joint_power_count_.get(n, 0) == 0)
         some = sorted(n for n in bad if n not in never)
-        if never:
+        if never and not acc.joint_power_count_:
+            notes.append(f'no finite effort * velocity on any joint ({", ".join(never)}; '
+                         'NaN: no effort interface?): no P_out from the efforts')
+        elif never:
             notes.append(f'no finite effort * velocity on joint(s) {", ".join(never)} (NaN: '
                          'no effort interface?): P_out from the other joints only')
         if some:

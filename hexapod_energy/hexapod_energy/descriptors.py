@@ -106,6 +106,7 @@ __all__ = [
     'G_MPS2',
     'EFFORT_MAX_NET_FRACTION',
     'POSITION_POWER_NOTE',
+    'velocityless_note',
     'CLOCK_MODEL_NOTE',
     'JOINT_WAIT_S',
     'is_clock_schedule',
@@ -131,6 +132,14 @@ SLOW_BATTERY_NOTE = (f'battery sampled slower than the gait: some windows hold f
 #: warning of a window whose joint power came from position differences (no velocities)
 POSITION_POWER_NOTE = ('no joint velocities: joint power from position differences '
                        '(trapezoid effort x position step per joint and sample interval)')
+
+
+
+def velocityless_note(count: int) -> str:
+    """Note for JointState messages without velocities whose joints have them elsewhere."""
+    return (f'{count} /joint_states message(s) without velocities, for joints whose other '
+            'messages carry them: left out of P_out (not mixed with position differences)')
+
 
 #: ``power_out_source='auto'`` refuses efforts whose net joint power is at least this fraction
 #: of their positive joint power (no negative work: a duty signal, not a torque).
@@ -511,6 +520,12 @@ class DescriptorAccumulator:
     # per joint name: (stamp, position, effort) of its last sample (velocity-less drivers)
     _last_joint: dict[str, tuple[float, float, float]] = field(default_factory=dict,
                                                                 init=False)
+    #: joint names that came with velocities in some message: a message of theirs without
+    #: velocities is left out of P_out (mixing position-difference power over a longer
+    #: interval with effort x velocity read +2.3 % when 10 % of the messages lacked them)
+    velocity_joints_: set[str] = field(default_factory=set, init=False)
+    #: JointState messages left out of P_out for that (some of their joints)
+    velocityless_skipped_: int = field(default=0, init=False)
 
     def __post_init__(self) -> None:
         self._clk = StreamClock(self.time_jump_s, self._restart,
@@ -714,6 +729,7 @@ class DescriptorAccumulator:
                                                                         dtype=float)
             ok = np.isfinite(power)
             names = tuple(sample.names)
+            self.velocity_joints_.update(names)
             if not np.all(ok):
                 # a joint without an effort interface (ros2_control reports NaN) or a glitch:
                 # that joint is left out of this sample, the others still count
@@ -770,8 +786,12 @@ class DescriptorAccumulator:
         power: list[float] = []
         mids: list[float] = []
         t = float(sample.t_s)
+        skipped = False
         for name, q, tau in zip(sample.names, np.asarray(sample.position, dtype=float),
                                 np.asarray(sample.effort, dtype=float)):
+            if name in self.velocity_joints_:
+                skipped = True   # its other messages carry velocities: not mixed with them
+                continue
             if not (math.isfinite(q) and math.isfinite(tau)):
                 continue
             prev = self._last_joint.get(name)
@@ -785,6 +805,7 @@ class DescriptorAccumulator:
             names.append(name)
             power.append(0.5 * (tau0 + float(tau)) * dq / (t - t0))
             mids.append(0.5 * (t0 + t))
+        self.velocityless_skipped_ += skipped
         for name in names:
             self._joint_last[name] = t
         if names:

@@ -103,6 +103,7 @@ from hexapod_energy.descriptors import (
     DescriptorAccumulator,
     Descriptors,
     model_power_out,
+    velocityless_note,
 )
 from hexapod_energy.leg_description import antbot_leg, load_leg_description
 
@@ -371,7 +372,11 @@ class EnergyMonitorNode(Node):
                 f'joint_states: {sample.malformed} (positions kept; P_out from efforts '
                 f'misses these messages) [{self.malformed_joint_states} so far]',
                 throttle_duration_sec=5.0)
-        return self.core.add_joint_state(self._restamp('joint_states', sample))
+        skipped = self.core.velocityless_skipped_
+        out = self.core.add_joint_state(self._restamp('joint_states', sample))
+        if self.core.velocityless_skipped_ and not skipped:   # once
+            self.get_logger().warning('joint_states: ' + velocityless_note(1))
+        return out
 
     def _on_odom(self, msg: Odometry) -> None:
         self._guard('Odometry', lambda m: self.core.add_odometry(
