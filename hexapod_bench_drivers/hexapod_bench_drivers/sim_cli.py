@@ -86,6 +86,11 @@ def build_parser() -> argparse.ArgumentParser:
     robot.add_argument('--legs', type=int, default=6,
                        help='leg count, an even number >= 2 (default 6)')
     robot.add_argument('--payload', type=float, default=0.0, help='[kg]')
+    robot.add_argument('--ambient-c', type=float, default=26.0,
+                       help='air temperature around the servos [degC] (default 26)')
+    robot.add_argument('--initial-temperature', type=float, default=None,
+                       help='servo temperature at the start [degC] (default: the ambient; '
+                       'a warm start for thermal-drift studies)')
     robot.add_argument('--battery', action='store_true', help='3S LiPo instead of a 11.9 V supply')
     robot.add_argument('--allow-infeasible', action='store_true',
                        help='simulate a gait beyond the servo limits (AX-18A: swing >= 0.16 '
@@ -230,7 +235,10 @@ def _run_robot(args: argparse.Namespace) -> int:
                          period_s=args.period,
                          speed_mps=args.speed if args.speed is not None else 0.0,
                          step_length_m=args.step_length, step_height_m=args.step_height,
-                         payload_kg=args.payload,
+                         payload_kg=args.payload, ambient_temperature_c=args.ambient_c,
+                         initial_temperature_c=(args.ambient_c
+                                                if args.initial_temperature is None
+                                                else args.initial_temperature),
                          supply='battery' if args.battery else 'supply', servo=args.servo,
                          rate_hz=args.rate)
     gait = config.gait_pattern()
@@ -331,6 +339,8 @@ _NUMBER_RULES: dict[str, tuple[str, Callable[[float], bool]]] = {
     'step_length': ('>= 0', lambda v: v >= 0),
     'step_height': ('>= 0', lambda v: v >= 0),
     'payload': ('>= 0', lambda v: v >= 0),
+    'ambient_c': ('from -40 to 80 degC', lambda v: -40 <= v <= 80),
+    'initial_temperature': ('from -40 to 120 degC', lambda v: -40 <= v <= 120),
     'max_cool': ('>= 0', lambda v: v >= 0),
     'loads': ('>= 0 and <= 5 kg (the paper\'s stage carries up to 0.515 kg)',
               lambda v: 0 <= v <= 5.0),
