@@ -102,19 +102,32 @@ such fallback is listed in the run's ``notes``.
       "sweeps": {"<sweep name>": [SweepCurve.to_dict()]},     # with --sweep; each curve's
                   # "outside_bench" (n_speed x n_payload bool) marks extrapolated points
                   # (dotted in the plots), "outside_bench_reasons" says how; a curve the
-                  # leg cannot walk is left out (listed in sweep_settings "skipped")
+                  # leg cannot walk is left out (listed in sweep_settings "skipped");
+                  # "min_efficiency" (every point) with "min_efficiency_speed_mps",
+                  # "min_efficiency_payload_kg" and "min_efficiency_outside_bench" (that
+                  # point extrapolated), "min_efficiency_on_bench" (the points the bench
+                  # covers; null: none) with "min_efficiency_on_bench_speed_mps" and
+                  # "min_efficiency_on_bench_payload_kg"
       "sweep_settings": {"robot_mass_kg" (payload excluded), "leg_count",
                   "leg_count_source" (--legs | robot bags | assumed), "payloads_kg",
                   "load_offset_kg", "limits": {"min_swing_s", "min_stance_s",
                   "max_step_frequency_hz"}, "limits_source" (AntBot's servo limits, or
-                  --limits), "held_fixed": {"<sweep name>": str}, "skipped" [str]},
+                  --limits), "held_fixed": {"<sweep name>": str}, "skipped" [str],
+                  "plot_nominal_payload_kg": {"<sweep name>": kg} (the payload of the
+                  four-quadrant plot's solid curves and markers: 0.14 for gait_type, the
+                  paper's Fig. 3C load; the curves' "optimal_points" are at their first
+                  payload)},
                                                               # with --sweep
       "gait_type_comparison": {"base", "other" (curve labels: the alternating gait at beta
                   0.5, the wave gait at its typical duty factor), "speeds_mps",
                   "payloads_kg", "ratio" (n_speed x n_payload: CoT/M other / base, below 1
                   where the wave is cheaper), "outside_bench" (either curve extrapolated),
                   "below_one_until_mps" [per payload, null: never cheaper], "best_ratio",
-                  "best_speed_mps"},           # with --sweep; plot gait_type_comparison.png
+                  "best_speed_mps", and the same on the points the bench covers for both
+                  curves: "below_one_until_mps_on_bench", "best_ratio_on_bench",
+                  "best_speed_mps_on_bench" (null: never cheaper there / no such point)},
+                  # with --sweep; plot gait_type_comparison.png (four_quadrant_gait_type.png
+                  # draws its solid curves at the paper's 140 g, the band 0-500 g)
       "power_map": {"speeds_mps", "payloads_kg", "power_out_w" (n_speed x n_payload),
                     "seconds", "gait", "leg_count", "duty_factor",
                     "step_length_m"},                         # with --sweep
@@ -559,8 +572,17 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 # (net / positive power near 1) is for position-controlled servos
                 why = implausible_effort_power(run_.power_out_w, run_.power_in_w,
                                                math.nan if clock else _net_joint_power_w(run_))
+                # why the joint efforts give no P_out, for the model's note
+                if not math.isfinite(run_.power_out_w):
+                    no_effort = 'no joint efforts in the bag'
+                elif args.power_out == 'model':
+                    no_effort = (f'--power-out model: the joint efforts (P_out '
+                                 f'{run_.power_out_w:.3g} W) not used')
+                else:
+                    no_effort = ''
                 if effort_ok and args.power_out == 'auto' and why:
                     effort_ok = False
+                    no_effort = f'joint efforts refused: {why}'
                     doc.setdefault('warnings', []).append(
                         f'{path}: {why}; ' + ('using the model' if math.isfinite(p_model)
                                               else 'P_out unknown'))
@@ -581,8 +603,13 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 elif math.isfinite(p_model):
                     p_out, source = p_model, 'model'
                     if getattr(args, 'leg', None) is None:
-                        notes.append(f'P_out from the Eq. 6 model of {leg.name}\'s leg (no '
-                                     'joint power from the bag; give --leg for another leg)')
+                        # 'no joint power from the bag' was said of refused efforts too
+                        notes.append(f'P_out from the Eq. 6 model of {leg.name}\'s leg ('
+                                     + (f'{no_effort}; ' if no_effort else '')
+                                     + 'give --leg for another leg)')
+                    elif no_effort.startswith('joint efforts refused'):
+                        notes.append(f'P_out from the Eq. 6 model of {leg.name}\'s leg '
+                                     f'({no_effort})')
                 else:
                     # no efforts to trust and no model (no gait, or a path the leg cannot
                     # reach): P_out is unknown, not 0, and so are eta and the CoTs
@@ -707,7 +734,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             doc['plots'] += [str(p.relative_to(out)) for p in watts_plot(
                 labels, [r['power_breakdown_w'] for r in runs], meas,
                 [r['power_out_w'] for r in runs], out / 'where_the_watts_go',
-                title=robot_name)]
+                title=f'{robot_name}; {_run_set_name(runs)}',
+                efficiency=[r['efficiency'] for r in runs])]
 
         if args.sweep:
             _sweep(doc, model, opm, out, bar, args.load_offset, leg_count=legs_n,
@@ -835,6 +863,34 @@ def _robot_leg_count(args: argparse.Namespace, runs: list[dict[str, Any]],
     return n, source
 
 
+#: how a run's cycles and speed were found, in a plot title
+_CYCLE_SOURCES = {'gait_phase': 'cycles from /gait/phase', 'joints': 'cycles from the joints'}
+_SPEED_SOURCES = {'mocap': 'speed from mocap', 'odometry': 'speed from odometry',
+                  'odometry_twist': 'speed from odometry twist',
+                  'gait_schedule': 'speed from the gait schedule',
+                  'given': 'speed given (--robot-speed)', 'none': 'speed unknown'}
+_POWER_OUT_SOURCES = {'effort': 'the joint efforts', 'model': 'the Eq. 6 model',
+                      'none': 'nowhere (unknown)'}
+
+
+def _run_set_name(runs: Sequence[dict[str, Any]]) -> str:
+    """A set of robot runs in a plot title: their bags (first and last of many) and how their
+    cycles, speed and gait were found (another lab's bag: 'cycles from the joints, speed given
+    (--robot-speed), gait given (--gait)')."""
+    names = list(dict.fromkeys(_run_label(r, speed=False) for r in runs))
+    bags = ', '.join(names) if len(names) <= 3 else f'{names[0]} ... {names[-1]}'
+    head = f"{len(runs)} run{'s' if len(runs) != 1 else ''} ({bags})"
+    how = []
+    for key, table in (('cycle_source', _CYCLE_SOURCES), ('speed_source', _SPEED_SOURCES)):
+        found = list(dict.fromkeys(str(r.get(key) or 'none') for r in runs))
+        how.append(' / '.join(table.get(f, f"{key.split('_')[0]} {f}") for f in found))
+    if any(r.get('cycle_source') == 'joints' and r.get('gait') for r in runs):
+        how.append('gait given (--gait)')
+    sources = list(dict.fromkeys(str(r.get('power_out_source') or 'none') for r in runs))
+    how.append('P_out from ' + ' / '.join(_POWER_OUT_SOURCES.get(f, f) for f in sources))
+    return head + ': ' + ', '.join(how)
+
+
 def _run_label(run: dict[str, Any], *, speed: bool = True) -> str:
     """A run's plot label: bag name, walking schedule when the bag holds several, speed."""
     seg = run.get('segment') or {}
@@ -921,9 +977,11 @@ def _sweep(doc: dict[str, Any], model: Any, opm: Any, out: Path, bar: Any,
         DEFAULT_PAYLOADS_KG,
         GAIT_TYPE_MIN_SPEED_MPS,
         MIN_SPEED_MPS,
+        PAPER_GAIT_TYPE_PAYLOAD_KG,
         compare_curves,
         run_standard_sweeps,
         standard_sweeps,
+        with_payload,
     )
 
     lim = ANTBOT_LIMITS if limits is None else limits
@@ -958,10 +1016,25 @@ def _sweep(doc: dict[str, Any], model: Any, opm: Any, out: Path, bar: Any,
     for name in specs:
         if not curves.get(name):
             continue  # every curve skipped (warned)
-        # the subtitle (robot mass, the parameters the curves share) and the payload band's
-        # legend entry come from the curves
-        paths = four_quadrant_plot(curves[name], out / f'four_quadrant_{name}',
-                                   title=titles.get(name, name))
+        # the subtitle (robot mass, the parameters the curves share, the nominal payload and
+        # the band) and the payload band's legend entry come from the curves
+        drawn, nominal = curves[name], None
+        if name == 'gait_type':
+            # the paper's Fig. 3C is at a 140 g load: its solid curves too (energy.json keeps
+            # the sweep's payloads; the band stays 0-500 g)
+            try:
+                drawn = [with_payload(c, PAPER_GAIT_TYPE_PAYLOAD_KG, model, opm, limits=lim,
+                                      load_offset_kg=load_offset_kg) for c in drawn]
+                nominal = PAPER_GAIT_TYPE_PAYLOAD_KG
+            except ValueError as err:
+                drawn = curves[name]
+                doc.setdefault('warnings', []).append(
+                    f'Fig. 3C plot at {1000 * DEFAULT_PAYLOADS_KG[0]:g} g, not the paper\'s '
+                    f'{1000 * PAPER_GAIT_TYPE_PAYLOAD_KG:g} g: {err}')
+        paths = four_quadrant_plot(drawn, out / f'four_quadrant_{name}',
+                                   title=titles.get(name, name), nominal_payload_kg=nominal)
+        doc['sweep_settings'].setdefault('plot_nominal_payload_kg', {})[name] = \
+            float(drawn[0].payloads_kg[0]) if nominal is None else nominal
         doc['plots'] += [str(p.relative_to(out)) for p in paths]
     gait_curves = curves.get('gait_type') or []
     if len(gait_curves) >= 2 and gait_curves[0].spec.gait != gait_curves[1].spec.gait:

@@ -7,7 +7,11 @@ the actuator limits, and over a payload band (default 0 to 0.5 kg).  Speed sets 
 from Eq. 6 (:class:`OutputPowerModel`).
 
 Optimal operating points are taken on the nominal payload (the first of the band): maximum
-``P_out``, minimum ``CoT/M`` and maximum efficiency; ``min(eta)`` is reported per curve.
+``P_out``, minimum ``CoT/M`` and maximum efficiency; ``min(eta)`` is reported per curve, over
+every point and over the points the bench covers (:meth:`SweepCurve.min_efficiency_point`: the
+slowest speeds of a sweep often lie below the bench's slowest session, where Eq. 1 extrapolates
+and ``eta`` is smallest).  The paper draws Fig. 3C at a 140 g load
+(:data:`PAPER_GAIT_TYPE_PAYLOAD_KG`); :func:`with_payload` adds such a payload to a curve.
 
 :func:`standard_sweeps` gives the paper's four sweeps for a robot's leg count (the duty-factor,
 step-length and gait-type sweeps at that leg count; the leg-count sweep is always 4/6/8 legs as
@@ -46,6 +50,7 @@ __all__ = [
     'DEFAULT_PAYLOADS_KG',
     'GAIT_TYPE_MIN_SPEED_MPS',
     'MIN_SPEED_MPS',
+    'PAPER_GAIT_TYPE_PAYLOAD_KG',
     'STANDARD_SWEEPS',
     'SweepCurve',
     'SweepSpec',
@@ -53,6 +58,7 @@ __all__ = [
     'run_standard_sweeps',
     'standard_sweeps',
     'sweep_curve',
+    'with_payload',
 ]
 
 MIN_SPEED_MPS = 0.05
@@ -63,6 +69,9 @@ MIN_SPEED_MPS = 0.05
 #: outside the bench, dotted and clipped in the plots)
 GAIT_TYPE_MIN_SPEED_MPS = 0.02
 DEFAULT_PAYLOADS_KG = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5)
+#: the load of the paper's Fig. 3C (tripod against wave gait: "when the robot transports a load
+#: of 140 g"); the gait-type plot's nominal (solid) curve
+PAPER_GAIT_TYPE_PAYLOAD_KG = 0.14
 
 
 @dataclass(frozen=True)
@@ -180,6 +189,23 @@ class SweepCurve:
         """min(eta) over speeds and payloads."""
         return float(np.min(self.efficiency))
 
+    def min_efficiency_point(self, *, on_bench: bool = False) -> dict[str, Any]:
+        """Where ``min(eta)`` lies: ``{'value', 'speed_mps', 'payload_kg', 'outside_bench'}``
+        over every point, or (``on_bench``) over the points the bench covers only (value and
+        place None when it covers none; without an ``outside_bench`` mask every point counts
+        as covered)."""
+        eff = np.asarray(self.efficiency, dtype=float)
+        out = np.zeros(eff.shape, bool) if self.outside_bench is None else \
+            np.asarray(self.outside_bench, dtype=bool)
+        cand = np.where(out, np.nan, eff) if on_bench else eff
+        ok = np.isfinite(cand)
+        if not ok.any():
+            return {'value': None, 'speed_mps': None, 'payload_kg': None,
+                    'outside_bench': None}
+        i, j = np.unravel_index(int(np.argmin(np.where(ok, cand, np.inf))), cand.shape)
+        return {'value': float(cand[i, j]), 'speed_mps': float(self.speeds_mps[i]),
+                'payload_kg': float(self.payloads_kg[j]), 'outside_bench': bool(out[i, j])}
+
     def to_dict(self) -> dict[str, Any]:
         return {
             'label': self.spec.label,
@@ -199,11 +225,24 @@ class SweepCurve:
             'specific_resistance': self.specific_resistance.tolist(),
             'optimal_points': self.optimal_points(),
             'min_efficiency': self.min_efficiency,
+            **self._min_efficiency_keys(),
             'max_speed_mps': float(self.speeds_mps[-1]),
             'outside_bench': None if self.outside_bench is None else
             self.outside_bench.tolist(),
             'outside_bench_reasons': list(self.outside_reasons),
         }
+
+    def _min_efficiency_keys(self) -> dict[str, Any]:
+        """energy.json's keys beside ``min_efficiency``: where it lies, whether that point is
+        extrapolated, and the minimum over the points the bench covers."""
+        every = self.min_efficiency_point()
+        bench = self.min_efficiency_point(on_bench=True)
+        return {'min_efficiency_speed_mps': every['speed_mps'],
+                'min_efficiency_payload_kg': every['payload_kg'],
+                'min_efficiency_outside_bench': every['outside_bench'],
+                'min_efficiency_on_bench': bench['value'],
+                'min_efficiency_on_bench_speed_mps': bench['speed_mps'],
+                'min_efficiency_on_bench_payload_kg': bench['payload_kg']}
 
 
 def sweep_curve(
@@ -366,7 +405,11 @@ def compare_curves(base: SweepCurve, other: SweepCurve, *, n_speeds: int = 60
     ``ratio`` (n, m: ``other / base``, below 1 where ``other`` is cheaper), ``outside_bench``
     (n, m: either curve extrapolated there), and per payload ``below_one_until_mps`` (the
     highest speed of the first run of speeds where ``other`` is cheaper, None when it never
-    is) and ``best_ratio`` with ``best_speed_mps``.
+    is) and ``best_ratio`` with ``best_speed_mps``; the same on the points the bench covers
+    for both curves only: ``below_one_until_mps_on_bench``, ``best_ratio_on_bench`` and
+    ``best_speed_mps_on_bench`` (None where the bench covers no speed of that payload). A
+    saving found only at extrapolated speeds is the surfaces' reading below the bench's
+    slowest session, not a measured one.
 
     Raises
     ------
@@ -393,19 +436,70 @@ def compare_curves(base: SweepCurve, other: SweepCurve, *, n_speeds: int = 60
     for c in (base, other):
         if c.outside_bench is not None:
             outside |= at(c, np.asarray(c.outside_bench, dtype=float)) > 0.0
-    until: list[float | None] = []
-    for j in range(pay.size):
-        below = ratio[:, j] < 1.0
-        if not below.any():
-            until.append(None)
-            continue
-        first = int(np.argmax(below))
-        run_end = first + int(np.argmin(below[first:])) - 1 if not below[first:].all() \
-            else v.size - 1
-        until.append(float(v[run_end]))
+    until = [_first_run_end(v, ratio[:, j] < 1.0) for j in range(pay.size)]
+    until_bench = [_first_run_end(v, (ratio[:, j] < 1.0) & ~outside[:, j])
+                   for j in range(pay.size)]
     best = np.argmin(ratio, axis=0)
+    best_bench: list[int | None] = [
+        int(np.argmin(np.where(outside[:, j], np.inf, ratio[:, j])))
+        if not outside[:, j].all() else None for j in range(pay.size)]
     return {'base': base.spec.label, 'other': other.spec.label,
             'speeds_mps': v, 'payloads_kg': pay, 'ratio': ratio, 'outside_bench': outside,
             'below_one_until_mps': until,
             'best_ratio': [float(ratio[i, j]) for j, i in enumerate(best)],
-            'best_speed_mps': [float(v[i]) for i in best]}
+            'best_speed_mps': [float(v[i]) for i in best],
+            'below_one_until_mps_on_bench': until_bench,
+            'best_ratio_on_bench': [None if i is None else float(ratio[i, j])
+                                    for j, i in enumerate(best_bench)],
+            'best_speed_mps_on_bench': [None if i is None else float(v[i])
+                                        for i in best_bench]}
+
+
+def _first_run_end(v: np.ndarray, below: np.ndarray) -> float | None:
+    """The highest speed of the first run of ``below`` (None when it is nowhere true)."""
+    if not below.any():
+        return None
+    first = int(np.argmax(below))
+    run_end = first + int(np.argmin(below[first:])) - 1 if not below[first:].all() \
+        else v.size - 1
+    return float(v[run_end])
+
+
+def with_payload(curve: SweepCurve, payload_kg: float, phase_power: PhasePowerModel,
+                 output_power: OutputPowerModel, *, limits: Any | None = None,
+                 load_offset_kg: float = 0.0) -> SweepCurve:
+    """``curve`` with one more payload column, evaluated like the others (same speeds), the
+    columns in payload order; ``curve`` itself when it has that payload already.  For a plot
+    whose nominal load is not in the sweep's band (Fig. 3C at the paper's 140 g,
+    :data:`PAPER_GAIT_TYPE_PAYLOAD_KG`); energy.json keeps the sweep's own payloads.
+
+    Raises
+    ------
+    InvalidInputError
+        If the new column's speeds differ from the curve's (other limits or speed count).
+    """
+    pay = np.asarray(curve.payloads_kg, dtype=float)
+    if np.any(np.isclose(pay, payload_kg, rtol=0.0, atol=1e-9)):
+        return curve
+    extra = sweep_curve(curve.spec, phase_power, output_power, payloads_kg=(payload_kg,),
+                        n_speeds=curve.speeds_mps.size, limits=limits,
+                        min_speed_mps=float(curve.speeds_mps[0]),
+                        load_offset_kg=load_offset_kg)
+    if not np.allclose(extra.speeds_mps, curve.speeds_mps, rtol=1e-12, atol=0.0):
+        raise InvalidInputError(f'{curve.spec.label}: the {payload_kg:g} kg column has other '
+                                'speeds than the curve (other limits?)')
+    order = np.argsort(np.append(pay, payload_kg), kind='stable')
+
+    def col(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        return np.concatenate([np.asarray(a), np.asarray(b)], axis=-1)[..., order]
+
+    out = None if curve.outside_bench is None or extra.outside_bench is None else \
+        col(curve.outside_bench, extra.outside_bench)
+    return SweepCurve(curve.spec, curve.speeds_mps, col(pay, extra.payloads_kg),
+                      col(curve.mass_kg, extra.mass_kg), col(curve.power_in_w, extra.power_in_w),
+                      col(curve.power_out_w, extra.power_out_w),
+                      col(curve.efficiency, extra.efficiency),
+                      col(curve.cot_per_mass, extra.cot_per_mass),
+                      col(curve.specific_resistance, extra.specific_resistance), out,
+                      tuple(dict.fromkeys(curve.outside_reasons + extra.outside_reasons)),
+                      curve.mass_rule)
