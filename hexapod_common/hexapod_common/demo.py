@@ -14,6 +14,10 @@
    offset, the ground and the stances, fits a SLIP to every single-tripod stance and prints the
    per-gait table of Komsuoglu et al. Table 3 beside the paper's values.
 5. ``report.html`` gathers the results. A summary is printed and saved as ``demo.json``.
+
+Every run writes into ``--out`` itself (default ``demo_out``): an earlier demo run there (it
+holds ``demo.json``) is first moved aside to ``<out>.prev``, replacing an older one; a
+non-empty folder that is not a demo run is refused (exit 2) rather than mixed with it.
 """
 
 from __future__ import annotations
@@ -21,7 +25,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import random
+import shutil
 import sys
 import time
 from collections.abc import Sequence
@@ -88,13 +94,64 @@ def check_args(args: argparse.Namespace) -> str | None:
     return _check_out(Path(args.out))
 
 
+#: The file that marks a folder as a demo run (written first, completed last).
+DEMO_MARKER = 'demo.json'
+
+
+def previous_run_folder(out: Path) -> Path:
+    """Where an earlier demo run in ``out`` is moved: ``<out>.prev`` beside it."""
+    out = Path(os.path.abspath(out))
+    return out.with_name(out.name + '.prev')
+
+
 def _check_out(out: Path) -> str | None:
-    """Why the output folder ``out`` cannot be used, else None (nothing is created)."""
+    """Why the output folder ``out`` cannot be used, else None (nothing is created).
+
+    ``out`` is new, empty or an earlier demo run (it holds ``demo.json``: that run is moved
+    aside to ``<out>.prev``, an older ``.prev`` run replaced); a folder holding anything else
+    is refused, never mixed with the new run's results."""
     from hexapod_common.outdir import creatable_problem
 
     if out.exists() and not out.is_dir():
         return f'--out {out} is a file, not a folder'
-    return None if out.is_dir() else creatable_problem(out)
+    if not out.is_dir():
+        return creatable_problem(out)
+    if not any(out.iterdir()):
+        return None
+    prev = previous_run_folder(out)
+    if not (out / DEMO_MARKER).is_file():
+        return (f'--out {out} is not empty and is not an earlier demo run (it has no '
+                f'{DEMO_MARKER}): give a new or empty folder; the demo does not mix its results '
+                'with other files')
+    here = Path.cwd().resolve()
+    if out.resolve() == here or out.resolve() in here.parents:
+        return (f'--out {out} holds the current folder: the earlier demo run in it cannot be '
+                f'moved aside to {prev}; run from outside it')
+    if prev.exists() and not (prev.is_dir() and (not any(prev.iterdir()) or
+                                                 (prev / DEMO_MARKER).is_file())):
+        return (f'--out {out}: the earlier demo run in it would be moved to {prev}, which '
+                'exists and is not an earlier demo run; move it away')
+    if not os.access(prev.parent, os.W_OK):
+        return (f'--out {out}: cannot move the earlier demo run in it aside to {prev} (no '
+                f'permission to write in {prev.parent})')
+    return None
+
+
+def prepare_out(out: Path) -> Path | None:
+    """Make ``out`` an empty folder for a new run: an earlier demo run in it (checked by
+    :func:`_check_out`) moves to ``<out>.prev``, replacing an older one. Returns where the
+    earlier run went, None when there was none."""
+    moved = None
+    if out.is_dir() and any(out.iterdir()):
+        prev = previous_run_folder(out)
+        if prev.is_dir():
+            shutil.rmtree(prev)
+        elif prev.exists():
+            prev.unlink()
+        os.replace(os.path.abspath(out), prev)
+        moved = prev
+    out.mkdir(parents=True, exist_ok=True)
+    return moved
 
 
 def run_live(out: Path, seconds: float, speed_mps: float) -> tuple[Path, list[Any]]:
@@ -178,6 +235,11 @@ def replay_offline(bag: Path, namespace_of: str) -> list[Any]:
     return next((v for k, v in out.items() if k.endswith('energy/descriptors')), [])
 
 
+#: what demo.json keeps of residuals.json (its ``unit`` labels the errors in the report)
+RESIDUAL_KEYS = ('unit', 'baseline', 'effects_added', 'final', 'heldout', 'added_params',
+                 'summary')
+
+
 def batch_analysis(out: Path, hidden: str, quick: bool) -> dict[str, Any]:
     """Simulated bench plan + robot runs with a hidden effect -> energy analysis -> residuals."""
     from hexapod_bench_drivers.sim_cli import main as sim_main
@@ -216,8 +278,7 @@ def batch_analysis(out: Path, hidden: str, quick: bool) -> dict[str, Any]:
         result['residuals'] = f'unavailable: {err}'
         return result
     res = run_energy_loop([bench], robots, out / 'residuals')
-    result['residuals'] = {k: res.get(k) for k in ('baseline', 'effects_added', 'final',
-                                                   'heldout', 'added_params', 'summary')}
+    result['residuals'] = {k: res.get(k) for k in RESIDUAL_KEYS}
     result['other_lab'] = other_lab_check(out, robots[1], bench, energy['robot_runs'][1])
     return result
 
@@ -249,10 +310,16 @@ def other_lab_check(out: Path, robot_bag: Path, bench: Path, reference: dict[str
             'power_out_source': run['power_out_source'], 'cycle_source': run['cycle_source']}
 
 
-#: Komsuoglu et al. Table 3: gait -> (nerr mean, P [W], v [m/s]); SR = P / (m g v), m 3.31 kg.
-TABLE3 = {'running': (0.087, 31.63, 1.06), 'jogging': (0.26, 42.92, 0.64),
-          'pace': (0.52, 26.23, 0.30), 'walk': (0.54, 20.93, 0.16)}
 EDUBOT_MASS_KG = 3.31
+
+
+def _table3() -> dict[str, tuple[float, float, float]]:
+    """Komsuoglu et al. Table 3 (``slip_identification.energetics.PAPER_TABLE3``), in its
+    gait order: gait -> (nerr mean, P [W], v [m/s]); SR = P / (m g v), m 3.31 kg."""
+    from slip_identification.energetics import PAPER_TABLE3
+
+    return {g: (e['nerr'][0], e['power_w'][0], e['speed_mps'][0])
+            for g, e in PAPER_TABLE3.items()}
 
 
 def _bag_truth(bag: Path) -> dict[str, Any]:
@@ -265,12 +332,30 @@ def _bag_truth(bag: Path) -> dict[str, Any]:
     return json.loads(raw) if raw else {}
 
 
+def slip_run_summary(run: dict[str, Any], truth: dict[str, Any]) -> dict[str, Any]:
+    """One run of ``slip.json`` for ``demo.json``: what was found beside the simulator's
+    hidden truth, and the run's power, speed, SR and skipped stances (the report's per-run
+    table)."""
+    frame = truth.get('frame', {})
+    return {'bag': run['bag'], 'gait': run.get('gait'),
+            'offset_s': run.get('offset_s'), 'offset_method': run.get('offset_method'),
+            'true_offset_s': truth.get('clock_offset_s'),
+            'ground_m': run.get('ground_m'),
+            'true_ground_m': frame.get('ground_plane_z_m'),
+            'tilt_deg': (run.get('frame') or {}).get('tilt_deg'),
+            'true_tilt_deg': frame.get('tilt_deg'), 'stances': run.get('stances'),
+            'skipped': run.get('skipped'), 'power_w': run.get('power_w'),
+            'speed_mps': run.get('speed_mps'), 'sr': run.get('sr')}
+
+
 def slip_analysis(out: Path, quick: bool) -> dict[str, Any]:
     """Simulated EduBot runs of the Table 1 gaits -> ``hexapod-analyze slip``."""
     from hexapod_bench_drivers.sim_cli import main as sim_main
     from slip_identification.cli import main as slip_main
 
-    gaits = ('running', 'walk') if quick else tuple(TABLE3)
+    from slip_identification.energetics import paper_table3_rows
+
+    gaits = ('running', 'walk') if quick else tuple(_table3())
     bags = []
     for k, gait in enumerate(gaits):
         bag = out / f'edubot_{gait}'
@@ -283,19 +368,10 @@ def slip_analysis(out: Path, quick: bool) -> dict[str, Any]:
     if rc:
         raise RuntimeError(f'hexapod-analyze slip failed with exit code {rc}')
     doc = json.loads((out / 'slip' / 'slip.json').read_text())
-    runs = []
-    for run in doc.get('runs', []):
-        truth = _bag_truth(Path(run['bag']))
-        frame = truth.get('frame', {})
-        runs.append({'bag': run['bag'], 'gait': run.get('gait'),
-                     'offset_s': run.get('offset_s'), 'offset_method': run.get('offset_method'),
-                     'true_offset_s': truth.get('clock_offset_s'),
-                     'ground_m': run.get('ground_m'),
-                     'true_ground_m': frame.get('ground_plane_z_m'),
-                     'tilt_deg': (run.get('frame') or {}).get('tilt_deg'),
-                     'true_tilt_deg': frame.get('tilt_deg'), 'stances': run.get('stances')})
+    runs = [slip_run_summary(run, _bag_truth(Path(run['bag']))) for run in doc.get('runs', [])]
     return {'gaits': doc.get('gaits', {}), 'runs': runs,
-            'skipped_counts': doc.get('skipped_counts', {})}
+            'skipped_counts': doc.get('skipped_counts', {}),
+            'paper_table3': paper_table3_rows(EDUBOT_MASS_KG)}
 
 
 def _say_slip(slip: dict[str, Any]) -> None:
@@ -311,9 +387,10 @@ def _say_slip(slip: dict[str, Any]) -> None:
              f'{mm(r["true_ground_m"])}), {r["stances"]} stances')
     _say('   gait      stances  nerr mean       P [W]         v [m/s]       SR           '
          '(Table 3 in brackets)')
-    order = {g: k for k, g in enumerate(TABLE3)}
+    table3 = _table3()
+    order = {g: k for k, g in enumerate(table3)}
     for gait, row in sorted(slip['gaits'].items(), key=lambda kv: order.get(kv[0], 99)):
-        ref = TABLE3.get(gait, (math.nan,) * 3)
+        ref = table3.get(gait, (math.nan,) * 3)
         sr_ref = ref[1] / (EDUBOT_MASS_KG * 9.81 * ref[2])
         _say(f'   {gait:8s} {int(row.get("stances", 0)):6d}   '
              f'{row.get("nerr_mean", math.nan):.3f} '
@@ -326,7 +403,10 @@ def _say_slip(slip: dict[str, Any]) -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = NumberArgumentParser(prog='hexapod-demo', description=__doc__.split('\n')[0])
-    parser.add_argument('--out', default='demo_out', help='output folder (default demo_out)')
+    parser.add_argument('--out', default='demo_out',
+                        help='output folder (default demo_out): new, empty or an earlier demo '
+                             'run, which is moved to <out>.prev (replacing an older one); a '
+                             'folder holding anything else is refused')
     parser.add_argument('--live-seconds', type=float, default=6.0,
                         help='wall-clock seconds of the live graph, > 0 and <= '
                              f'{MAX_LIVE_SECONDS:g} (default 6)')
@@ -342,11 +422,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f'hexapod-demo: error: {reason}', file=sys.stderr)
         return 2
     out = Path(args.out)
-    if out.exists() and any(out.iterdir()):
-        stamp = time.strftime('%Y%m%d-%H%M%S')
-        out = out / stamp
-    out.mkdir(parents=True, exist_ok=True)
-    summary: dict[str, Any] = {'out': str(out)}
+    moved = prepare_out(out)
+    if moved is not None:
+        _say(f'0. the earlier demo run in {out} moved to {moved}')
+    started = time.strftime('%Y-%m-%dT%H:%M:%S%z')
+    summary: dict[str, Any] = {'out': str(out), 'started': started, 'status': 'incomplete'}
+    # the marker first: a run that stops half-way is still known as a demo run next time
+    (out / DEMO_MARKER).write_text(json.dumps(summary, indent=1))
     t0 = time.monotonic()
 
     _say(f'1. live graph: gait_scheduler -> sim_robot -> energy_monitor, '
@@ -413,7 +495,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     summary['slip'] = slip
     _say_slip(slip)
 
-    (out / 'demo.json').write_text(json.dumps(summary, indent=1, default=str))
+    summary['status'] = 'complete'
+    summary['finished'] = time.strftime('%Y-%m-%dT%H:%M:%S%z')
+    (out / DEMO_MARKER).write_text(json.dumps(summary, indent=1, default=str))
     from hexapod_common.report import write_report
     report = write_report(out)
     _say(f'5. report: {report}  ({time.monotonic() - t0:.0f} s)')

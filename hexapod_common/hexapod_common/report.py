@@ -5,14 +5,17 @@ Collects every ``*.json`` result (``energy.json``, ``slip.json``, ``residuals.js
 section: its plain-words summary, its headline figures as tables (numbers at four significant
 figures, units from the key suffixes), then its own plots inline (base64) with a caption and a
 link to the SVG where one was written; the full JSON folded at the section's end. Plots no
-result claims come last.
+result claims come last. The header names when the page was generated and the installed
+package versions. A sub-folder holding its own ``report.html`` or ``demo.json`` is another
+run (an older demo run under a newer one): it is left out and named, never interleaved.
 
 Sections per result:
 
 * ``energy.json``: the prediction error, one row per robot run, the recommendation, the
   optimal points of every sweep, the bench surface fit;
 * ``slip.json``: the per-gait table (Komsuoglu et al. Table 3: stances, nerr, P, v, SR as mean
-  +/- sd) and one row per run (clock offset, ground, stances);
+  +/- sd, in the paper's gait order, beside the paper's values) and one row per run (clock
+  offset, ground, stances);
 * ``residuals.json``: error before and after, the effects added with their fitted parameters
   +/- standard error, what is left unexplained;
 * ``demo.json``: the live/replay check, the batch loop, the SLIP tables.
@@ -25,6 +28,8 @@ import base64
 import html
 import json
 import math
+import os
+import time
 from pathlib import Path
 from typing import Any
 
@@ -59,8 +64,13 @@ _MAX_DEPTH = 6         # nesting of tables before the rest is shown as cut JSON
 #: figure captions by file stem (prefix match, first wins)
 CAPTIONS = (
     ('four_quadrant_', 'Four-quadrant plot (Brodoline et al. 2024, Fig. 3): P_out and CoT/M '
-     'against speed and efficiency; solid line at 0 g payload, band 0-500 g, dotted where Eq. 1 '
-     'extrapolates the bench; markers at the optimal points.'),
+     'against speed and efficiency; solid line at the nominal payload its subtitle names, '
+     'band over the payload range, dotted where Eq. 1 extrapolates the bench; markers at the '
+     'optimal points.'),
+    ('gait_type_comparison', 'Wave gait (beta 0.83) CoT/M divided by the tripod\'s, per '
+     'payload, against speed: below 1 the wave gait is cheaper. Where either curve '
+     'extrapolates the bench surfaces (dotted or shaded) the ratio is not measured: read a '
+     'ratio below 1 there as a prediction only.'),
     ('power_map', 'Robot output power over speed and payload (Eq. 6, Fig. 7D), with contours.'),
     ('prediction', 'Measured against predicted (Eq. 1) input power per robot run; the 1:1 line '
                    'is a perfect prediction.'),
@@ -70,18 +80,24 @@ CAPTIONS = (
     ('measured_runs', 'Measured input power and specific cost of transport per robot run.'),
     ('where_the_watts_go', 'Where the watts go: the predicted input power split into holding, '
                            'stance and swing motion, against the measured input power.'),
-    ('residual_time', 'Energy residual (measured minus predicted P_in) per run over time: per '
-                      'sample (top), per half cycle before and after the added effects '
-                      '(bottom).'),
+    ('residual_time', 'Energy residual (measured minus predicted P_in, W) over time, one row '
+                      'per run: per sample before the added effects (thin line), per '
+                      'gait-phase window before (filled) and after (hollow) them, held-out '
+                      'windows shaded grey; the bottom panel has every window of every run in '
+                      'order (held-out windows ringed).'),
     ('residual_regressors', 'Residual against each added effect\'s fitted term: before the '
                             'effect the points follow the fitted line, after it they are flat.'),
     ('residual_unexplained', 'What the added effects left, per run, against the window noise.'),
     ('residual_slip_nerr', 'SLIP-measure (nerr) per stance, one series per bag, plain SLIP '
                            '(before) and with the added extension (after).'),
-    ('fig7', 'Komsuoglu et al. Fig. 7: speed against specific resistance, one marker per run.'),
-    ('fig8', 'Komsuoglu et al. Fig. 8: input power against speed, one marker per run.'),
-    ('fig9', 'Komsuoglu et al. Fig. 9: SLIP-measure (nerr, mean +/- sd over the run\'s stances) '
-             'against specific resistance.'),
+    ('fig7', 'Komsuoglu et al. Fig. 7: speed against specific resistance, one marker per run, '
+             'in the paper\'s gait colours (running blue, jogging green, pace purple, walk '
+             'red).'),
+    ('fig8', 'Komsuoglu et al. Fig. 8: input power against speed, one marker per run, in the '
+             'paper\'s gait colours (running blue, jogging green, pace purple, walk red).'),
+    ('fig9', 'Komsuoglu et al. Fig. 9: SLIP-measure (nerr) against specific resistance: every '
+             'stance (dots, jittered sideways), each run\'s median (marker) and interquartile '
+             'range (bar); stances beyond Q3 + 1.5 IQR labelled with their value.'),
 )
 
 #: plots a result owns when its JSON does not list them (file-name prefixes)
@@ -179,7 +195,7 @@ def render_value(value: Any, key: str = '', depth: int = 0, unit: str | None = N
     if isinstance(value, dict):
         if not value:
             return '-'
-        return _kv_table(value, depth, unit)
+        return _kv_table(value, depth, unit, parent=key)
     if isinstance(value, (list, tuple)):
         if not value:
             return 'none'
@@ -193,11 +209,36 @@ def render_value(value: Any, key: str = '', depth: int = 0, unit: str | None = N
     return _scalar(str(value))
 
 
-def _kv_table(data: dict[str, Any], depth: int = 0, unit: str = '') -> str:
-    """Two-column table of a dict; keys without a unit of their own take ``unit``."""
-    rows = ''.join(f'<tr><th>{_esc(k)}</th><td>'
-                   f'{render_value(v, str(k), depth + 1, unit_of(str(k)) or unit)}</td></tr>'
-                   for k, v in data.items())
+#: (parent key, key) -> the row heading that says what a figure measures: the two
+#: "bias" figures of a demo have opposite signs and different averaging
+KEY_LABELS = {
+    ('prediction_error', 'bias_w'): 'bias_w (predicted \u2212 measured P_in, per run)',
+    ('prediction_error', 'rmse_w'): 'rmse_w (predicted \u2212 measured P_in, per run)',
+    ('prediction_error', 'mae_w'): 'mae_w (per run)',
+    ('baseline', 'bias'): 'bias (residual: measured \u2212 model, per window)',
+    ('final', 'bias'): 'bias (residual: measured \u2212 model, per window)',
+    ('baseline', 'rmse'): 'rmse (residual, per window)',
+    ('final', 'rmse'): 'rmse (residual, per window)',
+    ('baseline', 'mae'): 'mae (residual, per window)',
+    ('final', 'mae'): 'mae (residual, per window)',
+    ('heldout', 'rmse_before'): 'rmse_before (residual of the held-out windows)',
+    ('heldout', 'rmse_after'): 'rmse_after (residual of the held-out windows)',
+}
+
+#: keys whose figures are in the unit of the document holding them (its ``unit`` key)
+_IN_DOC_UNIT = ('baseline', 'final', 'heldout')
+
+
+def _kv_table(data: dict[str, Any], depth: int = 0, unit: str = '', parent: str = '') -> str:
+    """Two-column table of a dict; keys without a unit of their own take ``unit`` (the
+    residual loop's ``baseline``, ``final``, ``heldout`` the dict's ``unit``); headings from
+    :data:`KEY_LABELS` where the figure needs its definition."""
+    own = data.get('unit') if isinstance(data.get('unit'), str) else None
+    rows = ''
+    for k, v in data.items():
+        sub = unit_of(str(k)) or (own if own is not None and k in _IN_DOC_UNIT else unit)
+        rows += (f'<tr><th>{_esc(KEY_LABELS.get((parent, str(k)), k))}</th><td>'
+                 f'{render_value(v, str(k), depth + 1, sub)}</td></tr>')
     return f'<table class="kv">{rows}</table>'
 
 
@@ -226,13 +267,14 @@ def _table(head: list[str], rows: list[list[str]], caption: str = '') -> str:
             '</table>')
 
 
-def _pm(mean: Any, sd: Any) -> str:
-    """``mean +/- sd`` at four significant figures (sd omitted when unknown)."""
+def _pm(mean: Any, sd: Any, sd_digits: int = 2) -> str:
+    """``mean +/- sd`` at four significant figures, sd at ``sd_digits`` (omitted when
+    unknown)."""
     if not isinstance(mean, (int, float)):
         return '-'
     text = fmt_number(float(mean))
     if isinstance(sd, (int, float)) and math.isfinite(float(sd)):
-        text += ' \u00b1 ' + fmt_number(float(sd), 2)
+        text += ' \u00b1 ' + fmt_number(float(sd), sd_digits)
     return _esc(text)
 
 
@@ -246,38 +288,79 @@ def _num(value: Any, unit: str = '', digits: int = 4) -> str:
 # ---------------------------------------------------------------------------------- slip
 
 
+#: Komsuoglu et al. Table 3's gait order
+_GAIT_ORDER = ('running', 'jogging', 'pace', 'walk')
+
+
+def _paper_table3(data: dict[str, Any]) -> dict[str, Any]:
+    """Komsuoglu et al. Table 3 to compare with: the document's own ``paper_table3`` (the demo
+    writes it), else the SLIP package's, else none."""
+    own = data.get('paper_table3')
+    if isinstance(own, dict) and own:
+        return own
+    try:
+        from slip_identification.energetics import paper_table3_rows
+    except ImportError:
+        return {}
+    return paper_table3_rows()
+
+
+def _gait_order(gaits: Any) -> list[str]:
+    names = [str(g) for g in gaits]
+    return [g for g in _GAIT_ORDER if g in names] + sorted(set(names) - set(_GAIT_ORDER))
+
+
+def _drop_empty_columns(head: list[str], rows: list[list[str]]) -> tuple[list[str], list[str]]:
+    """The columns with a value in at least one row (and the headings dropped)."""
+    keep = [k for k in range(len(head)) if any(r[k] not in ('', '-') for r in rows)]
+    return [head[k] for k in keep], [h for k, h in enumerate(head) if k not in keep]
+
+
 def _slip_sections(data: dict[str, Any]) -> list[str]:
-    """Per-gait table (Table 3) and one row per run from a ``slip.json`` (or ``demo.json``'s
-    ``slip``) document."""
+    """Per-gait table (Table 3, in its gait order, beside the paper's values) and one row per
+    run from a ``slip.json`` (or ``demo.json``'s ``slip``) document."""
     parts = []
     gaits = data.get('gaits')
     if isinstance(gaits, dict) and gaits:
+        paper = _paper_table3(data)
+        if not any(g in paper for g in gaits):      # another robot's gaits: nothing to compare
+            paper = {}
         rows = []
-        for g, e in gaits.items():
+        for g in _gait_order(gaits):
+            e = gaits[g]
             if not isinstance(e, dict):
                 continue
             n = e.get('stances')
+            ref = paper.get(g) if isinstance(paper.get(g), dict) else {}
             rows.append([_esc(g), _num(int(n) if isinstance(n, (int, float)) else n),
                          _pm(e.get('nerr_mean'), e.get('nerr_std')),
                          _pm(e.get('power_w_mean'), e.get('power_w_std')),
                          _pm(e.get('speed_mps_mean'), e.get('speed_mps_std')),
-                         _pm(e.get('sr_mean'), e.get('sr_std'))])
-        parts.append('<h3>Per gait (Komsuoglu et al. Table 3)</h3>' + _table(
-            ['gait', 'stances', 'nerr', 'P [W]', 'v [m/s]', 'SR'], rows,
-            'mean \u00b1 sd over the gait\'s stances (P, v and SR are per run, repeated on '
-            'each of its stances)'))
+                         _pm(e.get('sr_mean'), e.get('sr_std'))] +
+                        ([_pm(ref.get('nerr_mean'), ref.get('nerr_std'), 3),
+                          _pm(ref.get('power_w_mean'), ref.get('power_w_std'), 3),
+                          _pm(ref.get('speed_mps_mean'), ref.get('speed_mps_std'), 3),
+                          _num(ref.get('sr_mean'), digits=3)] if paper else []))
+        head = ['gait', 'stances', 'nerr', 'P [W]', 'v [m/s]', 'SR [-]']
+        cap = ('mean \u00b1 sd over the gait\'s stances (P, v and SR are per run, repeated on '
+               'each of its stances)')
+        if paper:
+            head += ['paper: nerr', 'paper: P [W]', 'paper: v [m/s]', 'paper: SR [-]']
+            cap += ('; paper: Komsuoglu et al. Table 3 (EduBot, 3.31 kg; its SR = P / (m g v) '
+                    'of the mean P and v)')
+        parts.append('<h3>Per gait (Komsuoglu et al. Table 3)</h3>' + _table(head, rows, cap))
     runs = data.get('runs')
     if isinstance(runs, list) and runs:
         truth = any('true_offset_s' in r for r in runs if isinstance(r, dict))
         head = ['bag', 'gait', 'stances', 'skipped', 'clock offset [ms]', 'offset method',
-                'ground [mm]', 'tilt [deg]', 'P [W]', 'v [m/s]', 'SR']
+                'ground [mm]', 'tilt [deg]', 'P [W]', 'v [m/s]', 'SR [-]']
         if truth:
             head[5:5] = ['hidden offset [ms]']
             head[8:8] = ['hidden ground [mm]']
         rows = []
-        for r in runs:
-            if not isinstance(r, dict):
-                continue
+        order = {g: k for k, g in enumerate(_GAIT_ORDER)}
+        for r in sorted((r for r in runs if isinstance(r, dict)),
+                        key=lambda r: order.get(str(r.get('gait')), len(order))):
             frame = r.get('frame') if isinstance(r.get('frame'), dict) else {}
             tilt = r.get('tilt_deg', frame.get('tilt_deg'))
             ms = (lambda x: x * 1e3 if isinstance(x, (int, float)) else x)  # noqa: E731
@@ -290,7 +373,10 @@ def _slip_sections(data: dict[str, Any]) -> list[str]:
                 row[5:5] = [_num(ms(r.get('true_offset_s')), digits=3)]
                 row[8:8] = [_num(ms(r.get('true_ground_m')), digits=3)]
             rows.append(row)
-        parts.append('<h3>Per run</h3>' + _table(head, rows))
+        kept, dropped = _drop_empty_columns(head, rows)
+        rows = [[c for c, h in zip(r, head) if h in kept] for r in rows]
+        parts.append('<h3>Per run</h3>' + _table(kept, rows) + (
+            f'<p>(not in this document: {_esc(", ".join(dropped))})</p>' if dropped else ''))
     counts = data.get('skipped_counts')
     if isinstance(counts, dict):
         parts.append('<p>Stances skipped: ' + (', '.join(
@@ -304,6 +390,20 @@ def _slip_sections(data: dict[str, Any]) -> list[str]:
 # -------------------------------------------------------------------------------- energy
 
 
+def _rec_labels(configs: list[tuple[str, dict[str, Any]]]) -> dict[str, str]:
+    """Row names of the recommendation table: the best configuration the bench covers and
+    the default gait, each saying when its figure is an extrapolation."""
+    labels = {}
+    for name, c in configs:
+        outside = bool(c.get('outside_bench'))
+        if name == 'best':
+            labels[name] = ('best (extrapolated: no configuration the bench covers)'
+                            if outside else 'best on the bench')
+        else:
+            labels[name] = 'default (extrapolated)' if outside else 'default'
+    return labels
+
+
 def _recommendation(rec: Any) -> list[str]:
     if not isinstance(rec, dict):
         return []
@@ -314,6 +414,7 @@ def _recommendation(rec: Any) -> list[str]:
     if 'payload_kg' in rec:
         at.append(f'payload {_num(rec["payload_kg"], "kg")}')
     configs = [(k, rec[k]) for k in ('best', 'default') if isinstance(rec.get(k), dict)]
+    labels = _rec_labels(configs)
     if configs:
         keys = ('gait', 'leg_count', 'duty_factor', 'step_length_m', 'period_s', 'power_in_w',
                 'power_out_w', 'efficiency', 'specific_cost_of_transport', 'outside_bench')
@@ -321,7 +422,7 @@ def _recommendation(rec: Any) -> list[str]:
                 'eta [%]', 'CoT/M [J/(m kg)]', 'outside the bench']
         rows = []
         for name, c in configs:
-            row = [f'<b>{_esc(name)}</b>']
+            row = [f'<b>{_esc(labels[name])}</b>' if name == 'best' else _esc(labels[name])]
             for k in keys:
                 v = c.get(k)
                 if k == 'efficiency' and isinstance(v, (int, float)):
@@ -332,12 +433,24 @@ def _recommendation(rec: Any) -> list[str]:
         parts.append(_table(head, rows, 'recommended gait ' + ', '.join(at)))
     saving = rec.get('saving_fraction')
     if isinstance(saving, (int, float)) and math.isfinite(saving):
-        parts.append(f'<p>CoT/M saving against the default gait: '
-                     f'{_esc(fmt_number(100.0 * saving, 3))} %'
-                     + (f' ({_esc(rec.get("evaluated"))} configurations evaluated, '
-                        f'{_esc(rec.get("rejected"))} rejected, '
-                        f'{_esc(rec.get("outside_bench"))} outside the bench)'
-                        if 'evaluated' in rec else '') + '</p>')
+        counts = (f' ({_esc(rec.get("evaluated"))} configurations evaluated, '
+                  f'{_esc(rec.get("rejected"))} rejected, '
+                  f'{_esc(rec.get("outside_bench"))} outside the bench)'
+                  if 'evaluated' in rec else '')
+        text = (f'<p>CoT/M saving against the default gait: '
+                f'{_esc(fmt_number(100.0 * saving, 3))} %{counts}')
+        if saving < 0:
+            default = rec.get('default') if isinstance(rec.get('default'), dict) else {}
+            text += (f'. <b>No saving: the recommended configuration costs '
+                     f'{_esc(fmt_number(-100.0 * saving, 3))} % more CoT/M than the default '
+                     'gait.</b>')
+            if default.get('outside_bench'):
+                text += (' No configuration the bench covers beats the default; the '
+                         'default\'s figure is an extrapolation of the bench surfaces, not a '
+                         'measured advantage.')
+            elif 'outside_bench' in default:
+                text += ' The default gait was not among the configurations searched.'
+        parts.append(text + '</p>')
     if rec.get('note'):
         parts.append(f'<p><i>{_esc(rec["note"])}</i></p>')
     return parts
@@ -348,17 +461,50 @@ _OPT = (('max_power_out', 'max P_out [W]', 1.0), ('min_cot_per_mass', 'min CoT/M
         ('max_efficiency', 'max eta [%]', 100.0))
 
 
+def _min_efficiency(c: dict[str, Any]) -> tuple[Any, Any, bool, bool]:
+    """A sweep curve's minimum efficiency for the report: ``(value, speed, starred,
+    on_bench)``. ``min_efficiency_on_bench`` (the minimum over the points the bench covers,
+    with its speed) when the document has it; else ``min_efficiency`` (over every speed and
+    payload), starred unless ``min_efficiency_outside_bench`` says it is on the bench."""
+    on = c.get('min_efficiency_on_bench')
+    speed: Any = None
+    if isinstance(on, dict):              # {'value': ..., 'speed_mps': ...}
+        speed = on.get('speed_mps', on.get('speed'))
+        on = on.get('value')
+    if isinstance(on, (int, float)) and not isinstance(on, bool) and math.isfinite(on):
+        if speed is None:
+            speed = next((c[k] for k in ('min_efficiency_on_bench_speed_mps',
+                                         'min_efficiency_on_bench_at_mps',
+                                         'min_efficiency_on_bench_mps',
+                                         'min_efficiency_on_bench_speed') if k in c), None)
+        return on, speed, False, True
+    me = c.get('min_efficiency')
+    speed = next((c[k] for k in ('min_efficiency_speed_mps', 'min_efficiency_at_mps')
+                  if k in c), None)
+    return me, speed, c.get('min_efficiency_outside_bench') is not False, False
+
+
+def _nominal_payload(curves: list[Any]) -> str:
+    """' (nominal payload N g)' when every curve of a sweep has the same first payload (the
+    one its optimal points are taken at), else ''."""
+    first = {c['payloads_kg'][0] for c in curves if isinstance(c, dict) and
+             isinstance(c.get('payloads_kg'), list) and c['payloads_kg'] and
+             isinstance(c['payloads_kg'][0], (int, float))}
+    return f' (nominal payload {1e3 * first.pop():.0f} g)' if len(first) == 1 else ''
+
+
 def _optimal_points(sweeps: Any) -> list[str]:
     if not isinstance(sweeps, dict) or not sweeps:
         return []
-    parts = ['<h3>Optimal points per sweep (0 g payload)</h3>']
+    parts = ['<h3>Optimal points per sweep (at the nominal payload; 0 g unless named)</h3>']
+    any_on, any_starred = False, False
     for name, curves in sweeps.items():
         if not isinstance(curves, list):
             continue
         head = ['curve']
         for _, label, _s in _OPT:
             head += [label, 'at v [m/s]']
-        head += ['min eta [%]', 'max v [m/s]']
+        head += ['min eta [%]', 'at v [m/s]', 'max v [m/s]']
         rows = []
         for c in curves:
             if not isinstance(c, dict):
@@ -371,12 +517,31 @@ def _optimal_points(sweeps: Any) -> list[str]:
                 star = '*' if p.get('outside_bench') else ''
                 row += [_num(scale * v if isinstance(v, (int, float)) else v) + star,
                         _num(p.get('speed_mps'), digits=3)]
-            me = c.get('min_efficiency')
-            row += [_num(100.0 * me if isinstance(me, (int, float)) else me, digits=3),
-                    _num(c.get('max_speed_mps'), digits=3)]
+            me, at, starred, on = _min_efficiency(c)
+            any_on |= on
+            any_starred |= starred and isinstance(me, (int, float))
+            cell = _num(100.0 * me if isinstance(me, (int, float)) else me, digits=3)
+            if starred and isinstance(me, (int, float)):
+                cell = f'<span style="color:#888">{cell}*</span>'
+            row += [cell, _num(at, digits=3), _num(c.get('max_speed_mps'), digits=3)]
             rows.append(row)
-        parts.append(_table(head, rows, name.replace('_', ' ')))
+        at_col = len(head) - 2        # min eta's speed: left out when no curve gives it
+        if rows and all(r[at_col] == '-' for r in rows):
+            head = head[:at_col] + head[at_col + 1:]
+            rows = [r[:at_col] + r[at_col + 1:] for r in rows]
+        parts.append(_table(head, rows, name.replace('_', ' ') + _nominal_payload(curves)))
     parts.append('<p>* the point extrapolates the bench surfaces (dotted in the plots)</p>')
+    notes = []
+    if any_on:
+        notes.append('min eta is the smallest efficiency over the speeds and payloads the bench '
+                     'covers (the extrapolated slow end of a curve reads lower)')
+    if any_starred:
+        notes.append('a grey starred min eta is the smallest over every speed and payload, '
+                     'extrapolated ones included, or not known to be on the bench: not a '
+                     'measured figure, and not comparable across sweeps that start at '
+                     'different speeds')
+    if notes:
+        parts.append('<p>' + '; '.join(_esc(n) for n in notes) + '.</p>')
     return parts
 
 
@@ -426,11 +591,50 @@ def _added_params(items: Any) -> list[str]:
 # -------------------------------------------------------------------------------- plots
 
 
-def _caption(path: Path) -> str:
-    for prefix, text in CAPTIONS:
-        if path.stem.startswith(prefix):
-            return text
+def png_description(png: Path) -> str:
+    """The ``Description`` text a PNG carries (a ``tEXt`` or uncompressed ``iTXt`` chunk, as
+    matplotlib writes ``savefig(..., metadata={'Description': ...})``), ``''`` without one."""
+    import struct
+    import zlib
+
+    try:
+        data = png.read_bytes()
+    except OSError:
+        return ''
+    if not data.startswith(b'\x89PNG\r\n\x1a\n'):
+        return ''
+    at = 8
+    while at + 8 <= len(data):
+        length, kind = struct.unpack('>I4s', data[at:at + 8])
+        body = data[at + 8:at + 8 + length]
+        at += 12 + length
+        if kind == b'IDAT' or kind == b'IEND':
+            break
+        if kind not in (b'tEXt', b'iTXt', b'zTXt'):
+            continue
+        key, _, rest = body.partition(b'\0')
+        if key != b'Description':
+            continue
+        try:
+            if kind == b'tEXt':
+                return rest.decode('latin-1')
+            if kind == b'zTXt':
+                return zlib.decompress(rest[1:]).decode('latin-1')
+            compressed, _method, rest = rest[0], rest[1], rest[2:]
+            _lang, _, rest = rest.partition(b'\0')
+            _tkey, _, text = rest.partition(b'\0')
+            return (zlib.decompress(text) if compressed else text).decode('utf-8')
+        except (ValueError, zlib.error, IndexError):
+            return ''
     return ''
+
+
+def _caption(path: Path) -> str:
+    """The caption of a plot: by its file name (:data:`CAPTIONS`), then the description the
+    PNG carries itself."""
+    text = next((t for prefix, t in CAPTIONS if path.stem.startswith(prefix)), '')
+    own = png_description(path) if path.suffix == '.png' else ''
+    return ' '.join(x for x in (text, own) if x)
 
 
 def _figure(png: Path, out: Path) -> str:
@@ -513,13 +717,71 @@ def _section(path: Path, data: Any) -> list[str]:
     return parts
 
 
+#: files marking a sub-folder as a run of its own (a demo run, an earlier report)
+RUN_MARKERS = ('report.html', 'demo.json')
+
+
+def _collect(out: Path) -> tuple[list[Path], list[Path]]:
+    """The ``*.json`` and ``*.png`` files under ``out`` (any depth) and, apart, the sub-folders
+    skipped because they hold a run of their own (:data:`RUN_MARKERS`: an older demo run
+    under a newer one; merging them interleaved two runs' sections)."""
+    files: list[Path] = []
+    nested: list[Path] = []
+    for root, dirs, names in os.walk(out):
+        here = Path(root)
+        if here != out and any(m in names for m in RUN_MARKERS):
+            nested.append(here.relative_to(out))
+            dirs[:] = []
+            continue
+        dirs.sort()
+        files.extend(here / n for n in names if n.endswith(('.json', '.png')))
+    return files, sorted(nested)
+
+
+def _nested_note(out: Path, nested: list[Path]) -> str:
+    """The paragraph naming the sub-folders left out, with links to their own reports."""
+    items = []
+    for d in nested:
+        rep = out / d / 'report.html'
+        link = (f' (<a href="{_esc((d / "report.html").as_posix())}">its report</a>)'
+                if rep.is_file() else '')
+        items.append(f'<li><code>{_esc(d.as_posix())}/</code>{link}</li>')
+    return ('<p><b>Not included:</b> these sub-folders hold a run of their own (a '
+            '<code>report.html</code> or <code>demo.json</code>); their results are left out '
+            'here so that two runs are not mixed:</p><ul>' + ''.join(items) + '</ul>')
+
+
+def _versions() -> str:
+    """The installed versions of the project's packages (``name version``, comma-separated);
+    ``'unknown'`` when none is installed as a distribution."""
+    from importlib import metadata
+
+    found = []
+    for name in ('hexapod_common', 'hexapod_gait', 'hexapod_bench_drivers', 'hexapod_energy',
+                 'slip_identification'):
+        try:
+            found.append(f'{name} {metadata.version(name)}')
+        except metadata.PackageNotFoundError:
+            continue
+    return ', '.join(found) or 'unknown'
+
+
+def _header_meta() -> str:
+    """The line under the report's title: when it was generated and by which code."""
+    stamp = time.strftime('%Y-%m-%d %H:%M:%S %Z', time.localtime())
+    return (f'<p class="meta">generated {_esc(stamp)} by <code>hexapod-analyze report</code>; '
+            f'packages: {_esc(_versions())}</p>')
+
+
 def write_report(out_dir: str | Path) -> Path:
     """Write ``out_dir/report.html`` and return its path.
 
     Parameters
     ----------
     out_dir : str or Path
-        Analysis folder holding ``*.json`` results and ``*.png`` plots (any depth).
+        Analysis folder holding ``*.json`` results and ``*.png`` plots (any depth; a
+        sub-folder holding its own ``report.html`` or ``demo.json`` is another run and left
+        out, named in the report).
 
     Returns
     -------
@@ -545,12 +807,18 @@ def write_report(out_dir: str | Path) -> Path:
              'table.grid td,table.grid th{border:1px solid #ddd}'
              'table.kv th{color:#444;font-weight:normal;font-style:italic}'
              'caption{text-align:left;font-style:italic;color:#444}'
-             'figure{margin:12px 0}figcaption{font-size:90%;color:#333}</style>',
-             f'<h1>Analysis report: {_esc(out)}</h1>']
-    results = sorted(out.rglob('*.json'))
-    pngs = sorted(p.resolve() for p in out.rglob('*.png'))
+             'figure{margin:12px 0}figcaption{font-size:90%;color:#333}'
+             '.meta{color:#555;font-size:90%}</style>',
+             f'<h1>Analysis report: {_esc(out)}</h1>', _header_meta()]
+    files, nested = _collect(out)
+    results = sorted(p for p in files if p.suffix == '.json')
+    pngs = sorted(p.resolve() for p in files if p.suffix == '.png')
     if not results and not pngs:
-        raise FileNotFoundError(f'{out} holds no *.json results and no plots')
+        raise FileNotFoundError(f'{out} holds no *.json results and no plots' +
+                                (f' outside its sub-folders holding their own run '
+                                 f'({", ".join(str(d) for d in nested)})' if nested else ''))
+    if nested:
+        parts.append(_nested_note(out, nested))
     claimed: set[Path] = set()
     for path in results:
         try:

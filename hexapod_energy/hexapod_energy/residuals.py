@@ -1990,21 +1990,39 @@ def _bench_gait(model: Any) -> dict[str, float]:
     return out
 
 
+def _held_spans(t: np.ndarray, dur: np.ndarray, held: np.ndarray) -> list[tuple[float, float]]:
+    """Time spans [s] of consecutive held-out windows (window centres ``t``, lengths
+    ``dur``), for shading."""
+    order = np.argsort(t)
+    t, dur, held = t[order], dur[order], held[order]
+    spans: list[tuple[float, float]] = []
+    for k in np.flatnonzero(held):
+        a, b = float(t[k] - dur[k] / 2), float(t[k] + dur[k] / 2)
+        if spans and k > 0 and held[k - 1]:
+            spans[-1] = (spans[-1][0], b)
+        else:
+            spans.append((a, b))
+    return spans
+
+
 def plot_energy_loop(table: WindowTable, sel: EffectSelection, held: np.ndarray,
                      runs: Sequence[ResidualRun], out: Path) -> list[str]:
-    """Residual vs time (per sample before, per window before/after, one colour per run, run
-    boundaries named, y-range clipped to robust percentiles) and vs each chosen effect's
-    fitted term; returns the PNG names."""
-    import textwrap
-
+    """Residual against time, one row per run (shared time axis): per sample before the added
+    effects, per window before and after, held-out windows shaded; below, every window of
+    every run in order, before and after (held out ringed); y-ranges clipped to robust
+    percentiles; legends outside the axes. Then the residual against each chosen effect's
+    fitted term (its docstring saved as the PNG's description, which the report shows as
+    the caption). Returns the PNG names."""
     import matplotlib
 
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
     from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
 
-    def robust(ax: Any, values: Sequence[np.ndarray], what: str) -> None:
-        """Clip the y-range to the 0.5-99.5 percentiles; say so on the axis when it cuts."""
+    def robust(ax: Any, values: Sequence[np.ndarray], what: str, inside: bool = False) -> None:
+        """Clip the y-range to the 0.5-99.5 percentiles; say so on the axis when it cuts (in
+        its label, or ``inside`` the axes at the top right)."""
         v = np.concatenate([np.ravel(a) for a in values]) if values else np.zeros(0)
         v = v[np.isfinite(v)]
         if v.size < 20:
@@ -2015,28 +2033,76 @@ def plot_energy_loop(table: WindowTable, sel: EffectSelection, held: np.ndarray,
         beyond = int(np.sum((v < lo - pad) | (v > hi + pad)))
         if beyond:
             ax.set_ylim(lo - pad, hi + pad)
-            what += f'\n(clipped to 0.5-99.5 %: {beyond} beyond)'
+            note = f'clipped to 0.5-99.5 %: {beyond} beyond'
+            if inside:
+                ax.text(0.995, 0.96, note, transform=ax.transAxes, ha='right', va='top',
+                        fontsize=7, color='0.3',
+                        bbox={'facecolor': 'white', 'alpha': 0.8, 'lw': 0, 'pad': 1.5})
+            else:
+                what += f'\n({note})'
         ax.set_ylabel(what)
 
     names = []
     r0, r1 = table.residual_w, table.residual_w - sel.term_w_
+    held = np.asarray(held, dtype=bool)
     colors = plt.rcParams['axes.prop_cycle'].by_key()['color']
     col = [colors[k % len(colors)] for k in range(len(runs))]
-    fig, axes = plt.subplots(2, 1, figsize=(10, 7.5), sharex=False)
-    per_sample = []
+    added = ', '.join(e.name for e in (sel.selected_ or [])) or 'none'
+    n = max(len(runs), 1)
+    row_h = min(1.7, 10.0 / n)
+    fig = plt.figure(figsize=(11.5, row_h * n + 4.6))
+    grid = fig.add_gridspec(n + 2, 1, height_ratios=[row_h] * n + [0.7, 3.2], hspace=0.12)
+    t_win = np.asarray(table.t_s, dtype=float)
+    dur = np.asarray(getattr(table, 'duration_s', np.zeros(t_win.size)), dtype=float)
+    rows: list[Any] = []
     for k, r in enumerate(runs):
+        ax = fig.add_subplot(grid[k], sharex=rows[0] if rows else None)
+        rows.append(ax)
         assert r.predicted_w is not None
+        t0 = float(r.t_s[0])
         res = r.power_w - r.predicted_w
-        per_sample.append(res)
-        axes[0].plot(r.t_s - r.t_s[0], res, lw=0.4, alpha=0.6, color=col[k],
-                     label=Path(r.name).name)
-    robust(axes[0], per_sample, 'residual per sample [W]')
-    axes[0].set_xlabel('time in run [s]')
-    axes[0].set_title('Measured minus predicted P_in per sample, before the added effects '
-                      '(the gait cycle\'s ripple)', fontsize=10)
-    axes[0].legend(fontsize=7, loc='upper right', ncol=min(len(runs), 4) or 1)
+        ax.plot(r.t_s - t0, res, lw=0.6, alpha=0.55, color=col[k], zorder=1)
+        m = table.run == k
+        if m.any():
+            tw = t_win[m] - t0
+            if np.all(dur[m] > 0):
+                d = dur[m]
+            else:           # no window lengths: the spacing of the window centres
+                step = float(np.median(np.diff(np.sort(tw)))) if tw.size > 1 else 0.5
+                d = np.full(tw.size, step)
+            for a, b in _held_spans(tw, d, held[m]):
+                ax.axvspan(a, b, color='0.82', lw=0, zorder=0)
+            ax.plot(tw, r0[m], 'o', ms=4, color=col[k], mec='k', mew=0.4, zorder=3)
+            ax.plot(tw, r1[m], 's', ms=4.5, mfc='none', mew=1.0, color='k', zorder=4)
+            ax.text(0.005, 0.96, f'{Path(r.name).name}: per-window mean '
+                    f'{float(np.mean(r0[m])):+.2f} W before, {float(np.mean(r1[m])):+.2f} W '
+                    'after', transform=ax.transAxes, ha='left', va='top', fontsize=8,
+                    color=col[k], fontweight='bold',
+                    bbox={'facecolor': 'white', 'alpha': 0.8, 'lw': 0, 'pad': 1.5})
+        else:
+            ax.text(0.005, 0.96, Path(r.name).name, transform=ax.transAxes, ha='left',
+                    va='top', fontsize=8, color=col[k], fontweight='bold')
+        ax.axhline(0.0, color='0.3', lw=0.6)
+        robust(ax, [res, r0[m], r1[m]], 'residual [W]', inside=True)
+        ax.yaxis.label.set_fontsize(8)
+        ax.grid(alpha=0.25)
+        if k < n - 1:
+            ax.tick_params(labelbottom=False)
+    if rows:
+        rows[-1].set_xlabel('time in run [s]')
+        rows[0].set_title('Measured minus predicted P_in per run: per sample before the added '
+                          f'effects (line), per window before and after them ({added})',
+                          fontsize=10)
+        rows[0].legend(handles=[
+            Line2D([], [], lw=2, color='0.4', label='per sample, before\n(run colour)'),
+            Line2D([], [], ls='', marker='o', ms=6, color='0.6', mec='k', mew=0.4,
+                   label='per window, before'),
+            Line2D([], [], ls='', marker='s', ms=6, mfc='none', mew=1.0, color='k',
+                   label='per window, after'),
+            Patch(color='0.82', label='held-out windows')],
+            loc='upper left', bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0.0)
     idx = np.arange(r0.size)
-    ax = axes[1]
+    ax = fig.add_subplot(grid[n + 1])
     for k, r in enumerate(runs):
         m = table.run == k
         if not m.any():
@@ -2050,20 +2116,21 @@ def plot_energy_loop(table: WindowTable, sel: EffectSelection, held: np.ndarray,
                     xycoords=('data', 'axes fraction'), xytext=(0, 2),
                     textcoords='offset points', ha='center', va='bottom', fontsize=8,
                     color=col[k])
-    ax.plot(idx[held], r0[held], 'x', ms=3, color='k')
+    ax.plot(idx[held], r0[held], 'o', ms=7, mfc='none', mew=0.9, color='k')
     ax.axhline(0.0, color='0.3', lw=0.6)
-    robust(ax, [r0, r1], 'residual per gait-phase window [W]')
+    robust(ax, [r0, r1], 'residual per window [W]')
     ax.set_xlabel('window (runs in order, boundaries dashed)')
-    added = ', '.join(e.name for e in (sel.selected_ or [])) or 'none'
-    ax.set_title(f'Per window: before (filled) and after (hollow) the added effects '
+    ax.set_title(f'Every window: before (filled) and after (hollow) the added effects '
                  f'({added})', fontsize=10, pad=14)
-    ax.legend(handles=[Line2D([], [], ls='', marker='o', ms=4, color='0.3', label='before'),
-                       Line2D([], [], ls='', marker='s', ms=4, mfc='none', color='0.3',
+    ax.legend(handles=[Line2D([], [], ls='', marker='o', ms=5, color='0.3', label='before'),
+                       Line2D([], [], ls='', marker='s', ms=5, mfc='none', color='0.3',
                               label='after'),
-                       Line2D([], [], ls='', marker='x', ms=4, color='k',
-                              label='held out (before)')], fontsize=8, loc='best')
-    fig.tight_layout()
-    fig.savefig(out / 'residual_time.png', dpi=90)
+                       Line2D([], [], ls='', marker='o', ms=8, mfc='none', mew=0.9,
+                              color='k', label='held out (ringed)')],
+              loc='upper left', bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0.0)
+    fig.subplots_adjust(left=0.08, right=0.8, top=1.0 - 0.45 / fig.get_figheight(),
+                        bottom=0.55 / fig.get_figheight())
+    fig.savefig(out / 'residual_time.png', dpi=100)
     plt.close(fig)
     names.append('residual_time.png')
     chosen = sel.selected_ or []
@@ -2073,34 +2140,38 @@ def plot_energy_loop(table: WindowTable, sel: EffectSelection, held: np.ndarray,
         widths = [b.shape[1] for b in blocks]
         coef = np.asarray(getattr(sel, 'coef_', np.zeros(0)), dtype=float)
         split = coef.size == sum(widths)
-        fig, axes = plt.subplots(1, len(chosen), figsize=(5.2 * len(chosen), 4.6),
+        fig, axes = plt.subplots(1, len(chosen), figsize=(6.4 * len(chosen), 5.2),
                                  squeeze=False)
         start = 0
+        docs = []
         for ax, e, x in zip(axes[0], chosen, blocks):
             if split:
                 term = x @ coef[start:start + x.shape[1]] if x.shape[1] else np.zeros(r0.size)
                 start += x.shape[1]
                 # before: the residual with the other added effects taken out
                 partial = r0 - (sel.term_w_ - term)
-                ax.plot(term, partial, '.', ms=3, label='before this effect')
-                ax.plot(term, r1, '.', ms=3, label='after')
+                ax.plot(term, partial, '.', ms=4, label='before this effect')
+                ax.plot(term, r1, '.', ms=4, label='after')
                 lim = [float(np.nanmin(term)), float(np.nanmax(term))]
                 ax.plot(lim, lim, 'k-', lw=1, label='fitted term (y = x)')
                 ax.set_xlabel(f'fitted {e.name} term [W]')
+                ax.set_title(f'{e.name}: fitted term vs residual', fontsize=10)
             else:
                 xv = x[:, 0] if x.shape[1] else table.t_s
-                ax.plot(xv, r0, '.', ms=3, label='before')
-                ax.plot(xv, r1, '.', ms=3, label='after')
+                ax.plot(xv, r0, '.', ms=4, label='before')
+                ax.plot(xv, r1, '.', ms=4, label='after')
                 ax.set_xlabel(f'{e.name} regressor' + (f' [{e.unit}]' if e.unit else ''))
+                ax.set_title(f'{e.name}: regressor vs residual', fontsize=10)
             doc = ' '.join((type(e).__doc__ or '').strip().split('\n\n')[0].split())
             doc = doc.replace('``', '')
-            ax.set_title(textwrap.fill(f'{e.name}: {doc}', 60) if doc else e.name,
-                         fontsize=8)
+            if doc:
+                docs.append(f'{e.name}: {doc}')
             ax.set_ylabel('residual [W]')
             ax.grid(alpha=0.3)
             ax.legend(fontsize=8)
         fig.tight_layout()
-        fig.savefig(out / 'residual_regressors.png', dpi=90)
+        fig.savefig(out / 'residual_regressors.png', dpi=110,
+                    metadata={'Description': ' '.join(docs)} if docs else None)
         plt.close(fig)
         names.append('residual_regressors.png')
     return names

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +14,9 @@ from hexapod_common.conversions import current_sign_factor
 from .errors import SlipDataError
 from .model import GRAVITY_MPS2
 
-__all__ = ['battery_power_w', 'gait_table', 'plot_figures', 'specific_resistance']
+__all__ = ['GAIT_ORDER', 'PAPER_COLORS', 'PAPER_MASS_KG', 'PAPER_TABLE3', 'battery_power_w',
+           'gait_colors', 'gait_table', 'ordered_gaits', 'paper_table3_rows', 'plot_figures',
+           'specific_resistance']
 
 
 def battery_power_w(voltage_v: ArrayLike, current_a: ArrayLike, *, sign: str = 'auto'
@@ -47,14 +49,77 @@ def specific_resistance(power_w: float, mass_kg: float, speed_mps: float,
     return power_w / (mass_kg * gravity_mps2 * speed_mps) if speed_mps > 0 else math.nan
 
 
+#: Komsuoglu et al. Table 3's gait order, used for legends and tables.
+GAIT_ORDER = ('running', 'jogging', 'pace', 'walk')
+
+#: The paper's gait colours (captions of Figs. 7-9).
+PAPER_COLORS = {'running': 'tab:blue', 'jogging': 'tab:green', 'pace': 'tab:purple',
+                'walk': 'tab:red'}
+
+#: Komsuoglu et al. Table 3 (EduBot, 3.31 kg): gait -> (mean, std) of nerr, P [W], v [m/s].
+PAPER_TABLE3: dict[str, dict[str, tuple[float, float]]] = {
+    'running': {'nerr': (0.087, 0.07), 'power_w': (31.63, 2.99), 'speed_mps': (1.06, 0.04)},
+    'jogging': {'nerr': (0.26, 0.10), 'power_w': (42.92, 1.43), 'speed_mps': (0.64, 0.01)},
+    'pace': {'nerr': (0.52, 0.11), 'power_w': (26.23, 0.51), 'speed_mps': (0.30, 0.004)},
+    'walk': {'nerr': (0.54, 0.03), 'power_w': (20.93, 0.32), 'speed_mps': (0.16, 0.002)},
+}
+
+#: The robot mass of Table 3 [kg].
+PAPER_MASS_KG = 3.31
+
+
+def paper_table3_rows(mass_kg: float = PAPER_MASS_KG) -> dict[str, dict[str, float]]:
+    """Table 3 as the per-gait entries :func:`gait_table` writes (``nerr_mean``,
+    ``nerr_std``, ``power_w_mean``, ...), with ``sr_mean`` = P / (m g v) of the means (the
+    paper gives no SR column)."""
+    out: dict[str, dict[str, float]] = {}
+    for gait, entry in PAPER_TABLE3.items():
+        row: dict[str, float] = {}
+        for key, (mean, std) in entry.items():
+            row[f'{key}_mean'], row[f'{key}_std'] = mean, std
+        row['sr_mean'] = specific_resistance(entry['power_w'][0], mass_kg,
+                                             entry['speed_mps'][0])
+        out[gait] = row
+    return out
+
+
+def ordered_gaits(gaits: Iterable[str]) -> list[str]:
+    """The gaits in Table 3's order (running, jogging, pace, walk), any other after them,
+    alphabetically."""
+    names = {str(g) for g in gaits}
+    return [g for g in GAIT_ORDER if g in names] + sorted(names - set(GAIT_ORDER))
+
+
+def gait_colors(gaits: Iterable[str]) -> dict[str, str]:
+    """Colour per gait: the paper's (Figs. 7-9: running blue, jogging green, pace purple,
+    walk red); any other gait takes the next colour of matplotlib's cycle the paper's do not
+    use."""
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import to_hex
+
+    cycle = [to_hex(c) for c in plt.rcParams['axes.prop_cycle'].by_key()['color']]
+    taken = {to_hex(c) for c in PAPER_COLORS.values()}
+    spare = [c for c in cycle if c not in taken] or cycle
+    out: dict[str, str] = {}
+    others = 0
+    for g in ordered_gaits(gaits):
+        if g in PAPER_COLORS:
+            out[g] = PAPER_COLORS[g]
+        else:
+            out[g] = spare[others % len(spare)]
+            others += 1
+    return out
+
+
 def gait_table(rows: Sequence[dict[str, float | str]]) -> dict[str, dict[str, float]]:
-    """Table 3: per gait mean and std of ``nerr``, ``power_w``, ``speed_mps`` (and ``sr``).
+    """Table 3: per gait mean and std of ``nerr``, ``power_w``, ``speed_mps`` (and ``sr``),
+    the gaits in Table 3's order (running, jogging, pace, walk, then any other).
 
     ``rows`` holds one dict per stance with keys ``gait``, ``nerr``, ``power_w``,
     ``speed_mps``, ``sr`` (run values repeated on each of the run's stances, as in the paper).
     """
     out: dict[str, dict[str, float]] = {}
-    for gait in sorted({str(r['gait']) for r in rows}):
+    for gait in ordered_gaits(str(r['gait']) for r in rows):
         sel = [r for r in rows if r['gait'] == gait]
         entry: dict[str, float] = {'stances': float(len(sel))}
         for key in ('nerr', 'power_w', 'speed_mps', 'sr'):
@@ -77,12 +142,44 @@ def _runs_of(rows: Sequence[dict[str, float | str]]) -> list[list[dict[str, floa
     return list(groups.values())
 
 
-def plot_figures(rows: Sequence[dict[str, float | str]], out_dir: str | Path) -> list[Path]:
-    """Figs. 7 (v vs SR), 8 (P vs v), 9 (nerr vs SR), colour per gait, one marker per run.
+def _source_of(out: Path) -> tuple[float | None, str | None]:
+    """Robot mass and data source from the ``slip.json`` the SLIP analysis wrote in ``out``
+    (its ``mass_kg``; 'simulated EduBot' when every run's bag carries the EduBot simulator's
+    truth, else 'recorded runs'), ``(None, None)`` without one."""
+    import json
+
+    try:
+        doc = json.loads((out / 'slip.json').read_text(encoding='utf-8'))
+    except (OSError, ValueError):
+        return None, None
+    if not isinstance(doc, dict):
+        return None, None
+    mass = doc.get('mass_kg')
+    mass = float(mass) if isinstance(mass, (int, float)) and math.isfinite(mass) else None
+    bags = [Path(str(r.get('bag', ''))) for r in doc.get('runs') or [] if isinstance(r, dict)]
+
+    def simulated(bag: Path) -> bool:
+        try:
+            return 'hexapod_sim.edubot_truth' in (bag / 'metadata.yaml').read_text(
+                encoding='utf-8', errors='replace')
+        except OSError:
+            return False
+
+    if not bags:
+        return mass, None
+    return mass, ('simulated EduBot (hexapod-sim)' if all(map(simulated, bags))
+                  else 'recorded runs')
+
+
+def plot_figures(rows: Sequence[dict[str, float | str]], out_dir: str | Path, *,
+                 mass_kg: float | None = None, source: str | None = None) -> list[Path]:
+    """Figs. 7 (v vs SR), 8 (P vs v), 9 (nerr vs SR) in the paper's gait colours (running
+    blue, jogging green, pace purple, walk red; legend in Table 3's order).
 
     Speed, power and SR are run values (repeated on each stance): one marker per run,
-    annotated with its stance count ``n``; nerr is per stance: Fig. 9 shows each run's mean
-    +/- sd over its stances, the stances faint behind it.
+    annotated with its stance count ``n``. nerr is per stance: Fig. 9 draws every stance
+    (slightly jittered sideways) and each run's median with its interquartile range; stances
+    beyond Q3 + 1.5 IQR are labelled with their value.
 
     Parameters
     ----------
@@ -91,6 +188,11 @@ def plot_figures(rows: Sequence[dict[str, float | str]], out_dir: str | Path) ->
         optionally ``bag``).
     out_dir : str or Path
         Output folder.
+    mass_kg : float, optional
+        Robot mass named in the titles; default the ``mass_kg`` of ``out_dir/slip.json``.
+    source : str, optional
+        The data named in the titles (e.g. 'simulated EduBot'); default from
+        ``out_dir/slip.json``'s runs.
 
     Returns
     -------
@@ -100,50 +202,80 @@ def plot_figures(rows: Sequence[dict[str, float | str]], out_dir: str | Path) ->
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    gaits = sorted({str(r['gait']) for r in rows})
-    colors = plt.rcParams['axes.prop_cycle'].by_key()['color']
-    color = {g: colors[i % len(colors)] for i, g in enumerate(gaits)}
-    runs = _runs_of(rows)
-    specs = [('fig7_speed_vs_sr.png', 'sr', 'speed_mps', 'specific resistance SR',
-              'speed [m/s]', 'Fig. 7: speed against specific resistance'),
+    if mass_kg is None or source is None:
+        found_mass, found_source = _source_of(out)
+        mass_kg = found_mass if mass_kg is None else mass_kg
+        source = found_source if source is None else source
+    gaits = ordered_gaits(str(r['gait']) for r in rows)
+    color = gait_colors(gaits)
+    runs = sorted(_runs_of(rows), key=lambda run: gaits.index(str(run[0]['gait'])))
+    per_gait = {g: sum(1 for run in runs if str(run[0]['gait']) == g) for g in gaits}
+    counts = set(per_gait.values())
+    data = [source or '']
+    if mass_kg is not None:
+        data.append(f'm = {mass_kg:.3g} kg')
+    if len(counts) == 1:
+        k = counts.pop()
+        data.append(f'{k} run per gait' if k == 1 else f'{k} runs per gait')
+    else:
+        data.append(f'{len(runs)} runs')
+    what = ', '.join(x for x in data if x)
+    sr_label = 'specific resistance SR [-]'
+    specs = [('fig7_speed_vs_sr.png', 'sr', 'speed_mps', sr_label, 'speed [m/s]',
+              'Fig. 7: speed against specific resistance'),
              ('fig8_power_vs_speed.png', 'speed_mps', 'power_w', 'speed [m/s]',
               'input power [W]', 'Fig. 8: input power against speed'),
-             ('fig9_nerr_vs_sr.png', 'sr', 'nerr', 'specific resistance SR',
-              'SLIP-measure nerr (mean \u00b1 sd per run)',
+             ('fig9_nerr_vs_sr.png', 'sr', 'nerr', sr_label,
+              'SLIP-measure nerr [-]\n(dots: stances; marker and bar: median and IQR per run)',
               'Fig. 9: SLIP-measure against specific resistance')]
+    rng = np.random.default_rng(0)       # the jitter: the same figure on every run
     paths = []
     for name, kx, ky, lx, ly, title in specs:
-        fig, ax = plt.subplots(figsize=(5.5, 4.3))
-        labelled: set[str] = set()
+        fig, ax = plt.subplots(figsize=(6.0, 4.6))
+        xs_all = [float(np.nanmean([float(r[kx]) for r in run])) for run in runs
+                  if np.isfinite([float(r[kx]) for r in run]).any()]
+        span = (max(xs_all) - min(xs_all)) if len(xs_all) > 1 else 1.0
         for run in runs:
             g = str(run[0]['gait'])
             xs = np.array([float(r[kx]) for r in run], dtype=float)
             ys = np.array([float(r[ky]) for r in run], dtype=float)
             x = float(np.nanmean(xs)) if np.isfinite(xs).any() else math.nan
             ok = np.isfinite(ys)
-            y = float(ys[ok].mean()) if ok.any() else math.nan
-            label = g if g not in labelled else None
-            labelled.add(g)
-            if ky == 'nerr':
-                ax.scatter(np.full(ok.sum(), x), ys[ok], s=8, color=color[g], alpha=0.25,
-                           linewidths=0, label='_stances')
-                ax.errorbar([x], [y], yerr=[float(ys[ok].std()) if ok.any() else 0.0],
-                            fmt='o', ms=7, color=color[g], capsize=4, label=label)
+            if ky == 'nerr' and ok.any():
+                y = float(np.median(ys[ok]))
+                q1, q3 = (float(q) for q in np.percentile(ys[ok], [25, 75]))
+                jitter = rng.uniform(-0.012, 0.012, ok.sum()) * (span or 1.0)
+                ax.scatter(x + jitter, ys[ok], s=14, color=color[g], alpha=0.6,
+                           linewidths=0, zorder=2, label='_stances')
+                ax.errorbar([x], [y], yerr=[[y - q1], [q3 - y]], fmt='o', ms=8,
+                            color=color[g], mec='k', mew=0.8, ecolor='k', elinewidth=1.4,
+                            capsize=5, zorder=3, label='_run')
+                far = q3 + 1.5 * (q3 - q1)
+                for v, jx in zip(ys[ok], x + jitter):
+                    if v > far and q3 > q1:
+                        ax.annotate(f'{v:.2f}', (jx, v), textcoords='offset points',
+                                    xytext=(5, -3), fontsize=7, color=color[g])
             else:
-                ax.plot([x], [y], 'o', ms=8, color=color[g], label=label)
+                y = float(ys[ok].mean()) if ok.any() else math.nan
+                if math.isfinite(y):
+                    ax.plot([x], [y], 'o', ms=8, color=color[g], label='_run')
             if math.isfinite(x) and math.isfinite(y):
                 ax.annotate(f'n={len(run)}', (x, y), textcoords='offset points',
-                            xytext=(7, 4), fontsize=8)
+                            xytext=(8, 4), fontsize=8)
         ax.set_xlabel(lx)
-        ax.set_ylabel(ly)
-        ax.set_title(f'{title}\n(Komsuoglu et al.; one marker per run, n stances)',
-                     fontsize=9)
+        ax.set_ylabel(ly, fontsize=9 if ky == 'nerr' else None)
+        ax.set_title('\n'.join(x for x in (title, what, '(Komsuoglu et al.; one marker per '
+                                            'run, n = its stances)') if x), fontsize=9)
         ax.grid(alpha=0.3)
         ax.margins(0.15)
-        ax.legend(title='gait', fontsize=8)
+        if ky == 'nerr':
+            ax.set_ylim(bottom=0.0)
+        ax.legend(handles=[Line2D([], [], ls='', marker='o', ms=7, color=color[g], label=g)
+                           for g in gaits], title='gait', fontsize=8)
         fig.tight_layout()
         fig.savefig(out / name, dpi=100)
         plt.close(fig)

@@ -106,7 +106,8 @@ def test_energy_recommendation_optimal_points_and_bench_fit(tmp_path: Path) -> N
     page = _page(tmp_path)
     head = _headline(page)
     assert '<h3>Recommendation</h3>' in head
-    assert '<td><b>best</b></td><td>wave</td><td>6</td><td>0.7</td><td>0.14</td>' in head
+    assert ('<td><b>best on the bench</b></td><td>wave</td><td>6</td><td>0.7</td>'
+            '<td>0.14</td>') in head
     assert '<td>53.55</td>' in head and '-10.6 %' in head
     assert 'outside their sessions' in head
     assert 'Optimal points per sweep' in head
