@@ -100,6 +100,6 @@ def test_sample_columns_rebuild_equal_samples():
     bat.shift('t_s', 0.5)
     assert [b.t_s for b in bat] == [0.5, 1.5, 2.5, 3.5, 4.5]
     assert bat[3] == BatterySample(3.5, 12.0, 2, 25.0, 'pack') and type(bat[3].current_a) is int
-    assert dataclasses.astuple(bat[-1]) == (4.5, 12.0, -1.0, 25.0, 'pack')
+    assert dataclasses.astuple(bat[-1]) == (4.5, 12.0, -1.0, 25.0, 'pack', True)
     with pytest.raises(RuntimeError):
         bat.append(BatterySample(5.0, 12.0, -1.0, 25.0, 'pack'))
