@@ -113,6 +113,7 @@ from .geometry import LegGeometry
 from .joints import assemble_joint_frames, rotation_signs
 from .pipeline import RunData, analyze_run, rotate_body
 from .preprocess import Box
+from .stamps import RepeatedStamps
 
 __all__ = ['add_cli', 'analyze_bag', 'main', 'read_run']
 
@@ -128,6 +129,11 @@ def read_run(path: str | Path) -> RunData:
     ``/battery_state`` is optional (without usable samples, power and SR are null); a message
     whose header stamp is zero takes the bag's receive time; input fallbacks are listed in
     ``RunData.notes`` (messages recorded twice, same topic, log time and bytes, count once).
+    A message whose stamp equals or precedes its stream's previous one while its values
+    differ (a driver stamping with its last bus read when a read is skipped; streams are
+    topics, per name set for joint states, per source for batteries) is re-stamped from its
+    receive time plus the stream's median stamp - receive offset, or dropped when that offset
+    is not well defined (:mod:`.stamps`), with a note giving the count.
     ``/joint_states`` goes through :func:`.joints.assemble_joint_frames`:
     messages split over name groups are assembled, hip angles wrapped into ``[-pi, pi)`` or
     ``[0, 2 pi)`` are unwrapped per joint, and positions without any velocities give
@@ -156,6 +162,7 @@ def read_run(path: str | Path) -> RunData:
     dropped: dict[str, int] = {}
     dups: dict[str, int] = {}   # messages recorded twice (same topic, log time, bytes)
     clocks = ClockCheck()
+    repeats = RepeatedStamps()   # new values under the previous stamp (a skipped bus read)
     with open_reader(path) as reader:
         reader_notes = list(getattr(reader, 'notes', ()))  # e.g. mcap without metadata.yaml
         present = {c.topic for c in reader.connections}
@@ -192,10 +199,18 @@ def read_run(path: str | Path) -> RunData:
                 sample = dataclasses.replace(sample, t_s=1e-9 * m.stamp_ns)
             else:
                 clocks.observe(m.topic, sample.t_s, 1e-9 * m.stamp_ns)
+                store = streams[m.topic][0]
+                repeats.observe(m.topic, _stream_group(sample), len(store), sample,
+                                1e-9 * m.stamp_ns)
             streams[m.topic][0].append(sample)
     notes = reader_notes + [
         f'{n} {t} message(s) with a zero header stamp: bag receive time used'
         for t, n in sorted(zero.items())] + duplicates_note(dups)
+    for topic in TOPICS:   # re-stamped from the receive times (or dropped), noted
+        fixed, repeat_notes = repeats.resolve(topic, streams[topic][0], _rebuilt)
+        streams[topic] = (fixed, streams[topic][1])
+        notes.extend(repeat_notes)
+    js, jc, mo, bt = (streams[t][0] for t in TOPICS)
     shifts, clock_notes = clocks.shifts()   # a topic stamped on another clock
     notes.extend(clock_notes)
     for topic, dt in shifts.items():
@@ -250,12 +265,14 @@ def read_run(path: str | Path) -> RunData:
         command_t_s, command_velocity = _commands_in_order(jc, names)
     elif len(jc):  # commands split over several messages too
         try:
-            cmd = assemble_joint_frames(jc, required=names)
+            cmd = assemble_joint_frames(jc, required=names, topic='/joint_commands')
         except SlipDataError as err:
             raise MissingTopicError(f'bag {path}: /joint_commands: {err}') from err
         command_t_s = cmd.t_s
         command_velocity = cmd.velocity[:, [cmd.names.index(n) for n in names]]
         notes.append(f'/joint_commands: {cmd.note}')
+        if cmd.repeat_note:
+            notes.append(cmd.repeat_note)
     if (signs < 0).any() and command_velocity.size:
         command_velocity = command_velocity * signs
     for topic, n in (('/joint_states', joints.t_s.size), ('/mocap/body', len(mo))):
@@ -271,6 +288,25 @@ def read_run(path: str | Path) -> RunData:
         battery_current_a=_rows(bt, 'current_a'), gait=gait, label=str(path),
         joint_effort=joints.effort, joint_position=joints.position,
         notes=tuple(notes), gait_changes=tuple(changes))
+
+
+def _stream_group(sample: Any) -> Any:
+    """What tells streams of one topic apart: a joint state's names (messages split over
+    name groups share stamps), a battery's source (several batteries on one topic)."""
+    names = getattr(sample, 'names', None)
+    return names if names is not None else getattr(sample, 'source', None)
+
+
+def _rebuilt(samples: Any, drop: set[int], restamp: dict[int, float]) -> Any:
+    """``samples`` (SampleColumns) without the rows ``drop``, rows ``restamp`` re-stamped."""
+    from hexapod_common.bags import SampleColumns
+
+    out = SampleColumns()
+    for k, s in enumerate(samples):
+        if k in drop:
+            continue
+        out.append(dataclasses.replace(s, t_s=restamp[k]) if k in restamp else s)
+    return out
 
 
 def _rows(samples: Any, name: str) -> np.ndarray:

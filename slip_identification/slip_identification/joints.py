@@ -44,6 +44,13 @@ Two more habits of other labs' drivers are undone on both paths:
   period late (10 ms at 100 Hz; :data:`DERIVED_NOTE_ONLINE`). Samples with positions but no
   velocities among samples with velocities are still dropped (as before).
 
+A third habit is refused on both offline paths: a sample whose stamp equals or precedes the
+previous stamp of its name group while its values differ (a driver stamping with the last bus
+read's time when a read is skipped). Without receive times it cannot be placed, so it is
+dropped, noted (:func:`.stamps.repeat_note`); ``read_run`` has already re-stamped such samples
+from the bag's receive times (:mod:`.stamps`), so this catches other callers only. Exact repeats
+(the same values at the same stamp) are kept as before.
+
 Full-frame bags that carry velocities and no wrapped angles give bit-identical frames.
 
 Joint names follow DESIGN section 4: ``<leg>_<joint>`` with legs ``L1..Lk`` and ``R1..Rk``.
@@ -62,6 +69,7 @@ from typing import Any
 import numpy as np
 
 from .errors import SlipDataError
+from .stamps import repeat_note, same_values
 
 __all__ = [
     'DERIVED_NOTE',
@@ -249,7 +257,8 @@ class AssembledJoints:
     dropped in gaps; ``note`` the split line for ``RunData.notes`` ('' for full frames);
     ``notes`` every line for ``RunData.notes`` (the split one, angles unwrapped, velocities
     derived); ``wraps`` the ``2 pi`` jumps undone; ``derived`` True when the velocities come
-    from position differences.
+    from position differences; ``repeats`` samples that repeated their name group's previous
+    stamp with new values (dropped; ``repeat_note`` says so, also in ``notes``).
     """
 
     names: tuple[str, ...]
@@ -264,6 +273,8 @@ class AssembledJoints:
     notes: tuple[str, ...] = ()
     wraps: int = 0
     derived: bool = False
+    repeats: int = 0
+    repeat_note: str = ''
 
 
 def _derive_mode(samples: Sequence[Any]) -> bool:
@@ -276,7 +287,18 @@ def _field_ok(samples: Sequence[Any], field: str) -> bool:
     return all(getattr(s, field).size == len(s.names) for s in samples)
 
 
-def _fast_path(samples: Sequence[Any]) -> AssembledJoints:
+def _repeat_rows(t: np.ndarray, rows: Sequence[Any]) -> list[int]:
+    """Rows (one name group, arrival order, stamps ``t``) whose stamp equals or precedes the
+    previous row's while their values differ."""
+    back = np.flatnonzero(t[1:] <= t[:-1]) + 1
+    return [int(k) for k in back if not same_values(rows[k], rows[k - 1])]
+
+
+def _repeats_note(n: int, topic: str) -> str:
+    return repeat_note(n, topic, 'dropped (no receive times to re-stamp them by)')
+
+
+def _fast_path(samples: Sequence[Any], topic: str) -> AssembledJoints:
     """Every sample has the first one's name set: reorder into its order (no resampling)."""
     names = tuple(samples[0].names)
     derive = _derive_mode(samples)
@@ -292,10 +314,16 @@ def _fast_path(samples: Sequence[Any]) -> AssembledJoints:
         raise SlipDataError(f'no JointState sample has velocities (or positions to derive '
                             f'them from) for {list(names)}')
     t = np.array([s.t_s for s in rows])
+    notes: list[str] = []
+    bad = _repeat_rows(t, rows)
+    if bad:
+        drop = set(bad)
+        rows = [s for k, s in enumerate(rows) if k not in drop]
+        t = np.delete(t, bad)
+        notes.append(_repeats_note(len(bad), topic))
     dt = np.diff(t)
     rate = float(1.0 / np.median(dt)) if dt.size and np.median(dt) > 0 else float('nan')
     pos = np.array([s.position for s in rows]) if _field_ok(rows, 'position') else None
-    notes: list[str] = []
     wraps = 0
     if pos is not None:
         raw = pos
@@ -311,7 +339,8 @@ def _fast_path(samples: Sequence[Any]) -> AssembledJoints:
     return AssembledJoints(
         names=names, t_s=t, velocity=vel, position=pos,
         effort=np.array([s.effort for s in rows]) if _field_ok(rows, 'effort') else None,
-        groups=1, rate_hz=rate, notes=tuple(notes), wraps=wraps, derived=derive)
+        groups=1, rate_hz=rate, notes=tuple(notes), wraps=wraps, derived=derive,
+        repeats=len(bad), repeat_note=_repeats_note(len(bad), topic) if bad else '')
 
 
 def _reorder(s: Any, names: tuple[str, ...], idx: list[int]) -> Any:
@@ -321,7 +350,8 @@ def _reorder(s: Any, names: tuple[str, ...], idx: list[int]) -> Any:
 
 
 def assemble_joint_frames(samples: Sequence[Any], *, required: Sequence[str] = (),
-                          max_gap_periods: float = 5.0) -> AssembledJoints:
+                          max_gap_periods: float = 5.0,
+                          topic: str = '/joint_states') -> AssembledJoints:
     """Full frames from JointState samples that may each carry a subset of the joints.
 
     Parameters
@@ -330,12 +360,16 @@ def assemble_joint_frames(samples: Sequence[Any], *, required: Sequence[str] = (
         Objects with ``t_s`` [s], ``names``, ``position``, ``velocity``, ``effort`` (arrays
         with one entry per name, or empty), in arrival order. Samples without velocities are
         dropped, unless no sample has velocities: then they are derived from the positions
-        (module docs). Positions are unwrapped per joint in time.
+        (module docs). Positions are unwrapped per joint in time. A sample whose stamp
+        equals or precedes its name group's previous one while its values differ is dropped
+        and noted (module docs).
     required : sequence of str
         Joint names that must be present in any case.
     max_gap_periods : float
         A frame whose bracketing samples of some joint are further apart than this many of
         that joint's median sample periods is dropped (no interpolation over dropouts).
+    topic : str
+        The samples' topic, for the notes.
 
     Returns
     -------
@@ -356,10 +390,24 @@ def assemble_joint_frames(samples: Sequence[Any], *, required: Sequence[str] = (
             raise SlipDataError(f'/joint_states never names joint(s) {missing}: every message '
                                 f'names {sorted(first)} only (the joint set is legs L1..Lk and '
                                 'R1..Rk for every joint)')
-        return _fast_path(samples)
+        return _fast_path(samples, topic)
     derive = _derive_mode(samples)
     field = 'position' if derive else 'velocity'
     usable = [s for s in samples if getattr(s, field).size == len(s.names) and len(s.names)]
+    # new values under a name group's previous stamp: dropped (the later message used to win
+    # at an equal stamp, silently)
+    last: dict[frozenset[str], Any] = {}
+    repeats = 0
+    kept = []
+    for s in usable:
+        key = frozenset(s.names)
+        prev = last.get(key)
+        last[key] = s
+        if prev is not None and s.t_s <= prev.t_s and not same_values(s, prev):
+            repeats += 1
+            continue
+        kept.append(s)
+    usable = kept
     # group by name set, in order of first appearance; joint order: first appearance
     groups: dict[frozenset[str], list[float]] = {}
     order: dict[str, None] = {}
@@ -449,6 +497,9 @@ def assemble_joint_frames(samples: Sequence[Any], *, required: Sequence[str] = (
             + (f', {int((~ok).sum())} frame(s) in joint gaps dropped' if (~ok).any() else '')
             + ')')
     notes = [note]
+    rnote = _repeats_note(repeats, topic) if repeats else ''
+    if rnote:
+        notes.append(rnote)
     if wraps:
         notes.append(wrap_note(np.concatenate(raw_q), wraps, names))
     if derive:
@@ -457,7 +508,8 @@ def assemble_joint_frames(samples: Sequence[Any], *, required: Sequence[str] = (
                            position=None if pos is None else pos[ok],
                            effort=None if eff is None else eff[ok], groups=len(groups),
                            rate_hz=rate, dropped=int((~ok).sum()), note=note,
-                           notes=tuple(notes), wraps=wraps, derived=derive)
+                           notes=tuple(notes), wraps=wraps, derived=derive, repeats=repeats,
+                           repeat_note=rnote)
 
 
 @dataclass(frozen=True)
