@@ -70,7 +70,8 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
                                     # no sample in the default box,
                                     # no /gait/phase; "frame" also has "box": {"lower_m",
                                     # "upper_m", "source" (given|default|tracked_samples)}
-      "gaits": {"<gait>": {"stances", "nerr_mean", "nerr_std", "power_w_mean", ...}},  # Table 3
+      "gaits": {"<gait>": {"stances", "nerr_mean", "nerr_std", "power_w_mean", ..., "stiffness_median",
+                           "stiffness_iqr", "rest_length_median", "rest_length_iqr"}},  # Table 3
       "skipped": [{"bag", "label", "tripod", "touchdown", "liftoff", "reason"}],  # stances
                   # a mocap dropout cuts or hides (geometric edges) also have "edges":
                   # geometry_cut | clock (placed by the shifted clock inside the gap)
@@ -656,7 +657,11 @@ def run_command(args: argparse.Namespace) -> int:
     skipped = [s for r in results for s in r.get('skipped', [])]
     rows = [{'gait': s['gait'], 'nerr': s['nerr'] if s['nerr'] is not None else math.nan,
              'power_w': s['power_w'] or math.nan, 'speed_mps': s['speed_mps'] or math.nan,
-             'sr': s['sr'] or math.nan} for s in stances]
+             'sr': s['sr'] or math.nan,
+             'stiffness': s['stiffness'] if s.get('stiffness') is not None else math.nan,
+             'rest_length': s['rest_length'] if s.get('rest_length') is not None
+             else math.nan} for s in stances]
+    _note_rest_length_outliers(stances, [r['run'] for r in results if 'run' in r])
     doc = {'schema': 'slip/1', 'model': args.model, 'estimator': 'paper',
            'mass_kg': args.mass, 'stances': stances,
            'runs': [r['run'] for r in results if 'run' in r], 'gaits': gait_table(rows),
@@ -747,6 +752,44 @@ def add_cli(subparsers: Any) -> None:
                         'the height noise leaves them undetermined (a study of stride-to-'
                         'stride variability wants them alone)')
     p.set_defaults(func=run_command)
+
+
+#: a stance whose rest length is further than this factor from its gait's median is named
+REST_LENGTH_OUTLIER = 1.5
+
+
+def _note_rest_length_outliers(stances: list[dict[str, Any]], runs: list[dict[str, Any]]
+                               ) -> None:
+    """Name, in each run's notes, the stances whose fitted rest length lies more than
+    :data:`REST_LENGTH_OUTLIER` times from their gait's median: when the body height barely
+    changes (a walk), stiffness and rest length trade off along ``k (l0 - l) = m g``, and a
+    soft long spring (the demo's walk: 340 N/m and 0.197 m beside 2,400 N/m and 0.11 m) fits
+    as well; such a fit converges, and only its standard errors show it."""
+    by_gait: dict[str, list[float]] = {}
+    for s in stances:
+        if s.get('rest_length') is not None and math.isfinite(s['rest_length']):
+            by_gait.setdefault(s['gait'], []).append(float(s['rest_length']))
+    far: dict[str, list[dict[str, Any]]] = {}
+    for s in stances:
+        vals = by_gait.get(s['gait'], [])
+        if len(vals) < 4 or s.get('rest_length') is None:
+            continue
+        med = float(np.median(vals))
+        ratio = s['rest_length'] / med if med > 0 else math.nan
+        if not (1 / REST_LENGTH_OUTLIER <= ratio <= REST_LENGTH_OUTLIER):
+            far.setdefault(str(s['bag']), []).append(s)
+    for run in runs:
+        bad = far.get(str(run.get('bag')))
+        if not bad:
+            continue
+        med = float(np.median(by_gait[bad[0]['gait']]))
+        run.setdefault('notes', []).append(
+            f"{len(bad)} stance(s) fitted a rest length far from the gait's median "
+            f"({med:.4f} m): " + ', '.join(
+                f"t = {s['touchdown']:.3f} s l0 {s['rest_length']:.4f} m, k "
+                f"{s['stiffness']:.0f} N/m" for s in bad)
+            + ' (stiffness and rest length trade off when the body height barely changes: '
+            'a soft long spring fits as well; the gait table gives medians)')
 
 
 def main(argv: list[str] | None = None) -> int:

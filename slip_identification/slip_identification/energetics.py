@@ -113,7 +113,8 @@ def gait_colors(gaits: Iterable[str]) -> dict[str, str]:
 
 def gait_table(rows: Sequence[dict[str, float | str]]) -> dict[str, dict[str, float]]:
     """Table 3: per gait mean and std of ``nerr``, ``power_w``, ``speed_mps`` (and ``sr``),
-    the gaits in Table 3's order (running, jogging, pace, walk, then any other).
+    the gaits in Table 3's order (running, jogging, pace, walk, then any other); with
+    ``stiffness`` and ``rest_length`` in the rows, their median and interquartile range.
 
     ``rows`` holds one dict per stance with keys ``gait``, ``nerr``, ``power_w``,
     ``speed_mps``, ``sr`` (run values repeated on each of the run's stances, as in the paper).
@@ -127,6 +128,17 @@ def gait_table(rows: Sequence[dict[str, float | str]]) -> dict[str, dict[str, fl
             vals = vals[np.isfinite(vals)]
             entry[f'{key}_mean'] = float(vals.mean()) if vals.size else math.nan
             entry[f'{key}_std'] = float(vals.std()) if vals.size else math.nan
+        for key in ('stiffness', 'rest_length'):
+            # the fitted parameters: median and interquartile range (a soft long spring can
+            # stand for a walk's nearly constant leg force, and would pull a mean)
+            if not any(key in r for r in sel):
+                continue
+            vals = np.array([float(r.get(key, math.nan)) for r in sel], dtype=float)
+            vals = vals[np.isfinite(vals)]
+            q25, q50, q75 = (np.percentile(vals, (25, 50, 75)) if vals.size
+                             else (math.nan,) * 3)
+            entry[f'{key}_median'] = float(q50)
+            entry[f'{key}_iqr'] = float(q75 - q25)
         out[gait] = entry
     return out
 
