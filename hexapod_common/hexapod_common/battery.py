@@ -36,7 +36,8 @@ import numpy as np
 
 from .conversions import BatterySample
 
-__all__ = ['AbsentBatteryFilter', 'BATTERY_SOURCE_ENV', 'MILLI_THRESHOLD', 'milli_factors', 'BatteryCombiner', 'combine_battery_samples', 'STALE_S',
+__all__ = ['AbsentBatteryFilter', 'BATTERY_SOURCE_ENV', 'MILLI_THRESHOLD', 'milli_factors',
+           'BatteryCombiner', 'combine_battery_samples', 'STALE_S',
            'prepare_battery_samples', 'selected_source', 'unmeasured_power']
 
 #: a source silent for longer than this (or 5 of its own sample intervals, if longer) [s]

@@ -70,8 +70,9 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
                                     # no sample in the default box,
                                     # no /gait/phase; "frame" also has "box": {"lower_m",
                                     # "upper_m", "source" (given|default|tracked_samples)}
-      "gaits": {"<gait>": {"stances", "nerr_mean", "nerr_std", "power_w_mean", ..., "stiffness_median",
-                           "stiffness_iqr", "rest_length_median", "rest_length_iqr"}},  # Table 3
+      "gaits": {"<gait>": {"stances", "nerr_mean", "nerr_std", "power_w_mean", ...,
+                           "stiffness_median", "stiffness_iqr", "rest_length_median",
+                           "rest_length_iqr"}},  # Table 3
       "skipped": [{"bag", "label", "tripod", "touchdown", "liftoff", "reason"}],  # stances
                   # a mocap dropout cuts or hides (geometric edges) also have "edges":
                   # geometry_cut | clock (placed by the shifted clock inside the gap)

@@ -36,8 +36,8 @@ def test_plain_argparse_refuses_what_ours_reads():
 
 def test_analyze_subcommands_read_scientific_negatives():
     parser = analyze_cli.build_parser()
-    args = parser.parse_args(['slip', 'bag', '--out', 'o', '--box', '-1e9', '-2e-1', '0', '1e9', '1', '1',
-                              '--offset-lag', '-1e-3'])
+    args = parser.parse_args(['slip', 'bag', '--out', 'o', '--box', '-1e9', '-2e-1', '0',
+                              '1e9', '1', '1', '--offset-lag', '-1e-3'])
     assert args.box == [-1e9, -0.2, 0.0, 1e9, 1.0, 1.0]
     assert args.offset_lag == -1e-3
     args = parser.parse_args(['energy', '--robot', 'run', '--out', 'o',
