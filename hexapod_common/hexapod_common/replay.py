@@ -66,6 +66,8 @@ class ReplaySource:
         self.options = options
         self.warn = warn or log.warning
         self.reader = open_reader(bag)
+        for note in getattr(self.reader, 'notes', ()):   # e.g. metadata.yaml vs storage
+            self.warn(note)
         self.start_ns = self.reader.start_time
         self.end_ns = self.reader.end_time
         self.types: dict[str, Any] = {}
