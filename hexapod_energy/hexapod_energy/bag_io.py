@@ -310,6 +310,7 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
     tip_leg: list[str] = []
     schedule: list[tuple[float, tuple[str, ...], tuple[bool, ...]]] = []
     with open_reader(path) as reader:
+        reader_notes = list(getattr(reader, 'notes', ()))  # metadata.yaml vs storage, ...
         present = {c.topic for c in reader.connections}
         # a bench without tip motion capture: the tip height from the joint angles
         tip_topic = '/joint_states' if ('/bench/leg_tip' not in present and
@@ -439,6 +440,7 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
               for t, n in sorted(no_header.items())]
     notes += duplicates_note(dups)
     notes += notes_out
+    notes = reader_notes + notes
     b_arr = np.array(sorted(bat))
     f_arr = np.array(sorted(frc))
     t_arr = np.array(sorted(tip))

@@ -130,3 +130,19 @@ def test_slip_reader_counts_a_duplicate_once(tmp_path):
     assert _ignored(a.notes) == 0
     read = set(TOPICS) | {'/gait/phase'}
     assert _ignored(b.notes) == sum(n for t, n in twice.items() if t in read) > 0
+
+
+def test_the_bench_reader_keeps_the_readers_notes(bench_bags, tmp_path):
+    """The bench reader dropped what opening the bag said (metadata.yaml lost or disagreeing
+    with its storage, a foreign type hash): energy.json's bench notes lacked it."""
+    import shutil
+
+    from hexapod_energy.bag_io import read_bench_bag
+
+    clean = bench_bags[0]
+    bare = tmp_path / 'bare'
+    bare.mkdir()
+    for f in clean.glob('*.mcap'):
+        shutil.copy(f, bare / f.name)
+    notes = read_bench_bag(bare).notes
+    assert any('no metadata.yaml' in n for n in notes), notes
