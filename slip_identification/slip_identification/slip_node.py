@@ -48,6 +48,7 @@ from .fit import SlipFitResult
 from .geometry import LegGeometry
 from .model import SlipModel
 from .online import OnlineSlip
+from .stamps import LiveRepeatedStamps, repeat_note
 from .pipeline import rotate_body
 from .preprocess import Box
 
@@ -183,6 +184,9 @@ class SlipFitterNode(Node):
         self._warnings_logged = 0
         self._notes_logged = 0
         self._clocks = LiveClockWatch()   # stamps against the node clock
+        # a driver stamping with its last bus read repeats a stamp with new values: such a
+        # sample is re-stamped from its arrival time, or dropped (as the offline reader does)
+        self._repeats = LiveRepeatedStamps()
 
     def _on_change(self, new: SlipParams) -> str | None:
         """Apply a run-time change of ``mass`` or ``margin`` (the others are read only)."""
@@ -233,8 +237,24 @@ class SlipFitterNode(Node):
         for err in self._clocks.observe(topic, t_s, self.get_clock().now().nanoseconds * 1e-9):
             self.get_logger().error(err)
 
+    def _unrepeated(self, topic: str, group: Any, s: Any) -> Any:
+        """``s``, re-stamped when it repeats its stream's previous stamp with new values;
+        None when it cannot be placed (dropped). Logged on the 1st, 10th, 100th ..."""
+        t = self._repeats.stamp(topic, group, s, self.get_clock().now().nanoseconds * 1e-9)
+        if t == s.t_s:
+            return s
+        done = 're-stamped from their arrival times' if t is not None else \
+            'dropped (arrival times too irregular to place them, or too few yet)'
+        self._log_drop(repeat_note(1, topic, done).replace('1 ', '', 1).replace(
+            'message(s)', 'messages'))
+        return None if t is None else dataclasses.replace(s, t_s=t)
+
     def _joint_state(self, msg: JointState) -> None:
         s = self._signed(joint_state_from_msg(msg))
+        if s.t_s != 0.0:
+            s = self._unrepeated('joint_states', tuple(s.names), s)
+            if s is None:
+                return
         self._check_clock('joint_states', s.t_s)
         self.core.add_joint_state(s.t_s, s.names, s.velocity, s.position)
         notes = self.core.notes
@@ -251,6 +271,10 @@ class SlipFitterNode(Node):
 
     def _mocap_and_fit(self, msg: PoseStamped) -> None:
         s = pose_from_msg(msg)
+        if s.t_s != 0.0:
+            s = self._unrepeated('mocap/body', None, s)
+            if s is None:
+                return
         self._check_clock('mocap/body', s.t_s)
         q = s.orientation_xyzw if self._body_up == 'z' else \
             rotate_body(s.orientation_xyzw, self._body_up)[0]

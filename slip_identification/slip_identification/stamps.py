@@ -30,7 +30,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ['MAX_SPREAD_STEPS', 'MIN_SAMPLES', 'RepeatedStamps', 'repeat_note', 'same_values']
+__all__ = ['LIVE_WINDOW', 'LiveRepeatedStamps', 'MAX_SPREAD_STEPS', 'MIN_SAMPLES', 'RepeatedStamps',
+           'repeat_note', 'same_values']
 
 #: samples of a stream needed before its median stamp - receive offset re-stamps anything
 MIN_SAMPLES = 10
@@ -219,3 +220,46 @@ def _offset(st: _Stream) -> tuple[float | None, str]:
                       f'{1e3 * spread:.2f} ms against a {1e3 * step:.2f} ms stamp step')
     return med, ''
 
+
+
+#: samples per stream the live re-stamping keeps for its medians
+LIVE_WINDOW = 400
+
+
+class LiveRepeatedStamps:
+    """:class:`RepeatedStamps` for a live node: each sample is judged as it arrives.
+
+    :meth:`stamp` returns the stamp to use: the sample's own, or for a repeat its arrival time
+    (node clock) shifted by the stream's median ``stamp - arrival`` offset over the last
+    :data:`LIVE_WINDOW` samples when that offset is well defined (as offline, and the new
+    stamp after the stream's previous one), else None (drop it). ``counts`` holds per topic
+    how many were re-stamped and dropped.
+    """
+
+    def __init__(self) -> None:
+        self._streams: dict[Any, _Stream] = {}
+        self.counts: dict[str, list[int]] = {}
+
+    def stamp(self, topic: str, group: Any, sample: Any, arrival_s: float) -> float | None:
+        key = (topic, frozenset(group) if isinstance(group, tuple) else group)
+        st = self._streams.get(key)
+        if st is None:
+            st = self._streams[key] = _Stream()
+        t = sample.t_s
+        if t <= st.last_t and not same_values(sample, st.last):
+            st.last = sample
+            offset, _ = _offset(st)
+            n = self.counts.setdefault(topic, [0, 0])
+            new = arrival_s + offset if offset is not None else math.nan
+            if offset is not None and new > st.kept_t:
+                st.kept_t = new
+                n[0] += 1
+                return new
+            n[1] += 1
+            return None
+        st.offsets.append(t - arrival_s)
+        st.steps.append(t - st.last_t)
+        if len(st.offsets) > LIVE_WINDOW:
+            del st.offsets[0], st.steps[0]
+        st.last_t, st.last, st.kept_t = t, sample, t
+        return t
