@@ -42,7 +42,8 @@ def main() -> None:
     tref = R._bench_temperature_c([root / 'bench'])
     spec = RobotSpec()
     print(f'{"effects":40s} {"added":38s} {"heldout before":>14s} {"after":>8s} '
-          f'{"recovered":>10s} {"true":>6s} {"bias W":>7s} {"sample before":>13s} {"after":>6s}')
+          f'{"recovered":>10s} {"true":>6s} {"bias W":>7s} {"sample before":>13s} {"after":>6s}'
+          f' {"runs out before":>15s} {"after":>6s}')
     t_loop = t_base = 0.0
     for effects, name, param, true, temps in CASES:
         bags = []
@@ -66,11 +67,15 @@ def main() -> None:
             got = next(a for a in doc['added_params'] if a['name'] == name)['params'][param]
             got = f'{got:.4g}'
         h = doc['heldout']
+        # leave-one-run-out (effects selected and fitted on the other runs; only when added)
+        loro = doc.get('leave_one_run_out') or {}
         print(f'{" ".join(effects) or "(clean)":40s} {",".join(doc["effects_added"]) or "-":38s}'
               f' {h["rmse_before"]:14.3f} {h["rmse_after"]:8.3f} {got:>10s} '
               f'{"" if true is None else true:>6} {doc["baseline"]["bias"]:7.3f} '
               f'{doc["sample_view"]["heldout_rmse_before"]:13.3f} '
-              f'{doc["sample_view"]["heldout_rmse_after"]:6.3f}')
+              f'{doc["sample_view"]["heldout_rmse_after"]:6.3f} '
+              f'{loro.get("rmse_before", float("nan")):15.3f} '
+              f'{loro.get("rmse_after", float("nan")):6.3f}')
     print(f'loop time {t_loop:.2f} s, baseline (read + Eq. 1 residual) {t_base:.2f} s, '
           f'ratio {t_loop / t_base:.2f}')
 

@@ -14,8 +14,8 @@ To add an effect, subclass :class:`EnergyEffect`, implement :meth:`~EnergyEffect
 name                regressor (window mean)                       parameter [unit]
 =================== ============================================ =============================
 basal_power         1                                             ``power_w`` [W]
-thermal_drift       sum_i (T_i - T_ref) from /servo_status [K];   ``w_per_k`` [W/K]
-                    its variation must explain too
+thermal_drift       sum_i (T_i - T_r) from /servo_status [K];     ``w_per_k`` [W/K],
+                    its variation must explain too; T_r fitted ``reference_c`` [degC]
 thermal_drift       energy drawn since the run's start [kJ], only  ``w_per_kj`` [W/kJ]
                     without /servo_status (ThermalDriftTime)
 hot_windings        mean_i (T_i - T_ref) x P_pred [K W]; its      ``per_k`` [1/K]
@@ -48,7 +48,9 @@ cross-validated LOWESS spans the clean bias is -0.24 W on 27-45 W; a negative co
 no physical effect in this catalogue (every effect adds power), so clean data adds nothing.
 
 ``T_ref`` is the servo temperature the bench model was measured at (median over the bench's
-walking sessions), so ``thermal_drift`` is the extra power relative to the bench conditions.
+walking sessions): ``hot_windings`` is relative to the bench conditions; ``thermal_drift``'s
+reference ``T_r`` is fitted between a few kelvin below the robot's coldest servo reading and
+above the bench's (:class:`ThermalDrift`).
 """
 
 from __future__ import annotations
@@ -186,6 +188,19 @@ class EnergyEffect:
         """Regressor columns (n, k) whose coefficients this effect fits."""
         raise NotImplementedError
 
+    def span_columns(self, table: WindowTable) -> np.ndarray:
+        """The columns that the span checks of the selection compare (default
+        :meth:`columns`): a column whose coefficient is tied to another's
+        (:meth:`linked_ratio_bounds`) is left out, as it cannot stand for anything alone."""
+        return self.columns(table)
+
+    def linked_ratio_bounds(self, table: WindowTable) -> tuple[float, float, float] | None:
+        """For an effect of two columns whose second coefficient is bounded by the first's:
+        ``(lo, hi, preferred)`` with ``lo c0 <= c1 <= hi c0`` and ``preferred c0`` the value
+        taken when the windows cannot tell (a column exactly proportional to the second one,
+        a constant, is fitted beside it); None otherwise (the default)."""
+        return None
+
     def params(self, coef: np.ndarray, stderr: np.ndarray, table: WindowTable
                ) -> tuple[dict[str, Any], dict[str, Any]]:
         """Named parameters and their standard errors from the fitted coefficients."""
@@ -225,34 +240,106 @@ class ModelOffset(EnergyEffect):
 
 
 class ThermalDrift(EnergyEffect):
-    """Extra power per kelvin of servo temperature above the bench's:
-    ``P += w_per_k * sum_i (T_i - T_ref)`` [W/K].
+    """Extra power per kelvin of servo temperature above a reference:
+    ``P += w_per_k * sum_i (T_i - T_r)`` [W/K], ``T_r`` = ``reference_c`` fitted.
 
     The column holds the runs' common temperature difference from the bench, a near constant,
     which alone can stand for any offset: robot servos 1 K cooler than the bench's turned a
     model that over-predicts by 1 W into 'thermal_drift' (an outside review; and the demo's
     spurious 0.023 W/K). So it is selected only when the temperature's variation within and
     between runs explains the residual too (``needs_variation``); then the whole column is
-    fitted (hotter runs draw more from their first second)."""
+    fitted (hotter runs draw more from their first second).
+
+    The temperature at which the drift is zero is not the bench's: a drift is physically per
+    kelvin above what the servos relax to (the ambient, the robot's start). Referenced to the
+    bench's walking temperature (28 degC against a robot starting at 26 degC) it needed a
+    constant of ``w N (T_bench - T_amb)`` beside it, and the loop added a spurious 2 W
+    ``basal_power`` (or an undeclared mass) to every thermal drift (an outside review: a
+    900 s run read 0.058 W/K plus 2.07 W). So with the windows' temperature sums
+    (``extra['temp_sum_c']``, ``extra['servo_count']``) the reference is a parameter of the
+    fit, counted in the BIC: the columns are ``sum_i T_i - N T_a`` and ``N`` (``T_a`` the
+    bench's temperature, ``extra['temp_bench_c']``), the second coefficient ``w (T_a - T_r)``
+    bounded so that ``T_r`` lies between :attr:`REFERENCE_BELOW_K` below the coldest robot
+    servo reading (``extra['temp_coldest_c']``, the mean over the servos) and
+    :attr:`REFERENCE_ABOVE_K` above the bench's temperature. When a constant beside it
+    leaves ``T_r`` undetermined, the coldest reading is taken (the ambient proxy). Without
+    those extras the bench's reference of ``temp_excess_k`` is used, one column. Runs that
+    all start warm (no reading near the ambient) cannot place it: a drift's constant below
+    the coldest reading is then another effect's (a basal power) to take."""
 
     name, unit = 'thermal_drift', 'W/K'
 
     #: selected only when the temperature's variation (the column minus its mean) explains
     #: the residual too, not just its constant part (see the class docstring)
     needs_variation = True
+    #: the reference may lie this far [K] below the coldest robot reading (servos do not cool
+    #: below the ambient; a sensor's offset): each kelvin lets the drift's constant take
+    #: ``w N`` (0.9 W at 0.05 W/K and 18 servos) of a real basal power
+    REFERENCE_BELOW_K = 1.0
+    #: ... and this far [K] above the bench's temperature (or the coldest reading, if warmer)
+    REFERENCE_ABOVE_K = 3.0
 
     def _x(self, table: WindowTable) -> np.ndarray:
         return np.asarray(table.temp_excess_k, dtype=float)
+
+    def _reference(self, table: WindowTable) -> tuple[float, float, float, float] | None:
+        """(anchor, lowest, highest, coldest) [degC] of the reference, None without the
+        temperature sums."""
+        ex = table.extra
+        s, n = ex.get('temp_sum_c'), ex.get('servo_count')
+        cold = float(ex.get('temp_coldest_c', math.nan))
+        bench = float(ex.get('temp_bench_c', math.nan))
+        if s is None or n is None or not math.isfinite(cold):
+            return None
+        s, n = np.asarray(s, dtype=float), np.asarray(n, dtype=float)
+        if s.shape != table.t_s.shape or not (np.all(np.isfinite(s)) and np.all(n > 0)):
+            return None
+        anchor = bench if math.isfinite(bench) else cold
+        return (anchor, cold - self.REFERENCE_BELOW_K,
+                max(anchor, cold) + self.REFERENCE_ABOVE_K, cold)
 
     def applicable(self, table: WindowTable) -> bool:
         x = self._x(table)
         return bool(np.all(np.isfinite(x)) and np.ptp(x) > 0.5)
 
     def columns(self, table: WindowTable) -> np.ndarray:
-        return self._x(table)[:, None]
+        ref = self._reference(table)
+        if ref is None:
+            return self._x(table)[:, None]
+        n = np.asarray(table.extra['servo_count'], dtype=float)
+        s = np.asarray(table.extra['temp_sum_c'], dtype=float)
+        return np.column_stack([s - n * ref[0], n])
+
+    def span_columns(self, table: WindowTable) -> np.ndarray:
+        return self.columns(table)[:, :1]
+
+    def variation_columns(self, table: WindowTable) -> np.ndarray:
+        x = self.columns(table)[:, :1]
+        return x - np.mean(x, axis=0)
+
+    def linked_ratio_bounds(self, table: WindowTable) -> tuple[float, float, float] | None:
+        ref = self._reference(table)
+        if ref is None:
+            return None
+        anchor, lo, hi, cold = ref
+        # c1 = w (T_a - T_r), T_r in [lo, hi]; preferred T_r: the coldest reading
+        return anchor - hi, anchor - lo, anchor - min(max(cold, lo), hi)
 
     def params(self, coef, stderr, table):  # type: ignore[no-untyped-def]
-        return {'w_per_k': float(coef[0])}, {'w_per_k': float(stderr[0])}
+        ref = self._reference(table) if coef.size == 2 else None
+        if ref is None:
+            return {'w_per_k': float(coef[0])}, {'w_per_k': float(stderr[0])}
+        a, c = float(coef[0]), float(coef[1])
+        anchor, lo, hi, _ = ref
+        t_r = anchor - c / a if a > 0 else math.nan
+        se_r = float(stderr[1]) / a if a > 0 else math.nan
+        p: dict[str, Any] = {'w_per_k': a, 'reference_c': t_r,
+                             'reference_range_c': [round(lo, 2), round(hi, 2)]}
+        if a > 0 and t_r <= lo + 0.01:
+            p['reference_at_bound'] = 'lower'
+        elif a > 0 and t_r >= hi - 0.01:
+            p['reference_at_bound'] = 'upper'
+        return p, {'w_per_k': float(stderr[0]), 'reference_c': se_r}
 
 
 #: Largest relative rise of a servo's input power per kelvin of winding temperature that

@@ -19,10 +19,21 @@ SLIP, SLIP + leg damping and SLIP + hip torque (:mod:`slip_identification.residu
                      property of the robot]}],
      "effects_added": [names in order], "final": {"rmse", "mae", "bias"},
      "heldout": {"rmse_before", "rmse_after"}, "summary": "plain words", "plots": [...],
+     (energy:) "heldout_kind": "held-out time blocks of the same runs ...",
+     (energy, 3+ runs, effects added:) "leave_one_run_out": {"kind", "rmse_before",
+                 "rmse_after", "transfers", "per_run": [{"run", "rmse_before", "rmse_after",
+                 "effects_added"}]} (each run scored with the effects selected and fitted on
+                 the others),
+     (energy:) "mass_sensitivity": {"w_per_kg_mean", "uncentred_r_with_constant",
+                 "near_constant"}, "payload_kg",
      (energy:) "added_params": [{"name", "params", "stderr",
                                  "alternatives"?: [{"name", "heldout_rmse", "params",
                                                     "stderr", "share"}],
-                                 "collinearity"?: {...},
+                                 "collinearity"?: {"with", "correlation" (null for a
+                                 constant contribution: "correlation_kind"),
+                                 "uncentred_correlation", "collinear"},
+                                 "constant_beside"?: [the fitted effects a constant is
+                                 added beside: suspect],
                                  "at_bound"?: "upper" (the coefficient at the top of the
                                  effect's physical range)}],
      (energy, with /servo_status:) "servo_temperature": {"excess_over_bench_k",
@@ -60,6 +71,11 @@ mass sensitivity), ``leg_anomaly`` (per leg),
 robot's holding power against the bench's 0 Hz sessions, ``holding_change`` -1 to +1) and
 ``time_offset`` (:mod:`hexapod_energy.effects_catalogue`). A candidate that passes only beside
 ``swing_reversal`` or ``standing_hold`` is added with it (its record says ``added_with``).
+``thermal_drift``'s params give ``reference_c``, the temperature at which the drift is zero,
+fitted between 1 K below the coldest robot servo reading and 3 K above the bench's
+(``reference_at_bound`` when at an end). On windows whose mass sensitivity is nearly constant
+(``mass_sensitivity``), ``carried_mass`` is named beside an added ``basal_power`` and the
+reverse, whatever its share.
 
 Energy residuals are measured minus predicted ``P_in`` per gait-phase window [W] (``1/k`` of
 the cycle, ``windows.per_cycle``: 2 for a tripod, 3 a tetrapod, 6 a wave; ``bias`` is

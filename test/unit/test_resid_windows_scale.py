@@ -6,6 +6,8 @@ from __future__ import annotations
 import importlib.util
 from pathlib import Path
 
+import numpy as np
+
 from hexapod_energy import residuals as R
 
 _BENCH = Path(__file__).resolve().parents[2] / 'bench' / 'bench_resid_scale.py'
@@ -25,4 +27,11 @@ def test_windows_equal_the_per_window_baseline():
     new = R.build_windows(runs, temp_ref_c=29.0)
     old = bench.build_windows_baseline(runs, temp_ref_c=29.0)
     assert new.t_s.size > 300
+    # the thermal drift's reference extras are newer than the baseline (an outside review,
+    # F1): the window sums of the servo temperatures follow temp_excess_k exactly
+    ref = {k: new.extra.pop(k) for k in ('temp_sum_c', 'servo_count', 'temp_coldest_c',
+                                         'temp_bench_c')}
     assert bench.max_difference(new, old) <= 1e-12
+    assert ref['temp_bench_c'] == 29.0
+    np.testing.assert_allclose(ref['temp_sum_c'] - ref['servo_count'] * 29.0,
+                               new.temp_excess_k, atol=1e-9)
