@@ -16,10 +16,17 @@ in one ``set_parameters_atomically`` call (``ros2 param set`` sends one paramete
 Stand / stop: ``ros2 param set /gait_scheduler stand true`` (or ``step_length`` and
 ``step_height`` 0) moves every tip to its neutral stance over one transition and holds it;
 ``gait/phase`` then shows every leg in stance. ``stand false`` walks again.
+
+Ctrl-C / SIGTERM (console script): the legs are stood first (``stand``, one transition), and
+the node exits once ``gait/phase`` shows the stand settled, or after ``stop_timeout_s``; a
+second signal exits at once. (Before, the commands stopped wherever the legs were: a bench leg
+froze 35 mm above the ground, and the sequencer later cut its torque there.) A Buehler clock
+has no stand: its node exits at once.
 """
 
 from __future__ import annotations
 
+import signal
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -27,6 +34,8 @@ from typing import Any
 from hexapod_interfaces.msg import GaitPhase
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.task import Future
 from sensor_msgs.msg import JointState
 
 from hexapod_common.conversions import s_to_stamp
@@ -39,7 +48,8 @@ from hexapod_gait.feasibility import ActuatorLimits
 from hexapod_gait.gait import GAIT_NAMES, GaitPattern
 from hexapod_gait.scheduler import MIN_TRANSITION_CYCLES, GaitScheduler, GaitState
 
-__all__ = ['GaitParams', 'GaitSchedulerNode', 'gait_state_to_msg', 'joint_command_msg', 'main']
+__all__ = ['GaitParams', 'GaitSchedulerNode', 'gait_state_to_msg', 'joint_command_msg', 'main',
+           'stand_on_signals']
 
 
 def _positive(v: float) -> str | None:
@@ -77,6 +87,8 @@ class GaitParams:
         else f'must be >= {MIN_TRANSITION_CYCLES:g} (faster changes jump the joints)')
     stand: bool = param(False, 'true: stand (every tip at its neutral stance, step 0) and hold; '
                         'false: walk the gait parameters')
+    stop_timeout_s: float = param(5.0, 'Ctrl-C / SIGTERM: longest wait for the stand before '
+                                  'the node exits [s]', validate=_positive)
     min_swing: float = param(0.16, 'actuator limit: shortest swing [s]', validate=_positive,
                              read_only=True)
     min_stance: float = param(0.15, 'actuator limit: shortest stance [s]', validate=_positive,
@@ -175,6 +187,11 @@ class GaitSchedulerNode(Node):
         self.phase_pub = self.create_publisher(GaitPhase, 'gait/phase', RELIABLE_QOS)
         self.cmd_pub = self.create_publisher(JointState, 'joint_commands', RELIABLE_QOS)
         self.ticks = 0
+        #: resolved (exit code 0) once a requested stop has stood the legs (request_stop)
+        self.finished = Future()
+        self._stop_reason: str | None = None   # a stop requested (signal), not yet begun
+        self._stop_began_s: float | None = None
+        self._stop_requests = 0
         self.timer = self.create_timer(1.0 / p.rate, self._on_timer)
         self.get_logger().info(f'walking {self._describe(self._gait)}')
 
@@ -217,8 +234,57 @@ class GaitSchedulerNode(Node):
         self.get_logger().info(f'transition to {self._describe(gait)}')
         return None
 
+    def request_stop(self, reason: str) -> None:
+        """Stand the legs, then exit (:attr:`finished`); a second request exits at once.
+        Safe from a signal handler: the stand starts on the next timer tick."""
+        self._stop_requests += 1
+        if self._stop_requests > 1:
+            self.get_logger().warning(f'{reason} again: exiting with the legs where they are')
+            if not self.finished.done():
+                self.finished.set_result(0)
+            return
+        self._stop_reason = reason
+
+    def _begin_stop(self, reason: str, now_s: float) -> None:
+        self._stop_began_s = now_s
+        if self.scheduler is None or isinstance(self._gait, BuehlerClock):
+            why = 'a Buehler clock has no stand' if self.scheduler else 'not started'
+            self.get_logger().info(f'{reason}: exiting ({why})')
+            self.finished.set_result(0)
+            return
+        if not self.params.stand:
+            result = self.set_parameters([Parameter('stand', value=True)])[0]
+            if not result.successful:
+                self.get_logger().error(f'{reason}: the stand was refused ({result.reason}): '
+                                        'exiting with the legs where they are')
+                self.finished.set_result(0)
+                return
+        self.get_logger().warning(
+            f'{reason}: standing the legs before exiting (at most {self.params.stop_timeout_s:g}'
+            ' s; again to exit at once)')
+
+    def _check_stop(self, state: GaitState, now_s: float) -> None:
+        """Resolve :attr:`finished` once the stand has settled (the state carries the target
+        gait, step 0, only once the transition is over), or at ``stop_timeout_s``."""
+        assert self._stop_began_s is not None
+        g = state.gait
+        if g.step_length_m == 0.0 and g.step_height_m == 0.0:
+            self.get_logger().info('legs stood: exiting')
+            self.finished.set_result(0)
+        elif now_s - self._stop_began_s > self.params.stop_timeout_s:
+            self.get_logger().error(
+                f'the legs did not stand within stop_timeout_s = '
+                f'{self.params.stop_timeout_s:g} s: exiting with them where they are')
+            self.finished.set_result(0)
+
     def _on_timer(self) -> None:
         now_ns = self.get_clock().now().nanoseconds
+        if self.finished.done():
+            return
+        if self._stop_reason is not None and self._stop_began_s is None:
+            self._begin_stop(self._stop_reason, now_ns * 1e-9)
+            if self.finished.done():
+                return
         if now_ns <= 0:
             return  # sim time not started
         if self.scheduler is None:
@@ -239,7 +305,31 @@ class GaitSchedulerNode(Node):
         self.phase_pub.publish(gait_state_to_msg(state, t, t_ns=now_ns))
         self.cmd_pub.publish(joint_command_msg(t, names, q, qd, t_ns=now_ns))
         self.ticks += 1
+        if self._stop_began_s is not None:
+            self._check_stop(state, now_ns * 1e-9)
+
+
+def stand_on_signals(node: GaitSchedulerNode,
+                     signals: Sequence[int] = (signal.SIGINT, signal.SIGTERM)) -> None:
+    """SIGINT / SIGTERM stand the legs before the node exits
+    (:meth:`GaitSchedulerNode.request_stop`) instead of shutting rclpy down mid-step."""
+    from rclpy.signals import uninstall_signal_handlers
+
+    uninstall_signal_handlers()
+
+    def handler(signum: int, frame: Any) -> None:
+        node.request_stop(f'{signal.Signals(signum).name} received')
+
+    for sig in signals:
+        signal.signal(sig, handler)
+
+
+def _node_standing_on_signals(**kw: Any) -> GaitSchedulerNode:
+    """``gait_scheduler`` built by the console script (signals stand the legs first)."""
+    node = GaitSchedulerNode(**kw)
+    stand_on_signals(node)
+    return node
 
 
 def main(args: Sequence[str] | None = None) -> int:
-    return run_node(GaitSchedulerNode, args)
+    return run_node(_node_standing_on_signals, args, params=GaitParams)

@@ -67,3 +67,35 @@ def test_stand_publishes_every_leg_in_stance_and_walks_again():
         assert ok.successful
         assert env.spin_until(lambda: phases.messages[-1].step_length == 0.1, 20)
         assert env.spin_until(lambda: phases.messages[-1].supporting_legs == 3, 20)
+
+
+@pytest.mark.timeout(90)
+@pytest.mark.parametrize('signals, stood', [(1, True), (2, False)])
+def test_a_signal_stands_the_legs_before_the_node_exits(signals, stood):
+    """Ctrl-C stopped the commands wherever the legs were (a bench leg froze 35 mm above the
+    ground; the sequencer later cut its torque there): now the legs stand, then the node
+    exits; a second signal exits at once."""
+    import signal
+
+    from hexapod_gait.gait_node import stand_on_signals
+
+    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    with ros_env('gaitrev') as env:
+        node = env.make(GaitSchedulerNode, parameter_overrides=_overrides(
+            rate=50.0, period=0.5, transition_cycles=1.0))
+        phases = Collector(env, GaitPhase, 'gait/phase')
+        phases.wait_for(env, 10)
+        try:
+            stand_on_signals(node)
+            for _ in range(signals):
+                signal.getsignal(signal.SIGINT)(signal.SIGINT, None)   # what Ctrl-C runs
+        finally:
+            for s, h in saved.items():
+                signal.signal(s, h)
+        assert env.spin_until(node.finished.done, 20)
+        assert node.finished.result() == 0
+        settled = node.scheduler.state(node._now_s()).gait.step_length_m == 0.0
+        assert settled is stood and node.params.stand is stood
+        if stood:   # the last command published is the stand, every leg in stance
+            assert env.spin_until(lambda: phases.messages[-1].step_length == 0.0
+                                  and all(phases.messages[-1].in_stance), 5)
