@@ -135,30 +135,38 @@ def test_short_efforts_keep_the_positions_live() -> None:
     assert not any('no /gait/phase or /joint_states' in w for w in warnings)
 
 
+def _clean_and_edited_runs(tmp_path: Any, name: str, edit: Any) -> tuple[Any, dict[str, Any]]:
+    """A 6 s EduBot running bag and a copy edited by ``edit(topic, msg)``; returns the edited
+    bag and ``energy``'s robot run of each ('clean', ``name``)."""
+    from hexapod_bench_drivers.edubot_bag import write_edubot_bag
+    from hexapod_common.testbags import rewrite_bag
+    from hexapod_energy.cli import main as energy_main
+
+    clean = write_edubot_bag(tmp_path / 'clean', 'running', duration_s=6.0, seed=2)
+    bag = rewrite_bag(clean, tmp_path / name, edit)
+    runs = {}
+    for which in ('clean', name):
+        assert energy_main(['--robot', str(tmp_path / which), '--robot-mass', '3.31', '--out',
+                            str(tmp_path / f'out_{which}'), '--no-progress']) == 0
+        [runs[which]] = json.loads((tmp_path / f'out_{which}' / 'energy.json').read_text()
+                                   )['robot_runs']
+    return bag, runs
+
+
 @pytest.mark.timeout(180)
 def test_samples_of_an_absent_battery_are_left_out_live_and_offline(tmp_path: Any) -> None:
     """A BMS that loses its pack publishes present = false with 0 V and 0 A: 1 s of them in a
     6 s run was counted as measured power (the reviewer's 30 s robot run: P_in -10.5 %, live
     windows of 0.18 W). Now they are left out, live as offline (the same windows, to 1e-9),
     and P_in stays the clean run's."""
-    from hexapod_bench_drivers.edubot_bag import write_edubot_bag
     from hexapod_common.replay import run_offline
-    from hexapod_common.testbags import rewrite_bag
-    from hexapod_energy.cli import main as energy_main
 
     def unplug(topic: str, msg: Any) -> None:
         t = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
         if topic == '/battery_state' and 2.0 <= t < 3.0:
             msg.present, msg.voltage, msg.current = False, 0.0, 0.0
 
-    clean = write_edubot_bag(tmp_path / 'clean', 'running', duration_s=6.0, seed=2)
-    bag = rewrite_bag(clean, tmp_path / 'unplugged', unplug)
-    runs = {}
-    for name in ('clean', 'unplugged'):
-        assert energy_main(['--robot', str(tmp_path / name), '--robot-mass', '3.31', '--out',
-                            str(tmp_path / f'out_{name}'), '--no-progress']) == 0
-        [runs[name]] = json.loads((tmp_path / f'out_{name}' / 'energy.json').read_text()
-                                  )['robot_runs']
+    bag, runs = _clean_and_edited_runs(tmp_path, 'unplugged', unplug)
     notes = ' '.join(runs['unplugged']['notes'])
     assert 'present = false' in notes
     # the windows across the hole are left out, so the mean is over other windows (+2.3 %);
@@ -182,10 +190,7 @@ def test_messages_without_velocities_among_ones_with_them_are_left_out(tmp_path:
     previous such sample (10 samples long) and mixed them in: EduBot P_out +2.3 %, with the
     note "no joint velocities". Now they are left out of P_out (noted), live as offline."""
     import numpy as np
-    from hexapod_bench_drivers.edubot_bag import write_edubot_bag
     from hexapod_common.replay import run_offline
-    from hexapod_common.testbags import rewrite_bag
-    from hexapod_energy.cli import main as energy_main
 
     count = [0]
 
@@ -195,14 +200,7 @@ def test_messages_without_velocities_among_ones_with_them_are_left_out(tmp_path:
             if count[0] % 10 == 0:
                 msg.velocity = np.zeros(0)
 
-    clean = write_edubot_bag(tmp_path / 'clean', 'running', duration_s=6.0, seed=2)
-    bag = rewrite_bag(clean, tmp_path / 'sparse', drop_velocity)
-    runs = {}
-    for name in ('clean', 'sparse'):
-        assert energy_main(['--robot', str(tmp_path / name), '--robot-mass', '3.31', '--out',
-                            str(tmp_path / f'out_{name}'), '--no-progress']) == 0
-        [runs[name]] = json.loads((tmp_path / f'out_{name}' / 'energy.json').read_text()
-                                  )['robot_runs']
+    bag, runs = _clean_and_edited_runs(tmp_path, 'sparse', drop_velocity)
     notes = ' '.join(runs['sparse']['notes'])
     assert 'without velocities' in notes and 'no joint velocities' not in notes
     assert runs['sparse']['power_out_w'] == pytest.approx(runs['clean']['power_out_w'],
