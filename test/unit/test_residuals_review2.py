@@ -196,6 +196,22 @@ def test_a_near_constant_mass_sensitivity_names_carried_mass_beside_basal_power(
 
 # --- F4: effects fitted beside a step -----------------------------------------------------
 
+def _flat_basal_fit(run, t, dt, y):
+    """Windows of a flat 30 W prediction measured ``30 + y``, and the loop fitted on them
+    with basal power alone (which it adds)."""
+    n = len(t)
+    table = WindowTable(
+        run=run, t_s=t, duration_s=np.full(n, dt),
+        measured_w=30.0 + y, predicted_w=np.full(n, 30.0),
+        step_frequency_hz=np.full(n, 1.5), speed_mps=np.full(n, 0.2),
+        current_sq_a2=np.ones(n), temp_excess_k=np.full(n, np.nan),
+        stance_fraction=np.full((n, 6), 0.5), leg_names=tuple('ABCDEF'), extra={})
+    held = R.split_mask(table)
+    sel = R.EffectSelection(catalogue=[BasalPower()]).fit(table, held)
+    assert [e.name for e in sel.selected_] == ['basal_power']
+    return table, held, sel
+
+
 def test_effects_fitted_beside_a_step_are_not_called_missed():
     """A payload put on at mid-run: the loop said 'The model missed basal_power (4.41) and
     thermal_drift (0.106)' beside the step it flagged."""
@@ -204,15 +220,7 @@ def test_effects_fitted_beside_a_step_are_not_called_missed():
     n = n_per * runs
     t = np.tile(np.arange(n_per) * 0.25, runs)
     y = np.where(t >= 10.0, 2.0, 0.0) + rng.normal(0.0, 0.03, n)
-    table = WindowTable(
-        run=np.repeat(np.arange(runs), n_per), t_s=t, duration_s=np.full(n, 0.25),
-        measured_w=30.0 + y, predicted_w=np.full(n, 30.0),
-        step_frequency_hz=np.full(n, 1.5), speed_mps=np.full(n, 0.2),
-        current_sq_a2=np.ones(n), temp_excess_k=np.full(n, np.nan),
-        stance_fraction=np.full((n, 6), 0.5), leg_names=tuple('ABCDEF'), extra={})
-    held = R.split_mask(table)
-    sel = R.EffectSelection(catalogue=[BasalPower()]).fit(table, held)
-    assert [e.name for e in sel.selected_] == ['basal_power']
+    table, held, sel = _flat_basal_fit(np.repeat(np.arange(runs), n_per), t, 0.25, y)
     doc = R.energy_loop_document(table, sel, held)
     assert doc['unexplained']['pattern'] == 'step'
     assert 'The model missed' not in doc['summary']
@@ -241,15 +249,7 @@ def test_runs_left_out_are_reported_and_a_correction_that_does_not_transfer_is_s
     run = np.repeat(np.arange(runs), n_per)
     # +3 W on one run of three (another floor): a basal power fitted on the others is wrong
     y = np.where(run == 2, 3.0, 0.0) + rng.normal(0.0, 0.05, n)
-    table = WindowTable(
-        run=run, t_s=np.tile(np.arange(n_per) * 0.5, runs), duration_s=np.full(n, 0.5),
-        measured_w=30.0 + y, predicted_w=np.full(n, 30.0),
-        step_frequency_hz=np.full(n, 1.5), speed_mps=np.full(n, 0.2),
-        current_sq_a2=np.ones(n), temp_excess_k=np.full(n, np.nan),
-        stance_fraction=np.full((n, 6), 0.5), leg_names=tuple('ABCDEF'), extra={})
-    held = R.split_mask(table)
-    sel = R.EffectSelection(catalogue=[BasalPower()]).fit(table, held)
-    assert [e.name for e in sel.selected_] == ['basal_power']
+    table, held, sel = _flat_basal_fit(run, np.tile(np.arange(n_per) * 0.5, runs), 0.5, y)
     lo = R.leave_one_run_out(table, run_names=['a', 'b', 'c'])
     assert lo is not None and [r['run'] for r in lo['per_run']] == ['a', 'b', 'c']
     assert lo['rmse_after'] > lo['rmse_before'] and not lo['transfers']
