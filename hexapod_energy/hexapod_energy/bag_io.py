@@ -151,6 +151,19 @@ class BenchData:
     #: empty without it (:func:`bench_phase_samples` ``phase_split``)
     schedule_t_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
     schedule_stance: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    #: every ``/gait/phase`` message (n, 6): stamp [s], the walked step frequency [Hz] (0 when
+    #: standing: period 0, or step length and height 0), duty factor, step length and height
+    #: [m], and a code of every leg's in_stance (constant while the legs stand); the session
+    #: frequency is checked against it (:func:`bench_phase_samples`)
+    gait_rows: np.ndarray = field(default_factory=lambda: np.zeros((0, GAIT_COLUMNS)))
+    #: what must reach ``energy.json`` ``warnings`` (not only the diagnostics' notes)
+    warnings: list[str] = field(default_factory=list)
+
+
+#: columns of :attr:`BenchData.gait_rows`
+GAIT_COLUMNS = 6
+#: in the warning of a several-leg ``/gait/phase`` whose bench leg is unknown
+LEG_UNKNOWN = 'the bench leg is not identified'
 
 
 #: how :func:`bench_phase_samples` labels stance and swing
@@ -254,8 +267,18 @@ def _tip_frequency_hz(t_s: np.ndarray, z_m: np.ndarray) -> tuple[float, str]:
 
 
 def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
-                   leg_dh: Any = None, leg_name: str = 'AntBot') -> BenchData:
+                   leg_dh: Any = None, leg_name: str = 'AntBot',
+                   bench_leg: str | None = None) -> BenchData:
     """Read one bench bag's streams.
+
+    The bench leg (whose commanded stance on ``/gait/phase`` splits stance from swing): the
+    only leg of a one-leg ``/gait/phase`` (this project's simulators); on a ``/gait/phase`` of
+    several legs (the project's ``gait_scheduler`` has no one-leg mode) ``bench_leg`` when
+    given (``energy --bench-leg``), else the one leg whose coxa, femur and tibia joints are on
+    ``/joint_states``, with or without ``/bench/leg_tip`` (noted). When none names it, stance
+    and swing are split by contact, and that is a warning (:attr:`BenchData.warnings`: on the
+    outside review's emulated bench the contact split read P_stance +19..+37 % and P_swing
+    -18..-42 % against the emulator's V*I split by the leg's schedule).
 
     A bench without motion capture of the leg tip (no ``/bench/leg_tip``) but with the servos'
     ``/joint_states`` takes the tip height from the joint angles by forward kinematics of the
@@ -307,8 +330,9 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
     steps: list[tuple[float, float]] = []   # /gait/phase step length and height [m]
     no_header: dict[str, int] = {}
     joint_rows: list[tuple[float, float, float, float]] = []
-    tip_leg: list[str] = []
+    tip_leg: list[str] = [bench_leg] if bench_leg else []
     schedule: list[tuple[float, tuple[str, ...], tuple[bool, ...]]] = []
+    gait_rows: list[tuple[float, ...]] = []   # BenchData.gait_rows
     with open_reader(path) as reader:
         reader_notes = list(getattr(reader, 'notes', ()))  # metadata.yaml vs storage, ...
         present = {c.topic for c in reader.connections}
@@ -355,8 +379,10 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
                 geo = (float(msg.step_length), float(msg.step_height))
                 if all(math.isfinite(x) and x > 0 for x in geo):
                     steps.append(geo)
-                schedule.append((stamped(stamp_to_s(msg.header.stamp), m),
-                                 tuple(msg.leg_names), tuple(bool(x) for x in msg.in_stance)))
+                t_gait = stamped(stamp_to_s(msg.header.stamp), m)
+                stance_code = tuple(bool(x) for x in msg.in_stance)
+                schedule.append((t_gait, tuple(msg.leg_names), stance_code))
+                gait_rows.append(_gait_row(t_gait, msg, stance_code))
                 continue
             if m.topic == '/battery_state':
                 try:
@@ -400,6 +426,14 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
                     'step_length_m': float(msg.step_length),
                     'step_height_m': float(msg.step_height),
                 })
+        js_legs: list[str] = []   # the legs /joint_states names (the bench leg when one)
+        if (tip_topic != '/joint_states' and not tip_leg and '/joint_states' in present
+                and any(len(names) > 1 for _, names, _ in schedule)):
+            # a motion-capture tip and a several-leg /gait/phase (the project's gait_scheduler):
+            # the bench leg from the joints the driver publishes (its joints file names one leg)
+            js_legs = _joint_state_legs(reader, iter_messages, joint_state_from_msg)
+            if len(js_legs) == 1:
+                tip_leg.append(js_legs[0])
     notes_out: list[str] = []
     if tip_topic == '/joint_states':
         tip = _tip_rows_from_joints(joint_rows, leg_dh)
@@ -408,12 +442,17 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
                 f'no /bench/leg_tip: the tip height is the forward kinematics of the '
                 f'{leg_name} leg (DH table; --leg) on /joint_states {tip_leg[0]}_coxa, '
                 '_femur, _tibia (leg base frame)')
-    sched = _bench_schedule(schedule, tip_leg, notes_out)
+    warnings: list[str] = []
+    sched = _bench_schedule(schedule, tip_leg, notes_out, warnings,
+                            source=('--bench-leg' if bench_leg else
+                                    '/joint_states' if tip_leg else ''),
+                            js_legs=js_legs)
     shifts, clock_notes = clocks.shifts()   # a topic stamped on another clock
     notes_out.extend(clock_notes)
     if shifts:
         dt = shifts.get
         sched = [(t + dt('/gait/phase', 0.0), v) for t, v in sched]
+        gait_rows = [(r[0] + dt('/gait/phase', 0.0), *r[1:]) for r in gait_rows]
         bat_samples = [dataclasses.replace(b, t_s=b.t_s + dt('/battery_state', 0.0))
                        for b in bat_samples]
         frc = shift_rows(frc, dt('/bench/ground_force', 0.0))
@@ -449,15 +488,22 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
     return BenchData(str(path), b_arr[:, 0], b_arr[:, 1], b_arr[:, 2], f_arr[:, 0],
                      f_arr[:, 1], t_arr[:, 0], t_arr[:, 1], ses, notes,
                      np.array([t for t, _ in sched], dtype=float),
-                     np.array([v for _, v in sched], dtype=bool))
+                     np.array([v for _, v in sched], dtype=bool),
+                     np.array(sorted(gait_rows), dtype=float).reshape(-1, GAIT_COLUMNS),
+                     warnings)
 
 
 def _bench_schedule(rows: list[tuple[float, tuple[str, ...], tuple[bool, ...]]],
-                    tip_leg: list[str], notes: list[str]) -> list[tuple[float, bool]]:
+                    tip_leg: list[str], notes: list[str], warnings: list[str], *,
+                    source: str = '', js_legs: Sequence[str] = ()
+                    ) -> list[tuple[float, bool]]:
     """The bench leg's commanded stance from ``/gait/phase`` rows: its only leg, else the leg
-    whose joints give the tip height; otherwise none (noted: the contact split is used)."""
+    ``tip_leg`` names (from ``source``: ``--bench-leg`` or ``/joint_states``, noted);
+    otherwise none, a warning (the contact split is used: it moved the outside review's
+    phase powers by +19..+37 % and -18..-42 %)."""
     out: list[tuple[float, bool]] = []
     skipped = 0
+    several: tuple[str, ...] = ()
     for t, names, stance in rows:
         if len(stance) != len(names) or not names:
             skipped += 1
@@ -466,15 +512,65 @@ def _bench_schedule(rows: list[tuple[float, tuple[str, ...], tuple[bool, ...]]],
             k = 0
         elif tip_leg and tip_leg[0] in names:
             k = names.index(tip_leg[0])
+            several = names
         else:
-            notes.append(f'/gait/phase schedules several legs {list(names)}: which one is the '
-                         'bench leg is unknown, so stance and swing are split by contact')
+            if source == '--bench-leg':
+                raise BagContentError(f'--bench-leg {tip_leg[0]} is not on /gait/phase, '
+                                      f'whose legs are {list(names)}')
+            why = (f'/joint_states names the leg {tip_leg[0]}, which is not among them'
+                   if tip_leg else
+                   f'/joint_states names several legs {list(js_legs)}' if len(js_legs) > 1
+                   else 'no /joint_states names one leg\'s coxa, femur and tibia')
+            warnings.append(
+                f'/gait/phase schedules {len(names)} legs {list(names)} and {LEG_UNKNOWN} '
+                f'({why}): stance and swing are split by contact, not by the '
+                'leg\'s commanded schedule (on an emulated bench that read P_stance +19..+37 '
+                '%, P_swing -18..-42 %); give --bench-leg NAME, or record the bench leg\'s '
+                'joints alone on /joint_states')
             return []
         out.append((t, stance[k]))
+    if several:
+        notes.append(f'bench leg {tip_leg[0]} (from {source or "/joint_states"}) of the '
+                     f'{len(several)} legs on /gait/phase: its commanded stance splits the '
+                     'phases')
     if skipped:
         notes.append(f'{skipped} /gait/phase message(s) without in_stance for their legs '
                      'left out of the schedule')
     return out
+
+
+def _joint_state_legs(reader: Any, iter_messages: Any, joint_state_from_msg: Any
+                      ) -> list[str]:
+    """The legs whose coxa, femur and tibia joints are on ``/joint_states`` (the first message
+    that holds any; sorted), read until a message names one (a bench driver's joints file)."""
+    for m in iter_messages(reader, ('/joint_states',)):
+        try:
+            names = list(joint_state_from_msg(reader.deserialize(m.data, m.msgtype)).names)
+        except ValueError:
+            continue
+        legs = _legs_in(names)
+        if legs:
+            return legs
+    return []
+
+
+def _legs_in(names: Sequence[str]) -> list[str]:
+    """Legs with their ``_coxa``, ``_femur`` and ``_tibia`` joints all in ``names``."""
+    return sorted({n[:-len('_coxa')] for n in names if n.endswith('_coxa')
+                   and f'{n[:-5]}_femur' in names and f'{n[:-5]}_tibia' in names})
+
+
+def _gait_row(t_s: float, msg: Any, stance: tuple[bool, ...]) -> tuple[float, ...]:
+    """One :attr:`BenchData.gait_rows` row of a ``/gait/phase`` message."""
+    def num(x: Any) -> float:
+        v = float(x)
+        return v if math.isfinite(v) else 0.0
+
+    period, length, height = num(msg.period), num(msg.step_length), num(msg.step_height)
+    standing = period <= 0 or (length <= 0 and height <= 0)
+    code = float(sum(1 << i for i, x in enumerate(stance[:52]) if x))
+    return (t_s, 0.0 if standing else 1.0 / period, num(msg.duty_factor), length, height,
+            code)
 
 
 def _leg_joint_row(path: str | Path, js: Any, leg: list[str]
@@ -485,8 +581,7 @@ def _leg_joint_row(path: str | Path, js: Any, leg: list[str]
     joints in one bench bag are refused by name (which one walks on the treadmill?)."""
     names = list(js.names)
     if not leg:
-        legs = sorted({n[:-len('_coxa')] for n in names if n.endswith('_coxa')
-                       and f'{n[:-5]}_femur' in names and f'{n[:-5]}_tibia' in names})
+        legs = _legs_in(names)
         if len(legs) > 1:
             raise BagContentError(
                 f'bag {path}: no /bench/leg_tip, and /joint_states holds the joints of several '
@@ -580,7 +675,9 @@ def merge_bench_data(datas: Sequence[BenchData]) -> BenchData | None:
                      cat('battery_v'), cat('battery_a'), cat('force_t_s'), cat('force_z_n'),
                      cat('tip_t_s'), cat('tip_z_m'),
                      [s for i in order for s in datas[i].sessions], notes,
-                     cat('schedule_t_s'), cat('schedule_stance'))
+                     cat('schedule_t_s'), cat('schedule_stance'), cat('gait_rows'),
+                     [f'{Path(datas[i].path).name}: {w}' for i in order
+                      for w in datas[i].warnings])
 
 
 def _walking_segments(sessions: list[dict[str, Any]], t_end_s: float
@@ -640,6 +737,11 @@ def bench_phase_samples(
     compression; many load cells report compression negative. ``positive`` takes the force as
     recorded, ``negative`` negates it, ``auto`` (default) decides from the data
     (:func:`force_sign_factor`) and notes a flip in ``diag['notes']``.
+
+    ``diag['warnings']``: what ``energy`` puts in its top-level warnings: a several-leg
+    ``/gait/phase`` whose bench leg is unknown (the contact split instead; not with
+    ``phase_split='contact'``), and each session labelled with another frequency than its
+    ``/gait/phase`` walked (analysed at the walked one: :func:`_walked_segments`).
     """
     from hexapod_energy.descriptors import resolve_current_sign
 
@@ -647,7 +749,8 @@ def bench_phase_samples(
         raise ValueError(f'phase split must be one of {PHASE_SPLITS}, got {phase_split!r}')
     if phase_split == 'schedule' and not data.schedule_t_s.size:
         raise BagContentError(f'bag {data.path}: phase split schedule needs the bench leg\'s '
-                              '/gait/phase (in_stance); use the contact split')
+                              '/gait/phase (in_stance; of several legs: --bench-leg NAME); use '
+                              'the contact split')
     sign = resolve_current_sign(data.battery_v, data.battery_a, current_sign)
     power = sign * data.battery_v * data.battery_a
     t_end = float(max(data.battery_t_s[-1], data.force_t_s[-1], data.tip_t_s[-1]))
@@ -655,6 +758,11 @@ def bench_phase_samples(
     if not segments:
         raise BagContentError(f'bag {data.path}: /bench/session never reports state walking')
     notes = list(data.notes)
+    warnings = list(data.warnings)
+    if phase_split == 'contact':   # asked for: the bench leg's schedule is not needed
+        notes += [w for w in warnings if LEG_UNKNOWN in w]
+        warnings = [w for w in warnings if LEG_UNKNOWN not in w]
+    segments = _walked_segments(data, segments, warnings)
     tip_span = float(np.subtract(*np.nanpercentile(data.tip_z_m, [95, 5]))) \
         if data.tip_z_m.size else 0.0
     if tip_span > 1.0:
@@ -783,11 +891,70 @@ def bench_phase_samples(
                      f'{splits["contact"]} (no /gait/phase there)')
     diag = {'bag': data.path, 'force_offset_s': offset, 'current_sign': sign,
             'force_sign': f_sign, 'sessions': len(samples), 'notes': notes,
+            'warnings': warnings,
             'phase_split': ('schedule' if splits.get('schedule') and not splits.get('contact')
                             else 'contact' if splits.get('contact') and
                             not splits.get('schedule') else
                             'mixed' if splits else 'none')}
     return samples, diag
+
+
+#: a session's frequency (``/bench/session``, or the sessions file) further than this fraction
+#: from the step frequency ``/gait/phase`` walked is a mismatch (:func:`_walked_segments`)
+FREQUENCY_MISMATCH = 0.03
+
+
+def _walked_segments(data: BenchData, segments: list[tuple[dict[str, Any], float, float]],
+                     warnings: list[str]) -> list[tuple[dict[str, Any], float, float]]:
+    """The walking segments with each session's frequency checked against the step frequency
+    ``/gait/phase`` recorded over it (the median of ``1 / period``, 0 while standing).
+
+    A session whose recorded schedule walked another frequency (beyond
+    :data:`FREQUENCY_MISMATCH`), or walked when it should stand or stood when it should walk,
+    is analysed at what the leg walked: the frequency, duty factor and step length and height
+    of ``/gait/phase`` replace the session's, and a warning names the session. Why not refuse:
+    the power, force and tip streams are those of the walked schedule (the phase split takes
+    its stance labels from the same ``/gait/phase``), so the session is a good sample of that
+    frequency under its load, only mislabelled; refusing would discard a whole bench for one
+    sequencer that never commanded the gait node (outside review D1: every "2 Hz" session of a
+    plan walked the gait node's default 1 Hz, and read as 2 Hz: 10.40 / 5.23 W). A 0 Hz
+    session whose legs all stay in stance on ``/gait/phase`` stands, whatever its period.
+    Segments without ``/gait/phase`` (fewer than 4 messages) are kept as they are."""
+    rows = data.gait_rows
+    if not rows.size:
+        return segments
+    out = []
+    for s, t0, t1 in segments:
+        m = (rows[:, 0] >= t0) & (rows[:, 0] < t1)
+        if m.sum() < 4:
+            out.append((s, t0, t1))
+            continue
+        seg = rows[m]
+        walked = float(np.median(seg[:, 1]))
+        label = float(s['frequency_hz'])
+        if walked > 0 and np.all(seg[:, 5] == seg[0, 5]) and (t1 - t0) * walked >= 1.5:
+            walked = 0.0   # a period, but every leg kept its stance: standing
+        if label > 0 and walked > 0:
+            same = abs(walked - label) <= FREQUENCY_MISMATCH * label
+        else:
+            same = (label > 0) == (walked > 0)
+        if same:
+            out.append((s, t0, t1))
+            continue
+        fixed = dict(s, frequency_hz=walked)
+        if walked > 0:
+            for key, col in (('duty_factor', 2), ('step_length_m', 3), ('step_height_m', 4)):
+                v = seg[:, col][seg[:, col] > 0]
+                if v.size:
+                    fixed[key] = float(np.median(v))
+        warnings.append(
+            f'session {s["session_id"]}: labelled {label:.4g} Hz but /gait/phase walked '
+            f'{walked:.4g} Hz' + (f' (period {1 / walked:.4g} s)' if walked > 0 else
+                                  ' (the legs stood)') +
+            ': analysed at the walked frequency (with its duty factor and step). Was the gait '
+            'node commanded (bench_sequencer gait_node)?')
+        out.append((fixed, t0, t1))
+    return out
 
 
 def force_sign_factor(data: BenchData, segments: list[tuple[dict[str, Any], float, float]],

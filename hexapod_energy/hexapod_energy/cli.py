@@ -18,6 +18,14 @@ step_length_m,step_height_m]``, :func:`hexapod_energy.bag_io.read_bench_sessions
 they are read as one bench when their times do not overlap
 (:func:`hexapod_energy.bag_io.merge_bench_data`).
 
+The bench leg on a ``/gait/phase`` of several legs (the project's ``gait_scheduler`` has no
+one-leg mode): ``--bench-leg NAME``, else the one leg ``/joint_states`` names; unknown, the
+phases are split by contact with a warning. A session whose ``/gait/phase`` walked another
+frequency than its label is analysed at the walked one, with a warning naming it. Too few
+walking sessions for the surface fits (5 with 5 folds,
+:meth:`hexapod_energy.single_leg.SingleLegModel.min_walking_sessions`): ``energy.json`` gets
+the sessions' phase powers (``bench.sessions``) and the refusal (``errors``), exit 2.
+
 ``--sweep`` and ``--recommend`` are for the robot described: its mass (``--robot-mass``, default
 AntBot's 2.183 kg with a warning), its leg (``--leg``), its leg count (``--legs N``, else the
 robot bags' gaits or joint names, else 6 with a warning) and its actuator limits (``--limits``,
@@ -52,7 +60,10 @@ such fallback is listed in the run's ``notes``.
       "bench": {"bags": [...], "diagnostics": [{"bag", "force_offset_s", "current_sign",
                 "force_sign" (+1, or -1: force.z negated, see --force-sign),
                 "phase_split" (schedule | contact | mixed: --phase-split),
-                "sessions", "notes" (dropped messages)}],
+                "sessions", "notes" (dropped messages), "warnings" (also in the top-level
+                "warnings": a several-leg /gait/phase whose bench leg is not identified, a
+                session whose /gait/phase walked another frequency than it is labelled,
+                bag_io.bench_phase_samples)}],
                 "fit": {"spans", "chosen": {"stance", "swing"},
                 "cv_rmse_w": {"stance": {"lowess", "poly", "poly3"}, "swing": {...}},
                 "surfaces": {"stance"|"swing": {"kind" (poly | poly3: "coef", "terms"
@@ -62,7 +73,9 @@ such fallback is listed in the run's ``notes``.
                 "fit_rmse_w": {"stance", "swing"}, "basal_power_w": {"<load kg>": W},
                 "domain": {"stance"|"swing": {"rate_hz": [lo, hi], "load_kg": [lo, hi]}}
                 (the sessions' range; rate = 1 / T_phase),
-                "sessions": [PhaseSample fields]}},
+                "sessions": [PhaseSample fields]}
+                (a refused fit, too few walking sessions: "fit" null, "sessions" [PhaseSample
+                fields] beside it, "fit_error" [str], and the top-level "errors"; exit 2)},
       "robot_runs": [{"bag", "gait", "leg_count", "duty_factor", "period_s", "step_length_m",
                       "step_height_m", "payload_kg", "mass_kg", "windows", "window_s",
                       "measured_power_in_w", "predicted_power_in_w", "residual_w",
@@ -136,6 +149,8 @@ such fallback is listed in the run's ``notes``.
                   # configurations inside the bench's domain unless none is ("note"); it
                   # records "leg_count", "robot_mass_kg", "mass_kg" (with payload), "limits"
       "warnings": [str],                                      # when any
+      "errors": [str],     # the analysis refused after the bench's phase powers were
+                           # written (the surface fit: too few walking sessions); exit 2
       "failed_bags": [{"bag", "error"}],   # robot bags refused (the others are analysed;
                                            # all refused: exit 2)
       "plots": [relative paths]
@@ -166,7 +181,7 @@ import numpy as np
 from hexapod_energy.descriptors import gait_from_sample, implausible_effort_power
 from hexapod_common.cli_args import NumberArgumentParser
 from hexapod_common.jsondoc import json_safe
-from hexapod_energy.errors import EnergyError
+from hexapod_energy.errors import EnergyError, FitError, InvalidInputError
 from hexapod_energy.trend import TREND_MIN_SPAN_S, TREND_MIN_WINDOWS, power_in_trend, trend_note
 
 __all__ = ['add_cli', 'build_parser', 'gait_from_sample', 'main', 'run']
@@ -220,6 +235,15 @@ def add_given_gait_arguments(p: argparse.ArgumentParser, purpose: str,
                    'follow L1..Lk/R1..Rk_<joint> (with --gait; default: from the names)')
 
 
+class FitRefused(EnergyError):
+    """The bench surface fit refused after ``energy.json`` got the sessions' phase powers
+    (``bench.sessions``, ``errors``): exit 2, the file kept."""
+
+    def __init__(self, message: str, warnings: Sequence[str] = ()) -> None:
+        super().__init__(message)
+        self.warnings = list(warnings)
+
+
 def _add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--bench', nargs='*', default=[], metavar='BAG',
                    help='bench bags (MiMiC-Ant single-leg sessions); without them robot runs '
@@ -229,6 +253,11 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
                         'CSV with columns bag,load_kg[,frequency_hz,duty_factor,step_length_m,'
                         'step_height_m]; '
                         'an empty frequency comes from /gait/phase or the leg tip\'s period')
+    p.add_argument('--bench-leg', default=None, metavar='NAME',
+                   help='the bench leg\'s name on a /gait/phase of several legs (the '
+                        'project\'s gait_scheduler publishes six); default: the one leg '
+                        'whose coxa, femur and tibia joints are on /joint_states (unknown: '
+                        'stance and swing split by contact, with a warning)')
     p.add_argument('--robot', nargs='*', default=[], metavar='BAG',
                    help='robot bags to compare with the Eq. 1 prediction')
     p.add_argument('--out', required=True, metavar='DIR', help='output folder')
@@ -439,7 +468,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         samples, diags = [], []
         one_session = []
         for path, spec in bench_bags:
-            data = read_bench_bag(path, spec, leg_dh=leg.dh, leg_name=leg.name)
+            data = read_bench_bag(path, spec, leg_dh=leg.dh, leg_name=leg.name,
+                                  bench_leg=getattr(args, 'bench_leg', None))
             bar.update(1)
             if spec is not None:
                 one_session.append(data)
@@ -457,7 +487,27 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                                        phase_split=getattr(args, 'phase_split', 'auto'))
             samples.extend(s)
             diags.append(d)
-        model = SingleLegModel(folds=args.folds).fit(samples) if bench_bags else None
+        for d in diags:
+            # a bench leg not identified (the contact split), a session that walked another
+            # frequency than its label: said on the terminal at once and kept in "warnings"
+            for w in d.get('warnings', []):
+                line = f'{d["bag"]}: {w}'
+                doc.setdefault('warnings', []).append(line)
+                bar.write(f'hexapod-analyze energy: warning: {line}', file=sys.stderr)
+        try:
+            model = SingleLegModel(folds=args.folds).fit(samples) if bench_bags else None
+        except (FitError, InvalidInputError) as err:
+            # the per-session phase powers do not depend on the surfaces: a lab checking its
+            # bench with a short plan gets them (outside review D8), then the refusal
+            doc['bench'] = {'bags': [b for b, _ in bench_bags], 'diagnostics': diags,
+                            'fit': None, 'sessions': [dataclasses.asdict(x) for x in samples],
+                            'fit_error': str(err)}
+            doc['errors'] = [f'bench surface fit refused: {err}']
+            (out / 'energy.json').write_text(json.dumps(json_safe(doc), indent=1))
+            raise FitRefused(
+                f'{err} (the {len(samples)} sessions\' phase powers are in '
+                f'{out / "energy.json"} bench.sessions; no surfaces, no Eq. 1 prediction)',
+                doc.get('warnings', [])) from err
         if model is not None:
             model.bench_leg_ = leg   # the leg whose joint paths map other step geometries
             if model.bench_step_ is None:
@@ -1079,6 +1129,8 @@ def _handler(args: argparse.Namespace) -> int:
         doc = run(args)
     except (EnergyError, HexapodError, ValueError) as err:
         print(f'hexapod-analyze energy: error: {err}', file=sys.stderr)
+        if isinstance(err, FitRefused):
+            return 2   # energy.json holds the sessions' phase powers (warnings said above)
         if not existed and out.is_dir() and not any(out.iterdir()):
             out.rmdir()   # a refused run leaves no empty --out folder behind
         return 2

@@ -504,9 +504,16 @@ class SingleLegModel:
             f"surface candidate must be 'lowess', 'poly' or 'poly3', got {kind!r}")
 
     def fit(self, samples: Sequence[PhaseSample]) -> SingleLegModel:
-        """Fit both surfaces from per-session phase powers."""
-        if len(samples) < 6:
-            raise FitError(f'single-leg fit needs >= 6 sessions, got {len(samples)}')
+        """Fit both surfaces from per-session phase powers. Fewer walking sessions than
+        :meth:`min_walking_sessions` are refused up front, the minimum named."""
+        walking = sum(1 for s in samples if s.frequency_hz > 0)
+        need = self.min_walking_sessions()
+        if walking < need:
+            raise FitError(
+                f'single-leg fit needs >= {need} walking sessions (frequency > 0; the swing '
+                f'surface has no others) with {self.folds}-fold cross-validation, got '
+                f'{walking} walking of {len(samples)} sessions: the bench plan needs more '
+                'loads x frequencies')
         cols = PhaseSamples.from_samples(samples)
         self.samples_ = list(samples)
         self._fits = {}
@@ -551,6 +558,21 @@ class SingleLegModel:
         self.basal_power_w_ = {k: float(np.mean(v)) for k, v in sorted(basal.items())}
         self.bench_step_ = bench_step_geometry(samples)
         return self
+
+    #: the fewest training points each candidate fits (LOWESS: a plane and a neighbour;
+    #: PolySurface: its coefficients)
+    MIN_POINTS = {'lowess': 4, 'poly': 5, 'poly3': 7}
+
+    def min_walking_sessions(self) -> int:
+        """The fewest walking sessions the surfaces can be fitted from: every fold of the
+        k-fold cross-validation must leave at least one candidate its fewest training points
+        (:attr:`MIN_POINTS`; default candidates and 5 folds: 5 walking sessions, 4 train each
+        fold's LOWESS)."""
+        least = min(self.MIN_POINTS.get(k, 4) for k in self.candidates)
+        n = least + 1
+        while n - math.ceil(n / max(2, min(self.folds, n))) < least:
+            n += 1
+        return n
 
     def _fit(self, phase: str) -> _PhaseFit:
         if phase not in self._fits:

@@ -122,7 +122,7 @@ def test_noisy_fit_error_is_reported() -> None:
 def test_errors() -> None:
     with pytest.raises(NotFittedError):
         SingleLegModel().p_stance_w(0.3, 0.1)
-    with pytest.raises(FitError, match='>= 6 sessions'):
+    with pytest.raises(FitError, match='>= 5 walking sessions'):
         SingleLegModel().fit(_plan()[:3])
     with pytest.raises(InvalidInputError, match='span'):
         Lowess2D(0.0)
