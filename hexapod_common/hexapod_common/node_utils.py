@@ -377,7 +377,13 @@ def _init_sources(node_factory: Callable[..., Any]) -> Iterator[tuple[Any, str]]
     function), skipping those without readable source."""
     import inspect
 
-    classes = inspect.getmro(node_factory) if inspect.isclass(node_factory) else (node_factory,)
+    if inspect.isclass(node_factory):
+        classes: tuple[Any, ...] = inspect.getmro(node_factory)
+    else:   # a factory function (signal handlers installed): also the class it returns
+        ret = inspect.signature(node_factory).return_annotation
+        if isinstance(ret, str):
+            ret = getattr(node_factory, '__globals__', {}).get(ret)
+        classes = (node_factory, *(inspect.getmro(ret) if inspect.isclass(ret) else ()))
     for cls in classes:
         init = getattr(cls, '__init__', None) if inspect.isclass(cls) else cls
         try:
