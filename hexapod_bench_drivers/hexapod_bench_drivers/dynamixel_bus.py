@@ -78,7 +78,8 @@ clearing, torque lost, the loop rate falling below :data:`RATE_LOW_FRACTION` of 
 rate, given ``rate_hz``; a corrupted instruction reported by a servo) are queued for the log once
 per transition, throttled per kind and servo (:class:`EventLog`, :meth:`DynamixelBus.take_events`).
 
-The port: an ``OSError`` from the serial device (a USB adapter unplugged: EIO) closes the bus and
+The port: an ``OSError`` from the serial device (a USB adapter unplugged: EIO), or the
+``termios.error`` the input flush before each transaction raises then, closes the bus and
 raises :class:`PortLostError`, which names the port; later torque writes are skipped.
 
 Adapter echo: a half-duplex adapter without direction control returns every transmitted byte.
@@ -108,6 +109,14 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+try:
+    import termios
+    #: pyserial's reset_input_buffer() (``clearPort`` before every transaction) raises
+    #: termios.error (errno EIO) on a vanished device, which is not an OSError
+    _PORT_ERRORS: tuple[type[BaseException], ...] = (OSError, termios.error)
+except ImportError:                 # not POSIX
+    _PORT_ERRORS = (OSError,)
 
 from dynamixel_sdk import GroupSyncWrite, PacketHandler, PortHandler
 from dynamixel_sdk.protocol1_packet_handler import PKT_ID as P1_PKT_ID
@@ -620,11 +629,12 @@ class DynamixelBus:
 
     @contextmanager
     def _port_guard(self) -> Iterator[None]:
-        """An OSError of the serial device (EIO: the USB adapter unplugged) closes the bus and
-        becomes a PortLostError naming the port."""
+        """An OSError of the serial device (EIO: the USB adapter unplugged), or the
+        termios.error pyserial's input flush raises then, closes the bus and becomes a
+        PortLostError naming the port."""
         try:
             yield
-        except OSError as err:
+        except _PORT_ERRORS as err:
             name = self.port.getPortName()
             self.port_lost = (f'port {name} lost: {type(err).__name__}: {err} (USB adapter '
                               'unplugged or the device failed); the servos keep their last '

@@ -36,6 +36,14 @@ import numpy as np
 
 from hexapod_bench_drivers.reopen import ReopenBackoff
 
+try:
+    import termios
+    #: pyserial's reset_input_buffer() / tcflush on a vanished device raises termios.error
+    #: (errno EIO), which is not an OSError
+    _TERMIOS_ERRORS: tuple[type[BaseException], ...] = (termios.error,)
+except ImportError:                 # not POSIX
+    _TERMIOS_ERRORS = ()
+
 __all__ = [
     'ForceCalibration',
     'ForceLineParser',
@@ -274,7 +282,7 @@ class SerialForceSource:
         import serial
 
         self._factory = serial_factory or serial.Serial
-        self._port_errors = (OSError, serial.SerialException)
+        self._port_errors = (OSError, serial.SerialException, *_TERMIOS_ERRORS)
         self.port = port
         self.baud_rate = int(baud_rate)
         self._clock = clock or time.monotonic

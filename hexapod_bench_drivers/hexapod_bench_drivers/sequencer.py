@@ -26,8 +26,20 @@ Per session the state machine goes (``BenchSession.state`` names)::
     for walk_duration_s -> cooling (torque off) until inside the gate -> next session ... -> done
 
 ``starting`` lasts until ``update(..., gait_ready=True)`` (None: at once), at most
-``stand_timeout_s`` (then the plan is aborted: the gait node does not walk the session gait),
-so a session's recording holds only the steady gait.
+``stand_timeout_s``, and until every recorded topic has been received (``unseen_topics``
+empty), at most the longer of ``stand_timeout_s`` and ``stream_timeout_s``; then the plan
+is aborted (the gait node does not walk the session gait, or a recorded topic has no working
+publisher: its name and owner are given, and the session is not recorded without it), so a
+session's recording holds only the steady gait, with every topic.
+
+Stand before torque off: after a walk (or an abort), the torque stays on until the leg reports
+standing (``standing=True``). When it cannot stand, the torque is **kept on**, never cut
+under a loaded leg that is not standing (a dropping leg is worse than a held one): the gait node
+did not report the stand within ``stand_timeout_s`` (``standing=False``), or its parameter
+service is gone (``stand_unavailable``: no wait for a stand it cannot deliver). The plan is
+then aborted, the command says ``hold`` and :attr:`BenchSequencer.hold_reason` tells the
+operator to support the stage before turning the torque off. Only a stand that nobody reports
+(``standing=None``: no gait node) still ends with the torque off after ``stand_timeout_s``.
 
 Time is whatever the caller passes (``t_s`` from message stamps or simulated time). Progress is
 kept in a JSON state file, rewritten atomically (write + fsync + rename) each time a session
@@ -54,9 +66,11 @@ __all__ = [
     'PLAN_KEYS',
     'PlanError',
     'SequencerCommand',
+    'STREAM_OWNERS',
     'SessionSpec',
     'load_plan',
     'move_aside',
+    'stream_owner',
 ]
 
 
@@ -70,6 +84,27 @@ OVERHEATING_FLAG = 1 << 2
 PLAN_KEYS = ('loads_kg', 'frequencies_hz', 'duty_factors', 'step_lengths_m', 'step_height_m',
              'walk_duration_s', 'temperature_gate_c', 'temperature_tolerance_c',
              'temperature_limit_c')
+
+
+#: Who publishes each watched stream (named when it goes silent or never comes).
+STREAM_OWNERS = {
+    'servo_status': 'the servo driver (dynamixel_driver)',
+    'joint_states': 'the servo driver (dynamixel_driver)',
+    'battery_state': 'the power monitor (power_monitor)',
+    'bench/ground_force': 'the force sensor (force_sensor)',
+    'bench/leg_tip': 'the motion capture (its ROS bridge)',
+    'gait/phase': 'the gait node (gait_scheduler)',
+    'joint_commands': 'the gait node (gait_scheduler)',
+}
+
+
+def stream_owner(topic: str) -> str:
+    """Who publishes ``topic`` (:data:`STREAM_OWNERS`; a namespace prefix is ignored)."""
+    name = topic.strip('/')
+    for key, owner in STREAM_OWNERS.items():
+        if name == key or name.endswith('/' + key):
+            return owner
+    return f'the publisher of {name}'
 
 
 class PlanError(ValueError):
@@ -239,6 +274,8 @@ class SequencerCommand:
     record : the current session's measurement is being recorded (walking).
     finished_session : id of the session completed on this update (else None).
     standing : the leg is being stood before the torque goes off (walk false, torque true).
+    hold : the leg could not be stood: the torque is kept on (torque true) and the plan ends
+        (aborted); see :attr:`BenchSequencer.hold_reason`.
     """
 
     state: str
@@ -249,6 +286,7 @@ class SequencerCommand:
     record: bool = False
     finished_session: str | None = None
     standing: bool = False
+    hold: bool = False
 
 
 @dataclass
@@ -267,11 +305,14 @@ class BenchSequencer:
         JSON progress file; read at start (resume) and rewritten after each session.
     initial_load_kg : float, optional
         Load on the stage at start (None: unknown, so the first session asks for its load).
+    torque_controlled : bool
+        The caller turns the servos' torque on and off as commanded (False: no torque service;
+        the messages then never claim the torque went off).
     """
 
     def __init__(self, plan: BenchPlan, *, state_file: str | Path | None = None,
                  initial_load_kg: float | None = None, stand_timeout_s: float = 10.0,
-                 stream_timeout_s: float = 5.0) -> None:
+                 stream_timeout_s: float = 5.0, torque_controlled: bool = True) -> None:
         if not (math.isfinite(stand_timeout_s) and stand_timeout_s > 0
                 and math.isfinite(stream_timeout_s) and stream_timeout_s > 0):
             raise PlanError(f'stand_timeout_s = {stand_timeout_s!r}, stream_timeout_s = '
@@ -288,6 +329,9 @@ class BenchSequencer:
         self.abort_reason = ''
         #: set when the stand before a torque off timed out (for the log), else ''
         self.stand_warning = ''
+        #: why the leg could not be stood and the torque is kept on (see module doc), else ''
+        self.hold_reason = ''
+        self.torque_controlled = bool(torque_controlled)
         self._walk_started_s: float | None = None
         self._starting_since_s: float | None = None
         self._moved = False                 # walked since the torque was last off
@@ -371,59 +415,107 @@ class BenchSequencer:
             if not age <= self.stream_timeout_s:
                 return (f'no {topic} for {age:.2f} s (stream_timeout_s = '
                         f'{self.stream_timeout_s:g} s) while '
-                        f'walking: the session would lack data or run unwatched; check the '
-                        f'driver, then restart the plan (it resumes at this session)')
+                        f'walking: the session would lack data or run unwatched; check '
+                        f'{stream_owner(topic)}, then restart the plan (it resumes at this '
+                        'session)')
         return None
 
     def update(self, t_s: float, temperatures_c: Sequence[float], *,
                error_flags: Sequence[int] = (),
                stream_ages_s: Mapping[str, float] | None = None,
                standing: bool | None = None,
-               gait_ready: bool | None = None) -> SequencerCommand:
+               gait_ready: bool | None = None,
+               unseen_topics: Sequence[str] = (),
+               stand_unavailable: str = '') -> SequencerCommand:
         """Advance the state machine at time ``t_s`` [s] given every servo's temperature.
 
         error_flags : every servo's ``ServoStatus.error`` byte (any non-zero one while
             walking aborts the plan, see module doc).
         stream_ages_s : seconds since the last message of each watched stream
             (``servo_status``, ``battery_state``, ...); one older than ``stream_timeout_s``
-            while walking aborts the plan.
+            while walking aborts the plan, and so does ``servo_status`` (finite age: seen
+            before) while cooling.
         standing : the leg has reached the stand (the gait node settled at step 0); None:
             unknown, the stand before a torque off then lasts ``stand_timeout_s``.
         gait_ready : the gait node walks the current session's gait, settled (None: unknown,
             the recorded walk starts at once).
+        unseen_topics : recorded topics not received yet; ``starting`` waits for them, at
+            most the longer of ``stand_timeout_s`` and ``stream_timeout_s``, then aborts
+            naming them and their owners.
+        stand_unavailable : why the leg cannot be stood now (the gait node's parameter
+            service is gone), else ''; a leg that must stand then keeps its torque at once
+            (``hold``), without waiting ``stand_timeout_s``.
         """
         if self.state in ('heating', 'starting', 'walking'):
             reason = self.fault(temperatures_c, error_flags, stream_ages_s)
             if reason is not None:
                 self.abort(reason)
-        cmd = self._update(t_s, temperatures_c, gait_ready)
-        return self._stand_first(t_s, cmd, standing)
+        elif self.state in ('cooling_gate', 'cooling_after'):
+            # the gate waits for temperatures: a driver gone silent (seen before) would leave
+            # the plan cooling for ever without a word (outside integration review D6)
+            age = (stream_ages_s or {}).get('servo_status', math.inf)
+            if math.isfinite(age) and age > self.stream_timeout_s:
+                self.abort(f'no servo_status for {age:.2f} s (stream_timeout_s = '
+                           f'{self.stream_timeout_s:g} s) while cooling: the temperature gate '
+                           f'cannot be checked; check {stream_owner("servo_status")}, then '
+                           'restart the plan (it resumes at this session)')
+        cmd = self._update(t_s, temperatures_c, gait_ready, tuple(unseen_topics))
+        return self._stand_first(t_s, cmd, standing, stand_unavailable)
 
-    def _stand_first(self, t_s: float, cmd: SequencerCommand,
-                     standing: bool | None) -> SequencerCommand:
+    def _stand_first(self, t_s: float, cmd: SequencerCommand, standing: bool | None,
+                     stand_unavailable: str = '') -> SequencerCommand:
         """Never cut the torque of a leg that walked before it stands (module doc)."""
+        if self.hold_reason:
+            return self._held(cmd)
         if cmd.walk:
             self._moved, self._stand_since_s = True, None
             return cmd
         if cmd.torque or not self._moved:
             self._stand_since_s = None
             return cmd
-        if self._stand_since_s is None:          # first tick of the stand: torque stays on
+        first = self._stand_since_s is None
+        if first:                                # first tick of the stand: torque stays on
             self._stand_since_s = t_s
             self.stand_warning = ''
-        elif standing or t_s - self._stand_since_s >= self.stand_timeout_s:
-            if not standing:
-                self.stand_warning = (f'the leg did not report standing within '
-                                      f'stand_timeout_s = {self.stand_timeout_s:g} s: torque '
-                                      'off anyway')
+        if stand_unavailable and not standing:
+            return self._hold(cmd, stand_unavailable)
+        if not first and (standing or t_s - self._stand_since_s >= self.stand_timeout_s):
+            if standing is False:
+                return self._hold(cmd, f'the gait node did not report the leg standing within '
+                                       f'stand_timeout_s = {self.stand_timeout_s:g} s')
+            if standing is None:
+                self.stand_warning = (
+                    f'nothing reports whether the leg stands (no gait node): stand_timeout_s '
+                    f'= {self.stand_timeout_s:g} s over, '
+                    + ('torque off now (a leg that is not standing drops)'
+                       if self.torque_controlled else
+                       'the sequencer does not control the torque (no torque service): the '
+                       'servos keep theirs'))
             self._moved, self._stand_since_s = False, None
             return cmd
         return SequencerCommand(cmd.state, cmd.session, walk=False, torque=True,
                                 load_request_kg=cmd.load_request_kg,
                                 finished_session=cmd.finished_session, standing=True)
 
+    def _hold(self, cmd: SequencerCommand, why: str) -> SequencerCommand:
+        """The leg cannot be stood: keep its torque, end the plan (module doc)."""
+        torque = ('torque kept ON so that the loaded leg does not drop; support the stage '
+                  '(or the leg), then turn the torque off' if self.torque_controlled else
+                  'the sequencer does not control the torque (no torque service); support '
+                  'the stage (or the leg) before the torque goes off')
+        self.hold_reason = f'the leg was NOT stood ({why}): {torque}'
+        if self.state != 'aborted':
+            self.abort(self.hold_reason)
+        self._stand_since_s = None
+        return self._held(cmd)
+
+    def _held(self, cmd: SequencerCommand) -> SequencerCommand:
+        return SequencerCommand('aborted', cmd.session, walk=False, torque=True,
+                                finished_session=cmd.finished_session, hold=True)
+
     def _update(self, t_s: float, temperatures_c: Sequence[float],
-                gait_ready: bool | None = None) -> SequencerCommand:
+                gait_ready: bool | None = None,
+                unseen: tuple[str, ...] = ()) -> SequencerCommand:
         if self.state == 'aborted':
             return SequencerCommand('aborted', self.current, walk=False, torque=False)
         s = self.current
@@ -448,12 +540,26 @@ class BenchSequencer:
                 return SequencerCommand('heating', s, walk=True, torque=True)
         if self.state == 'starting':
             assert self._starting_since_s is not None
-            if gait_ready is False:
-                if t_s - self._starting_since_s < self.stand_timeout_s:
+            if gait_ready is False or unseen:
+                # a recorded topic may take a discovery round or a slow stream's period
+                unseen_wait_s = max(self.stand_timeout_s, self.stream_timeout_s)
+                waited_s = t_s - self._starting_since_s
+                if waited_s < (self.stand_timeout_s if gait_ready is False else unseen_wait_s):
                     return SequencerCommand('starting', s, walk=True, torque=True)
-                self.abort(f'the gait node did not settle at the session gait of {s.session_id} '
-                           f'within stand_timeout_s = {self.stand_timeout_s:g} s; check it '
-                           '(is it running, does it accept the gait?)')
+                if gait_ready is False:
+                    self.abort(f'the gait node did not settle at the session gait of '
+                               f'{s.session_id} within stand_timeout_s = '
+                               f'{self.stand_timeout_s:g} s; check it (is it running, does it '
+                               'accept the gait?)')
+                else:
+                    owners = '; '.join(f'{t}: {stream_owner(t)}' for t in unseen)
+                    it = 'it' if len(unseen) == 1 else 'them'
+                    self.abort(f'no message on {list(unseen)} by the end of the starting '
+                               f'phase ({unseen_wait_s:g} s: the longer of stand_timeout_s and '
+                               'stream_timeout_s): the '
+                               f'session would be recorded without {it}; start the publisher '
+                               f'({owners}) and check the topic name and QoS, or leave {it} '
+                               'out of record_topics, then restart the plan')
                 return SequencerCommand('aborted', s, walk=False, torque=False)
             self.state, self._walk_started_s = 'walking', t_s
         if self.state == 'walking':
@@ -470,7 +576,8 @@ class BenchSequencer:
             # gait_ready was the finished session's: the next one's gait is not settled yet
             # (its recording began on the ramp up when no cooling came between: a second
             # review)
-            nxt = self._update(t_s, temperatures_c, None if gait_ready is None else False)
+            nxt = self._update(t_s, temperatures_c, None if gait_ready is None else False,
+                               unseen)
             return SequencerCommand(nxt.state, nxt.session, nxt.walk, nxt.torque,
                                     nxt.load_request_kg, nxt.record, s.session_id)
         raise AssertionError(f'unreachable state {self.state!r}')

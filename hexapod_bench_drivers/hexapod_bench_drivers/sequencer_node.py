@@ -7,9 +7,18 @@
 - service ``confirm_load`` (std_srvs/Trigger): the operator has put the requested load on the
   stage (``auto_load_change: true`` confirms at once, for simulation);
 - optional torque control: with ``torque_service`` set (e.g. ``set_torque`` of dynamixel_driver)
-  it calls that std_srvs/SetBool on every torque change (off while cooling);
+  it calls that std_srvs/SetBool on every torque change (off while cooling); empty, a warning
+  at start says the torque is not controlled. A torque off that could not be sent at the end
+  (the service is gone: the driver died or its adapter was unplugged), failed or went
+  unanswered is logged as an error: the servos may still hold torque;
 - records the ``record_topics`` of each walking phase into ``<output_dir>/<session_id>`` (an
-  unfinished earlier attempt is moved aside to ``<session_id>.interrupted-N``);
+  unfinished earlier attempt is moved aside to ``<session_id>.interrupted-N``). Each topic is
+  subscribed once a publisher is discovered (checked every 0.5 s) with the publishers'
+  reliability (best effort as soon as one publisher is best effort, e.g. a motion-capture
+  bridge with SensorDataQoS: a reliable subscription would hear nothing), one subscription
+  per topic (no duplicates). A recorded topic not received by the end of ``starting``
+  aborts the plan, naming the topic and its owner (leave it out of ``record_topics`` if the
+  bench has none, e.g. ``bench/leg_tip`` without motion capture);
 - progress in ``state_file`` (JSON), so a restart resumes at the first unfinished session.
 
 - ``gait_node`` (e.g. ``gait_scheduler``): the sequencer drives the walk by setting that node's
@@ -18,14 +27,24 @@
   ``set_parameters_atomically`` call (all or nothing). A 0 Hz session (the paper's basal
   session) is recorded standing at its load, its heating walked at ``HEAT_FREQUENCY_HZ``. A gait
   the gait node refuses aborts the plan (the session is not recorded under values it did not
-  walk).
+  walk). Empty with ``backend: external``, a warning at start says the plan's gaits are not
+  commanded (whatever the gait node walks is recorded under the plan's values).
 
 Safety (core: :class:`~.sequencer.BenchSequencer`):
 
 - the recording of a session starts once ``gait/phase`` shows the gait node settled at the
   session gait (state ``starting`` until then, at most ``stand_timeout_s``);
 - stand before torque off: after a walk the leg is stood (torque on) until ``gait/phase``
-  shows the gait node settled at step 0, at most ``stand_timeout_s``, then the torque goes off;
+  shows the gait node settled at step 0, then the torque goes off. A leg the gait node does
+  not report standing within ``stand_timeout_s``, or whose gait node is gone (its parameter
+  service unavailable: no wait), is NOT stood: the torque is kept on (a loaded leg dropping is
+  worse than a held one), the plan is aborted and the log says to support the stage before
+  turning the torque off;
+- a silent stream names its owner (``servo_status``, ``joint_states``: the driver;
+  ``battery_state``: the power monitor; ``bench/ground_force``: the force sensor;
+  ``bench/leg_tip``: the motion capture; ``gait/phase``, ``joint_commands``: the gait node);
+- while cooling, ``servo_status`` silent for ``stream_timeout_s`` after it was seen aborts the
+  plan (the gate could never be met: a driver gone would leave it waiting without a word);
 - while walking, an overheating servo (``servo_status`` error flags, or a temperature above the
   plan's ``temperature_limit_c``), ``servo_status`` silent for ``stream_timeout_s``, or
   ``battery_state`` or any of the ``record_topics`` (``bench/ground_force``,
@@ -70,6 +89,7 @@ from hexapod_common.conversions import s_to_stamp
 from hexapod_interfaces.msg import BenchSession, ServoStatus
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from hexapod_interfaces.msg import GaitPhase
 from rcl_interfaces.srv import SetParametersAtomically
@@ -91,6 +111,18 @@ __all__ = ['HEAT_FREQUENCY_HZ', 'SIM_EPOCH_S', 'BenchSequencerNode', 'BenchSeque
 
 #: Clock time of the embedded simulator's t = 0 [s] (the bag time of its per-session bags).
 SIM_EPOCH_S = 1_700_000_000.0
+
+#: Seconds between looks for the publishers of the recorded topics (their QoS).
+DISCOVERY_PERIOD_S = 0.5
+
+
+def recording_qos(reliable: bool) -> QoSProfile:
+    """QoS of a recording subscription: reliable only if every publisher is (a reliable
+    subscription does not match a best-effort publisher), volatile, a deep queue."""
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000,
+                      reliability=ReliabilityPolicy.RELIABLE if reliable
+                      else ReliabilityPolicy.BEST_EFFORT,
+                      durability=DurabilityPolicy.VOLATILE)
 
 # Relative names, so that the node's namespace applies (as to every topic of the drivers).
 DEFAULT_RECORD = ('joint_states', 'joint_commands', 'servo_status', 'battery_state',
@@ -171,7 +203,9 @@ class BenchSequencerNode(Node):
         else:
             self.seq = BenchSequencer(plan, state_file=p.state_file,
                                       stand_timeout_s=p.stand_timeout_s,
-                                      stream_timeout_s=p.stream_timeout_s)
+                                      stream_timeout_s=p.stream_timeout_s,
+                                      torque_controlled=bool(p.torque_service))
+            self._warn_unconnected()
         if self.seq.skipped:
             self.get_logger().info(f'resuming: {len(self.seq.skipped)} sessions already done')
         self.temperatures: list[float] = []
@@ -196,9 +230,19 @@ class BenchSequencerNode(Node):
         self._gait_sent: tuple[float, ...] | None = None
         self._last: tuple[str, str] | None = None
         self._torque: bool | None = None
+        self._torque_wanted: bool | None = None   # last torque commanded (no service: noted)
+        self._torque_wanted_on = False            # torque on commanded once (no service)
+        self._torque_failed = ''                  # why the last torque call failed, else ''
+        self._torque_call: Any = None             # the last torque call sent
+        self._torque_unsent: bool | None = None   # a torque value not sent (no service)
+        self._hold_logged = False
         self.writer: BagWriter | None = None
         self._recording_id = ''
-        self._rec_subs: list[Any] = []
+        # contract topic -> (resolved name, message type); its subscription, and whether the
+        # subscription is reliable
+        self._rec_wanted: dict[str, tuple[str, str]] = {}
+        self._rec_subs: dict[str, Any] = {}
+        self._rec_reliable: dict[str, bool] = {}
         self.last_command: SequencerCommand | None = None
         #: Resolved with the exit code (0 done, 1 aborted) when the plan ends, if
         #: ``exit_when_done``; ``run_node`` spins until then.
@@ -218,7 +262,21 @@ class BenchSequencerNode(Node):
             if self.gait_client is not None:
                 self.create_subscription(GaitPhase, 'gait/phase', self._on_phase, SENSOR_QOS)
             self._subscribe_recorded()
+            self.create_timer(DISCOVERY_PERIOD_S, self._discover_recorded)
             self.create_timer(1.0 / p.rate_hz, self._on_timer)
+
+    def _warn_unconnected(self) -> None:
+        """backend external: say at start what an empty gait_node / torque_service means."""
+        p, log = self.params, self.get_logger()
+        if not p.gait_node:
+            log.warning('gait_node is empty: the plan\'s gaits will NOT be commanded (the leg '
+                        'walks whatever the gait node is set to, recorded under the plan\'s '
+                        'frequencies) and the leg is not stood before the torque goes off; '
+                        'set -p gait_node:=/gait_scheduler')
+        if not p.torque_service:
+            log.warning('torque_service is empty: the servos\' torque is NOT controlled by '
+                        'the sequencer (never turned off to cool, nor at the end or on an '
+                        'abort); set -p torque_service:=/set_torque (dynamixel_driver)')
 
     def _on_status(self, msg: ServoStatus) -> None:
         self.temperatures = [float(t) for t in msg.temperature]
@@ -255,6 +313,19 @@ class BenchSequencerNode(Node):
                 and all(abs(a - b) <= 1e-9 * max(1.0, abs(b)) for a, b in zip(
                     (phase.period, phase.duty_factor, phase.step_length, phase.step_height),
                     values)))
+
+    def _stand_unavailable(self) -> str:
+        """Why the gait node cannot stand the leg now (its parameter service is gone), else
+        '' (also after a second abort request: the operator skips the stand)."""
+        if (self.gait_client is None or self._abort_requests > 1
+                or self.gait_client.service_is_ready()):
+            return ''
+        return (f'gait node {self.params.gait_node} unavailable: its '
+                'set_parameters_atomically service is gone, so it cannot stand the leg')
+
+    def _unseen(self) -> list[str]:
+        """Recorded topics (not bench/session) not received yet."""
+        return [c.lstrip('/') for c in self._rec_wanted if c.lstrip('/') not in self._seen_ns]
 
     def _standing(self) -> bool | None:
         """The gait node has accepted the stand and reports step 0. No gait node: what
@@ -294,10 +365,16 @@ class BenchSequencerNode(Node):
         cmd = self.last_command = self.seq.update(
             t_s, self.temperatures if fresh else [],
             error_flags=self.error_flags if fresh else [], stream_ages_s=ages,
-            standing=self._standing(), gait_ready=self._gait_ready())
+            standing=self._standing(), gait_ready=self._gait_ready(),
+            unseen_topics=self._unseen(), stand_unavailable=self._stand_unavailable())
         if cmd.state == 'aborted' and not self._abort_logged:
             self._abort_logged = True
             self.get_logger().error(f'plan aborted: {self.seq.abort_reason}')
+        if cmd.hold and not self._hold_logged:
+            self._hold_logged = True
+            off = (f" (ros2 service call {self._torque_srv()} std_srvs/srv/SetBool "
+                   "'{data: false}')" if self.torque_client is not None else '')
+            self.get_logger().error(self.seq.hold_reason + off)
         if self.seq.stand_warning:
             self.get_logger().warning(self.seq.stand_warning)
             self.seq.stand_warning = ''
@@ -349,12 +426,15 @@ class BenchSequencerNode(Node):
             self._calls_since_ns = now_ns
         if cmd.state == 'aborted':
             self._stop_recording(aborted=True)
-        if cmd.state in ('done', 'aborted') and not cmd.torque and not self.finished.done():
+        if (cmd.state in ('done', 'aborted') and (not cmd.torque or cmd.hold)
+                and not self.finished.done()):
             # the final torque-off / stand request still in flight (waited for at most
             # stand_timeout_s: a driver that never answers must not hang the node)
             if self._calls and (now_ns - self._calls_since_ns) * 1e-9 < \
                     self.params.stand_timeout_s:
                 return
+            if not cmd.hold and self.sim_run is None:
+                self._report_torque_off()
             self.get_logger().info(f'plan {cmd.state}: {len(self.seq.completed)} sessions '
                                    'completed')
             if self.params.exit_when_done or cmd.state == 'aborted':
@@ -376,11 +456,66 @@ class BenchSequencerNode(Node):
         self.pub.publish(msg)
 
     def _set_torque(self, on: bool) -> None:
-        if on == self._torque or self.torque_client is None:
+        if self.torque_client is None:
+            if on != self._torque_wanted and (on or self._torque_wanted is not None):
+                self.get_logger().info(f'torque {"on" if on else "off"} not applied: no '
+                                       'torque_service (the sequencer does not control the '
+                                       'torque)')
+            self._torque_wanted = on
+            self._torque_wanted_on = self._torque_wanted_on or on
+            return
+        if on == self._torque:
             return
         if self.torque_client.service_is_ready():
-            self._calls.append(self.torque_client.call_async(SetBool.Request(data=on)))
+            call = self._torque_call = self.torque_client.call_async(SetBool.Request(data=on))
+            call.add_done_callback(lambda f, _on=on: self._on_torque_set(_on, f))
+            self._calls.append(call)
             self._torque = on
+            self._torque_failed = ''
+            self._torque_unsent = None
+        elif not on and self._torque and self._torque_unsent is not False:
+            # a torque off after our torque on (at start-up the service may not be
+            # discovered yet): said once
+            self._torque_unsent = False
+            self._say_torque_unavailable()
+
+    def _on_torque_set(self, on: bool, future: Any) -> None:
+        try:
+            response = future.result()
+        except Exception as err:  # noqa: BLE001 -- noted, reported at the end
+            self._torque_failed = f'the torque {"on" if on else "off"} call failed: {err}'
+            return
+        if not response.success:
+            self._torque_failed = (f'the driver refused the torque {"on" if on else "off"}: '
+                                   f'{response.message}')
+
+    def _torque_srv(self) -> str:
+        """The torque service's full name ('' without one)."""
+        name = self.params.torque_service
+        return self.resolve_service_name(name) if name else ''
+
+    def _say_torque_unavailable(self) -> None:
+        self.get_logger().error(f'torque service {self._torque_srv()} unavailable: the servos '
+                                'may still hold torque (the torque off was not sent: the '
+                                'driver is gone or its adapter unplugged); support the leg, '
+                                'then power the servos off')
+
+    def _report_torque_off(self) -> None:
+        """At the end: an error when the final torque off was not applied (D6)."""
+        srv = self._torque_srv()
+        if self.torque_client is None:
+            if self._torque_wanted_on:
+                self.get_logger().warning('no torque_service: the sequencer did not turn the '
+                                          'torque off; the servos may still hold torque')
+        elif self._torque is not False:
+            if self._torque_unsent is not False:   # not said yet
+                self._say_torque_unavailable()
+        elif self._torque_call is not None and not self._torque_call.done():
+            self.get_logger().error(f'torque service {srv} did not answer the torque off: the '
+                                    'servos may still hold torque')
+        elif self._torque_failed:
+            self.get_logger().error(f'torque service {srv}: {self._torque_failed}; the servos '
+                                    'may still hold torque')
 
     def _set_gait(self, cmd: SequencerCommand) -> None:
         """Set the gait node's parameters to the session's gait (walk) or standing."""
@@ -437,22 +572,51 @@ class BenchSequencerNode(Node):
             self._stop_recording(aborted=cmd.state == 'aborted')
 
     def _subscribe_recorded(self) -> None:
-        # Subscribed from the start (not per session): a new subscription needs discovery
-        # time, which would cut the beginning of each session.
+        # Subscribed as soon as a publisher is discovered (not per session: a new subscription
+        # needs discovery time, which would cut the beginning of each session), with the
+        # publishers' reliability: a reliable subscription hears no best-effort publisher
+        # (a mocap bridge with SensorDataQoS was never recorded: outside review D4).
         for topic in self.params.record_topics:
             name = self.resolve_topic_name(topic)
             msgtype = CONTRACT_TOPICS.get('/' + topic.lstrip('/'))
             if msgtype is None:
                 self.get_logger().warning(f'not recording {topic}: not a contract topic')
                 continue
-            qos = LATCHED_QOS if topic.endswith('bench/session') else RELIABLE_QOS
             # Recorded under the contract name (namespace stripped): the analysis reads
             # /battery_state, /bench/session, ... whatever namespace the bench ran in.
             contract = '/' + topic.lstrip('/')
-            self._rec_subs.append(self.create_subscription(
+            if topic.endswith('bench/session'):     # our own publisher, latched
+                self._rec_subs[contract] = self.create_subscription(
+                    ros_message_class(msgtype), name,
+                    lambda data, _t=contract, _m=msgtype: self._record(_t, _m, data),
+                    LATCHED_QOS, raw=True)
+                continue
+            self._rec_wanted[contract] = (name, msgtype)
+        self._discover_recorded()
+
+    def _discover_recorded(self) -> None:
+        """Subscribe each recorded topic once it has publishers, reliable only if all of them
+        are; a reliable subscription is replaced by a best-effort one when a best-effort
+        publisher appears (one subscription per topic at any time: no duplicates)."""
+        for contract, (name, msgtype) in self._rec_wanted.items():
+            have = self._rec_reliable.get(contract)
+            if have is False:
+                continue                    # best effort hears every publisher
+            infos = self.get_publishers_info_by_topic(name)
+            if not infos:
+                continue
+            reliable = all(i.qos_profile.reliability == ReliabilityPolicy.RELIABLE
+                           for i in infos)
+            if have is reliable:
+                continue
+            old = self._rec_subs.pop(contract, None)
+            if old is not None:
+                self.destroy_subscription(old)
+            self._rec_subs[contract] = self.create_subscription(
                 ros_message_class(msgtype), name,
-                lambda data, _t=contract, _m=msgtype: self._record(_t, _m, data), qos,
-                raw=True))
+                lambda data, _t=contract, _m=msgtype: self._record(_t, _m, data),
+                recording_qos(reliable), raw=True)
+            self._rec_reliable[contract] = reliable
 
     def _record(self, topic: str, msgtype: str, data: bytes) -> None:
         now_ns = self.get_clock().now().nanoseconds

@@ -29,7 +29,12 @@ def test_plan_runs_records_bags_and_resumes(tmp_path):
                  Parameter('state_file', value=str(tmp_path / 'state.json')),
                  Parameter('output_dir', value=str(tmp_path / 'bags')),
                  Parameter('auto_load_change', value=True), Parameter('rate_hz', value=50.0),
-                 Parameter('gait_node', value='gait_scheduler')]
+                 Parameter('gait_node', value='gait_scheduler'),
+                 # the topics this test graph publishes: a recorded topic never received by the
+                 # end of `starting` aborts the plan now (outside integration review D4)
+                 Parameter('record_topics', value=['joint_states', 'joint_commands',
+                                                   'servo_status', 'gait/phase',
+                                                   'bench/session'])]
     with ros_env('seq') as env:
         gait = env.make(GaitSchedulerNode, parameter_overrides=[Parameter('rate', value=50.0)])
         node = env.make(BenchSequencerNode, parameter_overrides=overrides)
@@ -46,7 +51,8 @@ def test_plan_runs_records_bags_and_resumes(tmp_path):
                 seen.append((node.last_command.state, gait.get_parameter('period').value,
                              gait.get_parameter('step_length').value))
             status_pub.publish(ServoStatus(name=['a', 'b'], temperature=[temps['value']] * 2))
-            if node.last_command is not None and node.last_command.state == 'walking':
+            if node.last_command is not None and node.last_command.state in ('starting',
+                                                                             'walking'):
                 joints_pub.publish(JointState(name=['a'], position=[0.1]))
         feeder.create_timer(0.01, feed)
         assert env.spin_until(lambda: any(m.state == 'cooling' for m in sessions.messages), 20)

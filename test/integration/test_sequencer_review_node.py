@@ -62,7 +62,11 @@ def _start(env, tmp_path, plan='loads_kg: [0.0]\nfrequencies_hz: [1.0]\nwalk_dur
     bench = Bench(env, gait)
     kw = {'plan_file': str(tmp_path / 'plan.yaml'), 'state_file': str(tmp_path / 'state.json'),
           'output_dir': str(tmp_path / 'bags'), 'auto_load_change': True, 'rate_hz': 20.0,
-          'gait_node': 'gait_scheduler', 'torque_service': 'set_torque', **seq_kw}
+          'gait_node': 'gait_scheduler', 'torque_service': 'set_torque',
+          # the topics this test graph publishes: a recorded topic never received by the end
+          # of `starting` aborts the plan now (outside integration review D4)
+          'record_topics': ['servo_status', 'joint_commands', 'gait/phase', 'bench/session'],
+          **seq_kw}
     node = env.make(BenchSequencerNode,
                     parameter_overrides=[Parameter(k, value=v) for k, v in kw.items()])
     sessions = Collector(env, BenchSession, 'bench/session', LATCHED)
@@ -178,7 +182,9 @@ def test_a_recorded_topic_gone_silent_while_walking_aborts_the_plan(tmp_path):
     from geometry_msgs.msg import WrenchStamped
 
     with ros_env('seqrev') as env:
-        gait, bench, node, sessions = _start(env, tmp_path, stream_timeout_s=0.3)
+        gait, bench, node, sessions = _start(
+            env, tmp_path, stream_timeout_s=0.3,
+            record_topics=['servo_status', 'gait/phase', 'bench/session', 'bench/ground_force'])
         force = env.add(rclpy.create_node('fake_force', context=env.context,
                                           namespace=env.namespace))
         pub = force.create_publisher(WrenchStamped, 'bench/ground_force', 10)
