@@ -81,6 +81,7 @@ from hexapod_common.node_utils import (
     RELIABLE_QOS,
     SENSOR_QOS,
     declare_params,
+    on_stop_signals,
     param,
     run_node,
 )
@@ -654,15 +655,7 @@ def abort_on_signals(node: BenchSequencerNode,
                      signals: Sequence[int] = (signal.SIGINT, signal.SIGTERM)) -> None:
     """SIGINT / SIGTERM abort the plan safely (:meth:`BenchSequencerNode.request_abort`)
     instead of shutting rclpy down under a walking leg; the node then exits with code 1."""
-    from rclpy.signals import uninstall_signal_handlers
-
-    uninstall_signal_handlers()
-
-    def handler(signum: int, frame: Any) -> None:
-        node.request_abort(f'{signal.Signals(signum).name} received')
-
-    for sig in signals:
-        signal.signal(sig, handler)
+    on_stop_signals(node.request_abort, signals)
 
 
 def _node_aborting_on_signals(**kw: Any) -> BenchSequencerNode:

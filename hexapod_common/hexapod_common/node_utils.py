@@ -21,6 +21,7 @@ import dataclasses
 import math
 import numbers
 import os
+import signal
 import sys
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any, TypeVar
@@ -44,6 +45,7 @@ __all__ = [
     'find_params_class',
     'mocap_msg_class',
     'node_help',
+    'on_stop_signals',
     'overridden',
     'param',
     'params_from_overrides',
@@ -55,6 +57,22 @@ __all__ = [
 ]
 
 T = TypeVar('T')
+
+
+def on_stop_signals(stop: Callable[[str], None],
+                    signals: Sequence[int] = (signal.SIGINT, signal.SIGTERM)) -> None:
+    """SIGINT / SIGTERM call ``stop('SIGINT received')`` instead of shutting rclpy down: a
+    node that moves a leg stops it safely first (the bench sequencer, the gait scheduler) and
+    resolves its ``finished`` future for :func:`run_node`."""
+    from rclpy.signals import uninstall_signal_handlers
+
+    uninstall_signal_handlers()
+
+    def handler(signum: int, frame: Any) -> None:
+        stop(f'{signal.Signals(signum).name} received')
+
+    for sig in signals:
+        signal.signal(sig, handler)
 
 #: set to get the traceback of a start-up failure instead of its one-line summary
 DEBUG_ENV = 'HEXAPOD_DEBUG'

@@ -40,7 +40,13 @@ from sensor_msgs.msg import JointState
 
 from hexapod_common.conversions import s_to_stamp
 from hexapod_common.errors import ParameterError
-from hexapod_common.node_utils import RELIABLE_QOS, declare_params, param, run_node
+from hexapod_common.node_utils import (
+    RELIABLE_QOS,
+    declare_params,
+    on_stop_signals,
+    param,
+    run_node,
+)
 from hexapod_gait.buehler import BUEHLER_PRESETS, BuehlerClock
 from hexapod_gait.config import build_gait, check_static_support
 from hexapod_gait.errors import HexapodGaitError
@@ -313,15 +319,7 @@ def stand_on_signals(node: GaitSchedulerNode,
                      signals: Sequence[int] = (signal.SIGINT, signal.SIGTERM)) -> None:
     """SIGINT / SIGTERM stand the legs before the node exits
     (:meth:`GaitSchedulerNode.request_stop`) instead of shutting rclpy down mid-step."""
-    from rclpy.signals import uninstall_signal_handlers
-
-    uninstall_signal_handlers()
-
-    def handler(signum: int, frame: Any) -> None:
-        node.request_stop(f'{signal.Signals(signum).name} received')
-
-    for sig in signals:
-        signal.signal(sig, handler)
+    on_stop_signals(node.request_stop, signals)
 
 
 def _node_standing_on_signals(**kw: Any) -> GaitSchedulerNode:
