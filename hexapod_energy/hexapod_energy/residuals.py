@@ -249,6 +249,7 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
     clocks = ClockCheck()
     per_joint: dict[str, tuple[array.array, array.array]] = {}
     with open_reader(path) as reader:
+        reader_notes = list(getattr(reader, 'notes', ()))  # metadata.yaml vs storage, ...
         present = sorted({c.topic for c in reader.connections})
         if any(c.topic in ('/bench/session', '/bench/ground_force') and c.msgcount
                for c in reader.connections):
@@ -303,6 +304,7 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
     battery_notes: list[str] = [f'{len(errs)} {topic} message(s) dropped: {errs[0]}'
                                 for topic, errs in sorted(dropped.items())]
     battery_notes += duplicates_note(dups)
+    battery_notes = reader_notes + battery_notes
     shifts, clock_notes = clocks.shifts()   # a topic stamped on another clock
     mech_rows = np.frombuffer(mech, dtype=float).reshape(-1, 6) if len(mech) else \
         np.zeros((0, 6))

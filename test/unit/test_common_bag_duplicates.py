@@ -146,3 +146,17 @@ def test_the_bench_reader_keeps_the_readers_notes(bench_bags, tmp_path):
         shutil.copy(f, bare / f.name)
     notes = read_bench_bag(bare).notes
     assert any('no metadata.yaml' in n for n in notes), notes
+
+
+def test_the_residual_reader_keeps_the_readers_notes(robot_bags, tmp_path):
+    """As the bench reader: residuals.json's run notes lacked what opening the bag said."""
+    import shutil
+
+    from hexapod_energy.residuals import read_residual_run
+
+    bare = tmp_path / 'bare'
+    bare.mkdir()
+    for f in robot_bags[0].glob('*.mcap'):
+        shutil.copy(f, bare / f.name)
+    notes = read_residual_run(bare).notes
+    assert any('no metadata.yaml' in n for n in notes), notes
