@@ -938,6 +938,20 @@ def _walked_segments(data: BenchData, segments: list[tuple[dict[str, Any], float
             same = abs(walked - label) <= FREQUENCY_MISMATCH * label
         else:
             same = (label > 0) == (walked > 0)
+        if same and walked > 0:
+            other = _walked_gait_mismatch(s, seg)
+            if other:
+                fixed = dict(s)
+                for key, _label, value in other:
+                    fixed[key] = value
+                warnings.append(
+                    f'session {s["session_id"]}: ' + ', '.join(
+                        f'{key} labelled {lab:.4g} but /gait/phase walked {val:.4g}'
+                        for key, lab, val in other) +
+                    ': analysed at the walked values. Was the gait node commanded '
+                    '(bench_sequencer gait_node)?')
+                out.append((fixed, t0, t1))
+                continue
         if same:
             out.append((s, t0, t1))
             continue
@@ -954,6 +968,24 @@ def _walked_segments(data: BenchData, segments: list[tuple[dict[str, Any], float
             ': analysed at the walked frequency (with its duty factor and step). Was the gait '
             'node commanded (bench_sequencer gait_node)?')
         out.append((fixed, t0, t1))
+    return out
+
+
+def _walked_gait_mismatch(s: dict[str, Any], seg: np.ndarray
+                          ) -> list[tuple[str, float, float]]:
+    """``(key, label, walked)`` of the session's duty factor and step length that differ
+    from what ``/gait/phase`` walked over it by more than :data:`FREQUENCY_MISMATCH` (a
+    sessions file without them, or a schedule without them, is not compared)."""
+    out = []
+    for key, col in (('duty_factor', 2), ('step_length_m', 3)):
+        label = s.get(key)
+        v = seg[:, col][seg[:, col] > 0]
+        if not isinstance(label, (int, float)) or not math.isfinite(label) or label <= 0 \
+                or not v.size:
+            continue
+        walked = float(np.median(v))
+        if abs(walked - label) > FREQUENCY_MISMATCH * label:
+            out.append((key, float(label), walked))
     return out
 
 

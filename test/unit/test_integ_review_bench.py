@@ -193,3 +193,21 @@ def test_a_refused_fit_still_writes_the_sessions(tmp_path, capsys):
     ref, _ = bench_phase_samples(read_bench_bag(tmp_path / 'short'))
     np.testing.assert_allclose([s['p_stance_w'] for s in doc['bench']['sessions']],
                                [s.p_stance_w for s in ref], rtol=1e-12)
+
+
+def test_session_labelled_another_duty_factor_than_walked(benches, tmp_path):
+    """The frequency matched but the duty factor did not (the gait node left at beta 0.6):
+    it was not compared; now the walked duty factor is used, warned."""
+    def relabel(topic: str, msg) -> None:
+        _six_legs(topic, msg)
+        if topic == '/bench/session' and msg.frequency == 1.5:
+            msg.duty_factor = 0.6   # the sequencer's label; the gait node walked 0.5
+
+    bag = rewrite_bag(benches['one'], tmp_path / 'relabelled_beta', relabel)
+    ref, _ = bench_phase_samples(read_bench_bag(benches['one']))
+    got, diag = bench_phase_samples(read_bench_bag(bag))
+    named = [w for w in diag['warnings']
+             if 'duty_factor labelled 0.6 but /gait/phase walked 0.5' in w]
+    assert len(named) == 2, diag['warnings']
+    np.testing.assert_allclose(_powers(got), _powers(ref), rtol=1e-12)
+    assert [s.t_stance_s for s in got] == [s.t_stance_s for s in ref]
