@@ -42,15 +42,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from hexapod_bench_drivers.reopen import ReopenBackoff
+from hexapod_bench_drivers.reopen import ReopenBackoff, serial_port_errors
 
-try:
-    import termios
-    #: pyserial's reset_input_buffer() / tcflush on a vanished device raises termios.error
-    #: (errno EIO), which is not an OSError
-    _TERMIOS_ERRORS: tuple[type[BaseException], ...] = (termios.error,)
-except ImportError:                 # not POSIX
-    _TERMIOS_ERRORS = ()
 
 __all__ = [
     'FailureLog',
@@ -351,7 +344,7 @@ class ScpiSupplyBackend:
         import serial
 
         self._factory = serial_factory or serial.serial_for_url
-        self._port_errors = (OSError, serial.SerialException, *_TERMIOS_ERRORS)
+        self._port_errors = serial_port_errors()
         self.port = port
         self.baud_rate = int(baud_rate)
         self.timeout_s = float(timeout_s)

@@ -1,11 +1,25 @@
 """When to try reopening a failed serial port again: 0.5 s after the failure, then doubling up
-to 8 s after each failed attempt. Shared by the force sensor and the SCPI supply. No ROS."""
+to 8 s after each failed attempt, and what a failed port raises. Shared by the force sensor and
+the SCPI supply. No ROS."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
 
-__all__ = ['ReopenBackoff']
+__all__ = ['ReopenBackoff', 'serial_port_errors']
+
+
+def serial_port_errors() -> tuple[type[BaseException], ...]:
+    """What a serial port that failed (unplugged) raises: OSError, pyserial's
+    SerialException, and the termios.error (errno EIO) its reset_input_buffer() / tcflush
+    raises on a vanished device, which is not an OSError (POSIX only)."""
+    import serial
+
+    try:
+        import termios
+    except ImportError:             # not POSIX
+        return (OSError, serial.SerialException)
+    return (OSError, serial.SerialException, termios.error)
 
 
 class ReopenBackoff:
