@@ -20,8 +20,11 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
                 "offset_s",
                 "offset_method" (given|geometry|contact|joint|xcorr),
                 "edges" (geometry|paper|effort), "shift_s": {"left", "right"}, "power_w",
-                "speed_mps", "sr", "current_sign",
-                "frame": {"tilt_deg", "yaw_deg", "origin_m", "ground_source"
+                "speed_mps", "sr", "current_sign" (power, speed and SR over the whole
+                gait cycles the motion capture tracked: see frame.energetics),
+                "frame": {"energetics": {"start_s", "end_s", "whole_cycles" (0: under one
+                          cycle tracked, the tracked span used, noted)},
+                          "tilt_deg", "yaw_deg", "origin_m", "ground_source"
                           (geometry|mocap_origin), "ground_m", "geometry_rms_m",
                           "geometry_noise_m" (the height's white noise, from its fourth
                           differences), "geometry_residual_ratio" (rms over that noise,
