@@ -111,3 +111,16 @@ def test_carried_mass_profile_wave() -> None:
     on = carried[:, phi < 5 / 6]
     assert_allclose(on, (2.4 - 5 * M_LEG) / 5)  # L = 5 at all times for wave 5/6
     assert np.all(carried[:, phi >= 5 / 6] == 0)
+
+
+@pytest.mark.parametrize(('name', 'beta'), [('wave', 5 / 6), ('tripod', 0.5), ('tripod', 0.6)])
+def test_default_phase_grid_has_converged(name, beta):
+    """The Eq. 6 P_out at the default phase grid is within 0.05 % of a 4,800-sample one: at
+    200 samples the wave gait read +0.67 % (an independent inverse-dynamics review), the
+    positive part and the carried mass's jumps converging only as 1/n."""
+    from hexapod_gait.gait import make_gait
+
+    gait = make_gait(name, duty_factor=beta, step_length_m=0.1).with_changes(period_s=1.0)
+    fine = OutputPowerModel(n_samples=4800).power_out_w(gait, payload_kg=0.1)
+    assert OutputPowerModel().power_out_w(gait, payload_kg=0.1) == pytest.approx(fine,
+                                                                                  rel=5e-4)
