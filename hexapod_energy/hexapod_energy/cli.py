@@ -73,7 +73,10 @@ such fallback is listed in the run's ``notes``.
                 "fit_rmse_w": {"stance", "swing"}, "basal_power_w": {"<load kg>": W},
                 "domain": {"stance"|"swing": {"rate_hz": [lo, hi], "load_kg": [lo, hi]}}
                 (the sessions' range; rate = 1 / T_phase),
-                "sessions": [PhaseSample fields]}
+                "sessions": [PhaseSample fields: p_stance_w and p_swing_w are each
+                phase's energy per cycle over its nominal duration, beta T and (1 - beta) T,
+                so beta p_stance_w + (1 - beta) p_swing_w is the session's mean power
+                whatever fraction the force contact covered; single_leg.phase_powers]}
                 (a refused fit, too few walking sessions: "fit" null, "sessions" [PhaseSample
                 fields] beside it, "fit_error" [str], and the top-level "errors"; exit 2)},
       "robot_runs": [{"bag", "gait", "leg_count", "duty_factor", "period_s", "step_length_m",
