@@ -94,7 +94,9 @@ from hexapod_common.conversions import (
     PoseSample,
     current_sign_factor,
 )
+from hexapod_energy import metrics
 from hexapod_energy.cycles import CycleSettings, JointCycleTracker, unwrap_near
+from hexapod_energy.metrics import G_MPS2
 
 __all__ = [
     'AUTO_UNANIMOUS_SAMPLES',
@@ -120,7 +122,6 @@ __all__ = [
     'resolve_current_sign',
 ]
 
-G_MPS2 = 9.81
 
 #: least battery samples inside a window for its P_in to be trusted without a warning
 MIN_BATTERY_SAMPLES_PER_WINDOW = 4
@@ -175,15 +176,19 @@ def descriptors_from_powers(*, power_in_w: float, power_out_w: float, speed_mps:
                             speed_source: str = '', cycle_source: str = '',
                             joint_power_net_w: float = math.nan) -> Descriptors:
     """All descriptors from mean powers, speed and mass (NaN where undefined, e.g. v = 0)."""
-    loss = power_in_w - power_out_w
-    eff = power_out_w / power_in_w if power_in_w > 0 else math.nan
+    # the definitions are hexapod_energy.metrics' (DESIGN section 4), NaN where undefined
+    loss = float(metrics.power_loss(power_in_w, power_out_w))
+    eff = float(metrics.efficiency(power_in_w, power_out_w)) if power_in_w > 0 else math.nan
     moving = speed_mps > 0 and mass_kg > 0
     return Descriptors(
         t_end_s=t_end_s, window_s=window_s, mass_kg=mass_kg, speed_mps=speed_mps,
         power_in_w=power_in_w, power_out_w=power_out_w, power_loss_w=loss, efficiency=eff,
-        cost_of_transport_j_per_m=loss / speed_mps if speed_mps > 0 else math.nan,
-        specific_cost_of_transport=loss / (mass_kg * speed_mps) if moving else math.nan,
-        specific_resistance=power_in_w / (mass_kg * G_MPS2 * speed_mps) if moving else math.nan,
+        cost_of_transport_j_per_m=float(metrics.cost_of_transport(
+            power_in_w, power_out_w, speed_mps)) if speed_mps > 0 else math.nan,
+        specific_cost_of_transport=float(metrics.specific_cost_of_transport(
+            power_in_w, power_out_w, mass_kg, speed_mps)) if moving else math.nan,
+        specific_resistance=float(metrics.specific_resistance(
+            power_in_w, mass_kg, speed_mps)) if moving else math.nan,
         cycles=cycles, warnings=warnings, speed_source=speed_source,
         cycle_source=cycle_source, joint_power_net_w=joint_power_net_w)
 

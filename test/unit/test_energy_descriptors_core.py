@@ -231,3 +231,22 @@ def test_mocap_speed_is_the_displacement_between_the_window_bounds():
     assert len(mocap) >= 4
     for d in mocap:
         assert d.speed_mps == pytest.approx(v, rel=1e-4)
+
+
+def test_descriptor_definitions_with_output_power():
+    """DESIGN section 4 with P_out > 0 (a mutation review: CoT from P_in, CoT/M over g and SR
+    from P_loss all passed the suite, whose windows had P_out = 0): P_loss = P_in - P_out,
+    eta = P_out / P_in, CoT = P_loss / v, CoT/M = P_loss / (M v), SR = P_in / (M g v)."""
+    from hexapod_energy.descriptors import descriptors_from_powers
+
+    d = descriptors_from_powers(power_in_w=40.0, power_out_w=4.0, speed_mps=0.5, mass_kg=2.0)
+    assert d.power_loss_w == pytest.approx(36.0, rel=1e-12)
+    assert d.efficiency == pytest.approx(0.1, rel=1e-12)
+    assert d.cost_of_transport_j_per_m == pytest.approx(72.0, rel=1e-12)
+    assert d.specific_cost_of_transport == pytest.approx(36.0, rel=1e-12)
+    assert d.specific_resistance == pytest.approx(40.0 / (2.0 * 9.81 * 0.5), rel=1e-12)
+    still = descriptors_from_powers(power_in_w=40.0, power_out_w=4.0, speed_mps=0.0,
+                                    mass_kg=2.0)
+    assert math.isnan(still.cost_of_transport_j_per_m)
+    assert math.isnan(still.specific_cost_of_transport)
+    assert math.isnan(still.specific_resistance)
