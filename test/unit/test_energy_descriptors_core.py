@@ -250,3 +250,17 @@ def test_descriptor_definitions_with_output_power():
     assert math.isnan(still.cost_of_transport_j_per_m)
     assert math.isnan(still.specific_cost_of_transport)
     assert math.isnan(still.specific_resistance)
+
+
+def test_windows_span_the_cycles_asked_for():
+    """``cycles=2``: each window spans two whole gait cycles (a mutation review: windows of
+    one cycle passed the suite)."""
+    acc = DescriptorAccumulator(mass_kg=2.0, current_sign='ros', cycles=2)
+    out = feed(acc, -1.0)
+    assert len(out) >= 2
+    for d in out:
+        assert d.window_s == pytest.approx(1.0, abs=1e-6)
+        assert d.cycles == 2
+        assert d.power_in_w == pytest.approx(20.0, abs=0.05)
+    assert [round(d.t_end_s, 6) for d in out] == pytest.approx(
+        [out[0].t_end_s + k for k in range(len(out))], abs=1e-6)

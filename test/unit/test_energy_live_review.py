@@ -226,6 +226,27 @@ def test_a_robot_starting_on_its_charger_gets_its_sign_decided_again() -> None:
     assert any('decided on the first samples' in n for n in acc.notes_)
 
 
+def test_a_sign_decided_again_flips_the_samples_already_buffered() -> None:
+    """The re-decided sign applies to the battery samples still held for the next window
+    (a mutation review: leaving them unflipped passed the suite). A 4 Hz fuel gauge sampled
+    halfway between cycle bounds: the window after the flip reads exactly 36 W."""
+    acc = DescriptorAccumulator(mass_kg=2.0, current_sign='auto', power_out_source='effort')
+    out = []
+    for k in range(1000):
+        t = T0 + 0.01 * k
+        out += acc.add_gait_phase(_gait(t))
+        if k % 25 == 12:
+            amps = 1.0 if k < 300 else -3.0    # 3 s on the charger, then walking
+            out += acc.add_battery(BatterySample(t, 12.0, amps, 25.0))
+    p = [d.power_in_w for d in out]
+    negative = [i for i, x in enumerate(p) if x < 0]
+    assert any('decided on the first samples' in n for n in acc.notes_)
+    # the negative windows that decide again, then every window at 36 W
+    after = p[negative[-1] + 1:]
+    assert len(after) >= 3
+    assert after == pytest.approx([36.0] * len(after), rel=1e-9)
+
+
 @pytest.mark.parametrize('case', ['regen_4s', 'charger_6s_mid_run', 'stand_offset',
                                   'stand_noise'])
 def test_the_sign_is_not_flipped_by_a_few_negative_windows(case) -> None:
