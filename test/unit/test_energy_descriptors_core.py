@@ -196,6 +196,11 @@ def test_isolated_battery_glitches_are_found_and_real_transients_are_not():
     r = 35.0 + rng.normal(0, 0.5, t.size)
     r[::18] += 60.0
     assert not battery_glitches(r).any()
+    # three samples in a row (30 ms at 100 Hz) are a short stall, not a glitch: the run
+    # length is checked (a mutation review: any run length passed the suite)
+    u = p.copy()
+    u[400:403] = 1200.0
+    assert not battery_glitches(u).any()
 
 
 def test_the_demo_edubot_jogging_touchdown_spikes_are_kept(tmp_path):
