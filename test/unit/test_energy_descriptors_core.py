@@ -269,3 +269,24 @@ def test_windows_span_the_cycles_asked_for():
         assert d.power_in_w == pytest.approx(20.0, abs=0.05)
     assert [round(d.t_end_s, 6) for d in out] == pytest.approx(
         [out[0].t_end_s + k for k in range(len(out))], abs=1e-6)
+
+
+def test_a_window_the_mocap_covers_in_part_gets_no_mocap_speed():
+    """Motion capture that starts halfway through a window (the robot walking into the
+    volume) gives that window no speed rather than the speed of its tracked half, beside the
+    window's whole-cycle power (a mutation review: the start coverage check was untested)."""
+    from hexapod_common.conversions import PoseSample
+
+    acc = DescriptorAccumulator(mass_kg=2.0, current_sign='ros')
+    out = []
+    for ti in np.arange(0, 3.0, 0.01):
+        g = gait(ti)
+        out += acc.add_gait_phase(dataclasses.replace(g, step_length_m=0.0))  # a clock gait
+        out += acc.add_battery(BatterySample(ti + 1e-4, 12.0, -20.0 / 12.0, 25.0))
+        if ti >= 1.75:
+            x = np.array([0.4 * ti + 0.05 * math.sin(2 * math.pi * ti / 0.5), 0.0, 0.1])
+            acc.add_pose(PoseSample(ti + 2e-4, 'world', x, np.array([0.0, 0.0, 0.0, 1.0])))
+    by_end = {round(d.t_end_s, 3): d for d in out}
+    assert math.isnan(by_end[2.0].speed_mps) and by_end[2.0].speed_source == 'none'
+    assert by_end[2.5].speed_source == 'mocap'
+    assert by_end[2.5].speed_mps == pytest.approx(0.4, rel=1e-3)

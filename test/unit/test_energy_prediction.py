@@ -124,3 +124,26 @@ def test_default_phase_grid_has_converged(name, beta):
     fine = OutputPowerModel(n_samples=4800).power_out_w(gait, payload_kg=0.1)
     assert OutputPowerModel().power_out_w(gait, payload_kg=0.1) == pytest.approx(fine,
                                                                                   rel=5e-4)
+
+
+def test_carried_mass_follows_each_legs_own_stance():
+    """Leg i at leg phase phi is at cycle phase theta_i + phi: the mass it carries there is
+    M / L - m_leg with L counted at that instant. An irregular gait (L from 3 to 5) tells
+    theta_i + phi from theta_i - phi (a mutation review: the tripod and the wave, whose L is
+    the same either way, passed the suite with the sign flipped)."""
+    from hexapod_energy.prediction import carried_mass_profile_kg
+    from hexapod_gait.gait import GaitPattern
+
+    offsets = (0.0, 0.13, 0.41, 0.52, 0.67, 0.86)
+    beta = 0.62
+    gait = GaitPattern(name='custom', leg_names=('L1', 'L2', 'L3', 'R1', 'R2', 'R3'),
+                       phase_offsets=offsets, duty_factor=beta, period_s=1.0)
+    phi = (np.arange(400) + 0.5) / 400
+    got = carried_mass_profile_kg(gait, phi, total_mass_kg=2.4, leg_mass_kg=0.1)
+    theta = np.asarray(offsets)
+    for i, th in enumerate(theta):
+        cycle = (th + phi) % 1.0
+        supporting = (((cycle[:, None] - theta[None, :]) % 1.0) < beta).sum(axis=1)
+        want = np.where(phi < beta, 2.4 / supporting - 0.1, 0.0)
+        assert_allclose(got[i], want, rtol=1e-12, atol=1e-12)
+    assert len(set(np.unique(got[got > 0]).round(9))) >= 2   # L varies over the stance
