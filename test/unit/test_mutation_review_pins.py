@@ -1,0 +1,80 @@
+"""Pins found missing by a mutation review of the science core: each test fails on a
+one-line change that gave wrong numbers and passed the suite."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hexapod_energy.dynamics import ANTBOT_LEG_SPEC
+from hexapod_energy.prediction import OutputPowerModel, predict_power_in_w
+from hexapod_energy.single_leg import stance_mask
+from hexapod_gait.gait import make_gait
+
+
+def test_antbot_leg_constants_are_designs():
+    """DESIGN section 7: DH a = 53, 83, 146 mm; link masses 14.98, 111.8, 39.23 g in the
+    coxa, femur, tibia order (swapping femur and tibia kept the leg's mass and passed)."""
+    assert ANTBOT_LEG_SPEC.a_m == pytest.approx((0.053, 0.083, 0.146))
+    assert ANTBOT_LEG_SPEC.link_masses_kg == pytest.approx((0.01498, 0.1118, 0.03923))
+
+
+def test_power_map_period_is_step_over_beta_v():
+    """Fig. 7D's map at speed v walks the period T = step / (beta v) (the paper's
+    v = step / (beta T)); T = step / v passed the suite at beta 0.5 only because no test
+    compared the map with P_out at a known period."""
+    gait = make_gait('tripod', duty_factor=0.6, step_length_m=0.1)
+    opm = OutputPowerModel()
+    v = 0.25
+    got = float(np.asarray(opm.power_map_w(gait, [v], [0.2])).ravel()[0])
+    want = opm.power_out_w(gait.with_changes(period_s=0.1 / (0.6 * v)), payload_kg=0.2)
+    assert got == pytest.approx(want, rel=1e-12)
+
+
+class _Phases:
+    """Phase powers that depend on the load: swing 1 W/kg, stance 10 W/kg."""
+
+    def p_stance_w(self, t, m):
+        return 2.0 + 10.0 * np.asarray(m, float) + 0 * np.asarray(t, float)
+
+    def p_swing_w(self, t, m):
+        return 1.0 + 1.0 * np.asarray(m, float) + 0 * np.asarray(t, float)
+
+
+def test_swing_legs_are_unloaded_by_default():
+    """Eq. 1: a swinging leg carries nothing (swing_load 'zero', the default): reading the
+    swing surface at the stance legs' carried mass passed the suite."""
+    gait = make_gait('tripod', duty_factor=0.5, step_length_m=0.1).with_changes(period_s=1.0)
+    m_c = 2.4 / 3 - 0.1
+    got = predict_power_in_w(_Phases(), gait, total_mass_kg=2.4, leg_mass_kg=0.1)
+    assert got == pytest.approx(3 * (2.0 + 10.0 * m_c) + 3 * 1.0, rel=1e-12)
+    carried = predict_power_in_w(_Phases(), gait, total_mass_kg=2.4, leg_mass_kg=0.1,
+                                 swing_load='carried')
+    assert carried == pytest.approx(3 * (2.0 + 10.0 * m_c) + 3 * (1.0 + m_c), rel=1e-12)
+
+
+def test_contact_needs_the_tip_down_as_well_as_the_force():
+    """The paper's split: force above the threshold AND the tip near the ground. A force
+    reading held up while the tip is lifted (a load cell's slow decay) is swing."""
+    z = np.concatenate([np.zeros(50), np.full(50, 0.03)])        # stance, then lifted
+    fz = np.concatenate([np.full(50, 10.0), np.full(10, 10.0), np.zeros(40)])
+    mask = stance_mask(fz, z, force_threshold_n=5.0)
+    assert mask[:50].all()
+    assert not mask[50:].any()
+
+
+class _PhasesWithBasal(_Phases):
+    def basal_power_at_w(self, m):
+        return 1.5 + 5.0 * float(m)
+
+
+def test_holding_power_of_swinging_legs_is_unloaded():
+    """where_the_watts_go's holding part: stance legs hold their carried mass, swinging legs
+    nothing (the swing legs' holding at the carried mass passed the suite)."""
+    from hexapod_energy.prediction import power_breakdown_w
+
+    gait = make_gait('tripod', duty_factor=0.5, step_length_m=0.1).with_changes(period_s=1.0)
+    m_c = 2.4 / 3 - 0.1
+    out = power_breakdown_w(_PhasesWithBasal(), gait, total_mass_kg=2.4, leg_mass_kg=0.1)
+    assert out['holding_w'] == pytest.approx(3 * (1.5 + 5.0 * m_c) + 3 * 1.5, rel=1e-12)
+    assert out['stance_w'] + out['swing_w'] == pytest.approx(out['predicted_w'], rel=1e-12)
