@@ -78,3 +78,40 @@ def test_holding_power_of_swinging_legs_is_unloaded():
     out = power_breakdown_w(_PhasesWithBasal(), gait, total_mass_kg=2.4, leg_mass_kg=0.1)
     assert out['holding_w'] == pytest.approx(3 * (1.5 + 5.0 * m_c) + 3 * 1.5, rel=1e-12)
     assert out['stance_w'] + out['swing_w'] == pytest.approx(out['predicted_w'], rel=1e-12)
+
+
+def test_phase_powers_at_another_duty_factor():
+    """At beta 0.6 (the suite walked 0.5 only, where beta and 1 - beta are one number): each
+    phase's energy over its own nominal duration, and T_stance = beta T."""
+    from hexapod_energy.single_leg import phase_powers
+
+    t = np.arange(0, 10.0, 0.001)                      # 1 Hz, 10 cycles
+    stance = (t % 1.0) < 0.6
+    power = np.where(stance, 8.0, 3.0)
+    s = phase_powers(t, power, t, stance, session_id='s', load_kg=0.1, frequency_hz=1.0,
+                     duty_factor=0.6)
+    assert s.t_stance_s == pytest.approx(0.6) and s.t_swing_s == pytest.approx(0.4)
+    assert s.p_stance_w == pytest.approx(8.0, rel=1e-3)   # 1 ms samples
+    assert s.p_swing_w == pytest.approx(3.0, rel=1e-3)
+
+
+def test_lowess_is_a_tricube_weighted_local_plane_over_its_span():
+    """Lowess2D against the definition (Cleveland: the span's nearest points, tricube
+    weights, a weighted least-squares plane), evaluated by hand at a few points (a linear
+    weight and an ignored span both passed the suite)."""
+    from hexapod_energy.single_leg import Lowess2D
+
+    rng = np.random.default_rng(4)
+    x = rng.uniform(0, 1, (40, 2))
+    y = np.sin(3 * x[:, 0]) + x[:, 1] ** 2
+    model = Lowess2D(span=0.4).fit(x, y)
+    scale = np.ptp(x, axis=0)
+    k = int(np.ceil(0.4 * len(x)))
+    for q in ([0.2, 0.3], [0.7, 0.8], [0.5, 0.1]):
+        d = np.linalg.norm((x - q) / scale, axis=1)
+        h = np.sort(d)[k - 1] * 1.0001 + 1e-12
+        w = np.clip(1 - (d / h) ** 3, 0, None) ** 3
+        design = np.column_stack([np.ones(len(x)), x / scale])
+        coef = np.linalg.solve(design.T @ (w[:, None] * design), design.T @ (w * y))
+        want = coef[0] + coef[1:] @ (np.asarray(q) / scale)
+        assert float(model.predict(np.array([q]))[0]) == pytest.approx(want, rel=1e-6)
