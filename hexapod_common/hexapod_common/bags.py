@@ -26,7 +26,6 @@ from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass, fields as dataclass_fields
 from functools import lru_cache
-from io import StringIO
 from pathlib import Path
 from typing import Any
 
@@ -189,6 +188,7 @@ class BagWriter:
         self._split_index = 0
         self._split_started = 0.0
         self._merged: dict[str, Any] | None = None
+        self._files_json: list[str] = []   # each split's files entry, serialised once
         self.counts: dict[str, int] = {}
         self.path.mkdir(parents=True)
 
@@ -276,37 +276,52 @@ class BagWriter:
         self._merged = info if self._merged is None else _merge_info(self._merged, info)
         self._merged['custom_data'] = dict(self._custom) or None
         self._merged['ros_distro'] = 'jazzy'
-        out = StringIO()
-        yaml.default_flow_style = False
-        yaml.dump({'rosbag2_bagfile_information': self._merged}, out)
+        # JSON is YAML (rosbags, ros2 bag and yaml-cpp read it): ruamel's dump of every
+        # split's entry took 0.4 ms per split, so a recorder closing a split every second
+        # spent 0.85 s per flush after 2,000 splits and fell behind (an outside review: from
+        # 22 min on it recorded 2 of 1,200 msg/s); json.dumps of the same is ~100x faster
+        # the files' entries are serialised once each and spliced in
+        self._files_json.extend(json.dumps(f) for f in info['files'])
+        head = dict(self._merged, files='@FILES@', relative_file_paths='@PATHS@')
+        text = json.dumps({'rosbag2_bagfile_information': head}, indent=1)
+        text = text.replace('"@FILES@"', '[' + ',\n  '.join(self._files_json) + ']', 1)
+        text = text.replace('"@PATHS@"', json.dumps(self._merged['relative_file_paths']), 1)
         tmp_meta = self.path / 'metadata.yaml.tmp'
-        tmp_meta.write_text(out.getvalue(), encoding='utf8')
+        tmp_meta.write_text(text + '\n', encoding='utf8')
         tmp_meta.replace(self.path / 'metadata.yaml')
         self._split_index += 1
 
 
 def _merge_info(old: dict[str, Any], new: dict[str, Any]) -> dict[str, Any]:
-    """Metadata of two consecutive splits as one bag."""
-    merged = dict(old)
-    files = list(old['files']) + list(new['files'])
-    nonempty = [f for f in files if f['message_count'] > 0] or files
-    start = min(f['starting_time']['nanoseconds_since_epoch'] for f in nonempty)
-    end = max(f['starting_time']['nanoseconds_since_epoch'] + f['duration']['nanoseconds']
-              for f in nonempty)
-    merged['files'] = files
-    merged['relative_file_paths'] = [f['path'] for f in files]
-    merged['starting_time'] = {'nanoseconds_since_epoch': start}
-    merged['duration'] = {'nanoseconds': end - start}
-    merged['message_count'] = old['message_count'] + new['message_count']
-    topics = {t['topic_metadata']['name']: dict(t) for t in old['topics_with_message_count']}
+    """Metadata of two consecutive splits as one bag: ``old`` (the bag so far, owned by the
+    writer) extended in place by ``new`` (one split), in time independent of the splits so
+    far (it used to rebuild every list: quadratic over a long recording)."""
+    files = list(new['files'])
+    old_has = old['message_count'] > 0
+    for f in files:
+        if f['message_count'] <= 0:
+            continue
+        start = f['starting_time']['nanoseconds_since_epoch']
+        end = start + f['duration']['nanoseconds']
+        if old_has:
+            o_start = old['starting_time']['nanoseconds_since_epoch']
+            o_end = o_start + old['duration']['nanoseconds']
+            start, end = min(start, o_start), max(end, o_end)
+        old['starting_time'] = {'nanoseconds_since_epoch': start}
+        old['duration'] = {'nanoseconds': end - start}
+        old_has = True
+    old['files'].extend(files)
+    old['relative_file_paths'].extend(f['path'] for f in files)
+    old['message_count'] += new['message_count']
+    topics = {t['topic_metadata']['name']: t for t in old['topics_with_message_count']}
     for t in new['topics_with_message_count']:
         name = t['topic_metadata']['name']
         if name in topics:
             topics[name]['message_count'] += t['message_count']
         else:
-            topics[name] = dict(t)
-    merged['topics_with_message_count'] = list(topics.values())
-    return merged
+            old['topics_with_message_count'].append(dict(t))
+            topics[name] = old['topics_with_message_count'][-1]
+    return old
 
 
 #: Environment variable holding a process-wide topic remapping for :func:`open_reader` (JSON).

@@ -60,6 +60,7 @@ it from the bag's receive times).
 from __future__ import annotations
 
 import dataclasses
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -165,6 +166,13 @@ class EnergyParams:
         '', 'keep only this battery of battery_state (header.frame_id, else location or '
         'serial_number); empty: several batteries on the topic are summed',
         read_only=True)
+
+
+def warning_kind(warning: str) -> str:
+    """The throttling key of a window warning: its text before any parenthesis, numbers left
+    out ('negative mean input power -35.1 W' and '-35.2 W' are one kind: with the number in
+    the key it was logged on every window; an outside review)."""
+    return re.sub(r'[-+]?\d[\d.,eE+-]*', '#', warning.split('(')[0])[:60]
 
 
 def descriptors_to_msg(d: Descriptors, msg: Any = None) -> EnergeticDescriptors:
@@ -284,7 +292,7 @@ class EnergyMonitorNode(Node):
             for warning in d.warnings:
                 # a condition that holds for every window (e.g. AX efforts refused) is logged
                 # on its 1st, 10th, 100th ... window, not once per gait cycle
-                kind = warning.split('(')[0][:60]
+                kind = warning_kind(warning)
                 n = self._warned[kind] = self._warned.get(kind, 0) + 1
                 if n == 1 or n in (10, 100, 1000) or n % 10000 == 0:
                     self.get_logger().warning(warning if n == 1 else

@@ -275,3 +275,17 @@ def test_the_sign_is_not_flipped_by_a_few_negative_windows(case) -> None:
     walking = [d.power_in_w for d in out if d.t_end_s > T0 + 17.0]
     if case != 'stand_noise':
         assert walking and all(x == pytest.approx(36.0) for x in walking)
+
+
+def test_window_warnings_differing_in_their_numbers_are_one_kind() -> None:
+    """energy_monitor logs a warning that holds for every window on its 1st, 10th, 100th ...
+    window; the negative-power warning carries the window's power, so each window was a new
+    kind and logged (203 lines in 6 simulated minutes; an outside review)."""
+    pytest.importorskip('rclpy')
+    from hexapod_energy.energy_node import warning_kind
+
+    a = ('negative mean input power -35.100 W: check the battery current sign convention '
+         '(parameter current_sign)')
+    b = a.replace('-35.100', '-35.214')
+    assert warning_kind(a) == warning_kind(b)
+    assert warning_kind(a) != warning_kind('no joint efforts in the window: P_out unknown')
