@@ -115,3 +115,38 @@ def test_lowess_is_a_tricube_weighted_local_plane_over_its_span():
         coef = np.linalg.solve(design.T @ (w[:, None] * design), design.T @ (w * y))
         want = coef[0] + coef[1:] @ (np.asarray(q) / scale)
         assert float(model.predict(np.array([q]))[0]) == pytest.approx(want, rel=1e-6)
+
+
+class _Memoriser:
+    """A surface that returns the training value nearest the query (zero training error)."""
+
+    def fit(self, x, y):
+        self.x, self.y = np.asarray(x, float), np.asarray(y, float)
+        return self
+
+    def predict(self, x):
+        d = np.linalg.norm(np.asarray(x, float)[:, None, :] - self.x[None], axis=2)
+        return self.y[np.argmin(d, axis=1)]
+
+
+def test_cross_validation_never_predicts_a_point_it_trained_on():
+    """On pure noise a memorising surface has no skill: its cross-validated RMSE is about the
+    noise's (sqrt 2 times), not 0. Training on the test points too (a mutation review: it
+    passed the suite) would make the LOWESS/polynomial choice prefer overfitting."""
+    from hexapod_energy.single_leg import cross_validated_rmse
+
+    rng = np.random.default_rng(1)
+    x = rng.uniform(0, 1, (60, 2))
+    y = rng.normal(0, 1.0, 60)
+    assert cross_validated_rmse(_Memoriser, x, y, folds=5) > 0.8
+
+
+def test_basal_power_is_interpolated_over_load():
+    """The 0 Hz sessions' basal power at a load between two of them is interpolated (their
+    mean passed the suite)."""
+    from hexapod_energy.single_leg import SingleLegModel
+
+    model = SingleLegModel()
+    model.basal_power_w_ = {0.0: 2.0, 0.1: 2.2, 0.5: 3.0}
+    assert model.basal_power_at_w(0.3) == pytest.approx(2.6, rel=1e-12)
+    assert model.basal_power_at_w(0.05) == pytest.approx(2.1, rel=1e-12)
