@@ -150,3 +150,44 @@ def test_basal_power_is_interpolated_over_load():
     model.basal_power_w_ = {0.0: 2.0, 0.1: 2.2, 0.5: 3.0}
     assert model.basal_power_at_w(0.3) == pytest.approx(2.6, rel=1e-12)
     assert model.basal_power_at_w(0.05) == pytest.approx(2.1, rel=1e-12)
+
+
+def _table(y):
+    """A residual window table of three runs with ``y`` as measured minus predicted [W]."""
+    from hexapod_energy.effects_catalogue import WindowTable
+
+    n = y.size
+    tsum = np.full(n, 18 * 30.0)
+    return WindowTable(
+        run=np.repeat(np.arange(3), n // 3), t_s=np.tile(np.arange(n // 3) * 0.5, 3),
+        duration_s=np.full(n, 0.5), measured_w=30.0 + y, predicted_w=np.full(n, 30.0),
+        step_frequency_hz=np.repeat([1.0, 1.4, 1.8], n // 3), speed_mps=np.full(n, 0.2),
+        current_sq_a2=np.ones(n), temp_excess_k=tsum - 18 * 28.0,
+        stance_fraction=np.full((n, 6), 0.5), leg_names=tuple('ABCDEF'),
+        extra={'temp_sum_c': tsum, 'servo_count': np.full(n, 18.0), 'temp_coldest_c': 30.0,
+               'temp_bench_c': 28.0})
+
+
+def test_residual_effect_standard_error_is_the_least_squares_one():
+    """A basal power of 3 W under 0.5 W of white noise: its standard error is sigma /
+    sqrt(n_train) (halving it passed the suite: every effect would have looked twice as
+    certain)."""
+    from hexapod_energy import residuals as R
+    from hexapod_energy.effects_catalogue import BasalPower
+
+    rng = np.random.default_rng(7)
+    y = 3.0 + rng.normal(0.0, 0.5, 600)
+    table = _table(y)
+    held = R.split_mask(table)
+    coef, se, *_ = R.EffectSelection()._fit([BasalPower()], table, ~held)
+    n_train = int((~held).sum())
+    assert coef[0] == pytest.approx(3.0, abs=0.1)
+    assert se[0] == pytest.approx(0.5 / np.sqrt(n_train), rel=0.1)
+
+
+def test_residual_selection_uses_the_bayesian_information_criterion():
+    """BIC = n ln(SSE / n) + k ln n (AIC's 2k in its place passed the suite)."""
+    from hexapod_energy.residuals import _bic
+
+    assert _bic(12.0, 100, 3) == pytest.approx(100 * np.log(0.12) + 3 * np.log(100),
+                                               rel=1e-12)
