@@ -215,23 +215,35 @@ def test_the_demo_edubot_jogging_touchdown_spikes_are_kept(tmp_path):
     assert run_.power_in_w > 38.0
 
 
+def _clock_gait_run(pose_at) -> list:
+    """3 s of a 0.5 s clock gait (no step length) with 20 W at 100 Hz and the poses
+    ``pose_at(t) -> (stamp, xyz) | None``; returns the windows."""
+    from hexapod_common.conversions import PoseSample
+
+    acc = DescriptorAccumulator(mass_kg=2.0, current_sign='ros')
+    out = []
+    for ti in np.arange(0, 3.0, 0.01):
+        out += acc.add_gait_phase(dataclasses.replace(gait(ti), step_length_m=0.0))
+        out += acc.add_battery(BatterySample(ti + 1e-4, 12.0, -20.0 / 12.0, 25.0))
+        pose = pose_at(ti)
+        if pose is not None:
+            acc.add_pose(PoseSample(pose[0], 'world', np.asarray(pose[1], dtype=float),
+                                    np.array([0.0, 0.0, 0.0, 1.0])))
+    return out
+
+
 def test_mocap_speed_is_the_displacement_between_the_window_bounds():
     """A body whose speed swings within the stride (x = v t + A sin(2 pi t / T)), tracked at
     100 Hz with samples 4 ms after each cycle bound: the window's speed is the displacement
     interpolated at its bounds, v to 1e-4. Between the samples nearest inside the bounds it
     read 2 % fast here (an EduBot walk: 0.1802 m/s for 0.1813; an independent review)."""
-    from hexapod_common.conversions import PoseSample
-
     v, amp, period = 0.4, 0.02, 0.5
-    acc = DescriptorAccumulator(mass_kg=2.0, current_sign='ros')
-    out = []
-    for ti in np.arange(0, 3.0, 0.01):
-        g = gait(ti)
-        out += acc.add_gait_phase(dataclasses.replace(g, step_length_m=0.0))  # a clock gait
-        out += acc.add_battery(BatterySample(ti + 1e-4, 12.0, -20.0 / 12.0, 25.0))
+
+    def pose(ti):
         tm = ti + 4e-3
-        x = np.array([v * tm + amp * math.sin(2 * math.pi * tm / period), 0.0, 0.1])
-        acc.add_pose(PoseSample(tm, 'world', x, np.array([0.0, 0.0, 0.0, 1.0])))
+        return tm, [v * tm + amp * math.sin(2 * math.pi * tm / period), 0.0, 0.1]
+
+    out = _clock_gait_run(pose)
     mocap = [d for d in out if d.speed_source == 'mocap']
     assert len(mocap) >= 4
     for d in mocap:
@@ -275,17 +287,12 @@ def test_a_window_the_mocap_covers_in_part_gets_no_mocap_speed():
     """Motion capture that starts halfway through a window (the robot walking into the
     volume) gives that window no speed rather than the speed of its tracked half, beside the
     window's whole-cycle power (a mutation review: the start coverage check was untested)."""
-    from hexapod_common.conversions import PoseSample
+    def pose(ti):
+        if ti < 1.75:
+            return None
+        return ti + 2e-4, [0.4 * ti + 0.05 * math.sin(2 * math.pi * ti / 0.5), 0.0, 0.1]
 
-    acc = DescriptorAccumulator(mass_kg=2.0, current_sign='ros')
-    out = []
-    for ti in np.arange(0, 3.0, 0.01):
-        g = gait(ti)
-        out += acc.add_gait_phase(dataclasses.replace(g, step_length_m=0.0))  # a clock gait
-        out += acc.add_battery(BatterySample(ti + 1e-4, 12.0, -20.0 / 12.0, 25.0))
-        if ti >= 1.75:
-            x = np.array([0.4 * ti + 0.05 * math.sin(2 * math.pi * ti / 0.5), 0.0, 0.1])
-            acc.add_pose(PoseSample(ti + 2e-4, 'world', x, np.array([0.0, 0.0, 0.0, 1.0])))
+    out = _clock_gait_run(pose)
     by_end = {round(d.t_end_s, 3): d for d in out}
     assert math.isnan(by_end[2.0].speed_mps) and by_end[2.0].speed_source == 'none'
     assert by_end[2.5].speed_source == 'mocap'
