@@ -74,6 +74,7 @@ from .stance import (
     StanceWindow,
     best_shift,
     edges_from_target,
+    open_stance_windows,
     single_tripod_stances,
     tripod_stance_windows,
 )
@@ -315,6 +316,7 @@ class OnlineSlip:
         pm = np.array([x[1] for x in self._mocap])
         qm = np.array([x[2] for x in self._mocap])
         windows = {}
+        opened = {}
         shifts = {}
         geo_windows = self._geometric_windows(tj, vj, tm, pm, qm)
         if geo_windows is None and len(self._cmd) < 50:
@@ -333,8 +335,9 @@ class OnlineSlip:
             shifts[tp] = shift
             td, lo = edges_from_target(tc + shift, target)
             windows[tp] = tripod_stance_windows(td, lo)
+            opened[tp] = open_stance_windows(td, lo)
         candidates = (geo_windows if geo_windows is not None
-                      else single_tripod_stances(windows, shifts))
+                      else single_tripod_stances(windows, shifts, open_windows=opened))
         ready = [w for w in candidates
                  if w.liftoff_s + self.margin_s <= tm[-1]
                  and not self._is_done(w.tripod, w.liftoff_s)

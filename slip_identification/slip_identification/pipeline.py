@@ -50,6 +50,7 @@ from .stance import (
     StanceWindow,
     best_shift,
     edges_from_target,
+    open_stance_windows,
     refine_clock_edges,
     single_tripod_stances,
     tripod_stance_windows,
@@ -835,6 +836,7 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
     track = sagittal_state(tm[inside], pw)
     # stance extraction: the paper's windows always (reported side by side)
     windows = {}
+    opened = {}
     tc = np.asarray(run.command_t_s, dtype=float)
     for tp in (TRIPODS if has_clock else ()):
         tgt_t, tgt_v = tc, target[tp]
@@ -851,11 +853,13 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
         td, lo = td + shift, lo + shift
         res.shift_s[tp] = shift
         windows[tp] = tripod_stance_windows(td, lo)
-    stance_windows = single_tripod_stances(windows, res.shift_s) if has_clock else []
+        opened[tp] = open_stance_windows(td, lo)
+    stance_windows = single_tripod_stances(windows, res.shift_s, open_windows=opened) \
+        if has_clock else []
     res.paper_windows = stance_windows
     if edges == 'effort':
         refined = {tp: refine_touchdowns(windows[tp], touchdowns[tp])[0] for tp in TRIPODS}
-        stance_windows = single_tripod_stances(refined, res.shift_s)
+        stance_windows = single_tripod_stances(refined, res.shift_s, open_windows=opened)
     gap_stances: list[tuple[str, float, float, str]] = []
     if geo_inputs:
         # heights in geo_inputs are those before the ground was moved

@@ -27,6 +27,7 @@ __all__ = [
     'best_shift',
     'edges_from_target',
     'longest_free_segment',
+    'open_stance_windows',
     'refine_clock_edges',
     'single_tripod_stances',
     'steady_clock',
@@ -298,6 +299,26 @@ def tripod_stance_windows(touchdown_s: ArrayLike, liftoff_s: ArrayLike) -> Float
     return np.array(out, dtype=float).reshape(-1, 2)
 
 
+def open_stance_windows(touchdown_s: ArrayLike, liftoff_s: ArrayLike) -> FloatArray:
+    """A tripod's stances cut by the ends of the data: ``(-inf, first lift-off)`` when the data
+    start in a stance (a lift-off before any touchdown) and ``(last touchdown, inf)`` when they
+    end in one (no lift-off after the last touchdown); (k, 2), k <= 2.
+
+    :func:`tripod_stance_windows` keeps whole stances only, so without these the other
+    tripod's single-support part ran over a stance still open at the end of the data: with a
+    duty factor above 0.5 (the walk) the online fitter fitted each whole stance as soon as it
+    ended, the other tripod being down but not yet up (and again, its single-support part,
+    once the other lifted off), and the offline analysis its last stance likewise."""
+    td = np.sort(np.asarray(touchdown_s, dtype=float))
+    lo = np.sort(np.asarray(liftoff_s, dtype=float))
+    out = []
+    if lo.size and (td.size == 0 or lo[0] < td[0]):
+        out.append((-np.inf, lo[0]))
+    if td.size and (lo.size == 0 or lo[-1] < td[-1]):
+        out.append((td[-1], np.inf))
+    return np.array(out, dtype=float).reshape(-1, 2)
+
+
 def longest_free_segment(a: float, b: float, others: ArrayLike
                          ) -> tuple[float, float] | None:
     """Longest part of the interval ``[a, b]`` not covered by any of ``others`` (shape (k, 2)),
@@ -319,7 +340,9 @@ def longest_free_segment(a: float, b: float, others: ArrayLike
 
 
 def single_tripod_stances(windows: dict[str, FloatArray], shifts: dict[str, float] | None = None,
-                          *, min_duration_s: float = 0.0) -> list[StanceWindow]:
+                          *, min_duration_s: float = 0.0,
+                          open_windows: dict[str, FloatArray] | None = None
+                          ) -> list[StanceWindow]:
     """Single-tripod parts of each tripod's stance windows (the other tripod off the ground).
 
     Parameters
@@ -328,12 +351,18 @@ def single_tripod_stances(windows: dict[str, FloatArray], shifts: dict[str, floa
         ``{'left': (m, 2), 'right': (k, 2)}`` stance windows [s].
     shifts : dict, optional
         Shift used per tripod (carried to the result).
+    open_windows : dict, optional
+        ``{tripod: (k, 2)}`` stances cut by the ends of the data
+        (:func:`open_stance_windows`): never fitted, but they end the other tripod's single
+        support like whole ones.
     """
     shifts = shifts or {}
+    opened = open_windows or {}
     out: list[StanceWindow] = []
     for tripod, w in windows.items():
-        others = np.concatenate([v for k, v in windows.items() if k != tripod] or
-                                [np.zeros((0, 2))])
+        others = np.concatenate([v for k, v in windows.items() if k != tripod]
+                                + [v for k, v in opened.items() if k != tripod]
+                                + [np.zeros((0, 2))])
         for a, b in np.asarray(w).reshape(-1, 2):
             longest = longest_free_segment(a, b, others)
             if longest is None:

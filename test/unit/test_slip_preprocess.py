@@ -21,6 +21,7 @@ from slip_identification.preprocess import (
 from slip_identification.stance import (
     best_shift,
     edges_from_target,
+    open_stance_windows,
     single_tripod_stances,
     tripod_stance_windows,
 )
@@ -115,6 +116,30 @@ def test_single_tripod_parts_of_overlapping_stances():
     left = [s for s in st if s.tripod == 'left']
     assert len(left) == 1
     assert (left[0].touchdown_s, left[0].liftoff_s) == pytest.approx((0.2, 0.5))
+
+
+def test_a_stance_cut_by_the_end_of_the_data_still_ends_the_other_tripods_single_support():
+    """A walk (duty factor above 0.5) at the end of the data (the online buffer's newest
+    sample): the right tripod touched down at 0.5 s and has not lifted off. Whole windows only,
+    the left stance [0, 0.7] counted as single support up to its lift-off (the online fitter
+    published that, and later [0.2, 0.5] again); the open stance ends it at 0.5. Likewise a
+    stance cut by the start of the data (the right tripod's lift-off at 0.2)."""
+    td = {'left': np.array([0.0]), 'right': np.array([0.5])}
+    lo = {'left': np.array([0.7]), 'right': np.array([0.2])}
+    whole = {tp: tripod_stance_windows(td[tp], lo[tp]) for tp in td}
+    opened = {tp: open_stance_windows(td[tp], lo[tp]) for tp in td}
+    assert whole['right'].shape == (0, 2)
+    assert_allclose(opened['right'], [[-np.inf, 0.2], [0.5, np.inf]])
+    assert opened['left'].shape == (0, 2)
+    st = single_tripod_stances(whole, open_windows=opened)
+    assert [(s.tripod, s.touchdown_s, s.liftoff_s) for s in st] == [('left', 0.2, 0.5)]
+    # what it was: the whole left stance
+    assert [(s.touchdown_s, s.liftoff_s) for s in single_tripod_stances(whole)] == [(0.0, 0.7)]
+    # one kind of edge only, or none
+    assert_allclose(open_stance_windows([0.3], []), [[0.3, np.inf]])
+    assert_allclose(open_stance_windows([], [0.3]), [[-np.inf, 0.3]])
+    assert open_stance_windows([], []).shape == (0, 2)
+    assert open_stance_windows([0.1, 0.5], [0.3, 0.7]).shape == (0, 2)
 
 
 def test_clock_edges_from_100hz_commands_below_the_sample_spacing():
