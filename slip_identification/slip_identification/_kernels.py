@@ -219,7 +219,7 @@ if HAVE_NUMBA:
             calls = np.zeros(b, dtype=np.int64)
             for j in loop(b):
                 qj, fj, cj, ij, nj = _nelder_mead(x0s[j], xes[j], ns[j], dens[j], fx0s[j], dt,
-                                                  stride, inv_m, g, scales, ext_idx, npar,
+                                                  stride, inv_m, g, scales[j], ext_idx, npar,
                                                   xatol, fatol, maxiter)
                 q[j] = qj
                 f[j] = fj
@@ -234,7 +234,9 @@ if HAVE_NUMBA:
     _fit_many_serial = _make_fit_many(False)
 
     def fit_many(x0s, xes, *args):  # type: ignore[no-untyped-def]
-        """Nelder-Mead per stance. ``xes`` (B, Nmax, 4) padded; returns q, f, conv, it, calls.
+        """Nelder-Mead per stance. ``xes`` (B, Nmax, 4) padded, ``scales`` (B, P) per row (the
+        start is ``q = 1``: a row's first two scales are its starting k and l0); returns q, f,
+        conv, it, calls.
 
         Small batches (the online case) run serially: starting the thread pool costs more
         than a fit.

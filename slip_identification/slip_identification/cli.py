@@ -6,6 +6,8 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
       "schema": "slip/1",
       "model": "slip",
       "estimator": "paper",   # which estimator the top-level stance values come from
+      "starts": "multi",      # its Nelder-Mead starts: multi (the paper's and the stance's
+                              # own scales, lowest nerr kept) or paper (--starts)
       "mass_kg": 3.31,
       "stances": [            # one per fitted single-tripod stance (paper's estimator)
         {"bag", "gait" (on /gait/phase at the touchdown), "tripod",
@@ -13,6 +15,7 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
          "stiffness" [N/m], "rest_length" [m], "foot_x" [m, world frame],
          "stiffness_stderr", "rest_length_stderr", "foot_x_stderr",
          "nerr", "converged", "samples", "iterations",
+         "start" (the Nelder-Mead start kept: paper|stance1|stance2; see "starts"),
          "position_fit": {same parameter and stderr keys, "nerr", "converged"} or null,
          "power_w", "speed_mps", "sr"}     # the run's values, as in the paper
       ],
@@ -440,7 +443,8 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
                           steady_only=options.get('steady_only', False),
                           check_body_up=body_up == 'auto',
                           pitch_offset_rad=options.get('pitch_offset_rad'),
-                          pool_edges=options.get('pool_edges', True))
+                          pool_edges=options.get('pool_edges', True),
+                          starts=options.get('starts', 'multi'))
     except (SlipError, HexapodError, ValueError, OSError) as err:  # a truncated bag too
         return {'bag': path, 'error': str(err)}
     notes = list(run.notes) + geometry_notes + list(res.notes)
@@ -462,7 +466,7 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
             d[k] = _f(v)
             d[f'{k}_stderr'] = _f(r.stderr[k])
         d.update(nerr=_f(r.nerr), converged=r.converged, samples=r.samples,
-                 iterations=r.iterations)
+                 iterations=r.iterations, start=r.start)
         p = pos.get(r.label)
         d['position_fit'] = None if p is None else {
             **{k: _f(v) for k, v in p.params.items()},
@@ -613,7 +617,7 @@ def run_command(args: argparse.Namespace) -> int:
                'box_lower': args.box[:3] if args.box else None,
                'box_upper': args.box[3:] if args.box else None,
                'steady_only': args.steady_only, 'body_up': args.body_up,
-               'pool_edges': not args.no_edge_pooling,
+               'pool_edges': not args.no_edge_pooling, 'starts': args.starts,
                'pitch_offset_rad': (None if args.pitch_offset == 'auto'
                                     else math.radians(float(args.pitch_offset)))}
     bags = [str(b) for b in args.bags]
@@ -666,7 +670,7 @@ def run_command(args: argparse.Namespace) -> int:
              'rest_length': s['rest_length'] if s.get('rest_length') is not None
              else math.nan} for s in stances]
     _note_rest_length_outliers(stances, [r['run'] for r in results if 'run' in r])
-    doc = {'schema': 'slip/1', 'model': args.model, 'estimator': 'paper',
+    doc = {'schema': 'slip/1', 'model': args.model, 'estimator': 'paper', 'starts': args.starts,
            'mass_kg': args.mass, 'stances': stances,
            'runs': [r['run'] for r in results if 'run' in r], 'gaits': gait_table(rows),
            'skipped': skipped, 'skipped_counts': dict(Counter(s['reason'] for s in skipped)),
@@ -745,6 +749,12 @@ def add_cli(subparsers: Any) -> None:
     p.add_argument('--mass', type=_positive_kg, default=EDUBOT_MASS_KG,
                    help='robot mass [kg], > 0')
     p.add_argument('--model', default='slip', help="'slip' or 'slip+leg_damping' etc.")
+    p.add_argument('--starts', choices=('multi', 'paper'), default='multi',
+                   help="the SLIP-measure's Nelder-Mead starts: multi (default; the paper's "
+                        "(2000 N/m, 0.15 m) and two from the stance's own duration and leg "
+                        "length, the lowest nerr kept: the paper defines the measure as the "
+                        "minimum) or paper (its start alone, as the paper computed it; it "
+                        'can stop in a local minimum)')
     p.add_argument('--no-position-fit', action='store_true',
                    help='skip the second estimator (initial state free)')
     p.add_argument('--steady-only', action='store_true',

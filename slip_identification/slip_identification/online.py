@@ -130,6 +130,8 @@ class OnlineSlip:
     time_jump_s : float
         A stamp this far [s] behind its stream's previous one restarts everything (module
         docs).
+    starts : {'multi', 'paper'}
+        The fits' Nelder-Mead starts (:class:`.fit.SlipFitter`).
     """
 
     def __init__(self, model: SlipModel | None = None, *, box: Box | None = None,
@@ -140,7 +142,7 @@ class OnlineSlip:
                  geometry: LegGeometry | None = None, ground_m: float | None = None,
                  geometry_window_s: float = 1.0, pitch_offset_rad: float = 0.0,
                  world_frame: WorldFrame | None = None,
-                 time_jump_s: float = TIME_JUMP_S) -> None:
+                 time_jump_s: float = TIME_JUMP_S, starts: str = 'multi') -> None:
         if (geometry is None) != (ground_m is None):
             raise SlipError('geometric edges need both geometry and ground_m (or neither)')
         self.geometry = geometry
@@ -154,7 +156,8 @@ class OnlineSlip:
         self.buffer_s = buffer_s
         self.margin_s = margin_s
         self.min_stance_s = min_stance_s
-        self.fitter = SlipFitter(self.model)
+        self.starts = starts
+        self.fitter = SlipFitter(self.model, starts=starts)  # type: ignore[arg-type]
         self._js: deque[tuple[float, np.ndarray, np.ndarray]] = deque()
         self._cmd: deque[tuple[float, np.ndarray]] = deque()
         self._mocap: deque[tuple[float, np.ndarray, np.ndarray]] = deque()
@@ -216,7 +219,7 @@ class OnlineSlip:
     def set_model(self, model: SlipModel) -> None:
         """Fit the stances from now on with ``model`` (e.g. another mass)."""
         self.model = model
-        self.fitter = SlipFitter(model)
+        self.fitter = SlipFitter(model, starts=self.starts)  # type: ignore[arg-type]
 
     def _trim(self, buf: deque, t: float) -> None:  # type: ignore[type-arg]
         while buf and buf[0][0] < t - self.buffer_s:

@@ -579,8 +579,11 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                 min_stance_s: float = 0.02, edges: str = 'auto',
                 geometry: LegGeometry | None = None, steady_only: bool = False,
                 check_body_up: bool = True,
-                pitch_offset_rad: float | None = None, pool_edges: bool = True) -> RunResult:
+                pitch_offset_rad: float | None = None, pool_edges: bool = True,
+                starts: str = 'multi') -> RunResult:
     """Preprocess one run, extract single-tripod stances, fit each (see module docs).
+
+    ``starts``: the paper's estimator's Nelder-Mead starts (:class:`.fit.SlipFitter`).
 
     ``pitch_offset_rad``: the motion-capture rigid body's pitch zero against the robot's hip
     line (its pitch when the hips are level), known and kept; None (default): 0, fitted
@@ -942,7 +945,7 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                             'edges': how})
         res.skipped_counts['mocap_gap'] += 1
     if stances:
-        res.fits = SlipFitter(model).fit(stances).results_
+        res.fits = SlipFitter(model, starts=starts).fit(stances).results_  # type: ignore[arg-type]
         if position_fit:
             res.position_fits = SlipPositionFitter(model).fit(stances).results_
     # energetics of the run: power and speed over the whole gait cycles inside the tracked

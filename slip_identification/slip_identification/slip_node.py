@@ -88,6 +88,10 @@ class SlipParams:
                         validate=_positive)
     model: str = param('slip', "template: 'slip' or 'slip+leg_damping' etc.",
                        validate=_model_name, read_only=True)
+    starts: str = param('multi', "the fits' Nelder-Mead starts: multi (the paper's and the "
+                        "stance's own scales, the lowest nerr kept) or paper (its start alone)",
+                        validate=lambda v: None if v in ('multi', 'paper')
+                        else "expected 'multi' or 'paper'", read_only=True)
     mocap_offset: float = param(0.0, 'seconds subtracted from mocap stamps (stream offset)',
                                 read_only=True)
     margin: float = param(0.0, 'mocap needed after lift-off before fitting [s] (0: the '
@@ -168,7 +172,8 @@ class SlipFitterNode(Node):
                                box=Box(tuple(b[:3]), tuple(b[3:])),
                                mocap_offset_s=p.mocap_offset, margin_s=p.margin,
                                geometry=geo, ground_m=p.ground if geo is not None else None,
-                               pitch_offset_rad=math.radians(p.pitch_offset))
+                               pitch_offset_rad=math.radians(p.pitch_offset),
+                               starts=p.starts)
         self.pub = self.create_publisher(SlipFit, 'slip/fit', RELIABLE_QOS)
         self.create_subscription(JointState, 'joint_states', self._on_js, SENSOR_QOS)
         self.create_subscription(JointState, 'joint_commands', self._on_cmd, SENSOR_QOS)

@@ -39,8 +39,10 @@ def test_slip_command_writes_schema_and_refuses_missing_topic(tmp_path):
     s = doc['stances'][0]
     for key in ('touchdown', 'liftoff', 'tripod', 'stiffness', 'rest_length', 'foot_x',
                 'stiffness_stderr', 'rest_length_stderr', 'foot_x_stderr', 'nerr', 'converged',
-                'position_fit'):
+                'position_fit', 'start'):
         assert key in s
+    assert doc['starts'] == 'multi'
+    assert {x['start'] for x in doc['stances']} <= {'paper', 'stance1', 'stance2'}
     assert s['liftoff'] > s['touchdown']
     assert doc['gaits']['running']['stances'] == len(doc['stances'])
     assert len(doc['failed_bags']) == 1 and 'lacks topic' in doc['failed_bags'][0]['error']

@@ -90,8 +90,12 @@ def test_online_fits_match_offline_pipeline(running, online):
                    for x, y in pairs])
     print(f'online vs offline: median |dk|/k {np.median(dk):.3f}, median |dl0| '
           f'{1e3 * np.median(dl):.2f} mm over {len(pairs)} stances')
-    assert np.median(dk) < 0.25
-    assert np.median(dl) < 0.01
+    assert np.median(dk) < 0.05
+    assert np.median(dl) < 0.002
+    # no fit in another minimum: from the paper's start alone, one online stance stopped at
+    # k 1985 N/m (nerr 0.14) where the offline one found 7401 (0.049): 73 % off; the rest
+    # (up to 18 %) is the edges, halfway between two 100 Hz command samples online
+    assert np.max(dk) < 0.3
     assert all(x.tripod == y.tripod for x, y in pairs)
 
 
