@@ -11,7 +11,10 @@ split over several messages, hip angles wrapped into ``[-pi, pi)`` or ``[0, 2 pi
 positions without velocities (speeds from central differences, one joint-state period of
 extra latency) are handled by the core; each such fallback is logged once (info). Time going
 back by more than a second (a looped bag, a simulation clock reset) is logged once per jump
-as a warning, and stance detection restarts from the new time.
+as a warning, and stance detection restarts from the new time. Messages missing from
+``/joint_states`` or ``/mocap/body`` (gaps in their stamps: a lossy link, or the node behind
+its input, whose oldest queued messages the DDS history overwrites) are counted
+(``loss.missing``) and logged on the topic's 1st, 10th, 100th ... missing message.
 """
 
 from __future__ import annotations
@@ -26,7 +29,7 @@ from geometry_msgs.msg import PoseStamped
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
-from hexapod_common.clocks import LiveClockWatch
+from hexapod_common.clocks import LiveClockWatch, StreamLoss
 from hexapod_common.conversions import (
     MOCAP_TYPES,
     joint_state_from_msg,
@@ -192,6 +195,10 @@ class SlipFitterNode(Node):
         # a driver stamping with its last bus read repeats a stamp with new values: such a
         # sample is re-stamped from its arrival time, or dropped (as the offline reader does)
         self._repeats = LiveRepeatedStamps()
+        #: messages missing from joint_states and mocap/body, from their stamp gaps (a node
+        #: behind its input loses the oldest queued ones without a word): logged on the 1st,
+        #: 10th, 100th ... of a topic
+        self.loss = StreamLoss()
 
     def _on_change(self, new: SlipParams) -> str | None:
         """Apply a run-time change of ``mass`` or ``margin`` (the others are read only)."""
@@ -236,6 +243,12 @@ class SlipFitterNode(Node):
                                          else getattr(s, f)
                                          for f in ('position', 'velocity', 'effort')})
 
+    def _count_loss(self, topic: str, group: Any, t_s: float) -> None:
+        if t_s != 0.0:
+            note = self.loss.observe_topic(topic, group, t_s)
+            if note:
+                self.get_logger().warning(note)
+
     def _check_clock(self, topic: str, t_s: float) -> None:
         """Report (once) a topic stamped on another clock than the others (a mocap bridge
         passing the capture system's time): the stream offset search cannot bridge it."""
@@ -261,6 +274,7 @@ class SlipFitterNode(Node):
             if s is None:
                 return
         self._check_clock('joint_states', s.t_s)
+        self._count_loss('joint_states', tuple(s.names), s.t_s)
         self.core.add_joint_state(s.t_s, s.names, s.velocity, s.position)
         notes = self.core.notes
         while self._notes_logged < len(notes):  # each input fallback logged once
@@ -281,6 +295,7 @@ class SlipFitterNode(Node):
             if s is None:
                 return
         self._check_clock('mocap/body', s.t_s)
+        self._count_loss('mocap/body', None, s.t_s)
         q = s.orientation_xyzw if self._body_up == 'z' else \
             rotate_body(s.orientation_xyzw, self._body_up)[0]
         self.core.add_mocap(s.t_s, s.position_m, q)

@@ -151,3 +151,30 @@ def test_a_quiet_battery_is_reported_and_gap_windows_are_not_published():
         ends = [m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec - T0
                 for m in rig.out.messages]
         assert ends and not any(2.05 < e and e - PERIOD_S < 7.95 for e in ends)
+
+
+@pytest.mark.timeout(120)
+def test_messages_missing_from_an_input_are_counted_and_logged():
+    """A node behind its input loses the oldest queued messages without a word (a review
+    drove energy_monitor at 2 kHz: 6 % of the joint states lost, unannounced). Here the
+    battery stream misses every 7th message after the first second: the node counts them from
+    the gaps in the stamps and logs the count on the 1st and 10th; the complete /gait/phase
+    counts none."""
+    with ros_env('energy_loss') as env:
+        rig = _Rig(env)
+        skipped = 0
+        for k in range(int(round(3.0 / 0.02))):
+            t = T0 + 0.02 * k
+            rig.send(rig.gait, _gait(t))
+            if k >= 50 and k % 7 == 0:
+                skipped += 1
+                continue
+            rig.send(rig.battery, _battery(t + 1e-4))
+        assert env.spin_until(lambda: rig.node.loss.seen.get(
+            ('battery_state', ((), '')), 0) >= 150 - skipped, 30)
+        assert skipped >= 10
+        assert rig.node.loss.total('battery_state') == skipped
+        assert rig.node.loss.total('gait/phase') == 0
+        notes = [w for w in rig.warnings if 'messages missing so far' in w]
+        assert [n.split(':')[1].split()[0] for n in notes] == ['1', '10']
+        assert all(n.startswith('battery_state:') for n in notes)

@@ -89,6 +89,7 @@ def test_slip_fitter_publishes_core_fits_for_a_simulated_run():
         got = fits.wait_for(env, len(expected), timeout_s=30.0)
         assert node.published == len(expected) == len(got)
         assert node.received == sent  # nothing lost
+        assert node.loss.total() == 0   # and none counted missing on the simulator's streams
 
     for m, r in zip(got, expected):
         assert m.tripod == r.tripod
