@@ -87,3 +87,40 @@ def test_stamps_a_few_ms_out_of_order_are_not_a_jump(run):
     for t in (10.0, 10.01, 10.005, 10.02, 10.012):
         core.add_joint_state(t, names, np.zeros(6))
     assert not core.time_jumps and len(core._js) == 5
+
+
+def test_row_buffer_matches_a_deque_through_growth_and_trims():
+    """OnlineSlip's buffers (preallocated rows read as views; they were deques rebuilt into
+    arrays on every mocap message): the same rows as a deque of tuples through appends,
+    trims by stamp (a few out of order), growth, compaction and a clear."""
+    from collections import deque
+
+    from slip_identification.errors import SlipDataError
+    from slip_identification.online import _Rows
+
+    rng = np.random.default_rng(5)
+    rows, ref = _Rows(), deque()
+    t = 0.0
+    for k in range(5000):
+        t += 0.001 + (0.0005 if k % 97 == 0 else 0.0)
+        ts = t - (0.002 if k % 13 == 0 else 0.0)          # a few stamps out of order
+        v, q = rng.normal(size=6), rng.normal(size=6)
+        rows.append(ts, v, q)
+        ref.append((ts, v, q))
+        span = 0.3 if k < 2500 else 1.2                    # the buffer grows later
+        rows.trim(ts - span)
+        while ref and ref[0][0] < ts - span:
+            ref.popleft()
+        if k % 250 == 0 or k == 4999:
+            assert len(rows) == len(ref)
+            np.testing.assert_array_equal(rows.t, [r[0] for r in ref])
+            np.testing.assert_array_equal(rows.col(0), [r[1] for r in ref])
+            np.testing.assert_array_equal(rows.col(1), [r[2] for r in ref])
+    rows.reorder(0, np.arange(6)[::-1])
+    np.testing.assert_array_equal(rows.col(0), [r[1][::-1] for r in ref])
+    with pytest.raises(SlipDataError, match='joint set changed'):
+        rows.append(t, np.zeros(5), np.zeros(5))
+    rows.clear()
+    assert len(rows) == 0 and rows.col(0).size == 0
+    rows.append(1.0, np.zeros(3), np.zeros(3))                 # another width after a clear
+    assert rows.col(1).shape == (1, 3)
