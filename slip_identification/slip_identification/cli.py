@@ -16,6 +16,8 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
          "stiffness_stderr", "rest_length_stderr", "foot_x_stderr",
          "nerr", "converged", "samples", "iterations",
          "start" (the Nelder-Mead start kept: paper|stance1|stance2; see "starts"),
+         "force_swing" (range of the fitted spring force over the stance over its mean;
+                        under 1 a nearly constant leg force: k and l0 not identified apart),
          "position_fit": {same parameter and stderr keys, "nerr", "converged"} or null,
          "power_w", "speed_mps", "sr"}     # the run's values, as in the paper
       ],
@@ -78,7 +80,8 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
                                     # "upper_m", "source" (given|default|tracked_samples)}
       "gaits": {"<gait>": {"stances", "nerr_mean", "nerr_std", "power_w_mean", ...,
                            "stiffness_median", "stiffness_iqr", "rest_length_median",
-                           "rest_length_iqr"}},  # Table 3
+                           "rest_length_iqr", "constant_force_stances" (force_swing < 1)
+                           }},  # Table 3
       "skipped": [{"bag", "label", "tripod", "touchdown", "liftoff", "reason"}],  # stances
                   # a mocap dropout cuts or hides (geometric edges) also have "edges":
                   # geometry_cut | clock (placed by the shifted clock inside the gap)
@@ -466,7 +469,7 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
             d[k] = _f(v)
             d[f'{k}_stderr'] = _f(r.stderr[k])
         d.update(nerr=_f(r.nerr), converged=r.converged, samples=r.samples,
-                 iterations=r.iterations, start=r.start)
+                 iterations=r.iterations, start=r.start, force_swing=_f(r.force_swing))
         p = pos.get(r.label)
         d['position_fit'] = None if p is None else {
             **{k: _f(v) for k, v in p.params.items()},
@@ -668,6 +671,8 @@ def run_command(args: argparse.Namespace) -> int:
              'sr': s['sr'] or math.nan,
              'stiffness': s['stiffness'] if s.get('stiffness') is not None else math.nan,
              'rest_length': s['rest_length'] if s.get('rest_length') is not None
+             else math.nan,
+             'force_swing': s['force_swing'] if s.get('force_swing') is not None
              else math.nan} for s in stances]
     _note_rest_length_outliers(stances, [r['run'] for r in results if 'run' in r])
     doc = {'schema': 'slip/1', 'model': args.model, 'estimator': 'paper', 'starts': args.starts,

@@ -12,6 +12,7 @@ from numpy.typing import ArrayLike
 from hexapod_common.conversions import current_sign_factor
 
 from .errors import SlipDataError
+from .fit import FORCE_SWING_MIN
 from .model import GRAVITY_MPS2
 
 __all__ = ['GAIT_ORDER', 'PAPER_COLORS', 'PAPER_MASS_KG', 'PAPER_TABLE3', 'battery_power_w',
@@ -118,6 +119,8 @@ def gait_table(rows: Sequence[dict[str, float | str]]) -> dict[str, dict[str, fl
 
     ``rows`` holds one dict per stance with keys ``gait``, ``nerr``, ``power_w``,
     ``speed_mps``, ``sr`` (run values repeated on each of the run's stances, as in the paper).
+    With ``force_swing`` in the rows, ``constant_force_stances`` counts the stances fitted by
+    a nearly constant leg force (:func:`.fit.spring_force_swing`).
     """
     out: dict[str, dict[str, float]] = {}
     for gait in ordered_gaits(str(r['gait']) for r in rows):
@@ -139,6 +142,10 @@ def gait_table(rows: Sequence[dict[str, float | str]]) -> dict[str, dict[str, fl
                              else (math.nan,) * 3)
             entry[f'{key}_median'] = float(q50)
             entry[f'{key}_iqr'] = float(q75 - q25)
+        if any('force_swing' in r for r in sel):
+            swing = np.array([float(r.get('force_swing', math.nan)) for r in sel])
+            # stances whose fit is a nearly constant leg force (k, l0 not identified apart)
+            entry['constant_force_stances'] = float(np.sum(swing < FORCE_SWING_MIN))
         out[gait] = entry
     return out
 
