@@ -46,7 +46,7 @@ from hexapod_bench_drivers.power_backends import (
     ros_battery_current,
 )
 
-__all__ = ['PowerMonitorNode', 'PowerMonitorParams', 'main', 'make_backend']
+__all__ = ['PowerMonitorNode', 'PowerMonitorParams', 'main', 'make_backend', 'supply_status']
 
 BACKENDS = ('sim', 'ina226', 'ina219', 'scpi')
 
@@ -95,6 +95,22 @@ def make_backend(p: PowerMonitorParams) -> PowerBackend:
         raise PowerBackendError(f'/dev/i2c-{p.i2c_bus}: cannot open: {err}') from err
     return Ina2xxBackend(bus, chip=p.backend, address=p.i2c_address, shunt_ohm=p.shunt_ohm,
                          max_current_a=p.max_current_a)
+
+
+#: a current into the battery [A] above this (and 3 x the zero-offset noise) is CHARGING
+CHARGING_MIN_A = 0.01
+
+
+def supply_status(current_a: float, noise_a: float = 0.0) -> int:
+    """BatteryState.power_supply_status for a current [A] positive on discharge: DISCHARGING
+    above 0, CHARGING when current flows back into the battery (a regenerating load: a leg
+    lowered, a motor braked) beyond ``max(CHARGING_MIN_A, 3 noise_a)``, else NOT_CHARGING.
+    (Regeneration read NOT_CHARGING: an outside review.)"""
+    if current_a > 0:
+        return BatteryState.POWER_SUPPLY_STATUS_DISCHARGING
+    if current_a < -max(CHARGING_MIN_A, 3.0 * noise_a):
+        return BatteryState.POWER_SUPPLY_STATUS_CHARGING
+    return BatteryState.POWER_SUPPLY_STATUS_NOT_CHARGING
 
 
 class PowerMonitorNode(Node):
@@ -172,9 +188,8 @@ class PowerMonitorNode(Node):
         msg.header.frame_id = self.params.frame_id
         msg.voltage = float(sample.voltage_v)
         msg.current = ros_battery_current(sample.current_a)
-        msg.power_supply_status = (BatteryState.POWER_SUPPLY_STATUS_DISCHARGING
-                                   if sample.current_a > 0 else
-                                   BatteryState.POWER_SUPPLY_STATUS_NOT_CHARGING)
+        msg.power_supply_status = supply_status(
+            sample.current_a, self.offset.noise_a_ if self.offset is not None else 0.0)
         msg.present = True
         for name in ('charge', 'capacity', 'design_capacity', 'percentage', 'temperature'):
             setattr(msg, name, float('nan'))

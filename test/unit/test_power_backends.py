@@ -160,3 +160,36 @@ def test_scpi_supply_on_pty():
 def test_power_sample_power():
     assert PowerSample(12.0, 0.5).power_w == 6.0
     assert np.isfinite(SimPowerBackend().read().power_w)
+
+
+def test_ina226_driven_as_ina219_is_refused_and_an_ina219_kept():
+    """An INA226 answers its manufacturer ID where an INA219 has no register: chosen as
+    ``ina219`` it was accepted and read with the INA219's scales (an outside review). A chip
+    that NACKs the probe, or answers anything else, is an INA219 and is kept."""
+    fake = FakeIna('ina226', 0x40, 0.01, voltage_v=12.0, current_a=1.0)
+    with pytest.raises(PowerBackendError, match='it is an INA226 \\(backend ina226\\)'):
+        Ina2xxBackend(fake, chip='ina219', address=0x40)
+    ina219 = FakeIna('ina219', 0x40, 0.01, voltage_v=12.0, current_a=1.0)
+    Ina2xxBackend(ina219, chip='ina219', address=0x40, max_current_a=8.0).read()
+
+    class NackingIna219(FakeIna):
+        def read_i2c_block_data(self, addr, reg, n):
+            if reg == 0xFE:
+                raise OSError(121, 'Remote I/O error')
+            return super().read_i2c_block_data(addr, reg, n)
+
+    nack = NackingIna219('ina219', 0x40, 0.01, voltage_v=12.0, current_a=1.5)
+    s = Ina2xxBackend(nack, chip='ina219', address=0x40, max_current_a=8.0).read()
+    assert_allclose(s.current_a, 1.5, atol=2e-3)
+
+
+def test_a_regenerating_load_reads_charging():
+    power_node = pytest.importorskip('hexapod_bench_drivers.power_node')
+    from sensor_msgs.msg import BatteryState
+
+    status = power_node.supply_status
+    assert status(2.0) == BatteryState.POWER_SUPPLY_STATUS_DISCHARGING
+    assert status(-0.5) == BatteryState.POWER_SUPPLY_STATUS_CHARGING      # energy back in
+    assert status(0.0) == BatteryState.POWER_SUPPLY_STATUS_NOT_CHARGING
+    assert status(-0.005) == BatteryState.POWER_SUPPLY_STATUS_NOT_CHARGING   # zero noise
+    assert status(-0.05, noise_a=0.02) == BatteryState.POWER_SUPPLY_STATUS_NOT_CHARGING
