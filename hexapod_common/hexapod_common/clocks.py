@@ -21,6 +21,7 @@ Core module: no rclpy.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterable
 from typing import Any
 
@@ -330,9 +331,11 @@ class StreamLoss:
             return None
         seen = sum(n for k, n in self.seen.items() if _topic(k) == topic)
         share = 100.0 * missing / max(missing + seen, 1)
-        return (f'{topic}: {missing} messages missing so far ({share:.1f} %; gaps in their '
-                'stamps): lost on the way, by this node falling behind its input, or in the '
-                'recording; values over the gaps are interpolated')
+        period = self._period.get((topic, stream), math.nan)
+        return (f'{topic}: {missing} messages missing so far ({share:.1f} % of its '
+                f'{1e3 * period:.3g} ms periods, from gaps in the stamps): not sent (a driver '
+                'or simulator late on its timer), lost on the way, or dropped by this node '
+                'falling behind its input; values over the gaps are interpolated')
 
 
 def _topic(key: Any) -> Any:

@@ -59,8 +59,8 @@ it from the bag's receive times).
 Messages missing from an input (a lossy link, or the node behind its input: the DDS history
 overwrites the oldest without a word, from about 2,000 msg/s in all on this 2-core machine)
 are counted from the gaps in each stream's stamps (:class:`hexapod_common.clocks.StreamLoss`,
-``loss.missing``) and logged on the topic's 1st, 10th, 100th, 1000th ... missing message; the
-window's powers interpolate over them.
+``loss.missing``; a publisher late on its timer counts too) and logged on the topic's 1st,
+10th, 100th, 1000th ... missing message; the window's powers interpolate over them.
 """
 
 from __future__ import annotations
