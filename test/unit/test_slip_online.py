@@ -37,9 +37,8 @@ def running():
     return edubot_sim.simulate_edubot('running', duration_s=4.0, seed=3)
 
 
-@pytest.fixture(scope='module')
-def online(running):
-    run = running
+def feed(run):
+    """OnlineSlip fed a simulated run in arrival order: the core and its fits."""
     names = tuple(f'{leg}_hip' for leg in run.leg_names)
     core = OnlineSlip(box=BOX, mocap_offset_s=run.truth['clock_offset_s'])
     fits = []
@@ -52,6 +51,11 @@ def online(running):
                            run.mocap_quat_xyzw[i])
             fits.extend(core.step())
     return core, fits
+
+
+@pytest.fixture(scope='module')
+def online(running):
+    return feed(running)
 
 
 def test_online_latency_in_simulated_time(online):
@@ -107,17 +111,7 @@ def test_online_walk_fits_each_single_support_once():
     single-support part again: 15 fits for the offline analysis' 8. Now each single-support
     window once, the offline ones within 5 ms."""
     run = edubot_sim.simulate_edubot('walk', duration_s=6.0, seed=3)
-    names = tuple(f'{leg}_hip' for leg in run.leg_names)
-    core = OnlineSlip(box=BOX, mocap_offset_s=run.truth['clock_offset_s'])
-    fits = []
-    for _, kind, i in events(run):
-        if kind == 0:
-            core.add_joint_state(float(run.t_s[i]), names, run.hip_velocity_rad_s[i])
-            core.add_command(float(run.t_s[i]), names, run.target_velocity_rad_s[i])
-        else:
-            core.add_mocap(float(run.mocap_t_s[i]), run.mocap_position_m[i],
-                           run.mocap_quat_xyzw[i])
-            fits.extend(core.step())
+    _, fits = feed(run)
     off = analyze_run(run_data(run), box=BOX, offset_s=run.truth['clock_offset_s'],
                       position_fit=False)
     assert len(fits) >= 6
