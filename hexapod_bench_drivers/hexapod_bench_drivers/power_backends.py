@@ -241,17 +241,22 @@ class Ina2xxBackend:
                     f'0x{INA226_MANUFACTURER_ID:04x} (wrong address or not an INA226?)')
             self._write(INA226_REGISTERS['config'], INA226_CONFIG)
         else:
-            # an INA226 answers its manufacturer ID where an INA219 has no register; driven
-            # as an INA219 it read 4x the current with the wrong bus-voltage scale, accepted
-            # (an outside review). An INA219 that refuses or returns anything else is kept.
+            # an INA226 driven as an INA219 read its registers with the INA219's scales,
+            # accepted (an outside review). It answers its manufacturer ID where an INA219 has
+            # no register, and it holds bit 0 of the calibration, which an INA219 reads as 0
+            # (FS0, read only). Both must say INA226: an INA219 (or an emulator of one) that
+            # answers anything at 0xFE is kept when it drops the bit.
             try:
                 found = self._read(INA226_REGISTERS['manufacturer_id'])
             except PowerBackendError:
                 found = None
             if found == INA226_MANUFACTURER_ID:
-                raise PowerBackendError(
-                    f'ina219 chosen, but the chip at 0x{self.address:02x} answers the INA226 '
-                    f'manufacturer ID 0x{found:04x}: it is an INA226 (backend ina226)')
+                self._write(INA226_REGISTERS['calibration'], self.calibration | 1)
+                if self._read(INA226_REGISTERS['calibration']) & 1:
+                    raise PowerBackendError(
+                        f'ina219 chosen, but the chip at 0x{self.address:02x} answers the INA226 '
+                        f'manufacturer ID 0x{found:04x} and holds bit 0 of its calibration '
+                        '(an INA219 reads it 0): it is an INA226 (backend ina226)')
             self._check_cal = False
             self._write(INA219_REGISTERS['config'], INA219_CONFIG)
         self._write(INA226_REGISTERS['calibration'], self.calibration)

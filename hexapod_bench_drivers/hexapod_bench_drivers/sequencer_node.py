@@ -248,7 +248,8 @@ class BenchSequencerNode(Node):
         #: Resolved with the exit code (0 done, 1 aborted) when the plan ends, if
         #: ``exit_when_done``; ``run_node`` spins until then.
         self.finished = Future()
-        self._calls: list[Any] = []        # service calls in flight (torque, gait)
+        #: service calls in flight (torque, gait), each with its client
+        self._calls: list[tuple[Any, Any]] = []
         self._calls_since_ns: int | None = None
         if self.sim_run is not None:
             from rclpy.qos import QoSProfile
@@ -419,7 +420,11 @@ class BenchSequencerNode(Node):
         self._check_finished(cmd)
 
     def _check_finished(self, cmd: SequencerCommand) -> None:
-        self._calls = [c for c in self._calls if not c.done()]
+        # a call whose server has gone (a gait node killed after it was asked to stand) will
+        # never be answered: not waited for (it held the plan's end for stand_timeout_s when
+        # the servo_status silence was noticed before the gait node's)
+        self._calls = [(cl, c) for cl, c in self._calls
+                       if not c.done() and cl.service_is_ready()]
         now_ns = self.get_clock().now().nanoseconds
         if not self._calls:
             self._calls_since_ns = None
@@ -470,7 +475,7 @@ class BenchSequencerNode(Node):
         if self.torque_client.service_is_ready():
             call = self._torque_call = self.torque_client.call_async(SetBool.Request(data=on))
             call.add_done_callback(lambda f, _on=on: self._on_torque_set(_on, f))
-            self._calls.append(call)
+            self._calls.append((self.torque_client, call))
             self._torque = on
             self._torque_failed = ''
             self._torque_unsent = None
@@ -535,7 +540,7 @@ class BenchSequencerNode(Node):
             Parameter(n, value=float(v)).to_parameter_msg() for n, v in zip(names, values)])
         call = self.gait_client.call_async(request)
         call.add_done_callback(lambda f, _v=values: self._on_gait_set(_v, f))
-        self._calls.append(call)
+        self._calls.append((self.gait_client, call))
         self._gait_sent = values
         self._gait_accepted = None
 

@@ -55,7 +55,7 @@ class Driver:
                                               namespace=env.namespace))
         self.pub = self.node.create_publisher(ServoStatus, 'servo_status', 10)
         self.node.create_service(SetBool, 'set_torque', self._torque)
-        self.node.create_timer(0.02, lambda: self.pub.publish(
+        self.timer = self.node.create_timer(0.02, lambda: self.pub.publish(
             ServoStatus(name=['a', 'b', 'c'], temperature=[self.temp] * 3, error=[0] * 3)))
 
     def _torque(self, request, response):
@@ -250,3 +250,32 @@ def test_a_recorded_topic_never_received_aborts_instead_of_counting(tmp_path, lo
         assert not (tmp_path / 'bags' / SID).exists()
         assert driver.calls[-1] is False                  # the leg stood, torque off
         assert gait.params.step_length == 0.0
+
+
+@pytest.mark.timeout(60)
+def test_a_stand_request_to_a_gait_node_that_dies_is_not_waited_for(tmp_path, logs):
+    """servo_status goes silent mid-walk: the plan aborts and asks the gait node to stand the
+    leg; the gait node dies before it answers. The request will never be answered: the plan
+    ended only after stand_timeout_s (30 s here; a CI run on a loaded machine met this order
+    of events). Now a call whose server is gone is not waited for."""
+    with ros_env('integseq') as env:
+        gait, driver, node, sessions = _start(env, tmp_path, stream_timeout_s=0.3,
+                                              stand_timeout_s=30.0)
+        _walking(env, sessions)
+        driver.timer.cancel()                          # no servo_status from now on
+
+        def stand_asked():
+            return bool(node.seq.abort_reason) and any(
+                cl is node.gait_client and not call.done() for cl, call in node._calls)
+
+        # one callback at a time, so that the gait node is killed right after the request went
+        # out, before its service callback can run
+        for _ in range(4000):
+            env.executor.spin_once(timeout_sec=0.05)
+            if stand_asked():
+                break
+        assert stand_asked()
+        _kill(env, gait)                               # before it answers
+        assert env.spin_until(node.finished.done, 10)  # not stand_timeout_s = 30 s
+        assert node.finished.result() == 1
+        assert 'no servo_status for' in node.seq.abort_reason

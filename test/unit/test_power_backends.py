@@ -163,14 +163,28 @@ def test_power_sample_power():
 
 
 def test_ina226_driven_as_ina219_is_refused_and_an_ina219_kept():
-    """An INA226 answers its manufacturer ID where an INA219 has no register: chosen as
-    ``ina219`` it was accepted and read with the INA219's scales (an outside review). A chip
-    that NACKs the probe, or answers anything else, is an INA219 and is kept."""
+    """An INA226 answers its manufacturer ID where an INA219 has no register, and holds bit 0
+    of its calibration (an INA219's FS0 reads 0): chosen as ``ina219`` it was accepted and
+    read with the INA219's scales (an outside review). A chip that NACKs the probe, answers
+    anything else, or answers the ID but drops the bit (an emulator of an INA219 that answers
+    every register) is an INA219 and is kept."""
     fake = FakeIna('ina226', 0x40, 0.01, voltage_v=12.0, current_a=1.0)
     with pytest.raises(PowerBackendError, match='it is an INA226 \\(backend ina226\\)'):
         Ina2xxBackend(fake, chip='ina219', address=0x40)
     ina219 = FakeIna('ina219', 0x40, 0.01, voltage_v=12.0, current_a=1.0)
     Ina2xxBackend(ina219, chip='ina219', address=0x40, max_current_a=8.0).read()
+
+    class Ina219AnsweringTheId(FakeIna):
+        def _value(self, reg):
+            if reg == 0xFE:
+                return 0x5449
+            if reg == 0x05:
+                return self.regs.get(0x05, 0) & 0xFFFE          # FS0 reads 0
+            return super()._value(reg)
+
+    both = Ina219AnsweringTheId('ina219', 0x40, 0.01, voltage_v=12.0, current_a=1.0)
+    s = Ina2xxBackend(both, chip='ina219', address=0x40, max_current_a=8.0).read()
+    assert_allclose(s.current_a, 1.0, atol=2e-3)
 
     class NackingIna219(FakeIna):
         def read_i2c_block_data(self, addr, reg, n):
