@@ -588,6 +588,8 @@ class SlipFitter:
                 model.n_params, xatol=self.xatol, fatol=self.fatol, maxiter=self.maxiter)
         p = _to_physical(q, batch.fx0[rows], model, scales)
         first = np.concatenate([[0], np.cumsum([len(st) for st in starts])[:-1]])
+        # function evaluations per stance over all its starts (one pass, not one per stance)
+        evaluations = np.bincount(rows, weights=calls, minlength=len(stances))
         pick = np.array([a + self._pick(f[a:a + len(st)], conv[a:a + len(st)])
                          for a, st in zip(first, starts)], dtype=np.intp)
         pbest, fbest = p[pick], f[pick]
@@ -598,7 +600,7 @@ class SlipFitter:
             i = pick[j]
             out.append(self._result(s, pbest[j], errs[0][j], float(fbest[j]),
                                     bool(conv[i] and np.isfinite(fbest[j])), int(iters[i]),
-                                    int(np.sum(calls[rows == j])), float(errs[1][j]),
+                                    int(evaluations[j]), float(errs[1][j]),
                                     starts[j][i - first[j]][0]))
         return out
 
