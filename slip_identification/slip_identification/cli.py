@@ -18,7 +18,8 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
          "start" (the Nelder-Mead start kept: paper|stance1|stance2; see "starts"),
          "force_swing" (range of the fitted spring force over the stance over its mean;
                         under 1 a nearly constant leg force: k and l0 not identified apart),
-         "position_fit": {same parameter and stderr keys, "nerr", "converged"} or null,
+         "position_fit": {same parameter and stderr keys, "nerr", "converged", "start",
+                          "force_swing"} or null (its least-squares starts follow "starts"),
          "power_w", "speed_mps", "sr"}     # the run's values, as in the paper
       ],
       "runs": [{"bag", "gait" (the first), "gaits" (every gait on /gait/phase, in order),
@@ -474,7 +475,8 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
         d['position_fit'] = None if p is None else {
             **{k: _f(v) for k, v in p.params.items()},
             **{f'{k}_stderr': _f(v) for k, v in p.stderr.items()},
-            'nerr': _f(p.nerr), 'converged': p.converged}
+            'nerr': _f(p.nerr), 'converged': p.converged, 'start': p.start,
+            'force_swing': _f(p.force_swing)}
         d.update(power_w=_f(res.power_w), speed_mps=_f(res.speed_mps), sr=_f(res.sr))
         stances.append(d)
     return {'bag': path, 'gait': run.gait, 'stances': stances,
@@ -759,7 +761,8 @@ def add_cli(subparsers: Any) -> None:
                         "(2000 N/m, 0.15 m) and two from the stance's own duration and leg "
                         "length, the lowest nerr kept: the paper defines the measure as the "
                         "minimum) or paper (its start alone, as the paper computed it; it "
-                        'can stop in a local minimum)')
+                        'can stop in a local minimum). The position fit takes the same '
+                        'starts, keeping the lowest residual sum of squares')
     p.add_argument('--no-position-fit', action='store_true',
                    help='skip the second estimator (initial state free)')
     p.add_argument('--steady-only', action='store_true',

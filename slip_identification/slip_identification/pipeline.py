@@ -583,7 +583,8 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                 starts: str = 'multi') -> RunResult:
     """Preprocess one run, extract single-tripod stances, fit each (see module docs).
 
-    ``starts``: the paper's estimator's Nelder-Mead starts (:class:`.fit.SlipFitter`).
+    ``starts``: the Nelder-Mead starts of the paper's estimator (:class:`.fit.SlipFitter`)
+    and the least-squares starts of the position fit (:class:`.fit.SlipPositionFitter`).
 
     ``pitch_offset_rad``: the motion-capture rigid body's pitch zero against the robot's hip
     line (its pitch when the hips are level), known and kept; None (default): 0, fitted
@@ -947,7 +948,8 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
     if stances:
         res.fits = SlipFitter(model, starts=starts).fit(stances).results_  # type: ignore[arg-type]
         if position_fit:
-            res.position_fits = SlipPositionFitter(model).fit(stances).results_
+            res.position_fits = SlipPositionFitter(
+                model, starts=starts).fit(stances).results_  # type: ignore[arg-type]
     # energetics of the run: power and speed over the whole gait cycles inside the tracked
     # interval (Komsuoglu et al.'s per-run averages; `hexapod-analyze energy`'s windows)
     _run_energetics(run, res, track.t_s, track.state[:, 0], tds, t_in0, t_in1)
