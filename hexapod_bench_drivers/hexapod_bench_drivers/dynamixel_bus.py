@@ -460,6 +460,18 @@ class ServoHealth:
     #: replies reporting that the servo received a corrupted instruction (checksum / CRC /
     #: instruction error, no data): noise on the way to the servo; retried
     rejected_instructions: int = 0
+    #: failed requests since the last good reply whose answer came garbled (broken checksum
+    #: or packet), and those that got no answer at all: a servo silent on garbled replies is
+    #: answering, but over another servo at its ID, at another baud rate or through noise
+    streak_garbled: int = 0
+    streak_no_reply: int = 0
+
+    def silence(self) -> str:
+        """Why the servo reads as failing: ``'garbled replies'`` when most failed requests
+        since its last good reply were answered garbled, else ``'no reply'``."""
+        if self.streak_garbled > self.streak_no_reply:
+            return 'garbled replies'
+        return 'no reply'
 
 
 @dataclass(frozen=True)
@@ -937,6 +949,7 @@ class DynamixelBus:
             s.health.model = s.table.model_name
             s.health.silent = False
             s.health.consecutive_failures = 0
+            s.health.streak_garbled = s.health.streak_no_reply = 0
             return True
         s.health.silent = True
         return False
@@ -1046,12 +1059,12 @@ class DynamixelBus:
         return [s.health for s in self.servos]
 
     def _count(self, s: _Servo, result: int) -> None:
-        if result == COMM_RX_TIMEOUT:
-            s.health.timeouts += 1
-        elif result == COMM_RX_CORRUPT:
+        if result == COMM_RX_CORRUPT:
             s.health.corrupt += 1
-        else:
-            s.health.timeouts += 1  # port busy / tx fail: counted as a missed reply
+            s.health.streak_garbled += 1
+        else:   # a timeout; port busy / tx fail: counted as a missed reply
+            s.health.timeouts += 1
+            s.health.streak_no_reply += 1
 
     def _active(self) -> list[_Servo]:
         """Servos read this cycle; a silent one is probed every probe_interval_cycles."""
@@ -1119,13 +1132,14 @@ class DynamixelBus:
                     self._late(int(rx[P2_ID]))
             elif result == COMM_RX_CORRUPT and sid in pending:
                 pending.remove(sid)
-                self._by_id[sid].health.corrupt += 1
+                self._count(self._by_id[sid], COMM_RX_CORRUPT)
             else:
                 break
         if pending:
             self._failed()
         for sid in pending:
-            self._by_id[sid].health.timeouts += 1  # no (valid) reply before the deadline
+            # no (valid) reply before the deadline
+            self._count(self._by_id[sid], COMM_RX_TIMEOUT)
         return got
 
     def _hardware_flags(self, s: _Servo, status_error: int) -> int:
@@ -1202,6 +1216,7 @@ class DynamixelBus:
                                   f'{s.joint.name} (id {sid}) answers again after '
                                   f'{self.cycle - s.silent_since_cycle} cycles silent')
             h.consecutive_failures = 0
+            h.streak_garbled = h.streak_no_reply = 0
             h.silent = False
             flags = self._hardware_flags(s, status_error)
             if flags or (status_error & (0x7F if self.protocol == 2 else 0)):
@@ -1225,11 +1240,19 @@ class DynamixelBus:
     def _went_silent(self, s: _Servo) -> None:
         s.health.silent = True
         s.silent_since_cycle = self.cycle
+        h = s.health
+        if h.silence() == 'garbled replies':
+            why = (f'garbled replies ({h.streak_garbled} with a broken checksum, '
+                   f'{h.streak_no_reply} none) in {h.consecutive_failures} cycles in a row')
+            check = ('a second servo at this ID (its replies collide), a baud-rate mismatch '
+                     'or noise on the line')
+        else:
+            why = f'no reply in {h.consecutive_failures} cycles in a row'
+            check = 'its cable and power'
         self.events.event(
             (s.joint.servo_id, 'silent'), 'warning',
-            f'{s.joint.name} (id {s.joint.servo_id}) went silent: no reply in '
-            f'{s.health.consecutive_failures} cycles in a row; probed every '
-            f'{self.probe_interval_cycles} cycles from now on (check its cable and power)')
+            f'{s.joint.name} (id {s.joint.servo_id}) went silent: {why}; probed every '
+            f'{self.probe_interval_cycles} cycles from now on (check {check})')
 
     def _note_flags(self, s: _Servo, flags: int) -> None:
         """A hardware error flag appearing (warning) or all clearing (info), for the log."""

@@ -294,6 +294,10 @@ class DynamixelDriverNode(Node):
             d.level = DiagnosticStatus.ERROR
             d.message = (f'duplicate id? {h.duplicate_replies} second replies to one request: '
                          'two servos share this ID; readings withheld')
+        elif h.silent and h.silence() == 'garbled replies':
+            d.level = DiagnosticStatus.ERROR
+            d.message = ('silent: garbled replies (a second servo at this ID? baud rate, '
+                         'cabling)')
         elif h.silent:
             d.level, d.message = DiagnosticStatus.ERROR, 'silent: no reply'
         elif h.torque_lost:

@@ -35,7 +35,9 @@ Position).
 Bus and adapter faults: :attr:`ServoBusEmulator.echo` returns every byte the host sends before
 the replies (a half-duplex adapter without direction control);
 :attr:`ServoBusEmulator.duplicate_ids` sends every status packet of those IDs twice (a second
-servo at the ID, answering after the first); :attr:`ServoBusEmulator.corrupt_instructions`
+servo at the ID, answering after the first); :attr:`ServoBusEmulator.colliding_ids` merges it
+with a twin's answering at the same moment (a wired AND: replies carrying data arrive with a
+broken checksum, a PING's intact); :attr:`ServoBusEmulator.corrupt_instructions`
 corrupts that many of the next instructions addressed to one servo on their way (the servo
 answers with a checksum / CRC error); :meth:`ServoBusEmulator.power_cycle` gives a servo its
 power-on RAM values (Torque Enable 0, Goal Position at the present position).
@@ -624,6 +626,11 @@ class ServoBusEmulator:
         self.echo = False
         #: IDs whose status packets are sent twice (two servos at one ID)
         self.duplicate_ids: set[int] = set()
+        #: IDs with a second servo answering at the same moment: the two status packets
+        #: collide on the wire (a wired AND of the two byte streams), so a reply whose data
+        #: differ from the twin's arrives with a broken checksum; a PING's, whose bytes the
+        #: twin shares, arrives intact
+        self.colliding_ids: set[int] = set()
         #: this many of the next instructions to one servo arrive corrupted
         self.corrupt_instructions = 0
         #: servos pushed off their ID when a Factory Reset gave another servo the same ID (a
@@ -824,6 +831,15 @@ class ServoBusEmulator:
                              error=error | (P2_ALERT if hw else 0))
         if servo.take_fault('bad_checksum') is not None:
             data = data[:-1] + bytes([data[-1] ^ 0x5A])
+        if servo.servo_id in self.colliding_ids:
+            # the twin reads other values (its own position, load...): other parameter bytes
+            other = bytes(b ^ 0x5A for b in params)
+            if servo.protocol == 1:
+                twin = p1_packet(servo.servo_id, error | hw, other)
+            else:
+                twin = p2_packet(servo.servo_id, INST_STATUS, other,
+                                 error=error | (P2_ALERT if hw else 0))
+            data = bytes(a & b for a, b in zip(data, twin))
         late = servo.take_fault('late_reply')
         if 'error_bits' in servo.faults:
             servo.take_fault('error_bits')

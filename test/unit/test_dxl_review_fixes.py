@@ -278,6 +278,44 @@ def test_duplicate_id_reported_not_late(model, protocol):
 
 
 @pytest.mark.parametrize('model,protocol', P1P2)
+def test_colliding_replies_of_two_servos_at_one_id_said_garbled_not_no_reply(model, protocol):
+    """Two servos at ID 2 answering at the same moment: their status packets collide on the
+    wire and arrive with a broken checksum (a PING's, identical, intact, so detection passes).
+    Before: the servo went silent with 'no reply ... check its cable and power'; now the
+    silence says the replies came garbled and names a second servo at the ID first. The
+    other servos read on every cycle, and the servo comes back when the twin is gone."""
+    with ServoBusEmulator.of_model(model, [1, 2, 3]) as emu, _bus(emu, 3, protocol) as bus:
+        bus.take_events()
+        emu.colliding_ids = {2}
+        results = [bus.poll() for _ in range(6)]
+        h = bus.health()[1]
+        assert h.silent and h.silence() == 'garbled replies'
+        assert h.streak_garbled >= 3 and h.streak_no_reply == 0 and h.corrupt >= 3
+        assert not any(r.readings[1].ok for r in results)
+        assert all(r.readings[0].ok and r.readings[2].ok for r in results)
+        assert bus.late_replies == 0
+        warning, = [m for m in _events(bus, 'warning') if 'went silent' in m]
+        assert warning.startswith('j2 (id 2) went silent: garbled replies')
+        assert 'a second servo at this ID' in warning
+        emu.colliding_ids = set()
+        _poll_until(bus, lambda r: r.readings[1].ok)
+        h = bus.health()[1]
+        assert not h.silent and h.streak_garbled == h.streak_no_reply == 0
+
+
+@pytest.mark.parametrize('model,protocol', P1P2)
+def test_a_servo_that_stops_answering_is_still_said_to_give_no_reply(model, protocol):
+    with ServoBusEmulator.of_model(model, [1, 2]) as emu, _bus(emu, 2, protocol) as bus:
+        bus.take_events()
+        emu.inject(2, 'no_answer', count=1000)
+        _poll_until(bus, lambda r: bus.health()[1].silent)
+        h = bus.health()[1]
+        assert h.silence() == 'no reply' and h.streak_garbled == 0
+        warning, = [m for m in _events(bus, 'warning') if 'went silent' in m]
+        assert 'no reply in' in warning and 'check its cable and power' in warning
+
+
+@pytest.mark.parametrize('model,protocol', P1P2)
 def test_rejected_instruction_not_a_late_reply(model, protocol):
     """Six instructions reach the servo corrupted; it answers with a checksum (1.0) or CRC
     (2.0) error and no data. Before (1.0): counted as late replies and the margin raised;
