@@ -235,6 +235,7 @@ class OnlineSlip:
         self._early_cmd_names: tuple[str, ...] | None = None
         self._done: list[tuple[str, float]] = []
         self.skipped: list[OnlineSkip] = []
+        self._gap_skips: dict[tuple[str, float], int] = {}   # (tripod, gap start) -> index
         self.latency_s: list[float] = []
         self.shift_every_s = shift_every_s
         self._shift_cache: dict[str, tuple[float, float]] = {}
@@ -278,6 +279,7 @@ class OnlineSlip:
         self._cmd_perm = {}
         self._early_cmd_names = None
         self._done = []
+        self._gap_skips = {}
         self._shift_cache = {}
         self._first_inside_s = None
         self._geo_since_s = None
@@ -485,10 +487,44 @@ class OnlineSlip:
                                              pitch_offset_rad=self.pitch_offset_rad)
         except SlipError:
             return None
-        ss = single_support(contacts, TRIPODS, unknown)
+        dropped: list[tuple[str, float, float]] = []
+        ss = single_support(contacts, TRIPODS, unknown, dropped=dropped)
+        self._skip_gap_stances(dropped, unknown, float(tm[-1]))
         return sorted((StanceWindow(float(a), float(b), tp, 0.0)
                        for tp, iv in ss.items() for a, b in iv if b >= self._geo_since_s),
                       key=lambda w: w.touchdown_s)
+
+    def _skip_gap_stances(self, dropped: list[tuple[str, float, float]],
+                          unknown: np.ndarray, newest_s: float) -> None:
+        """Single supports a motion-capture gap cuts (``single_support``'s dropped pieces
+        next to an interior unknown interval, not the buffer's ends): skipped once each,
+        reason ``mocap_gap``, as the offline analysis lists them. They had been left out
+        without a word."""
+        unk = np.asarray(unknown, dtype=float).reshape(-1, 2)
+        gaps = unk[np.isfinite(unk).all(axis=1)]
+        if not gaps.size:
+            return
+        for tp, a, b in dropped:
+            if (b + self.margin_s > newest_s or self._geo_since_s is None
+                    or b < self._geo_since_s or self._is_done(tp, b)):
+                continue
+            hit = np.flatnonzero((gaps[:, 0] <= b + 1e-3) & (gaps[:, 1] >= a - 1e-3))
+            if not hit.size:
+                continue
+            self._done.append((tp, b))
+            # the pieces either side of one gap are one stance: one skip, widened
+            key = (tp, round(float(gaps[hit[0], 0]), 4))
+            k = self._gap_skips.get(key)
+            if k is None:
+                self._gap_skips[key] = len(self.skipped)
+                self.skipped.append(OnlineSkip(a, b, tp, 'mocap_gap'))
+            else:
+                old = self.skipped[k]
+                self.skipped[k] = OnlineSkip(min(old.touchdown_s, a), max(old.liftoff_s, b),
+                                             tp, 'mocap_gap')
+        if len(self._gap_skips) > 64:
+            for key in list(self._gap_skips)[:-64]:
+                del self._gap_skips[key]
 
     def _fit_frame(self, tm: np.ndarray, pm: np.ndarray, qm: np.ndarray,
                    inside: np.ndarray) -> WorldFrame:

@@ -14,7 +14,10 @@ back by more than a second (a looped bag, a simulation clock reset) is logged on
 as a warning, and stance detection restarts from the new time. Messages missing from
 ``/joint_states`` or ``/mocap/body`` (gaps in their stamps: a lossy link, or the node behind
 its input, whose oldest queued messages the DDS history overwrites) are counted
-(``loss.missing``) and logged on the topic's 1st, 10th, 100th ... missing message.
+(``loss.missing``) and logged on the topic's 1st, 10th, 100th ... missing message. Stances
+not fitted (before the world frame is ready, outside the box, too short, cut by a
+motion-capture gap) are counted by reason (``skipped_counts``) and logged on each reason's
+1st, 10th, 100th ... stance.
 """
 
 from __future__ import annotations
@@ -59,6 +62,18 @@ __all__ = ['SlipFitterNode', 'SlipParams', 'main', 'result_to_msg']
 
 #: distinct drop reasons counted separately; beyond them, one shared count
 MAX_DROP_REASONS = 64
+
+
+#: what each reason of :attr:`OnlineSlip.skipped` means, for the log
+SKIP_REASONS = {
+    'frame_not_ready': 'before the world frame was ready (it needs half a second of motion '
+                       'capture in the box)',
+    'outside_volume': 'under 10 motion-capture samples inside the box (parameter box)',
+    'too_short': 'shorter than the shortest stance fitted (or too few motion-capture samples '
+                 'in it)',
+    'mocap_gap': 'a motion-capture gap cuts it',
+    'nan': 'NaN or inf in its motion capture',
+}
 
 
 def _positive(v: float) -> str | None:
@@ -191,6 +206,10 @@ class SlipFitterNode(Node):
         self._drops: dict[str, int] = {}   # reason -> messages dropped for it
         self._warnings_logged = 0
         self._notes_logged = 0
+        self._skips_logged = 0
+        #: stances not fitted, by reason (:attr:`OnlineSlip.skipped`; logged by reason on
+        #: its 1st, 10th, 100th ... stance)
+        self.skipped_counts: dict[str, int] = {}
         self._clocks = LiveClockWatch()   # stamps against the node clock
         # a driver stamping with its last bus read repeats a stamp with new values: such a
         # sample is re-stamped from its arrival time, or dropped (as the offline reader does)
@@ -302,6 +321,24 @@ class SlipFitterNode(Node):
         for r in self.core.step():
             self.pub.publish(result_to_msg(r))
             self.published += 1
+        self._log_skips()
+
+    def _log_skips(self) -> None:
+        """Stances not fitted, by reason: each reason logged on its 1st, 10th, 100th ...
+        stance (info for ``frame_not_ready``, the first stances of a run; warnings else).
+        They had not been reported at all."""
+        skipped = self.core.skipped
+        while self._skips_logged < len(skipped):
+            sk = skipped[self._skips_logged]
+            self._skips_logged += 1
+            n = self.skipped_counts[sk.reason] = self.skipped_counts.get(sk.reason, 0) + 1
+            if not (n == 1 or n in (10, 100, 1000) or n % 10000 == 0):
+                continue
+            why = SKIP_REASONS.get(sk.reason, sk.reason)
+            text = (f'{sk.tripod} stance {sk.touchdown_s:.3f}-{sk.liftoff_s:.3f} s not fitted: '
+                    f'{why} [{n} stance(s) so far for this reason]')
+            log = self.get_logger()
+            (log.info if sk.reason == 'frame_not_ready' else log.warning)(text)
 
 
 def main(args: list[str] | None = None) -> int:

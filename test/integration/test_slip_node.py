@@ -216,3 +216,35 @@ def test_repeated_joint_stamps_are_restamped_live(tmp_path):
     k = np.array([[f.stiffness for f in fits[n]] for n in ('ref', 'repeated')])
     assert np.max(np.abs(k[1] / k[0] - 1)) < 0.01, k
     assert any('repeat the previous stamp' in m for m in logged)
+
+
+@pytest.mark.timeout(60)
+def test_stances_not_fitted_are_logged_by_reason():
+    """The core's skipped stances (frame not ready, outside the box, cut by a mocap gap...)
+    never reached the log. Each reason is now logged on its 1st, 10th, 100th ... stance,
+    info for the run's first stances before the frame is ready, warnings else, and counted."""
+    from slip_identification.online import OnlineSkip
+
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    try:
+        node = SlipFitterNode(context=ctx, namespace='/slip_node_skips')
+        infos, warnings = [], []
+        node.get_logger().info = lambda msg, **kw: infos.append(msg)
+        node.get_logger().warning = lambda msg, **kw: warnings.append(msg)
+        node.core.skipped.append(OnlineSkip(0.1, 0.16, 'left', 'frame_not_ready'))
+        node.core.skipped.extend(OnlineSkip(1.0 + i, 1.06 + i, 'right', 'mocap_gap')
+                                 for i in range(12))
+        node._log_skips()
+        node._log_skips()      # nothing logged twice
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)
+    assert node.skipped_counts == {'frame_not_ready': 1, 'mocap_gap': 12}
+    assert infos == ['left stance 0.100-0.160 s not fitted: before the world frame was ready '
+                     '(it needs half a second of motion capture in the box) [1 stance(s) so '
+                     'far for this reason]']
+    assert len(warnings) == 2
+    assert warnings[0].startswith('right stance 1.000-1.060 s not fitted: a motion-capture gap')
+    assert warnings[1].startswith('right stance 10.000-10.060 s')
+    assert '[10 stance(s)' in warnings[1]
