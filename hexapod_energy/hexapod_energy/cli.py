@@ -80,8 +80,11 @@ such fallback is listed in the run's ``notes``.
                 (a refused fit, too few walking sessions: "fit" null, "sessions" [PhaseSample
                 fields] beside it, "fit_error" [str], and the top-level "errors"; exit 2)},
       "robot_runs": [{"bag", "gait", "leg_count", "duty_factor", "period_s", "step_length_m",
-                      "step_height_m", "payload_kg", "mass_kg", "windows", "window_s",
-                      "measured_power_in_w", "predicted_power_in_w", "residual_w",
+                      "step_height_m", "payload_kg", "mass_kg", "windows" (whole gait
+                      cycles averaged), "window_s" (their summed length [s], not one
+                      window's), "measured_power_in_w", "predicted_power_in_w",
+                      "residual_w" (measured - predicted; prediction_error's bias_w has
+                      the opposite sign, predicted - measured),
                       "power_breakdown_w": {"stance_w", "swing_w" (Eq. 1's phases),
                       "holding_w" (every leg's bench basal power at the load it carries),
                       "stance_motion_w", "swing_motion_w" (what moving adds),
