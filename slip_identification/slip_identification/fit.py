@@ -21,8 +21,8 @@ Standard errors (both): the Gauss-Newton approximation ``cov = s^2 (J^T J)^-1`` 
 residual sum of squares at the optimum, ``s^2 = RSS / (n - p)``. For the paper's estimator the
 residuals are the 1 kHz state errors, which are correlated (they are interpolated from ~120 Hz
 samples), so ``cov`` is multiplied by ``N / n_raw`` (resampled over raw samples in the stance),
-and the noise of the fixed initial state is carried to the parameters
-(:func:`_initial_state_cov`).
+and the noise of the fixed initial state, estimated from the raw samples and carried through
+the spline (:func:`first_state_cov`), is carried to the parameters (:func:`_initial_state_cov`).
 
 Normalised parameters: ``q = (k / 2000, l0 / 0.15, 1 + (fx - fx0) / 0.15, 1 + c / 10,
 1 + tau / 1)``, so the scipy initial simplex (5 % of each coordinate) is 100 N/m, 7.5 mm,
@@ -31,6 +31,7 @@ Normalised parameters: ``q = (k / 2000, l0 / 0.15, 1 + (fx - fx0) / 0.15, 1 + c 
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -38,6 +39,7 @@ from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.interpolate import CubicSpline
 from scipy.optimize import least_squares, minimize
 
 from . import _kernels
@@ -58,7 +60,10 @@ __all__ = [
     'SlipFitter',
     'SlipPositionFitter',
     'FORCE_SWING_MIN',
+    'first_state_cov',
+    'first_state_covs',
     'nerr',
+    'raw_noise_m',
     'spring_force_swing',
     'stance_starts',
     'validate_stance',
@@ -283,6 +288,7 @@ class _Batch:
         self.den = np.sum(np.where(self.mask, norms, 0.0), axis=0)
         self.fx0 = np.array([0.5 * (s.state[:, 0].min() + s.state[:, 0].max()) for s in stances])
         self.n_raw = np.array([s.n_raw for s in stances])
+        self.stances = stances
 
     def nerr(self, q: FloatArray, idx: NDArray[np.intp],
              scales: FloatArray | None = None) -> FloatArray:
@@ -401,29 +407,123 @@ def _stderr_from_jacobian(jac: FloatArray, rss: float, n_res: int, inflation: fl
     return np.where(d >= 0, np.sqrt(np.abs(d)), np.nan)
 
 
-#: relative and smallest absolute steps (m, m/s, m, m/s) of the central differences in the
-#: initial state (:func:`_initial_state_cov`)
-_X0_STEP_REL = 1e-4
-_X0_STEP_MIN = np.array([1e-5, 1e-4, 1e-5, 1e-4])
+#: steps (m, m/s, m, m/s) of the central differences in the initial state
+#: (:func:`_initial_state_cov`): absolute, so that the standard errors do not depend on where
+#: the world origin is (steps relative to bx0 moved k's by 20 % 2 km away; an outside review)
+_X0_STEP = np.array([1e-5, 1e-4, 1e-5, 1e-4])
 
 
-def _initial_state_cov(jac_p: FloatArray, jac_x: FloatArray, res: FloatArray) -> FloatArray:
+def _param_steps(p: FloatArray, model: SlipModel) -> FloatArray:
+    """Central-difference steps of the parameters (rows or one row): 1e-4 relative (at least
+    1e-5 of the scale), foot_x's from its scale alone (a world x, not a magnitude)."""
+    sc = _scales(model)
+    steps = np.maximum(np.abs(p) * 1e-4, sc * 1e-5)
+    steps[..., 2] = sc[2] * 1e-4
+    return steps
+
+
+#: third differences of white noise: the sum of squares of their weights (1, -3, 3, -1)
+_D3_WEIGHT = 20.0
+#: the median of a chi-square variable with one degree of freedom
+_CHI2_1_MEDIAN = 0.454936
+#: raw samples a stance needs for its own noise estimate (four third differences)
+_NOISE_MIN_RAW = 7
+
+
+def raw_noise_m(raw_xz_m: ArrayLike) -> FloatArray:
+    """White-noise standard deviation of motion-capture positions ``(n, 2)`` [m], per axis,
+    from their third differences (robust: their median square); NaN under
+    :data:`_NOISE_MIN_RAW` samples. The motion's own third difference (jerk times dt^3)
+    is small against the noise at mocap rates: on simulated EduBot stances with 0.2 mm
+    noise at 120 Hz it reads 0.20-0.24 mm (running's vertical 0.32 mm, the touchdown's
+    jerk)."""
+    r = np.asarray(raw_xz_m, dtype=float).reshape(-1, 2)
+    if r.shape[0] < _NOISE_MIN_RAW:
+        return np.full(2, np.nan)
+    d = np.diff(r, n=3, axis=0)
+    return np.sqrt(np.median(d**2, axis=0) / _CHI2_1_MEDIAN / _D3_WEIGHT)
+
+
+@functools.lru_cache(maxsize=1024)
+def _spline_noise_gains(phase_milli: int) -> tuple[float, float, float]:
+    """Variance gains of an interpolating cubic spline's value and slope at ``phase`` (in
+    thousandths of a sample interval after a sample) for white noise of unit variance on a
+    long uniform grid of unit spacing: ``(sum w^2, sum w'^2, sum w w')``. The 1 kHz states
+    are such a spline's value and slope (:func:`.preprocess.sagittal_state`)."""
+    n = 41
+    cs = CubicSpline(np.arange(n, dtype=float), np.eye(n))
+    t = (n - 1) // 2 + phase_milli / 1000.0
+    w, wd = cs(t), cs(t, 1)
+    return float(w @ w), float(wd @ wd), float(w @ wd)
+
+
+def _raw(stance: Stance) -> tuple[FloatArray, FloatArray]:
+    """The stance's raw sample times and (x, z) positions (its own grid without them)."""
+    if stance.raw_t_s is not None and stance.raw_xz_m is not None:
+        return (np.asarray(stance.raw_t_s, dtype=float),
+                np.asarray(stance.raw_xz_m, dtype=float))
+    return np.asarray(stance.t_s, dtype=float), np.asarray(stance.state, dtype=float)[:, [0, 2]]
+
+
+def first_state_cov(stance: Stance, sigma_m: ArrayLike | None = None) -> FloatArray:
+    """Covariance (4, 4) of the noise of a stance's first state ``(bx, vx, bz, vz)``.
+
+    The 1 kHz states are a cubic spline through the raw motion-capture samples; its value
+    and slope at the first state's time carry the raw samples' white noise (``sigma_m`` per
+    axis, by default estimated from their third differences, :func:`raw_noise_m`) through
+    the spline's weights at that phase between two samples. A stance without raw samples is
+    taken as sampled on its own grid. NaN when the noise is not known (too few raw samples
+    for the estimate)."""
+    rt, rxz = _raw(stance)
+    sigma = raw_noise_m(rxz) if sigma_m is None else np.asarray(sigma_m, dtype=float)
+    if rt.size < 2 or not np.all(np.isfinite(sigma)):
+        return np.full((4, 4), np.nan)
+    dt = float(np.median(np.diff(rt)))
+    # the first state lies this far past the raw sample before it (in sample intervals)
+    phase = (1.0 - (rt[0] - float(stance.t_s[0])) / dt) % 1.0
+    cp, cv, cpv = _spline_noise_gains(int(round(1000 * phase)) % 1000)
+    cov = np.zeros((4, 4))
+    for k, sg in zip((0, 2), sigma):
+        cov[k, k] = cp * sg**2
+        cov[k + 1, k + 1] = cv * (sg / dt) ** 2
+        cov[k, k + 1] = cov[k + 1, k] = cpv * sg**2 / dt
+    return cov
+
+
+def first_state_covs(stances: Sequence[Stance], residual_ms: FloatArray) -> FloatArray:
+    """(B, 4, 4) first-state noise covariances of stances fitted together
+    (:func:`first_state_cov`). A stance with too few raw samples for its own noise estimate
+    (under :data:`_NOISE_MIN_RAW`: a short stance at a low mocap rate) takes the median
+    estimate of the others (one motion capture); alone, the diagonal of its residuals' mean
+    squares ``residual_ms`` (B, 4) per state component, which also holds model misfit and
+    the drift from the first state's own error, so it errs large."""
+    sig = np.array([raw_noise_m(_raw(s)[1]) for s in stances]).reshape(-1, 2)
+    known = np.all(np.isfinite(sig), axis=1)
+    pooled = np.median(sig[known], axis=0) if known.any() else None
+    out = np.empty((len(stances), 4, 4))
+    for j, s in enumerate(stances):
+        if known[j] or pooled is not None:
+            out[j] = first_state_cov(s, sig[j] if known[j] else pooled)
+        else:
+            out[j] = np.diag(residual_ms[j])
+    return out
+
+
+def _initial_state_cov(jac_p: FloatArray, jac_x: FloatArray, s_x: FloatArray) -> FloatArray:
     """The parameters' covariance carried from the fixed initial state, ``G S_x G^T``.
 
     The paper's estimator starts the model from the stance's first measured state, which
     carries the same noise as every other sample, and does not fit it: the parameters then
     move with it, ``G = dp*/dx0 = -(Jp^T Jp)^-1 Jp^T Jx`` (Gauss-Newton, ``Jx`` the residuals'
-    Jacobian in the initial state). ``S_x`` is the diagonal of the residuals' mean square per
-    state component, the noise of one state sample (model misfit counts as noise: the error
-    is then larger, not smaller). Left out, the standard errors of spline-derived stances
-    were 2.5-7.6 times smaller than the scatter of the estimates (120 and 250 Hz motion
-    capture, 0.2 and 1 mm noise); with it 0.6-1.7.
+    Jacobian in the initial state; this linear prediction explained 98-99 % of the estimates'
+    error in an outside review). ``S_x`` is the first state's noise covariance
+    (:func:`first_state_covs`). Left out, the standard errors of spline-derived stances
+    were 1.4-15 times smaller than the scatter of the estimates.
 
-    ``jac_p`` (R, P), ``jac_x`` (R, 4) and ``res`` (R // 4, 4) over the same residual rows."""
+    ``jac_p`` (R, P) and ``jac_x`` (R, 4) over the same residual rows, ``s_x`` (4, 4)."""
     jtj = jac_p.T @ jac_p
     g = -np.linalg.solve(jtj, jac_p.T @ jac_x)
-    s_x = np.mean(res**2, axis=0)
-    return (g * s_x[None, :]) @ g.T
+    return g @ s_x @ g.T
 
 
 def _bucket(stances: Sequence[Stance], max_batch: int, spread: float) -> list[list[int]]:
@@ -512,7 +612,11 @@ class SlipFitter:
     stride : int
         Samples per RK4 step in the fast path (Hermite output in between).
     stderr : bool
-        Compute standard errors (costs 2P extra trajectories per stance).
+        Compute standard errors (costs 2P + 8 extra trajectories per stance).
+    first_state_noise : bool
+        Carry the noise of the fixed first state into the standard errors
+        (:func:`first_state_cov`, :func:`_initial_state_cov`; default). False: the residual
+        part alone, which on spline-derived stances is 3-40 times too small.
     max_batch : int
         Stances integrated together (memory ~ 8 * N * 4 * 4 * max_batch bytes).
     compiled : bool
@@ -540,7 +644,8 @@ class SlipFitter:
                  method: Literal['fast', 'reference'] = 'fast', xatol: float = 1e-4,
                  fatol: float = 1e-6, maxiter: int = 1000, stride: int = 2,
                  stderr: bool = True, max_batch: int = 4096, compiled: bool = True,
-                 starts: Literal['multi', 'paper'] = 'multi') -> None:
+                 starts: Literal['multi', 'paper'] = 'multi',
+                 first_state_noise: bool = True) -> None:
         if method not in ('fast', 'reference'):
             raise SlipDataError(f"method must be 'fast' or 'reference', got {method!r}")
         if starts not in ('multi', 'paper'):
@@ -553,6 +658,7 @@ class SlipFitter:
         self.maxiter = maxiter
         self.stride = stride
         self.stderr = stderr
+        self.first_state_noise = first_state_noise
         self.max_batch = max_batch
         self.compiled = compiled
 
@@ -636,8 +742,8 @@ class SlipFitter:
         model = self.model
         b, p = pbest.shape
         m = 2 * p + 9        # the optimum, +-each parameter, +-each initial state component
-        steps = np.maximum(np.abs(pbest) * 1e-4, _scales(model)[None, :] * 1e-5)  # (B, P)
-        xsteps = np.maximum(np.abs(batch.x0) * _X0_STEP_REL, _X0_STEP_MIN[None, :])  # (B, 4)
+        steps = _param_steps(pbest, model)  # (B, P)
+        xsteps = np.repeat(_X0_STEP[None, :], b, axis=0)  # (B, 4)
         pts = np.repeat(pbest[:, None, :], m, axis=1)  # (B, m, P)
         xs = np.repeat(batch.x0[:, None, :], m, axis=1)  # (B, m, 4)
         for k in range(p):
@@ -679,16 +785,24 @@ class SlipFitter:
         ok = (dof > 0) & np.all(np.isfinite(jtj), axis=(1, 2)) & np.isfinite(rss)
         if ok.any():
             good = np.flatnonzero(ok)
-            cond = np.linalg.cond(jtj[good])
+            # conditioning of the correlation form (k in N/m beside lengths in m made a
+            # stiff, short stance's J^T J read singular in physical units: NaN here where
+            # the reference path gave 4,000-6,500 N/m; an outside review)
+            dg = np.sqrt(np.abs(np.diagonal(jtj[good], axis1=1, axis2=2)))
+            dg = np.where(dg > 0, dg, 1.0)
+            cond = np.linalg.cond(jtj[good] / dg[:, :, None] / dg[:, None, :])
             good = good[cond < 1e14]
             if good.size:
                 cov = np.linalg.inv(jtj[good]) * (rss[good] / dof[good] * inflation[good]
                                                   )[:, None, None]
-                nvalid = np.maximum(mask[good].sum(axis=(1, 2)), 1)
-                s_x = np.sum(res0[good]**2, axis=1) / nvalid[:, None]       # (G, 4)
-                jx = np.einsum('bik,bil->bkl', jac[good], jac_x[good])       # Jp^T Jx
-                g = -np.linalg.solve(jtj[good], jx)                          # (G, P, 4)
-                cov = cov + np.einsum('bpk,bk,bqk->bpq', g, s_x, g)
+                if self.first_state_noise:
+                    nvalid = np.maximum(mask.sum(axis=(1, 2)), 1)
+                    s_x = first_state_covs(batch.stances, np.sum(res0**2, axis=1)
+                                           / nvalid[:, None])[good]          # (G, 4, 4)
+                    jx = np.einsum('bik,bil->bkl', jac[good], jac_x[good])   # Jp^T Jx
+                    g = -np.linalg.solve(jtj[good], jx)                      # (G, P, 4)
+                    extra = np.einsum('bpk,bkl,bql->bpq', g, s_x, g)
+                    cov = cov + np.where(np.isfinite(extra), extra, np.nan)
                 d = np.diagonal(cov, axis1=1, axis2=2)
                 stderr[good] = np.where(d >= 0, np.sqrt(np.abs(d)), np.nan)
         return stderr, rss
@@ -727,7 +841,7 @@ class SlipFitter:
         if self.stderr:
             xm0 = model.simulate_reference(xe[0], p, t)
             rss = float(np.sum((xm0 - xe) ** 2))
-            steps = np.maximum(np.abs(p) * 1e-4, _scales(model) * 1e-5)
+            steps = _param_steps(p, model)
             jac = np.empty((4 * (t.size - 1), model.n_params))
             for k in range(model.n_params):
                 dp = np.zeros_like(p)
@@ -735,7 +849,7 @@ class SlipFitter:
                 d = (model.simulate_reference(xe[0], p + dp, t)
                      - model.simulate_reference(xe[0], p - dp, t)) / (2 * steps[k])
                 jac[:, k] = d[1:].ravel()
-            xsteps = np.maximum(np.abs(xe[0]) * _X0_STEP_REL, _X0_STEP_MIN)
+            xsteps = _X0_STEP
             jac_x = np.empty((4 * (t.size - 1), 4))
             for k in range(4):
                 dx = np.zeros(4)
@@ -745,9 +859,11 @@ class SlipFitter:
                 jac_x[:, k] = d[1:].ravel()
             stderr = _stderr_from_jacobian(jac, rss, 4 * (t.size - 1),
                                            max(1.0, (t.size - 1) / max(s.n_raw - 1, 1)))
-            if np.all(np.isfinite(stderr)) and np.all(np.isfinite(jac_x)):
-                extra = np.diag(_initial_state_cov(jac, jac_x, (xm0 - xe)[1:]))
-                stderr = np.sqrt(stderr**2 + np.maximum(extra, 0.0))
+            if self.first_state_noise:
+                s_x = first_state_covs([s], np.mean((xm0 - xe)[1:] ** 2, axis=0)[None])[0]
+                extra = np.diag(_initial_state_cov(jac, jac_x, s_x)) \
+                    if np.all(np.isfinite(jac_x)) else np.full(stderr.shape, np.nan)
+                stderr = np.sqrt(stderr**2 + extra)
         return self._result(s, p, stderr, float(res.fun),
                             bool(res.success and math.isfinite(res.fun)), int(res.nit),
                             nfev, rss, name)
@@ -794,7 +910,7 @@ class SlipPositionFitter:
         ``'multi'`` (default): every start of :func:`stance_starts`, keeping the lowest
         residual sum of squares among the converged ones (the paper's result unless another
         is lower by :attr:`RSS_RTOL` of it). ``'paper'``: the paper's guess alone. About
-        2-3x the time of ``'paper'``.
+        1.3-7x the time of ``'paper'`` on simulated EduBot runs (walk the most).
 
     Attributes
     ----------
