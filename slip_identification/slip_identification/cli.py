@@ -16,6 +16,10 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
          "stiffness_stderr", "rest_length_stderr", "foot_x_stderr",
          "nerr", "converged", "samples", "iterations",
          "start" (the Nelder-Mead start kept: paper|stance1|stance2; see "starts"),
+         "other_minimum": {same parameter keys, "nerr", "force_swing", "start"} or null
+                          (another start's converged result with k 1.5x or l0 1.1x apart:
+                          a walk's or pace's bounce beside its constant-force valley; no
+                          standard error covers the jump between them),
          "force_swing" (range of the fitted spring force over the stance over its mean;
                         under 1 a nearly constant leg force: k and l0 not identified apart),
          "position_fit": {same parameter and stderr keys, "nerr", "converged", "start",
@@ -84,7 +88,8 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
                                     # "upper_m", "source" (given|default|tracked_samples)}
       "gaits": {"<gait>": {"stances", "nerr_mean", "nerr_std", "power_w_mean", ...,
                            "stiffness_median", "stiffness_iqr", "rest_length_median",
-                           "rest_length_iqr", "constant_force_stances" (force_swing < 1)
+                           "rest_length_iqr", "constant_force_stances" (force_swing < 1),
+                           "two_minima_stances" (other_minimum's nerr within 10 %)
                            }},  # Table 3
       "skipped": [{"bag", "label", "tripod", "touchdown", "liftoff", "reason"}],  # stances
                   # a mocap dropout cuts or hides (geometric edges) also have "edges":
@@ -474,6 +479,9 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
             d[f'{k}_stderr'] = _f(r.stderr[k])
         d.update(nerr=_f(r.nerr), converged=r.converged, samples=r.samples,
                  iterations=r.iterations, start=r.start, force_swing=_f(r.force_swing))
+        d['other_minimum'] = ({k: (v if isinstance(v, str) else _f(v))
+                               for k, v in r.other_minimum.items()}
+                              if r.other_minimum else None)
         p = pos.get(r.label)
         d['position_fit'] = None if p is None else {
             **{k: _f(v) for k, v in p.params.items()},
@@ -499,6 +507,14 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
                                        for w in res.geometry_windows],
                     'geometry': None if geometry is None else dataclasses.asdict(geometry),
                     'stances': len(stances), 'skipped': len(res.skipped), 'notes': notes}}
+
+
+def _other_ratio(stance: dict[str, Any]) -> float:
+    """The other minimum's nerr over the kept one's (inf without another minimum)."""
+    other = stance.get('other_minimum')
+    if not other or other.get('nerr') is None or not stance.get('nerr'):
+        return math.inf
+    return float(other['nerr']) / float(stance['nerr'])
 
 
 def _geometry_overrides(args: argparse.Namespace) -> dict[str, Any]:
@@ -678,7 +694,8 @@ def run_command(args: argparse.Namespace) -> int:
              'rest_length': s['rest_length'] if s.get('rest_length') is not None
              else math.nan,
              'force_swing': s['force_swing'] if s.get('force_swing') is not None
-             else math.nan} for s in stances]
+             else math.nan,
+             'other_nerr_ratio': _other_ratio(s)} for s in stances]
     _note_rest_length_outliers(stances, [r['run'] for r in results if 'run' in r])
     doc = {'schema': 'slip/1', 'model': args.model, 'estimator': 'paper', 'starts': args.starts,
            'mass_kg': args.mass, 'stances': stances,

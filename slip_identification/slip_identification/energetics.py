@@ -12,7 +12,7 @@ from numpy.typing import ArrayLike
 from hexapod_common.conversions import current_sign_factor
 
 from .errors import SlipDataError
-from .fit import FORCE_SWING_MIN
+from .fit import FORCE_SWING_MIN, TWO_MINIMA_NERR_RATIO
 from .model import GRAVITY_MPS2
 
 __all__ = ['GAIT_ORDER', 'PAPER_COLORS', 'PAPER_MASS_KG', 'PAPER_TABLE3', 'battery_power_w',
@@ -120,7 +120,9 @@ def gait_table(rows: Sequence[dict[str, float | str]]) -> dict[str, dict[str, fl
     ``rows`` holds one dict per stance with keys ``gait``, ``nerr``, ``power_w``,
     ``speed_mps``, ``sr`` (run values repeated on each of the run's stances, as in the paper).
     With ``force_swing`` in the rows, ``constant_force_stances`` counts the stances fitted by
-    a nearly constant leg force (:func:`.fit.spring_force_swing`).
+    a nearly constant leg force (:func:`.fit.spring_force_swing`); with ``other_nerr_ratio``
+    (another minimum's nerr over the kept one's), ``two_minima_stances`` those within
+    :data:`.fit.TWO_MINIMA_NERR_RATIO`.
     """
     out: dict[str, dict[str, float]] = {}
     for gait in ordered_gaits(str(r['gait']) for r in rows):
@@ -146,6 +148,10 @@ def gait_table(rows: Sequence[dict[str, float | str]]) -> dict[str, dict[str, fl
             swing = np.array([float(r.get('force_swing', math.nan)) for r in sel])
             # stances whose fit is a nearly constant leg force (k, l0 not identified apart)
             entry['constant_force_stances'] = float(np.sum(swing < FORCE_SWING_MIN))
+        if any('other_nerr_ratio' in r for r in sel):
+            ratio = np.array([float(r.get('other_nerr_ratio', math.inf)) for r in sel])
+            # stances with another minimum the data hardly tell from the kept one
+            entry['two_minima_stances'] = float(np.sum(ratio <= TWO_MINIMA_NERR_RATIO))
         out[gait] = entry
     return out
 

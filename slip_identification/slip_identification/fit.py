@@ -63,6 +63,7 @@ __all__ = [
     'first_state_cov',
     'first_state_covs',
     'nerr',
+    'other_minimum',
     'raw_noise_m',
     'spring_force_swing',
     'stance_starts',
@@ -203,6 +204,11 @@ class SlipFitResult:
     #: (:func:`spring_force_swing`); under :data:`FORCE_SWING_MIN` k and l0 are not
     #: identified apart
     force_swing: float = math.nan
+    #: the lowest converged other start's result when it is another minimum (k apart by more
+    #: than :data:`OTHER_MINIMUM_K_RATIO` or l0 by :data:`OTHER_MINIMUM_L0_RATIO`):
+    #: parameters, ``nerr``, ``force_swing`` and ``start``; empty when every start found
+    #: this one (:func:`other_minimum`)
+    other_minimum: dict[str, Any] = field(default_factory=dict)
 
     @property
     def stiffness_npm(self) -> float:
@@ -568,6 +574,40 @@ def spring_force_swing(stance: Stance, params: dict[str, float]) -> float:
     return float(np.ptp(force) / mean) if mean > 0 else math.nan
 
 
+#: another start's result is another minimum when its k is this many times apart ...
+OTHER_MINIMUM_K_RATIO = 1.5
+#: ... or its l0 this many times
+OTHER_MINIMUM_L0_RATIO = 1.1
+#: a stance whose other minimum's nerr is within this factor of the kept one's has two
+#: minima that the data hardly tell apart (``gaits[].two_minima_stances``)
+TWO_MINIMA_NERR_RATIO = 1.1
+
+
+def other_minimum(kept: int, params: FloatArray, nerrs: FloatArray,
+                  converged: NDArray[np.bool_]) -> int | None:
+    """Index of the lowest-nerr converged start whose result is another minimum than the
+    kept start's (k apart by more than :data:`OTHER_MINIMUM_K_RATIO` or l0 by
+    :data:`OTHER_MINIMUM_L0_RATIO`), or None.
+
+    On a walk or pace stance the starts end in two minima: a bounce (k about 3,500 N/m,
+    force_swing 3-4) and the constant-force valley (k 250-600 N/m, force_swing under 0.5),
+    their nerr within 10-25 % of each other (simulated EduBot). Motion-capture noise moves a
+    stance from one to the other (an outside review: pace k 158 noise-free, 3,433 +- 664
+    noisy), which no local standard error covers: the other minimum is reported beside the
+    kept one."""
+    k0, l0 = params[kept, 0], params[kept, 1]
+    best = None
+    for i in range(len(nerrs)):
+        if i == kept or not converged[i] or not np.isfinite(nerrs[i]):
+            continue
+        k_ratio = max(params[i, 0], k0) / max(min(params[i, 0], k0), 1e-300)
+        l_ratio = max(params[i, 1], l0) / max(min(params[i, 1], l0), 1e-300)
+        if (k_ratio > OTHER_MINIMUM_K_RATIO or l_ratio > OTHER_MINIMUM_L0_RATIO) and (
+                best is None or nerrs[i] < nerrs[best]):
+            best = i
+    return best
+
+
 #: the starts of :class:`SlipFitter` ``starts='multi'`` besides the paper's: (stiffness factor
 #: on ``m (pi / T_stance)^2``, rest-length factor on the touchdown leg length)
 STANCE_STARTS = ((1.0, 1.0), (3.0, 1.0))
@@ -731,10 +771,13 @@ class SlipFitter:
         out = []
         for j, s in enumerate(stances):
             i = pick[j]
+            a, m = first[j], len(starts[j])
+            o = other_minimum(i - a, p[a:a + m], f[a:a + m], conv[a:a + m])
+            alt = None if o is None else (p[a + o], float(f[a + o]), starts[j][o][0])
             out.append(self._result(s, pbest[j], errs[0][j], float(fbest[j]),
                                     bool(conv[i] and np.isfinite(fbest[j])), int(iters[i]),
                                     int(evaluations[j]), float(errs[1][j]),
-                                    starts[j][i - first[j]][0]))
+                                    starts[j][i - first[j]][0], alt))
         return out
 
     def _stderr_batch(self, batch: _Batch, pbest: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -831,11 +874,16 @@ class SlipFitter:
                            options={'xatol': self.xatol, 'fatol': self.fatol,
                                     'maxiter': self.maxiter, 'maxfev': self.maxiter})
             runs.append((name, sc, res))
-        name, sc, res = runs[self._pick(
-            np.array([float(r.fun) for _, _, r in runs]),
-            np.array([bool(r.success) for _, _, r in runs]))]
+        f_all = np.array([float(r.fun) for _, _, r in runs])
+        c_all = np.array([bool(r.success) for _, _, r in runs])
+        kept = self._pick(f_all, c_all)
+        name, sc, res = runs[kept]
         nfev = sum(int(r.nfev) for _, _, r in runs)
         p = _to_physical(np.asarray(res.x)[None, :], fx0, model, sc[None, :])[0]
+        p_all = np.array([_to_physical(np.asarray(r.x)[None, :], fx0, model, c[None, :])[0]
+                          for _, c, r in runs])
+        o = other_minimum(kept, p_all, f_all, c_all)
+        alt = None if o is None else (p_all[o], float(f_all[o]), runs[o][0])
         stderr = np.full(model.n_params, np.nan)
         rss = math.nan
         if self.stderr:
@@ -866,11 +914,17 @@ class SlipFitter:
                 stderr = np.sqrt(stderr**2 + extra)
         return self._result(s, p, stderr, float(res.fun),
                             bool(res.success and math.isfinite(res.fun)), int(res.nit),
-                            nfev, rss, name)
+                            nfev, rss, name, alt)
 
     def _result(self, s: Stance, p: FloatArray, se: FloatArray, f: float, conv: bool,
-                iters: int, calls: int, rss: float, start: str) -> SlipFitResult:
+                iters: int, calls: int, rss: float, start: str,
+                alt: tuple[FloatArray, float, str] | None = None) -> SlipFitResult:
         names = self.model.param_names
+        other: dict[str, Any] = {}
+        if alt is not None:
+            ap = dict(zip(names, map(float, alt[0])))
+            other = {**ap, 'nerr': alt[1], 'start': alt[2],
+                     'force_swing': spring_force_swing(s, ap)}
         return SlipFitResult(
             model=self.model.name, estimator='nerr_nelder_mead',
             params={n: float(v) for n, v in zip(names, p)},
@@ -878,7 +932,8 @@ class SlipFitter:
             iterations=iters, evaluations=calls, samples=s.n_samples,
             touchdown_s=s.touchdown_s, liftoff_s=s.liftoff_s, tripod=s.tripod,
             label=s.label, rss=rss, start=start,
-            force_swing=spring_force_swing(s, dict(zip(names, map(float, p)))))
+            force_swing=spring_force_swing(s, dict(zip(names, map(float, p)))),
+            other_minimum=other)
 
 
 #: relative forward-difference step of the position fit's Jacobian (scipy's '2-point')

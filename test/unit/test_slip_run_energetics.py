@@ -30,7 +30,11 @@ def test_slip_and_energy_give_one_specific_resistance(tmp_path):
                                '--jobs', '1']) == 0
     assert _run(add_energy_cli, ['energy', '--robot', str(bag), '--robot-mass', '3.31',
                                  '--out', str(tmp_path / 'energy'), '--no-progress']) == 0
-    run = json.loads((tmp_path / 'slip' / 'slip.json').read_text())['runs'][0]
+    doc = json.loads((tmp_path / 'slip' / 'slip.json').read_text())
+    run = doc['runs'][0]
+    # every stance says whether another start found another minimum (null: none)
+    assert all('other_minimum' in st for st in doc['stances'])
+    assert 'two_minima_stances' in doc['gaits']['jogging']
     robot = json.loads((tmp_path / 'energy' / 'energy.json').read_text())['robot_runs'][0]
     span = run['frame']['energetics']
     assert span['whole_cycles'] >= 2 and span['end_s'] > span['start_s']
