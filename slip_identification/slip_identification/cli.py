@@ -35,8 +35,9 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
                 "frame": {"energetics": {"start_s", "end_s", "whole_cycles" (0: under one
                           cycle tracked, the tracked span used, noted), "steady_only"
                           (--steady-only: the cycles from frame.steady_start_s only),
-                          "cycle_power_w" (each whole cycle's mean input power; one over
-                          25 % from the median is noted: a start-up transient?)},
+                          "cycle_power_w" (each whole cycle's mean input power, null
+                          under 10 battery samples in it; one over 25 % from the median
+                          is noted: a start-up transient?)},
                           "tilt_deg", "yaw_deg", "origin_m", "ground_source"
                           (geometry|mocap_origin), "ground_m", "geometry_rms_m",
                           "geometry_noise_m" (the height's white noise, from its fourth

@@ -482,9 +482,11 @@ def first_state_cov(stance: Stance, sigma_m: ArrayLike | None = None) -> FloatAr
     for the estimate)."""
     rt, rxz = _raw(stance)
     sigma = raw_noise_m(rxz) if sigma_m is None else np.asarray(sigma_m, dtype=float)
-    if rt.size < 2 or not np.all(np.isfinite(sigma)):
+    steps = np.diff(rt)
+    steps = steps[steps > 0]         # repeated raw times carry no spacing
+    if steps.size == 0 or not np.all(np.isfinite(sigma)):
         return np.full((4, 4), np.nan)
-    dt = float(np.median(np.diff(rt)))
+    dt = float(np.median(steps))
     # the first state lies this far past the raw sample before it (in sample intervals)
     phase = (1.0 - (rt[0] - float(stance.t_s[0])) / dt) % 1.0
     cp, cv, cpv = _spline_noise_gains(int(round(1000 * phase)) % 1000)
@@ -500,18 +502,24 @@ def first_state_covs(stances: Sequence[Stance], residual_ms: FloatArray) -> Floa
     """(B, 4, 4) first-state noise covariances of stances fitted together
     (:func:`first_state_cov`). A stance with too few raw samples for its own noise estimate
     (under :data:`_NOISE_MIN_RAW`: a short stance at a low mocap rate) takes the median
-    estimate of the others (one motion capture); alone, the diagonal of its residuals' mean
-    squares ``residual_ms`` (B, 4) per state component, which also holds model misfit and
-    the drift from the first state's own error, so it errs large."""
-    sig = np.array([raw_noise_m(_raw(s)[1]) for s in stances]).reshape(-1, 2)
+    estimate of the others (one motion capture); alone, or without raw samples at all (its
+    states are then the measurement), the diagonal of its residuals' mean squares
+    ``residual_ms`` (B, 4) per state component, which also holds model misfit and the drift
+    from the first state's own error, so it errs large."""
+    # a stance without raw samples: its states are the measurement, a spline's smooth
+    # output whose third differences say nothing of the noise (0.8 um read for 0.2 mm: the
+    # standard errors 10-16 times too small; an outside review): its residuals stand in
+    has_raw = np.array([s.raw_t_s is not None and s.raw_xz_m is not None for s in stances])
+    sig = np.array([raw_noise_m(_raw(s)[1]) if r else (np.nan, np.nan)
+                    for s, r in zip(stances, has_raw)]).reshape(-1, 2)
     known = np.all(np.isfinite(sig), axis=1)
     pooled = np.median(sig[known], axis=0) if known.any() else None
     out = np.empty((len(stances), 4, 4))
     for j, s in enumerate(stances):
-        if known[j] or pooled is not None:
-            out[j] = first_state_cov(s, sig[j] if known[j] else pooled)
-        else:
-            out[j] = np.diag(residual_ms[j])
+        cov = np.full((4, 4), np.nan)
+        if has_raw[j] and (known[j] or pooled is not None):
+            cov = first_state_cov(s, sig[j] if known[j] else pooled)
+        out[j] = cov if np.all(np.isfinite(cov)) else np.diag(residual_ms[j])
     return out
 
 
