@@ -426,6 +426,10 @@ class FastPortHandler(PortHandler):
         return self.ser.read(length)
 
 
+#: failed requests that decide why a servo reads as failing (:meth:`ServoHealth.silence`)
+RECENT_FAILURES = 3
+
+
 @dataclass
 class ServoHealth:
     """Communication counters and state of one servo (cumulative since open)."""
@@ -465,11 +469,15 @@ class ServoHealth:
     #: answering, but over another servo at its ID, at another baud rate or through noise
     streak_garbled: int = 0
     streak_no_reply: int = 0
+    #: the kinds of the last failed requests ('g' garbled, 'n' no reply), newest last
+    recent_failures: deque[str] = field(default_factory=lambda: deque(maxlen=RECENT_FAILURES))
 
     def silence(self) -> str:
-        """Why the servo reads as failing: ``'garbled replies'`` when most failed requests
-        since its last good reply were answered garbled, else ``'no reply'``."""
-        if self.streak_garbled > self.streak_no_reply:
+        """Why the servo reads as failing: ``'garbled replies'`` when most of its last
+        :data:`RECENT_FAILURES` failed requests were answered garbled, else ``'no reply'``
+        (a garbled burst followed by silence reads as silence once the silence dominates;
+        the whole streak's majority had kept it 'garbled' and flipped later)."""
+        if self.recent_failures.count('g') > self.recent_failures.count('n'):
             return 'garbled replies'
         return 'no reply'
 
@@ -928,10 +936,14 @@ class DynamixelBus:
     def _ping(self, s: _Servo) -> bool:
         """Detect ``s``: model, Status Return Level, Operating Mode (False: left out)."""
         for _ in range(1 + self.retries):
+            garbled = s.health.streak_garbled
             model, answered = self._ping_once(s)
             if model is None and not answered:
                 continue
             if model is None:
+                if s.health.streak_garbled > garbled:
+                    self._refuse_garbled(s)
+                    return False
                 # PING answered, model READ not, on a quiet line: Status Return Level 0
                 self._refuse_level_0(s)
                 return False
@@ -941,7 +953,8 @@ class DynamixelBus:
                 s.health.model = f'unsupported model {model}'
                 s.refusal = str(err)
                 return False
-            if not self._read_status_return_level(s):
+            garbled = s.health.streak_garbled
+            if not self._read_status_return_level(s, garbled):
                 return False
             self._read_operating_mode(s)
             self._read_wheel_mode(s)
@@ -950,9 +963,22 @@ class DynamixelBus:
             s.health.silent = False
             s.health.consecutive_failures = 0
             s.health.streak_garbled = s.health.streak_no_reply = 0
+            s.health.recent_failures.clear()
             return True
         s.health.silent = True
         return False
+
+    def _refuse_garbled(self, s: _Servo) -> None:
+        """PING answered, its READs garbled: two servos at the ID (identical PING replies
+        pass, replies carrying each one's data collide). Not Status Return Level 0, which a
+        quiet line would mean (an outside review: twins at start-up were told to set a
+        register that was already 2)."""
+        s.table = None
+        s.health.model = 'unreadable (garbled replies)'
+        s.refusal = ('answers PING, but its READ replies arrive garbled (broken checksums): '
+                     'a second servo at this ID? (two servos answering one request collide; '
+                     'their identical PING replies pass). Give each servo its own ID')
+        self.notes.append(f'{s.joint.name} (id {s.joint.servo_id}) left out: {s.refusal}')
 
     def _refuse_level_0(self, s: _Servo) -> None:
         s.table = None
@@ -975,7 +1001,7 @@ class DynamixelBus:
                 break
         return None, 0
 
-    def _read_status_return_level(self, s: _Servo) -> bool:
+    def _read_status_return_level(self, s: _Servo, garbled: int = -1) -> bool:
         """Read the servo's Status Return Level after its PING (False, refused, at level 0).
 
         Level 1 is a common setting on real robots (it halves the bus time of writes): such a
@@ -984,7 +1010,10 @@ class DynamixelBus:
         assert s.table is not None
         data, _ = self._read_settled(s, s.table.reg('status_return_level').address, 1)
         if data is None:
-            self._refuse_level_0(s)
+            if garbled >= 0 and s.health.streak_garbled > garbled:
+                self._refuse_garbled(s)
+            else:
+                self._refuse_level_0(s)
             return False
         level = int(data[0])
         if level < 2 and s.health.status_return_level != level:
@@ -1062,9 +1091,11 @@ class DynamixelBus:
         if result == COMM_RX_CORRUPT:
             s.health.corrupt += 1
             s.health.streak_garbled += 1
+            s.health.recent_failures.append('g')
         else:   # a timeout; port busy / tx fail: counted as a missed reply
             s.health.timeouts += 1
             s.health.streak_no_reply += 1
+            s.health.recent_failures.append('n')
 
     def _active(self) -> list[_Servo]:
         """Servos read this cycle; a silent one is probed every probe_interval_cycles."""
@@ -1217,6 +1248,7 @@ class DynamixelBus:
                                   f'{self.cycle - s.silent_since_cycle} cycles silent')
             h.consecutive_failures = 0
             h.streak_garbled = h.streak_no_reply = 0
+            h.recent_failures.clear()
             h.silent = False
             flags = self._hardware_flags(s, status_error)
             if flags or (status_error & (0x7F if self.protocol == 2 else 0)):
@@ -1242,10 +1274,12 @@ class DynamixelBus:
         s.silent_since_cycle = self.cycle
         h = s.health
         if h.silence() == 'garbled replies':
-            why = (f'garbled replies ({h.streak_garbled} with a broken checksum, '
-                   f'{h.streak_no_reply} none) in {h.consecutive_failures} cycles in a row')
-            check = ('a second servo at this ID (its replies collide), a baud-rate mismatch '
-                     'or noise on the line')
+            why = (f'garbled replies (of its last {len(h.recent_failures)} failed requests '
+                   f'{h.recent_failures.count("g")} with a broken checksum, '
+                   f'{h.recent_failures.count("n")} unanswered) in '
+                   f'{h.consecutive_failures} cycles in a row')
+            check = ('a second servo at this ID (its replies collide), or noise on the line: '
+                     'cabling, termination')
         else:
             why = f'no reply in {h.consecutive_failures} cycles in a row'
             check = 'its cable and power'
@@ -1431,6 +1465,10 @@ class DynamixelBus:
             if ok:
                 s.health.torque_enabled = bool(enabled)
                 s.health.torque_lost = ''
+            elif not s.health.torque_error and s.health.silence() == 'garbled replies':
+                s.health.torque_error = (
+                    f'torque {"on" if enabled else "off"} not confirmed: the replies came '
+                    'garbled (broken checksums): a second servo at this ID?')
             out[name] = ok
         return out
 

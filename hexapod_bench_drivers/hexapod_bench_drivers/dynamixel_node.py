@@ -296,8 +296,8 @@ class DynamixelDriverNode(Node):
                          'two servos share this ID; readings withheld')
         elif h.silent and h.silence() == 'garbled replies':
             d.level = DiagnosticStatus.ERROR
-            d.message = ('silent: garbled replies (a second servo at this ID? baud rate, '
-                         'cabling)')
+            d.message = ('silent: garbled replies (a second servo at this ID? cabling, '
+                         'termination)')
         elif h.silent:
             d.level, d.message = DiagnosticStatus.ERROR, 'silent: no reply'
         elif h.torque_lost:

@@ -831,7 +831,8 @@ class ServoBusEmulator:
                              error=error | (P2_ALERT if hw else 0))
         if servo.take_fault('bad_checksum') is not None:
             data = data[:-1] + bytes([data[-1] ^ 0x5A])
-        if servo.servo_id in self.colliding_ids:
+        if servo.servo_id in self.colliding_ids and not is_ping:
+            # (a PING's reply carries the model and firmware, the same on twins: intact)
             # the twin reads other values (its own position, load...): other parameter bytes
             other = bytes(b ^ 0x5A for b in params)
             if servo.protocol == 1:

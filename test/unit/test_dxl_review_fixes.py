@@ -304,6 +304,57 @@ def test_colliding_replies_of_two_servos_at_one_id_said_garbled_not_no_reply(mod
 
 
 @pytest.mark.parametrize('model,protocol', P1P2)
+def test_twins_present_at_start_up_are_left_out_as_twins_not_level_0(model, protocol):
+    """Twins on the bus when the driver opens (a new servo from the box at the same ID): their
+    PING replies are identical and pass, the READs collide. An outside review: the servo was
+    refused as 'Status Return Level 0 ... set it to 1 or 2', a register already 2. Now it is
+    left out naming a second servo at the ID; the others run."""
+    with ServoBusEmulator.of_model(model, [1, 2, 3]) as emu:
+        emu.colliding_ids = {2}
+        with _bus(emu, 3, protocol) as bus:
+            assert bus.health()[1].model == 'unreadable (garbled replies)'
+            assert 'a second servo at this ID' in bus.refused['j2']
+            assert 'Status Return Level' not in bus.refused['j2']
+            assert any(n.startswith('j2 (id 2) left out: answers PING, but its READ replies '
+                                    'arrive garbled') for n in bus.take_notes())
+            r = bus.poll()
+            assert r.readings[0].ok and r.readings[2].ok and not r.readings[1].ok
+
+
+@pytest.mark.parametrize('model,protocol', P1P2)
+def test_garbled_burst_then_silence_reads_as_silence(model, protocol):
+    """Two colliding cycles, then the servo stops answering: the silence is decided by the
+    recent failures, so it ends as 'no reply' (the whole streak's majority had said
+    'garbled' in the warning and flipped later in the diagnostics)."""
+    with ServoBusEmulator.of_model(model, [1, 2]) as emu, \
+            _bus(emu, 2, protocol, retries=1, silent_after=3, probe_interval_cycles=2) as bus:
+        bus.take_events()
+        emu.colliding_ids = {2}
+        bus.poll()
+        bus.poll()
+        emu.colliding_ids = set()
+        emu.inject(2, 'no_answer', count=10000)
+        _poll_until(bus, lambda r: bus.health()[1].silent)
+        assert bus.health()[1].silence() == 'no reply'
+        warning, = [m for m in _events(bus, 'warning') if 'went silent' in m]
+        assert 'no reply in 3 cycles' in warning and 'cable and power' in warning
+        for _ in range(6):
+            bus.poll()
+        assert bus.health()[1].silence() == 'no reply'
+
+
+@pytest.mark.parametrize('model,protocol', P1P2)
+def test_torque_not_confirmed_through_a_twin_says_why(model, protocol):
+    """Torque on while a twin answers at the ID: the write lands, its read-back comes
+    garbled. It had failed with an empty torque_error."""
+    with ServoBusEmulator.of_model(model, [1, 2]) as emu, _bus(emu, 2, protocol) as bus:
+        emu.colliding_ids = {2}
+        assert bus.set_torque(True) == {'j1': True, 'j2': False}
+        assert 'garbled' in bus.health()[1].torque_error
+        assert 'second servo at this ID' in bus.health()[1].torque_error
+
+
+@pytest.mark.parametrize('model,protocol', P1P2)
 def test_a_servo_that_stops_answering_is_still_said_to_give_no_reply(model, protocol):
     with ServoBusEmulator.of_model(model, [1, 2]) as emu, _bus(emu, 2, protocol) as bus:
         bus.take_events()
