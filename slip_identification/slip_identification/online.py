@@ -49,6 +49,7 @@ time of the newest motion-capture sample (proprioception clock) minus the stance
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -235,7 +236,10 @@ class OnlineSlip:
         self._early_cmd_names: tuple[str, ...] | None = None
         self._done: list[tuple[str, float]] = []
         self.skipped: list[OnlineSkip] = []
-        self._gap_skips: dict[tuple[str, float], int] = {}   # (tripod, gap start) -> index
+        #: motion-capture gaps (start, end) [s] not yet looked at (geometric edges)
+        self._mocap_gaps: list[tuple[float, float]] = []
+        #: the last fitted stances (tripod, touchdown, lift-off): the stride for the gaps
+        self._fitted: deque[tuple[str, float, float]] = deque(maxlen=32)
         self.latency_s: list[float] = []
         self.shift_every_s = shift_every_s
         self._shift_cache: dict[str, tuple[float, float]] = {}
@@ -279,7 +283,8 @@ class OnlineSlip:
         self._cmd_perm = {}
         self._early_cmd_names = None
         self._done = []
-        self._gap_skips = {}
+        self._mocap_gaps = []
+        self._fitted.clear()
         self._shift_cache = {}
         self._first_inside_s = None
         self._geo_since_s = None
@@ -370,6 +375,12 @@ class OnlineSlip:
         t_s = t_s - self.mocap_offset_s
         if not self._clk.observe('mocap/body', t_s):
             return
+        if self.geometry is not None and len(self._mocap) >= 8:
+            recent = self._mocap.t[-8:]
+            dt = float(np.median(np.diff(recent)))
+            if t_s - recent[-1] > max(2.5 * dt, 0.02):
+                self._mocap_gaps.append((float(recent[-1]), float(t_s)))
+                del self._mocap_gaps[:-64]
         self._mocap.append(t_s, np.asarray(position_m, dtype=float),
                            np.asarray(quat_xyzw, dtype=float))
         self._trim(self._mocap, t_s)
@@ -450,6 +461,7 @@ class OnlineSlip:
         if stances:
             out = self.fitter.fit(stances).results_
             self.latency_s.extend(float(tm[-1]) - r.liftoff_s for r in out)
+            self._fitted.extend((r.tripod, r.touchdown_s, r.liftoff_s) for r in out)
         if len(self._done) > 64:
             del self._done[:-64]
         return out
@@ -487,44 +499,53 @@ class OnlineSlip:
                                              pitch_offset_rad=self.pitch_offset_rad)
         except SlipError:
             return None
-        dropped: list[tuple[str, float, float]] = []
-        ss = single_support(contacts, TRIPODS, unknown, dropped=dropped)
-        self._skip_gap_stances(dropped, unknown, float(tm[-1]))
+        ss = single_support(contacts, TRIPODS, unknown)
+        self._skip_stances_in_gaps(float(tm[-1]))
         return sorted((StanceWindow(float(a), float(b), tp, 0.0)
                        for tp, iv in ss.items() for a, b in iv if b >= self._geo_since_s),
                       key=lambda w: w.touchdown_s)
 
-    def _skip_gap_stances(self, dropped: list[tuple[str, float, float]],
-                          unknown: np.ndarray, newest_s: float) -> None:
-        """Single supports a motion-capture gap cuts (``single_support``'s dropped pieces
-        next to an interior unknown interval, not the buffer's ends): skipped once each,
-        reason ``mocap_gap``, as the offline analysis lists them. They had been left out
-        without a word."""
-        unk = np.asarray(unknown, dtype=float).reshape(-1, 2)
-        gaps = unk[np.isfinite(unk).all(axis=1)]
+    def _skip_stances_in_gaps(self, newest_s: float) -> None:
+        """Single supports a motion-capture gap cuts or hides, skipped once each, reason
+        ``mocap_gap`` (geometric edges need the body's height, so they give none there; they
+        had been left out without a word). They are placed by the stride of the stances
+        fitted so far (each tripod's median touchdown spacing and single-support duration,
+        from its last touchdown before the gap), once a stride has passed after the gap;
+        before two fits of a tripod, the gap itself is one skip (tripod '')."""
+        while self._mocap_gaps and self._mocap_gaps[0][1] + self._stride_s() <= newest_s:
+            a, b = self._mocap_gaps.pop(0)
+            if self._geo_since_s is None or b < self._geo_since_s:
+                continue
+            placed = False
+            period = self._stride_s(default=math.nan)
+            for tp in TRIPODS:
+                seen = [(td, lo) for t, td, lo in self._fitted if t == tp]
+                tds = np.array([w[0] for w in seen])
+                before = tds[tds < a]
+                if not (period > 0 and before.size):
+                    continue
+                dur = float(np.median([lo - td for td, lo in seen]))
+                placed = True
+                td = float(before[-1])
+                while td < b:
+                    lo = td + dur
+                    if lo > a and not self._is_done(tp, lo):
+                        self._done.append((tp, lo))
+                        self.skipped.append(OnlineSkip(td, lo, tp, 'mocap_gap'))
+                    td += period
+            if not placed:
+                self.skipped.append(OnlineSkip(a, b, '', 'mocap_gap'))
+
+    def _stride_s(self, default: float = 0.5) -> float:
+        """The recent stride period [s] from the fitted touchdowns of each tripod; a stance
+        missing from the fits doubles a spacing, so each spacing counts as a whole number of
+        the shortest one. ``default`` before two fits of one tripod."""
+        gaps = np.concatenate([np.diff([td for t, td, _ in self._fitted if t == tp])
+                               for tp in TRIPODS] + [np.zeros(0)])
+        gaps = gaps[gaps > 0]
         if not gaps.size:
-            return
-        for tp, a, b in dropped:
-            if (b + self.margin_s > newest_s or self._geo_since_s is None
-                    or b < self._geo_since_s or self._is_done(tp, b)):
-                continue
-            hit = np.flatnonzero((gaps[:, 0] <= b + 1e-3) & (gaps[:, 1] >= a - 1e-3))
-            if not hit.size:
-                continue
-            self._done.append((tp, b))
-            # the pieces either side of one gap are one stance: one skip, widened
-            key = (tp, round(float(gaps[hit[0], 0]), 4))
-            k = self._gap_skips.get(key)
-            if k is None:
-                self._gap_skips[key] = len(self.skipped)
-                self.skipped.append(OnlineSkip(a, b, tp, 'mocap_gap'))
-            else:
-                old = self.skipped[k]
-                self.skipped[k] = OnlineSkip(min(old.touchdown_s, a), max(old.liftoff_s, b),
-                                             tp, 'mocap_gap')
-        if len(self._gap_skips) > 64:
-            for key in list(self._gap_skips)[:-64]:
-                del self._gap_skips[key]
+            return default
+        return float(np.median(gaps / np.maximum(1.0, np.round(gaps / gaps.min()))))
 
     def _fit_frame(self, tm: np.ndarray, pm: np.ndarray, qm: np.ndarray,
                    inside: np.ndarray) -> WorldFrame:
