@@ -22,10 +22,9 @@ edubot_sim = pytest.importorskip('hexapod_bench_drivers.edubot_sim')
 BOX = Box((-10.0, -10.0, -10.0), (10.0, 10.0, 10.0))
 
 
-@pytest.fixture(scope='module')
-def running_stances():
-    """The stances of a simulated running run (seed 1: the paper's start is trapped on one)."""
-    run = edubot_sim.simulate_edubot('running', duration_s=8.0, seed=1)
+def fitted_stances(gait, seed=1, duration_s=8.0):
+    """The stances analyze_run hands to the SLIP fit for a simulated run."""
+    run = edubot_sim.simulate_edubot(gait, duration_s=duration_s, seed=seed)
     captured = []
     orig = SlipFitter.fit
 
@@ -40,6 +39,12 @@ def running_stances():
     finally:
         SlipFitter.fit = orig
     return captured[0]
+
+
+@pytest.fixture(scope='module')
+def running_stances():
+    """The stances of a simulated running run (seed 1: the paper's start is trapped on one)."""
+    return fitted_stances('running')
 
 
 def test_stance_starts_scale_with_the_stance():
@@ -220,21 +225,8 @@ def test_the_other_minimum_of_walk_and_pace_stances_is_reported():
     assert gait_table(rows)['pace']['two_minima_stances'] == float(len(two))
     # the reference path reports the same other minimum on one of them
     i = pace.index(two[0])
-    run = edubot_sim.simulate_edubot('pace', duration_s=8.0, seed=1)
-    captured = []
-    orig = SlipFitter.fit
-
-    def spy(self, stances):
-        captured.append(list(stances))
-        return orig(self, stances)
-
-    SlipFitter.fit = spy
-    try:
-        analyze_run(run_data_from_sim(run, with_effort=False), box=BOX,
-                    offset_s=run.truth['clock_offset_s'], position_fit=False)
-    finally:
-        SlipFitter.fit = orig
-    ref = SlipFitter(method='reference', stderr=False).fit([captured[0][i]]).results_[0]
+    stance = fitted_stances('pace')[i]
+    ref = SlipFitter(method='reference', stderr=False).fit([stance]).results_[0]
     assert ref.other_minimum['start'] == two[0].other_minimum['start']
     assert ref.other_minimum['stiffness'] == pytest.approx(two[0].other_minimum['stiffness'],
                                                            rel=0.02)

@@ -124,16 +124,13 @@ def test_online_walk_fits_each_single_support_once():
         assert abs(match[0].liftoff_s - f.liftoff_s) < 0.005
 
 
-def test_online_geometric_edges_against_truth():
-    """With a robot description, a world frame and its ground height (here from the offline
-    geometric fit of the same run), OnlineSlip fits the legs' geometric single-support windows: edges within
-    5 ms of the simulator's, each fitted on the first mocap samples after its lift-off."""
+def geometric_setup(run):
+    """Joint names, leg geometry, world frame and ground height (the offline geometric fit
+    of the same run) for feeding OnlineSlip with geometric edges."""
     from slip_identification.geometry import LegGeometry, body_pitch_rad, fit_ground_offset
     from slip_identification.pipeline import _up_from_quats
     from slip_identification.preprocess import fit_world_frame
 
-    run = edubot_sim.simulate_edubot('running', duration_s=3.5, seed=2)
-    off = run.truth['clock_offset_s']
     names = tuple(f'{leg}_hip' for leg in run.leg_names)
     geo = LegGeometry.from_params(run.params)
     frame = fit_world_frame(run.mocap_position_m, up_mocap=_up_from_quats(run.mocap_quat_xyzw))
@@ -141,7 +138,20 @@ def test_online_geometric_edges_against_truth():
     ground = fit_ground_offset(geo, names, run.t_s, run.hip_position_rad,
                                run.hip_velocity_rad_s, run.mocap_t_s, pw[:, 2],
                                body_pitch_rad(frame.rotation, run.mocap_quat_xyzw),
-                               initial_offset_s=off, fix_offset=True).ground_m
+                               initial_offset_s=run.truth['clock_offset_s'],
+                               fix_offset=True).ground_m
+    return names, geo, frame, ground
+
+
+def test_online_geometric_edges_against_truth():
+    """With a robot description, a world frame and its ground height (here from the offline
+    geometric fit of the same run), OnlineSlip fits the legs' geometric single-support
+    windows: edges within 5 ms of the simulator's, each fitted on the first mocap samples
+    after its lift-off."""
+    run = edubot_sim.simulate_edubot('running', duration_s=3.5, seed=2)
+    off = run.truth['clock_offset_s']
+    names, geo, frame, ground = geometric_setup(run)
+
     def feed(commands: bool):
         core = OnlineSlip(box=BOX, mocap_offset_s=off, geometry=geo, ground_m=ground,
                           world_frame=frame)
@@ -215,20 +225,9 @@ def test_live_review_fit_frame_and_mocap_offset_buffer():
 def geometric_feed():
     """A 6 s running run (mocap 1.5-3.9 s) fed with geometric edges, without or with a gap
     (start, end) in its motion capture [s, proprioception clock]: the core and its fits."""
-    from slip_identification.geometry import LegGeometry, body_pitch_rad, fit_ground_offset
-    from slip_identification.pipeline import _up_from_quats
-    from slip_identification.preprocess import fit_world_frame
-
     run = edubot_sim.simulate_edubot('running', duration_s=6.0, seed=2)
     off = run.truth['clock_offset_s']
-    names = tuple(f'{leg}_hip' for leg in run.leg_names)
-    geo = LegGeometry.from_params(run.params)
-    frame = fit_world_frame(run.mocap_position_m, up_mocap=_up_from_quats(run.mocap_quat_xyzw))
-    pw = frame.to_world(run.mocap_position_m)
-    ground = fit_ground_offset(geo, names, run.t_s, run.hip_position_rad,
-                               run.hip_velocity_rad_s, run.mocap_t_s, pw[:, 2],
-                               body_pitch_rad(frame.rotation, run.mocap_quat_xyzw),
-                               initial_offset_s=off, fix_offset=True).ground_m
+    names, geo, frame, ground = geometric_setup(run)
 
     def feed(gap=(-1.0, -1.0)):
         core = OnlineSlip(box=BOX, mocap_offset_s=off, geometry=geo, ground_m=ground,
