@@ -977,7 +977,9 @@ class DynamixelBus:
         s.health.model = 'unreadable (garbled replies)'
         s.refusal = ('answers PING, but its READ replies arrive garbled (broken checksums): '
                      'a second servo at this ID? (two servos answering one request collide; '
-                     'their identical PING replies pass). Give each servo its own ID')
+                     'their identical PING replies pass; give each servo its own ID) or a '
+                     'burst of line noise; tried again every '
+                     f'{self.probe_interval_cycles} cycles')
         self.notes.append(f'{s.joint.name} (id {s.joint.servo_id}) left out: {s.refusal}')
 
     def _refuse_level_0(self, s: _Servo) -> None:
@@ -1432,6 +1434,7 @@ class DynamixelBus:
                 continue
             ok = False
             s.health.torque_error = ''
+            g0, n0 = s.health.streak_garbled, s.health.streak_no_reply
             for k in range(1 + self.retries):
                 if k:
                     s.health.retries += 1
@@ -1465,10 +1468,18 @@ class DynamixelBus:
             if ok:
                 s.health.torque_enabled = bool(enabled)
                 s.health.torque_lost = ''
-            elif not s.health.torque_error and s.health.silence() == 'garbled replies':
-                s.health.torque_error = (
-                    f'torque {"on" if enabled else "off"} not confirmed: the replies came '
-                    'garbled (broken checksums): a second servo at this ID?')
+            elif not s.health.torque_error:
+                garbled = s.health.streak_garbled - g0
+                silent = s.health.streak_no_reply - n0
+                if garbled > silent:
+                    why = ('the replies came garbled (broken checksums): a second servo at '
+                           'this ID?')
+                elif silent:
+                    why = 'no reply'
+                else:
+                    why = 'Torque Enable did not read back as written'
+                state = 'on' if enabled else 'off'
+                s.health.torque_error = f'torque {state} not confirmed: {why}'
             out[name] = ok
         return out
 

@@ -335,7 +335,8 @@ class SlipFitterNode(Node):
             if not (n == 1 or n in (10, 100, 1000) or n % 10000 == 0):
                 continue
             why = SKIP_REASONS.get(sk.reason, sk.reason)
-            text = (f'{sk.tripod} stance {sk.touchdown_s:.3f}-{sk.liftoff_s:.3f} s not fitted: '
+            who = f'{sk.tripod} stance' if sk.tripod else 'stances in'
+            text = (f'{who} {sk.touchdown_s:.3f}-{sk.liftoff_s:.3f} s not fitted: '
                     f'{why} [{n} stance(s) so far for this reason]')
             log = self.get_logger()
             (log.info if sk.reason == 'frame_not_ready' else log.warning)(text)

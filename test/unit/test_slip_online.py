@@ -254,9 +254,9 @@ def test_online_geometric_stances_lost_to_a_mocap_gap_are_skipped_once_each(geom
     a word (the offline analysis lists them as mocap_gap); a first fix caught only pieces cut
     by a gap shorter than the contact window, merged two stances around a 320 ms gap and
     clipped their times (an outside review: a 1 s dropout lost 7 stances, 0 skipped). Each
-    lost stance is now one skip, placed by the stride of the fitted ones: its tripod, and
-    its times within 10 ms; the other stances are fitted as without the gap (a 10 ms gap,
-    one missing sample, loses none)."""
+    lost stance is now one skip, placed between the fits of its tripod either side of the
+    gap by the stride the hips turn at (one turn a stride): its times within 10 ms; the other stances are fitted as
+    without the gap (a 10 ms gap, one missing sample, loses none)."""
     feed, (clean, fits) = geometric_feed
     assert clean.skipped == [] and len(fits) >= 12
     core, got = feed(gap)
