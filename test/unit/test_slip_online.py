@@ -143,35 +143,39 @@ def geometric_setup(run):
     return names, geo, frame, ground
 
 
+def feed_geometric(run, setup, *, commands=False, gap=(-1.0, -1.0)):
+    """OnlineSlip with geometric edges fed a simulated run in arrival order (the clock's
+    commands too when asked; motion capture within ``gap`` [s, proprioception clock] left
+    out): the core and its fits."""
+    names, geo, frame, ground = setup
+    off = run.truth['clock_offset_s']
+    core = OnlineSlip(box=BOX, mocap_offset_s=off, geometry=geo, ground_m=ground,
+                      world_frame=frame)
+    fits = []
+    for _, kind, i in events(run):
+        if kind == 0:
+            core.add_joint_state(float(run.t_s[i]), names, run.hip_velocity_rad_s[i],
+                                 run.hip_position_rad[i])
+            if commands:
+                core.add_command(float(run.t_s[i]), names, run.target_velocity_rad_s[i])
+        elif not gap[0] <= float(run.mocap_t_s[i]) - off <= gap[1]:
+            core.add_mocap(float(run.mocap_t_s[i]), run.mocap_position_m[i],
+                           run.mocap_quat_xyzw[i])
+            fits.extend(core.step())
+    return core, fits
+
+
 def test_online_geometric_edges_against_truth():
     """With a robot description, a world frame and its ground height (here from the offline
     geometric fit of the same run), OnlineSlip fits the legs' geometric single-support
     windows: edges within 5 ms of the simulator's, each fitted on the first mocap samples
     after its lift-off."""
     run = edubot_sim.simulate_edubot('running', duration_s=3.5, seed=2)
-    off = run.truth['clock_offset_s']
-    names, geo, frame, ground = geometric_setup(run)
-
-    def feed(commands: bool):
-        core = OnlineSlip(box=BOX, mocap_offset_s=off, geometry=geo, ground_m=ground,
-                          world_frame=frame)
-        fits = []
-        for _, kind, i in events(run):
-            if kind == 0:
-                core.add_joint_state(float(run.t_s[i]), names, run.hip_velocity_rad_s[i],
-                                     run.hip_position_rad[i])
-                if commands:
-                    core.add_command(float(run.t_s[i]), names, run.target_velocity_rad_s[i])
-            else:
-                core.add_mocap(float(run.mocap_t_s[i]), run.mocap_position_m[i],
-                               run.mocap_quat_xyzw[i])
-                fits.extend(core.step())
-        return core, fits
-
-    core, fits = feed(commands=True)
+    setup = geometric_setup(run)
+    core, fits = feed_geometric(run, setup, commands=True)
     assert len(fits) >= 6
     # the geometric edges need no clock commands (a robot that does not publish them)
-    _, bare = feed(commands=False)
+    _, bare = feed_geometric(run, setup)
     assert [(f.touchdown_s, f.liftoff_s, f.params) for f in bare] == \
         [(f.touchdown_s, f.liftoff_s, f.params) for f in fits]
     err = []
@@ -186,7 +190,7 @@ def test_online_geometric_edges_against_truth():
     assert np.mean(np.all(np.abs(err_ms) <= 5.0, axis=1)) >= 0.95
     assert np.mean(lat_ms <= 20.0) >= 0.95
     with pytest.raises(Exception, match='ground_m'):
-        OnlineSlip(box=BOX, geometry=geo)
+        OnlineSlip(box=BOX, geometry=setup[1])
 
 
 def test_live_review_fit_frame_and_mocap_offset_buffer():
@@ -226,22 +230,10 @@ def geometric_feed():
     """A 6 s running run (mocap 1.5-3.9 s) fed with geometric edges, without or with a gap
     (start, end) in its motion capture [s, proprioception clock]: the core and its fits."""
     run = edubot_sim.simulate_edubot('running', duration_s=6.0, seed=2)
-    off = run.truth['clock_offset_s']
-    names, geo, frame, ground = geometric_setup(run)
+    setup = geometric_setup(run)
 
     def feed(gap=(-1.0, -1.0)):
-        core = OnlineSlip(box=BOX, mocap_offset_s=off, geometry=geo, ground_m=ground,
-                          world_frame=frame)
-        fits = []
-        for _, kind, i in events(run):
-            if kind == 0:
-                core.add_joint_state(float(run.t_s[i]), names, run.hip_velocity_rad_s[i],
-                                     run.hip_position_rad[i])
-            elif not gap[0] <= float(run.mocap_t_s[i]) - off <= gap[1]:
-                core.add_mocap(float(run.mocap_t_s[i]), run.mocap_position_m[i],
-                               run.mocap_quat_xyzw[i])
-                fits.extend(core.step())
-        return core, fits
+        return feed_geometric(run, setup, gap=gap)
 
     return feed, feed()
 
