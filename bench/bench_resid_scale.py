@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from hexapod_common.series import span_mean
 from hexapod_energy import residuals as R
 from hexapod_energy.effects_catalogue import WindowTable
 
@@ -138,9 +139,9 @@ def build_windows_baseline(runs: Sequence[R.ResidualRun], *, temp_ref_c: float |
                 cols['t_s'].append(0.5 * (ta + tb))
                 cols['duration_s'].append(tb - ta)
                 for k, arr in sub.items():
-                    cols[k].append(R._span_mean(t, np.asarray(arr)[keep], ta, tb))
+                    cols[k].append(span_mean(t, np.asarray(arr)[keep], ta, tb))
                 for k, arr in sub_extra.items():
-                    extra[k].append(R._span_mean(t, np.broadcast_to(arr, r.t_s.shape)[keep],
+                    extra[k].append(span_mean(t, np.broadcast_to(arr, r.t_s.shape)[keep],
                                                  ta, tb))
             cols['stance_fraction'].append(r.in_stance[keep][m].mean(axis=0))
     if not cols['run']:

@@ -366,13 +366,14 @@ def write_two_battery_robot_bag(path: str | Path, *, servo_w: float = 30.0,
 
 def rewrite_bag(src: str | Path, dst: str | Path, edit: Any) -> Path:
     """Copy a bag, calling ``edit(topic, msg)`` on every deserialised message (to change it in
-    place; receive times kept)."""
+    place; receive times kept); a message for which ``edit`` returns False is dropped."""
     from hexapod_common.bags import iter_messages, open_reader
 
     with open_reader(src) as reader, BagWriter(dst) as w:
         for m in iter_messages(reader):
             msg = reader.deserialize(m.data, m.msgtype)
-            edit(m.topic, msg)
+            if edit(m.topic, msg) is False:
+                continue
             w.write(m.topic, m.msgtype, msg, m.stamp_ns)
     return Path(dst)
 

@@ -94,6 +94,7 @@ from hexapod_common.conversions import (
     PoseSample,
     current_sign_factor,
 )
+from hexapod_common.series import span_mean
 from hexapod_energy import metrics
 from hexapod_energy.cycles import CycleSettings, JointCycleTracker, unwrap_near
 from hexapod_energy.metrics import G_MPS2
@@ -1099,8 +1100,7 @@ class DescriptorAccumulator:
         p = np.array([b[1] for b in self._battery])
         order = np.argsort(t, kind='stable')
         t, p = t[order], p[order]
-        grid = np.concatenate(([t0], t[(t > t0) & (t < t1)], [t1]))
-        power_in = float(np.trapezoid(np.interp(grid, t, p), grid) / (t1 - t0))
+        power_in = span_mean(t, p, t0, t1)
         # a gap much longer than the stream's own interval means P_in was interpolated
         # across missing data. Checked for windows with few samples too: a window wholly
         # inside a gap holds none, and was taken for a slow monitor's (a 5 s gap in a 15 s
@@ -1108,7 +1108,7 @@ class DescriptorAccumulator:
         gap = t.size >= 2 and _gap_in_window(t, t0, t1, self._battery_steps or np.diff(t))
         if gap:
             warnings.append(BATTERY_GAP_NOTE)
-        elif grid.size - 2 < MIN_BATTERY_SAMPLES_PER_WINDOW:
+        elif int(np.count_nonzero((t > t0) & (t < t1))) < MIN_BATTERY_SAMPLES_PER_WINDOW:
             warnings.append(SLOW_BATTERY_NOTE)
         if power_in < 0:
             warnings.append(f'negative mean input power {power_in:.3f} W: check the battery '

@@ -41,6 +41,7 @@ import numpy as np
 from scipy.optimize import lsq_linear
 
 from hexapod_common.jsondoc import json_safe
+from hexapod_common.series import span_mean
 from hexapod_energy.effects_catalogue import EnergyEffect, WindowTable, default_catalogue
 from hexapod_energy.errors import BagContentError, InvalidInputError
 from hexapod_energy.unexplained import unexplained_residual, unexplained_text
@@ -921,9 +922,9 @@ def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = Non
                 cols['t_s'].append(0.5 * (ta + tb))
                 cols['duration_s'].append(tb - ta)
                 for k, arr in sub_kept.items():
-                    cols[k].append(_span_mean(ts, arr[lo:hi], ta, tb))
+                    cols[k].append(span_mean(ts, arr[lo:hi], ta, tb))
                 for k, arr in extra_kept.items():
-                    extra[k].append(_span_mean(ts, arr[lo:hi], ta, tb))
+                    extra[k].append(span_mean(ts, arr[lo:hi], ta, tb))
             cols['stance_fraction'].append(stance_kept[idx].mean(axis=0))
     if not cols['run']:
         raise ResidualDataError('robot bags give no complete gait-phase window after the '
@@ -973,17 +974,6 @@ def _half_cycle_span(t: np.ndarray, hu: np.ndarray, idx: np.ndarray
 
     ta, tb = cross(i0 - 1, lo), cross(i1, lo + 1)
     return (ta, tb) if tb > ta else None
-
-
-def _span_mean(t: np.ndarray, y: np.ndarray, ta: float, tb: float) -> float:
-    """Mean of the piecewise-linear ``y(t)`` over ``[ta, tb]``.
-
-    ``t`` need only cover ``[ta, tb]`` with one sample at or beyond each end (a window's slice
-    of the run): samples farther out do not change the mean."""
-    inner = (t > ta) & (t < tb)
-    grid = np.concatenate([[ta], t[inner], [tb]])
-    vals = np.interp(grid, t, y)
-    return float(np.trapezoid(vals, grid) / (tb - ta))
 
 
 def split_mask(table: WindowTable, *, block_s: float = 2.0, every: int = 3) -> np.ndarray:

@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from hexapod_common.conversions import current_sign_factor
+from hexapod_common.series import span_mean
 
 from .errors import SlipDataError
 from .fit import FORCE_SWING_MIN, TWO_MINIMA_NERR_RATIO
@@ -20,25 +21,48 @@ __all__ = ['GAIT_ORDER', 'PAPER_COLORS', 'PAPER_MASS_KG', 'PAPER_TABLE3', 'batte
            'specific_resistance']
 
 
-def battery_power_w(voltage_v: ArrayLike, current_a: ArrayLike, *, sign: str = 'auto'
+def battery_power_w(voltage_v: ArrayLike, current_a: ArrayLike, *, sign: str = 'auto',
+                    t_s: ArrayLike | None = None, span_s: tuple[float, float] | None = None
                     ) -> tuple[float, str]:
     """Mean input power [W] and the current sign convention used.
 
     ``sign``: ``'ros'`` (current negative when discharging, P = -V I), ``'positive_discharge'``
     (P = V I) or ``'auto'`` (the sign that makes the median V I a positive input power, as the
     energy analysis decides it: :func:`hexapod_common.conversions.current_sign_factor`).
+
+    With the samples' stamps ``t_s`` (sorted) the mean is time-weighted: the trapezoidal
+    integral of V I over ``span_s`` (default the samples' own span), interpolated at its
+    bounds, over its length (:func:`hexapod_common.series.span_mean`, the mean `energy`
+    takes). ``auto`` then decides the sign from the samples inside the span. Without stamps
+    it is the plain mean of the samples, which weights clustered samples more (an outside
+    review: up to 2.5 % on a run's power with irregular samples).
     """
     v = np.asarray(voltage_v, dtype=float)
     i = np.asarray(current_a, dtype=float)
     ok = np.isfinite(v) & np.isfinite(i)
+    t = None
+    if t_s is not None:
+        t = np.asarray(t_s, dtype=float)
+        if t.shape != v.shape:
+            raise SlipDataError('battery stamps and samples differ in number')
+        ok &= np.isfinite(t)
     if not ok.any():
         raise SlipDataError('battery power needs finite voltage and current samples')
+    inside = ok
+    if t is not None:
+        a, b = span_s if span_s is not None else (float(t[ok][0]), float(t[ok][-1]))
+        inside = ok & (t >= a) & (t <= b)
+        if not inside.any():
+            inside = ok
     try:
-        factor = current_sign_factor(v[ok], i[ok], sign)
+        factor = current_sign_factor(v[inside], i[inside], sign)
     except ValueError as err:
         raise SlipDataError(str(err)) from None
     name = 'ros' if factor < 0 else 'positive_discharge'
-    p = factor * float(np.mean(v[ok] * i[ok]))
+    if t is None or not b > a:
+        p = factor * float(np.mean(v[ok] * i[ok]))
+    else:
+        p = factor * span_mean(t[ok], v[ok] * i[ok], a, b)
     if p < 0:
         raise SlipDataError(f'input power is negative ({p:.2f} W) with sign={name!r}')
     return p, name
