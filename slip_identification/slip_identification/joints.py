@@ -69,7 +69,7 @@ from typing import Any
 import numpy as np
 
 from .errors import SlipDataError
-from .stamps import repeat_note, same_values
+from .stamps import StampMemory, repeat_note
 
 __all__ = [
     'DERIVED_NOTE',
@@ -80,6 +80,7 @@ __all__ = [
     'assemble_joint_frames',
     'derive_velocity',
     'missing_joints',
+    'note_out_of_order',
     'rotation_signs',
     'unwrap_positions',
     'wrap_note',
@@ -288,10 +289,24 @@ def _field_ok(samples: Sequence[Any], field: str) -> bool:
 
 
 def _repeat_rows(t: np.ndarray, rows: Sequence[Any]) -> list[int]:
-    """Rows (one name group, arrival order, stamps ``t``) whose stamp equals or precedes the
-    previous row's while their values differ."""
+    """Rows (one name group, arrival order, stamps ``t``) that repeat a recent row's stamp
+    with new values (:class:`.stamps.StampMemory`; rows received out of stamp order, a stamp
+    of their own, are not repeats)."""
     back = np.flatnonzero(t[1:] <= t[:-1]) + 1
-    return [int(k) for k in back if not same_values(rows[k], rows[k - 1])]
+    if not back.size:
+        return []
+    memory = StampMemory()
+    return [k for k in range(len(rows)) if memory.check(float(t[k]), rows[k])]
+
+
+def note_out_of_order(topic: str, t_s: np.ndarray, notes: list[str]) -> None:
+    """Add a note counting the samples (arrival order, stamps ``t_s``) stamped before one
+    received earlier: they are used in stamp order."""
+    t = np.asarray(t_s, dtype=float)
+    late = int(np.count_nonzero(t < np.maximum.accumulate(t)))
+    if late:
+        notes.append(f'{late} {topic} message(s) received out of stamp order (after a later '
+                     'stamp): used in stamp order')
 
 
 def _repeats_note(n: int, topic: str) -> str:
@@ -321,6 +336,10 @@ def _fast_path(samples: Sequence[Any], topic: str) -> AssembledJoints:
         rows = [s for k, s in enumerate(rows) if k not in drop]
         t = np.delete(t, bad)
         notes.append(_repeats_note(len(bad), topic))
+    if t.size > 1 and bool(np.any(t[1:] < t[:-1])):   # received out of stamp order
+        note_out_of_order(topic, t, notes)
+        o = np.argsort(t, kind='stable')
+        t, rows = t[o], [rows[k] for k in o]
     dt = np.diff(t)
     rate = float(1.0 / np.median(dt)) if dt.size and np.median(dt) > 0 else float('nan')
     pos = np.array([s.position for s in rows]) if _field_ok(rows, 'position') else None
@@ -396,14 +415,12 @@ def assemble_joint_frames(samples: Sequence[Any], *, required: Sequence[str] = (
     usable = [s for s in samples if getattr(s, field).size == len(s.names) and len(s.names)]
     # new values under a name group's previous stamp: dropped (the later message used to win
     # at an equal stamp, silently)
-    last: dict[frozenset[str], Any] = {}
+    memory: dict[frozenset[str], StampMemory] = {}
     repeats = 0
     kept = []
     for s in usable:
         key = frozenset(s.names)
-        prev = last.get(key)
-        last[key] = s
-        if prev is not None and s.t_s <= prev.t_s and not same_values(s, prev):
+        if memory.setdefault(key, StampMemory()).check(s.t_s, s):
             repeats += 1
             continue
         kept.append(s)

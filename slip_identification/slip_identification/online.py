@@ -86,8 +86,9 @@ TIME_JUMP_S = 1.0
 
 
 class _Rows:
-    """Rows in arrival order in preallocated arrays: appended at the end, dropped from the
-    front by stamp; :meth:`step` reads the columns as views. (The buffers were deques of
+    """Rows in stamp order in preallocated arrays: appended at the end (a row received out of
+    stamp order is inserted at its stamp), dropped from the front by stamp; :meth:`step`
+    reads the columns as views. (The buffers were deques of
     tuples turned into arrays on every motion-capture message: 2.0 / 5.0 / 8.5 ms a step at
     100 / 500 / 1,000 Hz joint states in a review, a quarter of it building the arrays.)"""
 
@@ -126,9 +127,17 @@ class _Rows:
                                     f'{c.shape[1:]} (the joint set changed?)')
         if self._b == self._t.size:
             self._make_room()
-        self._t[self._b] = t_s
+        k = self._b
+        if k > self._a and t_s < self._t[k - 1]:
+            # received out of stamp order (another lab's recorder, a multi-threaded
+            # executor): inserted at its stamp, after equal ones, as offline sorts it
+            k = self._a + int(np.searchsorted(self._t[self._a:self._b], t_s, side='right'))
+            self._t[k + 1:self._b + 1] = self._t[k:self._b]
+            for c in self._cols:
+                c[k + 1:self._b + 1] = c[k:self._b]
+        self._t[k] = t_s
         for c, v in zip(self._cols, cols):
-            c[self._b] = v
+            c[k] = v
         self._b += 1
 
     def _make_room(self) -> None:

@@ -7,16 +7,20 @@ review's EduBot bag with every 20th stamp repeated: one stance's stiffness +87 %
 +3.6 %, no note), and joint states split over several messages kept one of the two silently.
 
 :class:`RepeatedStamps` watches each stream (a topic; for joint states each name set, for
-batteries each source) in arrival order. A sample whose header stamp equals or precedes the
-raw stamp of its stream's previous sample while its values differ (:func:`same_values`) is a
-repeat; exact repeats (the same message recorded twice) are left to the duplicate handling
-that already exists, and stamps a few ms out of order that still follow the previous one are
-not touched. After the bag is read, :meth:`RepeatedStamps.resolve` re-stamps every repeat
-from its receive time shifted by the stream's median ``stamp - receive`` offset when that
-offset is well defined -- at least :data:`MIN_SAMPLES` samples whose spread (1.4826 times the
-median absolute deviation) is at most :data:`MAX_SPREAD_STEPS` of the stream's median stamp
-step, and a new stamp strictly between the stream's previous stamp and its next one -- and
-drops it otherwise; either way with a note giving the count.
+batteries each source) in arrival order. A sample whose header stamp equals one of its
+stream's last :data:`RECENT_STAMPS` stamps while its values differ from that sample's
+(:func:`same_values`) is a repeat; exact repeats (the same message recorded twice) are left to
+the duplicate handling that already exists, and samples received out of stamp order (a stamp
+before the previous one but its own) are not touched: they are used in stamp order. (An
+outside review: a stamp before the previous one had counted as a repeat, so a bag with 20 %
+of its joint states received 15 ms late had 96 re-stamped from their receive times, a
+spurious pitch zero and the median stiffness 3.4 % off.) After the bag is read,
+:meth:`RepeatedStamps.resolve` re-stamps every repeat from its receive time shifted by the
+stream's median ``stamp - receive`` offset when that offset is well defined -- at least
+:data:`MIN_SAMPLES` samples whose spread (1.4826 times the median absolute deviation) is at
+most :data:`MAX_SPREAD_STEPS` of the stream's median stamp step, and a new stamp strictly
+between the stream's previous stamp and its next one -- and drops it otherwise; either way with
+a note giving the count.
 
 Core module: no rclpy.
 """
@@ -30,8 +34,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ['LIVE_WINDOW', 'LiveRepeatedStamps', 'MAX_SPREAD_STEPS', 'MIN_SAMPLES', 'RepeatedStamps',
-           'repeat_note', 'same_values']
+__all__ = ['LIVE_WINDOW', 'LiveRepeatedStamps', 'MAX_SPREAD_STEPS', 'MIN_SAMPLES', 'RECENT_STAMPS',
+           'RepeatedStamps', 'StampMemory', 'repeat_note', 'same_values']
 
 #: samples of a stream needed before its median stamp - receive offset re-stamps anything
 MIN_SAMPLES = 10
@@ -39,6 +43,8 @@ MIN_SAMPLES = 10
 MAX_SPREAD_STEPS = 0.25
 #: offsets and steps kept per stream for the medians (evenly thinned beyond, as ClockCheck)
 _MAX_KEPT = 4096
+#: raw stamps per stream a repeat is looked for among (a stale stamp re-sent after newer ones)
+RECENT_STAMPS = 16
 
 
 def repeat_note(n: int, topic: str, how: str) -> str:
@@ -85,15 +91,53 @@ def same_values(a: Any, b: Any) -> bool:
     return True
 
 
-class _Stream:
-    """One stream's bookkeeping (arrival order)."""
+class StampMemory:
+    """A stream's latest stamp and its last :data:`RECENT_STAMPS` stamps with their samples
+    (arrival order): what tells a repeat from a sample received out of stamp order."""
 
-    __slots__ = ('last_t', 'last', 'kept_t', 'n', 'stride', 'offsets', 'steps', 'repeats',
-                 'pending')
+    __slots__ = ('last_t', 'last', 'recent')
 
     def __init__(self) -> None:
-        self.last_t = -math.inf     # raw stamp of the previous sample
-        self.last: Any = None       # the previous sample
+        self.last_t = -math.inf     # latest raw stamp seen
+        self.last: Any = None       # the sample at it
+        self.recent: dict[float, Any] = {}   # the last RECENT_STAMPS raw stamps: sample
+
+    def is_repeat(self, t: float, sample: Any) -> bool:
+        """Whether ``sample`` repeats one of the stream's recent stamps with new values."""
+        if t > self.last_t:
+            return False
+        seen = self.recent.get(t)
+        if seen is None:
+            # not a recent stamp: received out of order (its own stamp), or older than the
+            # recent ones, which a repeat of the last read's stamp never is
+            return t == self.last_t and not same_values(sample, self.last)
+        return not same_values(sample, seen)
+
+    def remember(self, t: float, sample: Any) -> bool:
+        """Keep a sample that is no repeat; True when it came out of stamp order."""
+        self.recent[t] = sample
+        if len(self.recent) > RECENT_STAMPS:
+            del self.recent[next(iter(self.recent))]
+        if t < self.last_t:
+            return True
+        self.last_t, self.last = t, sample
+        return False
+
+    def check(self, t: float, sample: Any) -> bool:
+        """One sample in arrival order: True when it is a repeat (not remembered)."""
+        if self.is_repeat(t, sample):
+            return True
+        self.remember(t, sample)
+        return False
+
+
+class _Stream(StampMemory):
+    """One stream's bookkeeping (arrival order)."""
+
+    __slots__ = ('kept_t', 'n', 'stride', 'offsets', 'steps', 'repeats', 'pending')
+
+    def __init__(self) -> None:
+        super().__init__()
         self.kept_t = -math.inf     # raw stamp of the previous sample that is no repeat
         self.n = 0                  # samples that are not repeats
         self.stride = 1
@@ -130,24 +174,27 @@ class RepeatedStamps:
                 self._topics.setdefault(topic, []).append(st)
             self._streams[(topic, group)] = st
         t = sample.t_s
-        if t <= st.last_t and not same_values(sample, st.last):
+        if st.is_repeat(t, sample):
             entry = [float(row), float(receive_s), st.kept_t, math.inf]
             st.repeats.append(entry)
             st.pending.append(entry)
-            st.last_t, st.last = t, sample
+            st.last_t, st.last = max(t, st.last_t), sample
             return True
-        if st.pending:
+        late = t < st.last_t    # received out of stamp order: its own stamp, kept as it is
+        if st.pending and not late:
             for entry in st.pending:
                 entry[3] = t
             st.pending.clear()
         if st.n % st.stride == 0:
             st.offsets.append(t - receive_s)
-            st.steps.append(t - st.last_t)
+            st.steps.append(math.nan if late else t - st.last_t)
             if len(st.offsets) >= 2 * _MAX_KEPT:
                 del st.offsets[1::2], st.steps[1::2]
                 st.stride *= 2
         st.n += 1
-        st.last_t, st.last, st.kept_t = t, sample, t
+        st.remember(t, sample)
+        if not late:
+            st.kept_t = t
         return False
 
     def count(self, topic: str) -> int:
@@ -246,7 +293,7 @@ class LiveRepeatedStamps:
         if st is None:
             st = self._streams[key] = _Stream()
         t = sample.t_s
-        if t <= st.last_t and not same_values(sample, st.last):
+        if st.is_repeat(t, sample):
             st.last = sample
             offset, _ = _offset(st)
             n = self.counts.setdefault(topic, [0, 0])
@@ -257,9 +304,12 @@ class LiveRepeatedStamps:
                 return new
             n[1] += 1
             return None
+        late = t < st.last_t    # received out of stamp order: its own stamp
         st.offsets.append(t - arrival_s)
-        st.steps.append(t - st.last_t)
+        st.steps.append(math.nan if late else t - st.last_t)
         if len(st.offsets) > LIVE_WINDOW:
             del st.offsets[0], st.steps[0]
-        st.last_t, st.last, st.kept_t = t, sample, t
+        st.remember(t, sample)
+        if not late:
+            st.kept_t = t
         return t

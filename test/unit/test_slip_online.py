@@ -267,3 +267,35 @@ def test_online_geometric_stances_lost_to_a_mocap_gap_are_skipped_once_each(geom
               and abs(s.liftoff_s - f.liftoff_s) < 0.01]
         assert abs(s.touchdown_s - f.touchdown_s) < 0.01
     assert [s.reason for s in core.skipped if s.reason != 'mocap_gap'] == []
+
+
+def test_joint_states_received_out_of_stamp_order_give_the_same_fits(running, online):
+    """An outside review (another lab's bag replayed into slip_fitter): 20 % of /joint_states
+    received 15 ms late, after their successors, took 5 of 16 stances' stiffness -1.2 to
+    +2.5 % (re-stamped as repeats, then buffered in arrival order). Each row is now inserted
+    at its own stamp: the stances are those of the in-order feed."""
+    _, ref = online
+    names = tuple(f'{leg}_hip' for leg in running.leg_names)
+    rng = np.random.default_rng(3)
+    ev = [(a + (0.015 if kind == 0 and i and rng.random() < 0.2 else 0.0), kind, i)
+          for a, kind, i in events(running)]
+    ev.sort()
+    assert any(k == 0 and j < i for (_, k, i), (_, _, j) in zip(ev, ev[1:]) if k == 0)
+    core = OnlineSlip(box=BOX, mocap_offset_s=running.truth['clock_offset_s'])
+    fits = []
+    for _, kind, i in ev:
+        if kind == 0:
+            core.add_joint_state(float(running.t_s[i]), names, running.hip_velocity_rad_s[i])
+            core.add_command(float(running.t_s[i]), names, running.target_velocity_rad_s[i])
+        else:
+            core.add_mocap(float(running.mocap_t_s[i]), running.mocap_position_m[i],
+                           running.mocap_quat_xyzw[i])
+            fits.extend(core.step())
+    got = {round(f.touchdown_s, 4): f.params['stiffness'] for f in fits}
+    want = {round(f.touchdown_s, 4): f.params['stiffness'] for f in ref}
+    common = set(got) & set(want)
+    assert len(common) >= len(want) - 1
+    # before: 5 of 11 stances at the in-order feed's touchdowns. Now all, the stiffness
+    # within 0.3 % on 10 of 11, 2.8 % on one (a shift computed before a late sample came)
+    rel = np.array([abs(got[t] / want[t] - 1) for t in common])
+    assert np.median(rel) < 3e-3 and rel.max() < 0.05

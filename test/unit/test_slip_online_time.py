@@ -91,8 +91,8 @@ def test_stamps_a_few_ms_out_of_order_are_not_a_jump(run):
 
 def test_row_buffer_matches_a_deque_through_growth_and_trims():
     """OnlineSlip's buffers (preallocated rows read as views; they were deques rebuilt into
-    arrays on every mocap message): the same rows as a deque of tuples through appends,
-    trims by stamp (a few out of order), growth, compaction and a clear."""
+    arrays on every mocap message): the same rows as a deque of tuples kept in stamp order
+    through appends (a few out of order), trims by stamp, growth, compaction and a clear."""
     from collections import deque
 
     from slip_identification.errors import SlipDataError
@@ -106,7 +106,11 @@ def test_row_buffer_matches_a_deque_through_growth_and_trims():
         ts = t - (0.002 if k % 13 == 0 else 0.0)          # a few stamps out of order
         v, q = rng.normal(size=6), rng.normal(size=6)
         rows.append(ts, v, q)
-        ref.append((ts, v, q))
+        # in stamp order: a row received out of it goes in at its stamp, after equal ones
+        at = len(ref)
+        while at and ref[at - 1][0] > ts:
+            at -= 1
+        ref.insert(at, (ts, v, q))
         span = 0.3 if k < 2500 else 1.2                    # the buffer grows later
         rows.trim(ts - span)
         while ref and ref[0][0] < ts - span:
