@@ -11,8 +11,12 @@ What it does, per cycle (:meth:`DynamixelBus.poll`):
    ``silent_after`` cycles in a row is marked silent, dropped from the cycle (so it no longer
    costs a timeout per cycle) and probed again every ``probe_interval_cycles``.
 3. Decodes hardware error flags (Protocol 1.0 status error byte; Protocol 2.0 Hardware Error
-   Status, read when a reply carries the alert bit).
-4. Safety: a servo above ``temperature_limit_c`` or reporting overheating gets torque off in the
+   Status, read when the alert bit appears on a servo's replies, then in the round robin while
+   it stays: a persistent alert costs no READ per servo per cycle).
+4. Round robin: one servo per cycle (the next one that answered) has its Torque Enable read,
+   on Protocol 2.0 with Hardware Error Status in the same READ while its alert bit stays set:
+   one READ a cycle, every servo within ``len(joints)`` cycles.
+5. Safety: a servo above ``temperature_limit_c`` or reporting overheating gets torque off in the
    same cycle, then every other servo too, and the bus is ``aborted`` (commands ignored) until
    :meth:`DynamixelBus.set_torque` ``(True)`` is called with all servos cool again.
 
@@ -53,7 +57,11 @@ Models: each servo's control table comes from the model number it reports
 (:func:`hexapod_bench_drivers.control_tables.table_for_model`: AX, MX on Protocol 1.0, MX(2.0)
 and X series on 2.0), so one Protocol 1.0 bus may mix AX-18A and MX-28. A servo of an unknown
 model is left out of the cycle; if no servo is usable, :class:`BusError` carries the refusal,
-which names the known models. Only Torque Enable, Goal Position and Moving Speed / Profile
+which names the known models. The model number (register 0) is read again when a servo answers
+after a failed cycle or silence (before its data are decoded), when it refuses a READ (an
+access error), and at every PING: another model at the ID (a servo replaced, another servo
+set to the ID) is left out naming both models (``refused``) until the driver is restarted or
+the first model answers there again. Only Torque Enable, Goal Position and Moving Speed / Profile
 Velocity are ever written (never the AX compliance or MX gain registers at 26-29).
 
 Operating Mode (Protocol 2.0, register 11) is read at open: in Extended Position (4) and
@@ -70,8 +78,9 @@ error (X series in hardware-error shutdown stays off until REBOOT) is reported a
 the error in ``ServoHealth.torque_error``. Torque Enable is read back again when a servo answers
 after a failed cycle or silence (a power-cycled servo comes back with Torque Enable 0) and when
 it raises a new hardware error flag (Alarm Shutdown turns torque off): ``torque_enabled`` follows
-the register, and torque lost that the driver had turned on is reported in
-``ServoHealth.torque_lost`` (never turned on again by the bus: call ``set_torque(True)``).
+the register, also between those events through the round robin (a servo rebooted
+between two reads, no reply missed), and torque lost that the driver had turned on is reported
+in ``ServoHealth.torque_lost`` (never turned on again by the bus: call ``set_torque(True)``).
 
 Run-time transitions (a servo going silent or answering again, a hardware error flag appearing or
 clearing, torque lost, the loop rate falling below :data:`RATE_LOW_FRACTION` of the requested
@@ -92,8 +101,12 @@ request went to that ID, is a second servo at that ID: counted in
 servo's readings are marked failed for :data:`DUPLICATE_HOLD_CYCLES` cycles (either servo may
 have answered). Two replies that collide on the wire arrive corrupt: that case still reads as a
 silent servo. A reply of the requested ID that carries an instruction or checksum error and no
-data (the servo received a corrupted instruction) is counted in
-``ServoHealth.rejected_instructions`` and retried, not taken as late.
+data (the servo received a corrupted instruction: Protocol 1.0 checksum or instruction error,
+2.0 Instruction or CRC Error) is counted in ``ServoHealth.rejected_instructions`` and retried,
+not taken as late; another Protocol 2.0 error with no data (Access Error: a register the model
+does not have; result fail, data range / length / limit) is an instruction the servo received
+intact and refused: counted in ``ServoHealth.refused_instructions``, logged as such, not
+retried, and the servo's model number is read again.
 """
 
 from __future__ import annotations
@@ -188,6 +201,22 @@ RATE_LOW_FRACTION = 0.8
 RATE_OK_FRACTION = 0.9
 #: cycles a servo's readings stay marked failed after a second reply to one request
 DUPLICATE_HOLD_CYCLES = 10
+#: result of a request the servo refused (an error and no data, not noise): not retried; not
+#: one of the SDK's COMM_* codes
+RESULT_REFUSED = -3900
+#: Protocol 2.0 status errors that mean the servo received a corrupted instruction (noise on
+#: the way to it); the others (result fail, data range / length / limit, access error) mean
+#: it received the instruction intact and could not carry it out
+P2_NOISE_ERRORS = frozenset({0x02, 0x03})
+#: what a Protocol 2.0 status error that is not noise says about the instruction
+P2_REFUSAL_HINTS = {
+    0x01: 'the servo could not process the instruction',
+    0x04: 'a value outside the register\'s range',
+    0x05: 'fewer bytes than the register holds',
+    0x06: 'a value beyond the servo\'s limit registers',
+    0x07: 'a register this model does not have (or read-only / write-only, or EEPROM written '
+          'with torque on)',
+}
 
 
 class EventLog:
@@ -464,20 +493,29 @@ class ServoHealth:
     #: replies reporting that the servo received a corrupted instruction (checksum / CRC /
     #: instruction error, no data): noise on the way to the servo; retried
     rejected_instructions: int = 0
+    #: replies saying the servo could not carry out an instruction it received intact (Protocol
+    #: 2.0 result fail, data range / length / limit error, access error: a register its model
+    #: does not have), no data: not noise, not retried; its model number is read again
+    refused_instructions: int = 0
     #: failed requests since the last good reply whose answer came garbled (broken checksum
     #: or packet), and those that got no answer at all: a servo silent on garbled replies is
     #: answering, but over another servo at its ID, at another baud rate or through noise
     streak_garbled: int = 0
     streak_no_reply: int = 0
-    #: the kinds of the last failed requests ('g' garbled, 'n' no reply), newest last
+    #: the kinds of the last failed requests ('g' garbled, 'n' no reply, 'r' refused by the
+    #: servo), newest last
     recent_failures: deque[str] = field(default_factory=lambda: deque(maxlen=RECENT_FAILURES))
 
     def silence(self) -> str:
         """Why the servo reads as failing: ``'garbled replies'`` when most of its last
-        :data:`RECENT_FAILURES` failed requests were answered garbled, else ``'no reply'``
+        :data:`RECENT_FAILURES` failed requests were answered garbled, ``'refused reads'``
+        when most were refused by the servo (an access error), else ``'no reply'``
         (a garbled burst followed by silence reads as silence once the silence dominates;
         the whole streak's majority had kept it 'garbled' and flipped later)."""
-        if self.recent_failures.count('g') > self.recent_failures.count('n'):
+        counts = {k: self.recent_failures.count(k) for k in 'gnr'}
+        if counts['r'] > counts['g'] + counts['n']:
+            return 'refused reads'
+        if counts['g'] > counts['n']:
             return 'garbled replies'
         return 'no reply'
 
@@ -523,6 +561,14 @@ class _Servo:
     command_refusal: str = ''
     last_duplicate_cycle: int = field(default=-10**9)   # cycle of its last second reply
     silent_since_cycle: int = 0
+    #: the model first detected at the ID: the joint's readings are decoded with its table,
+    #: and another model answering there later is left out (:meth:`DynamixelBus._model_changed`)
+    first_model: ControlTable | None = None
+    #: Protocol 2.0: its last reply carried the alert bit and Hardware Error Status was read
+    #: since (the flags are known; re-read in the round robin, not every cycle)
+    alert: bool = False
+    #: the servo refused a READ it received intact (an access error): its model is read again
+    refused_read: bool = False
 
 
 class DynamixelBus:
@@ -604,6 +650,8 @@ class DynamixelBus:
         #: went to that ID: another packet like it is a second servo at that ID (a late reply
         #: belongs to an unanswered request, whose retry asks for another length)
         self._answered: dict[int, int] = {}
+        #: index in ``servos`` of the last servo whose Torque Enable the round robin read
+        self._round_robin = -1
 
     # --- lifecycle -------------------------------------------------------------------------
     def open(self) -> DynamixelBus:
@@ -864,10 +912,9 @@ class DynamixelBus:
                                               self._now_ms() - self._tx_ms - wire_ms)
                 return params, error, result
             if rid == sid and not params and error & self._rejected_bits:
-                # The servo received a corrupted instruction and says so: no reply is late.
+                # The servo could not take the instruction and says so: no reply is late.
                 self._failed_tx_ms = None
-                self._rejected(sid, error)
-                return None, error, COMM_RX_CORRUPT
+                return None, error, self._rejected(sid, error)
             if self._answered.get(rid, -1) == len(rx):
                 self._duplicate(rid)
             else:
@@ -879,21 +926,40 @@ class DynamixelBus:
         bytes."""
         return self.protocol == 1 and len(rx) == 6 and rx[P1_PKT_INSTRUCTION] == INST_PING
 
-    def _rejected(self, sid: int, error: int) -> None:
-        """The servo says the instruction it received was corrupted: counted, for the log."""
+    def _rejected(self, sid: int, error: int) -> int:
+        """A reply of ``sid`` with an error and no data, for the log: a corrupted instruction
+        (Protocol 1.0 checksum or instruction error, 2.0 Instruction or CRC Error: noise, the
+        result COMM_RX_CORRUPT, retried) or an instruction the servo received intact and
+        refused (any other 2.0 error, e.g. Access Error: :data:`RESULT_REFUSED`, not retried;
+        the servo's model number is read again)."""
         s = self._by_id.get(sid)
+        number = error & 0x7F
+        noise = self.protocol == 1 or number in P2_NOISE_ERRORS
         if s is None:
-            return
-        s.health.rejected_instructions += 1
+            return COMM_RX_CORRUPT if noise else RESULT_REFUSED
         if self.protocol == 1:
             what = 'checksum' if error & 0x10 else 'instruction'
         else:
-            what = P2_STATUS_ERRORS.get(error & 0x7F, 'status')
+            what = P2_STATUS_ERRORS.get(number, 'status')
+        name = f'{s.joint.name} (id {sid})'
+        if noise:
+            s.health.rejected_instructions += 1
+            self.events.event(
+                (sid, 'rejected'), 'warning',
+                f'{name} reports a {what} error on an instruction it received (status error '
+                f'{error:#04x}): noise on the way to the servo (cabling, termination, baud '
+                'rate); retried')
+            return COMM_RX_CORRUPT
+        s.health.refused_instructions += 1
+        s.refused_read = True
+        model = s.table.model_name if s.table is not None else 'the model detected'
         self.events.event(
-            (sid, 'rejected'), 'warning',
-            f'{s.joint.name} (id {sid}) reports a {what} error on an instruction it received '
-            f'(status error {error:#04x}): noise on the way to the servo (cabling, termination, '
-            'baud rate); retried')
+            (sid, 'refused'), 'warning',
+            f'{name} reports {what} (status error {error:#04x}) on an instruction it received '
+            f'intact: {P2_REFUSAL_HINTS.get(number, "it could not carry it out")}; is the '
+            f'servo at this ID still the {model} the driver detected? (its model number is '
+            'read again)')
+        return RESULT_REFUSED
 
     @property
     def _rejected_bits(self) -> int:
@@ -934,7 +1000,10 @@ class DynamixelBus:
         return (None, True) if data is None else (data[0] | (data[1] << 8), True)
 
     def _ping(self, s: _Servo) -> bool:
-        """Detect ``s``: model, Status Return Level, Operating Mode (False: left out)."""
+        """Detect ``s``: model, Status Return Level, Operating Mode (False: left out).
+
+        A model other than the one first detected at the ID is left out
+        (:meth:`_model_changed`); the first model answering again is taken back."""
         for _ in range(1 + self.retries):
             garbled = s.health.streak_garbled
             model, answered = self._ping_once(s)
@@ -947,25 +1016,81 @@ class DynamixelBus:
                 # PING answered, model READ not, on a quiet line: Status Return Level 0
                 self._refuse_level_0(s)
                 return False
+            unknown = ''
             try:
-                s.table = table_for_model(self.protocol, model)
+                table: ControlTable | None = table_for_model(self.protocol, model)
             except ControlTableError as err:
-                s.health.model = f'unsupported model {model}'
-                s.refusal = str(err)
+                table, unknown = None, str(err)
+            first = s.first_model
+            if first is not None and (table is None or table.model_number != first.model_number):
+                self._model_changed(s, model, table)
                 return False
+            if table is None:
+                s.health.model = f'unsupported model {model}'
+                s.refusal = unknown
+                return False
+            s.table = table
             garbled = s.health.streak_garbled
             if not self._read_status_return_level(s, garbled):
                 return False
             self._read_operating_mode(s)
             self._read_wheel_mode(s)
+            if first is not None and s.refusal.startswith('model changed'):
+                self.events.event((s.joint.servo_id, 'model'), 'info',
+                                  f'{s.joint.name} (id {s.joint.servo_id}) answers as '
+                                  f'{first.model_name} again, the model first detected: read '
+                                  'again')
             s.refusal = ''
+            s.first_model = s.table
             s.health.model = s.table.model_name
             s.health.silent = False
-            s.health.consecutive_failures = 0
+            # consecutive_failures is kept: a servo taken back at run time is checked as one
+            # that answers again (model, Torque Enable) on its first good read
             s.health.streak_garbled = s.health.streak_no_reply = 0
             s.health.recent_failures.clear()
             return True
         s.health.silent = True
+        return False
+
+    def _model_changed(self, s: _Servo, number: int, table: ControlTable | None) -> None:
+        """Another model answers at the ID of ``s`` (a servo replaced, or another servo set to
+        this ID): left out, named with both models, until the driver is restarted or the first
+        model answers there again. Not adopted with its own table: the joint's offset and
+        direction, its Status Return Level and mode were set up for the first servo, and one
+        run's data would mix two servos."""
+        first = s.first_model
+        assert first is not None
+        now = (f'{table.model_name} (model number {number})' if table is not None
+               else f'model number {number}, not a model the driver knows')
+        s.table = None
+        s.alert = s.refused_read = False
+        s.health.model = f'{table.model_name if table else number} (first {first.model_name})'
+        refusal = (f'model changed: first detected as {first.model_name} (model number '
+                   f'{first.model_number}), now answers as {now}: a servo replaced, or '
+                   f'another servo set to this ID; read with the {first.model_name} control '
+                   'table its numbers would be wrong, so it is left out until the driver is '
+                   'restarted or a servo of the first model answers at this ID again')
+        if s.refusal != refusal:
+            self.events.event((s.joint.servo_id, 'model'), 'warning',
+                              f'{s.joint.name} (id {s.joint.servo_id}) {refusal}')
+        s.refusal = refusal
+
+    def _model_still(self, s: _Servo) -> bool | None:
+        """Model Number (address 0) read again: True when it is still the model of ``s``, False
+        when another model answers (left out, :meth:`_model_changed`), None when unread."""
+        assert s.table is not None and s.first_model is not None
+        s.refused_read = False
+        data, _ = self._read_single(s, 0, 2, 1 + self.retries)
+        if data is None:
+            return None
+        number = data[0] | (data[1] << 8)
+        if number == s.first_model.model_number:
+            return True
+        try:
+            table: ControlTable | None = table_for_model(self.protocol, number)
+        except ControlTableError:
+            table = None
+        self._model_changed(s, number, table)
         return False
 
     def _refuse_garbled(self, s: _Servo) -> None:
@@ -1090,7 +1215,9 @@ class DynamixelBus:
         return [s.health for s in self.servos]
 
     def _count(self, s: _Servo, result: int) -> None:
-        if result == COMM_RX_CORRUPT:
+        if result == RESULT_REFUSED:   # counted in refused_instructions
+            s.health.recent_failures.append('r')
+        elif result == COMM_RX_CORRUPT:
             s.health.corrupt += 1
             s.health.streak_garbled += 1
             s.health.recent_failures.append('g')
@@ -1137,6 +1264,8 @@ class DynamixelBus:
                 if data is not None:
                     return data[lo:lo + length], error
             self._count(s, result)
+            if result == RESULT_REFUSED:
+                break   # the servo would refuse it again
         return None, 0
 
     def _sync_read(self, servos: list[_Servo], start: int,
@@ -1159,6 +1288,10 @@ class DynamixelBus:
                     pending.remove(sid)
                     got[sid] = (data, rx[P2_ERROR])
                     self._answered[sid] = len(rx)
+                elif sid in pending and not data and rx[P2_ERROR] & 0x7F:
+                    # it could not take the Sync Read (an access error: another model?)
+                    pending.remove(sid)
+                    self._count(self._by_id[sid], self._rejected(int(sid), rx[P2_ERROR]))
                 elif self._answered.get(sid, -1) == len(rx):
                     self._duplicate(int(sid))
                 else:
@@ -1175,15 +1308,26 @@ class DynamixelBus:
             self._count(self._by_id[sid], COMM_RX_TIMEOUT)
         return got
 
-    def _hardware_flags(self, s: _Servo, status_error: int) -> int:
+    def _hardware_flags(self, s: _Servo, status_error: int, *, cached: bool = False) -> int:
+        """The hardware error flags a reply's status error stands for: Protocol 1.0 its bits;
+        Protocol 2.0 Hardware Error Status, read when the alert bit is set, or with ``cached``
+        the flags last read while the alert bit stayed set (re-read in the round robin of
+        :meth:`_read_all`: a persistent alert, e.g. Input Voltage on every servo of a sagging
+        battery, costs no READ per servo per cycle)."""
         if self.protocol == 1:
             return status_error & 0x7F
         if s.table is None:
             return 0
         if not status_error & P2_ALERT:
+            s.alert = False
             return 0
+        if cached and s.alert:
+            return s.health.last_error_flags
         data, _ = self._read_single(s, s.table.reg('hardware_error_status').address, 1, 1)
-        return data[0] if data else s.health.last_error_flags
+        if data is None:
+            return s.health.last_error_flags
+        s.alert = True
+        return data[0]
 
     def read_all(self) -> tuple[ServoReading, ...]:
         """One read of every active servo, in joint-map order (NaN readings for failures).
@@ -1213,8 +1357,9 @@ class DynamixelBus:
             if sid in raw:
                 continue
             if synced:
-                # The sync reply was lost or corrupt: this is a retry.
-                if self.retries == 0:
+                # The sync reply was lost or corrupt: this is a retry (not of a refused one:
+                # its model is read instead, below).
+                if self.retries == 0 or s.refused_read:
                     continue
                 s.health.retries += 1
                 data, err = self._read_single(s, *s.table.read_block, attempts=self.retries,
@@ -1226,10 +1371,17 @@ class DynamixelBus:
                 raw[sid] = (data, err)
         if synced:
             self._note_sync_support(sync_answered, single_answered=bool(raw))
+        polled = self._round_robin_pick(raw)
         readings = []
         for s in self.servos:
             sid = s.joint.servo_id
             duplicate = self.cycle - s.last_duplicate_cycle <= DUPLICATE_HOLD_CYCLES
+            if (s.refused_read and sid not in raw and s in active and s.table is not None
+                    and self._model_still(s) is False):
+                # its READ refused (access error): another model answers; left out now
+                readings.append(ServoReading(s.joint.name, sid, False,
+                                             error_flags=s.health.last_error_flags))
+                continue
             if sid not in raw or s.table is None or duplicate:
                 if s in active:
                     s.health.failed_cycles += 1
@@ -1242,8 +1394,19 @@ class DynamixelBus:
                 continue
             data, status_error = raw[sid]
             h = s.health
-            h.reads_ok += 1
             was_failing = h.consecutive_failures > 0
+            if was_failing or s.refused_read:
+                # A servo answering again may be another one (replaced, or set to this ID):
+                # its model is read before its data are decoded with the model's table.
+                same = self._model_still(s)
+                if not same:
+                    if same is None:   # not confirmed: withheld, still failing
+                        h.failed_cycles += 1
+                        h.consecutive_failures += 1
+                    readings.append(ServoReading(s.joint.name, sid, False,
+                                                 error_flags=h.last_error_flags))
+                    continue
+            h.reads_ok += 1
             if h.silent:
                 self.events.event((sid, 'silent'), 'info',
                                   f'{s.joint.name} (id {sid}) answers again after '
@@ -1252,14 +1415,22 @@ class DynamixelBus:
             h.streak_garbled = h.streak_no_reply = 0
             h.recent_failures.clear()
             h.silent = False
-            flags = self._hardware_flags(s, status_error)
+            known_alert = s.alert and bool(status_error & P2_ALERT)
+            flags = self._hardware_flags(s, status_error, cached=True)
+            on, err = None, 0
+            if s is polled and not was_failing:
+                # the round robin: Torque Enable of one servo per cycle (torque lost without a
+                # missed reply), with a persistent alert's Hardware Error Status in one READ
+                on, fresh, err = self._read_torque_enable(s, with_flags=known_alert)
+                if fresh is not None:
+                    flags = fresh
             if flags or (status_error & (0x7F if self.protocol == 2 else 0)):
                 h.error_replies += 1
             new_flags = flags & ~h.last_error_flags
             self._note_flags(s, flags)
             h.last_error_flags = flags
-            if was_failing or new_flags:
-                self._check_torque(s, came_back=was_failing)
+            if was_failing or new_flags or on is not None:
+                self._check_torque(s, came_back=was_failing, on=on, err=err)
             st = s.table.decode_present(data)
             j = s.joint
             readings.append(ServoReading(
@@ -1271,11 +1442,28 @@ class DynamixelBus:
                 voltage_v=st.voltage_v, temperature_c=st.temperature_c, error_flags=flags))
         return tuple(readings)
 
+    def _round_robin_pick(self, raw: Mapping[int, Any]) -> _Servo | None:
+        """The next servo (in joint-map order, after the last one picked) that answered this
+        cycle: its Torque Enable is read (and a persistent alert's flags), one READ a cycle."""
+        n = len(self.servos)
+        for k in range(1, n + 1):
+            i = (self._round_robin + k) % n
+            s = self.servos[i]
+            if (s.joint.servo_id in raw and s.table is not None
+                    and self.cycle - s.last_duplicate_cycle > DUPLICATE_HOLD_CYCLES):
+                self._round_robin = i
+                return s
+        return None
+
     def _went_silent(self, s: _Servo) -> None:
         s.health.silent = True
         s.silent_since_cycle = self.cycle
         h = s.health
-        if h.silence() == 'garbled replies':
+        if h.silence() == 'refused reads':
+            why = (f'its READs refused (status error, no data) in {h.consecutive_failures} '
+                   'cycles in a row')
+            check = 'the model at this ID and the log'
+        elif h.silence() == 'garbled replies':
             why = (f'garbled replies (of its last {len(h.recent_failures)} failed requests '
                    f'{h.recent_failures.count("g")} with a broken checksum, '
                    f'{h.recent_failures.count("n")} unanswered) in '
@@ -1305,26 +1493,46 @@ class DynamixelBus:
             self.events.event((s.joint.servo_id, 'flags'), 'info',
                               f'{name} hardware error flags cleared')
 
-    def _check_torque(self, s: _Servo, came_back: bool) -> None:
-        """Torque Enable (and on Protocol 2.0 Hardware Error Status) read back after a servo
-        answered again or raised a new hardware error: ``torque_enabled`` follows it, and
-        torque the driver had turned on but the servo lost is reported (``torque_lost``)."""
+    def _read_torque_enable(self, s: _Servo, with_flags: bool = False
+                            ) -> tuple[bool | None, int | None, int]:
+        """Torque Enable, and with ``with_flags`` (Protocol 2.0) Hardware Error Status in the
+        same READ (registers 64 and 70): (on, flags, status error); (None, None, 0) unread."""
         assert s.table is not None
         reg = s.table.reg('torque_enable')
-        data, err = self._read_single(s, reg.address, 1, 1 + self.retries)
+        length = reg.size
+        if with_flags:
+            hw = s.table.reg('hardware_error_status')
+            length = hw.address + hw.size - reg.address
+        data, err = self._read_single(s, reg.address, length, 1 + self.retries)
         if data is None:
-            return   # counted; tried again on the next recovery
-        on = bool(data[0])
+            return None, None, 0   # counted; tried again later
+        return bool(data[0]), (data[-1] if with_flags else None), err
+
+    def _check_torque(self, s: _Servo, came_back: bool, on: bool | None = None,
+                      err: int = 0) -> None:
+        """Torque Enable (``on``, read here if not given) after a servo answered again
+        (``came_back``), raised a new hardware error, or in the round robin of
+        :meth:`_read_all`: ``torque_enabled`` follows it, and torque the driver had turned on
+        but the servo lost is reported (``torque_lost``)."""
+        assert s.table is not None
+        reg = s.table.reg('torque_enable')
+        if on is None:
+            on, _flags, err = self._read_torque_enable(s)
+            if on is None:
+                return
         expected = s.health.torque_enabled
         s.health.torque_enabled = on
         if on or not expected:
             return
-        flags = self._hardware_flags(s, err) | s.health.last_error_flags
+        flags = self._hardware_flags(s, err, cached=True) | s.health.last_error_flags
         names = list(decode_error_flags(self.protocol, flags))
         if came_back:
             why = 'came back with torque off (power cycled or hardware error?)'
-        else:
+        elif flags:
             why = f'turned torque off itself with hardware error {names} (Alarm Shutdown)'
+        else:
+            why = ('torque off between two reads, no reply missed (rebooted, or power cycled '
+                   'within a cycle?)')
         hint = ('; an X-series or MX(2.0) servo in hardware-error shutdown needs a REBOOT'
                 if self.protocol == 2 and flags else '')
         s.health.torque_lost = (

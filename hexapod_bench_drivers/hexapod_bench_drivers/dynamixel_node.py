@@ -16,8 +16,10 @@ Topics (relative names, so a namespace applies):
   (unknown model, Status Return Level 0, an Operating Mode that ignores goals) do not make it
   fail; the message names them, and the servo's own reason when torque on fails.
 
-/diagnostics: ERROR for a servo left out (with the refusal), silent, when aborted, when the port
-is lost, for a servo that lost the torque the driver turned on (``came back with torque off``,
+/diagnostics: ERROR for a servo left out (with the refusal; ``model changed: ...`` naming both
+models when another model answers at its ID, also left out of ``joint_states``), silent, when
+aborted, when the port is lost, for a servo that lost the torque the driver turned on (``came
+back with torque off``, or ``torque off between two reads`` found by the bus's round robin;
 ``torque_enabled`` then False) or for two replies to one request (``duplicate id?``); WARN for
 a servo whose commands are refused (its mode), which refused torque on (hardware error) or
 reports hardware error flags; OK otherwise.
@@ -294,6 +296,10 @@ class DynamixelDriverNode(Node):
             d.level = DiagnosticStatus.ERROR
             d.message = (f'duplicate id? {h.duplicate_replies} second replies to one request: '
                          'two servos share this ID; readings withheld')
+        elif h.silent and h.silence() == 'refused reads':
+            d.level = DiagnosticStatus.ERROR
+            d.message = ('silent: its READs are refused (access error: another model at this '
+                         'ID?)')
         elif h.silent and h.silence() == 'garbled replies':
             d.level = DiagnosticStatus.ERROR
             d.message = ('silent: garbled replies (a second servo at this ID? cabling, '
@@ -319,6 +325,7 @@ class DynamixelDriverNode(Node):
                   'late_replies': h.late_replies, 'operating_mode': h.operating_mode,
                   'duplicate_replies': h.duplicate_replies,
                   'rejected_instructions': h.rejected_instructions,
+                  'refused_instructions': h.refused_instructions,
                   'reply_margin_ms': f'{self.bus.reply_margin_ms:.0f}'}
         d.values = [KeyValue(key=k, value=str(v)) for k, v in values.items()]
         return d

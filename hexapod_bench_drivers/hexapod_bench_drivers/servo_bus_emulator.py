@@ -25,7 +25,10 @@ Fault injection per servo (:meth:`ServoBusEmulator.inject`): ``no_answer`` (sile
 the reply; Protocol 2.0 sets Hardware Error Status and the alert bit; a flag selected in the
 Shutdown register turns torque off and keeps Torque Enable at 0, on Protocol 2.0 until REBOOT
 clears the fault), ``late_reply`` (answer
-after a delay, holding the bus as a slow servo does), ``overheat`` (present temperature forced).
+after a delay, holding the bus as a slow servo does), ``overheat`` (present temperature forced),
+``refuse`` (a READ, Sync Read or Bulk Read answered with ``error_bits`` as the status error and no
+data: Protocol 2.0 Access Error 0x07 is what a servo of another model whose table lacks the
+register answers).
 :attr:`ServoBusEmulator.adapter_latency_s` delays every reply on its way to the host without
 holding the bus, as a USB adapter's latency timer does (FTDI/U2D2: 16 ms by default on Linux).
 :attr:`EmulatedServo.read_hook` is called before a servo answers a READ, Sync Read or Bulk
@@ -40,7 +43,9 @@ with a twin's answering at the same moment (a wired AND: replies carrying data a
 broken checksum, a PING's intact); :attr:`ServoBusEmulator.corrupt_instructions`
 corrupts that many of the next instructions addressed to one servo on their way (the servo
 answers with a checksum / CRC error); :meth:`ServoBusEmulator.power_cycle` gives a servo its
-power-on RAM values (Torque Enable 0, Goal Position at the present position).
+power-on RAM values (Torque Enable 0, Goal Position at the present position), between two
+requests if called so (a servo rebooted within one read cycle); :meth:`ServoBusEmulator.replace`
+puts a servo of another model at an ID (a servo replaced while the bus runs).
 
 Physics: :class:`hexapod_bench_drivers.servo_model.ServoModel` when importable (the simulator's
 electromechanical model), else :class:`FirstOrderServo`, a first-order stand-in. Either sits
@@ -113,7 +118,7 @@ __all__ = [
     'p2_packet',
 ]
 
-FAULT_KINDS = ('no_answer', 'bad_checksum', 'error_bits', 'late_reply', 'overheat')
+FAULT_KINDS = ('no_answer', 'bad_checksum', 'error_bits', 'late_reply', 'overheat', 'refuse')
 
 BROADCAST_ID = 0xFE
 INST_PING, INST_READ, INST_WRITE, INST_REG_WRITE, INST_ACTION = 0x01, 0x02, 0x03, 0x04, 0x05
@@ -385,6 +390,7 @@ class EmulatedServo:
             self.memory[reg.address:reg.address + reg.size] = reg.default.to_bytes(
                 reg.size, 'little', signed=reg.signed)
         self.set('id', self.servo_id)
+        self.set('model_number', self.table.model_number)   # (a table derived with replace)
         self.set('present_temperature', int(round(self.initial_temperature_c)))
         tick = self.table.rad_to_position(self.initial_position_rad)
         self.set('goal_position', tick)
@@ -614,6 +620,7 @@ class ServoBusEmulator:
         by_model: dict[str, list[EmulatedServo]] = {}
         for s in servos:
             by_model.setdefault(s.table.model_name, []).append(s)
+        self._prefer_model = prefer_model
         self._groups = [_Group(g, prefer_model) for g in by_model.values()]
         self._last_step_s: float | None = None
         self.packets_received = 0
@@ -730,6 +737,35 @@ class ServoBusEmulator:
             servo.registered = None
             servo.faults.clear()
 
+    def replace(self, servo_id: int, model: str | ControlTable, *,
+                initial_position_rad: float = 0.0) -> EmulatedServo:
+        """Another servo at ``servo_id``: one of ``model`` (a name as in :meth:`of_model`, or
+        a ControlTable: one with a model number no table has stands for an unknown model),
+        with its power-on registers, at ``initial_position_rad``, in place of the one there (a
+        servo replaced while the bus runs; the old one's faults go with it). The physics of
+        the servos that shared a model with the old or the new one restart at their goals."""
+        table = model if isinstance(model, ControlTable) else table_by_name(model)
+        if table.protocol != self.protocol:
+            raise ValueError(f'model: expected a Protocol {self.protocol}.0 model, got '
+                             f'{table.model_name} (Protocol {table.protocol}.0)')
+        with self.lock:
+            self._advance(force=True)
+            new = EmulatedServo(servo_id, table, initial_position_rad)
+            new.set('present_voltage' if new.protocol == 1 else 'present_input_voltage',
+                    max(0, min(255, int(round(self.supply_voltage_v * 10)))))
+            old = self.servos[servo_id]
+            self.servos[servo_id] = new
+            kept = [g for g in self._groups if all(x is not old for x in g.servos)
+                    and g.table.model_name != table.model_name]
+            in_kept = {id(x) for g in kept for x in g.servos}
+            regroup: dict[str, list[EmulatedServo]] = {}
+            for s in self.servos.values():
+                if id(s) not in in_kept:
+                    regroup.setdefault(s.table.model_name, []).append(s)
+            self._groups = kept + [_Group(g, self._prefer_model) for g in regroup.values()]
+            self._group_of = {id(s): g for g in self._groups for s in g.servos}
+            return new
+
     def read_register(self, servo_id: int, name: str) -> int:
         """A register as the servo holds it now (physics advanced to now)."""
         with self.lock:
@@ -824,6 +860,9 @@ class ServoBusEmulator:
         if servo.take_fault('no_answer') is not None:
             return []
         hw = servo.hardware_errors()
+        refuse = servo.take_fault('refuse') if is_read else None
+        if refuse is not None:
+            error, params = refuse.error_bits, b''
         if servo.protocol == 1:
             data = p1_packet(servo.servo_id, error | hw, params)
         else:

@@ -90,3 +90,32 @@ def test_power_cycled_servo_error_in_diagnostics_and_logged(tmp_path):
         assert len([w for w in warnings if 'came back with torque off' in w]) == 1
         assert any(i.startswith('j2 (id 2) answers again') for i in infos)
         assert emu.read_register(2, 'torque_enable') == 0
+
+
+@pytest.mark.timeout(90)
+def test_servo_back_as_another_model_left_out_of_joint_states_with_error(tmp_path):
+    """A third review: j2 (AX-18A) goes silent and an MX-28 answers at its ID. Before: read
+    with the AX-18A table and published on /joint_states (9.909 rad). Now it is left out of
+    /joint_states, and /diagnostics has an ERROR naming both models."""
+    from sensor_msgs.msg import JointState
+
+    with ServoBusEmulator.of_model('ax18a', [1, 2]) as emu, ros_env('dxl') as env:
+        node = _node(env, emu, tmp_path, 1, silent_after=2, probe_interval_s=0.05)
+        warnings, _infos = _capture(node)
+        diags = Collector(env, DiagnosticArray, '/diagnostics')
+        joints = Collector(env, JointState, 'joint_states')
+        diags.wait_for(env, 1)
+        emu.inject(2, 'no_answer')
+        assert env.spin_until(lambda: node.bus.health()[1].silent, 30.0)
+        emu.replace(2, 'mx28', initial_position_rad=1.0)
+        assert env.spin_until(lambda: 'j2' in node.bus.refused, 30.0)
+        n, m = len(joints.messages), len(diags.messages)
+        assert env.spin_until(lambda: len(diags.messages) >= m + 2
+                              and len(joints.messages) >= n + 5, 30.0)
+        assert all(list(js.name) == ['j1'] for js in joints.messages[n:])
+        j2 = _status(diags, 'j2')
+        assert j2.level == DiagnosticStatus.ERROR
+        assert j2.message.startswith('left out: model changed: first detected as AX-18A (model '
+                                     'number 18), now answers as MX-28 (model number 29)')
+        assert _status(diags, 'j1').level == DiagnosticStatus.OK
+        assert len([w for w in warnings if w.startswith('j2 (id 2) model changed')]) == 1

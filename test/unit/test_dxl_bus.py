@@ -175,7 +175,8 @@ def test_a_bus_without_sync_read_is_read_servo_by_servo():
         assert not [n for n in bus.take_notes() if 'Sync Read' in n]
         before = emu.packets_received
         bus.poll()
-        assert emu.packets_received - before == 4      # four READs, no Sync Read
+        # four READs, no Sync Read; one READ of Torque Enable (the round robin)
+        assert emu.packets_received - before == 4 + 1
 
 
 def test_a_bus_that_answers_sync_read_keeps_it():
@@ -187,7 +188,8 @@ def test_a_bus_that_answers_sync_read_keeps_it():
         assert bus.sync_read and not any('Sync Read' in n for n in bus.take_notes())
         before = emu.packets_received
         bus.poll()
-        assert emu.packets_received - before == 1      # one Sync Read for all four
+        # one Sync Read for all four; one READ of Torque Enable (the round robin)
+        assert emu.packets_received - before == 1 + 1
 
 
 SYNC_CYCLES = 6
