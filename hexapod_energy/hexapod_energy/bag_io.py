@@ -1300,6 +1300,8 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
         notes.append(POSITION_POWER_NOTE)
     if acc.velocityless_skipped_:
         notes.append(velocityless_note(acc.velocityless_skipped_))
+    if acc.leg_joints_.note():
+        notes.append(acc.leg_joints_.note())
     if acc.nonfinite_joint_power_:
         bad = acc.nonfinite_joint_power_
         never = sorted(n for n in bad if acc.joint_power_count_.get(n, 0) == 0)

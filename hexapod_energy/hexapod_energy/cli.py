@@ -186,6 +186,7 @@ import numpy as np
 
 from hexapod_energy.descriptors import gait_from_sample, implausible_effort_power
 from hexapod_common.cli_args import NumberArgumentParser
+from hexapod_common.conversions import LEG_JOINT_RE
 from hexapod_common.jsondoc import json_safe
 from hexapod_energy.errors import EnergyError, FitError, InvalidInputError
 from hexapod_energy.trend import TREND_MIN_SPAN_S, TREND_MIN_WINDOWS, power_in_trend, trend_note
@@ -193,7 +194,6 @@ from hexapod_energy.trend import TREND_MIN_SPAN_S, TREND_MIN_WINDOWS, power_in_t
 __all__ = ['add_cli', 'build_parser', 'gait_from_sample', 'main', 'run']
 
 
-_CONTRACT_JOINT = re.compile(r'^([LR])(\d+)_\w+$')
 #: AntBot's mass without payload [kg] (Brodoline et al.), the default robot
 ANTBOT_MASS_KG = 2.183
 
@@ -202,9 +202,10 @@ def _leg_count(args: argparse.Namespace, run_: Any) -> int | None:
     """Legs of a run without /gait/phase: ``--legs``, else counted from joint names that
     follow the contract (``L1..Lk``/``R1..Rk`` + ``_<joint>``), else None."""
     names = list(run_.extra.get('joint_names', []))
-    matches = [_CONTRACT_JOINT.match(n) for n in names]
+    matches = [LEG_JOINT_RE.match(n) for n in names]
+    # other joints beside contract legs (a gripper) are left out, not a reason for None
     found = len({m.group(1) + m.group(2) for m in matches if m}) \
-        if names and all(matches) else None
+        if names and any(matches) else None
     if getattr(args, 'legs', None):
         if found is not None and found != int(args.legs):
             # --legs used to override the names silently (6 contract legs read as 4:

@@ -66,6 +66,7 @@ are counted from the gaps in each stream's stamps (:class:`hexapod_common.clocks
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -243,6 +244,7 @@ class EnergyMonitorNode(Node):
         self.dropped = 0
         #: JointStates whose velocity or effort array was left out (another length)
         self.malformed_joint_states = 0
+        self._duplicates_logged = 0
         #: windows not published: across a gap in /battery_state (P_in would be interpolated)
         #: or in /joint_states (P_out from the efforts would miss part of the window)
         self.gap_windows = 0
@@ -402,9 +404,18 @@ class EnergyMonitorNode(Node):
                 f'misses these messages) [{self.malformed_joint_states} so far]',
                 throttle_duration_sec=5.0)
         skipped = self.core.velocityless_skipped_
+        non_legs = len(self.core.leg_joints_.dropped)
         out = self.core.add_joint_state(self._restamp('joint_states', sample))
         if self.core.velocityless_skipped_ and not skipped:   # once
             self.get_logger().warning('joint_states: ' + velocityless_note(1))
+        if len(self.core.leg_joints_.dropped) > non_legs:   # once per new name
+            self.get_logger().warning('joint_states: ' + self.core.leg_joints_.note())
+        n = self.core.duplicate_joint_states_
+        if n and n == 10 ** int(math.log10(n)) and n != self._duplicates_logged:
+            self._duplicates_logged = n   # on the 1st, 10th, 100th ...
+            self.get_logger().info(
+                f'joint_states: {n} message(s) so far repeat a recent one exactly (delivered '
+                'twice: a replayed bag\'s duplicates, a bridge): left out, as offline')
         return out
 
     def _on_odom(self, msg: Odometry) -> None:

@@ -162,18 +162,18 @@ def _joint_schedule(path: str | Path, t: np.ndarray, given: GivenGait
     joint-derived cycles (every walking period of the bag) and the given gait. Returns the mask
     of samples inside a cycle, the columns (``cycle_phase`` from the cycle start, ``period_s``,
     ``in_stance``), the gait and notes."""
-    import re
-
     from hexapod_gait.gait import make_gait
 
+    from hexapod_common.conversions import LEG_JOINT_RE
     from hexapod_energy.bag_io import read_robot_segments
 
     runs = read_robot_segments(path, mass_kg=1.0, cycle_source='joints')
     names = list(runs[0].extra.get('joint_names', []))
     legs = given.leg_count
-    found = [re.match(r'^([LR])(\d+)_\w+$', n) for n in names]
+    found = [LEG_JOINT_RE.match(n) for n in names]
+    # joints beside contract legs (a gripper) are left out of the cycles, not of the count
     from_names = len({m.group(1) + m.group(2) for m in found if m}) \
-        if names and all(found) else None
+        if names and any(found) else None
     if legs is not None and from_names is not None and legs != from_names:
         # --legs used to override the joint names silently (a 6-leg bag read as 4 legs)
         raise ResidualDataError(
@@ -230,6 +230,7 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
     )
     from hexapod_common.clocks import ClockCheck, shift_rows
     from hexapod_common.conversions import (
+        LegJointFilter,
         battery_from_msg,
         gait_phase_from_msg,
         joint_state_from_msg,
@@ -249,6 +250,7 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
     dups: dict[str, int] = {}
     clocks = ClockCheck()
     per_joint: dict[str, tuple[array.array, array.array]] = {}
+    leg_joints = LegJointFilter()
     with open_reader(path) as reader:
         reader_notes = list(getattr(reader, 'notes', ()))  # metadata.yaml vs storage, ...
         present = sorted({c.topic for c in reader.connections})
@@ -291,7 +293,10 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
                 s = servo_status_from_msg(msg)
                 temps.append((s.t_s, float(np.sum(s.temperature_c)), len(s.temperature_c)))
             else:
-                js = joint_state_from_msg(msg)
+                # a gripper beside the legs: left out, as energy does (LegJointFilter)
+                js = leg_joints.apply(joint_state_from_msg(msg))
+                if js is None:
+                    continue
                 if js.effort.size == js.velocity.size and js.effort.size:
                     mech.append(js.t_s)
                     mech.extend(joint_features(js.effort, js.velocity))

@@ -169,6 +169,7 @@ def read_run(path: str | Path) -> RunData:
     )
     from hexapod_common.clocks import ClockCheck
     from hexapod_common.conversions import (
+        LegJointFilter,
         battery_from_msg,
         gait_phase_from_msg,
         joint_state_from_msg,
@@ -184,6 +185,7 @@ def read_run(path: str | Path) -> RunData:
     dups: dict[str, int] = {}   # messages recorded twice (same topic, log time, bytes)
     clocks = ClockCheck()
     repeats = RepeatedStamps()   # new values under the previous stamp (a skipped bus read)
+    leg_joints = {'/joint_states': LegJointFilter(), '/joint_commands': LegJointFilter()}
     with open_reader(path) as reader:
         reader_notes = list(getattr(reader, 'notes', ()))  # e.g. mcap without metadata.yaml
         present = {c.topic for c in reader.connections}
@@ -211,6 +213,10 @@ def read_run(path: str | Path) -> RunData:
                         changes.append((phase.t_s or 1e-9 * m.stamp_ns, name))
                     continue
                 sample = streams[m.topic][1](msg)
+                if m.topic in leg_joints:   # a gripper beside the legs: left out
+                    sample = leg_joints[m.topic].apply(sample)
+                    if sample is None:
+                        continue
             except ValueError:
                 dropped[m.topic] = dropped.get(m.topic, 0) + 1
                 continue  # a bad message is dropped, as the nodes do
@@ -227,6 +233,8 @@ def read_run(path: str | Path) -> RunData:
     notes = reader_notes + [
         f'{n} {t} message(s) with a zero header stamp: bag receive time used'
         for t, n in sorted(zero.items())] + duplicates_note(dups)
+    notes += [f'{topic}: {f.note("the stance detection and the fits")}'
+              for topic, f in leg_joints.items() if f.dropped]
     for topic in TOPICS:   # re-stamped from the receive times (or dropped), noted
         fixed, repeat_notes = repeats.resolve(topic, streams[topic][0], _rebuilt)
         streams[topic] = (fixed, streams[topic][1])

@@ -35,6 +35,7 @@ from sensor_msgs.msg import JointState
 from hexapod_common.clocks import LiveClockWatch, StreamLoss
 from hexapod_common.conversions import (
     MOCAP_TYPES,
+    LegJointFilter,
     joint_state_from_msg,
     pose_from_msg,
     s_to_stamp,
@@ -214,6 +215,7 @@ class SlipFitterNode(Node):
         # a driver stamping with its last bus read repeats a stamp with new values: such a
         # sample is re-stamped from its arrival time, or dropped (as the offline reader does)
         self._repeats = LiveRepeatedStamps()
+        self._leg_joints: dict[str, LegJointFilter] = {}   # a gripper beside the legs
         #: messages missing from joint_states and mocap/body, from their stamp gaps (a node
         #: behind its input loses the oldest queued ones without a word): logged on the 1st,
         #: 10th, 100th ... of a topic
@@ -286,8 +288,20 @@ class SlipFitterNode(Node):
             'message(s)', 'messages'))
         return None if t is None else dataclasses.replace(s, t_s=t)
 
+    def _legs_only(self, topic: str, sample: Any) -> Any:
+        """``sample`` without joints that are not a leg's (a gripper beside the legs), as
+        offline; None when it names none. Logged once per new name."""
+        f = self._leg_joints.setdefault(topic, LegJointFilter())
+        before = len(f.dropped)
+        out = f.apply(sample)
+        if len(f.dropped) > before:
+            self.get_logger().warning(f'{topic}: ' + f.note('the stance detection and fits'))
+        return out
+
     def _joint_state(self, msg: JointState) -> None:
-        s = self._signed(joint_state_from_msg(msg))
+        s = self._legs_only('joint_states', self._signed(joint_state_from_msg(msg)))
+        if s is None:
+            return
         if s.t_s != 0.0:
             s = self._unrepeated('joint_states', tuple(s.names), s)
             if s is None:
@@ -301,8 +315,12 @@ class SlipFitterNode(Node):
             self._notes_logged += 1
 
     def _on_cmd(self, msg: JointState) -> None:
-        self._guard(lambda m: (lambda s: self.core.add_command(s.t_s, s.names, s.velocity))(
-            self._signed(joint_state_from_msg(m))), msg, 'joint_commands')
+        self._guard(self._command, msg, 'joint_commands')
+
+    def _command(self, msg: JointState) -> None:
+        s = self._legs_only('joint_commands', self._signed(joint_state_from_msg(msg)))
+        if s is not None:
+            self.core.add_command(s.t_s, s.names, s.velocity)
 
     def _on_mocap(self, msg: PoseStamped) -> None:
         self._guard(self._mocap_and_fit, msg, 'mocap/body')
