@@ -34,8 +34,8 @@ swing_reversal      swings per second x (stance tip speed - the   ``j_per_mps`` 
 standing_hold       standing: N (P_basal(m_c) - P_basal(lightest  ``holding_change`` [-],
                     bench load)), the bench's holding power;      -1 to +1
                     walking: 0
-power_gain          P_pred (sensor gain, converter efficiency,    ``gain`` [-]
-                    another supply voltage)
+power_gain          P_pred (sensor gain, converter efficiency,    ``gain_excess`` [-] (the
+                    another supply voltage)                       factor minus 1), ``factor``
 time_offset         (realignment, see :mod:`residuals`)           ``offset_s`` [s]
 model_offset        1, coefficient <= 0 (opt-in, not default)     ``offset_w`` [W]
 =================== ============================================ =============================
@@ -205,6 +205,11 @@ class EnergyEffect:
                ) -> tuple[dict[str, Any], dict[str, Any]]:
         """Named parameters and their standard errors from the fitted coefficients."""
         raise NotImplementedError
+
+    def implausible(self, params: dict[str, Any], table: WindowTable) -> str | None:
+        """Why fitted ``params`` lie beyond what the effect can physically be on this robot
+        (the loop then does not add it), None when plausible (the default)."""
+        return None
 
 
 class BasalPower(EnergyEffect):
@@ -507,7 +512,9 @@ class LegAnomaly(EnergyEffect):
     """One leg draws ``power_w`` extra while in stance: ``P += power_w * in_stance(leg)``.
 
     One candidate per leg; legs whose stance pattern is identical in the gait (a tripod's three
-    legs) cannot be told apart: :meth:`params` names them in ``same_stance_as``.
+    legs) cannot be told apart: :meth:`params` names them in ``same_stance_as``, and the legs
+    that swing while it stands (a draw of theirs in swing reads the same) in
+    ``swing_while_it_stands``.
     """
 
     leg_index: int = 0
@@ -527,7 +534,14 @@ class LegAnomaly(EnergyEffect):
         same = [n for j, n in enumerate(table.leg_names) if j != self.leg_index
                 and (np.allclose(table.stance_fraction[:, j], col, atol=0.05)
                      or _within_run_r(table, j, self.leg_index) >= SAME_STANCE_R)]
-        return ({'leg': self.leg, 'power_w': float(coef[0]), 'same_stance_as': same},
+        # legs that swing while this one stands: a draw of theirs in swing reads the same (a
+        # tripod's L1 drawing in swing was named 'L2 (or R1, R3)' without L1: an outside
+        # review)
+        swing = [n for j, n in enumerate(table.leg_names)
+                 if np.allclose(table.stance_fraction[:, j], 1.0 - col, atol=0.05)
+                 or _within_run_r(table, j, self.leg_index) <= -SAME_STANCE_R]
+        return ({'leg': self.leg, 'power_w': float(coef[0]), 'same_stance_as': same,
+                 'swing_while_it_stands': swing},
                 {'power_w': float(stderr[0])})
 
 
@@ -562,9 +576,18 @@ class CarriedMass(EnergyEffect):
     follows the gait as the bench says a heavier body would: more where fewer legs carry it.
     First order in the extra mass: the bench's stance power is convex in load, so a large
     undeclared mass is over-estimated (simulated AntBot: +0.5 kg reads +0.55 kg).
+
+    Plausible up to :attr:`MAX_ROBOT_FRACTION` of the robot's declared mass
+    (``extra['robot_mass_kg']``, payload included; :meth:`implausible`): an undeclared load as
+    heavy as the robot doubles what every stance leg carries (its servos at twice the load they
+    walk at, which an owner would not miss), and this first-order sensitivity over-reads a large
+    mass already. A current shunt reading 7 % high was named an undeclared 4.17 kg on a
+    2.18 kg robot (an outside review): a gain, not a load.
     """
 
     name, unit = 'carried_mass', 'kg'
+    #: the largest undeclared mass taken as a load, as a fraction of the declared robot mass
+    MAX_ROBOT_FRACTION = 1.0
 
     def applicable(self, table: WindowTable) -> bool:
         x = table.extra.get('mass_slope_w_per_kg')
@@ -575,6 +598,18 @@ class CarriedMass(EnergyEffect):
 
     def params(self, coef, stderr, table):  # type: ignore[no-untyped-def]
         return {'mass_kg': float(coef[0])}, {'mass_kg': float(stderr[0])}
+
+    def implausible(self, params: dict[str, Any], table: WindowTable) -> str | None:
+        robot = table.extra.get('robot_mass_kg')
+        mass = params.get('mass_kg')
+        if not isinstance(robot, (int, float)) or not robot > 0 or mass is None:
+            return None
+        bound = self.MAX_ROBOT_FRACTION * float(robot)
+        if not float(mass) > bound:
+            return None
+        return (f'{float(mass):.3g} kg, {100 * float(mass) / float(robot):.0f} % of the '
+                f"robot's declared {float(robot):.3g} kg (more than an undeclared load it "
+                'could carry unnoticed)')
 
 
 class SwingReversal(EnergyEffect):
@@ -719,7 +754,8 @@ class StandingHold(EnergyEffect):
 
 
 class PowerGain(EnergyEffect):
-    """The measured power is the model's times a factor: ``P += gain * P_pred`` [-].
+    """The measured power is the model's times a factor: ``P += gain_excess * P_pred`` [-]
+    (``factor = 1 + gain_excess``).
 
     A current or voltage sensor's gain error (a shunt 5 % off), a supply converter's
     efficiency, servos run at another supply voltage than the bench's (the drives' losses
@@ -737,7 +773,10 @@ class PowerGain(EnergyEffect):
         return np.asarray(table.predicted_w, dtype=float)[:, None]
 
     def params(self, coef, stderr, table):  # type: ignore[no-untyped-def]
-        return {'gain': float(coef[0])}, {'gain': float(stderr[0])}
+        # the coefficient is the excess over 1 (measured = factor x predicted): it was
+        # labelled 'gain' (0.0668 for a shunt 7 % high, an outside review)
+        c, e = float(coef[0]), float(stderr[0])
+        return {'gain_excess': c, 'factor': 1.0 + c}, {'gain_excess': e, 'factor': e}
 
 
 class TimeOffset(EnergyEffect):

@@ -110,16 +110,38 @@ class ResidualRun:
     joint_abs_effort: dict[str, tuple[np.ndarray, np.ndarray]] | None = None
     notes: list[str] = field(default_factory=list)   # input fallbacks (no /gait/phase)
 
+    #: the per-sample arrays on the battery stamps (cut together by :meth:`realigned`)
+    PER_SAMPLE = ('t_s', 'voltage_v', 'current_a', 'power_w', 'cycle_phase', 'period_s',
+                  'duty_factor', 'step_length_m', 'in_stance', 'supporting', 'temp_sum_c',
+                  'predicted_w', 'mass_slope_w_per_kg', 'standing_holding_w')
+
     def realigned(self, offset_s: float) -> ResidualRun:
         """A copy whose battery streams are read at ``stamp = t + offset_s`` (the monitor's
-        clock runs ``offset_s`` ahead of the others), on the same time grid."""
+        clock runs ``offset_s`` ahead of the others), on the same time grid.
+
+        Samples whose ``t + offset_s`` falls outside the battery stamps have no battery
+        reading: they are dropped (every per-sample array), not filled. ``np.interp`` held
+        the last (or first) sample over them, and the run's last window read +20 W / -27 W
+        after a 147 ms realignment (an outside review: held-out 3.01 W instead of 0.33 W)."""
         from dataclasses import replace
 
-        def at(x: np.ndarray) -> np.ndarray:
-            return np.interp(self.t_s + offset_s, self.t_s, x)
+        t = self.t_s
+        if t.size == 0:
+            return replace(self, lag_s=self.lag_s - offset_s)
+        ts = t + offset_s
+        keep = (ts >= t[0]) & (ts <= t[-1])
 
-        return replace(self, power_w=at(self.power_w), voltage_v=at(self.voltage_v),
-                       current_a=at(self.current_a), lag_s=self.lag_s - offset_s)
+        def at(x: np.ndarray) -> np.ndarray:
+            return np.interp(ts[keep], t, x)
+
+        cut: dict[str, Any] = {}
+        for name in self.PER_SAMPLE:
+            x = getattr(self, name)
+            if x is not None and np.shape(x)[:1] == t.shape:
+                cut[name] = x[keep]
+        cut.update(power_w=at(self.power_w), voltage_v=at(self.voltage_v),
+                   current_a=at(self.current_a))
+        return replace(self, **cut, lag_s=self.lag_s - offset_s)
 
 
 def estimate_stream_lag_s(t_power_s: np.ndarray, power_w: np.ndarray, t_ref_s: np.ndarray,
@@ -466,6 +488,9 @@ class SampleView:
     min_lag_s_ : smallest lag that counts as a clock offset [s]
     selected_ : bool
     samples_ : (training, held-out) counts
+    warnings_ : list of str, the lag at the edge of the search or a realignment that removes
+        little of the per-sample error (the search covers ``|lag| <= max_lag_s`` only:
+        ``residuals --max-lag``)
     """
 
     max_lag_s: float = 0.15
@@ -475,6 +500,9 @@ class SampleView:
     min_delta_bic: float = 10.0
     min_improvement: float = 0.05
     min_lag_fraction: float = 1.0
+    #: a selected lag that leaves more than this fraction of the per-sample error is warned
+    #: of (clean 50-150 ms offsets leave 24-28 %)
+    min_lag_gain: float = 0.5
 
     def _design(self, runs: Sequence[ResidualRun], lag_s: float
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -543,6 +571,25 @@ class SampleView:
                               and rm1 < (1 - self.min_improvement) * rm0
                               and abs(lag) > self.min_lag_s_)
         self.samples_ = (n, int(self._design(runs, 0.0)[2].sum()))
+        # the scan sees |lag| <= max_lag_s only: a lag beyond it gives the best lag inside
+        # (250 ms read +77.3 ms, an aliased minimum of the gait's periodic power, removing 17 %
+        # of the error: an outside review); said, with how to widen the search
+        self.warnings_ = []
+        if abs(lag) >= self.max_lag_s - 2 * 0.005:
+            self.warnings_.append(
+                f'the best lag ({lag * 1e3:+.1f} ms) is at the edge of the search (+-'
+                f'{self.max_lag_s * 1e3:.0f} ms): the true offset may lie beyond it')
+        if self.selected_ and rm1 > self.min_lag_gain * rm0:
+            self.warnings_.append(
+                f'realigning by {lag * 1e3:+.1f} ms removed only {100 * (1 - rm1 / rm0):.0f} % '
+                'of the per-sample error (a clock offset inside the search removes most of '
+                'it): the lag may be an aliased minimum of a longer one outside the +-'
+                f'{self.max_lag_s * 1e3:.0f} ms searched, or the battery stream distorted '
+                'otherwise')
+        if self.warnings_:
+            self.warnings_.append(f'search up to a larger lag with --max-lag S (now '
+                                  f'{self.max_lag_s:g} s; the gait period bounds what it '
+                                  'can tell)')
         return self
 
     def record(self) -> dict[str, Any]:
@@ -1274,9 +1321,11 @@ class EffectSelection:
         cur_rmse, cur_bic = rmse0, _bic(sse, n, 0)
         records: dict[int, dict[str, Any]] = {}
         alternatives: dict[str, list[dict[str, Any]]] = {}
+        implausible: dict[str, dict[str, Any]] = {}
         while True:
             best: tuple[float, int, float] | None = None
             passing: dict[int, dict[str, Any]] = {}
+            rejected: list[dict[str, Any]] = []
             for ci, e in enumerate(cands):
                 if e in selected:
                     continue
@@ -1285,7 +1334,8 @@ class EffectSelection:
                 k = coef.size + (1 if e.name == 'time_offset' else 0)
                 rmse = float(np.sqrt(np.mean((y[held] - term[held]) ** 2)))
                 dbic = _bic(sse, n, k) - cur_bic
-                params, stderr = self._params(trial, coef, se, table)[-1]
+                all_params = self._params(trial, coef, se, table)
+                params, stderr = all_params[-1]
                 rec = {'name': e.name, 'heldout_rmse': rmse, 'delta_bic': dbic,
                        'selected': False, 'params': params, 'stderr': stderr}
                 prev = records.get(ci)
@@ -1303,6 +1353,14 @@ class EffectSelection:
                         rec['note'] = ('only the constant part of its regressor lowers the '
                                        'error (its variation does not): not told from an '
                                        'offset')
+                why = self._implausible(trial, all_params, table)
+                if ok and why:
+                    # beyond what the effect can physically be (an undeclared 4.17 kg on a
+                    # 2.18 kg robot for a shunt 7 % high: an outside review): not added
+                    ok = False
+                    rec['implausible'] = why
+                    rec['note'] = f'not added: {why}'
+                    rejected.append(rec)
                 if ok and selected and self._bent_at_bound(trial, coef, table):
                     # at the top of its physical range and following what is selected: it
                     # bends an earlier effect's shape (hot_windings at 1 %/K beside a thermal
@@ -1315,6 +1373,23 @@ class EffectSelection:
                     passing[ci] = rec
                 if ok and e.selectable_on(table) and (best is None or rmse < best[0]):
                     best = (rmse, ci, dbic)
+            gain_rec = next((r for r in passing.values() if r['name'] == 'power_gain'), None)
+            stop = False
+            for rec in rejected:
+                # the implausible fit would have been chosen, and the predicted power times a
+                # factor explains as much: the residual is read as a gain or calibration error
+                # (not in the catalogue: power_gain is never added), nothing more is added
+                gain_like = bool(gain_rec is not None
+                                 and gain_rec['heldout_rmse'] <= rec['heldout_rmse']
+                                 and (best is None or rec['heldout_rmse'] <= best[0]))
+                stop |= gain_like
+                if rec['name'] not in implausible:
+                    implausible[rec['name']] = dict(
+                        rec, gain_like=gain_like,
+                        power_gain=None if gain_rec is None else
+                        {k: gain_rec[k] for k in ('heldout_rmse', 'params', 'stderr')})
+            if stop:
+                break
             pair = self._companion_pair(cands, selected, table, train, held, cur_rmse,
                                         cur_bic, None if best is None else best[0])
             if pair is not None:
@@ -1324,7 +1399,8 @@ class EffectSelection:
                 gain = cur_rmse - rmse_p
                 alts = [{'name': r['name'], 'heldout_rmse': r['heldout_rmse'],
                          'params': r['params'], 'stderr': r['stderr'],
-                         'share': float((cur_rmse - r['heldout_rmse']) / gain)}
+                         'share': float((cur_rmse - r['heldout_rmse']) / gain),
+                         'chosen_heldout_rmse': rmse_p}
                         for r in others if r['name'] != cands[ci].name
                         and (cur_rmse - r['heldout_rmse']) >= self.alternative_share * gain]
                 if alts:
@@ -1350,7 +1426,7 @@ class EffectSelection:
                 if name not in alts or rec['heldout_rmse'] < alts[name]['heldout_rmse']:
                     alts[name] = {'name': name, 'heldout_rmse': rec['heldout_rmse'],
                                   'params': rec['params'], 'stderr': rec['stderr'],
-                                  'share': float(share)}
+                                  'share': float(share), 'chosen_heldout_rmse': rmse}
             if alts:
                 alternatives[cands[ci].name] = sorted(alts.values(),
                                                       key=lambda a: a['heldout_rmse'])
@@ -1397,6 +1473,8 @@ class EffectSelection:
                                     'constant)'})
         self.selected_ = selected
         self.alternatives_ = alternatives
+        self.implausible_ = [v for k, v in implausible.items()
+                             if k not in added_names or v['gain_like']]
         self.coef_ = coef
         self.stderr_ = se
         self.term_w_ = term
@@ -1438,7 +1516,9 @@ class EffectSelection:
                 continue
             swapped = [other if e is chosen else e for e in selected]
             rmse, _, coef, se = self._score(swapped, table, train, held)
-            if rmse < self._score(selected, table, train, held)[0]:
+            implausible_other = other.implausible(
+                self._params(swapped, coef, se, table)[swapped.index(other)][0], table)
+            if rmse < self._score(selected, table, train, held)[0] and not implausible_other:
                 # beside the effects added after it, the other explains more (chosen in a
                 # round where it stood for part of them): take it, name the first
                 selected[selected.index(chosen)] = other
@@ -1454,13 +1534,34 @@ class EffectSelection:
             r_all = self._score(selected, table, train, held)[0]
             gain = r_rest - r_all
             alts = [a for a in alternatives.get(chosen.name, []) if a['name'] != other.name]
-            alts.append({'name': other.name, 'heldout_rmse': rmse, 'params': params,
-                         'stderr': stderr,
-                         'share': float((r_rest - rmse) / gain) if gain > 0 else 0.0,
-                         'why': 'the mass sensitivity is nearly constant over these windows '
-                                f'(uncentred r = {r:.3f} with a constant)'})
+            alt = {'name': other.name, 'heldout_rmse': rmse, 'params': params,
+                   'stderr': stderr,
+                   'share': float((r_rest - rmse) / gain) if gain > 0 else 0.0,
+                   'chosen_heldout_rmse': r_all,
+                   'why': 'the mass sensitivity is nearly constant over these windows '
+                          f'(uncentred r = {r:.3f} with a constant)'}
+            why_not = other.implausible(params, table)
+            if why_not:
+                alt['implausible'] = why_not
+            alts.append(alt)
             alternatives[chosen.name] = sorted(alts, key=lambda a: a['heldout_rmse'])
         return out
+
+    @staticmethod
+    def _implausible(trial: Sequence[EnergyEffect],
+                     params: Sequence[tuple[dict[str, Any], dict[str, Any]]],
+                     table: WindowTable) -> str | None:
+        """Why a fit of ``trial`` (its ``params``) is physically implausible: the first effect
+        whose parameters are (:meth:`EnergyEffect.implausible`, e.g. an undeclared mass
+        heavier than the robot), None when every one is plausible. Checked on every effect
+        of the trial: a thermal drift added beside an undeclared mass took the mass from
+        1.66 kg to 4.17 kg on a 2.18 kg robot (an outside review)."""
+        for e, (p, _) in zip(trial, params):
+            why = e.implausible(p, table)
+            if why:
+                return f'it would read {why}' if e is trial[-1] else \
+                    f'beside it {e.name} would read {why}'
+        return None
 
     def _bent_at_bound(self, trial: Sequence[EnergyEffect], coef: np.ndarray,
                        table: WindowTable) -> bool:
@@ -1559,7 +1660,10 @@ class EffectSelection:
                                                       held, score(selected + [e] + rest)[0])
                 if not ok:
                     continue
-                params = self._params(trial, coef, se, table)[len(selected):]
+                all_params = self._params(trial, coef, se, table)
+                if self._implausible(trial, all_params, table):
+                    continue
+                params = all_params[len(selected):]
                 recs = {}
                 for x, (pp, ee) in zip([e] + group, params):
                     recs[cands.index(x)] = {'name': x.name, 'heldout_rmse': rmse,
@@ -1598,14 +1702,27 @@ class EffectSelection:
             rmse, bic = score(keep)
             trials = []
             for e in keep:
-                r_wo, bic_wo = score([x for x in keep if x is not e])
+                rest = [x for x in keep if x is not e]
+                if self._implausible_fit(rest, table, train):
+                    continue   # without it, another effect's fit is implausible: kept
+                r_wo, bic_wo = score(rest)
                 trials.append((r_wo, bic_wo, e))
+            if not trials:
+                break
             r_wo, bic_wo, weakest = min(trials, key=lambda t: t[0])
             if bic - bic_wo < -self.min_delta_bic and rmse < r_wo * (1 - self.min_improvement):
                 break
             keep.remove(weakest)
             dropped.append(weakest)
         return dropped
+
+    def _implausible_fit(self, effects: Sequence[EnergyEffect], table: WindowTable,
+                         train: np.ndarray) -> str | None:
+        """:meth:`_implausible` of ``effects`` fitted together on ``train``."""
+        if not effects:
+            return None
+        coef, se, _, _ = self._fit(effects, table, train)
+        return self._implausible(effects, self._params(effects, coef, se, table), table)
 
     def _collinearity(self, selected: Sequence[EnergyEffect], coef: np.ndarray,
                       table: WindowTable) -> list[dict[str, Any]]:
@@ -1628,12 +1745,21 @@ class EffectSelection:
             un = float(a @ b / (na * nb)) if na > 0 and nb > 0 else 0.0
             r = None if any(const) else (float(np.corrcoef(a, b)[0, 1])
                                          if np.std(a) > 0 and np.std(b) > 0 else 0.0)
+            # a nearly constant contribution (uncentred r with a constant >= mass_constant_r)
+            # is read as a constant is: its Pearson r is that of its small variation only
+            # (a thermal drift with its reference at the bound, -0.976 uncentred against an
+            # undeclared mass, read r = +0.48, 'not collinear': an outside review)
+            near = not const[0] and _constant_r(a) >= self.mass_constant_r
+            by_r = r is not None and abs(r) >= self.max_collinearity
+            by_un = not by_r and near and abs(un) >= self.max_collinearity
             rec = {'name': selected[k].name,
                    'earlier': [e.name for e in selected[:k]],
                    'correlation': r, 'uncentred_correlation': un,
-                   'collinear': bool(r is not None and abs(r) >= self.max_collinearity)}
+                   'collinear': bool(by_r or by_un)}
             if r is None:
                 rec['correlation_kind'] = 'undefined (constant)'
+            elif by_un:
+                rec['correlation_kind'] = 'uncentred (nearly constant contribution)'
             out.append(rec)
         return out
 
@@ -1681,6 +1807,14 @@ def leave_one_run_out(table: WindowTable, *, run_names: Sequence[str] | None = N
     return {'kind': 'runs left out: effects selected and fitted on the other runs, each left-'
                     'out run scored in turn', 'rmse_before': rb, 'rmse_after': ra,
             'transfers': bool(ra <= rb), 'per_run': per}
+
+
+def _constant_r(x: np.ndarray) -> float:
+    """Uncentred correlation of ``x`` with a constant, ``|sum x| / (|x| sqrt(n))`` (0 for
+    zeros): 1 for a constant, near 1 for what a constant nearly explains."""
+    x = np.asarray(x, dtype=float)
+    norm = float(np.linalg.norm(x))
+    return float(abs(np.sum(x)) / (norm * math.sqrt(x.size))) if norm > 0 else 0.0
 
 
 def _is_constant(x: np.ndarray) -> bool:
@@ -1743,7 +1877,7 @@ def energy_loop_document(table: WindowTable, sel: EffectSelection,
             a['collinearity']['correlation_kind'] = c['correlation_kind']
         if c['collinear']:
             a['note'] = (f"its contribution follows that of {', '.join(c['earlier'])} "
-                         f"(r = {c['correlation']:+.2f}): these runs cannot tell them apart; it "
+                         f"({_r_text(c)}): these runs cannot tell them apart; it "
                          'may only correct the earlier model where that model is approximate')
     if view is not None:
         candidates = [c for c in candidates if c['name'] != 'time_offset'] + [view.record()]
@@ -1779,10 +1913,15 @@ def energy_loop_document(table: WindowTable, sel: EffectSelection,
             'train_rmse_before': view.train_rmse_before_w_,
             'train_rmse_after': view.train_rmse_after_w_,
             'lag_s': view.lag_s_, 'lag_stderr_s': view.lag_stderr_s_,
+            'max_lag_s': view.max_lag_s,
             'samples': {'train': view.samples_[0], 'heldout': view.samples_[1]}}
+        if getattr(view, 'warnings_', None):
+            doc['sample_view']['warnings'] = list(view.warnings_)
     ms = getattr(sel, 'mass_sensitivity_', None)
     if ms is not None:
         doc['mass_sensitivity'] = dict(ms)
+    if getattr(sel, 'implausible_', None):
+        doc['implausible'] = list(sel.implausible_)
     doc['unexplained'] = unexplained_residual(table.run, table.t_s, r1, run_names=run_names,
                                               mean_power_w=float(np.mean(table.measured_w)),
                                               run_t0_s=run_t0_s)
@@ -1797,6 +1936,13 @@ def energy_loop_document(table: WindowTable, sel: EffectSelection,
                         for k in np.unique(table.run)]}
     doc['summary'] = summary_text(doc)
     return doc
+
+
+def _r_text(c: dict[str, Any]) -> str:
+    """'r = +0.95', or the uncentred correlation when that is what the flag read."""
+    if str(c.get('correlation_kind', '')).startswith('uncentred'):
+        return f"uncentred r = {c['uncentred_correlation']:+.2f}, nearly constant"
+    return f"r = {c['correlation']:+.2f}"
 
 
 def summary_text(doc: dict[str, Any]) -> str:
@@ -1842,6 +1988,29 @@ def _temperature_text(doc: dict[str, Any]) -> str:
                    else 'may account for part of the residual.')))
 
 
+def _fmt_params(params: dict[str, Any], stderr: dict[str, Any]) -> str:
+    """An effect's parameters with their standard errors, for the summary."""
+    # a constant of the model (stderr exactly 0, e.g. the drive loss factor) has no +/-
+    out = ', '.join(f'{k} = {v:.4g} +/- {stderr.get(k, float("nan")):.2g}'
+                    if isinstance(v, float) and stderr.get(k) != 0.0
+                    else f'{k} = {v:.4g} (fixed)' if isinstance(v, float)
+                    else f'{k} = {v}'
+                    for k, v in params.items()
+                    if k not in ('same_stance_as', 'reference_range_c',
+                                 'reference_at_bound', 'swing_while_it_stands'))
+    same = params.get('same_stance_as')
+    swing = params.get('swing_while_it_stands')
+    if same:  # legs these runs cannot tell from the named one: said, not hidden
+        out += (f" (or {', '.join(same)}: the same stance timing in these runs, so which "
+                'of them cannot be told; nor whether it draws in stance or all the time' +
+                (f"; or {', '.join(swing)} drawing in swing, as they swing while it stands"
+                 if swing else '') + ')')
+    elif swing:
+        out += (f" (or {', '.join(swing)} drawing in swing, as they swing while it stands: "
+                'these runs cannot tell which)')
+    return out
+
+
 def _summary_effects(doc: dict[str, Any]) -> str:
     """The summary's account of the added effects."""
     unit = doc['unit']
@@ -1854,28 +2023,25 @@ def _summary_effects(doc: dict[str, Any]) -> str:
         intro += (f"Per sample, the battery stream was {sv['lag_s'] * 1e3:+.1f} ms off the joint "
                   f"stream; realigning it reduced held-out per-sample error from "
                   f"{sv['heldout_rmse_before']:.3g} to {sv['heldout_rmse_after']:.3g} {unit}. ")
+    if sv is not None and sv.get('warnings'):
+        intro += 'Of the clock offset: ' + '; '.join(sv['warnings']) + '. '
     if not [a for a in doc['effects_added'] if a != 'time_offset']:
-        if doc['effects_added']:
-            return intro + ('No other candidate effect lowered the held-out error of the '
-                            f"gait-phase windows significantly (RMSE {h['rmse_before']:.3g} "
-                            f'{unit}).')
-        return intro + ('No candidate effect lowered the held-out error significantly, so none '
-                        f"was added (held-out RMSE {h['rmse_before']:.3g} {unit}).")
-    def fmt(params: dict[str, Any], stderr: dict[str, Any]) -> str:
-        # a constant of the model (stderr exactly 0, e.g. the drive loss factor) has no +/-
-        out = ', '.join(f'{k} = {v:.4g} +/- {stderr.get(k, float("nan")):.2g}'
-                        if isinstance(v, float) and stderr.get(k) != 0.0
-                        else f'{k} = {v:.4g} (fixed)' if isinstance(v, float)
-                        else f'{k} = {v}'
-                        for k, v in params.items()
-                        if k not in ('same_stance_as', 'reference_range_c',
-                                     'reference_at_bound'))
-        same = params.get('same_stance_as')
-        if same:  # legs these runs cannot tell from the named one: said, not hidden
-            out += (f" (or {', '.join(same)}: the same stance timing in these runs, so which "
-                    'of them cannot be told; nor whether it draws in stance or all the time)')
-        return out
-
+        other = ' other' if doc['effects_added'] else ''
+        of = ' of the gait-phase windows' if doc['effects_added'] else ''
+        lowered = _rejected_text(doc)
+        if lowered:
+            # a candidate did lower the error (and was refused for another reason): 'no
+            # candidate lowered it' was false (offsets read 'only the constant part')
+            text = (f'No{other} candidate effect was added (held-out RMSE{of} '
+                    f"{h['rmse_before']:.3g} {unit}): {lowered}.")
+        elif doc['effects_added']:
+            text = ('No other candidate effect lowered the held-out error of the gait-phase '
+                    f"windows significantly (RMSE {h['rmse_before']:.3g} {unit}).")
+        else:
+            text = ('No candidate effect lowered the held-out error significantly, so none '
+                    f"was added (held-out RMSE {h['rmse_before']:.3g} {unit}).")
+        return intro + ' '.join([text] + _implausible_texts(doc, _fmt_params))
+    fmt = _fmt_params
     parts, doubts, others = [], [], []
     for a in doc.get('added_params', []):
         if a['name'] == 'time_offset':
@@ -1886,14 +2052,37 @@ def _summary_effects(doc: dict[str, Any]) -> str:
             rng = a['params'].get('reference_range_c') or []
             ps += (f"; its reference at the {'lowest' if at == 'lower' else 'highest'} "
                    f"allowed ({rng[0] if at == 'lower' else rng[-1]:g} degC)" if rng else '')
-        if a.get('alternatives'):
-            alt = ' or '.join(f"{x['name']} ({fmt(x['params'], x['stderr'])}; held-out "
-                              f"{x['heldout_rmse']:.3g} {unit})" for x in a['alternatives'])
-            others.append(f"The same residual is explained nearly as well by {alt}: these runs "
-                          f"cannot tell it from {a['name']}; runs that differ in what the two "
-                          'depend on (gait, duty factor, load, standing) would.')
+        alts = a.get('alternatives') or []
+        # an alternative that removed at least as much of the error as the added effect
+        # (power_gain is never added: 1.026 of carried_mass's share read 'nearly as well')
+        better = [x for x in alts if x.get('share', 0.0) >= 1.0]
+        near = [x for x in alts if x not in better]
+
+        def alt_text(xs: list[dict[str, Any]]) -> str:
+            return ' or '.join(
+                f"{x['name']} ({fmt(x['params'], x['stderr'])}; held-out "
+                f"{x['heldout_rmse']:.3g} {unit}"
+                + (f"; implausible: {x['implausible']}" if x.get('implausible') else '') + ')'
+                for x in xs)
+        if near:
+            others.append(f"The same residual is explained nearly as well by {alt_text(near)}: "
+                          f"these runs cannot tell it from {a['name']}; runs that differ in "
+                          'what the two depend on (gait, duty factor, load, standing) would.')
         coll = a.get('collinearity') or {}
-        if a.get('constant_beside'):
+        if better:
+            chosen = better[0].get('chosen_heldout_rmse')
+            gain = any(x['name'] == 'power_gain' for x in better)
+            doubts.append((a['name'],
+                           f"The loop added {a['name']} ({ps}), but {alt_text(better)} "
+                           'explains the same residual at least as well' +
+                           (f" (held-out {chosen:.3g} {unit} with {a['name']})"
+                            if isinstance(chosen, float) else '') +
+                           (': it looks like a gain or calibration error (a current or voltage '
+                            "sensor's gain, a converter's efficiency, another supply voltage) "
+                            'rather than an effect the model missed; power_gain is never added, '
+                            'so check the power monitor against a known load.' if gain else
+                            f": these runs cannot tell it from {a['name']}.")))
+        elif a.get('constant_beside'):
             with_ = ' and '.join(a['constant_beside'])
             un = coll.get('uncentred_correlation')
             doubts.append((a['name'],
@@ -1908,7 +2097,7 @@ def _summary_effects(doc: dict[str, Any]) -> str:
             earlier = ' and '.join(coll['with'])
             doubts.append((a['name'],
                            f"The loop also added {a['name']} ({ps}) after {earlier}, but its "
-                           f"contribution follows {earlier}'s (r = {coll['correlation']:+.2f}): "
+                           f"contribution follows {earlier}'s ({_r_text(coll)}): "
                            'these runs cannot tell a separate effect from a correction of '
                            f"{earlier}'s model."))
         elif a.get('at_bound') == 'upper':
@@ -1946,6 +2135,7 @@ def _summary_effects(doc: dict[str, Any]) -> str:
                           '; it is unverified on this robot: no run declares a payload (a run '
                           'with a known payload beside these would test it).'
                           if not doc.get('payload_kg') else '.'))
+    others += _implausible_texts(doc, fmt)
     u = doc.get('unexplained') or {}
     absorbing = bool(u.get('significant')) and u.get('pattern') in ('step', 'run_offsets')
     with_ = f" (with {' and '.join(n for n, _ in doubts)}, below)" if doubts else ''
@@ -1971,6 +2161,61 @@ def _summary_effects(doc: dict[str, Any]) -> str:
     out = intro + head + (f"{h['rmse_before']:.3g} to {h['rmse_after']:.3g} {unit} (held-out "
                           'time blocks of the same runs).')
     return ' '.join([out] + [d for _, d in doubts] + others + [_loro_text(doc)]).rstrip()
+
+
+def _rejected_text(doc: dict[str, Any]) -> str:
+    """Candidates that lowered the held-out error by the selection's test but were not added
+    (each with the reason its record gives), '' when none did."""
+    h = doc['heldout']['rmse_before']
+    unit = doc['unit']
+    why: dict[str, list[tuple[str, float]]] = {}
+    for c in doc.get('candidates', []):
+        r, dbic = c.get('heldout_rmse'), c.get('delta_bic')
+        if c.get('selected') or c.get('view') or c.get('implausible') or r is None \
+                or dbic is None:
+            continue   # implausible ones: _implausible_texts
+        if not (r < (1 - EffectSelection.min_improvement) * h
+                and dbic < -EffectSelection.min_delta_bic):
+            continue
+        if c.get('note'):
+            reason = c['note']
+        elif c.get('indistinguishable_from'):
+            reason = ('these runs cannot tell it from '
+                      f"{' and '.join(c['indistinguishable_from'])}, already added")
+        elif c['name'] == 'power_gain' and not any(
+                x.get('gain_like') for x in doc.get('implausible') or []):
+            reason = ('it is never added: the predicted power times a factor stands for a '
+                      'gain or calibration error as readily as for a kinematic error or a '
+                      'friction')
+        else:
+            continue
+        why.setdefault(reason, []).append((c['name'], float(r)))
+    parts = []
+    for reason, names in why.items():
+        who = ' and '.join(n for n, _ in names)
+        to = ' and '.join(f'{r:.3g}' for _, r in names)
+        parts.append(f'{who} lowered it (to {to} {unit}) but '
+                     f"{'was' if len(names) == 1 else 'were'} not added ({reason})")
+    return '; '.join(parts)
+
+
+def _implausible_texts(doc: dict[str, Any], fmt: Any) -> list[str]:
+    """Sentences on candidates not added because their fit was physically implausible
+    (``implausible`` in the document), with power_gain when it explained as much."""
+    unit = doc['unit']
+    out = []
+    for rec in doc.get('implausible') or []:
+        text = (f"{rec['name']} would have lowered the held-out error to "
+                f"{rec['heldout_rmse']:.3g} {unit}, but {rec['implausible']}, so it was not "
+                'added' + (' and nothing after it' if rec.get('gain_like') else ''))
+        g = rec.get('power_gain')
+        if g and g['heldout_rmse'] <= rec['heldout_rmse']:
+            text += (f"; power_gain ({fmt(g['params'], g['stderr'])}) explains the residual "
+                     f"at least as well (held-out {g['heldout_rmse']:.3g} {unit}): it looks "
+                     'like a gain or calibration error of the power monitor (a current '
+                     "shunt, a converter's efficiency, another supply voltage), not a load")
+        out.append(text + '.')
+    return out
 
 
 def _loro_text(doc: dict[str, Any]) -> str:
@@ -2015,10 +2260,11 @@ def run_energy_loop(bench_bags: Sequence[str | Path], robot_bags: Sequence[str |
                     payload_kg: float = 0.0, current_sign: str = 'auto',
                     load_offset_kg: float = 0.0, plots: bool = True,
                     gait: GivenGait | None = None, phase_split: str = 'auto',
-                    progress: Callable[[int], Any] | None = None) -> dict[str, Any]:
+                    progress: Callable[[int], Any] | None = None,
+                    max_lag_s: float = 0.15) -> dict[str, Any]:
     """Whole energy loop from bags; writes ``residuals.json`` (and plots) into ``out_dir`` when
     given and returns the document. Prints nothing; ``progress(1)`` after each bag read and
-    after the loop.
+    after the loop. ``max_lag_s``: the largest battery clock offset searched [s].
 
     ``load_offset_kg``: subtracted from the carried mass before the bench surfaces are read
     (0 by the paper: a robot's stance tip carries ``M g / L``, the simulated robot's too
@@ -2054,7 +2300,7 @@ def run_energy_loop(bench_bags: Sequence[str | Path], robot_bags: Sequence[str |
                                 temp_ref_c=_bench_temperature_c(bench_bags), plots=plots,
                                 robot_spec_cls=RobotSpec,
                                 bench_voltage_v=float(np.median(bench_v)) if bench_v else None,
-                                bench_notes=bench_notes)
+                                bench_notes=bench_notes, max_lag_s=max_lag_s)
     step(1)
     return doc
 
@@ -2122,8 +2368,10 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
                           payload_kg: float = 0.0, temp_ref_c: float | None = None,
                           load_offset_kg: float = 0.0, plots: bool = True,
                           robot_spec_cls: Any = None, bench_voltage_v: float | None = None,
-                          bench_notes: dict[str, list[str]] | None = None) -> dict[str, Any]:
+                          bench_notes: dict[str, list[str]] | None = None,
+                          max_lag_s: float = SampleView.max_lag_s) -> dict[str, Any]:
     """The loop on a fitted bench model and read robot runs (tests reuse one bench fit).
+    ``max_lag_s``: the largest battery clock offset the per-sample view searches [s].
     ``bench_voltage_v``: the bench's supply voltage, checked against the robot runs'.
     ``bench_notes``: bench bag -> how it was read (``per_bench`` in the document when any)."""
     from hexapod_energy.prediction import RobotSpec, load_offset_problem
@@ -2181,7 +2429,7 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
     view = None
     if all(r.joint_features is not None for r in runs):
         try:
-            view = SampleView().fit(runs)
+            view = SampleView(max_lag_s=max_lag_s).fit(runs)
         except ResidualDataError:
             view = None   # the window split below names what is short
     if view is not None:
@@ -2191,6 +2439,8 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
             runs = [r.realigned(view.lag_s_) for r in runs]
     table = build_windows(runs, temp_ref_c=temp_ref_c)
     table.extra.update(_bench_gait(model))
+    # the declared mass (payload included): an undeclared mass beyond it is not a load
+    table.extra['robot_mass_kg'] = float(total_kg)
     held = split_mask(table)
     sel = EffectSelection().fit(table, held)
     doc = energy_loop_document(table, sel, held, view, run_names=[r.name for r in runs],

@@ -28,7 +28,9 @@ SLIP, SLIP + leg damping and SLIP + hip torque (:mod:`slip_identification.residu
                  "near_constant"}, "payload_kg",
      (energy:) "added_params": [{"name", "params", "stderr",
                                  "alternatives"?: [{"name", "heldout_rmse", "params",
-                                                    "stderr", "share"}],
+                                                    "stderr", "share",
+                                                    "chosen_heldout_rmse",
+                                                    "implausible"?}],
                                  "collinearity"?: {"with", "correlation" (null for a
                                  constant contribution: "correlation_kind"),
                                  "uncentred_correlation", "collinear"},
@@ -75,7 +77,15 @@ robot's holding power against the bench's 0 Hz sessions, ``holding_change`` -1 t
 fitted between 1 K below the coldest robot servo reading and 3 K above the bench's
 (``reference_at_bound`` when at an end). On windows whose mass sensitivity is nearly constant
 (``mass_sensitivity``), ``carried_mass`` is named beside an added ``basal_power`` and the
-reverse, whatever its share.
+reverse, whatever its share. An alternative with ``share`` >= 1 removed at least as much
+of the error as the added effect and is said to explain it "at least as well" (with
+``power_gain``, params ``gain_excess`` and ``factor``, the summary says a gain or calibration
+error). ``implausible`` (energy): candidates refused because their fit is physically
+implausible (``carried_mass`` beyond the robot's declared mass, payload included), each
+``{"name", "heldout_rmse", "params", "implausible", "gain_like", "power_gain"}``; with
+``gain_like`` nothing more was added (power_gain explained at least as much).
+``sample_view.warnings``: the clock-offset search (``|lag| <= max_lag_s``, ``--max-lag``) found
+its best lag at its edge, or a realignment that removes little of the per-sample error.
 
 Energy residuals are measured minus predicted ``P_in`` per gait-phase window [W] (``1/k`` of
 the cycle, ``windows.per_cycle``: 2 for a tripod, 3 a tetrapod, 6 a wave; ``bias`` is
@@ -123,6 +133,10 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
                         'simulated robot\'s too); the leg mass for a robot model whose stance '
                         'tips carry only (M - m_leg L) g / L, a stage mass for a bench whose '
                         'tip carries one')
+    p.add_argument('--max-lag', type=float, default=0.15, metavar='S',
+                   help='largest clock offset of /battery_state against the joint stream the '
+                        'per-sample view searches [s] (default 0.15; a larger one costs time '
+                        'and, beyond about half the gait period, may find an aliased lag)')
     p.add_argument('--current-sign', choices=('ros', 'positive_discharge', 'auto'),
                    default='auto', help='battery current sign convention (default auto)')
     p.add_argument('--box', type=float, nargs=6, metavar=('X0', 'Y0', 'Z0', 'X1', 'Y1', 'Z1'),
@@ -266,6 +280,9 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         raise InvalidInputError(f'--robot-mass must be > 0 kg, got {args.robot_mass}')
     if not (math.isfinite(args.robot_payload) and args.robot_payload >= 0):
         raise InvalidInputError(f'--robot-payload must be >= 0 kg, got {args.robot_payload}')
+    max_lag = getattr(args, 'max_lag', 0.15)
+    if not (math.isfinite(max_lag) and 0.01 <= max_lag <= 5.0):
+        raise InvalidInputError(f'--max-lag must be 0.01-5 s, got {max_lag}')
     if not math.isfinite(args.load_offset):
         raise InvalidInputError(f'--load-offset must be finite, got {args.load_offset}')
     legs = getattr(args, 'legs', None)
@@ -306,7 +323,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                                current_sign=args.current_sign,
                                load_offset_kg=args.load_offset, plots=not args.no_plots,
                                gait=gait, phase_split=getattr(args, 'phase_split', 'auto'),
-                               progress=bar.update)
+                               progress=bar.update, max_lag_s=max_lag)
 
 
 def _handler(args: argparse.Namespace) -> int:

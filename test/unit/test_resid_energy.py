@@ -491,7 +491,7 @@ def test_hidden_offsets_and_gains_are_not_confidently_misnamed(bench, clean_bags
     first = doc['added_params'][0]
     gains = [a for a in first.get('alternatives', []) if a['name'] == 'power_gain']
     assert gains, doc['summary']
-    assert 'power_gain (gain = ' in doc['summary']
+    assert 'power_gain (gain_excess = ' in doc['summary']
 
 
 def test_battery_stamps_jittered_against_the_gait(bench, clean_bags, tmp_path):
