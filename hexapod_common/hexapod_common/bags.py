@@ -459,6 +459,15 @@ class OpenedReader(AnyReader):
     #: recorded topic -> why its messages cannot be read (see :func:`iter_messages`)
     unreadable: dict[str, str]
     open_notes: list[str]
+    #: temporary directories of salvaged mcap files (:func:`salvage_mcap`), removed on close
+    salvage_dirs: list[Path] = []
+
+    def close(self) -> None:
+        try:
+            super().close()
+        finally:
+            for d in self.salvage_dirs:
+                shutil.rmtree(d, ignore_errors=True)
 
     def _open(self) -> None:
         """AnyReader._open with the storage reconciled and a tolerant hash check."""
@@ -660,6 +669,107 @@ class BagMessage:
     data: bytes
 
 
+#: an mcap file's first and last eight bytes
+MCAP_MAGIC = b'\x89MCAP0\r\n'
+#: mcap records ending the data section: DataEnd, Footer
+_MCAP_DATA_END, _MCAP_FOOTER = 0x0F, 0x02
+
+
+def mcap_is_complete(path: str | os.PathLike[str]) -> bool:
+    """Whether an mcap file ends with the mcap magic (a recorder killed, a disk full or a copy
+    interrupted leaves the file without its footer and summary)."""
+    p = Path(path)
+    size = p.stat().st_size
+    if size < 16:
+        return False
+    with p.open('rb') as f:
+        f.seek(size - 8)
+        return f.read(8) == MCAP_MAGIC
+
+
+def salvage_mcap(src: str | os.PathLike[str], dst: str | os.PathLike[str]) -> tuple[int, int]:
+    """Copy the complete records of a cut-short mcap file ``src`` into ``dst`` and close it
+    with an empty summary (a DataEnd and a Footer record, the end magic): a file any mcap
+    reader opens by scanning it (rosbags does). Returns (bytes kept, bytes in ``src``).
+
+    A record is kept when all of its bytes are there; the first one cut short and everything
+    after it are lost (with the recorder's chunks, up to one chunk: 0.75-1 MiB). Raises
+    :class:`BagReadError` when ``src`` does not start like an mcap file."""
+    src, dst = Path(src), Path(dst)
+    size = src.stat().st_size
+    with src.open('rb') as f, dst.open('wb') as out:
+        head = f.read(8)
+        if head != MCAP_MAGIC:
+            raise BagReadError(f'{src}: not an mcap file (no mcap magic at its start)')
+        out.write(head)
+        pos = 8
+        while pos + 9 <= size:
+            header = f.read(9)
+            op, length = header[0], int.from_bytes(header[1:], 'little')
+            if op in (_MCAP_DATA_END, _MCAP_FOOTER) or pos + 9 + length > size:
+                break
+            out.write(header)
+            shutil.copyfileobj(_Limited(f, length), out, 1 << 20)
+            pos += 9 + length
+        out.write(bytes([_MCAP_DATA_END]) + (4).to_bytes(8, 'little') + bytes(4))
+        out.write(bytes([_MCAP_FOOTER]) + (20).to_bytes(8, 'little') + bytes(20))
+        out.write(MCAP_MAGIC)
+    return pos, size
+
+
+class _Limited:
+    """The next ``n`` bytes of a binary file, for :func:`shutil.copyfileobj`."""
+
+    def __init__(self, f: Any, n: int) -> None:
+        self.f, self.n = f, n
+
+    def read(self, size: int = -1) -> bytes:
+        size = self.n if size < 0 else min(size, self.n)
+        data = self.f.read(size)
+        self.n -= len(data)
+        return data
+
+
+def _salvaged(p: Path, notes: list[str], tmp: list[Any]) -> list[Path] | None:
+    """The mcap files of bag ``p`` (a directory or one file) with the cut-short ones
+    replaced by salvaged copies in a temporary directory (appended to ``tmp``); None when
+    every file is complete (or ``p`` holds no mcap file)."""
+    import tempfile
+
+    files = sorted(p.glob('*.mcap')) if p.is_dir() else [p] if p.suffix == '.mcap' else []
+    cut = [f for f in files if not mcap_is_complete(f)]
+    if not cut:
+        return None
+    where = Path(tempfile.mkdtemp(prefix='hexapod_salvage_'))
+    tmp.append(where)
+    out = []
+    empty = 0
+    for f in files:
+        if f not in cut:
+            out.append(f)
+            continue
+        dst = where / f.name
+        kept, size = salvage_mcap(f, dst)
+        if kept <= 1024:
+            empty += 1
+            if empty == len(files):
+                shutil.rmtree(where, ignore_errors=True)
+                raise BagReadError(
+                    f'cannot read bag {p}: cut short (no mcap footer: the recording was '
+                    'killed, the disk filled or the copy was interrupted) before any complete '
+                    'record (recorders write chunks of about 1 MiB): nothing to read')
+        out.append(dst)
+        read = (f'its complete records read ({kept / 2**20:.2f} of {size / 2**20:.2f} MiB), '
+                'the rest lost') if kept > 1024 else \
+            f'none of its records is complete ({size / 2**20:.2f} MiB lost)'
+        notes.append(
+            f'{f}: cut short (no mcap footer: the recording was killed, the disk filled or the '
+            f'copy was interrupted); {read}'
+            + ('; metadata.yaml ignored (its counts include what is lost)'
+               if p.is_dir() and (p / 'metadata.yaml').is_file() else ''))
+    return out
+
+
 def open_reader(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[str]], *,
                 remap: dict[str, str] | None = None, namespace: str | None = None
                 ) -> OpenedReader:
@@ -676,9 +786,15 @@ def open_reader(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[str]]
     items = [paths] if isinstance(paths, (str, os.PathLike)) else list(paths)
     resolved: list[Path] = []
     notes: list[str] = []
+    salvage_dirs: list[Path] = []
     for p in (Path(x) for x in items):
         if not p.exists():
             raise BagNotFoundError(f'no such bag: {p}')
+        salvaged = _salvaged(p, notes, salvage_dirs)
+        if salvaged is not None:
+            # a cut-short mcap file: its complete records, beside the bag's other files
+            resolved.extend(salvaged)
+            continue
         if p.is_dir() and not (p / 'metadata.yaml').is_file():
             mcaps = sorted(p.glob('*.mcap'))
             if mcaps:
@@ -695,8 +811,11 @@ def open_reader(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[str]]
         resolved.append(p)
     try:
         reader = OpenedReader(resolved, default_typestore=typestore())
+        reader.salvage_dirs = salvage_dirs
         reader.open()
     except Exception as err:  # rosbags raises several unrelated types for bad files
+        for d in salvage_dirs:
+            shutil.rmtree(d, ignore_errors=True)
         msg = str(err).splitlines()[0] if str(err) else type(err).__name__
         where = ', '.join(str(p) for p in resolved)
         raise BagReadError(f'cannot read bag {where}: {msg}') from err
