@@ -293,10 +293,20 @@ class RateMonitor:
         if not self.low and self.achieved_hz < RATE_LOW_FRACTION * self.requested_hz:
             self.low = True
             took = f'; a read cycle takes {cycle_ms:.1f} ms' if math.isfinite(cycle_ms) else ''
+            period_ms = 1e3 / self.requested_hz
+            if math.isfinite(cycle_ms) and cycle_ms < 0.5 * period_ms:
+                # the bus has time to spare: the loop is not scheduled often enough (an
+                # outside review: 1.6 ms cycles of a 10 ms period blamed on the bus)
+                why = (f'the bus has time to spare ({cycle_ms:.1f} of {period_ms:.1f} ms a '
+                       'period): the host does not run the loop often enough (CPU load, '
+                       'other callbacks on the node\'s executor); give the driver its own '
+                       'process or core, or lower rate_hz')
+            else:
+                why = ('the bus cannot keep up; lower rate_hz, check for silent or slow '
+                       'servos (the reply margin), set the USB latency timer to 1 ms or '
+                       'raise the baud rate')
             return ('warning', f'read loop at {self.achieved_hz:.1f} Hz, requested '
-                    f'{self.requested_hz:g} Hz ({servos} servos{took}): the bus cannot keep '
-                    'up; lower rate_hz, check for silent or slow servos (the reply margin), '
-                    'set the USB latency timer to 1 ms or raise the baud rate')
+                    f'{self.requested_hz:g} Hz ({servos} servos{took}): {why}')
         if self.low and self.achieved_hz >= RATE_OK_FRACTION * self.requested_hz:
             self.low = False
             return ('info', f'read loop back at {self.achieved_hz:.1f} Hz (requested '
