@@ -35,6 +35,7 @@ import array
 import dataclasses
 import json
 import math
+import os
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -42,6 +43,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from hexapod_common.conversions import MOCAP_TF_ENV
 from hexapod_energy.errors import BagContentError
 from hexapod_energy.single_leg import PhaseSample, align_offset_s, phase_powers, stance_mask
 
@@ -1165,6 +1167,13 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
     windows = []
     gait = None
     notes: list[str] = []
+    if '/tf' in present and '/mocap/body' not in present and \
+            not os.environ.get(MOCAP_TF_ENV, '').strip():
+        # as `slip` says it (an outside review: the speed came out null with no pointer)
+        notes.append('no /mocap/body, but /tf is recorded: motion capture broadcast as tf is '
+                     'read with hexapod-analyze --mocap-tf PARENT:CHILD energy ... (e.g. '
+                     'world:base_link); without it the speed comes from /odom, the gait '
+                     'schedule or --robot-speed')
     converters = {'/battery_state': battery_from_msg, '/gait/phase': gait_phase_from_msg,
                   '/joint_states': joint_state_from_msg, '/mocap/body': pose_from_msg,
                   '/odom': odometry_from_msg}

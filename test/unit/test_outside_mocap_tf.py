@@ -153,3 +153,23 @@ def test_an_unforeseen_failure_is_one_line(monkeypatch, capsys, tmp_path):
     monkeypatch.setenv('HEXAPOD_DEBUG', '1')
     with pytest.raises(AttributeError):
         analyze(argv)
+
+
+def test_energy_points_to_mocap_tf_when_the_bag_has_tf_only(bags, monkeypatch):
+    """An outside review: `energy` on such a bag gave a null speed without pointing to
+    --mocap-tf as `slip` does; now its notes say it, and not once the option is given."""
+    from hexapod_common.conversions import MOCAP_TF_ENV
+    from hexapod_energy.bag_io import read_robot_bag
+
+    _, _, tf_bag = bags
+    monkeypatch.delenv(MOCAP_TF_ENV, raising=False)
+    run = read_robot_bag(tf_bag, mass_kg=3.31)
+    assert any('--mocap-tf PARENT:CHILD' in n for n in run.extra['notes'])
+    # what hexapod-analyze --mocap-tf world:base_link sets
+    from hexapod_common.bags import REMAP_ENV
+    monkeypatch.setenv(MOCAP_TF_ENV, 'world:base_link')
+    monkeypatch.setenv(REMAP_ENV, json.dumps({'remap': {'/tf': '/mocap/body'},
+                                              'namespace': ''}))
+    run = read_robot_bag(tf_bag, mass_kg=3.31)
+    assert not any('--mocap-tf PARENT:CHILD' in n for n in run.extra['notes'])
+    assert run.speed_mps > 0.3
