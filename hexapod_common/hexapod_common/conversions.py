@@ -438,58 +438,116 @@ def odometry_from_msg(msg: Any) -> OdometrySample:
 __all__ += ['OdometrySample', 'odometry_from_msg']
 
 
-#: a leg joint's name in the contract (DESIGN: ``<leg>_<joint>``, legs L1..Lk and R1..Rk)
-LEG_JOINT_RE = re.compile(r'^([LR])([1-9]\d*)_\w+$')
+#: a leg joint's name in the contract (DESIGN: ``<leg>_<joint>``, legs L1..Lk and R1..Rk;
+#: zero-based leg numbers, L0..., are taken as legs too)
+LEG_JOINT_RE = re.compile(r'^([LR])(\d+)_\w+$')
 
 
 class LegJointFilter:
-    """Leaves joints that are not a leg's out of the joint states once the stream has named
-    a leg joint (:data:`LEG_JOINT_RE`): a gripper, a head or a tail beside the legs.
+    """Leaves joints that are not a leg's out of the joint states of a stream that names leg
+    joints (:data:`LEG_JOINT_RE`): a gripper, a head or a tail beside the legs.
 
     Their motion had entered the gait-cycle detection and their joint power P_out (an outside
     review, another lab's bag with two gripper joints opening every 2 s beside 18 leg joints:
     the cycles read 0.80 and 1.60 s for one steady 0.80 s gait, P_out 7.00 W for the legs'
-    5.11, no note). Their electrical power stays in the battery's P_in. Before any leg joint
-    is named (another naming convention, which ``--joint-map`` translates), nothing is left
-    out. ``dropped`` holds the names left out, ``samples_dropped`` the messages that named no
-    leg joint at all.
+    5.11, no note). Their electrical power stays in the battery's P_in. A stream that never
+    names a leg joint (another naming convention, which ``--joint-map`` translates) is passed
+    whole.
+
+    ``legs_present``: True or False when the caller knows whether the stream names leg joints
+    (offline: from the bag's name sets, :meth:`names_have_legs`); None (live) to decide from
+    the stream: samples naming no leg joint are held (up to :data:`HOLD` of them) until a
+    leg joint comes (they are then dropped: a gripper's message published before the legs',
+    which had become the live SLIP core's joint set and refused every leg message after it)
+    or until :data:`HOLD` are held (then released in order: another naming convention).
+    ``dropped`` holds the names left out (messages per name), ``samples_dropped`` the
+    messages that named no leg joint at all.
     """
 
-    def __init__(self) -> None:
-        self.legs_seen = False
+    #: samples without a leg joint held, while undecided, before the stream is taken as
+    #: naming none (1 s at 100 Hz)
+    HOLD = 100
+    #: name sets remembered (a stream whose name sets change every message: cleared beyond)
+    CACHE = 256
+
+    def __init__(self, legs_present: bool | None = None) -> None:
+        self.legs_present = legs_present
         self.dropped: dict[str, int] = {}
         self.samples_dropped = 0
-        self._cache: dict[tuple[str, ...], tuple[int, ...] | None] = {}
+        self._cache: dict[tuple[str, ...], tuple[list[int] | None, tuple[str, ...]]] = {}
+        self._held: list[JointStateSample] = []
 
-    def apply(self, sample: JointStateSample) -> JointStateSample | None:
-        """The sample with only its leg joints (itself when it has no other); None when it
-        names none and the stream has named leg joints."""
+    @staticmethod
+    def names_have_legs(name_sets: Any) -> bool:
+        """Whether any of ``name_sets`` (iterables of joint names) names a leg joint."""
+        return any(LEG_JOINT_RE.match(str(n)) for names in name_sets for n in names)
+
+    def _split(self, names: tuple[str, ...]) -> tuple[list[int] | None, tuple[str, ...]]:
+        """(indices of the leg joints, None when every name is one; the other names)."""
+        hit = self._cache.get(names)
+        if hit is None:
+            keep = [k for k, n in enumerate(names) if LEG_JOINT_RE.match(n)]
+            other = tuple(n for n in names if not LEG_JOINT_RE.match(n))
+            hit = (None if len(keep) == len(names) else keep, other)
+            if len(self._cache) >= self.CACHE:
+                self._cache.clear()
+            self._cache[names] = hit
+        return hit
+
+    def _drop(self, other: tuple[str, ...]) -> None:
+        for n in other:
+            self.dropped[n] = self.dropped.get(n, 0) + 1
+
+    def feed(self, sample: JointStateSample) -> list[JointStateSample]:
+        """The samples to use now, in arrival order: ``sample`` itself, with its leg joints
+        only, none (left out, or held while undecided) or the held ones and it."""
+        if self.legs_present is False:
+            return [sample]
         names = tuple(sample.names)
-        if names in self._cache:
-            keep = self._cache[names]
-        else:
-            idx = tuple(k for k, n in enumerate(names) if LEG_JOINT_RE.match(n))
-            keep = self._cache[names] = None if len(idx) == len(names) else idx
-        if keep is None:
-            self.legs_seen = self.legs_seen or bool(names)
-            return sample
-        if not keep and not self.legs_seen:
-            return sample
-        self.legs_seen = self.legs_seen or bool(keep)
-        for k, n in enumerate(names):
-            if k not in keep:
-                self.dropped[n] = self.dropped.get(n, 0) + 1
-        if not keep:
+        keep, other = self._split(names)
+        if keep is None:          # leg joints only (or no names at all)
+            if names and self.legs_present is None:
+                self._decide(True)
+            return [sample]
+        if not keep:              # no leg joint in it
+            if self.legs_present is None:
+                self._held.append(sample)
+                return self._decide(False) if len(self._held) >= self.HOLD else []
+            self._drop(other)
             self.samples_dropped += 1
-            return None
-        sel = list(keep)
+            return []
+        if self.legs_present is None:
+            self._decide(True)
+        self._drop(other)
 
         def pick(a: np.ndarray) -> np.ndarray:
-            return a[sel] if a.size == len(names) else a
+            return a[keep] if a.size == len(names) else a
 
-        return JointStateSample(sample.t_s, tuple(names[k] for k in keep),
-                                pick(sample.position), pick(sample.velocity),
-                                pick(sample.effort), malformed=sample.malformed)
+        return [JointStateSample(sample.t_s, tuple(names[k] for k in keep),
+                                 pick(sample.position), pick(sample.velocity),
+                                 pick(sample.effort), malformed=sample.malformed)]
+
+    def _decide(self, legs: bool) -> list[JointStateSample]:
+        """Settle whether the stream names leg joints; the held samples: dropped (legs) or
+        returned in order (none)."""
+        self.legs_present = legs
+        held, self._held = self._held, []
+        if not legs:
+            return held
+        for s in held:
+            self._drop(tuple(s.names))
+        self.samples_dropped += len(held)
+        return []
+
+    def flush(self) -> list[JointStateSample]:
+        """At the end of a stream still undecided: its held samples (it named no leg joint)."""
+        return self._decide(False) if self.legs_present is None and self._held else []
+
+    def apply(self, sample: JointStateSample) -> JointStateSample | None:
+        """:meth:`feed` for a filter whose ``legs_present`` is known: the sample with its leg
+        joints only, or None when it names none."""
+        out = self.feed(sample)
+        return out[-1] if out else None
 
     def note(self, out_of: str = 'the gait cycles and P_out (their electrical power stays '
                                  'in P_in)') -> str:

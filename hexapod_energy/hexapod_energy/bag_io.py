@@ -43,7 +43,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from hexapod_common.conversions import MOCAP_TF_ENV
+from hexapod_common.conversions import LegJointFilter, MOCAP_TF_ENV
 from hexapod_energy.errors import BagContentError
 from hexapod_energy.single_leg import PhaseSample, align_offset_s, phase_powers, stance_mask
 
@@ -1274,6 +1274,10 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
     acc = DescriptorAccumulator(mass_kg=mass_kg, cycles=cycles, current_sign=current_sign,
                                 power_out_source='effort', cycle_source=cycle_source,
                                 speed_mps=speed_mps or 0.0)
+    # offline the whole bag says whether it names leg joints: nothing is held (a gripper's
+    # message before the legs' is left out, a bag of other names is read whole)
+    acc.leg_joints_ = LegJointFilter(legs_present=LegJointFilter.names_have_legs(
+        stores['/joint_states'].distinct('names')))
     changes: list[tuple[float, tuple[Any, ...], Any]] = []   # schedule changes on /gait/phase
     # header-stamp order (recorders store receive order; stamps may be a few ms out of order),
     # each sample rebuilt from the columns as it is fed

@@ -761,11 +761,17 @@ class DescriptorAccumulator:
         """
         if not self._clk.observe('joint_states', sample.t_s):
             return []
-        # joints that are not a leg's (a gripper beside the legs): out of cycles and P_out
-        legs_only = self.leg_joints_.apply(sample)
-        if legs_only is None or self._duplicate_joint_state(legs_only):
-            return []
-        sample = legs_only
+        # joints that are not a leg's (a gripper beside the legs): out of cycles and P_out;
+        # live, messages naming no leg joint are held until the stream shows whether it has
+        # any (LegJointFilter.feed), so one sample may release several
+        out: list[Descriptors] = []
+        for s in self.leg_joints_.feed(sample):
+            if not self._duplicate_joint_state(s):
+                out.extend(self._add_joint_sample(s))
+        return out
+
+    def _add_joint_sample(self, sample: JointStateSample) -> list[Descriptors]:
+        """:meth:`add_joint_state` for one sample of leg joints, not a duplicate."""
         if self.joint_cycles_:
             self._check_battery_quiet(sample.t_s)
         if sample.effort.size and sample.velocity.size == sample.effort.size:

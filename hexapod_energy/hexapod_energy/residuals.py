@@ -273,6 +273,19 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
     clocks = ClockCheck()
     per_joint: dict[str, tuple[array.array, array.array]] = {}
     leg_joints = LegJointFilter()
+
+    def add_joints(js: Any) -> None:
+        if js.effort.size == js.velocity.size and js.effort.size:
+            mech.append(js.t_s)
+            mech.extend(joint_features(js.effort, js.velocity))
+        if js.effort.size == len(js.names):
+            for name, e in zip(js.names, np.abs(js.effort).tolist()):
+                series = per_joint.get(name)
+                if series is None:
+                    series = per_joint[name] = (array.array('d'), array.array('d'))
+                series[0].append(js.t_s)
+                series[1].append(e)
+
     with open_reader(path) as reader:
         reader_notes = list(getattr(reader, 'notes', ()))  # metadata.yaml vs storage, ...
         present = sorted({c.topic for c in reader.connections})
@@ -315,20 +328,12 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
                 s = servo_status_from_msg(msg)
                 temps.append((s.t_s, float(np.sum(s.temperature_c)), len(s.temperature_c)))
             else:
-                # a gripper beside the legs: left out, as energy does (LegJointFilter)
-                js = leg_joints.apply(joint_state_from_msg(msg))
-                if js is None:
-                    continue
-                if js.effort.size == js.velocity.size and js.effort.size:
-                    mech.append(js.t_s)
-                    mech.extend(joint_features(js.effort, js.velocity))
-                if js.effort.size == len(js.names):
-                    for name, e in zip(js.names, np.abs(js.effort).tolist()):
-                        series = per_joint.get(name)
-                        if series is None:
-                            series = per_joint[name] = (array.array('d'), array.array('d'))
-                        series[0].append(js.t_s)
-                        series[1].append(e)
+                # a gripper beside the legs: left out, as energy does (LegJointFilter: a
+                # message naming no leg joint is held until the bag shows whether it has any)
+                for js in leg_joints.feed(joint_state_from_msg(msg)):
+                    add_joints(js)
+        for js in leg_joints.flush():
+            add_joints(js)
     battery_notes: list[str] = [f'{len(errs)} {topic} message(s) dropped: {errs[0]}'
                                 for topic, errs in sorted(dropped.items())]
     battery_notes += duplicates_note(dups)
@@ -453,6 +458,11 @@ def joint_features(effort: np.ndarray, velocity: np.ndarray) -> tuple[float, ...
     return (float(np.sum(u * u)), float(np.sum(np.maximum(uw, 0.0))),
             float(np.sum(np.maximum(-uw, 0.0))), float(np.sum(np.abs(u))),
             float(np.sum(np.abs(w))))
+
+
+#: the clock-offset search's largest lag is at most this share of the shortest run (it is
+#: set aside at each end of every run)
+MAX_LAG_SHARE = 0.1
 
 
 @dataclass
@@ -2019,6 +2029,10 @@ def _summary_effects(doc: dict[str, Any]) -> str:
     intro = (f"The {doc['model']} model's residual (measured minus model) had RMSE "
              f"{b['rmse']:.3g} {unit} and bias {b['bias']:+.3g} {unit} before any effect. ")
     sv = doc.get('sample_view')
+    if sv is not None and sv.get('refused'):
+        intro += ('No clock-offset search or per-sample view: ' + sv['refused'].rstrip('.')
+                  + '. ')
+        sv = None
     if 'time_offset' in doc['effects_added'] and sv is not None:
         intro += (f"Per sample, the battery stream was {sv['lag_s'] * 1e3:+.1f} ms off the joint "
                   f"stream; realigning it reduced held-out per-sample error from "
@@ -2427,11 +2441,23 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
                                                   leg_mass_kg=spec.leg_mass_kg,
                                                   load_offset_kg=load_offset_kg)
     view = None
+    view_refused = ''
     if all(r.joint_features is not None for r in runs):
+        # the search sets aside its largest lag at each end of every run: capped at a share
+        # of the shortest run (an outside review: --max-lag 2 s left 1,200 of 2,055 samples
+        # of 10 s runs, and 4-5 s refused the view without a word)
+        shortest = min(float(r.joint_t_s[-1] - r.joint_t_s[0]) for r in runs)
+        use = min(max_lag_s, MAX_LAG_SHARE * shortest) if shortest > 0 else max_lag_s
         try:
-            view = SampleView(max_lag_s=max_lag_s).fit(runs)
-        except ResidualDataError:
+            view = SampleView(max_lag_s=use).fit(runs)
+            if use < max_lag_s:
+                view.warnings_.insert(0, (
+                    f'the clock-offset search was cut from {max_lag_s:g} s to {use:.2f} s: '
+                    f'it sets aside its largest lag at each end of every run (the shortest '
+                    f'{shortest:.1f} s); record longer runs to search further'))
+        except ResidualDataError as err:
             view = None   # the window split below names what is short
+            view_refused = str(err)
     if view is not None:
         for r in runs:
             r.lag_s, r.lag_stderr_s = view.lag_s_, view.lag_stderr_s_
@@ -2447,6 +2473,8 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
                                run_t0_s=[float(r.t_s[0]) for r in runs])
     doc['load_offset_kg'] = load_offset_kg
     doc['payload_kg'] = payload_kg
+    if view_refused:   # no clock-offset search and no per-sample view: said
+        doc['sample_view'] = {'refused': view_refused}
     if sel.selected_:
         loro = leave_one_run_out(table, run_names=[r.name for r in runs])
         if loro is not None:

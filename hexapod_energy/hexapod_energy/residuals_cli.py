@@ -85,7 +85,10 @@ implausible (``carried_mass`` beyond the robot's declared mass, payload included
 ``{"name", "heldout_rmse", "params", "implausible", "gain_like", "power_gain"}``; with
 ``gain_like`` nothing more was added (power_gain explained at least as much).
 ``sample_view.warnings``: the clock-offset search (``|lag| <= max_lag_s``, ``--max-lag``) found
-its best lag at its edge, or a realignment that removes little of the per-sample error.
+its best lag at its edge, or a realignment that removes little of the per-sample error, or
+``--max-lag`` was cut to a tenth of the shortest run (the search sets aside its largest lag at
+each end of every run). ``sample_view.refused`` (alone): why there was no clock-offset search
+or per-sample view (too little robot data).
 
 Energy residuals are measured minus predicted ``P_in`` per gait-phase window [W] (``1/k`` of
 the cycle, ``windows.per_cycle``: 2 for a tripod, 3 a tetrapod, 6 a wave; ``bias`` is

@@ -169,7 +169,6 @@ def read_run(path: str | Path) -> RunData:
     )
     from hexapod_common.clocks import ClockCheck
     from hexapod_common.conversions import (
-        LegJointFilter,
         battery_from_msg,
         gait_phase_from_msg,
         joint_state_from_msg,
@@ -185,7 +184,6 @@ def read_run(path: str | Path) -> RunData:
     dups: dict[str, int] = {}   # messages recorded twice (same topic, log time, bytes)
     clocks = ClockCheck()
     repeats = RepeatedStamps()   # new values under the previous stamp (a skipped bus read)
-    leg_joints = {'/joint_states': LegJointFilter(), '/joint_commands': LegJointFilter()}
     with open_reader(path) as reader:
         reader_notes = list(getattr(reader, 'notes', ()))  # e.g. mcap without metadata.yaml
         present = {c.topic for c in reader.connections}
@@ -213,10 +211,6 @@ def read_run(path: str | Path) -> RunData:
                         changes.append((phase.t_s or 1e-9 * m.stamp_ns, name))
                     continue
                 sample = streams[m.topic][1](msg)
-                if m.topic in leg_joints:   # a gripper beside the legs: left out
-                    sample = leg_joints[m.topic].apply(sample)
-                    if sample is None:
-                        continue
             except ValueError:
                 dropped[m.topic] = dropped.get(m.topic, 0) + 1
                 continue  # a bad message is dropped, as the nodes do
@@ -233,8 +227,6 @@ def read_run(path: str | Path) -> RunData:
     notes = reader_notes + [
         f'{n} {t} message(s) with a zero header stamp: bag receive time used'
         for t, n in sorted(zero.items())] + duplicates_note(dups)
-    notes += [f'{topic}: {f.note("the stance detection and the fits")}'
-              for topic, f in leg_joints.items() if f.dropped]
     for topic in TOPICS:   # re-stamped from the receive times (or dropped), noted
         fixed, repeat_notes = repeats.resolve(topic, streams[topic][0], _rebuilt)
         streams[topic] = (fixed, streams[topic][1])
@@ -245,6 +237,9 @@ def read_run(path: str | Path) -> RunData:
     for topic, dt in shifts.items():
         if topic in streams:
             streams[topic][0].shift('t_s', dt)
+    # joints that are not a leg's beside the legs (a gripper): left out, noted
+    js = _legs_only(js, '/joint_states', notes)
+    jc = _legs_only(jc, '/joint_commands', notes)
     notes += [f'{n} {t} message(s) dropped (bad or NaN fields)'
               for t, n in sorted(dropped.items())]
     try:
@@ -322,6 +317,30 @@ def read_run(path: str | Path) -> RunData:
         battery_voltage_v=bt_v, battery_current_a=bt_i, gait=gait, label=str(path),
         joint_effort=joints.effort, joint_position=joints.position,
         notes=tuple(notes), gait_changes=tuple(changes))
+
+
+class _Samples(list):  # type: ignore[type-arg]
+    """A list of samples with :meth:`SampleColumns.distinct`."""
+
+    def distinct(self, name: str) -> list[Any]:
+        return list(dict.fromkeys(getattr(s, name) for s in self))
+
+
+def _legs_only(samples: Any, topic: str, notes: list[str]) -> Any:
+    """``samples`` (JointStateSample columns of a bag) without the joints that are not a
+    leg's when the bag names leg joints (:class:`LegJointFilter`; decided from the whole bag,
+    so a gripper's message before the legs' is left out too: it had made the joint set);
+    the samples themselves when there is nothing to leave out."""
+    from hexapod_common.conversions import LEG_JOINT_RE, LegJointFilter
+
+    sets = samples.distinct('names') if len(samples) else []
+    if not LegJointFilter.names_have_legs(sets) or \
+            all(LEG_JOINT_RE.match(n) for names in sets for n in names):
+        return samples
+    f = LegJointFilter(legs_present=True)
+    out = _Samples(x for x in (f.apply(s) for s in samples) if x is not None)
+    notes.append(f'{topic}: {f.note("the stance detection and the fits")}')
+    return out
 
 
 def _stamp_order(topic: str, notes: list[str], t_s: np.ndarray,

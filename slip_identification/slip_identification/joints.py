@@ -340,6 +340,15 @@ def _fast_path(samples: Sequence[Any], topic: str) -> AssembledJoints:
         note_out_of_order(topic, t, notes)
         o = np.argsort(t, kind='stable')
         t, rows = t[o], [rows[k] for k in o]
+        # a stale stamp re-sent beyond the repeat check's memory (RECENT_STAMPS): the first
+        # sample received at a stamp is kept, the later one dropped, noted
+        again = np.flatnonzero(t[1:] == t[:-1]) + 1
+        if again.size:
+            drop = set(again.tolist())
+            rows = [s for k, s in enumerate(rows) if k not in drop]
+            t = np.delete(t, again)
+            notes.append(repeat_note(int(again.size), topic,
+                                     'dropped (a stamp received again long after it)'))
     dt = np.diff(t)
     rate = float(1.0 / np.median(dt)) if dt.size and np.median(dt) > 0 else float('nan')
     pos = np.array([s.position for s in rows]) if _field_ok(rows, 'position') else None

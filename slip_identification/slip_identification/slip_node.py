@@ -288,20 +288,24 @@ class SlipFitterNode(Node):
             'message(s)', 'messages'))
         return None if t is None else dataclasses.replace(s, t_s=t)
 
-    def _legs_only(self, topic: str, sample: Any) -> Any:
+    def _legs_only(self, topic: str, sample: Any) -> list[Any]:
         """``sample`` without joints that are not a leg's (a gripper beside the legs), as
-        offline; None when it names none. Logged once per new name."""
+        offline: the samples to use now (:meth:`LegJointFilter.feed`: a message naming no
+        leg joint is held until the stream shows whether it names any; a gripper's message
+        before the legs' had become the core's joint set, every leg message refused after
+        it). Logged once per new name."""
         f = self._leg_joints.setdefault(topic, LegJointFilter())
         before = len(f.dropped)
-        out = f.apply(sample)
+        out = f.feed(sample)
         if len(f.dropped) > before:
             self.get_logger().warning(f'{topic}: ' + f.note('the stance detection and fits'))
         return out
 
     def _joint_state(self, msg: JointState) -> None:
-        s = self._legs_only('joint_states', self._signed(joint_state_from_msg(msg)))
-        if s is None:
-            return
+        for s in self._legs_only('joint_states', self._signed(joint_state_from_msg(msg))):
+            self._joint_sample(s)
+
+    def _joint_sample(self, s: Any) -> None:
         if s.t_s != 0.0:
             s = self._unrepeated('joint_states', tuple(s.names), s)
             if s is None:
@@ -318,8 +322,7 @@ class SlipFitterNode(Node):
         self._guard(self._command, msg, 'joint_commands')
 
     def _command(self, msg: JointState) -> None:
-        s = self._legs_only('joint_commands', self._signed(joint_state_from_msg(msg)))
-        if s is not None:
+        for s in self._legs_only('joint_commands', self._signed(joint_state_from_msg(msg))):
             self.core.add_command(s.t_s, s.names, s.velocity)
 
     def _on_mocap(self, msg: PoseStamped) -> None:

@@ -152,6 +152,27 @@ def test_a_lag_beyond_the_search_is_warned_of_and_found_with_a_wider_search(benc
         run(args)
 
 
+def test_a_max_lag_beyond_a_tenth_of_the_runs_is_cut_and_said(bench, basal_bags):
+    """A review of the change: the search sets aside its largest lag at each end of every
+    run, so --max-lag 2 s left 1,200 of 2,055 samples of 10 s runs, and 4-5 s refused the
+    view (and the clock-offset search) without a word. The lag is now capped at a tenth of
+    the shortest run, said; a refused view is said in the document and the summary."""
+    runs = [_lagged(p, 0.05) for p in basal_bags]
+    doc = _loop(bench, runs, max_lag_s=4.0)
+    sv = doc['sample_view']
+    assert sv['max_lag_s'] == pytest.approx(0.1 * min(
+        float(r.joint_t_s[-1] - r.joint_t_s[0]) for r in runs), rel=1e-9)
+    assert sv['warnings'][0].startswith('the clock-offset search was cut from 4 s to 1.00 s')
+    assert sv['lag_s'] == pytest.approx(0.05, abs=0.01)
+    short = [_lagged(p, 0.05) for p in basal_bags]
+    for r in short:      # too little robot data for the per-sample view
+        r.joint_features = r.joint_features[:40]
+        r.joint_t_s = r.joint_t_s[:40]
+    doc = _loop(bench, short)
+    assert doc['sample_view']['refused'].startswith('too little robot data')
+    assert 'No clock-offset search or per-sample view: too little robot data' in doc['summary']
+
+
 # --- 2: implausible masses, better alternatives, collinearity, the gain's name --------------
 
 def _gain_table(n: int = 240, robot_kg: float = 1.0, seed: int = 0) -> WindowTable:

@@ -244,3 +244,14 @@ def test_slip_stiffness_of_the_repeated_stamp_bag_is_the_reference(tmp_path, bag
     dev = np.abs(k / k_ref - 1.0)
     assert dev.mean() < 2e-3 and dev.max() < 0.01, dev   # without the fix: 0.74 %, 3.2 %
     assert any(NOTE in n for n in doc['runs'][0]['notes'])
+
+
+def test_a_stale_stamp_resent_beyond_the_memory_is_dropped_not_kept_beside():
+    """A review of the change: a stale stamp re-sent with new values more than RECENT_STAMPS
+    stamps later was taken as received out of order and kept beside the original at the same
+    stamp (velocities 20 and 999 at 0.20 s). The first sample at a stamp is kept, noted."""
+    s = [_sample(0.01 * k, float(k)) for k in range(40)] + [_sample(0.20, 999.0)]
+    got = assemble_joint_frames(s)
+    assert got.t_s.size == 40 and np.all(np.diff(got.t_s) > 0)
+    np.testing.assert_allclose(got.velocity[got.t_s == 0.20, 0], 20.0)
+    assert any('dropped (a stamp received again long after it)' in n for n in got.notes)
