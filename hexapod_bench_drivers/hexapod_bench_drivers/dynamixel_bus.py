@@ -11,11 +11,15 @@ What it does, per cycle (:meth:`DynamixelBus.poll`):
    ``silent_after`` cycles in a row is marked silent, dropped from the cycle (so it no longer
    costs a timeout per cycle) and probed again every ``probe_interval_cycles``.
 3. Decodes hardware error flags (Protocol 1.0 status error byte; Protocol 2.0 Hardware Error
-   Status, read when the alert bit appears on a servo's replies, then in the round robin while
-   it stays: a persistent alert costs no READ per servo per cycle).
-4. Round robin: one servo per cycle (the next one that answered) has its Torque Enable read,
-   on Protocol 2.0 with Hardware Error Status in the same READ while its alert bit stays set:
-   one READ a cycle, every servo within ``len(joints)`` cycles.
+   Status of every servo whose reply carries the alert bit, every cycle, all in one Sync Read
+   of register 70: a persistent alert costs one request a cycle, not one per servo, and a new
+   flag such as Overheating is seen in the cycle it appears).
+4. Torque Enable, read without an extra request where it can be: with single READs (Protocol
+   1.0, a Protocol 2.0 bus without Sync Read) one servo per cycle in turn has its READ start at
+   Torque Enable (24 / 64; 12 more bytes on Protocol 1.0), every servo within ``len(joints)``
+   cycles; with Sync Read registers 64-70 (Torque Enable to Hardware Error Status) of every
+   servo in one Sync Read every ``torque_check_interval_cycles`` cycles (10 by default),
+   which then also carries the alerted servos' flags.
 5. Safety: a servo above ``temperature_limit_c`` or reporting overheating gets torque off in the
    same cycle, then every other servo too, and the bus is ``aborted`` (commands ignored) until
    :meth:`DynamixelBus.set_torque` ``(True)`` is called with all servos cool again.
@@ -78,7 +82,7 @@ error (X series in hardware-error shutdown stays off until REBOOT) is reported a
 the error in ``ServoHealth.torque_error``. Torque Enable is read back again when a servo answers
 after a failed cycle or silence (a power-cycled servo comes back with Torque Enable 0) and when
 it raises a new hardware error flag (Alarm Shutdown turns torque off): ``torque_enabled`` follows
-the register, also between those events through the round robin (a servo rebooted
+the register, also between those events through the reads of step 4 (a servo rebooted
 between two reads, no reply missed), and torque lost that the driver had turned on is reported
 in ``ServoHealth.torque_lost`` (never turned on again by the bus: call ``set_torque(True)``).
 
@@ -166,6 +170,7 @@ __all__ = [
     'RateMonitor',
     'ServoHealth',
     'ServoReading',
+    'TORQUE_CHECK_INTERVAL_CYCLES',
     'load_joint_map',
     'parse_joint_map',
     'usb_latency_timer_ms',
@@ -427,6 +432,9 @@ def usb_latency_timer_ms(port_name: str) -> int | None:
 
 #: cycles in a row with single READs answered but no Sync Read before the bus stops trying it
 SYNC_READ_GIVE_UP = 3
+#: Protocol 2.0 with Sync Read: Torque Enable of every servo is read every this many cycles
+#: (one Sync Read of registers 64-70; a torque loss without a missed reply is seen within them)
+TORQUE_CHECK_INTERVAL_CYCLES = 10
 
 
 class FastPortHandler(PortHandler):
@@ -574,9 +582,6 @@ class _Servo:
     #: the model first detected at the ID: the joint's readings are decoded with its table,
     #: and another model answering there later is left out (:meth:`DynamixelBus._model_changed`)
     first_model: ControlTable | None = None
-    #: Protocol 2.0: its last reply carried the alert bit and Hardware Error Status was read
-    #: since (the flags are known; re-read in the round robin, not every cycle)
-    alert: bool = False
     #: the servo refused a READ it received intact (an access error): its model is read again
     refused_read: bool = False
 
@@ -606,6 +611,9 @@ class DynamixelBus:
     rate_hz : float, optional
         The rate :meth:`poll` is called at; given, a loop rate well below it is reported
         (:class:`RateMonitor`, :meth:`take_events`).
+    torque_check_interval_cycles : int
+        Protocol 2.0 with Sync Read: every servo's Torque Enable is read every this many
+        cycles (see the module doc, step 4).
     port_handler : PortHandler, optional
         Injected for tests; default FastPortHandler.
     """
@@ -614,6 +622,7 @@ class DynamixelBus:
                  baud_rate: int = 1_000_000, timeout_margin_ms: float = 5.0, retries: int = 1,
                  silent_after: int = 3, probe_interval_cycles: int = 50,
                  temperature_limit_c: float = 70.0, rate_hz: float | None = None,
+                 torque_check_interval_cycles: int = TORQUE_CHECK_INTERVAL_CYCLES,
                  port_handler: PortHandler | None = None) -> None:
         if protocol not in (1, 2):
             raise ValueError(f'protocol: expected 1 or 2, got {protocol!r}')
@@ -625,6 +634,7 @@ class DynamixelBus:
         self.silent_after = max(1, int(silent_after))
         self.probe_interval_cycles = max(1, int(probe_interval_cycles))
         self.temperature_limit_c = float(temperature_limit_c)
+        self.torque_check_interval_cycles = max(1, int(torque_check_interval_cycles))
         self.port = port_handler or FastPortHandler(port_name, timeout_margin_ms=timeout_margin_ms)
         self.packet = PacketHandler(float(protocol))
         self.servos = [_Servo(j, ServoHealth(j.servo_id)) for j in joints]
@@ -660,7 +670,8 @@ class DynamixelBus:
         #: went to that ID: another packet like it is a second servo at that ID (a late reply
         #: belongs to an unanswered request, whose retry asks for another length)
         self._answered: dict[int, int] = {}
-        #: index in ``servos`` of the last servo whose Torque Enable the round robin read
+        #: index in ``servos`` of the last servo whose READ started at Torque Enable (single
+        #: READs: one servo a cycle in turn, see :meth:`_torque_turn`)
         self._round_robin = -1
 
     # --- lifecycle -------------------------------------------------------------------------
@@ -1073,7 +1084,7 @@ class DynamixelBus:
         now = (f'{table.model_name} (model number {number})' if table is not None
                else f'model number {number}, not a model the driver knows')
         s.table = None
-        s.alert = s.refused_read = False
+        s.refused_read = False
         s.health.model = f'{table.model_name if table else number} (first {first.model_name})'
         refusal = (f'model changed: first detected as {first.model_name} (model number '
                    f'{first.model_number}), now answers as {now}: a servo replaced, or '
@@ -1318,26 +1329,23 @@ class DynamixelBus:
             self._count(self._by_id[sid], COMM_RX_TIMEOUT)
         return got
 
-    def _hardware_flags(self, s: _Servo, status_error: int, *, cached: bool = False) -> int:
+    def _hardware_flags(self, s: _Servo, status_error: int, *, known: int | None = None,
+                        retry: bool = False) -> int:
         """The hardware error flags a reply's status error stands for: Protocol 1.0 its bits;
-        Protocol 2.0 Hardware Error Status, read when the alert bit is set, or with ``cached``
-        the flags last read while the alert bit stayed set (re-read in the round robin of
-        :meth:`_read_all`: a persistent alert, e.g. Input Voltage on every servo of a sagging
-        battery, costs no READ per servo per cycle)."""
+        Protocol 2.0 Hardware Error Status when the alert bit is set: ``known`` (read this
+        cycle in the Sync Read of :meth:`_status_sync_read`), else read here (one READ; with
+        ``retry`` the servo missed that Sync Read: ``retries`` attempts, as after a missed Sync
+        Read of the present values); the last flags when it cannot be read."""
         if self.protocol == 1:
             return status_error & 0x7F
-        if s.table is None:
+        if s.table is None or not status_error & P2_ALERT:
             return 0
-        if not status_error & P2_ALERT:
-            s.alert = False
-            return 0
-        if cached and s.alert:
-            return s.health.last_error_flags
-        data, _ = self._read_single(s, s.table.reg('hardware_error_status').address, 1, 1)
-        if data is None:
-            return s.health.last_error_flags
-        s.alert = True
-        return data[0]
+        if known is not None:
+            return known
+        attempts = self.retries if retry else 1
+        data, _ = self._read_single(s, s.table.reg('hardware_error_status').address, 1,
+                                    attempts, shifted=retry)
+        return s.health.last_error_flags if data is None else data[0]
 
     def read_all(self) -> tuple[ServoReading, ...]:
         """One read of every active servo, in joint-map order (NaN readings for failures).
@@ -1353,6 +1361,10 @@ class DynamixelBus:
         active = self._active()
         raw: dict[int, tuple[list[int], int]] = {}
         synced = self.protocol == 2 and self.sync_read and bool(active)
+        #: {id: (Torque Enable, Hardware Error Status or None)} read this cycle beside the
+        #: present values (step 4 of the module doc)
+        status: dict[int, tuple[bool | None, int | None]] = {}
+        asked: set[int] = set()    # ids in this cycle's Sync Read of registers 64-70 / 70
         if synced:
             blocks: dict[tuple[int, int], list[_Servo]] = {}
             for s in active:
@@ -1361,6 +1373,8 @@ class DynamixelBus:
             for (start, length), group in blocks.items():
                 raw.update(self._sync_read(group, start, length))
         sync_answered = bool(raw)
+        # single READs: one servo's READ starts at Torque Enable (no extra request)
+        turn = None if synced else self._torque_turn(active)
         for s in active:
             sid = s.joint.servo_id
             assert s.table is not None
@@ -1376,12 +1390,22 @@ class DynamixelBus:
                                               shifted=True)
             else:
                 attempts = 1 if s.health.silent else 1 + self.retries
-                data, err = self._read_single(s, *s.table.read_block, attempts=attempts)
+                start, length = s.table.read_block
+                torque = s.table.reg('torque_enable').address
+                if s is turn:
+                    start, length = torque, start + length - torque
+                data, err = self._read_single(s, start, length, attempts=attempts)
+                if data is not None and s is turn:
+                    flags = None
+                    if self.protocol == 2:
+                        flags = data[s.table.reg('hardware_error_status').address - torque]
+                    status[sid] = (bool(data[0]), flags)
+                    data = data[-s.table.read_block[1]:]
             if data is not None:
                 raw[sid] = (data, err)
         if synced:
             self._note_sync_support(sync_answered, single_answered=bool(raw))
-        polled = self._round_robin_pick(raw)
+            status, asked = self._status_sync_read(active, raw)
         readings = []
         for s in self.servos:
             sid = s.joint.servo_id
@@ -1425,22 +1449,15 @@ class DynamixelBus:
             h.streak_garbled = h.streak_no_reply = 0
             h.recent_failures.clear()
             h.silent = False
-            known_alert = s.alert and bool(status_error & P2_ALERT)
-            flags = self._hardware_flags(s, status_error, cached=True)
-            on, err = None, 0
-            if s is polled and not was_failing:
-                # the round robin: Torque Enable of one servo per cycle (torque lost without a
-                # missed reply), with a persistent alert's Hardware Error Status in one READ
-                on, fresh, err = self._read_torque_enable(s, with_flags=known_alert)
-                if fresh is not None:
-                    flags = fresh
+            on, known = status.get(sid, (None, None))
+            flags = self._hardware_flags(s, status_error, known=known, retry=sid in asked)
             if flags or (status_error & (0x7F if self.protocol == 2 else 0)):
                 h.error_replies += 1
             new_flags = flags & ~h.last_error_flags
             self._note_flags(s, flags)
             h.last_error_flags = flags
             if was_failing or new_flags or on is not None:
-                self._check_torque(s, came_back=was_failing, on=on, err=err)
+                self._check_torque(s, came_back=was_failing, on=on, err=status_error)
             st = s.table.decode_present(data)
             j = s.joint
             readings.append(ServoReading(
@@ -1452,14 +1469,55 @@ class DynamixelBus:
                 voltage_v=st.voltage_v, temperature_c=st.temperature_c, error_flags=flags))
         return tuple(readings)
 
-    def _round_robin_pick(self, raw: Mapping[int, Any]) -> _Servo | None:
-        """The next servo (in joint-map order, after the last one picked) that answered this
-        cycle: its Torque Enable is read (and a persistent alert's flags), one READ a cycle."""
+    def _status_eligible(self, s: _Servo, raw: Mapping[int, Any]) -> bool:
+        """``s`` answered this cycle, and the cycle before (not coming back: its model is
+        read first), and no second servo answers at its ID: its registers 64-70 may be read
+        with the others'."""
+        return (s.joint.servo_id in raw and s.table is not None and not s.refused_read
+                and s.health.consecutive_failures == 0 and not s.health.silent
+                and self.cycle - s.last_duplicate_cycle > DUPLICATE_HOLD_CYCLES)
+
+    def _status_sync_read(self, active: list[_Servo], raw: Mapping[int, Any]
+                          ) -> tuple[dict[int, tuple[bool | None, int | None]], set[int]]:
+        """Protocol 2.0 with Sync Read, after the present values: every
+        ``torque_check_interval_cycles`` cycles, or when an alert appears (a new flag may be an
+        Alarm Shutdown: Torque Enable is checked), Torque Enable to Hardware Error Status
+        (64-70) of every servo that answered, else Hardware Error Status (70) of those whose
+        reply carried the alert bit: one Sync Read (none when no servo is alerted), so a new
+        flag (Overheating) is known in the cycle it appears, whatever alert was set before.
+        ({id: (Torque Enable or None, Hardware Error Status)}, the ids asked)."""
+        eligible = [s for s in active if self._status_eligible(s, raw)]
+        full = self.cycle % self.torque_check_interval_cycles == 0 or any(
+            raw[s.joint.servo_id][1] & P2_ALERT and not s.health.last_error_flags
+            for s in eligible)
+        blocks: dict[tuple[int, int], list[_Servo]] = {}
+        for s in eligible:
+            assert s.table is not None
+            hw = s.table.reg('hardware_error_status')
+            if full:
+                torque = s.table.reg('torque_enable').address
+                blocks.setdefault((torque, hw.address + hw.size - torque), []).append(s)
+            elif raw[s.joint.servo_id][1] & P2_ALERT:
+                blocks.setdefault((hw.address, hw.size), []).append(s)
+        out: dict[int, tuple[bool | None, int | None]] = {}
+        asked: set[int] = set()
+        for (start, length), group in blocks.items():
+            asked.update(s.joint.servo_id for s in group)
+            for sid, (data, _err) in self._sync_read(group, start, length).items():
+                out[sid] = (bool(data[0]) if full else None, data[-1])
+        return out, asked
+
+    def _torque_turn(self, active: list[_Servo]) -> _Servo | None:
+        """Single READs: the next servo (in joint-map order, after the last one) that answered
+        the cycle before: its READ this cycle starts at Torque Enable (Protocol 1.0: 24, 12
+        bytes more; 2.0: 64, with Hardware Error Status), so every servo's Torque Enable is
+        read within ``len(joints)`` cycles at no extra request."""
         n = len(self.servos)
         for k in range(1, n + 1):
             i = (self._round_robin + k) % n
             s = self.servos[i]
-            if (s.joint.servo_id in raw and s.table is not None
+            if (s in active and s.table is not None and not s.refused_read
+                    and s.health.consecutive_failures == 0 and not s.health.silent
                     and self.cycle - s.last_duplicate_cycle > DUPLICATE_HOLD_CYCLES):
                 self._round_robin = i
                 return s
@@ -1503,38 +1561,34 @@ class DynamixelBus:
             self.events.event((s.joint.servo_id, 'flags'), 'info',
                               f'{name} hardware error flags cleared')
 
-    def _read_torque_enable(self, s: _Servo, with_flags: bool = False
-                            ) -> tuple[bool | None, int | None, int]:
-        """Torque Enable, and with ``with_flags`` (Protocol 2.0) Hardware Error Status in the
-        same READ (registers 64 and 70): (on, flags, status error); (None, None, 0) unread."""
+    def _read_torque_enable(self, s: _Servo) -> tuple[bool | None, int]:
+        """Torque Enable read by one READ: (on, status error); (None, 0) unread."""
         assert s.table is not None
         reg = s.table.reg('torque_enable')
-        length = reg.size
-        if with_flags:
-            hw = s.table.reg('hardware_error_status')
-            length = hw.address + hw.size - reg.address
-        data, err = self._read_single(s, reg.address, length, 1 + self.retries)
+        data, err = self._read_single(s, reg.address, reg.size, 1 + self.retries)
         if data is None:
-            return None, None, 0   # counted; tried again later
-        return bool(data[0]), (data[-1] if with_flags else None), err
+            return None, 0   # counted; tried again later
+        return bool(data[0]), err
 
     def _check_torque(self, s: _Servo, came_back: bool, on: bool | None = None,
                       err: int = 0) -> None:
         """Torque Enable (``on``, read here if not given) after a servo answered again
-        (``came_back``), raised a new hardware error, or in the round robin of
-        :meth:`_read_all`: ``torque_enabled`` follows it, and torque the driver had turned on
-        but the servo lost is reported (``torque_lost``)."""
+        (``came_back``), raised a new hardware error, or as read in :meth:`_read_all` (step 4
+        of the module doc): ``torque_enabled`` follows it, and torque the driver had turned on
+        but the servo lost is reported (``torque_lost``). ``err``: the status error of this
+        cycle's reply; the flags are those of this cycle (``last_error_flags``)."""
         assert s.table is not None
         reg = s.table.reg('torque_enable')
         if on is None:
-            on, _flags, err = self._read_torque_enable(s)
+            on, torque_err = self._read_torque_enable(s)
             if on is None:
                 return
+            err |= torque_err
         expected = s.health.torque_enabled
         s.health.torque_enabled = on
         if on or not expected:
             return
-        flags = self._hardware_flags(s, err, cached=True) | s.health.last_error_flags
+        flags = s.health.last_error_flags | (err & 0x7F if self.protocol == 1 else 0)
         names = list(decode_error_flags(self.protocol, flags))
         if came_back:
             why = 'came back with torque off (power cycled or hardware error?)'

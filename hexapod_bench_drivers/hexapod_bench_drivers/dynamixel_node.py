@@ -19,7 +19,8 @@ Topics (relative names, so a namespace applies):
 /diagnostics: ERROR for a servo left out (with the refusal; ``model changed: ...`` naming both
 models when another model answers at its ID, also left out of ``joint_states``), silent, when
 aborted, when the port is lost, for a servo that lost the torque the driver turned on (``came
-back with torque off``, or ``torque off between two reads`` found by the bus's round robin;
+back with torque off``, or ``torque off between two reads`` found by the bus's periodic
+Torque Enable reads;
 ``torque_enabled`` then False) or for two replies to one request (``duplicate id?``); WARN for
 a servo whose commands are refused (its mode), which refused torque on (hardware error) or
 reports hardware error flags; OK otherwise.

@@ -175,8 +175,8 @@ def test_a_bus_without_sync_read_is_read_servo_by_servo():
         assert not [n for n in bus.take_notes() if 'Sync Read' in n]
         before = emu.packets_received
         bus.poll()
-        # four READs, no Sync Read; one READ of Torque Enable (the round robin)
-        assert emu.packets_received - before == 4 + 1
+        # four READs, no Sync Read (one of them starts at Torque Enable: no extra request)
+        assert emu.packets_received - before == 4
 
 
 def test_a_bus_that_answers_sync_read_keeps_it():
@@ -187,9 +187,10 @@ def test_a_bus_that_answers_sync_read_keeps_it():
             assert all(r.ok for r in bus.poll().readings)
         assert bus.sync_read and not any('Sync Read' in n for n in bus.take_notes())
         before = emu.packets_received
-        bus.poll()
-        # one Sync Read for all four; one READ of Torque Enable (the round robin)
-        assert emu.packets_received - before == 1 + 1
+        for _ in range(bus.torque_check_interval_cycles):
+            bus.poll()
+        # one Sync Read for all four a cycle; their Torque Enable in one more every 10 cycles
+        assert emu.packets_received - before == bus.torque_check_interval_cycles + 1
 
 
 SYNC_CYCLES = 6

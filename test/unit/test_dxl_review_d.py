@@ -85,8 +85,9 @@ def test_refused_read_of_an_unknown_model_left_out():
 @pytest.mark.parametrize('model,protocol', P1P2)
 def test_torque_lost_between_two_reads_found_by_the_round_robin(model, protocol):
     """Servo 2 rebooted between two cycles (Torque Enable back to 0, no reply missed). Before:
-    torque_enabled stayed True for ever. Now one servo's Torque Enable is read per cycle, so
-    the loss is reported within one round (3 cycles here), at one READ per cycle."""
+    torque_enabled stayed True for ever. Now Torque Enable is read in turn (Protocol 1.0: one
+    servo's READ a cycle starts at it, within 3 cycles here, no extra request) or of every
+    servo every 10 cycles (Protocol 2.0: one more Sync Read then)."""
     with ServoBusEmulator.of_model(model, [1, 2, 3]) as emu, _bus(emu, 3, protocol) as bus:
         assert all(bus.set_torque(True).values())
         for _ in range(3):
@@ -94,7 +95,8 @@ def test_torque_lost_between_two_reads_found_by_the_round_robin(model, protocol)
         bus.take_events()
         emu.power_cycle(2)
         before = emu.packets_received
-        for _ in range(3):
+        cycles = 3 if protocol == 1 else bus.torque_check_interval_cycles
+        for _ in range(cycles):
             assert all(r.ok for r in bus.poll().readings)
         h = bus.health()
         assert h[0].torque_enabled and h[2].torque_enabled
@@ -102,17 +104,16 @@ def test_torque_lost_between_two_reads_found_by_the_round_robin(model, protocol)
         assert h[1].torque_lost.startswith('torque off between two reads, no reply missed')
         assert any(lv == 'warning' and m.startswith('j2 (id 2) torque off between two reads')
                    for lv, m in bus.take_events())
-        reads = 1 if protocol == 2 else 3     # one Sync Read, or a READ per servo
-        assert emu.packets_received - before == 3 * (reads + 1)
+        # a READ per servo, or one Sync Read a cycle and one of registers 64-70
+        assert emu.packets_received - before == (9 if protocol == 1 else cycles + 1)
 
 
 # --- 3: a persistent Protocol 2.0 alert --------------------------------------------------------
 def test_persistent_alert_costs_one_read_per_cycle_and_flags_stay_published():
     """Every servo flags Input Voltage (a sagging battery): the alert bit on every reply.
     Before: one READ of Hardware Error Status per servo per cycle (7 + 1 requests a cycle
-    here). Now read once when the alert appears, then in the round robin with Torque Enable
-    in one READ: 2 a cycle; the flags are published every cycle, and a flag added while the
-    alert lasts is seen within one round."""
+    here). Now all alerted servos' in one Sync Read: 2 a cycle; the flags are published every
+    cycle, and a flag added while the alert lasts is seen in that cycle."""
     n = 6
     with ServoBusEmulator.of_model('xl430', range(1, n + 1)) as emu, _bus(emu, n, 2) as bus:
         assert all(bus.set_torque(True).values())
@@ -125,8 +126,7 @@ def test_persistent_alert_costs_one_read_per_cycle_and_flags_stay_published():
             assert [r.error_flags for r in bus.poll().readings] == [0x01] * n
         assert emu.packets_received - before == 2 * n * 2
         emu.inject(3, 'error_bits', error_bits=0x21)       # overload too: shutdown
-        results = [bus.poll() for _ in range(n)]
-        assert results[-1].readings[2].error_flags == 0x21
+        assert bus.poll().readings[2].error_flags == 0x21
         assert "hardware error ['input_voltage', 'overload']" in bus.health()[2].torque_lost
         assert all(h.torque_enabled for k, h in enumerate(bus.health()) if k != 2)
 
