@@ -11,6 +11,7 @@ import pytest
 from hexapod_bench_drivers.control_tables import XL430
 from hexapod_bench_drivers.dynamixel_bus import DynamixelBus, JointConfig
 from hexapod_bench_drivers.servo_bus_emulator import ServoBusEmulator
+from test_dxl_review_fixes import _poll_until
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -23,14 +24,6 @@ def _bus(emu, n, protocol, **kw):
     kw.setdefault('timeout_margin_ms', 40.0)   # a loaded machine delays the emulator thread
     joints = [JointConfig(f'j{i}', i) for i in range(1, n + 1)]
     return DynamixelBus(emu.port_name, joints, protocol=protocol, **kw)
-
-
-def _poll_until(bus, predicate, max_cycles=200):
-    for _ in range(max_cycles):
-        result = bus.poll()
-        if predicate(result):
-            return result
-    raise AssertionError('condition not reached')
 
 
 # --- 1: a servo that comes back as another model -----------------------------------------------

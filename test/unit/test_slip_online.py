@@ -37,12 +37,13 @@ def running():
     return edubot_sim.simulate_edubot('running', duration_s=4.0, seed=3)
 
 
-def feed(run):
-    """OnlineSlip fed a simulated run in arrival order: the core and its fits."""
+def feed(run, ev=None):
+    """OnlineSlip fed a simulated run in arrival order (or the events ``ev``): the core and
+    its fits."""
     names = tuple(f'{leg}_hip' for leg in run.leg_names)
     core = OnlineSlip(box=BOX, mocap_offset_s=run.truth['clock_offset_s'])
     fits = []
-    for _, kind, i in events(run):
+    for _, kind, i in events(run) if ev is None else ev:
         if kind == 0:
             core.add_joint_state(float(run.t_s[i]), names, run.hip_velocity_rad_s[i])
             core.add_command(float(run.t_s[i]), names, run.target_velocity_rad_s[i])
@@ -275,22 +276,12 @@ def test_joint_states_received_out_of_stamp_order_give_the_same_fits(running, on
     +2.5 % (re-stamped as repeats, then buffered in arrival order). Each row is now inserted
     at its own stamp: the stances are those of the in-order feed."""
     _, ref = online
-    names = tuple(f'{leg}_hip' for leg in running.leg_names)
     rng = np.random.default_rng(3)
     ev = [(a + (0.015 if kind == 0 and i and rng.random() < 0.2 else 0.0), kind, i)
           for a, kind, i in events(running)]
     ev.sort()
     assert any(k == 0 and j < i for (_, k, i), (_, _, j) in zip(ev, ev[1:]) if k == 0)
-    core = OnlineSlip(box=BOX, mocap_offset_s=running.truth['clock_offset_s'])
-    fits = []
-    for _, kind, i in ev:
-        if kind == 0:
-            core.add_joint_state(float(running.t_s[i]), names, running.hip_velocity_rad_s[i])
-            core.add_command(float(running.t_s[i]), names, running.target_velocity_rad_s[i])
-        else:
-            core.add_mocap(float(running.mocap_t_s[i]), running.mocap_position_m[i],
-                           running.mocap_quat_xyzw[i])
-            fits.extend(core.step())
+    _, fits = feed(running, ev)
     got = {round(f.touchdown_s, 4): f.params['stiffness'] for f in fits}
     want = {round(f.touchdown_s, 4): f.params['stiffness'] for f in ref}
     common = set(got) & set(want)
