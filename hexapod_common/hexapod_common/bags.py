@@ -689,14 +689,51 @@ def mcap_is_complete(path: str | os.PathLike[str]) -> bool:
 
 def salvage_mcap(src: str | os.PathLike[str], dst: str | os.PathLike[str]) -> tuple[int, int]:
     """Copy the complete records of a cut-short mcap file ``src`` into ``dst`` and close it
-    with an empty summary (a DataEnd and a Footer record, the end magic): a file any mcap
-    reader opens by scanning it (rosbags does). Returns (bytes kept, bytes in ``src``).
+    with a summary of its own: the schemas and channels, a chunk index and message indexes
+    written from the chunks' contents, statistics, a Footer and the end magic. Returns
+    (bytes of ``src`` kept, bytes in ``src``).
 
-    A record is kept when all of its bytes are there; the first one cut short and everything
-    after it are lost (with the recorder's chunks, up to one chunk: 0.75-1 MiB). Raises
-    :class:`BagReadError` when ``src`` does not start like an mcap file."""
+    A record is kept when all of its bytes are there (a chunk also when it decodes); the first
+    one cut short and everything after it are lost (with the recorder's chunks, up to one
+    chunk: 0.75-1 MiB). The index lets readers order the messages by log time: rosbags
+    refuses a summary-less file whose log times are out of order, as a recorder with several
+    threads writes them. Raises :class:`BagReadError` when ``src`` does not start like an mcap
+    file.
+    """
+    import struct
+
+    from rosbags.rosbag2.storage_mcap import decompress
+
+    def record(op: int, body: bytes) -> bytes:
+        return bytes([op]) + struct.pack('<Q', len(body)) + body
+
     src, dst = Path(src), Path(dst)
     size = src.stat().st_size
+    schemas: dict[int, bytes] = {}
+    channels: dict[int, bytes] = {}
+    counts: dict[int, int] = {}
+    chunk_index: list[bytes] = []
+    t_lo, t_hi = 2**63 - 1, 0
+
+    def keep_definition(op: int, body: bytes) -> None:
+        if op in (0x03, 0x04):
+            (schemas if op == 0x03 else channels)[struct.unpack_from('<H', body)[0]] = body
+
+    def chunk_messages(data: bytes) -> dict[int, list[tuple[int, int]]]:
+        """A chunk's schemas and channels (kept) and its messages per channel: (log time,
+        offset in the chunk's records)."""
+        msgs: dict[int, list[tuple[int, int]]] = {}
+        at = 0
+        while at + 9 <= len(data):
+            op, n = data[at], struct.unpack_from('<Q', data, at + 1)[0]
+            body = data[at + 9:at + 9 + n]
+            keep_definition(op, body)
+            if op == 0x05:
+                cid, _, log_time = struct.unpack_from('<HIQ', body)
+                msgs.setdefault(cid, []).append((log_time, at))
+            at += 9 + n
+        return msgs
+
     with src.open('rb') as f, dst.open('wb') as out:
         head = f.read(8)
         if head != MCAP_MAGIC:
@@ -708,26 +745,58 @@ def salvage_mcap(src: str | os.PathLike[str], dst: str | os.PathLike[str]) -> tu
             op, length = header[0], int.from_bytes(header[1:], 'little')
             if op in (_MCAP_DATA_END, _MCAP_FOOTER) or pos + 9 + length > size:
                 break
-            out.write(header)
-            shutil.copyfileobj(_Limited(f, length), out, 1 << 20)
+            body = f.read(length)
+            if op == 0x07:          # message indexes: written anew after each chunk
+                pos += 9 + length
+                continue
+            if op != 0x06:          # header, schemas, channels, metadata ...: as they are
+                keep_definition(op, body)
+                out.write(header + body)
+                pos += 9 + length
+                continue
+            start, end, raw_size, crc = struct.unpack_from('<QQQI', body)
+            n_comp = struct.unpack_from('<I', body, 28)[0]
+            comp = body[32:32 + n_comp]
+            n = struct.unpack_from('<Q', body, 32 + n_comp)[0]
+            data = body[40 + n_comp:40 + n_comp + n]
+            try:
+                msgs = chunk_messages(decompress(data, comp.decode(), raw_size, crc))
+            except Exception:       # a chunk that does not decode: the file ends before it
+                break
             pos += 9 + length
-        out.write(bytes([_MCAP_DATA_END]) + (4).to_bytes(8, 'little') + bytes(4))
-        out.write(bytes([_MCAP_FOOTER]) + (20).to_bytes(8, 'little') + bytes(20))
+            chunk_at = out.tell()
+            out.write(header + body)
+            index_at = out.tell()
+            offsets = b''
+            for cid, entries in sorted(msgs.items()):
+                offsets += struct.pack('<HQ', cid, out.tell())
+                rows = b''.join(struct.pack('<QQ', t, o) for t, o in sorted(entries))
+                out.write(record(0x07, struct.pack('<HI', cid, len(rows)) + rows))
+                counts[cid] = counts.get(cid, 0) + len(entries)
+            if msgs:
+                t_lo, t_hi = min(t_lo, start), max(t_hi, end)
+            chunk_index.append(record(0x08, struct.pack('<QQQQ', start, end, chunk_at,
+                                                        index_at - chunk_at)
+                                      + struct.pack('<I', len(offsets)) + offsets
+                                      + struct.pack('<Q', out.tell() - index_at)
+                                      + struct.pack('<I', n_comp) + comp
+                                      + struct.pack('<QQ', n, raw_size)))
+        out.write(record(_MCAP_DATA_END, bytes(4)))
+        summary_at = out.tell()
+        for cid in sorted(schemas):
+            out.write(record(0x03, schemas[cid]))
+        for cid in sorted(channels):
+            out.write(record(0x04, channels[cid]))
+        for rec in chunk_index:
+            out.write(rec)
+        stats = b''.join(struct.pack('<HQ', cid, c) for cid, c in sorted(counts.items()))
+        out.write(record(0x0B, struct.pack('<QHIIIIQQ', sum(counts.values()), len(schemas),
+                                           len(channels), 0, 0, len(chunk_index),
+                                           t_lo if counts else 0, t_hi)
+                         + struct.pack('<I', len(stats)) + stats))
+        out.write(record(_MCAP_FOOTER, struct.pack('<QQI', summary_at, 0, 0)))
         out.write(MCAP_MAGIC)
     return pos, size
-
-
-class _Limited:
-    """The next ``n`` bytes of a binary file, for :func:`shutil.copyfileobj`."""
-
-    def __init__(self, f: Any, n: int) -> None:
-        self.f, self.n = f, n
-
-    def read(self, size: int = -1) -> bytes:
-        size = self.n if size < 0 else min(size, self.n)
-        data = self.f.read(size)
-        self.n -= len(data)
-        return data
 
 
 def _salvaged(p: Path, notes: list[str], tmp: list[Any]) -> list[Path] | None:
