@@ -765,10 +765,28 @@ class DescriptorAccumulator:
         # live, messages naming no leg joint are held until the stream shows whether it has
         # any (LegJointFilter.feed), so one sample may release several
         out: list[Descriptors] = []
-        for s in self.leg_joints_.feed(sample):
+        undecided = self.leg_joints_.legs_present is None
+        samples = self.leg_joints_.feed(sample)
+        if undecided and self.leg_joints_.legs_present:
+            self._purge_non_leg_joints()
+        for s in samples:
             if not self._duplicate_joint_state(s):
                 out.extend(self._add_joint_sample(s))
         return out
+
+    def _purge_non_leg_joints(self) -> None:
+        """The stream has just named a leg joint (live): what came before it named none (a
+        gripper's driver started before the legs'), so its joint power and joint cycles are
+        forgotten, as offline, where the whole bag decides, they are never taken."""
+        is_leg = LegJointFilter.is_leg
+        self._joint = [j for j in self._joint if any(is_leg(n) for n in j[1])]
+        for store in (self._last_joint, self._joint_last, self.joint_power_count_,
+                      self.nonfinite_joint_power_):
+            for name in [n for n in store if not is_leg(n)]:
+                del store[name]
+        self.velocity_joints_ = {n for n in self.velocity_joints_ if is_leg(n)}
+        if self._tracker is not None:
+            self._tracker = JointCycleTracker(self.cycle_settings)
 
     def _add_joint_sample(self, sample: JointStateSample) -> list[Descriptors]:
         """:meth:`add_joint_state` for one sample of leg joints, not a duplicate."""

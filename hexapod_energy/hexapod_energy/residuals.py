@@ -328,12 +328,16 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
                 s = servo_status_from_msg(msg)
                 temps.append((s.t_s, float(np.sum(s.temperature_c)), len(s.temperature_c)))
             else:
-                # a gripper beside the legs: left out, as energy does (LegJointFilter: a
-                # message naming no leg joint is held until the bag shows whether it has any)
+                # a gripper beside the legs: left out, as energy does (LegJointFilter)
+                undecided = leg_joints.legs_present is None
                 for js in leg_joints.feed(joint_state_from_msg(msg)):
+                    if undecided and leg_joints.legs_present:
+                        # the first leg joint: what came before named none (a gripper's
+                        # driver started first), forgotten as energy does
+                        del mech[:]
+                        for name in [n for n in per_joint if not LegJointFilter.is_leg(n)]:
+                            del per_joint[name]
                     add_joints(js)
-        for js in leg_joints.flush():
-            add_joints(js)
     battery_notes: list[str] = [f'{len(errs)} {topic} message(s) dropped: {errs[0]}'
                                 for topic, errs in sorted(dropped.items())]
     battery_notes += duplicates_note(dups)
@@ -2451,6 +2455,9 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
         try:
             view = SampleView(max_lag_s=use).fit(runs)
             if use < max_lag_s:
+                # a larger --max-lag would be cut again: longer runs are the way
+                view.warnings_ = [w for w in view.warnings_
+                                  if not w.startswith('search up to a larger lag')]
                 view.warnings_.insert(0, (
                     f'the clock-offset search was cut from {max_lag_s:g} s to {use:.2f} s: '
                     f'it sets aside its largest lag at each end of every run (the shortest '

@@ -290,11 +290,11 @@ class SlipFitterNode(Node):
 
     def _legs_only(self, topic: str, sample: Any) -> list[Any]:
         """``sample`` without joints that are not a leg's (a gripper beside the legs), as
-        offline: the samples to use now (:meth:`LegJointFilter.feed`: a message naming no
-        leg joint is held until the stream shows whether it names any; a gripper's message
+        offline: the samples to use now (:meth:`LegJointFilter.feed`; a gripper's message
         before the legs' had become the core's joint set, every leg message refused after
         it). Logged once per new name."""
-        f = self._leg_joints.setdefault(topic, LegJointFilter())
+        # the SLIP analysis needs contract hips (L1_hip ...): other joints never help it
+        f = self._leg_joints.setdefault(topic, LegJointFilter(legs_present=True))
         before = len(f.dropped)
         out = f.feed(sample)
         if len(f.dropped) > before:

@@ -49,24 +49,92 @@ def test_the_filter_keeps_leg_joints_and_streams_of_other_names():
     assert other.apply(s) is s and not other.dropped
 
 
-def test_live_a_gripper_message_before_the_legs_is_held_then_dropped():
-    """An outside review: a gripper's message published before the legs' passed (no leg
-    joint named yet) and became the live SLIP core's joint set: every leg message refused
-    after it. Undecided, a message naming no leg joint is held; the first leg joint drops
-    it, and a stream that never names one has its messages released in order."""
+def test_live_a_stream_is_settled_by_its_first_leg_joint_and_never_the_other_way():
+    """Undecided (live energy), every sample passes whole until one names a leg joint; from
+    then on other joints are left out. A stream of other names is never settled as having no
+    legs (a first version held such samples and, after 100, passed every later one whole,
+    grippers included, for good)."""
     f = LegJointFilter()
-    assert f.feed(_js(0.0, GRIPPERS)) == [] and f.feed(_js(0.01, GRIPPERS)) == []
-    legs = _js(0.02, ('L1_hip', 'gripper_left'))
-    [got] = f.feed(legs)
-    assert got.names == ('L1_hip',) and f.samples_dropped == 2
-    assert f.dropped == {'gripper_left': 3, 'gripper_right': 2}
+    early = _js(0.0, GRIPPERS)
+    assert f.feed(early) == [early] and f.legs_present is None
+    [got] = f.feed(_js(0.02, ('L1_hip', 'gripper_left')))
+    assert got.names == ('L1_hip',) and f.legs_present is True
+    assert f.feed(_js(0.03, GRIPPERS)) == [] and f.samples_dropped == 1
     other = LegJointFilter()
-    held = [other.feed(_js(0.01 * k, ('hip_0', 'hip_1'))) for k in range(LegJointFilter.HOLD)]
-    assert all(h == [] for h in held[:-1]) and len(held[-1]) == LegJointFilter.HOLD
-    assert [s.t_s for s in held[-1]] == [0.01 * k for k in range(LegJointFilter.HOLD)]
-    assert len(other.feed(_js(9.0, ('hip_0', 'hip_1')))) == 1 and not other.dropped
-    short = LegJointFilter()
-    assert short.feed(_js(0.0, ('hip_0',))) == [] and len(short.flush()) == 1
+    for k in range(300):
+        s = _js(0.01 * k, ('hip_0', 'hip_1'))
+        assert other.feed(s) == [s]
+    assert other.legs_present is None and not other.dropped
+
+
+def _live(bag, preset=None):
+    """DescriptorAccumulator fed a bag's messages as energy_monitor gets them."""
+    from hexapod_common.bags import iter_messages, open_reader
+    from hexapod_common.conversions import battery_from_msg, gait_phase_from_msg
+    from hexapod_common.conversions import joint_state_from_msg
+    from hexapod_energy.descriptors import DescriptorAccumulator
+
+    acc = DescriptorAccumulator(mass_kg=2.0, power_out_source='effort')
+    if preset is not None:
+        acc.leg_joints_ = LegJointFilter(legs_present=preset)
+    out = []
+    with open_reader(bag) as reader:
+        for m in iter_messages(reader, ('/battery_state', '/gait/phase', '/joint_states')):
+            msg = reader.deserialize(m.data, m.msgtype)
+            if m.topic == '/battery_state':
+                out += acc.add_battery(battery_from_msg(msg))
+            elif m.topic == '/gait/phase':
+                out += acc.add_gait_phase(gait_phase_from_msg(msg))
+            else:
+                out += acc.add_joint_state(joint_state_from_msg(msg))
+    return acc, out
+
+
+def test_live_energy_equals_offline_with_a_gripper_first_or_other_names(tmp_path):
+    """A review of the hold: (A) a gripper publishing 2.5 s before the legs' driver gave live
+    P_out 4.63-4.65 W where offline read 1.03; (D) a 12.5 Hz stream of other names read
+    P_out 0 W in the windows that ended while its samples were held. Now live equals the
+    offline rule (the whole bag decides) on both."""
+    from hexapod_common.testbags import write_foreign_robot_bag
+
+    write_foreign_robot_bag(tmp_path / 'base', legs=6, duration_s=12.0, storage='mcap')
+
+    def gripper_first(topic, msg):
+        if topic != '/joint_states':
+            return None
+        t = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+        q, v = 0.6 * math.sin(math.pi * t), 0.6 * math.pi * math.cos(math.pi * t)
+        e = 1.5 * np.sign(v)
+        if t < 2.5:
+            msg.name, msg.position = list(GRIPPERS), np.array([q, -q])
+            msg.velocity, msg.effort = np.array([v, -v]), np.array([e, -e])
+            return None
+        msg.name = list(msg.name) + list(GRIPPERS)
+        msg.position = np.append(msg.position, [q, -q])
+        msg.velocity = np.append(msg.velocity, [v, -v])
+        msg.effort = np.append(msg.effort, [e, -e])
+        return None
+
+    k = [0]
+
+    def other_names_slow(topic, msg):
+        if topic != '/joint_states':
+            return None
+        k[0] += 1
+        if k[0] % 4:
+            return False
+        msg.name = [n.replace('L', 'left').replace('R', 'right') for n in msg.name]
+        return None
+
+    for edit, preset in ((gripper_first, True), (other_names_slow, False)):
+        bag = rewrite_bag(tmp_path / 'base', tmp_path / edit.__name__, edit)
+        _, got = _live(bag)
+        _, want = _live(bag, preset=preset)
+        assert len(got) == len(want) >= 3, edit.__name__
+        for a, b in zip(got, want):
+            assert a.power_out_w == pytest.approx(b.power_out_w, rel=1e-12), edit.__name__
+    off = read_robot_bag(tmp_path / 'gripper_first', mass_kg=2.0)
+    assert np.mean([d.power_out_w for d in got]) < 2.0 and off.power_out_w < 2.0
 
 
 def test_live_slip_core_takes_the_legs_after_an_early_gripper_message():
@@ -74,7 +142,7 @@ def test_live_slip_core_takes_the_legs_after_an_early_gripper_message():
     from slip_identification.preprocess import Box
 
     core = OnlineSlip(box=Box((-10.0,) * 3, (10.0,) * 3))
-    f = LegJointFilter()
+    f = LegJointFilter(legs_present=True)    # as slip_fitter: SLIP needs contract hips
     hips = tuple(f'{s}{k}_hip' for s in 'LR' for k in (1, 2, 3))
     for k in range(50):
         msgs = [_js(0.01 * k, GRIPPERS)] if k == 0 else []
