@@ -13,7 +13,8 @@ What it does, per cycle (:meth:`DynamixelBus.poll`):
 3. Decodes hardware error flags (Protocol 1.0 status error byte; Protocol 2.0 Hardware Error
    Status of every servo whose reply carries the alert bit, every cycle, all in one Sync Read
    of register 70: a persistent alert costs one request a cycle, not one per servo, and a new
-   flag such as Overheating is seen in the cycle it appears).
+   flag such as Overheating is seen in the cycle it appears; on a bus without Sync Read an
+   alerted servo's READ starts at Torque Enable while its alert stays, no extra request).
 4. Torque Enable, read without an extra request where it can be: with single READs (Protocol
    1.0, a Protocol 2.0 bus without Sync Read) one servo per cycle in turn has its READ start at
    Torque Enable (24 / 64; 12 more bytes on Protocol 1.0), every servo within ``len(joints)``
@@ -1392,10 +1393,15 @@ class DynamixelBus:
                 attempts = 1 if s.health.silent else 1 + self.retries
                 start, length = s.table.read_block
                 torque = s.table.reg('torque_enable').address
-                if s is turn:
+                # the turn's servo, and on Protocol 2.0 a servo whose alert stays set: its
+                # READ starts at Torque Enable, so Hardware Error Status comes with it (a
+                # review: 6 alerted servos cost 11 requests a cycle on a bus without Sync
+                # Read, one READ of register 70 each)
+                widen = s is turn or (self.protocol == 2 and bool(s.health.last_error_flags))
+                if widen:
                     start, length = torque, start + length - torque
                 data, err = self._read_single(s, start, length, attempts=attempts)
-                if data is not None and s is turn:
+                if data is not None and widen:
                     flags = None
                     if self.protocol == 2:
                         flags = data[s.table.reg('hardware_error_status').address - torque]

@@ -102,3 +102,27 @@ def test_torque_enable_without_sync_read_in_the_single_reads():
         for _ in range(N):
             bus.poll()
         assert bus.health()[1].torque_lost.startswith('torque off between two reads')
+
+
+def test_a_persistent_alert_without_sync_read_costs_no_extra_request():
+    """A review of the change: on a Protocol 2.0 bus that never answers Sync Read, every
+    servo with a persistent alert cost a READ of register 70 a cycle beside its present
+    values (6 alerted servos: 11 requests a cycle). Its READ now starts at Torque Enable
+    while its alert stays, Hardware Error Status with it: 6 requests, and overheating still
+    aborts in its cycle."""
+    with NoSyncRead.of_model('xl430', range(1, N + 1)) as emu, _bus(emu, 2) as bus:
+        assert all(bus.set_torque(True).values())
+        for _ in range(3):
+            bus.poll()
+        for i in range(1, N + 1):
+            emu.inject(i, 'error_bits', error_bits=0x01)
+        bus.poll()
+        bus.poll()
+        before = emu.packets_received
+        for _ in range(10):
+            result = bus.poll()
+            assert [r.error_flags for r in result.readings] == [0x01] * N
+        assert emu.packets_received - before == 10 * N
+        emu.inject(3, 'error_bits', error_bits=0x05)
+        result = bus.poll()
+        assert result.aborted_now and bus.abort_reason.startswith('j3 (id 3) reports overheat')
