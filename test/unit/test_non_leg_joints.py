@@ -67,8 +67,9 @@ def test_live_a_stream_is_settled_by_its_first_leg_joint_and_never_the_other_way
     assert other.legs_present is None and not other.dropped
 
 
-def _live(bag, preset=None):
-    """DescriptorAccumulator fed a bag's messages as energy_monitor gets them."""
+def _live(bag, preset=None, *, twice_every=0):
+    """DescriptorAccumulator fed a bag's messages as energy_monitor gets them (receive
+    order), each ``twice_every``-th joint state delivered twice."""
     from hexapod_common.bags import iter_messages, open_reader
     from hexapod_common.conversions import battery_from_msg, gait_phase_from_msg
     from hexapod_common.conversions import joint_state_from_msg
@@ -77,7 +78,7 @@ def _live(bag, preset=None):
     acc = DescriptorAccumulator(mass_kg=2.0, power_out_source='effort')
     if preset is not None:
         acc.leg_joints_ = LegJointFilter(legs_present=preset)
-    out = []
+    out, k = [], 0
     with open_reader(bag) as reader:
         for m in iter_messages(reader, ('/battery_state', '/gait/phase', '/joint_states')):
             msg = reader.deserialize(m.data, m.msgtype)
@@ -86,7 +87,9 @@ def _live(bag, preset=None):
             elif m.topic == '/gait/phase':
                 out += acc.add_gait_phase(gait_phase_from_msg(msg))
             else:
-                out += acc.add_joint_state(joint_state_from_msg(msg))
+                k += 1
+                for _ in range(2 if twice_every and k % twice_every == 0 else 1):
+                    out += acc.add_joint_state(joint_state_from_msg(msg))
     return acc, out
 
 
@@ -208,33 +211,6 @@ def test_slip_reads_a_bag_with_a_gripper_as_without(tmp_path):
                and 'stance detection' in n for n in got.notes)
 
 
-def _live_windows(bag, *, twice_every=0):
-    """DescriptorAccumulator fed a bag's messages as energy_monitor gets them (receive
-    order), each ``twice_every``-th joint state delivered twice."""
-    from hexapod_common.bags import iter_messages, open_reader
-    from hexapod_common.conversions import (
-        battery_from_msg,
-        gait_phase_from_msg,
-        joint_state_from_msg,
-    )
-    from hexapod_energy.descriptors import DescriptorAccumulator
-
-    acc = DescriptorAccumulator(mass_kg=2.0, power_out_source='effort')
-    out, k = [], 0
-    with open_reader(bag) as reader:
-        for m in iter_messages(reader, ('/battery_state', '/gait/phase', '/joint_states')):
-            msg = reader.deserialize(m.data, m.msgtype)
-            if m.topic == '/battery_state':
-                out += acc.add_battery(battery_from_msg(msg))
-            elif m.topic == '/gait/phase':
-                out += acc.add_gait_phase(gait_phase_from_msg(msg))
-            else:
-                k += 1
-                for _ in range(2 if twice_every and k % twice_every == 0 else 1):
-                    out += acc.add_joint_state(joint_state_from_msg(msg))
-    return acc, out
-
-
 def test_a_joint_state_delivered_twice_counts_once_live(tmp_path):
     """An outside review: 10 % of the messages recorded twice (bag_replay publishes them
     twice) moved the live windows' P_out -7.6 to +5.6 %; offline drops duplicates as it
@@ -242,8 +218,8 @@ def test_a_joint_state_delivered_twice_counts_once_live(tmp_path):
     from hexapod_common.testbags import write_foreign_robot_bag
 
     write_foreign_robot_bag(tmp_path / 'bag', legs=6, duration_s=12.0)
-    _, ref = _live_windows(tmp_path / 'bag')
-    acc, got = _live_windows(tmp_path / 'bag', twice_every=10)
+    _, ref = _live(tmp_path / 'bag')
+    acc, got = _live(tmp_path / 'bag', twice_every=10)
     assert len(ref) >= 4 and len(got) == len(ref)
     assert acc.duplicate_joint_states_ > 30
     for a, b in zip(got, ref):
