@@ -636,6 +636,9 @@ class DynamixelBus:
         self.probe_interval_cycles = max(1, int(probe_interval_cycles))
         self.temperature_limit_c = float(temperature_limit_c)
         self.torque_check_interval_cycles = max(1, int(torque_check_interval_cycles))
+        #: servos whose registers 64-70 the last such Sync Read asked and did not get: asked
+        #: again in the next cycle (their Torque Enable had waited a whole interval more)
+        self._status_missed: set[int] = set()
         self.port = port_handler or FastPortHandler(port_name, timeout_margin_ms=timeout_margin_ms)
         self.packet = PacketHandler(float(protocol))
         self.servos = [_Servo(j, ServoHealth(j.servo_id)) for j in joints]
@@ -1495,7 +1498,7 @@ class DynamixelBus:
         eligible = [s for s in active if self._status_eligible(s, raw)]
         full = self.cycle % self.torque_check_interval_cycles == 0 or any(
             raw[s.joint.servo_id][1] & P2_ALERT and not s.health.last_error_flags
-            for s in eligible)
+            or s.joint.servo_id in self._status_missed for s in eligible)
         blocks: dict[tuple[int, int], list[_Servo]] = {}
         for s in eligible:
             assert s.table is not None
@@ -1511,6 +1514,8 @@ class DynamixelBus:
             asked.update(s.joint.servo_id for s in group)
             for sid, (data, _err) in self._sync_read(group, start, length).items():
                 out[sid] = (bool(data[0]) if full else None, data[-1])
+        if full:
+            self._status_missed = asked - set(out)
         return out, asked
 
     def _torque_turn(self, active: list[_Servo]) -> _Servo | None:

@@ -5,6 +5,8 @@ without Sync Read) or one every 10 cycles (2.0 Sync Read)."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import pytest
 
 from hexapod_bench_drivers.dynamixel_bus import DynamixelBus, JointConfig
@@ -126,3 +128,34 @@ def test_a_persistent_alert_without_sync_read_costs_no_extra_request():
         emu.inject(3, 'error_bits', error_bits=0x05)
         result = bus.poll()
         assert result.aborted_now and bus.abort_reason.startswith('j3 (id 3) reports overheat')
+
+
+class DropStatusOnce(ServoBusEmulator):
+    """Drops one servo from the next Sync Read of registers 64-70 (its reply lost)."""
+
+    drop: int | None = None
+
+    def _handle(self, pkt):
+        if (self.drop is not None and pkt.instruction == INST_SYNC_READ
+                and bytes(pkt.params[0:2]) == bytes([64, 0])):
+            ids = bytes(i for i in pkt.params[4:] if i != self.drop)
+            self.drop = None
+            pkt = dataclasses.replace(pkt, params=bytes(pkt.params[:4]) + ids)
+        return super()._handle(pkt)
+
+
+def test_a_servo_that_misses_the_torque_check_is_asked_again_the_next_cycle():
+    """A review of the change: a servo whose reply to the every-10-cycles Sync Read of
+    registers 64-70 was lost had its Torque Enable checked again only 10 cycles later. It
+    is asked again in the next cycle: a reboot right after is seen within 2 cycles."""
+    emu = DropStatusOnce.of_model('xl430', range(1, N + 1))
+    with emu, _bus(emu, 2) as bus:
+        assert all(bus.set_torque(True).values())
+        while (bus.cycle + 1) % bus.torque_check_interval_cycles:
+            bus.poll()
+        emu.drop = 3
+        bus.poll()                       # the torque check, servo 3's reply lost
+        emu.power_cycle(3)               # rebooted: Torque Enable 0, no reply missed
+        for _ in range(2):
+            bus.poll()
+        assert bus.health()[2].torque_lost.startswith('torque off between two reads')
