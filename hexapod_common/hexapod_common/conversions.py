@@ -501,37 +501,32 @@ class LegJointFilter:
         for n in other:
             self.dropped[n] = self.dropped.get(n, 0) + 1
 
-    def feed(self, sample: JointStateSample) -> list[JointStateSample]:
-        """The samples to use now: ``[sample]`` itself or with its leg joints only, or ``[]``
-        (left out: it names no leg joint in a stream that names some)."""
+    def apply(self, sample: JointStateSample) -> JointStateSample | None:
+        """``sample`` itself or with its leg joints only; None when left out (it names no leg
+        joint in a stream that names some)."""
         if self.legs_present is False:
-            return [sample]
+            return sample
         names = tuple(sample.names)
         keep, other = self._split(names)
         if keep is None:          # leg joints only (or no names at all)
             if names and self.legs_present is None:
                 self.legs_present = True
-            return [sample]
+            return sample
         if not keep:              # no leg joint in it
             if self.legs_present is None:
-                return [sample]   # undecided: as it is (another naming convention?)
+                return sample     # undecided: as it is (another naming convention?)
             self._drop(other)
             self.samples_dropped += 1
-            return []
+            return None
         self.legs_present = True
         self._drop(other)
 
         def pick(a: np.ndarray) -> np.ndarray:
             return a[keep] if a.size == len(names) else a
 
-        return [JointStateSample(sample.t_s, tuple(names[k] for k in keep),
-                                 pick(sample.position), pick(sample.velocity),
-                                 pick(sample.effort), malformed=sample.malformed)]
-
-    def apply(self, sample: JointStateSample) -> JointStateSample | None:
-        """:meth:`feed` for one sample: it with its leg joints only, or None when left out."""
-        out = self.feed(sample)
-        return out[-1] if out else None
+        return JointStateSample(sample.t_s, tuple(names[k] for k in keep),
+                                pick(sample.position), pick(sample.velocity),
+                                pick(sample.effort), malformed=sample.malformed)
 
     def note(self, out_of: str = 'the gait cycles and P_out (their electrical power stays '
                                  'in P_in)') -> str:

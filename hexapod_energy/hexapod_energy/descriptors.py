@@ -761,18 +761,14 @@ class DescriptorAccumulator:
         """
         if not self._clk.observe('joint_states', sample.t_s):
             return []
-        # joints that are not a leg's (a gripper beside the legs): out of cycles and P_out;
-        # live, messages naming no leg joint are held until the stream shows whether it has
-        # any (LegJointFilter.feed), so one sample may release several
-        out: list[Descriptors] = []
+        # joints that are not a leg's (a gripper beside the legs): out of cycles and P_out
         undecided = self.leg_joints_.legs_present is None
-        samples = self.leg_joints_.feed(sample)
+        legs = self.leg_joints_.apply(sample)
         if undecided and self.leg_joints_.legs_present:
             self._purge_non_leg_joints()
-        for s in samples:
-            if not self._duplicate_joint_state(s):
-                out.extend(self._add_joint_sample(s))
-        return out
+        if legs is None or self._duplicate_joint_state(legs):
+            return []
+        return self._add_joint_sample(legs)
 
     def _purge_non_leg_joints(self) -> None:
         """The stream has just named a leg joint (live): what came before it named none (a

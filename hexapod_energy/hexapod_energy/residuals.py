@@ -330,13 +330,14 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
             else:
                 # a gripper beside the legs: left out, as energy does (LegJointFilter)
                 undecided = leg_joints.legs_present is None
-                for js in leg_joints.feed(joint_state_from_msg(msg)):
-                    if undecided and leg_joints.legs_present:
-                        # the first leg joint: what came before named none (a gripper's
-                        # driver started first), forgotten as energy does
-                        del mech[:]
-                        for name in [n for n in per_joint if not LegJointFilter.is_leg(n)]:
-                            del per_joint[name]
+                js = leg_joints.apply(joint_state_from_msg(msg))
+                if undecided and leg_joints.legs_present:
+                    # the first leg joint: what came before named none (a gripper's driver
+                    # started first), forgotten as energy does
+                    del mech[:]
+                    for name in [n for n in per_joint if not LegJointFilter.is_leg(n)]:
+                        del per_joint[name]
+                if js is not None:
                     add_joints(js)
     battery_notes: list[str] = [f'{len(errs)} {topic} message(s) dropped: {errs[0]}'
                                 for topic, errs in sorted(dropped.items())]

@@ -288,24 +288,23 @@ class SlipFitterNode(Node):
             'message(s)', 'messages'))
         return None if t is None else dataclasses.replace(s, t_s=t)
 
-    def _legs_only(self, topic: str, sample: Any) -> list[Any]:
+    def _legs_only(self, topic: str, sample: Any) -> Any:
         """``sample`` without joints that are not a leg's (a gripper beside the legs), as
-        offline: the samples to use now (:meth:`LegJointFilter.feed`; a gripper's message
-        before the legs' had become the core's joint set, every leg message refused after
-        it). Logged once per new name."""
+        offline; None when it names none (a gripper's message before the legs' had become
+        the core's joint set, every leg message refused after it). Logged once per new
+        name."""
         # the SLIP analysis needs contract hips (L1_hip ...): other joints never help it
         f = self._leg_joints.setdefault(topic, LegJointFilter(legs_present=True))
         before = len(f.dropped)
-        out = f.feed(sample)
+        out = f.apply(sample)
         if len(f.dropped) > before:
             self.get_logger().warning(f'{topic}: ' + f.note('the stance detection and fits'))
         return out
 
     def _joint_state(self, msg: JointState) -> None:
-        for s in self._legs_only('joint_states', self._signed(joint_state_from_msg(msg))):
-            self._joint_sample(s)
-
-    def _joint_sample(self, s: Any) -> None:
+        s = self._legs_only('joint_states', self._signed(joint_state_from_msg(msg)))
+        if s is None:
+            return
         if s.t_s != 0.0:
             s = self._unrepeated('joint_states', tuple(s.names), s)
             if s is None:
@@ -322,7 +321,8 @@ class SlipFitterNode(Node):
         self._guard(self._command, msg, 'joint_commands')
 
     def _command(self, msg: JointState) -> None:
-        for s in self._legs_only('joint_commands', self._signed(joint_state_from_msg(msg))):
+        s = self._legs_only('joint_commands', self._signed(joint_state_from_msg(msg)))
+        if s is not None:
             self.core.add_command(s.t_s, s.names, s.velocity)
 
     def _on_mocap(self, msg: PoseStamped) -> None:

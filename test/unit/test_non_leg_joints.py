@@ -56,14 +56,14 @@ def test_live_a_stream_is_settled_by_its_first_leg_joint_and_never_the_other_way
     grippers included, for good)."""
     f = LegJointFilter()
     early = _js(0.0, GRIPPERS)
-    assert f.feed(early) == [early] and f.legs_present is None
-    [got] = f.feed(_js(0.02, ('L1_hip', 'gripper_left')))
+    assert f.apply(early) is early and f.legs_present is None
+    got = f.apply(_js(0.02, ('L1_hip', 'gripper_left')))
     assert got.names == ('L1_hip',) and f.legs_present is True
-    assert f.feed(_js(0.03, GRIPPERS)) == [] and f.samples_dropped == 1
+    assert f.apply(_js(0.03, GRIPPERS)) is None and f.samples_dropped == 1
     other = LegJointFilter()
     for k in range(300):
         s = _js(0.01 * k, ('hip_0', 'hip_1'))
-        assert other.feed(s) == [s]
+        assert other.apply(s) is s
     assert other.legs_present is None and not other.dropped
 
 
@@ -150,9 +150,8 @@ def test_live_slip_core_takes_the_legs_after_an_early_gripper_message():
     for k in range(50):
         msgs = [_js(0.01 * k, GRIPPERS)] if k == 0 else []
         msgs.append(_js(0.01 * k, hips))
-        for m in msgs:
-            for s in f.feed(m):
-                core.add_joint_state(s.t_s, s.names, s.velocity, s.position)
+        for s in filter(None, map(f.apply, msgs)):
+            core.add_joint_state(s.t_s, s.names, s.velocity, s.position)
     assert core.names == hips and len(core._js) == 50
 
 
