@@ -69,7 +69,6 @@ interrupted.
 
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import select

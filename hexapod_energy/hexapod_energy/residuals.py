@@ -470,6 +470,13 @@ def joint_features(effort: np.ndarray, velocity: np.ndarray) -> tuple[float, ...
 MAX_LAG_SHARE = 0.1
 
 
+def _overlap_span_s(r) -> float:
+    """Seconds covered by both a run's battery stream and its joint stream (0 if none)."""
+    if r.t_s.size < 2 or r.joint_t_s is None or r.joint_t_s.size < 2:
+        return 0.0
+    return max(0.0, float(min(r.t_s[-1], r.joint_t_s[-1]) - max(r.t_s[0], r.joint_t_s[0])))
+
+
 @dataclass
 class SampleView:
     """Per-sample view of the energy residual and the ``time_offset`` candidate.
@@ -2451,7 +2458,8 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
         # the search sets aside its largest lag at each end of every run: capped at a share
         # of the shortest run (an outside review: --max-lag 2 s left 1,200 of 2,055 samples
         # of 10 s runs, and 4-5 s refused the view without a word)
-        shortest = min(float(r.joint_t_s[-1] - r.joint_t_s[0]) for r in runs)
+        # of the time both streams cover: a power monitor started late is the shorter one
+        shortest = min(_overlap_span_s(r) for r in runs)
         use = min(max_lag_s, MAX_LAG_SHARE * shortest) if shortest > 0 else max_lag_s
         try:
             view = SampleView(max_lag_s=use).fit(runs)
@@ -2462,7 +2470,7 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
                 view.warnings_.insert(0, (
                     f'the clock-offset search was cut from {max_lag_s:g} s to {use:.2f} s: '
                     f'it sets aside its largest lag at each end of every run (the shortest '
-                    f'{shortest:.1f} s); record longer runs to search further'))
+                    f'{shortest:.1f} s of both streams); record longer runs to search further'))
         except ResidualDataError as err:
             view = None   # the window split below names what is short
             view_refused = str(err)

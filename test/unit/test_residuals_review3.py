@@ -162,6 +162,27 @@ def test_a_max_lag_beyond_a_tenth_of_the_runs_is_cut_and_said(bench, basal_bags)
     assert 'No clock-offset search or per-sample view: too little robot data' in doc['summary']
 
 
+
+def test_the_max_lag_cap_counts_the_time_both_streams_cover(bench, basal_bags):
+    """The cap counted the joint stream's span: a power monitor started 4 s late (battery
+    6 s of a 10 s joint stream) was searched up to a tenth of 10 s. It is now a tenth of
+    the time both streams cover."""
+    from dataclasses import replace
+
+    runs = []
+    for p in basal_bags:
+        r = _lagged(p, 0.05)
+        keep = r.t_s >= r.t_s[0] + 4.0
+        runs.append(replace(r, **{k: getattr(r, k)[keep] for k in R.ResidualRun.PER_SAMPLE
+                                  if getattr(r, k) is not None
+                                  and np.shape(getattr(r, k))[:1] == r.t_s.shape}))
+    doc = _loop(bench, runs, max_lag_s=4.0)
+    both = min(float(min(r.t_s[-1], r.joint_t_s[-1]) - max(r.t_s[0], r.joint_t_s[0]))
+               for r in runs)
+    joint = min(float(r.joint_t_s[-1] - r.joint_t_s[0]) for r in runs)
+    assert both < 0.7 * joint
+    assert doc['sample_view']['max_lag_s'] == pytest.approx(0.1 * both, rel=1e-9)
+
 # --- 2: implausible masses, better alternatives, collinearity, the gain's name --------------
 
 def _gain_table(n: int = 240, robot_kg: float = 1.0, seed: int = 0) -> WindowTable:
