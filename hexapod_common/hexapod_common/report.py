@@ -511,6 +511,8 @@ def _optimal_points(sweeps: Any) -> list[str]:
                 continue
             pts = c.get('optimal_points') or {}
             row = [_esc(c.get('label', '-'))]
+            if c.get('not_walkable'):     # priced as the paper draws it, not a walkable gait
+                row[0] += f'<br><small>not walkable: {_esc(c["not_walkable"])}</small>'
             for key, _, scale in _OPT:
                 p = pts.get(key) or {}
                 v = p.get('value')

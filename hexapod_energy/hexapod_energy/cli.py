@@ -122,6 +122,10 @@ such fallback is listed in the run's ``notes``.
                   # "outside_bench" (n_speed x n_payload bool) marks extrapolated points
                   # (dotted in the plots), "outside_bench_reasons" says how; a curve the
                   # leg cannot walk is left out (listed in sweep_settings "skipped");
+                  # "not_walkable" names a whole side in swing ('' when none: the paper's
+                  # wave at beta 0.5, Fig. 3C, is kept and drawn); "optimal_points"
+                  # {"max_power_out", "min_cot_per_mass", "max_efficiency"}: each
+                  # {"speed_mps", "value", "unit" (W, J/(m kg), fraction), "outside_bench"};
                   # "min_efficiency" (every point) with "min_efficiency_speed_mps",
                   # "min_efficiency_payload_kg" and "min_efficiency_outside_bench" (that
                   # point extrapolated), "min_efficiency_on_bench" (the points the bench

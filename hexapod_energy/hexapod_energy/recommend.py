@@ -8,7 +8,8 @@ the leg count (:func:`hexapod_gait.gait.typical_duty_factor`: an 8-leg wave's 7/
 is kept when the period giving the target speed (``T = step_length / (beta v)``) satisfies the
 actuator limits (:func:`hexapod_gait.feasibility.check_feasible`; default AntBot's servos',
 :data:`hexapod_gait.feasibility.ANTBOT_LIMITS`), the body is always supported
-(``min L(t) >= min_supporting_legs``) and its leg path is reachable.  The one with the lowest
+(``min L(t) >= min_supporting_legs``, and a leg down on each side: :func:`lifted_sides`) and
+its leg path is reachable.  The one with the lowest
 ``CoT/M = (P_in - P_out) / (M v)`` among those whose phase durations and loads lie within the
 bench's sessions wins (configurations that would extrapolate the surfaces are counted in
 ``outside_bench`` and only used, with a note, when no other is feasible); the saving is reported
@@ -37,7 +38,7 @@ from hexapod_energy.prediction import (
 )
 
 __all__ = ['Candidate', 'Recommendation', 'default_gait_name', 'infeasible_schedule',
-           'recommend_gait']
+           'lifted_sides', 'recommend_gait']
 
 
 @dataclass(frozen=True)
@@ -95,8 +96,9 @@ def infeasible_schedule(gait: Any, limits: Any | None = None) -> list[str]:
     """Why a walked schedule is not one the robot can walk (empty when it can): the actuator
     limits it violates (:func:`hexapod_gait.feasibility.feasibility_violations`; default
     AntBot's servo limits) and phases of the cycle with no leg on the ground (``L(t) = 0``:
-    the body falls).  The checks :func:`recommend_gait` applies to its candidates, for a robot
-    run's schedule: its measured descriptors are those of a gait the project calls
+    the body falls) or with every leg of a side in swing (:func:`lifted_sides`).  The
+    checks :func:`recommend_gait` applies to its candidates, for a robot run's schedule: its
+    measured descriptors are those of a gait the project calls
     infeasible (a wave at duty factor 0.1 gave CoT/M 29.0 J/(m kg), better than any feasible
     gait).  Standing (period 0) and clock-driven schedules (a RHex's Buehler clock: step
     length 0, rotating legs that may run with a flight phase) are not checked, nor the
@@ -115,7 +117,27 @@ def infeasible_schedule(gait: Any, limits: Any | None = None) -> list[str]:
     if airborne > 1e-9:
         out.append(f'no leg on the ground {100 * airborne:.0f} % of the cycle (L(t) = 0; '
                    f'{gait.name}, duty factor {gait.duty_factor:.4g}, {gait.leg_count} legs)')
+    else:
+        out.extend(lifted_sides(gait))
     return out
+
+
+def lifted_sides(gait: Any) -> list[str]:
+    """Why ``gait`` tips the body over a side: for each side (the legs' first letter) whose
+    legs are all in swing at some instant, one sentence (empty when every side keeps a leg
+    down; schedules of fewer than 4 legs and standing are not checked).  The rule
+    ``gait_scheduler`` applies (:func:`hexapod_gait.config.check_static_support`): a wave at
+    duty factor 0.5-0.55 keeps three legs down yet lifts a whole side, and had been
+    recommended (an outside review; the ripple at the same duty factor costs the same)."""
+    from hexapod_gait.config import min_supporting_per_side
+
+    if len(gait.leg_names) < 4 or not gait.step_length_m > 0:
+        return []
+    lost = [side for side, n in min_supporting_per_side(gait).items() if n == 0]
+    if not lost:
+        return []
+    return [f'every leg of side {"/".join(lost)} is in swing at once ({gait.name}, duty factor '
+            f'{gait.duty_factor:.4g}, {gait.leg_count} legs): the body tips over that side']
 
 
 def default_gait_name(leg_count: int) -> str:
@@ -150,6 +172,9 @@ def _evaluate(
     if gait.min_supporting_legs() < min_supporting_legs:
         return 'support', (f'{name} beta {beta:g} supports the body on '
                            f'{gait.min_supporting_legs()} legs < {min_supporting_legs}')
+    tipped = lifted_sides(gait)
+    if tipped:
+        return 'support', tipped[0]
     total = output_power.robot.mass_kg + payload
     try:
         p_in = float(predict_power_in_w(phase_power, gait, total_mass_kg=total,
@@ -207,9 +232,9 @@ def recommend_gait(
     Raises
     ------
     InvalidInputError
-        If the speed is not positive, the payload negative (either not finite) or no
-        candidate is feasible at that speed (the message says why the configurations were
-        rejected).
+        If the speed is not positive, the payload negative (either not finite), a duty
+        factor outside (0, 1), a step length not positive, or no candidate is feasible at
+        that speed (the message says why the configurations were rejected).
     """
     from hexapod_gait.feasibility import ANTBOT_LIMITS
     from hexapod_gait.gait import typical_duty_factor
@@ -220,6 +245,17 @@ def recommend_gait(
         # a negative payload made a lighter robot and a recommendation for it (mass 1.18 kg
         # for AntBot with -1 kg), without a word
         raise InvalidInputError(f'payload_kg must be finite and >= 0, got {payload_kg}')
+    # refused up front, named: a step of 0 had been called 'not gaits for this leg count',
+    # and beside valid values dropped without a word (an outside review)
+    bad_beta = [b for b in (duty_factors or ()) if not (math.isfinite(b) and 0 < b < 1)]
+    if bad_beta:
+        raise InvalidInputError(f'duty factors must lie in (0, 1), got {bad_beta}')
+    bad_step = [x for x in step_lengths_m if not (math.isfinite(x) and x > 0)]
+    if bad_step or not len(step_lengths_m):
+        raise InvalidInputError(f'step lengths must be finite and > 0 [m], got '
+                                f'{bad_step or list(step_lengths_m)}')
+    if duty_factors is not None and not len(duty_factors):
+        raise InvalidInputError('no duty factor to search (an empty list)')
     lim = ANTBOT_LIMITS if limits is None else limits
     min_sup = min(min_supporting_legs, leg_count // 2)
     best: Candidate | None = None
@@ -294,7 +330,7 @@ def _rejections(why: dict[str, list[str]], gaits: Sequence[str], limits: Any) ->
                         "the bench's step, scaled to each step's joint path; max {:g} Hz)"
                         ).format(limits.min_swing_s, limits.min_stance_s,
                                  limits.max_step_frequency_hz),
-             'support': 'support the body on too few legs',
+             'support': 'support the body on too few legs or lift a whole side',
              'unreachable': 'have a leg path out of reach'}
     parts = [f'{len(v)} {kinds[k]} (e.g. {v[0]})' for k, v in why.items()]
     total = sum(len(v) for v in why.values())

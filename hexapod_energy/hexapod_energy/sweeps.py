@@ -162,6 +162,9 @@ class SweepCurve:
     outside_bench: np.ndarray | None = None
     outside_reasons: tuple[str, ...] = ()
     mass_rule: str = ''   # how the mass was set (the leg-count sweep's body + legs), else ''
+    #: why the schedule is not walkable though Eq. 1 can price it (a whole side in swing: the
+    #: paper's wave at beta 0.5, Fig. 3C, drawn as the paper does), else ''
+    support_note: str = ''
 
     @property
     def robot_mass_kg(self) -> float:
@@ -170,16 +173,17 @@ class SweepCurve:
 
     def optimal_points(self, payload_index: int = 0) -> dict[str, dict[str, float]]:
         """Operating points at one payload: ``max_power_out``, ``min_cot_per_mass``,
-        ``max_efficiency``, each ``{'speed_mps', 'value'}``."""
+        ``max_efficiency``, each ``{'speed_mps', 'value', 'unit'}`` (W, J/(m kg), a fraction)."""
         j = payload_index
         out = {}
-        for key, arr, pick in (
-            ('max_power_out', self.power_out_w[:, j], np.argmax),
-            ('min_cot_per_mass', self.cot_per_mass[:, j], np.argmin),
-            ('max_efficiency', self.efficiency[:, j], np.argmax),
+        for key, arr, pick, unit in (
+            ('max_power_out', self.power_out_w[:, j], np.argmax, 'W'),
+            ('min_cot_per_mass', self.cot_per_mass[:, j], np.argmin, 'J/(m kg)'),
+            ('max_efficiency', self.efficiency[:, j], np.argmax, 'fraction'),
         ):
             i = int(pick(arr))
-            out[key] = {'speed_mps': float(self.speeds_mps[i]), 'value': float(arr[i])}
+            out[key] = {'speed_mps': float(self.speeds_mps[i]), 'value': float(arr[i]),
+                        'unit': unit}
             if self.outside_bench is not None:
                 out[key]['outside_bench'] = bool(self.outside_bench[i, j])
         return out
@@ -230,6 +234,7 @@ class SweepCurve:
             'outside_bench': None if self.outside_bench is None else
             self.outside_bench.tolist(),
             'outside_bench_reasons': list(self.outside_reasons),
+            'not_walkable': self.support_note,
         }
 
     def _min_efficiency_keys(self) -> dict[str, Any]:
@@ -310,6 +315,18 @@ def sweep_curve(
         period_s=float(periods[-1]), step_length_m=spec.step_length_m,
         step_height_m=spec.step_height_m,
     )
+    bp, supporting = gait.support_profile()
+    airborne = float(np.diff(np.append(np.asarray(bp, float), 1.0))[
+        np.asarray(supporting) == 0].sum())
+    if airborne > 1e-9:
+        # Eq. 1 carries nothing while no leg stands: less support read as less power (a tripod
+        # at beta 0.3 gave the lowest CoT/M of any curve; an outside review)
+        raise InvalidInputError(
+            f'{spec.label}: no leg on the ground {100 * airborne:.0f} % of the cycle '
+            f'({spec.gait}, duty factor {spec.duty_factor:g}, {spec.leg_count} legs): Eq. 1 '
+            'has no weight to carry then; raise the duty factor')
+    from hexapod_energy.recommend import lifted_sides
+    support_note = '; '.join(lifted_sides(gait))
     payloads = np.asarray(payloads_kg, dtype=float)
     mass = robot_kg + payloads
     p_in = np.stack(
@@ -336,7 +353,7 @@ def sweep_curve(
         cot_m = (p_in - p_out) / (mass[None, :] * v)
         sr = p_in / (mass[None, :] * G_MPS2 * v)
     return SweepCurve(spec, speeds, payloads, mass, p_in, p_out, eff, cot_m, sr, outside,
-                      _summarise_reasons(reasons), rule)
+                      _summarise_reasons(reasons), rule, support_note)
 
 
 def _summarise_reasons(reasons: Sequence[str]) -> tuple[str, ...]:
