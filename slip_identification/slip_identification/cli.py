@@ -718,8 +718,11 @@ def run_command(args: argparse.Namespace) -> int:
         except KeyboardInterrupt:
             # Ctrl-C: the bags not started are dropped and the running workers stopped,
             # not waited for (they kept going 14 s)
+            # the workers are taken before shutdown, which sets ``_processes`` to None (a
+            # Ctrl-C was reported as an AttributeError, exit 1: an outside review)
+            procs = list((getattr(pool, '_processes', None) or {}).values())
             pool.shutdown(wait=False, cancel_futures=True)
-            for proc in list(getattr(pool, '_processes', {}).values()):
+            for proc in procs:
                 proc.terminate()
             manager.shutdown()
             raise

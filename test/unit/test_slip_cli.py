@@ -87,3 +87,22 @@ def test_jobs_workers_report_the_messages_they_read(tmp_path):
     while not q.empty():
         counts.append(q.get_nowait())
     assert sum(counts) == _message_total([str(bag)]) > 0
+
+
+def test_ctrl_c_during_a_parallel_slip_is_an_interruption(tmp_path, monkeypatch, capsys):
+    """Ctrl-C during ``slip --jobs 2`` exited 1 with 'failed: AttributeError ... please report
+    it' (``pool.shutdown`` sets the pool's ``_processes`` to None before the workers were
+    taken): an outside review. Now exit 130, 'interrupted'."""
+    import slip_identification.cli as slip_cli
+    from hexapod_common.analyze_cli import main
+
+    def interrupted(*_a, **_k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(slip_cli, 'wait', interrupted)
+    for name in ('a', 'b'):
+        (tmp_path / name).mkdir()
+    rc = main(['slip', str(tmp_path / 'a'), str(tmp_path / 'b'), '--out',
+               str(tmp_path / 'out'), '--jobs', '2'])
+    err = capsys.readouterr().err
+    assert rc == 130 and 'interrupted' in err and 'AttributeError' not in err
