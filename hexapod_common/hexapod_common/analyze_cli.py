@@ -158,6 +158,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not getattr(args, 'func', None):
         parser.print_help()
         return 2
+    if why := _repeated_bags(args):
+        parser.error(why)
     saved = {k: os.environ.get(k)
              for k in (REMAP_ENV, JOINT_MAP_ENV, BATTERY_SOURCE_ENV, MOCAP_TF_ENV)}
     if args.battery_source is not None:
@@ -206,6 +208,25 @@ def _bag_paths(args: argparse.Namespace) -> list[str]:
                     os.path.isdir(v) or v.endswith(('.bag', '.mcap', '.db3'))):
                 out.append(v)
     return out
+
+
+def _repeated_bags(args: argparse.Namespace) -> str:
+    """Why the command names one bag twice ('' when it does not): the same folder or file
+    (``run1`` and ``run1/``, a link), or a folder and a file of it.  Such a bag was analysed
+    twice without a word: the prediction error over 3 runs for 2, a slip table of 16 stances
+    from 8 (an outside review)."""
+    seen: dict[str, str] = {}
+    for path in _bag_paths(args):
+        real = os.path.realpath(path)
+        for other_real, other in seen.items():
+            inside = (real.startswith(other_real + os.sep)
+                      or other_real.startswith(real + os.sep))
+            if real == other_real or inside:
+                return (f'the bag {other!r} is given twice ({path!r}' +
+                        (', a file of the other' if inside else '') +
+                        '): each bag once, please')
+        seen[real] = path
+    return ''
 
 
 def _unmatched_joint_mappings(args: argparse.Namespace, joint_map: dict[str, str]

@@ -150,3 +150,23 @@ def test_a_given_offset_that_separates_the_streams_is_named_as_given():
                   battery_voltage_v=12 + 0 * t, battery_current_a=1 + 0 * t)
     with pytest.raises(SlipDataError, match='with the offset given'):
         analyze_run(run, offset_s=100.0, check_body_up=False)
+
+
+@pytest.mark.parametrize('argv', [
+    ['energy', '--robot', '{tmp}/r1', '{tmp}/r1/', '{tmp}/r2'],
+    ['energy', '--bench', '{tmp}/b', '--robot', '{tmp}/r1', '{tmp}/link'],
+    ['slip', '{tmp}/r1', '{tmp}/r1/r1_0.mcap'],
+    ['residuals', '--bench', '{tmp}/b', '--robot', '{tmp}/r2', '{tmp}/r2'],
+])
+def test_a_bag_given_twice_is_refused(argv, tmp_path, capsys):
+    """A bag given twice (``run1`` and ``run1/``, a link, a folder and its file) was analysed
+    twice without a word: prediction rmse 7.42 W over 3 runs for 9.02 W over 2, 16 slip
+    stances from 8 (an outside review)."""
+    for name in ('r1', 'r2', 'b'):
+        (tmp_path / name).mkdir()
+    (tmp_path / 'r1' / 'r1_0.mcap').write_bytes(b'')
+    (tmp_path / 'link').symlink_to(tmp_path / 'r1')
+    with pytest.raises(SystemExit) as stop:   # argparse's exit, before any bag is read
+        analyze([a.format(tmp=tmp_path) for a in argv] + ['--out', str(tmp_path / 'o')])
+    err = capsys.readouterr().err
+    assert stop.value.code == 2 and 'is given twice' in err and 'Traceback' not in err
