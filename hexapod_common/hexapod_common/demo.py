@@ -250,14 +250,14 @@ def batch_analysis(out: Path, hidden: str, quick: bool) -> dict[str, Any]:
     rc = sim_main(['bench', '--out', str(bench), '--loads', loads, '--frequencies', freqs,
                    '--duration', '5', '--max-cool', '5', '--seed', '1', '--no-progress'])
     if rc:
-        raise RuntimeError(f'hexapod-sim bench failed with exit code {rc}')
+        _child_failed('hexapod-sim bench', rc)
     robots = []
     for k, speed in enumerate((0.15, 0.3, 0.45, 0.6)):
         bag = out / f'robot_{k}'
         rc = sim_main(['robot', '--out', str(bag), '--speed', str(speed), '--duration', '15',
                        '--seed', str(10 + k), '--effect', hidden, '--no-progress'])
         if rc:
-            raise RuntimeError(f'hexapod-sim robot failed with exit code {rc}')
+            _child_failed('hexapod-sim robot', rc)
         robots.append(bag)
     from hexapod_energy.cli import main as energy_main
     from hexapod_energy.prediction import RobotSpec
@@ -268,7 +268,7 @@ def batch_analysis(out: Path, hidden: str, quick: bool) -> dict[str, Any]:
                       '--out', str(out / 'energy'), '--no-progress',
                       '--power-out', 'model', '--robot-mass', f'{RobotSpec().mass_kg:.4f}'])
     if rc:
-        raise RuntimeError(f'hexapod-analyze energy failed with exit code {rc}')
+        _child_failed('hexapod-analyze energy', rc)
     energy = json.loads((out / 'energy' / 'energy.json').read_text())
     result: dict[str, Any] = {'hidden_effect': hidden,
                               'prediction_error': energy.get('prediction_error')}
@@ -362,11 +362,11 @@ def slip_analysis(out: Path, quick: bool) -> dict[str, Any]:
         rc = sim_main(['edubot', '--out', str(bag), '--gait', gait, '--duration', '6',
                        '--seed', str(k + 1)])
         if rc:
-            raise RuntimeError(f'hexapod-sim edubot failed with exit code {rc}')
+            _child_failed('hexapod-sim edubot', rc)
         bags.append(bag)
     rc = slip_main([*map(str, bags), '--out', str(out / 'slip'), '--jobs', '2'])
     if rc:
-        raise RuntimeError(f'hexapod-analyze slip failed with exit code {rc}')
+        _child_failed('hexapod-analyze slip', rc)
     doc = json.loads((out / 'slip' / 'slip.json').read_text())
     runs = [slip_run_summary(run, _bag_truth(Path(run['bag']))) for run in doc.get('runs', [])]
     return {'gaits': doc.get('gaits', {}), 'runs': runs,
@@ -401,7 +401,32 @@ def _say_slip(slip: dict[str, Any]) -> None:
         _say(f'   skipped stances: {slip["skipped_counts"]}')
 
 
+def _child_failed(what: str, rc: int) -> None:
+    """A step's command returned ``rc``: 130 is the user's Ctrl-C it caught (the demo stops
+    as interrupted), anything else a failure."""
+    if rc == 130:
+        raise KeyboardInterrupt
+    raise RuntimeError(f'{what} failed with exit code {rc}')
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    """``hexapod-demo``; Ctrl-C stops it with one line and exit 130 (it printed a traceback,
+    or exit 1 naming a step's exit code 130: an outside review); ``demo.json`` stays
+    ``incomplete``."""
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:
+        print('hexapod-demo: interrupted; the results so far stay in the output folder, '
+              'demo.json says "incomplete"', file=sys.stderr)
+        return 130
+    except Exception as err:   # noqa: BLE001 - rclpy's shutdown by its own SIGINT handler
+        if type(err).__name__ != 'ExternalShutdownException':
+            raise
+        print('hexapod-demo: interrupted; demo.json says "incomplete"', file=sys.stderr)
+        return 130
+
+
+def _main(argv: Sequence[str] | None = None) -> int:
     parser = NumberArgumentParser(prog='hexapod-demo', description=__doc__.split('\n')[0])
     parser.add_argument('--out', default='demo_out',
                         help='output folder (default demo_out): new, empty or an earlier demo '

@@ -1,0 +1,30 @@
+"""Ctrl-C during ``hexapod-demo``: one line, exit 130, demo.json 'incomplete' (an outside
+review: a KeyboardInterrupt traceback through rclpy's executor or matplotlib, or exit 1 with
+'RuntimeError: hexapod-sim robot failed with exit code 130')."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from hexapod_common import demo
+
+
+def _interrupted(*_a, **_k):
+    raise KeyboardInterrupt
+
+
+def test_ctrl_c_in_the_live_graph_is_one_line_and_exit_130(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(demo, 'run_live', _interrupted)
+    rc = demo.main(['--out', str(tmp_path / 'd')])
+    err = capsys.readouterr().err
+    assert rc == 130 and 'interrupted' in err and 'Traceback' not in err
+    assert json.loads((tmp_path / 'd' / 'demo.json').read_text())['status'] == 'incomplete'
+
+
+def test_a_step_interrupted_is_an_interruption_not_a_failure():
+    with pytest.raises(KeyboardInterrupt):
+        demo._child_failed('hexapod-sim robot', 130)
+    with pytest.raises(RuntimeError, match='exit code 1'):
+        demo._child_failed('hexapod-sim robot', 1)
