@@ -1154,9 +1154,20 @@ def _handler(args: argparse.Namespace) -> int:
     if warns:
         # said on the terminal too (an assumed mass, refused efforts, an extrapolation), not
         # only inside energy.json
-        print(f'hexapod-analyze energy: {len(warns)} warning(s) in energy.json "warnings"; '
-              f'first: {warns[0]}', file=sys.stderr)
+        # each one (a review: only the first was shown, and an option ignored was hidden),
+        # up to MAX_WARNINGS_SHOWN
+        print(f'hexapod-analyze energy: {len(warns)} warning(s) (energy.json "warnings"):',
+              file=sys.stderr)
+        for w in warns[:MAX_WARNINGS_SHOWN]:
+            print(f'  - {w}', file=sys.stderr)
+        if len(warns) > MAX_WARNINGS_SHOWN:
+            print(f'  ... and {len(warns) - MAX_WARNINGS_SHOWN} more in energy.json',
+                  file=sys.stderr)
     return 0
+
+
+#: warnings printed on the terminal after ``energy`` (all of them are in energy.json)
+MAX_WARNINGS_SHOWN = 12
 
 
 def main(argv: Sequence[str] | None = None) -> int:
