@@ -364,7 +364,8 @@ def slip_analysis(out: Path, quick: bool) -> dict[str, Any]:
         if rc:
             _child_failed('hexapod-sim edubot', rc)
         bags.append(bag)
-    rc = slip_main([*map(str, bags), '--out', str(out / 'slip'), '--jobs', '2'])
+    rc = slip_main([*map(str, bags), '--out', str(out / 'slip'), '--jobs', '2',
+                    '--mass', f'{EDUBOT_MASS_KG:g}'])
     if rc:
         _child_failed('hexapod-analyze slip', rc)
     doc = json.loads((out / 'slip' / 'slip.json').read_text())

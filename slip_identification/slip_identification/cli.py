@@ -97,7 +97,8 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
                   # geometry_cut | clock (placed by the shifted clock inside the gap)
       "skipped_counts": {"<reason>": n},   # too_short, nan, mocap_gap, outside_volume,
                                            # transient (--steady-only), ...
-      "failed_bags": [{"bag", "error"}]    # e.g. a missing topic
+      "failed_bags": [{"bag", "error"}],   # e.g. a missing topic
+      "warnings": [str]    # e.g. the robot mass assumed (no --mass)
     }
 
 Estimators. The top-level per-stance values are the paper's estimator (Komsuoglu et al.:
@@ -672,6 +673,13 @@ def run_command(args: argparse.Namespace) -> int:
 
     from hexapod_common.outdir import prepare_out_dir
 
+    warnings: list[str] = []
+    if args.mass is None:
+        # said: SR scales with it (a 2.183 kg robot's walk read SR 3.14 for 4.76 without a
+        # word: an outside review)
+        args.mass = EDUBOT_MASS_KG
+        warnings.append(f'robot mass not given: EduBot\'s {EDUBOT_MASS_KG:g} kg assumed for '
+                        'P/(m g v) (SR); give --mass')
     _check_options(args)
     geometry_overrides = _geometry_overrides(args)
     out = prepare_out_dir(args.out)   # before the analysis, not after it
@@ -751,13 +759,15 @@ def run_command(args: argparse.Namespace) -> int:
            'runs': [r['run'] for r in results if 'run' in r], 'gaits': gait_table(rows),
            'skipped': skipped, 'skipped_counts': dict(Counter(s['reason'] for s in skipped)),
            'failed_bags': [{'bag': r['bag'], 'error': r['error']} for r in results
-                           if 'error' in r]}
+                           if 'error' in r], 'warnings': warnings}
     (out / 'slip.json').write_text(json.dumps(json_safe(doc), indent=1, allow_nan=False),
                                   encoding='utf-8')
     if rows:
         plot_figures(rows, out)
     for f in doc['failed_bags']:
         print(f"slip: refused {f['bag']}: {f['error']}", file=sys.stderr)
+    for w in warnings:
+        print(f'slip: warning: {w}', file=sys.stderr)
     print(f'slip: {len(stances)} stances fitted, {len(skipped)} skipped, '
           f"{len(doc['failed_bags'])} bag(s) refused -> {out / 'slip.json'}")
     return 0 if len(doc['failed_bags']) < len(bags) else 2   # every bag refused: input
@@ -822,8 +832,9 @@ def add_cli(subparsers: Any) -> None:
                    help='straight-run limit on lateral deviation [m]')
     p.add_argument('--box', type=float, nargs=6, metavar=('X0', 'Y0', 'Z0', 'X1', 'Y1', 'Z1'),
                    help='permissible box in the mocap frame [m] (default 2 x 1 x 1 m)')
-    p.add_argument('--mass', type=_positive_kg, default=EDUBOT_MASS_KG,
-                   help='robot mass [kg], > 0')
+    p.add_argument('--mass', type=_positive_kg, default=None,
+                   help=f'robot mass [kg], > 0 (default EduBot\'s {EDUBOT_MASS_KG:g} kg, with '
+                        'a warning: P, SR and the Table 3 comparison scale with it)')
     p.add_argument('--model', default='slip', help="'slip' or 'slip+leg_damping' etc.")
     p.add_argument('--starts', choices=('multi', 'paper'), default='multi',
                    help="the SLIP-measure's Nelder-Mead starts: multi (default; the paper's "
