@@ -23,7 +23,7 @@ import numbers
 import os
 import signal
 import sys
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from typing import Any, TypeVar
 
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
@@ -174,6 +174,27 @@ def params_from_overrides(cls: type[T], overrides: Sequence[Any] | None) -> T:
     return validate_params(cls, {p.name: p.value for p in overrides or ()})
 
 
+#: parameters rclpy itself (or its QoS overrides) takes on every node
+_RCLPY_PARAMETERS = ('use_sim_time', 'start_type_description_service')
+
+
+def unknown_overrides(overrides: Iterable[str], declared: Sequence[str]) -> dict[str, str]:
+    """For each start-up override (``-p name:=value``) the node does not declare, why it is
+    ignored, naming the closest declared name: ``-p mas:=3.0`` ran on the default mass, and
+    ``-p sped:=0.9`` walked at the default speed, without a word (an outside review)."""
+    import difflib
+
+    out = {}
+    for name in sorted(set(overrides) - set(declared)):
+        if name in _RCLPY_PARAMETERS or name.startswith('qos_overrides.'):
+            continue
+        near = difflib.get_close_matches(name, declared, n=1, cutoff=0.6)
+        out[name] = (f'parameter {name!r} is not one of this node\'s: ignored' +
+                     (f' (did you mean {near[0]!r}?)' if near else
+                      ' (--help lists them)'))
+    return out
+
+
 def declare_params(node: Any, cls: type[T], *,
                    on_change: Callable[[T], str | None] | None = None) -> T:
     """Declare every field of ``cls`` on ``node`` and read the values back into ``cls``.
@@ -213,6 +234,10 @@ def declare_params(node: Any, cls: type[T], *,
         values[fld.name] = node.get_parameter(fld.name).value
     params = validate_params(cls, values)
     node.params = params
+    node.unknown_parameters_ = unknown_overrides(
+        getattr(node, '_parameter_overrides', {}) or {}, list(values))
+    for why in node.unknown_parameters_.values():
+        node.get_logger().warning(why)
 
     def _on_set(parameters: list[Any]) -> SetParametersResult:
         current = dataclasses.asdict(node.params)  # type: ignore[call-overload]

@@ -178,3 +178,16 @@ def test_console_scripts_refuse_bad_start_up_values_in_one_line(module, args, ex
     err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
     assert len(err) == 1, err
     assert expected in err[0] and 'Traceback' not in err[0]
+
+
+def test_a_start_up_parameter_the_node_does_not_declare_is_warned_of():
+    """``-p mas:=3.0`` ran on the default mass and ``-p sped:=0.9`` walked at the default
+    speed without a word (an outside review): now a warning naming the closest parameter."""
+    with ros_env('np') as env:
+        node = env.make(_Node, parameter_overrides=[Parameter('rat_hz', value=1.0),
+                                                    Parameter('limit', value=2.0),
+                                                    Parameter('zzz', value=1)])
+        assert node.params.limit == 2.0
+        assert set(node.unknown_parameters_) == {'rat_hz', 'zzz'}
+        assert "did you mean 'rate_hz'" in node.unknown_parameters_['rat_hz']
+        assert '--help' in node.unknown_parameters_['zzz']
