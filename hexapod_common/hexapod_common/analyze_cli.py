@@ -146,6 +146,12 @@ def _misplaced_global(argv: Sequence[str]) -> str:
         if opt in _GLOBAL_OPTIONS:
             return (f'{opt} goes before the command name: hexapod-analyze {opt} ... '
                     f'{argv[cmd]} ...')
+    for a in argv[:cmd]:
+        # a command's option before its name read "invalid choice: 'o_e7'" (a review)
+        opt = a.split('=', 1)[0]
+        if opt.startswith('--') and opt not in _GLOBAL_OPTIONS and opt != '--help':
+            return (f'{opt} is an option of the command: it goes after the command name: '
+                    f'hexapod-analyze {argv[cmd]} ... {opt} ...')
     return ''
 
 

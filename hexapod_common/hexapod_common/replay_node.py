@@ -213,7 +213,8 @@ class BagReplayNode(Node):
 
 def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     parser = NumberArgumentParser(prog='bag_replay', description=__doc__.split('\n')[0])
-    parser.add_argument('bag', help='rosbag2 bag folder (mcap or sqlite3) or ROS 1 .bag file')
+    parser.add_argument('bag', nargs='?', default=None,
+                        help='rosbag2 bag folder (mcap or sqlite3) or ROS 1 .bag file')
     parser.add_argument('--rate', type=float, default=0.0,
                         help='1 = real time, N = N times real time, 0 = as fast as possible '
                         '(default 0)')
@@ -228,6 +229,14 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     parser.add_argument('--progress-every', type=float, default=5.0, metavar='S',
                         help='a progress line on stderr every S seconds (0 = none)')
     args = parser.parse_args(argv)
+    if args.bag is None:
+        # --topics / --remap take every word after them: the bag given last had read 'the
+        # following arguments are required: bag' (a review)
+        taken = [opt for opt, vals in (('--topics', args.topics), ('--remap', args.remap))
+                 if vals and os.path.exists(vals[-1])]
+        parser.error(f'the bag goes before {taken[0]} (it takes every word after it): '
+                     f'bag_replay BAG {taken[0]} ...' if taken else
+                     'the following arguments are required: bag')
     remap = {}
     for item in args.remap:
         if ':=' not in item:

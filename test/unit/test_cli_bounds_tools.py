@@ -268,3 +268,29 @@ def test_replay_waiting_for_a_slow_message_reports_and_stops_on_sigterm(tmp_path
     assert proc.returncode == 143, err
     assert 'Traceback' not in err
     assert 'stopped (SIGTERM)' in err.strip().splitlines()[-1]
+
+
+def test_replay_names_a_bag_given_after_topics(tmp_path, capsys):
+    """``bag_replay --topics /x BAG`` read 'the following arguments are required: bag' (the
+    list takes every word after it): a review. Now it says the bag goes first."""
+    from hexapod_common.replay_node import parse_args
+
+    (tmp_path / 'bag').mkdir()
+    with pytest.raises(SystemExit) as stop:
+        parse_args(['--topics', '/x', str(tmp_path / 'bag')])
+    err = capsys.readouterr().err
+    assert stop.value.code == 2 and 'the bag goes before --topics' in err
+    with pytest.raises(SystemExit):
+        parse_args(['--topics', '/x'])
+    assert 'the following arguments are required: bag' in capsys.readouterr().err
+    assert parse_args([str(tmp_path / 'bag'), '--topics', '/x']).topics == ['/x']
+
+
+def test_analyze_names_a_command_option_given_before_the_command(capsys):
+    """``hexapod-analyze --out o energy ...`` read "invalid choice: 'o'" (a review)."""
+    from hexapod_common.analyze_cli import main as analyze
+
+    with pytest.raises(SystemExit) as stop:
+        analyze(['--out', 'o', 'energy', '--robot', 'r'])
+    err = capsys.readouterr().err
+    assert stop.value.code == 2 and '--out is an option of the command' in err
