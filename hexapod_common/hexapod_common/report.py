@@ -78,6 +78,11 @@ CAPTIONS = (
                            'every gait-cycle window (thin), the medians of its tenths '
                            '(markers) and the Eq. 1 prediction (dashed).'),
     ('measured_runs', 'Measured input power and specific cost of transport per robot run.'),
+    ('bench_surfaces', 'Single-leg bench (Brodoline et al. Fig. 6): each walking session\'s '
+                       'mean stance and swing power against 1 / T_phase (the surfaces\' f: '
+                       'twice the step frequency at duty factor 0.5), one colour per load, '
+                       'with the fitted surface; open squares at 0 are the standing '
+                       'sessions\' mean power.'),
     ('where_the_watts_go', 'Where the watts go: the predicted input power split into holding, '
                            'stance and swing motion, against the measured input power.'),
     ('residual_time', 'Energy residual (measured minus predicted P_in, W) over time, one row '

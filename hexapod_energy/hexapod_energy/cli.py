@@ -454,7 +454,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     # plots an earlier run wrote into this folder and this one may not (no --sweep now): they
     # stayed, and report.html showed them beside the new energy.json (new-user review)
     for stale in [*out.glob('four_quadrant_*.png'), *out.glob('four_quadrant_*.svg'),
-                  *(out / f'{n}.{e}' for n in ('power_map', 'prediction', 'where_the_watts_go')
+                  *(out / f'{n}.{e}' for n in ('power_map', 'prediction', 'where_the_watts_go',
+                                               'bench_surfaces')
                     for e in ('png', 'svg'))]:
         stale.unlink(missing_ok=True)
     n_steps = len(bench_bags) + len(args.robot) + 1 + (16 if args.sweep else 0) + \
@@ -530,6 +531,13 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         bar.update(1)
         doc['bench'] = ({'bags': [b for b, _ in bench_bags], 'diagnostics': diags,
                          'fit': model.summary()} if model is not None else None)
+        if model is not None:
+            from hexapod_energy.plots import bench_surfaces_plot
+
+            doc['plots'] += [str(p.relative_to(out)) for p in bench_surfaces_plot(
+                model, out / 'bench_surfaces',
+                title=f'Single-leg bench: {len(model.samples_)} sessions, phase powers and '
+                      'fitted surfaces')]
 
         opm = leg.output_power_model(args.robot_mass)
         doc['leg'] = leg.summary()

@@ -666,6 +666,57 @@ def measured_runs_plot(labels: Sequence[str], power_in_w: Sequence[float],
     return _save(fig, out_stem)
 
 
+def bench_surfaces_plot(model: Any, out_stem: str | Path, *, title: str = '') -> list[Path]:
+    """The bench's phase powers against ``1 / T_phase`` per load, with the fitted surfaces
+    (Brodoline et al. Fig. 6): the first figure to look at for a bench (an outside review: a
+    bench-only analysis drew nothing).
+
+    Parameters
+    ----------
+    model : hexapod_energy.single_leg.SingleLegModel
+        Fitted; its walking sessions are the points, ``p_stance_w`` / ``p_swing_w`` the
+        lines (over each load's measured range), the 0 Hz sessions' mean power the open
+        squares at 0.
+    out_stem : str or Path
+        Output path without suffix.
+    title : str
+        Figure title.
+
+    Returns
+    -------
+    list of Path
+        The PNG and the SVG.
+    """
+    samples = list(model.samples_)
+    loads = sorted({float(x.load_kg) for x in samples})
+    cmap = plt.get_cmap('viridis')
+    colors = {m: cmap(0.85 * k / max(1, len(loads) - 1)) for k, m in enumerate(loads)}
+    fig, axes = plt.subplots(1, 2, figsize=(10.0, 4.2), sharey=True)
+    for ax, phase in zip(axes, ('stance', 'swing')):
+        for m in loads:
+            walk = [x for x in samples if x.load_kg == m and x.frequency_hz > 0]
+            rate = np.array([1.0 / getattr(x, f't_{phase}_s') for x in walk])
+            power = np.array([getattr(x, f'p_{phase}_w') for x in walk])
+            c = colors[m]
+            ax.plot(rate, power, 'o', color=c, ms=5, label=f'{1000 * m:.0f} g')
+            if rate.size:
+                grid = np.linspace(rate.min(), rate.max(), 60)
+                fit = getattr(model, f'p_{phase}_w')(1.0 / grid, np.full_like(grid, m))
+                ax.plot(grid, fit, '-', color=c, lw=1.4)
+            basal = model.basal_power_w_.get(m)
+            if basal is not None:
+                ax.plot([0.0], [basal], 's', color=c, ms=6, mfc='none')
+        ax.set_title(f'{phase}: {model.chosen_[phase]} surface, fit rmse '
+                     f'{model.fit_rmse_w_[phase]:.3g} W', fontsize=9)
+        ax.set_xlabel(f'1 / T_{phase} [1/s] (0: the standing sessions, squares)')
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel('mean phase power of the leg [W]')
+    axes[1].legend(title='load', fontsize=8, title_fontsize=8, loc='best')
+    fig.suptitle(title or 'Single-leg bench: phase powers and fitted surfaces', fontsize=10)
+    fig.tight_layout()
+    return _save(fig, out_stem)
+
+
 def power_in_over_time_plot(series: Sequence[dict[str, Any]], out_stem: str | Path, *,
                             title: str = '') -> list[Path]:
     """Each robot run's input power against the time since its start: every gait-cycle window

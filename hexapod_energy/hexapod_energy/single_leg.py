@@ -411,7 +411,11 @@ class PolySurface:
     def to_dict(self) -> dict[str, Any]:
         coef = [float(c) for c in getattr(self, 'coef_', [])]
         return {'kind': 'poly' if self.degree == 2 else 'poly3', 'coef': coef,
-                'terms': list(self.TERMS[:len(coef)])}
+                'terms': list(self.TERMS[:len(coef)]),
+                # the reader of energy.json / report.html is told what f is (a review: it
+                # read as the step frequency)
+                'variables': 'f = 1 / T_phase [1/s] (the phase rate: twice the step '
+                             'frequency at duty factor 0.5), m = bench load [kg], P [W]'}
 
 
 def cross_validated_rmse(

@@ -261,3 +261,14 @@ def test_a_standing_robot_is_a_run_of_its_input_power(tmp_path, capsys) -> None:
     assert run_['specific_cost_of_transport'] is None
     assert run_['predicted_power_in_w'] is None
     assert any('the robot stands' in n for n in run_['notes'])
+
+
+def test_a_bench_alone_draws_its_phase_powers_and_surfaces(bags, tmp_path):
+    """A bench-only analysis drew nothing (an outside review): now the phase powers against
+    1 / T_phase per load with the fitted surfaces (the paper's Fig. 6)."""
+    root, _ = bags
+    assert main(['--bench', str(root / 'bench'), '--out', str(tmp_path / 'o'),
+                 '--no-progress']) == 0
+    doc = json.loads((tmp_path / 'o' / 'energy.json').read_text())
+    assert doc['plots'] == ['bench_surfaces.png', 'bench_surfaces.svg']
+    assert (tmp_path / 'o' / 'bench_surfaces.png').stat().st_size > 10000
