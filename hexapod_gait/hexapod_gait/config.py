@@ -64,19 +64,44 @@ def min_supporting_per_side(gait: GaitPattern) -> dict[str, int]:
     return out
 
 
+def _largest_gap(offsets: list[float]) -> float:
+    """Largest circular gap between consecutive phase offsets: the duty factor at which the
+    stance intervals of these legs just cover the cycle (one of them is always down)."""
+    x = sorted(o % 1.0 for o in offsets)
+    return max(b - a for a, b in zip(x, x[1:] + [x[0] + 1.0]))
+
+
 def check_static_support(gait: GaitPattern) -> None:
     """Raise :class:`InfeasibleGaitError` if at some instant every leg of one side is in swing
     (the robot falls over that side), e.g. the wave gait at duty factor 0.5. Standing (step
-    length and height 0) always passes."""
+    length and height 0) always passes.
+
+    The message says whether no leg at all is on the ground for part of the cycle (a flight
+    phase, e.g. the alternating gait below 0.5), and names the duty factor the gait's offsets
+    need: the largest gap between the offsets of one side's legs.
+    """
     if gait.step_length_m == 0.0 and gait.step_height_m == 0.0:
         return
     lost = [side for side, n in min_supporting_per_side(gait).items() if n == 0]
-    if lost:
-        n = gait.leg_count
+    if not lost:
+        return
+    n, beta = gait.leg_count, gait.duty_factor
+    offsets = list(gait.phase_offsets)
+    need = max(_largest_gap([o for o, name in zip(offsets, gait.leg_names) if name[0] == side])
+               for side in {name[0] for name in gait.leg_names})
+    if gait.min_supporting_legs() == 0:
+        x = sorted(o % 1.0 for o in offsets)
+        airborne = sum(max(0.0, b - a - beta) for a, b in zip(x, x[1:] + [x[0] + 1.0]))
         raise InfeasibleGaitError(
-            f'gait {gait.name!r} at duty factor {gait.duty_factor:g} lifts every leg of side '
-            f'{"/".join(lost)} at once: the robot falls over; raise the duty factor (the wave '
-            f'walks at 1 - 1/n = {1 - 1 / n:.4g} on {n} legs) or choose another gait')
+            f'gait {gait.name!r} at duty factor {beta:g} has a flight phase: no leg on the '
+            f'ground for {100 * airborne:.3g} % of the cycle (the robot falls); it needs a duty '
+            f'factor >= {need:.4g} on {n} legs (a leg on the ground on each side)')
+    wave = (f' (the wave walks at 1 - 1/n = {1 - 1 / n:.4g} on {n} legs)'
+            if gait.name == 'wave' else '')
+    raise InfeasibleGaitError(
+        f'gait {gait.name!r} at duty factor {beta:g} lifts every leg of side '
+        f'{"/".join(lost)} at once: the robot falls over; raise the duty factor to >= '
+        f'{need:.4g} for this gait on {n} legs{wave} or choose another gait')
 
 
 def build_gait(

@@ -8,7 +8,9 @@ and the gait keeps running. The science is in the core modules of :mod:`hexapod_
 
 Live-robot rules on top of the core's feasibility and reach: a gait that lifts every leg of one
 side at once (the wave at duty factor 0.5) is refused (:func:`hexapod_gait.config.
-check_static_support`); ``transition_cycles`` is at least
+check_static_support`), and so is a change whose transition would lift a side on the way
+when no staged transition avoids it (:meth:`~hexapod_gait.scheduler.GaitScheduler.set_gait`);
+``transition_cycles`` is at least
 :data:`~hexapod_gait.scheduler.MIN_TRANSITION_CYCLES`; ``period`` cannot change while
 ``speed > 0`` (the speed chooses it). A multi-parameter change is checked as one set when sent
 in one ``set_parameters_atomically`` call (``ros2 param set`` sends one parameter at a time).
@@ -18,10 +20,11 @@ Stand / stop: ``ros2 param set /gait_scheduler stand true`` (or ``step_length`` 
 ``gait/phase`` then shows every leg in stance. ``stand false`` walks again.
 
 Ctrl-C / SIGTERM (console script): the legs are stood first (``stand``, one transition), and
-the node exits once ``gait/phase`` shows the stand settled, or after ``stop_timeout_s``; a
-second signal exits at once. (Before, the commands stopped wherever the legs were: a bench leg
-froze 35 mm above the ground, and the sequencer later cut its torque there.) A Buehler clock
-has no stand: its node exits at once.
+the node exits (code 0) once ``gait/phase`` shows the stand settled; if the stand is refused or
+has not settled after ``stop_timeout_s``, it exits with :data:`EXIT_NOT_STOOD` (1), the legs
+where they are; a second signal exits at once (code 0). (Before, the commands stopped wherever
+the legs were: a bench leg froze 35 mm above the ground, and the sequencer later cut its torque
+there.) A Buehler clock has no stand: its node exits at once.
 """
 
 from __future__ import annotations
@@ -50,12 +53,16 @@ from hexapod_common.node_utils import (
 from hexapod_gait.buehler import BUEHLER_PRESETS, BuehlerClock
 from hexapod_gait.config import build_gait, check_static_support
 from hexapod_gait.errors import HexapodGaitError
-from hexapod_gait.feasibility import ActuatorLimits
+from hexapod_gait.feasibility import ActuatorLimits, period_for_speed
 from hexapod_gait.gait import GAIT_NAMES, GaitPattern
 from hexapod_gait.scheduler import MIN_TRANSITION_CYCLES, GaitScheduler, GaitState
 
-__all__ = ['GaitParams', 'GaitSchedulerNode', 'gait_state_to_msg', 'joint_command_msg', 'main',
-           'stand_on_signals']
+__all__ = ['EXIT_NOT_STOOD', 'GaitParams', 'GaitSchedulerNode', 'gait_state_to_msg',
+           'joint_command_msg', 'main', 'stand_on_signals']
+
+#: Exit code of a stop (Ctrl-C / SIGTERM) that could not stand the legs (the stand was refused,
+#: or did not settle within ``stop_timeout_s``): the legs are left where they are.
+EXIT_NOT_STOOD = 1
 
 
 def _positive(v: float) -> str | None:
@@ -68,8 +75,9 @@ class GaitParams:
         'tripod', 'tripod, alternating, wave, ripple, tetrapod or buehler (1 hip per leg)',
         validate=lambda v: None if v in GAIT_NAMES and v != 'custom'
         else f'expected one of {[g for g in GAIT_NAMES if g != "custom"]}')
-    leg_count: int = param(6, 'number of legs (even); cannot change while walking',
-                           validate=lambda v: None if v >= 2 and v % 2 == 0 else 'must be even')
+    leg_count: int = param(6, 'number of legs (even, >= 2); cannot change while walking',
+                           validate=lambda v: None if v >= 2 and v % 2 == 0
+                           else 'must be even and >= 2')
     duty_factor: float = param(0.5, 'beta = T_stance / T (Buehler: duty cycle dc)',
                                validate=lambda v: None if 0 < v < 1 else 'must be in (0, 1)')
     period: float = param(1.0, 'cycle period T [s] (ignored when speed > 0)', validate=_positive)
@@ -94,7 +102,8 @@ class GaitParams:
     stand: bool = param(False, 'true: stand (every tip at its neutral stance, step 0) and hold; '
                         'false: walk the gait parameters')
     stop_timeout_s: float = param(5.0, 'Ctrl-C / SIGTERM: longest wait for the stand before '
-                                  'the node exits [s]', validate=_positive)
+                                  'the node exits [s] (exit code 1 if the legs did not stand)',
+                                  validate=_positive)
     min_swing: float = param(0.16, 'actuator limit: shortest swing [s]', validate=_positive,
                              read_only=True)
     min_stance: float = param(0.15, 'actuator limit: shortest stance [s]', validate=_positive,
@@ -111,18 +120,27 @@ def _limits(p: GaitParams) -> ActuatorLimits:
 def gait_from_params(p: GaitParams) -> GaitPattern | BuehlerClock:
     """The gait the parameters describe (raises a :class:`HexapodGaitError` with the reason).
 
-    Standing (``stand``, or step length and height 0) keeps the cycle clock at ``period``
-    (``speed`` does not apply: a stand has no speed). A walking 3-DOF gait must keep a leg on
-    the ground on each side (:func:`check_static_support`).
+    Standing (``stand``, or step length and height 0) keeps the walking gait's cycle clock: the
+    period the speed chooses when ``speed > 0`` and the walking gait reaches it, else
+    ``period``; so standing changes only the step, not the timing. A stand does not move, so
+    it is not checked against the actuator timing limits (the walking 8-leg wave at beta 0.875
+    could not stand: its stand was checked at ``period`` 1 s, a 0.125 s swing). A walking
+    3-DOF gait must keep a leg on the ground on each side (:func:`check_static_support`).
     """
     standing = p.gait != 'buehler' and (p.stand or (p.step_length == 0.0
                                                      and p.step_height == 0.0))
+    period = p.period
+    if standing and p.speed > 0.0 and p.step_length > 0.0:
+        try:
+            period = period_for_speed(p.speed, p.duty_factor, p.step_length, _limits(p))
+        except HexapodGaitError:
+            pass    # the walking gait is not reachable: the stand keeps ``period``
     gait = build_gait(p.gait, leg_count=p.leg_count, duty_factor=p.duty_factor,
-                      period_s=p.period, step_length_m=0.0 if standing else p.step_length,
+                      period_s=period, step_length_m=0.0 if standing else p.step_length,
                       step_height_m=0.0 if standing else p.step_height,
                       speed_mps=0.0 if standing else p.speed,
                       sweep_angle_rad=p.sweep_angle, leg_offset_rad=p.leg_offset,
-                      preset=p.preset, limits=_limits(p))
+                      preset=p.preset, limits=None if standing else _limits(p))
     if isinstance(gait, GaitPattern):
         check_static_support(gait)
     return gait
@@ -193,7 +211,8 @@ class GaitSchedulerNode(Node):
         self.phase_pub = self.create_publisher(GaitPhase, 'gait/phase', RELIABLE_QOS)
         self.cmd_pub = self.create_publisher(JointState, 'joint_commands', RELIABLE_QOS)
         self.ticks = 0
-        #: resolved (exit code 0) once a requested stop has stood the legs (request_stop)
+        #: resolved once a requested stop has stood the legs (request_stop): exit code 0;
+        #: EXIT_NOT_STOOD if the stand was refused or did not settle within stop_timeout_s
         self.finished = Future()
         self._stop_reason: str | None = None   # a stop requested (signal), not yet begun
         self._stop_began_s: float | None = None
@@ -231,8 +250,14 @@ class GaitSchedulerNode(Node):
         try:
             gait = gait_from_params(new)
             if self.scheduler is not None:
+                cycles = self.scheduler.transition_cycles
                 self.scheduler.transition_cycles = new.transition_cycles
-                self.scheduler.set_gait(gait, max(self._now_s(), self.scheduler.last_change_s))
+                try:
+                    self.scheduler.set_gait(gait, max(self._now_s(),
+                                                      self.scheduler.last_change_s))
+                except HexapodGaitError:
+                    self.scheduler.transition_cycles = cycles   # refused: nothing changes
+                    raise
         except HexapodGaitError as err:
             self.get_logger().warning(f'gait change refused: {err}')
             return str(err)
@@ -261,9 +286,10 @@ class GaitSchedulerNode(Node):
         if not self.params.stand:
             result = self.set_parameters([Parameter('stand', value=True)])[0]
             if not result.successful:
-                self.get_logger().error(f'{reason}: the stand was refused ({result.reason}): '
-                                        'exiting with the legs where they are')
-                self.finished.set_result(0)
+                self.get_logger().error(
+                    f'{reason}: the stand was refused ({result.reason}): exiting with the legs '
+                    f'where they are (exit code {EXIT_NOT_STOOD})')
+                self.finished.set_result(EXIT_NOT_STOOD)
                 return
         self.get_logger().warning(
             f'{reason}: standing the legs before exiting (at most {self.params.stop_timeout_s:g}'
@@ -280,8 +306,9 @@ class GaitSchedulerNode(Node):
         elif now_s - self._stop_began_s > self.params.stop_timeout_s:
             self.get_logger().error(
                 f'the legs did not stand within stop_timeout_s = '
-                f'{self.params.stop_timeout_s:g} s: exiting with them where they are')
-            self.finished.set_result(0)
+                f'{self.params.stop_timeout_s:g} s: exiting with them where they are '
+                f'(exit code {EXIT_NOT_STOOD})')
+            self.finished.set_result(EXIT_NOT_STOOD)
 
     def _on_timer(self) -> None:
         now_ns = self.get_clock().now().nanoseconds

@@ -11,6 +11,21 @@ commanded joints never jump: this is the paper's continuous duty-factor adjustme
 switching. The frequency ramp has the closed-form integral
 ``int_0^s w = 5/2 s^4 - 3 s^5 + s^6``.
 
+Static support during a transition. When both end points keep a leg on the ground on each side
+(the rule of :func:`hexapod_gait.config.check_static_support`), every schedule in between must
+too: ramping the phase offsets and the duty factor together can lift a whole side (4 legs,
+alternating 0.5 to wave 0.75: a side in the air 0.44 s at ``transition_cycles`` 1, 1.7 s at 4).
+:meth:`GaitScheduler.set_gait` checks the schedule of the whole ramp (:func:`side_support_ok`,
+exact per side, densely sampled); if it loses a side, the transition is staged: the duty
+factor rises first with the old offsets (more stance never loses support), the offsets move at
+that duty factor (the smallest from ``max(beta_old, beta_new)`` up that keeps both sides
+supported, capped so that the swing is not shorter than ``limits.min_swing_s``), then the duty
+factor falls to the new value with the new offsets. Each stage lasts ``transition_cycles``
+periods of the slower gait; frequency, step length and step height ramp over the whole staged
+transition. If no staged path keeps both sides supported, the change is refused
+(:class:`~hexapod_gait.errors.InfeasibleGaitError`, nothing changes). A Buehler clock, or a
+change whose end points already lift a side, ramps as before.
+
 A change requested during a transition starts a new transition from the parameters of that
 instant. The leg count and the kind of legs (3-DOF pattern or Buehler clock) cannot change.
 ``transition_cycles`` is at least :data:`MIN_TRANSITION_CYCLES`, so that a change cannot jump
@@ -22,20 +37,22 @@ then has every leg in stance (``supporting_legs`` = every leg), whatever the cyc
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .buehler import BuehlerClock, buehler_angle
-from .errors import InvalidGaitError
+from .errors import InfeasibleGaitError, InvalidGaitError
 from .feasibility import ActuatorLimits, check_feasible
 from .gait import GaitPattern, _wrap01
 from .kinematics import Branch, LegKinematics
 from .legs import all_joint_names
 from .trajectory import ANTBOT_NEUTRAL_TIP_M, default_forward_axis, tip_path
 
-__all__ = ['MIN_TRANSITION_CYCLES', 'GaitState', 'GaitScheduler', 'smoothstep']
+__all__ = ['MIN_TRANSITION_CYCLES', 'GaitState', 'GaitScheduler', 'side_support_ok',
+           'smoothstep']
 
 _TWO_PI = 2.0 * np.pi
 # Time step of the central differences used for velocities during a transition [s].
@@ -43,12 +60,55 @@ _FD_STEP_S = 1e-5
 #: Shortest transition, in periods of the slower gait: below it a gait change (e.g. tripod to
 #: wave) commands joint steps faster than an AX-18A follows.
 MIN_TRANSITION_CYCLES = 0.5
+# Samples of a transition's schedule per stage when checking its static support.
+_SUPPORT_SAMPLES = 600
+# Steps of the duty factor at which a staged transition moves the offsets.
+_BETA_HI_STEP = 0.01
+# A touchdown closer than this (in cycle phase) after a lift-off counts as simultaneous: equal
+# on paper, they differ in the last bits (``theta + beta - 1`` against an offset like 1/6).
+_EDGE = 1e-9
 
 
 def smoothstep(s: ArrayLike) -> NDArray[np.float64]:
     """C2 ramp ``10 s^3 - 15 s^4 + 6 s^5`` of ``s`` clipped to [0, 1]."""
     x = np.clip(np.asarray(s, dtype=float), 0.0, 1.0)
     return x * x * x * (10.0 + x * (-15.0 + 6.0 * x))
+
+
+def _ramp01(s: NDArray[np.float64], a: float, b: float) -> NDArray[np.float64]:
+    """Smoothstep from 0 at ``s = a`` to 1 at ``s = b`` (a step at ``b`` if ``a == b``)."""
+    if b <= a:
+        return (s >= b).astype(float)
+    return smoothstep((s - a) / (b - a))
+
+
+def side_support_ok(theta: ArrayLike, beta: ArrayLike,
+                    sides: Sequence[str]) -> NDArray[np.bool_]:
+    """Whether each schedule keeps at least one leg in stance on each side over a whole cycle.
+
+    Parameters
+    ----------
+    theta : (S, legs) float
+        Phase offsets of S schedules (leg phase ``c - theta``, stance while it is < beta).
+    beta : (S,) float
+        Their duty factors.
+    sides : sequence of str, length legs
+        Side label of each leg (e.g. ``'L'``/``'R'``).
+
+    Exact up to :data:`_EDGE`: the number of legs in stance on a side only drops at a lift-off,
+    so its minimum over the cycle is found just after one of the lift-offs.
+    """
+    th = np.atleast_2d(np.asarray(theta, dtype=float))
+    b = np.broadcast_to(np.asarray(beta, dtype=float), th.shape[:1])
+    x = np.mod(th + b[:, None], 1.0) + _EDGE                      # just after each lift-off
+    ph = np.mod(x[:, :, None] - th[:, None, :], 1.0)             # (S, lift-offs, legs)
+    stance = ph < b[:, None, None]
+    ok = np.ones(th.shape[0], dtype=bool)
+    labels = np.asarray(list(sides))
+    for side in sorted(set(labels.tolist())):
+        idx = np.flatnonzero(labels == side)
+        ok &= stance[:, :, idx].sum(axis=-1).min(axis=-1) >= 1
+    return ok
 
 
 def _smoothstep_integral(s: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -101,6 +161,23 @@ class _Params:
     theta: NDArray[np.float64]
     sweep_rad: float
     offset_rad: float
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """How the duty factor and the offsets move over a transition's progress ``s`` in [0, 1].
+
+    Not staged: both with the smoothstep of ``s``. Staged: the duty factor rises to ``beta_hi``
+    over ``[0, s1]``, the offsets move over ``[s1, s2]``, the duty factor falls over ``[s2, 1]``.
+    ``half_up``: an offset half a cycle from its target moves up (+0.5), not down (-0.5).
+    """
+
+    staged: bool = False
+    s1: float = 0.0
+    s2: float = 1.0
+    beta_hi: float = 0.0
+    stages: int = 1
+    half_up: bool = False
 
 
 class GaitScheduler:
@@ -159,6 +236,7 @@ class GaitScheduler:
         self._t_switch = float(t0_s)
         self._c_switch = 0.0
         self._duration_s = self.transition_cycles / params.freq_hz
+        self._plan = _Plan()
         self._changed = False  # no transition yet: settled at every time
 
     @property
@@ -211,16 +289,78 @@ class GaitScheduler:
 
     def _ramp(self, t: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
         """Parameters at times ``t`` (n,): scalars as (n,), ``theta`` as (n, legs)."""
-        w = smoothstep(self._progress(t))
-        p0, p1 = self._p0, self._p1
+        return self._ramp_at(self._progress(t), self._p0, self._p1, self._plan)
+
+    @staticmethod
+    def _ramp_at(s: NDArray[np.float64], p0: _Params, p1: _Params,
+                 plan: _Plan) -> dict[str, NDArray[np.float64]]:
+        """Parameters at transition progress ``s`` (n,) from ``p0`` to ``p1`` along ``plan``."""
+        w = smoothstep(s)
         out = {
             name: getattr(p0, name) + (getattr(p1, name) - getattr(p0, name)) * w
             for name in ('freq_hz', 'beta', 'step_length_m', 'step_height_m', 'sweep_rad',
                          'offset_rad')
         }
-        d = np.mod(p1.theta - p0.theta + 0.5, 1.0) - 0.5
-        out['theta'] = p0.theta[None, :] + d[None, :] * w[:, None]
+        d = np.mod(p1.theta - p0.theta + 0.5, 1.0) - 0.5     # the shorter way round
+        if plan.half_up:
+            d = np.where(np.abs(d + 0.5) < _EDGE, d + 1.0, d)
+        w_theta = w
+        if plan.staged:
+            w_theta = _ramp01(s, plan.s1, plan.s2)
+            up = p0.beta + (plan.beta_hi - p0.beta) * _ramp01(s, 0.0, plan.s1)
+            down = plan.beta_hi + (p1.beta - plan.beta_hi) * _ramp01(s, plan.s2, 1.0)
+            out['beta'] = np.where(s < plan.s1, up, np.where(s < plan.s2, plan.beta_hi, down))
+        out['theta'] = p0.theta[None, :] + d[None, :] * w_theta[:, None]
         return out
+
+    # ----------------------------------------------------------------- static support
+    def _supported(self, p: _Params) -> bool:
+        """End point rule: standing, or a leg in stance on each side all cycle."""
+        if p.step_length_m == 0.0 and p.step_height_m == 0.0:
+            return True
+        sides = [name[0] for name in self.leg_names]
+        return bool(side_support_ok(p.theta[None, :], np.array([p.beta]), sides)[0])
+
+    def _path_supported(self, p0: _Params, p1: _Params, plan: _Plan) -> bool:
+        """Every schedule of the transition (sampled densely, exact per side) keeps a leg in
+        stance on each side, or stands (step length and height 0)."""
+        n = _SUPPORT_SAMPLES * plan.stages
+        s = np.unique(np.concatenate([np.linspace(0.0, 1.0, n + 1), [plan.s1, plan.s2]]))
+        r = self._ramp_at(s, p0, p1, plan)
+        standing = (r['step_length_m'] == 0.0) & (r['step_height_m'] == 0.0)
+        sides = [name[0] for name in self.leg_names]
+        return bool(np.all(standing | side_support_ok(r['theta'], r['beta'], sides)))
+
+    def _plan_transition(self, p0: _Params, p1: _Params, target: GaitPattern) -> _Plan:
+        """The plain ramp if it keeps both sides supported (or the rule does not apply), else
+        the first staged plan that does; raises InfeasibleGaitError if none does."""
+        if self.is_buehler or not (self._supported(p0) and self._supported(p1)):
+            return _Plan()
+        for half_up in (False, True):
+            if self._path_supported(p0, p1, _Plan(half_up=half_up)):
+                return _Plan(half_up=half_up)
+        limits = self.limits if self.limits is not None else ActuatorLimits()
+        t_min = 1.0 / max(p0.freq_hz, p1.freq_hz)
+        lo = max(p0.beta, p1.beta)
+        cap = max(lo, 1.0 - limits.min_swing_s / t_min)
+        for beta_hi in np.append(np.arange(lo, cap, _BETA_HI_STEP), cap):
+            beta_hi = float(beta_hi)
+            rise, fall = beta_hi > p0.beta, beta_hi > p1.beta
+            stages = 1 + int(rise) + int(fall)
+            s1 = 1.0 / stages if rise else 0.0
+            s2 = 1.0 - (1.0 / stages if fall else 0.0)
+            for half_up in (False, True):
+                plan = _Plan(staged=True, s1=s1, s2=s2, beta_hi=beta_hi, stages=stages,
+                             half_up=half_up)
+                if self._path_supported(p0, p1, plan):
+                    return plan
+        raise InfeasibleGaitError(
+            f'the transition to {target.name!r} at duty factor {p1.beta:.4g} would lift every '
+            'leg of one side at once on the way (phase offsets and duty factor ramped '
+            f'together), and no staged transition (duty factor raised to at most {cap:.3g} '
+            f'while the offsets move, swing >= {limits.min_swing_s:g} s) keeps a leg on the '
+            'ground on each side: the robot would fall over; change through an intermediate '
+            'gait')
 
     def _cycles(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
         """Unwrapped cycle count ``c(t)``, shape (n,)."""
@@ -263,7 +403,9 @@ class GaitScheduler:
         InvalidGaitError
             If the legs or the kind of gait differ, or ``t_s`` is before the last change.
         InfeasibleGaitError
-            If ``limits`` were given and the new pattern violates them (nothing changes).
+            If ``limits`` were given and the new pattern violates them, or both end points keep
+            a leg on the ground on each side but no transition between them does (see the
+            module docstring); nothing changes.
         """
         t_s = float(t_s)
         if t_s < self._t_switch:
@@ -289,7 +431,7 @@ class GaitScheduler:
         t = np.array([t_s])
         r = {k: v[0] for k, v in self._ramp(t).items()}
         c_now = float(self._cycles(t)[0])
-        self._p0 = _Params(
+        p0 = _Params(
             freq_hz=float(r['freq_hz']),
             beta=float(r['beta']),
             step_length_m=float(r['step_length_m']),
@@ -298,10 +440,12 @@ class GaitScheduler:
             sweep_rad=float(r['sweep_rad']),
             offset_rad=float(r['offset_rad']),
         )
-        self._p1 = self._params_of(new_gait, pattern)
+        p1 = self._params_of(new_gait, pattern)
+        plan = self._plan_transition(p0, p1, pattern)   # raises before anything changes
+        self._p0, self._p1, self._plan = p0, p1, plan
         self._c_switch = c_now
         self._t_switch = t_s
-        self._duration_s = self.transition_cycles / min(self._p0.freq_hz, self._p1.freq_hz)
+        self._duration_s = plan.stages * self.transition_cycles / min(p0.freq_hz, p1.freq_hz)
         self._target = new_gait
         self._target_pattern = pattern
         self._changed = True
