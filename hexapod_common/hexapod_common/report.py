@@ -562,6 +562,20 @@ def _bench_fit(bench: Any) -> list[str]:
     if isinstance(sessions, list):
         parts.append(f'<p>{len(sessions)} bench sessions from '
                      f'{len(bench.get("bags") or [])} bag(s) (listed in the full JSON).</p>')
+    # how each bench bag was read, with its notes and warnings (a review: they were only in
+    # the folded raw JSON, where a phase-label gap's note went unseen)
+    rows = []
+    for d in bench.get('diagnostics') or []:
+        if not isinstance(d, dict):
+            continue
+        said = [*(f'warning: {w}' for w in d.get('warnings') or []), *(d.get('notes') or [])]
+        rows.append([_esc(d.get('bag', '-')), _esc(d.get('sessions', '-')),
+                     _esc(d.get('phase_split', '-')),
+                     _num(d.get('force_offset_s'), digits=3),
+                     '<br>'.join(_esc(x) for x in said) or '-'])
+    if rows:
+        parts.append(_table(['bench bag', 'sessions', 'phase split', 'force offset [s]',
+                             'warnings and notes'], rows))
     return parts
 
 

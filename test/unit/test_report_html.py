@@ -154,3 +154,23 @@ def test_demo_json_shows_its_slip_table(tmp_path: Path) -> None:
     head = _headline(_page(tmp_path))
     assert 'Table 3' in head and '0.04266 \u00b1 0.017' in head
     assert '<th>hidden offset [ms]</th>' in head and '<td>25.6</td><td>25</td>' in head
+
+
+def test_the_bench_diagnostics_and_their_warnings_are_in_the_report(tmp_path):
+    """How each bench bag was read (phase split, force offset) and its notes and warnings
+    were only in the folded raw JSON (an outside review: a phase-label gap's note went
+    unseen)."""
+    import json
+
+    from hexapod_common.report import write_report
+
+    doc = {'schema': 'hexapod_energy.energy/1', 'plots': [],
+           'bench': {'bags': ['b1'], 'fit': {'chosen': {'stance': 'poly'}, 'sessions': []},
+                     'diagnostics': [{'bag': 'b1', 'sessions': 25, 'phase_split': 'contact',
+                                      'force_offset_s': 0.0123, 'warnings': ['W<1>'],
+                                      'notes': ['a gap note']}]}}
+    (tmp_path / 'energy.json').write_text(json.dumps(doc))
+    html = write_report(tmp_path).read_text()
+    row = html[html.index('bench bag'):]
+    assert 'contact' in row and '0.0123' in row and 'a gap note' in row
+    assert 'warning: W&lt;1&gt;' in row
