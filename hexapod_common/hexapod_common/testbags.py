@@ -17,7 +17,8 @@ from ruamel.yaml import YAML
 from hexapod_common.bags import BagWriter, find_msg_dir, new_msg, stamp
 
 __all__ = ['MIXED_TYPES', 'P0_W', 'PERIOD_S', 'RAW_COUNT_RECEIVER', 'downgrade_sqlite_bag',
-           'foreign_typestore', 'write_foreign_robot_bag', 'write_mixed_bag',
+           'foreign_typestore', 'lab_bench_truth', 'write_foreign_robot_bag',
+           'write_lab_bench_bag', 'write_mixed_bag',
            'restamp_topic', 'rewrite_bag', 'write_two_battery_robot_bag']
 
 LEGS = ('L1', 'L2', 'L3', 'R1', 'R2', 'R3')
@@ -387,3 +388,85 @@ def restamp_topic(src: str | Path, dst: str | Path, topic: str, dt_s: float) -> 
             msg.header.stamp.sec, msg.header.stamp.nanosec = ns // 10**9, ns % 10**9
 
     return rewrite_bag(src, dst, edit)
+
+
+def lab_bench_truth(load_kg: float, freq_hz: float) -> dict[str, float]:
+    """The exact phase powers [W] of :func:`write_lab_bench_bag` (after an outside review's
+    generator): basal ``2 + L``, stance ``2 + L + 1.5 f + 3 L f``, swing
+    ``2 + 0.2 L + 3 f + f^2``."""
+    big_l, f = load_kg, freq_hz
+    return {'basal': 2.0 + big_l, 'stance': 2.0 + big_l + 1.5 * f + 3.0 * big_l * f,
+            'swing': 2.0 + 0.2 * big_l + 3.0 * f + f * f}
+
+
+def write_lab_bench_bag(path: str | Path, sessions: list[tuple[float, float]], *,
+                        heat_s: float = 1.0, walk_s: float = 4.0, cool_s: float = 1.5,
+                        rate_hz: float = 100.0, t0_s: float = 1_700_000_000.0,
+                        with_session_topic: bool = True, drop_msgs: tuple[int, ...] = (),
+                        load_scale: float = 1.0, pause: tuple[float, float] | None = None
+                        ) -> list[dict[str, Any]]:
+    """A single-leg bench bag as a lab without this project's gait node records it:
+    ``/battery_state`` (12 V, discharge negative), ``/bench/ground_force`` and
+    ``/bench/leg_tip`` at ``rate_hz``, and ``/bench/session`` ('heating', 'walking',
+    'cooling' per session; the indices in ``drop_msgs`` are not written, as lost messages);
+    no ``/gait/phase``. ``sessions``: (load kg, step frequency Hz), each standing
+    ``heat_s``, walking ``walk_s`` (stance first, duty factor 0.5) and standing ``cool_s``;
+    the power is constant within each phase (:func:`lab_bench_truth`), the tip rises
+    0.04 sin in swing, the force is the load's weight in stance. ``load_scale`` multiplies
+    the written loads (1000: grams). ``pause`` (start, length) [s from the walk's start]:
+    the leg stands that long inside every walk. Returns the sessions (id, load, frequency,
+    walk start and end stamps [s])."""
+    plan: list[dict[str, Any]] = []
+    t = t0_s
+    for k, (load, freq) in enumerate(sessions):
+        w0 = t + heat_s
+        plan.append({'id': f's{k:03d}_L{load:g}_f{freq:g}', 'load': load, 'freq': freq,
+                     'h0': t, 'w0': w0, 'w1': w0 + walk_s, 'c1': w0 + walk_s + cool_s})
+        t = plan[-1]['c1']
+
+    def state(tt: float, s: dict[str, Any]) -> tuple[float, float, float]:
+        load, f = s['load'], s['freq']
+        truth = lab_bench_truth(load, f)
+        dt = tt - s['w0']
+        paused = pause is not None and pause[0] <= dt < pause[0] + pause[1]
+        if f <= 0 or not (s['w0'] <= tt < s['w1']) or paused:
+            return truth['basal'], 9.81 * (load + 0.2), 0.0
+        if pause is not None and dt >= pause[0] + pause[1]:
+            dt -= pause[1]
+        ph = (dt * f) % 1.0
+        if ph < 0.5:
+            return truth['stance'], 9.81 * (load + 0.2), 0.0
+        return truth['swing'], 0.0, 0.04 * math.sin(math.pi * (ph - 0.5) / 0.5)
+
+    msgs = [(s[key], s, st) for s in plan
+            for key, st in (('h0', 'heating'), ('w0', 'walking'), ('w1', 'cooling'))]
+    msgs = [m for i, m in enumerate(msgs) if i not in drop_msgs] if with_session_topic else []
+    times = np.arange(plan[0]['h0'], plan[-1]['c1'] - 1e-9, 1.0 / rate_hz)
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    with BagWriter(path) as w:
+        k = 0
+        for tt in times:
+            while k < len(msgs) and msgs[k][0] <= tt:
+                ts, s, st = msgs[k]
+                ns = int(round(ts * 1e9))
+                w.write('/bench/session', 'hexapod_interfaces/msg/BenchSession',
+                        new_msg('hexapod_interfaces/msg/BenchSession', header=stamp(ns),
+                                session_id=s['id'], state=st, load_mass=s['load'] * load_scale,
+                                frequency=s['freq'], duty_factor=0.5, step_length=0.1,
+                                step_height=0.04), ns)
+                k += 1
+            s = next(x for x in plan if x['h0'] <= tt < x['c1'] + 1e-9)
+            p, fz, z = state(float(tt), s)
+            ns = int(round(tt * 1e9))
+            w.write('/battery_state', 'sensor_msgs/msg/BatteryState',
+                    new_msg('sensor_msgs/msg/BatteryState', header=stamp(ns, 'supply'),
+                            voltage=12.0, current=-p / 12.0, power_supply_status=2,
+                            present=True), ns)
+            wrench = new_msg('geometry_msgs/msg/WrenchStamped', header=stamp(ns, 'cell'))
+            wrench.wrench.force.z = fz
+            w.write('/bench/ground_force', 'geometry_msgs/msg/WrenchStamped', wrench, ns)
+            point = new_msg('geometry_msgs/msg/PointStamped', header=stamp(ns, 'mocap'))
+            point.point.z = z
+            w.write('/bench/leg_tip', 'geometry_msgs/msg/PointStamped', point, ns)
+    return [{'session_id': s['id'], 'load_kg': s['load'], 'frequency_hz': s['freq'],
+             'walk_start_s': s['w0'], 'walk_end_s': s['w1']} for s in plan]

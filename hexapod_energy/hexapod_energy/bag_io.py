@@ -51,12 +51,14 @@ if TYPE_CHECKING:   # the bag reader (rosbags) is imported where a bag is read
     from hexapod_common.bags import SampleColumns
 
 __all__ = [
+    'BENCH_LOAD_MAX_KG',
     'BENCH_TOPICS',
     'PHASE_SPLITS',
     'ROBOT_TOPICS',
     'BenchData',
     'BenchSessionSpec',
     'RobotRun',
+    'bench_load_problem',
     'bench_phase_samples',
     'force_sign_factor',
     'merge_bench_data',
@@ -189,6 +191,31 @@ class BenchSessionSpec:
     step_height_m: float | None = None
 
 
+#: a single-leg bench load above this [kg] is refused as not kilograms: no leg bench carries
+#: it (``hexapod-sim bench`` takes up to 5 kg; the paper's stage up to 0.515 kg), while loads
+#: written in grams (100 to 500 "kg" for a 2.2 kg robot) passed every check and predicted
+#: 39.0 W for 48.3 W
+BENCH_LOAD_MAX_KG = 50.0
+
+
+def bench_load_problem(loads: Sequence[tuple[str, float]], *,
+                       robot_mass_kg: float | None = None, robot_what: str = '') -> str:
+    """Why the bench loads ``(where, kg)`` cannot be kilograms ('' when they can): one above
+    :data:`BENCH_LOAD_MAX_KG`, or above ``robot_mass_kg`` (the robot's mass with its payload
+    when given: a leg carries a share of it; ``robot_what`` names the mass)."""
+    if not loads:
+        return ''
+    where, top = max(loads, key=lambda x: x[1])
+    limit, what = BENCH_LOAD_MAX_KG, f'{BENCH_LOAD_MAX_KG:g} kg, more than any leg bench carries'
+    if robot_mass_kg is not None and robot_mass_kg < limit:
+        limit, what = robot_mass_kg, f'the {robot_what or "robot"}\'s {robot_mass_kg:g} kg'
+    if not top > limit:
+        return ''
+    return (f'bench load {top:g} kg ({where}) is above {what}: the loads look like grams. '
+            'BenchSession load_mass and the sessions file\'s load_kg are kilograms '
+            f'({top:g} g is {top / 1000:g} kg)')
+
+
 def read_bench_sessions_file(path: str | Path) -> dict[str, BenchSessionSpec]:
     """Bench bags and their sessions from a CSV file: a header with ``bag`` and ``load_kg``
     and optionally ``frequency_hz``, ``duty_factor``, ``step_length_m``, ``step_height_m``
@@ -246,6 +273,9 @@ def read_bench_sessions_file(path: str | Path) -> dict[str, BenchSessionSpec]:
                                   f'{beta}: expected 0 < beta < 1')
         out[bag_path] = BenchSessionSpec(load, num('frequency_hz'), beta, num('step_length_m'),
                                          num('step_height_m'))
+    why = bench_load_problem([(f'bag {Path(b).name}', s.load_kg) for b, s in out.items()])
+    if why:
+        raise BagContentError(f'bench sessions file {path}: {why}')
     return out
 
 
@@ -290,7 +320,11 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
     matter), noted.
 
     ``session``: the bag has no ``/bench/session`` (:class:`BenchSessionSpec`, from
-    ``energy --bench-sessions``); the whole bag is one walking session (noted). A bag that
+    ``energy --bench-sessions``); the bag is one session, walking where its leg tip steps
+    (standing before and after cut off, noted: :func:`_session_from_spec`). With
+    ``/bench/session``, its messages are checked against the tip's steps (lost messages:
+    :func:`_repair_sessions`, warned). Loads that look like grams are refused
+    (:func:`bench_load_problem`). A bag that
     records ``/bench/session`` and is given a ``session`` too is refused (which one holds?).
 
     A bad message (NaN voltage or current, a NaN force or tip height) is dropped and counted
@@ -466,7 +500,18 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
     bat = [(b.t_s, b.voltage_v, b.current_a) for _, _, _, b in combined]
     if session is not None:
         ses = _session_from_spec(path, session, bat, frc, tip, periods, notes_out,
-                                 duties=duties, steps=steps)
+                                 duties=duties, steps=steps, warnings=warnings)
+    elif ses and bat and frc and tip:
+        why = bench_load_problem([(f'/bench/session {s["session_id"]}', s['load_kg'])
+                                  for s in ses if math.isfinite(s['load_kg'])])
+        if why:
+            raise BagContentError(f'bag {path}: {why}')
+        ses.sort(key=lambda s: s['t_s'])
+        ses = _repair_sessions(
+            ses, tip, min(min(b[0] for b in bat), min(f[0] for f in frc),
+                          min(p[0] for p in tip)),
+            max(max(b[0] for b in bat), max(f[0] for f in frc), max(p[0] for p in tip)),
+            notes_out, warnings)
     for name, rows in (('/battery_state', bat), ('/bench/ground_force', frc),
                        (tip_topic, tip), ('/bench/session', ses)):
         if not rows:
@@ -617,13 +662,18 @@ def _session_from_spec(path: str | Path, spec: BenchSessionSpec,
                        bat: list[tuple[float, float, float]], frc: list[tuple[float, float]],
                        tip: list[tuple[float, float]], periods: list[float],
                        notes: list[str], *, duties: Sequence[float] = (),
-                       steps: Sequence[tuple[float, float]] = ()
-                       ) -> list[dict[str, Any]]:
+                       steps: Sequence[tuple[float, float]] = (),
+                       warnings: list[str] | None = None) -> list[dict[str, Any]]:
     """The one walking session of a bag without ``/bench/session`` (see
     :class:`BenchSessionSpec`); its frequency's source goes into ``notes``. The duty factor:
     the spec's, else ``/gait/phase``'s (``duties``), else unknown (0: the phase split then
     takes the measured stance fraction). The step length and height: the spec's, else
-    ``/gait/phase``'s (``steps``), else unknown (0: other step geometries are not mapped)."""
+    ``/gait/phase``'s (``steps``), else unknown (0: other step geometries are not mapped).
+
+    A walking session is the part of the bag where the leg tip steps (:func:`stepping_span`):
+    standing before and after the walk (a recorder started and stopped by hand) is cut off and
+    noted (analysed as walking it read P_swing -29 % on the outside review's bench of 2 s +
+    10 s + 3 s); pauses without steps inside it are a warning (``warnings``)."""
     if not (bat and frc and tip):
         return []   # the caller names the empty topic
     if spec.frequency_hz is not None:
@@ -644,8 +694,25 @@ def _session_from_spec(path: str | Path, spec: BenchSessionSpec,
     t_bat = np.sort(np.array([b[0] for b in bat]))
     step = float(np.median(np.diff(t_bat))) if t_bat.size > 1 else 0.0
     t_end = max(float(t_bat[-1]), max(f[0] for f in frc), max(p[0] for p in tip)) + step
-    notes.append(f'no /bench/session: the whole bag is one session, load {spec.load_kg:g} kg '
+    span = None
+    if freq > 0:
+        t_tip = np.array(sorted(tip))
+        span = stepping_span(t_tip[:, 0], t_tip[:, 1], t0, t_end)
+    whole = f'{t_end - t0:.1f} s'
+    if span is not None and (span.standing_before_s > 0 or span.standing_after_s > 0):
+        t0, t_end = span.start_s, span.end_s
+        part = (f'its walking part ({t_end - t0:.1f} s of {whole}, where the leg tip steps: '
+                f'{span.standing_before_s:.1f} s before and {span.standing_after_s:.1f} s '
+                'after left out as standing) is one session')
+    else:
+        part = f'the whole bag ({whole}) is one session'
+    notes.append(f'no /bench/session: {part}, load {spec.load_kg:g} kg '
                  f'(sessions file), {freq:.4g} Hz (from {source})')
+    if span is not None and span.pauses and warnings is not None:
+        warnings.append(f'session {Path(path).name} walks at {freq:.4g} Hz but its leg tip '
+                        f'makes no step for {span.paused_s:.1f} s in {span.pauses} '
+                        'stretch(es): the standing there is analysed as walking (cut the bag '
+                        'at the pause)')
     return [{'t_s': t0, 'session_id': Path(path).name, 'state': 'walking',
              'load_kg': spec.load_kg, 'frequency_hz': freq,
              'duty_factor': spec.duty_factor or (float(np.median(duties)) if duties else 0.0),
@@ -656,28 +723,258 @@ def _session_from_spec(path: str | Path, spec: BenchSessionSpec,
             {'t_s': t_end, 'session_id': Path(path).name, 'state': 'end'}]
 
 
-def merge_bench_data(datas: Sequence[BenchData]) -> BenchData | None:
+#: a leg tip above this fraction of its height span (5th to 99th percentile) is lifted, in
+#: a step's swing (:func:`_tip_steps`); a span under STEP_SPAN_M is no step at all
+LIFT_FRACTION = 0.5
+STEP_SPAN_M = 0.003
+#: ground time before the first (after the last) step beyond this many typical ground times
+#: between steps, plus STANDING_SLACK_S, is standing, not the stance of a step
+STANDING_GROUND = 1.25
+STANDING_SLACK_S = 0.1
+#: a pause between two steps inside a walk longer than this many typical ground times (plus
+#: STANDING_SLACK_S) is a stretch without steps (warned)
+PAUSE_GROUND = 2.5
+
+
+def _tip_steps(t_s: np.ndarray, z_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Lift-off and touchdown stamps [s] of the leg tip's steps (the tip above
+    :data:`LIFT_FRACTION` of its height span), paired: one touchdown after each lift-off.
+    Empty when the span is under :data:`STEP_SPAN_M` (a standing leg)."""
+    empty = np.zeros(0)
+    if z_m.size < 10:
+        return empty, empty
+    lo, hi = np.percentile(z_m, [5, 99])
+    if hi - lo < STEP_SPAN_M:
+        return empty, empty
+    up = (z_m > lo + LIFT_FRACTION * (hi - lo)).astype(np.int8)
+    d = np.diff(up)
+    # the last low sample before a lift-off, the first low one after a touchdown: a span cut
+    # from one to the other holds the step whole
+    rises, falls = t_s[:-1][d == 1], t_s[1:][d == -1]
+    if up[0]:
+        falls = falls[1:]       # lifted at the start: that step's lift-off is not in the data
+    if up[-1]:
+        rises = rises[:-1]      # lifted at the end: its touchdown is not in the data
+    n = min(rises.size, falls.size)
+    return rises[:n], falls[:n]
+
+
+@dataclass(frozen=True)
+class SteppingSpan:
+    """Where the leg tip steps in a session's time span (:func:`stepping_span`)."""
+
+    start_s: float       # the walk's start: the session's, or before the first step
+    end_s: float         # the walk's end: the session's, or the last touchdown
+    steps: int
+    standing_before_s: float   # trimmed from the start (0: kept)
+    standing_after_s: float    # trimmed from the end (0: kept)
+    pauses: int                # stretches without steps inside the walk
+    paused_s: float
+
+
+def stepping_span(t_s: np.ndarray, z_m: np.ndarray, t0: float, t1: float
+                  ) -> SteppingSpan | None:
+    """The walking part of the span ``[t0, t1)`` from the leg tip's steps (:func:`_tip_steps`):
+    ground time before the first step (after the last) longer than :data:`STANDING_GROUND`
+    typical ground times between steps (+ :data:`STANDING_SLACK_S`) is standing, cut off:
+    the walk then starts at the first lift-off and ends at the last touchdown (the phase
+    split takes whole cycles inside: at most a cycle is lost). Pauses
+    between steps longer than :data:`PAUSE_GROUND` ground times are counted. None with fewer
+    than 3 steps (nothing to compare)."""
+    m = (t_s >= t0) & (t_s < t1)
+    rises, falls = _tip_steps(t_s[m], z_m[m])
+    if rises.size < 3:
+        return None
+    ground = rises[1:] - falls[:-1]
+    typical = float(np.median(ground))
+    limit = STANDING_GROUND * typical + STANDING_SLACK_S
+    lead, trail = float(rises[0] - t0), float(t1 - falls[-1])
+    start = float(rises[0]) if lead > limit else t0
+    # just after the last touchdown's sample (spans are [start, end))
+    dt = float(np.median(np.diff(t_s[m])))
+    end = min(t1, float(falls[-1]) + 0.5 * dt) if trail > limit else t1
+    long = ground > PAUSE_GROUND * typical + STANDING_SLACK_S
+    return SteppingSpan(start, end, int(rises.size), start - t0, t1 - end, int(long.sum()),
+                        float(np.sum(ground[long])))
+
+
+#: bench data longer than this before the first ``/bench/session`` message is warned about
+#: (it is in no session: a recorder that missed the sequencer's latched first messages)
+UNSESSIONED_LEAD_S = 2.0
+#: a walking session this much longer or shorter than the median walk is noted
+WALK_LENGTH_SPREAD = 0.25
+
+
+def _repair_sessions(ses: list[dict[str, Any]], tip: list[tuple[float, float]],
+                     t_first_s: float, t_end_s: float, notes: list[str],
+                     warnings: list[str]) -> list[dict[str, Any]]:
+    """``/bench/session`` messages checked against the leg tip's steps
+    (:func:`stepping_span`), for a lost message must not silently drop or corrupt a session
+    (outside review: a lost 'cooling' ran a 1 Hz walk into 3 s of standing, P_swing -25 %; a
+    lost 'walking' dropped a session with 10 s of data; a missed latched first message dropped
+    the 0 Hz session of the first load, all without a word).
+
+    * A walking session whose tip makes no step over its end (start) beyond the typical
+      ground time is ended (started) where stepping stops (starts): a 'cooling' ('walking')
+      message is put there; warned.
+    * A session that never reports 'walking' but whose tip steps at its frequency gets its
+      walk back from the steps; without steps (a 0 Hz session) it is left out; warned.
+    * Data before the first message (over :data:`UNSESSIONED_LEAD_S`) is in no session;
+      warned. Pauses without steps inside a walk are warned; walks whose length differs from
+      the median by over :data:`WALK_LENGTH_SPREAD` are noted.
+
+    ``ses`` is stamp-ordered; returns the (possibly) amended, stamp-ordered list."""
+    if not ses:
+        return ses
+    arr = np.array(sorted(tip), dtype=float).reshape(-1, 2)
+    t_tip, z_tip = arr[:, 0], arr[:, 1]
+    out = [dict(s) for s in ses]
+
+    def steps_in(t0: float, t1: float) -> int:
+        m = (t_tip >= t0) & (t_tip < t1)
+        return int(_tip_steps(t_tip[m], z_tip[m])[0].size)
+
+    lead = out[0]['t_s'] - t_first_s
+    if lead > UNSESSIONED_LEAD_S:
+        n = steps_in(t_first_s, out[0]['t_s'])
+        warnings.append(
+            f'{lead:.1f} s of bench data before the first /bench/session message (session '
+            f'{out[0]["session_id"]} {out[0]["state"]}) are in no session ({n} leg tip steps '
+            'there): left out. A recorder started after the sequencer misses its first, '
+            'latched messages (record /bench/session with transient-local durability, or '
+            'start the recorder first); a lost first session is missing from the results')
+    # sessions that never report 'walking': their walk back from the tip's steps
+    ids = list(dict.fromkeys(s['session_id'] for s in out))
+    walked = {s['session_id'] for s in out if s['state'] == 'walking'}
+    for sid in ids:
+        if sid in walked:
+            continue
+        k = [i for i, s in enumerate(out) if s['session_id'] == sid]
+        t0 = out[k[0]]['t_s']
+        t1 = next((s['t_s'] for s in out[k[-1] + 1:]), t_end_s)
+        freq = max(float(out[i].get('frequency_hz') or 0.0) for i in k)
+        states = ', '.join(dict.fromkeys(out[i]['state'] for i in k))
+        span = stepping_span(t_tip, z_tip, t0, t1) if freq > 0 else None
+        if span is None or span.steps < 3 or span.end_s - span.start_s < 2.0 / freq:
+            warnings.append(
+                f'session {sid} never reports state walking (only {states}; a lost '
+                f'/bench/session message?) and its leg tip ' +
+                ('does not step' if freq > 0 else 'cannot show a 0 Hz walk') +
+                f': its {t1 - t0:.1f} s of data are left out')
+            continue
+        base = max(k, key=lambda i: float(out[i].get('frequency_hz') or 0.0))
+        out.append(dict(out[base], t_s=span.start_s, state='walking'))
+        out.append(dict(out[base], t_s=span.end_s, state='cooling'))
+        warnings.append(
+            f'session {sid} never reports state walking (only {states}; a lost /bench/session '
+            f'message?): its walk taken where its leg tip steps at {freq:.4g} Hz '
+            f'({span.end_s - span.start_s:.1f} s, {span.steps} steps)')
+    out.sort(key=lambda s: s['t_s'])
+    # walks that run into standing (a lost 'cooling') or start before the steps
+    lengths: list[tuple[str, float]] = []
+    for s, t0, t1 in _walking_segments(out, t_end_s):
+        if not float(s.get('frequency_hz') or 0.0) > 0:
+            continue
+        span = stepping_span(t_tip, z_tip, t0, t1)
+        if span is None:
+            lengths.append((s['session_id'], t1 - t0))
+            continue
+        if span.standing_before_s > 0:
+            # the walk's first message moves to the first step (same session, same values)
+            for x in out:
+                if x['session_id'] == s['session_id'] and x['state'] == 'walking' and \
+                        t0 <= x['t_s'] < span.start_s:
+                    x['t_s'] = span.start_s
+        if span.standing_after_s > 0:
+            # a sequencer that repeats its state would start the walk again after the stop
+            out = [x for x in out if not (x['session_id'] == s['session_id'] and
+                                          x['state'] == 'walking' and
+                                          span.end_s <= x['t_s'] < t1)]
+            out.append(dict(s, t_s=span.end_s, state='cooling'))
+        if span.standing_before_s > 0 or span.standing_after_s > 0:
+            where = ' and '.join(
+                f'the {edge} {d:.1f} s' for edge, d in (('first', span.standing_before_s),
+                                                        ('last', span.standing_after_s))
+                if d > 0)
+            warnings.append(
+                f'session {s["session_id"]}: its leg tip makes no step in {where} of its '
+                f'{t1 - t0:.1f} s in state walking (a lost /bench/session message?): the walk '
+                f'is taken where it steps ({span.end_s - span.start_s:.1f} s)')
+        if span.pauses:
+            warnings.append(
+                f'session {s["session_id"]}: its leg tip makes no step for '
+                f'{span.paused_s:.1f} s in {span.pauses} stretch(es) inside its walk: the '
+                'standing there is analysed as walking')
+        lengths.append((s['session_id'], span.end_s - span.start_s))
+        out.sort(key=lambda x: x['t_s'])
+    if len(lengths) >= 3:
+        mid = float(np.median([d for _, d in lengths]))
+        odd = [(sid, d) for sid, d in lengths if abs(d - mid) > WALK_LENGTH_SPREAD * mid]
+        if odd:
+            notes.append(f'{len(odd)} walking session(s) of another length than the median '
+                         f'{mid:.1f} s: ' + ', '.join(f'{sid} {d:.1f} s' for sid, d in odd[:5]) +
+                         (' ...' if len(odd) > 5 else ''))
+    return out
+
+
+def merge_bench_data(datas: Sequence[BenchData], reasons: list[str] | None = None
+                     ) -> BenchData | None:
     """One-session bench bags (``--bench-sessions``) as one bench: their streams and sessions
     in time order, so that the force clock offset and the force sign are estimated over every
     session together (as for a bag that records them all). None when two bags overlap in time
-    (their clocks cannot be one bench's): the bags are then analysed one by one."""
+    by more than a sample step of the earlier one's ``/battery_state`` (their clocks cannot be
+    one bench's): the bags are then analysed one by one, and ``reasons`` gets why. Bags
+    recorded back to back (a recorder splitting at the sessions' boundaries) overlap by up to
+    a step: a session ended at its last stamp plus a step, 0.3 ms after the next bag's first
+    stamp, and every bag was analysed alone (its own force offset, and a "force sign not
+    checked" on each 0 Hz bag)."""
     if not datas:
         return None
-    spans = sorted((float(d.battery_t_s[0]), float(d.sessions[-1]['t_s']), i)
-                   for i, d in enumerate(datas))
-    if any(b[0] < a[1] for a, b in zip(spans, spans[1:])):
-        return None
-    order = [i for _, _, i in spans]
+
+    def first(d: BenchData) -> float:
+        return float(min(d.battery_t_s[0], d.force_t_s[0], d.tip_t_s[0]))
+
+    def last(d: BenchData) -> float:
+        return float(max(d.battery_t_s[-1], d.force_t_s[-1], d.tip_t_s[-1]))
+
+    def step(d: BenchData) -> float:
+        t = d.battery_t_s
+        return float(np.median(np.diff(t))) if t.size > 1 else 0.0
+
+    order = sorted(range(len(datas)), key=lambda i: first(datas[i]))
+    for i, j in zip(order, order[1:]):
+        a, b = datas[i], datas[j]
+        overlap = last(a) - first(b)
+        if overlap > step(a):
+            if reasons is not None:
+                reasons.append(
+                    f'{Path(a.path).name} (to {last(a):.3f} s) and {Path(b.path).name} (from '
+                    f'{first(b):.3f} s) overlap by {overlap:.3g} s: not one bench\'s recording')
+            return None
 
     def cat(name: str) -> np.ndarray:
         return np.concatenate([getattr(datas[i], name) for i in order])
 
+    def by_time(t: np.ndarray, *cols: np.ndarray) -> list[np.ndarray]:
+        k = np.argsort(t, kind='stable')   # back to back within a step: in stamp order
+        return [t[k], *(c[k] for c in cols)]
+
+    def by_time_rows(rows: np.ndarray) -> np.ndarray:
+        return rows[np.argsort(rows[:, 0], kind='stable')] if rows.size else rows
+
+    bt, bv, ba = by_time(cat('battery_t_s'), cat('battery_v'), cat('battery_a'))
+    ft, fz = by_time(cat('force_t_s'), cat('force_z_n'))
+    tt, tz = by_time(cat('tip_t_s'), cat('tip_z_m'))
+    st, ss = by_time(cat('schedule_t_s'), cat('schedule_stance'))
+    sessions = []
+    for n, i in enumerate(order):
+        nxt = first(datas[order[n + 1]]) if n + 1 < len(order) else math.inf
+        # a session's end (its last stamp plus a step) no later than the next bag's start
+        sessions += [dict(s, t_s=min(s['t_s'], nxt)) if s['state'] != 'walking' else s
+                     for s in datas[i].sessions]
     notes = [f'{Path(datas[i].path).name}: {n}' for i in order for n in datas[i].notes]
-    return BenchData(', '.join(datas[i].path for i in order), cat('battery_t_s'),
-                     cat('battery_v'), cat('battery_a'), cat('force_t_s'), cat('force_z_n'),
-                     cat('tip_t_s'), cat('tip_z_m'),
-                     [s for i in order for s in datas[i].sessions], notes,
-                     cat('schedule_t_s'), cat('schedule_stance'), cat('gait_rows'),
+    return BenchData(', '.join(datas[i].path for i in order), bt, bv, ba, ft, fz, tt, tz,
+                     sessions, notes, st, ss, by_time_rows(cat('gait_rows')),
                      [f'{Path(datas[i].path).name}: {w}' for i in order
                       for w in datas[i].warnings])
 

@@ -15,8 +15,8 @@ plots, PNG + SVG) and the Fig. 7D power map; ``--recommend`` -> minimum-CoT/M ga
 Bench bags recorded without ``/bench/session`` (another lab's bench, one bag per session) are
 given with ``--bench-sessions CSV`` (columns ``bag,load_kg[,frequency_hz,duty_factor,
 step_length_m,step_height_m]``, :func:`hexapod_energy.bag_io.read_bench_sessions_file`);
-they are read as one bench when their times do not overlap
-(:func:`hexapod_energy.bag_io.merge_bench_data`).
+they are read as one bench when their times do not overlap by more than a sample step
+(:func:`hexapod_energy.bag_io.merge_bench_data`; else one by one, a warning).
 
 The bench leg on a ``/gait/phase`` of several legs (the project's ``gait_scheduler`` has no
 one-leg mode): ``--bench-leg NAME``, else the one leg ``/joint_states`` names; unknown, the
@@ -89,7 +89,9 @@ such fallback is listed in the run's ``notes``.
                       "holding_w" (every leg's bench basal power at the load it carries),
                       "stance_motion_w", "swing_motion_w" (what moving adds),
                       "predicted_w", "measured_w", "unmodelled_w" (measured - predicted),
-                      "holding_share" (holding / measured)} or null without a prediction
+                      "holding_share" (holding / measured), "holding_missing" (why
+                      the holding split is null: no 0 Hz bench session)} or null without
+                      a prediction
                       (where the watts go; plot where_the_watts_go.png),
                       "prediction_outside_bench" [str] (where Eq. 1 read the surfaces
                       beyond the bench's sessions; empty inside; also a warning),
@@ -375,6 +377,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     from hexapod_common.errors import HexapodError
 
     from hexapod_energy.bag_io import (
+        bench_load_problem,
         bench_phase_samples,
         merge_bench_data,
         read_bench_bag,
@@ -387,6 +390,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         RobotSpec,
         bench_domain_check,
         load_offset_problem,
+        NO_BASAL_NOTE,
         power_breakdown_w,
     )
     from hexapod_energy.single_leg import SingleLegModel
@@ -419,6 +423,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         raise EnergyError(f'--robot-speed must be in (0, 20] m/s, got {robot_speed}')
     leg = load_leg_description(args.leg) if getattr(args, 'leg', None) else antbot_leg()
     mass_warning = ''
+    mass_given = args.robot_mass is not None
     if args.robot_mass is None:
         args.robot_mass = ANTBOT_MASS_KG
         if args.robot or args.sweep or args.recommend:
@@ -492,13 +497,29 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             samples.extend(s)
             diags.append(d)
         # bags of one session each: one bench (force offset and sign from every session)
-        merged = merge_bench_data(one_session)
+        why_apart: list[str] = []
+        merged = merge_bench_data(one_session, why_apart)
+        if why_apart:
+            # said: each bag then gets its own force offset and sign (a 0 Hz bag: unchecked)
+            line = (f'the {len(one_session)} bags of --bench-sessions are analysed one by one, '
+                    f'not as one bench: {why_apart[0]}')
+            doc.setdefault('warnings', []).append(line)
+            bar.write(f'hexapod-analyze energy: warning: {line}', file=sys.stderr)
         for data in [merged] if merged is not None else one_session:
             s, d = bench_phase_samples(data, current_sign=args.current_sign,
                                        force_sign=getattr(args, 'force_sign', 'auto'),
                                        phase_split=getattr(args, 'phase_split', 'auto'))
             samples.extend(s)
             diags.append(d)
+        if mass_given:
+            # loads in grams under the 50 kg bound (0-50 g) are above a small robot's mass
+            carried = args.robot_mass + max(args.payload or 0.0,
+                                            getattr(args, 'robot_payload', None) or 0.0)
+            why = bench_load_problem([(f'session {x.session_id}', x.load_kg) for x in samples],
+                                     robot_mass_kg=carried,
+                                     robot_what='robot (--robot-mass, with any payload)')
+            if why:
+                raise EnergyError(why)
         for d in diags:
             # a bench leg not identified (the contact split), a session that walked another
             # frequency than its label: said on the terminal at once and kept in "warnings"
@@ -520,6 +541,10 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 f'{err} (the {len(samples)} sessions\' phase powers are in '
                 f'{out / "energy.json"} bench.sessions; no surfaces, no Eq. 1 prediction)',
                 doc.get('warnings', [])) from err
+        if model is not None and not model.basal_power_w_:
+            # basal power and the holding split were empty / null without a word
+            doc.setdefault('warnings', []).append(NO_BASAL_NOTE)
+            bar.write(f'hexapod-analyze energy: warning: {NO_BASAL_NOTE}', file=sys.stderr)
         if model is not None:
             model.bench_leg_ = leg   # the leg whose joint paths map other step geometries
             if model.bench_step_ is None:
@@ -729,7 +754,9 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                         **breakdown, 'measured_w': run_.power_in_w,
                         'unmodelled_w': run_.power_in_w - breakdown['predicted_w'],
                         'holding_share': breakdown['holding_w'] / run_.power_in_w
-                        if run_.power_in_w > 0 else math.nan},
+                        if run_.power_in_w > 0 else math.nan,
+                        **({} if math.isfinite(breakdown['holding_w']) else
+                           {'holding_missing': NO_BASAL_NOTE})},
                     'prediction_outside_bench': outside,
                     'power_out_w': p_out, 'power_out_source': source, 'power_out_model_w': p_model,
                     'power_out_effort_w': run_.power_out_w,

@@ -826,7 +826,14 @@ def watts_figure(labels: Sequence[str], breakdowns: Sequence[dict[str, float]],
     note = Line2D([], [], ls='', marker='$P$', color='darkgreen',
                   label='above each bar: mechanical output P_out,\n'
                         'efficiency eta = P_out / measured P_in')
-    ax.legend(handles + [note], names + [note.get_label()], fontsize=7, loc='upper left',
+    extra = [note]
+    if not with_basal:
+        # the holding split is missing: say why, not only leave its bars out
+        extra.append(Line2D([], [], ls='', marker='x', color='dimgray', gid='no_basal',
+                            label='no holding (basal) split: the bench has\n'
+                                  'no 0 Hz (standing) session'))
+    ax.legend(handles + extra, names + [h.get_label() for h in extra], fontsize=7,
+              loc='upper left',
               bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     ax.grid(alpha=0.3, axis='y')
     fig.tight_layout()

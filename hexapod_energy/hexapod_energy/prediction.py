@@ -49,6 +49,7 @@ from hexapod_energy.errors import InvalidInputError
 
 __all__ = [
     'ANTBOT_ROBOT',
+    'NO_BASAL_NOTE',
     'OutputPowerModel',
     'PhasePowerModel',
     'joint_paths',
@@ -185,6 +186,14 @@ def _phase_terms(model: PhasePowerModel, gait: Any, *, total_mass_kg: float,
             if basal is not None:
                 hold_sw += w * (n_legs - big_l) * float(basal(m_sw))
     return stance, swing, hold_st, hold_sw
+
+
+#: why :func:`power_breakdown_w` has no holding split (said in ``energy.json`` ``warnings``,
+#: its ``power_breakdown_w.holding_missing`` and the where-the-watts-go plot)
+NO_BASAL_NOTE = ('the bench has no 0 Hz (standing) session: no basal power per load, so the '
+                 'holding split of the power breakdown (holding_w, stance_motion_w, '
+                 'swing_motion_w, holding_share) is unknown (null); record a 0 Hz session '
+                 'per load')
 
 
 def power_breakdown_w(
