@@ -28,6 +28,12 @@ Exit status, the same for every command: 0 done (``slip``: at least one bag anal
 refused ones listed in ``slip.json``); 2 input refused (a bad option, a missing or unreadable
 bag, data that cannot be analysed), one line on stderr; 1 an unforeseen failure (a bug: one
 line, ``HEXAPOD_DEBUG=1`` for the traceback); 130 interrupted.
+
+Output folders: each command first removes from ``--out`` its own result and figures of an
+earlier run (``energy.json`` with ``prediction.*``, ``four_quadrant_*`` ...; ``slip.json`` with
+``fig7/8/9_*.png``; ``residuals.json`` with ``residual_*.png``), writes its figures, then its
+JSON last; an interrupted or failed run removes the figures it had written, so a folder never
+pairs one run's JSON with another run's figures.
 """
 
 from __future__ import annotations
@@ -301,7 +307,9 @@ def _run(args: argparse.Namespace) -> int:
     try:
         return int(args.func(args) or 0)
     except KeyboardInterrupt:
-        print(f'hexapod-analyze {args.command}: interrupted; nothing more written',
+        # the commands write their JSON last and remove the figures of an unfinished run
+        # (hexapod_common.outdir): 'nothing more written' sat beside a complete-looking one
+        print(f'hexapod-analyze {args.command}: interrupted; no result written',
               file=sys.stderr)
         return 130
     except (OSError, ValueError, LookupError, RuntimeError, HexapodError) as err:

@@ -3,17 +3,38 @@
 ``energy``, ``slip`` and ``residuals`` used to find an ``--out`` that is a regular file, or a
 folder they cannot write, only when writing their results after the whole analysis (minutes
 on real bags), with a bare ``[Errno 17] File exists``.
+
+Each command owns the files :data:`OUTPUTS` names in its folder: it removes them all before
+it writes (:func:`remove_outputs`), writes its figures, and its JSON result last
+(:func:`write_text_atomic`), so that a folder never pairs one run's JSON with another run's
+figures, and an interrupted run leaves no result that looks complete (outside review C).
+``hexapod-analyze report`` assigns figures to results by the same patterns.
 """
 
 from __future__ import annotations
 
 import os
 import tempfile
+from contextlib import contextmanager
+from fnmatch import fnmatchcase
+from collections.abc import Iterator
 from pathlib import Path
 
 from .errors import HexapodError
 
-__all__ = ['OutputDirError', 'creatable_problem', 'prepare_out_dir']
+__all__ = ['OUTPUTS', 'OutputDirError', 'creatable_problem', 'owned_by', 'prepare_out_dir',
+           'remove_outputs', 'removed_if_unfinished', 'write_text_atomic']
+
+#: result JSON -> the figures (file-name patterns) the command writing it may put beside it
+OUTPUTS: dict[str, tuple[str, ...]] = {
+    'energy.json': ('four_quadrant_*.png', 'four_quadrant_*.svg') + tuple(
+        f'{name}.{ext}' for name in ('gait_type_comparison', 'power_map', 'prediction',
+                                     'where_the_watts_go', 'power_in_over_time',
+                                     'measured_runs', 'bench_surfaces')
+        for ext in ('png', 'svg')),
+    'slip.json': ('fig7_*.png', 'fig8_*.png', 'fig9_*.png'),
+    'residuals.json': ('residual_*.png',),
+}
 
 
 class OutputDirError(HexapodError, ValueError):
@@ -56,3 +77,57 @@ def creatable_problem(out: str | os.PathLike[str], flag: str = '--out') -> str |
     except OSError as err:
         return f'{flag} {out}: cannot create a folder in {parent} ({err.strerror or err})'
     return None
+
+
+def owned_by(result: str, name: str) -> bool:
+    """Whether a file called ``name`` is one of the figures :data:`OUTPUTS` gives ``result``
+    (e.g. ``'slip.json'``)."""
+    return any(fnmatchcase(name, pattern) for pattern in OUTPUTS.get(result, ()))
+
+
+def remove_outputs(out: str | os.PathLike[str], result: str) -> None:
+    """Remove from ``out`` the result JSON ``result`` and every figure it owns
+    (:data:`OUTPUTS`): what an earlier run of the command left there."""
+    folder = Path(out)
+    if not folder.is_dir():
+        return
+    (folder / result).unlink(missing_ok=True)
+    for pattern in OUTPUTS.get(result, ()):
+        for path in folder.glob(pattern):
+            if path.is_file():
+                path.unlink(missing_ok=True)
+
+
+@contextmanager
+def removed_if_unfinished(out: str | os.PathLike[str], result: str) -> Iterator[None]:
+    """Run the block; when it does not finish (Ctrl-C, an error) remove what it wrote of
+    ``result`` and its figures before the exception goes on: half a run's figures were left
+    as if they were a result."""
+    try:
+        yield
+    except BaseException:
+        remove_outputs(out, result)
+        raise
+
+
+def write_text_atomic(path: str | os.PathLike[str], text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file in the same folder renamed over
+    it: a reader (or a run cut short) sees the old file or the whole new one, never half.
+    The file gets the permissions a plain write would (the umask's, not ``mkstemp``'s 0600)."""
+    target = Path(path)
+    for _ in range(100):
+        tmp = target.with_name(f'.{target.name}.{os.getpid()}.{os.urandom(4).hex()}.tmp')
+        try:
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+            break
+        except FileExistsError:
+            continue
+    else:  # pragma: no cover - 100 random names taken
+        raise FileExistsError(f'no free temporary name beside {target}')
+    try:
+        with os.fdopen(fd, 'w', encoding='utf-8') as f:
+            f.write(text)
+        os.replace(tmp, target)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise

@@ -105,8 +105,6 @@ CAPTIONS = (
              'range (bar); stances beyond Q3 + 1.5 IQR labelled with their value.'),
 )
 
-#: plots a result owns when its JSON does not list them (file-name prefixes)
-_OWNED = {'slip.json': ('fig',), 'residuals.json': ('residual_',)}
 
 
 def fmt_number(value: float, digits: int = 4) -> str:
@@ -674,7 +672,10 @@ def _figure(png: Path, out: Path) -> str:
 def _plots_of(path: Path, data: Any, pngs: list[Path], claimed: set[Path],
               results: list[Path]) -> list[Path]:
     """The PNGs that belong to the result ``path``: those its ``plots`` lists, then those of
-    its folder whose names it owns (``energy.json`` those no other result owns)."""
+    its folder whose names it owns (:data:`hexapod_common.outdir.OUTPUTS`, the files its
+    command writes and removes)."""
+    from hexapod_common.outdir import owned_by
+
     mine: list[Path] = []
     listed = data.get('plots') if isinstance(data, dict) else None
     if isinstance(listed, list):
@@ -682,13 +683,10 @@ def _plots_of(path: Path, data: Any, pngs: list[Path], claimed: set[Path],
             p = (path.parent / str(name)).resolve()
             if p.suffix == '.png' and p in pngs and p not in claimed:
                 mine.append(p)
-    owned = _OWNED.get(path.name)
-    others = tuple(pre for pres in _OWNED.values() for pre in pres)
     for p in pngs:
         if p in claimed or p in mine or p.parent != path.parent.resolve():
             continue
-        if (p.name.startswith(owned) if owned else
-                path.name == 'energy.json' and not p.name.startswith(others)):
+        if owned_by(path.name, p.name):
             mine.append(p)
     return mine
 
@@ -814,6 +812,12 @@ def write_report(out_dir: str | Path) -> Path:
     FileNotFoundError
         When the folder is missing or holds neither results nor plots.
     """
+    return _write_report(out_dir)[0]
+
+
+def _write_report(out_dir: str | Path) -> tuple[Path, list[str], int]:
+    """:func:`write_report`; also returns the problems to say on the terminal (an
+    unreadable result, an unfinished run) and how many results were read."""
     out = Path(out_dir)
     if out.is_file():
         raise FileNotFoundError(f'{out} is a file: give the analysis folder that holds it '
@@ -829,7 +833,8 @@ def write_report(out_dir: str | Path) -> Path:
              'table.kv th{color:#444;font-weight:normal;font-style:italic}'
              'caption{text-align:left;font-style:italic;color:#444}'
              'figure{margin:12px 0}figcaption{font-size:90%;color:#333}'
-             '.meta{color:#555;font-size:90%}</style>',
+             '.meta{color:#555;font-size:90%}'
+             '.banner{background:#fff3cd;border:1px solid #e0c36c;padding:6px}</style>',
              f'<h1>Analysis report: {_esc(out)}</h1>', _header_meta()]
     files, nested = _collect(out)
     results = sorted(p for p in files if p.suffix == '.json')
@@ -838,15 +843,26 @@ def write_report(out_dir: str | Path) -> Path:
         raise FileNotFoundError(f'{out} holds no *.json results and no plots' +
                                 (f' outside its sub-folders holding their own run '
                                  f'({", ".join(str(d) for d in nested)})' if nested else ''))
+    top = len(parts)   # the banners go here, above everything else
     if nested:
         parts.append(_nested_note(out, nested))
     claimed: set[Path] = set()
+    problems: list[str] = []
+    read = 0
     for path in results:
+        name = path.relative_to(out).as_posix()
         try:
             data = json.loads(path.read_text(encoding='utf-8'))
         except (OSError, ValueError) as err:
             parts.append(f'<h2>{_esc(path.name)}</h2><p>unreadable: {_esc(err)}</p>')
+            problems.append(f'{name} unreadable ({err}): its results are not in the report')
             continue
+        read += 1
+        if isinstance(data, dict) and data.get('status') == 'incomplete':
+            # an interrupted or failed demo run: only its folded JSON said so
+            problems.append(f'{name} says "status": "incomplete": the run did not finish '
+                            '(interrupted or failed); what it wrote before stopping is shown, '
+                            'the rest is missing')
         parts.append(f'<h2>{_esc(path.relative_to(out).as_posix())}</h2>')
         parts.extend(_section(path, data))
         mine = _plots_of(path, data, pngs, claimed, results)
@@ -858,9 +874,14 @@ def write_report(out_dir: str | Path) -> Path:
     if rest:
         parts.append('<h2>Other plots</h2>')
         parts.extend(_figure(p, out.resolve()) for p in rest)
+    if problems:
+        parts[top:top] = ['<div class="banner">' + ''.join(
+            f'<p><b>Warning:</b> {_esc(x)}</p>' for x in problems) + '</div>']
     target = out / 'report.html'
-    target.write_text('\n'.join(parts), encoding='utf-8')
-    return target
+    from hexapod_common.outdir import write_text_atomic
+
+    write_text_atomic(target, '\n'.join(parts))   # a cut page is never left
+    return target, problems, read
 
 
 #: columns of the energy runs table: heading, key, format
@@ -913,7 +934,16 @@ def _energy_runs(data: dict[str, Any]) -> list[str]:
 
 
 def _handler(args: argparse.Namespace) -> int:
-    path = write_report(args.dir)
+    import sys
+
+    path, problems, read = _write_report(args.dir)
+    for text in problems:
+        print(f'hexapod-analyze report: warning: {text}', file=sys.stderr)
+    if problems and not read:
+        # the page says only that: success was claimed on nothing (outside review C)
+        print(f'hexapod-analyze report: error: no result in {args.dir} could be read '
+              f'({path} names the unreadable files)', file=sys.stderr)
+        return 2
     print(f'wrote {path}')
     return 0
 

@@ -453,16 +453,12 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                               int(getattr(args, 'legs', None) or 6))
     if why:
         raise EnergyError(why)
-    from hexapod_common.outdir import prepare_out_dir
+    from hexapod_common.outdir import prepare_out_dir, remove_outputs, write_text_atomic
 
     out = prepare_out_dir(args.out)   # a file by that name, no permission: refused up front
-    # plots an earlier run wrote into this folder and this one may not (no --sweep now): they
-    # stayed, and report.html showed them beside the new energy.json (new-user review)
-    for stale in [*out.glob('four_quadrant_*.png'), *out.glob('four_quadrant_*.svg'),
-                  *(out / f'{n}.{e}' for n in ('power_map', 'prediction', 'where_the_watts_go',
-                                               'bench_surfaces')
-                    for e in ('png', 'svg'))]:
-        stale.unlink(missing_ok=True)
+    # energy.json and every plot an earlier run wrote into this folder: plots this run does
+    # not write stayed, and report.html showed them beside the new energy.json (reviews)
+    remove_outputs(out, 'energy.json')
     n_steps = len(bench_bags) + len(args.robot) + 1 + (16 if args.sweep else 0) + \
         (1 if args.recommend else 0)
     bar = tqdm(total=n_steps, desc='energy', unit='step', **bar_options(args.no_progress),
@@ -536,7 +532,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                             'fit': None, 'sessions': [dataclasses.asdict(x) for x in samples],
                             'fit_error': str(err)}
             doc['errors'] = [f'bench surface fit refused: {err}']
-            (out / 'energy.json').write_text(json.dumps(json_safe(doc), indent=1))
+            write_text_atomic(out / 'energy.json', json.dumps(json_safe(doc), indent=1))
             raise FitRefused(
                 f'{err} (the {len(samples)} sessions\' phase powers are in '
                 f'{out / "energy.json"} bench.sessions; no surfaces, no Eq. 1 prediction)',
@@ -860,10 +856,14 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                        err >= RECOMMEND_RESOLUTION else '') + '): measure both on the robot '
                     'before switching')
             bar.update(1)
+    except BaseException as err:
+        if not isinstance(err, FitRefused):   # its energy.json holds the phase powers
+            remove_outputs(out, 'energy.json')   # half a run's plots are not a result
+        raise
     finally:
         reading.close()
         bar.close()
-    (out / 'energy.json').write_text(json.dumps(json_safe(doc), indent=1))
+    write_text_atomic(out / 'energy.json', json.dumps(json_safe(doc), indent=1))   # last
     return doc
 
 

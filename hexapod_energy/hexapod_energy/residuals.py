@@ -2528,7 +2528,10 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
                                                  doc['unexplained'], runs, out))
         import json
 
-        (out / 'residuals.json').write_text(json.dumps(json_safe(doc), indent=2) + '\n')
+        from hexapod_common.outdir import write_text_atomic
+
+        write_text_atomic(out / 'residuals.json',   # last: after the plots
+                          json.dumps(json_safe(doc), indent=2) + '\n')
     return json_safe(doc)
 
 

@@ -128,7 +128,7 @@ import numpy as np
 from hexapod_common.cli_args import NumberArgumentParser
 from hexapod_common.jsondoc import json_safe
 
-from .energetics import gait_table, plot_figures
+from .energetics import data_source, gait_table, plot_figures
 from .errors import MissingTopicError, SlipDataError, SlipError
 from .model import EDUBOT_MASS_KG, SlipModel
 from .geometry import LegGeometry
@@ -671,7 +671,7 @@ def run_command(args: argparse.Namespace) -> int:
     from tqdm import tqdm
     from hexapod_common.progress import bar_options
 
-    from hexapod_common.outdir import prepare_out_dir
+    from hexapod_common.outdir import prepare_out_dir, remove_outputs
 
     warnings: list[str] = []
     if args.mass is None:
@@ -683,6 +683,7 @@ def run_command(args: argparse.Namespace) -> int:
     _check_options(args)
     geometry_overrides = _geometry_overrides(args)
     out = prepare_out_dir(args.out)   # before the analysis, not after it
+    remove_outputs(out, 'slip.json')   # an earlier run's: never beside this run's
     methods = ('auto', 'contact', 'joint', 'xcorr', 'geometry')
     options = {'offset': args.offset if args.offset in methods else float(args.offset),
                'edges': args.edges, 'geometry': args.geometry,
@@ -760,10 +761,13 @@ def run_command(args: argparse.Namespace) -> int:
            'skipped': skipped, 'skipped_counts': dict(Counter(s['reason'] for s in skipped)),
            'failed_bags': [{'bag': r['bag'], 'error': r['error']} for r in results
                            if 'error' in r], 'warnings': warnings}
-    (out / 'slip.json').write_text(json.dumps(json_safe(doc), indent=1, allow_nan=False),
-                                  encoding='utf-8')
-    if rows:
-        plot_figures(rows, out)
+    from hexapod_common.outdir import removed_if_unfinished, write_text_atomic
+
+    with removed_if_unfinished(out, 'slip.json'):   # figures first, the JSON last
+        if rows:
+            plot_figures(rows, out, mass_kg=args.mass, source=data_source(doc['runs']))
+        write_text_atomic(out / 'slip.json',
+                          json.dumps(json_safe(doc), indent=1, allow_nan=False))
     for f in doc['failed_bags']:
         print(f"slip: refused {f['bag']}: {f['error']}", file=sys.stderr)
     for w in warnings:

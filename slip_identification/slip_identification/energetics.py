@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -17,8 +18,8 @@ from .fit import FORCE_SWING_MIN, TWO_MINIMA_NERR_RATIO
 from .model import GRAVITY_MPS2
 
 __all__ = ['GAIT_ORDER', 'PAPER_COLORS', 'PAPER_MASS_KG', 'PAPER_TABLE3', 'battery_power_w',
-           'gait_colors', 'gait_table', 'ordered_gaits', 'paper_table3_rows', 'plot_figures',
-           'specific_resistance']
+           'data_source', 'gait_colors', 'gait_table', 'ordered_gaits', 'paper_table3_rows',
+           'plot_figures', 'specific_resistance']
 
 
 def battery_power_w(voltage_v: ArrayLike, current_a: ArrayLike, *, sign: str = 'auto',
@@ -205,7 +206,13 @@ def _source_of(out: Path) -> tuple[float | None, str | None]:
         return None, None
     mass = doc.get('mass_kg')
     mass = float(mass) if isinstance(mass, (int, float)) and math.isfinite(mass) else None
-    bags = [Path(str(r.get('bag', ''))) for r in doc.get('runs') or [] if isinstance(r, dict)]
+    return mass, data_source(doc.get('runs') or [])
+
+
+def data_source(runs: Sequence[Any]) -> str | None:
+    """The data of ``slip.json`` runs, for figure titles: 'simulated EduBot' when every run's
+    bag carries the EduBot simulator's truth, else 'recorded runs'; None without runs."""
+    bags = [Path(str(r.get('bag', ''))) for r in runs if isinstance(r, dict)]
 
     def simulated(bag: Path) -> bool:
         try:
@@ -215,9 +222,9 @@ def _source_of(out: Path) -> tuple[float | None, str | None]:
             return False
 
     if not bags:
-        return mass, None
-    return mass, ('simulated EduBot (hexapod-sim)' if all(map(simulated, bags))
-                  else 'recorded runs')
+        return None
+    return ('simulated EduBot (hexapod-sim)' if all(map(simulated, bags))
+            else 'recorded runs')
 
 
 def plot_figures(rows: Sequence[dict[str, float | str]], out_dir: str | Path, *,
