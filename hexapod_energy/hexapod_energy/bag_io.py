@@ -45,7 +45,8 @@ import numpy as np
 
 from hexapod_common.conversions import LegJointFilter, MOCAP_TF_ENV
 from hexapod_energy.errors import BagContentError
-from hexapod_energy.single_leg import PhaseSample, align_offset_s, phase_powers, stance_mask
+from hexapod_energy.single_leg import (MAX_POWER_LAG_S, PhaseSample, align_offset_sessions_s,
+                                       phase_powers, power_label_lag_s, stance_mask)
 
 if TYPE_CHECKING:   # the bag reader (rosbags) is imported where a bag is read
     from hexapod_common.bags import SampleColumns
@@ -1029,7 +1030,8 @@ def bench_phase_samples(
     (tripod 0.3 m/s); with the schedule +6 %, +8 %, +5 to +7 %, +5 %.
 
     The force stream is shifted by the median over walking sessions, weighted by each session's
-    number of cycles, of the cross-correlation offset (:func:`align_offset_s`); the first
+    number of cycles, of the cross-correlation offset, each session's peak taken nearest the
+    peak of all sessions' correlations together (:func:`_force_offset_s`); the first
     ``settle_s`` of each walking segment is skipped.
 
     ``force_sign``: the contract's ``force.z`` is the treadmill's normal force, positive in
@@ -1085,23 +1087,10 @@ def bench_phase_samples(
         notes.append(why)
     if f_sign < 0:
         data = dataclasses.replace(data, force_z_n=-data.force_z_n)
-    offsets, cycles = [], []
-    for s, t0, t1 in segments:
-        f = s['frequency_hz']
-        if f <= 0:
-            continue
-        fm = (data.force_t_s >= t0) & (data.force_t_s < t1)
-        tm = (data.tip_t_s >= t0) & (data.tip_t_s < t1)
-        max_lag = min(0.5, 0.45 / f)
-        try:
-            offsets.append(align_offset_s(data.force_t_s[fm], data.force_z_n[fm],
-                                          data.tip_t_s[tm], data.tip_z_m[tm],
-                                          max_lag_s=max_lag))
-            cycles.append(f * (t1 - t0))
-        except ValueError:
-            continue
-    offset = _weighted_median(np.array(offsets), np.array(cycles)) if offsets else 0.0
+    offset = _force_offset_s(data, segments, notes, warnings)
     samples = []
+    labelled: list[tuple[dict[str, Any], float, float, np.ndarray, np.ndarray, float,
+                         float | None]] = []
     splits: dict[str, int] = {}
     guessed: list[float] = []
     force_gaps: set[str] = set()
@@ -1121,7 +1110,7 @@ def bench_phase_samples(
             t1 = min(t1, a + math.floor((t1 - a) * f + CYCLE_TOLERANCE) / f)
         pm = (data.battery_t_s >= a) & (data.battery_t_s < t1)
         tm = (data.tip_t_s >= a) & (data.tip_t_s < t1)
-        if not pm.any():
+        if not pm.any() and s['frequency_hz'] <= 0:
             continue
         t_tip = data.tip_t_s[tm]
         sm = (data.schedule_t_s >= a) & (data.schedule_t_s < t1)
@@ -1160,10 +1149,32 @@ def bench_phase_samples(
             label_gap = max(LABEL_GAP_INTERVALS * float(np.median(np.diff(t_tip))), 0.05)
             if not np.all(np.diff(t_tip) <= label_gap):
                 label_gaps.add(s['session_id'])
-        sample = phase_powers(
-            data.battery_t_s[pm], power[pm], t_tip, st, session_id=s['session_id'],
-            load_kg=s['load_kg'], frequency_hz=s['frequency_hz'], duty_factor=duty,
-            max_label_gap_s=label_gap)
+        labelled.append((s, a, t1, t_tip, st, duty, label_gap))
+    # the power monitor's clock against the labels' (tip or /gait/phase): a 0.2 s offset
+    # swapped the phase powers in silence (3 Hz stance 5.21 -> 15.41 W; outside review A, F1)
+    lag, lag_diag = _power_lag_s(data, power, labelled, notes, warnings)
+    t_power = data.battery_t_s - lag
+    changed = []
+    for s, a, t1, t_tip, st, duty, label_gap in labelled:
+        if lag:
+            # the session stamps are on one of the two clocks: the window's last |lag| s may
+            # be after the walk on the other (standing power read as stance: -3 % at 3 Hz)
+            f = s['frequency_hz']
+            t1 = t1 - abs(lag) if f <= 0 or (t1 - a) * f < 2 else \
+                a + math.floor((t1 - abs(lag) - a) * f + CYCLE_TOLERANCE) / f
+        pm = (t_power >= a) & (t_power < t1)
+        if not pm.any():
+            continue
+        kw = dict(session_id=s['session_id'], load_kg=s['load_kg'],
+                  frequency_hz=s['frequency_hz'], duty_factor=duty, max_label_gap_s=label_gap)
+        sample = phase_powers(t_power[pm], power[pm], t_tip, st, **kw)
+        if s['session_id'] in label_gaps | force_gaps:
+            plain = phase_powers(t_power[pm], power[pm], t_tip, st, gap_fill=False, **kw)
+            change = max(abs(sample.p_stance_w - plain.p_stance_w) / abs(plain.p_stance_w),
+                         abs(sample.p_swing_w - plain.p_swing_w) / abs(plain.p_swing_w)) \
+                if plain.p_stance_w and plain.p_swing_w else 0.0
+            if change > GAP_CHANGE:
+                changed.append((change, str(s['session_id'])))
         # the tip path walked (0 or absent: not recorded, e.g. a sessions file)
         length, height = (float(s.get(k) or 0.0) for k in ('step_length_m', 'step_height_m'))
         if length > 0 and height > 0:
@@ -1174,7 +1185,16 @@ def bench_phase_samples(
             (['/bench/leg_tip or /gait/phase'] if label_gaps - force_gaps else [])
         notes.append(f'{len(label_gaps | force_gaps)} walking session(s) with gaps in the '
                      f'phase labels ({", ".join(streams)}): the power samples in the gaps are '
-                     'left out of the phase split')
+                     'left out of the phase split, each phase averaged over the cycle\'s '
+                     'phase bins')
+    if changed:
+        worst = max(changed)
+        warnings.append(f'{len(changed)} walking session(s) with gaps in the phase labels '
+                        'change a phase power by more than '
+                        f'{100 * GAP_CHANGE:.0f} % (up to {100 * worst[0]:.1f} % in session '
+                        f'{worst[1]}) between a plain average of the labelled samples and the '
+                        'one per cycle phase used: check the tip tracking and the force stream '
+                        'for dropouts')
     if guessed:
         notes.append(f'bench duty factor not given: 0.5 assumed (Brodoline et al.\'s bench); '
                      f'the sensed stance fraction is {min(guessed):.2f} to {max(guessed):.2f}. '
@@ -1189,6 +1209,7 @@ def bench_phase_samples(
                      f'{splits["schedule"]} walking session(s), by contact in '
                      f'{splits["contact"]} (no /gait/phase there)')
     diag = {'bag': data.path, 'force_offset_s': offset, 'current_sign': sign,
+            'power_lag_s': lag, 'power_lag': lag_diag,
             'force_sign': f_sign, 'sessions': len(samples), 'notes': notes,
             'warnings': warnings,
             'phase_split': ('schedule' if splits.get('schedule') and not splits.get('contact')
@@ -1196,6 +1217,124 @@ def bench_phase_samples(
                             not splits.get('schedule') else
                             'mixed' if splits else 'none')}
     return samples, diag
+
+
+def _force_offset_s(data: BenchData, segments: list[tuple[dict[str, Any], float, float]],
+                    notes: list[str], warnings: list[str]) -> float:
+    """Offset to add to the force stamps [s] (:func:`align_offset_sessions_s` over the walking
+    sessions, each weighted by its number of cycles); what needs saying goes to ``notes`` and
+    ``warnings``."""
+    streams, name = [], []
+    for s, t0, t1 in segments:
+        f = s['frequency_hz']
+        if f <= 0:
+            continue
+        fm = (data.force_t_s >= t0) & (data.force_t_s < t1)
+        tm = (data.tip_t_s >= t0) & (data.tip_t_s < t1)
+        if fm.sum() < 4 or tm.sum() < 4:
+            continue
+        streams.append((data.force_t_s[fm], data.force_z_n[fm], data.tip_t_s[tm],
+                        data.tip_z_m[tm], float(f), f * (t1 - t0)))
+        name.append(str(s['session_id']))
+    try:
+        offset, info = align_offset_sessions_s(streams)
+    except ValueError:
+        return 0.0
+    if info['realiased']:
+        notes.append(f'force-to-tip offset {offset:+.3f} s from all walking sessions\' '
+                     f'correlations together: {len(info["realiased"])} session(s) would alone '
+                     'have read another period\'s peak, or clipped this one')
+    problems = []
+    if info['ambiguous']:
+        problems.append('the sessions\' combined correlation has several peaks as high (the '
+                        'offset is ambiguous by a common period of the frequencies walked)')
+    if info['edge']:
+        problems.append(f'the peak is at the edge of the search (+-{info["search_s"]:.2f} s)')
+    if info['disagree']:
+        problems.append(f'{len(info["disagree"])} of {len(info["per_session"])} session(s) do '
+                        'not peak there (' + ', '.join(name[k] for k in info['disagree'][:5]) +
+                        ')')
+    if problems:
+        warnings.append(f'bench force-to-tip offset {offset:+.3f} s is uncertain: ' +
+                        '; '.join(problems) + '. Check the force and tip clocks; the contact '
+                        'split depends on it')
+    return offset
+
+
+#: a walking session whose label gaps change a phase power by more than this fraction (the
+#: per-cycle-phase average against the plain one) is a warning, not only a note
+GAP_CHANGE = 0.01
+#: a power-to-label lag below this is not applied [s] (without a clock offset the simulated
+#: bench, hexapod-sim bench --seed 2, reads +0.010 s: a constant part of its servos' delay;
+#: outside review A's synthetic bench 0.001 s)
+POWER_LAG_MIN_S = 0.02
+#: the lag is applied when its jackknife standard error is below this [s] ...
+POWER_LAG_SE_S = 0.01
+#: ... no other peak of the explained variance reaches this fraction of the main one ...
+POWER_LAG_SECOND = 0.9
+#: ... and at least this fraction of the sessions agree on it
+POWER_LAG_AGREE = 0.75
+
+
+def _power_lag_s(data: BenchData, power: np.ndarray,
+                 labelled: list[tuple[dict[str, Any], float, float, np.ndarray, np.ndarray,
+                                      float, float | None]],
+                 notes: list[str], warnings: list[str]) -> tuple[float, dict[str, Any]]:
+    """The lag of the power stream behind the phase labels to take out [s] (0 unless clear:
+    :func:`power_label_lag_s` over the walking sessions; :data:`POWER_LAG_MIN_S` ..
+    :data:`POWER_LAG_AGREE`), and its diagnostics; applied or ambiguous lags are said in
+    ``notes`` and ``warnings``. A lag within three standard errors of 0 is none; with one
+    walking frequency nothing is estimated (noted)."""
+    rows = []
+    for s, a, t1, t_tip, st, _duty, gap in labelled:
+        if s['frequency_hz'] <= 0 or len(t_tip) < 4 or st.all() or not st.any():
+            continue
+        pm = (data.battery_t_s >= a) & (data.battery_t_s < t1)
+        rows.append((data.battery_t_s[pm], power[pm], t_tip, st, gap, s['frequency_hz']))
+    try:
+        r = power_label_lag_s(rows)
+    except ValueError:
+        return 0.0, {}
+    lag, se = r['lag_s'], r['se_s']
+    if r['frequencies'] < 2:
+        notes.append('the power stream\'s clock not checked against the phase labels\': one '
+                     'walking frequency cannot tell a clock offset from the waveform\'s own '
+                     'delay')
+        return 0.0, r
+    if abs(lag) < POWER_LAG_MIN_S or not abs(lag) > 3 * se:
+        return 0.0, r   # no offset, or none told from the sessions' scatter
+    what = (f'the power stream (/battery_state) lags the phase labels by {lag:+.3f} s '
+            f'(+- {se:.3f} s over {r["sessions"]} walking sessions at {r["frequencies"]} '
+            'frequencies, besides a phase-locked delay of '
+            f'{r["phase_lag"]:+.2f} cycle; the stance/swing split explains '
+            f'{100 * r["explained"]:.0f} % of the power variance there, '
+            f'{100 * r["explained_at_zero"]:.0f} % at 0 s)')
+    if r['alias_s'] <= 2 * MAX_POWER_LAG_S:
+        what += (f'; {lag - math.copysign(r["alias_s"], lag):+.3f} s would fit about as well '
+                 '(at a duty factor of 0.5 stance and swing swap every half period; the '
+                 'common half period of the frequencies walked is '
+                 f'{r["alias_s"]:.3g} s): the smaller is taken')
+    problems = []
+    if not se <= POWER_LAG_SE_S:
+        problems.append('its standard error is large')
+    if r['second'] >= POWER_LAG_SECOND:
+        problems.append(f'another lag explains {100 * r["second"]:.0f} % as much')
+    if r['agree'] < POWER_LAG_AGREE * r['sessions']:
+        problems.append(f'only {r["agree"]} of {r["sessions"]} sessions peak there (a '
+                        'phase-locked waveform, not a clock offset?)')
+    if r['edge']:
+        problems.append(f'it is at the edge of the search (+-{r["search_s"]:.2f} s)')
+    if problems:
+        warnings.append(f'{what}: not applied, since ' + '; '.join(problems) + '. Check the '
+                        'power monitor\'s clock against the tip tracking or /gait/phase: the '
+                        'phase powers depend on it')
+        return 0.0, r
+    msg = (f'{what}: the power stamps were moved back by it before the phase split (a clock '
+           'offset between the power monitor and the labels\' stream; the phase powers change '
+           'with it)')
+    notes.append(msg)
+    warnings.append(msg)
+    return float(lag), r
 
 
 #: a session's frequency (``/bench/session``, or the sessions file) further than this fraction
@@ -1363,12 +1502,6 @@ def _force_tip_correlation(data: BenchData,
     if not (np.std(f) > 0 and np.std(z) > 0):
         return math.nan
     return float(np.corrcoef(f, z)[0, 1])
-
-
-def _weighted_median(values: np.ndarray, weights: np.ndarray) -> float:
-    order = np.argsort(values)
-    cum = np.cumsum(weights[order])
-    return float(values[order][np.searchsorted(cum, 0.5 * cum[-1])])
 
 
 @dataclass

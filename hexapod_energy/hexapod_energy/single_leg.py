@@ -4,7 +4,9 @@ Pipeline, each step a plain function on arrays:
 
 1. :func:`align_offset_s` estimates the clock offset between the ground-force stream and the
    motion-capture stream by cross-correlating the normal force with the negated tip height (the
-   tip is low exactly while the force is high).
+   tip is low exactly while the force is high); :func:`align_offset_sessions_s` combines the
+   sessions so that no fast session's period aliases it, and :func:`power_label_lag_s`
+   estimates the power monitor's clock offset against the stance/swing labels.
 2. :func:`stance_mask` labels samples stance when the force is above a threshold *and* the tip is
    near the ground; everything else is swing.
 3. :func:`phase_powers` averages the leg's input power over the stance and over the swing samples
@@ -30,6 +32,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
+from fractions import Fraction
 from typing import Any, Protocol
 
 import numpy as np
@@ -45,8 +48,10 @@ __all__ = [
     'SingleLegModel',
     'SurfaceModel',
     'align_offset_s',
+    'align_offset_sessions_s',
     'cross_validated_rmse',
     'phase_powers',
+    'power_label_lag_s',
     'samples_from_mapping',
     'stance_mask',
 ]
@@ -90,6 +95,25 @@ def align_offset_s(
     t_tip_s, tip_z_m : array (m,)
         Tip stamps [s] and tip height [m].
     """
+    lags, corr = offset_correlation(t_force_s, force_z_n, t_tip_s, tip_z_m, max_lag_s=max_lag_s,
+                                    dt_s=dt_s, binarize=binarize,
+                                    height_margin_m=height_margin_m)
+    return float(-_peak_centre(lags, corr, int(np.argmax(corr))))
+
+
+def offset_correlation(
+    t_force_s: ArrayLike,
+    force_z_n: ArrayLike,
+    t_tip_s: ArrayLike,
+    tip_z_m: ArrayLike,
+    *,
+    max_lag_s: float = 0.5,
+    dt_s: float = 0.002,
+    binarize: bool = True,
+    height_margin_m: float = 0.01,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Lags [s] (the force lags the tip by ``lag``) and the force-tip cross-correlation of
+    :func:`align_offset_s` at each, on the grid ``k dt_s``, ``|k dt_s| <= max_lag_s``."""
     tf, fz = np.asarray(t_force_s, float), np.asarray(force_z_n, float)
     tt, tz = np.asarray(t_tip_s, float), np.asarray(tip_z_m, float)
     if len(tf) < 4 or len(tt) < 4:
@@ -125,21 +149,281 @@ def align_offset_s(
     max_k = int(round(max_lag_s / dt_s))
     lags = np.arange(-max_k, max_k + 1)
     corr = corr_full[lags % nfft] / (n - np.abs(lags))  # mean over the overlap, unbiased
-    # centre of the contiguous region around the peak above 80 % of the peak's height: the
-    # correlation of two contact indicators of unequal widths is a trapezoid whose flat top is
-    # centred on the true lag, where the bare argmax is not
-    i = int(np.argmax(corr))
-    level = corr.min() + 0.8 * (corr[i] - corr.min())
+    return lags * dt_s, corr
+
+
+def _peak_centre(lags: np.ndarray, corr: np.ndarray, i: int,
+                 window: slice | None = None) -> float:
+    """Centre [lag units] of the contiguous region around ``corr[i]`` above 80 % of the peak's
+    height over ``window`` (default: all): the correlation of two contact indicators of
+    unequal widths is a trapezoid whose flat top is centred on the true lag, where the bare
+    argmax is not."""
+    w = window or slice(0, len(corr))
+    lo_w, hi_w = w.start, w.stop - 1
+    level = corr[w].min() + 0.8 * (corr[i] - corr[w].min())
     lo_i, hi_i = i, i
-    while lo_i > 0 and corr[lo_i - 1] >= level:
+    while lo_i > lo_w and corr[lo_i - 1] >= level:
         lo_i -= 1
-    while hi_i < len(corr) - 1 and corr[hi_i + 1] >= level:
+    while hi_i < hi_w and corr[hi_i + 1] >= level:
         hi_i += 1
     sel = slice(lo_i, hi_i + 1)
     weights = corr[sel] - level
-    lag_s = float(np.sum(lags[sel] * weights) / np.sum(weights)) * dt_s if weights.sum() > 0 \
-        else float(lags[i]) * dt_s
-    return float(-lag_s)
+    return float(np.sum(lags[sel] * weights) / np.sum(weights)) if weights.sum() > 0 \
+        else float(lags[i])
+
+
+#: the force-to-tip offset search of :func:`align_offset_sessions_s` spans at most this [s]
+#: (larger clock offsets are :class:`hexapod_common.clocks.ClockCheck`'s, from 1 s)
+MAX_FORCE_OFFSET_S = 0.9
+
+
+def _common_period_s(frequencies_hz: Sequence[float]) -> float:
+    """Shortest time that is a whole number of periods of every frequency (inf: none up to
+    60 s); a periodic correlation of them all repeats with it."""
+    common = Fraction(0)
+    for f in frequencies_hz:
+        period = Fraction(1.0 / f).limit_denominator(1000)
+        common = period if common == 0 else \
+            Fraction(math.lcm(common.numerator * period.denominator,
+                              period.numerator * common.denominator),
+                     common.denominator * period.denominator)
+        if common > 60:
+            return math.inf
+    return float(common)
+
+
+def align_offset_sessions_s(
+    sessions: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float, float]],
+    *,
+    max_offset_s: float = MAX_FORCE_OFFSET_S,
+    dt_s: float = 0.002,
+    height_margin_m: float = 0.01,
+) -> tuple[float, dict[str, Any]]:
+    """Offset to *add* to the force stamps [s] from several walking sessions, and how it was
+    found.
+
+    ``sessions``: ``(t_force_s, force_z_n, t_tip_s, tip_z_m, frequency_hz, weight)`` each.
+    Each session's own estimate (:func:`align_offset_s` over ``|lag| <= min(0.5, 0.45 / f)``,
+    one peak of its periodic correlation) is ambiguous by whole periods: a 0.4 s offset read
+    as 0.067 s at 3 Hz (outside review A, F2). The sessions' correlations are averaged on
+    one lag grid, ``|lag| <= min(max_offset_s, 0.45 x`` the frequencies' common period,
+    a quarter of the shortest session``)``, where only the true lag is a peak of every
+    session; each session's estimate is then taken at its own peak nearest that lag (the
+    same as before when they agree), and the result is their median weighted by
+    ``weight``. ``info``: ``lag_s`` (the combined peak, force lagging the tip), ``search_s``,
+    ``per_session`` (offsets), ``realiased`` (sessions whose own window about 0 would have
+    read another peak, or clipped this one, by more than 0.1 period),
+    ``disagree`` (sessions whose correlation at the result is below half their peak),
+    ``edge`` (the combined peak at the search's edge), ``ambiguous`` (another combined peak
+    within 10 % of the highest).
+    """
+    if not sessions:
+        raise InvalidInputError('no session to align')
+    freqs = [float(x[4]) for x in sessions]
+    span = min(min(x[0][-1], x[2][-1]) - max(x[0][0], x[2][0]) if len(x[0]) and len(x[2])
+               else 0.0 for x in sessions)
+    search = max(min(max_offset_s, 0.45 * _common_period_s(freqs), span / 4),
+                 max(min(0.5, 0.45 / f) for f in freqs))
+    curves, kept = [], []
+    for k, (tf, fz, tt, tz, f, _w) in enumerate(sessions):
+        try:
+            lags, corr = offset_correlation(tf, fz, tt, tz, max_lag_s=search, dt_s=dt_s,
+                                            height_margin_m=height_margin_m)
+        except InvalidInputError:
+            continue
+        curves.append(corr)
+        kept.append(k)
+    if not curves:
+        raise InvalidInputError('no session to align')
+    total = np.mean(curves, axis=0)
+    i = int(np.argmax(total))
+    # other local peaks of the combined correlation nearly as high: ambiguous
+    top, low = total[i], total.min()
+    peaks = [j for j in range(1, len(total) - 1)
+             if total[j] >= total[j - 1] and total[j] > total[j + 1]
+             and total[j] >= top - 0.1 * (top - low) and abs(lags[j] - lags[i]) > 0.05]
+    ambiguous = bool(peaks)
+    if ambiguous:   # the one nearest zero, as a single session's window would
+        i = min([i] + peaks, key=lambda j: abs(lags[j]))
+    lag = _peak_centre(lags, total, i)
+    edge = i <= 1 or i >= len(total) - 2
+    per, weights, realiased, disagree = [], [], [], []
+    c = int(np.argmin(np.abs(lags - lag)))
+    for corr, k in zip(curves, kept):
+        f, w = freqs[k], float(sessions[k][5])
+        # the session's peak in a window of its own (+-0.45 periods, one peak) centred on
+        # the common lag: at a common lag ~0 the window and the estimate are a single
+        # session's (+-0.45 periods about 0)
+        half = int(round(min(0.5, 0.45 / f) / dt_s))
+        near = slice(max(0, c - half), min(len(corr), c + half + 1))
+        j = near.start + int(np.argmax(corr[near]))
+        est = _peak_centre(lags, corr, j, near)
+        mid = len(corr) // 2
+        own = slice(max(0, mid - half), min(len(corr), mid + half + 1))
+        if abs(est - _peak_centre(lags, corr, own.start + int(np.argmax(corr[own])), own)) \
+                > 0.1 / f:
+            realiased.append(k)
+        if corr[c] < 0.5 * corr.max():
+            disagree.append(k)
+        per.append(-est)
+        weights.append(w)
+    order = np.argsort(per)
+    cum = np.cumsum(np.asarray(weights)[order])
+    offset = float(np.asarray(per)[order][np.searchsorted(cum, 0.5 * cum[-1])])
+    return offset, {'lag_s': float(lag), 'search_s': float(search), 'per_session': per,
+                    'sessions': kept, 'realiased': realiased, 'disagree': disagree,
+                    'edge': bool(edge), 'ambiguous': ambiguous}
+
+
+#: the power-to-label lag search of :func:`power_label_lag_s` spans at most this [s]
+MAX_POWER_LAG_S = 0.5
+
+
+def _nearest_index(t_label_s: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+    """Index of the nearest label stamp to each of ``t_s`` (ties to the earlier)."""
+    if len(t_label_s) < 2:
+        return np.zeros(len(t_s), dtype=int)
+    right = np.clip(np.searchsorted(t_label_s, t_s), 1, len(t_label_s) - 1)
+    left = right - 1
+    return np.where(np.abs(t_s - t_label_s[left]) <= np.abs(t_label_s[right] - t_s), left, right)
+
+
+def _explained_curve(tp: np.ndarray, p: np.ndarray, tl: np.ndarray, st: np.ndarray,
+                     gap: float | None, lag_k: np.ndarray, dt_s: float) -> np.ndarray | None:
+    """Fraction of the power variance the stance/swing labels explain (the between-phase sum
+    of squares over the total) when each power sample ``t`` takes the label nearest
+    ``t - k dt_s``, for each ``k`` of ``lag_k``; None when too few samples stay inside the
+    labels at every lag."""
+    grid = tl[0] + dt_s * np.arange(int((tl[-1] - tl[0]) / dt_s) + 1)
+    near = _nearest_index(tl, grid)
+    lab_g = st[near]
+    valid_g = np.abs(tl[near] - grid) <= gap if gap else np.ones(len(grid), bool)
+    reach = dt_s * max(abs(int(lag_k[0])), abs(int(lag_k[-1])))
+    keep = (tp >= tl[0] + reach) & (tp <= tl[-1] - reach)
+    if keep.sum() < 10:
+        return None
+    x = p[keep] - p[keep].mean()
+    total = float(np.sum(x * x))
+    if not total > 0:
+        return None
+    base = np.rint((tp[keep] - tl[0]) / dt_s).astype(int)
+    idx = np.clip(base[:, None] - lag_k[None, :], 0, len(grid) - 1)
+    w = valid_g[idx]
+    b = lab_g[idx] & w
+    n, n1 = w.sum(0).astype(float), b.sum(0).astype(float)
+    sx, s1 = (w * x[:, None]).sum(0), (b * x[:, None]).sum(0)
+    n0 = n - n1
+    with np.errstate(invalid='ignore', divide='ignore'):
+        bw = n1 * n0 / n * (s1 / n1 - (sx - s1) / n0) ** 2
+    return np.where((n1 > 0) & (n0 > 0), bw, 0.0) / total
+
+
+def power_label_lag_s(
+    sessions: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float | None,
+                             float]],
+    *,
+    max_lag_s: float = MAX_POWER_LAG_S,
+    dt_s: float = 0.002,
+    phase_step: float = 0.005,
+) -> dict[str, Any]:
+    """Clock offset of the power stream behind the stance/swing labels [s], from several
+    walking sessions at two or more frequencies.
+
+    ``sessions``: ``(t_power_s, power_w, t_label_s, stance, max_label_gap_s, frequency_hz)``
+    each, the labels on their own clock. Each session's power is best split in two by the
+    labels shifted by some lag (each power sample ``t`` taking the label nearest ``t - lag``;
+    the fraction of its variance the split explains); that lag is a clock offset ``d``, the
+    same at every frequency, plus the waveform's own delay, which is phase-locked (a servo's
+    current follows the commanded cycle: on the simulated bench the best split trails the
+    schedule by 0.11 of a cycle at 1, 2 and 3 Hz, 0.107, 0.057 and 0.037 s). The model
+    ``lag = d + phi / f`` is fitted on a grid, ``|d| <=`` ``max_lag_s``, a quarter of the
+    shortest session and half the frequencies' common half period (at a duty factor of 0.5
+    a split explains as much half a period later, stance and swing swapped, so ``d`` is
+    known modulo that period), ``|phi| <= 0.25`` cycle, by the mean over the sessions of
+    the fraction explained. Only ``d`` is a clock's error; ``phi`` is the physics the
+    phase split measures.
+
+    Returns ``lag_s`` (``d``: take ``lag_s`` off the power stamps), ``phase_lag`` (``phi``,
+    cycles), ``se_s`` (jackknife over the sessions; inf with one), ``explained`` and
+    ``explained_at_zero`` (mean fractions at the fit and at the best ``phi`` with ``d = 0``),
+    ``second`` (the highest other peak of the profile over ``d``, as a fraction of the main
+    peak's height above its minimum), ``agree`` (sessions at 80 % of their own best or more
+    at the fit), ``sessions``, ``frequencies`` (distinct), ``search_s``, ``alias_s`` (the
+    common half period: ``lag_s`` minus or plus it fits as well at a duty factor of 0.5) and
+    ``edge`` (the fit at the search's edge).
+    """
+    rows, freqs = [], []
+    for tp, p, tl, st, gap, f in sessions:
+        tp, p, tl = np.asarray(tp, float), np.asarray(p, float), np.asarray(tl, float)
+        if len(tl) >= 4 and len(tp) >= 10 and f > 0:
+            rows.append((tp, p, tl, np.asarray(st, bool), gap, float(f)))
+            freqs.append(float(f))
+    if not rows:
+        raise InvalidInputError('no session with power and labels to align')
+    span = min(min(tl[-1], tp[-1]) - max(tl[0], tp[0]) for tp, _p, tl, _st, _g, _f in rows)
+    half_period = _common_period_s([2 * f for f in freqs])
+    search = min(max_lag_s, span / 4, 0.5 * half_period)
+    n_d = int(search / dt_s)
+    d_k = np.arange(-n_d, n_d + 1)
+    phis = np.arange(-0.25, 0.25, phase_step)
+    curves, kept = [], []
+    for tp, p, tl, st, gap, f in rows:
+        n_phi = int(math.ceil(0.25 / f / dt_s)) + 1
+        lag_k = np.arange(-n_d - n_phi, n_d + n_phi + 1)
+        c = _explained_curve(tp, p, tl, st, gap, lag_k, dt_s)
+        if c is None:
+            continue
+        # (phi, d) -> the session's explained fraction at lag d + phi / f
+        at = d_k[None, :] + np.rint(phis[:, None] / f / dt_s).astype(int) + n_d + n_phi
+        curves.append(c[at])
+        kept.append(f)
+    if not curves:
+        raise InvalidInputError('no session long enough to align power and labels')
+    cube = np.array(curves)                      # (sessions, phi, d)
+    n_s = len(cube)
+    surf = cube.mean(0)
+
+    def fit(s2: np.ndarray) -> tuple[int, int]:
+        a, b = np.unravel_index(int(np.argmax(s2)), s2.shape)
+        return int(a), int(b)
+
+    def refine(profile: np.ndarray, i: int) -> float:
+        if 0 < i < len(profile) - 1:   # parabola through the top three
+            den = profile[i - 1] - 2 * profile[i] + profile[i + 1]
+            if den < 0:
+                return float((d_k[i] + 0.5 * (profile[i - 1] - profile[i + 1]) / den) * dt_s)
+        return float(d_k[i] * dt_s)
+
+    profile = surf.max(0)
+    a, i = fit(surf)
+    lag = refine(profile, i)
+    if n_s > 1:
+        jack = []
+        for k in range(n_s):
+            s2 = (surf * n_s - cube[k]) / (n_s - 1)
+            jack.append(refine(s2.max(0), fit(s2)[1]))
+        jk = np.array(jack)
+        # not below the grid's resolution (sessions that agree to the sample read 0)
+        se = max(float(np.sqrt((n_s - 1) / n_s * np.sum((jk - jk.mean()) ** 2))), dt_s / 2)
+    else:
+        se = math.inf
+    low, top = float(profile.min()), float(profile[i])
+    lo_i, hi_i = i, i
+    half = low + 0.5 * (top - low)
+    while lo_i > 0 and profile[lo_i - 1] >= half:
+        lo_i -= 1
+    while hi_i < len(profile) - 1 and profile[hi_i + 1] >= half:
+        hi_i += 1
+    others = [profile[j] for j in range(1, len(profile) - 1) if not lo_i <= j <= hi_i
+              and profile[j] >= profile[j - 1] and profile[j] >= profile[j + 1]]
+    second = (max(others) - low) / (top - low) if others and top > low else 0.0
+    agree = int(sum(c[a, i] >= 0.8 * c.max() for c in cube))
+    distinct = len({round(f, 6) for f in kept})
+    return {'lag_s': lag, 'phase_lag': float(phis[a]), 'se_s': se, 'explained': top,
+            'explained_at_zero': float(profile[n_d]), 'second': float(second),
+            'agree': agree, 'sessions': n_s, 'frequencies': distinct,
+            'search_s': float(search), 'alias_s': float(half_period),
+            'edge': bool(i <= 1 or i >= len(profile) - 2)}
 
 
 def stance_mask(
@@ -209,6 +493,7 @@ def phase_powers(
     duty_factor: float,
     normalise: str = 'nominal',
     max_label_gap_s: float | None = None,
+    gap_fill: bool = True,
 ) -> PhaseSample:
     """Average power of the stance and of the swing of one session.
 
@@ -236,6 +521,14 @@ def phase_powers(
         Power samples farther than this from every label sample (a gap in the labels' stream:
         a force sensor or the tip tracking lost for a while) are left out rather than given
         the label of the gap's end.
+    gap_fill : bool
+        When samples were left out (and ``normalise='nominal'``), each phase's energy per
+        cycle is the mean over bins of the cycle's phase (``(t - t0) f mod 1``) of
+        ``p * stance``, a bin no sample fell in taken from its neighbours: the plain mean over
+        the samples left assumes they still cover the cycle evenly, which gaps at a fixed point
+        of the cycle (a marker hidden at the top of every swing) or a few random ones do not
+        (outside review A, F4: +-12 % at 0.5 Hz, up to 8 % with 5 % random tip dropouts).
+        ``False``: the plain mean (as without gaps).
     """
     tp, p = np.asarray(t_power_s, float), np.asarray(power_w, float)
     tl, st = np.asarray(t_label_s, float), np.asarray(stance, bool)
@@ -254,13 +547,20 @@ def phase_powers(
     else:
         idx = right
     lab = st[idx]
+    folded = False
     if max_label_gap_s is not None and len(tl):
         near = np.abs(tl[idx] - tp) <= max_label_gap_s
         if near.any() and not near.all():
-            p, lab = p[near], lab[near]
+            folded = gap_fill and (tp[-1] - tp[0]) * frequency_hz >= 1.0
+            n_all = len(p)
+            p, lab, tp = p[near], lab[near], tp[near]
     if normalise == 'nominal' and 0.0 < duty_factor < 1.0 and lab.any() and (~lab).any():
-        p_st = float(np.mean(p * lab) / duty_factor)
-        p_sw = float(np.mean(p * ~lab) / (1.0 - duty_factor))
+        if folded:
+            e_st, e_sw = _cycle_phase_means(tp, p, lab, frequency_hz, n_all)
+        else:
+            e_st, e_sw = float(np.mean(p * lab)), float(np.mean(p * ~lab))
+        p_st = e_st / duty_factor
+        p_sw = e_sw / (1.0 - duty_factor)
     elif normalise in ('nominal', 'detected'):
         p_st = float(p[lab].mean()) if lab.any() else mean
         p_sw = float(p[~lab].mean()) if (~lab).any() else mean
@@ -270,6 +570,25 @@ def phase_powers(
     return PhaseSample(session_id, float(load_kg), float(frequency_hz), float(duty_factor),
                        duty_factor * period, (1.0 - duty_factor) * period, p_st, p_sw, mean,
                        float(lab.mean()), len(p))
+
+
+def _cycle_phase_means(t_s: np.ndarray, p: np.ndarray, stance: np.ndarray, frequency_hz: float,
+                       n_all: int) -> tuple[float, float]:
+    """Means over the gait cycle of ``p * stance`` and ``p * ~stance`` as the means over bins
+    of the cycle's phase (about two of the session's samples per bin and cycle, 4 to 50 bins)
+    of the samples in each; empty bins take the linear interpolation of their neighbours
+    around the cycle."""
+    cycles = max((t_s[-1] - t_s[0]) * frequency_hz, 1.0)
+    bins = int(np.clip(round(n_all / cycles / 2), 4, 50))
+    k = np.minimum((((t_s - t_s[0]) * frequency_hz) % 1.0 * bins).astype(int), bins - 1)
+    count = np.bincount(k, minlength=bins).astype(float)
+    have = count > 0
+    centre = np.arange(bins) + 0.5
+    out = []
+    for x in (p * stance, p * ~stance):
+        mean = np.bincount(k, weights=x, minlength=bins)[have] / count[have]
+        out.append(float(np.mean(np.interp(centre, centre[have], mean, period=bins))))
+    return out[0], out[1]
 
 
 @dataclass(frozen=True)
