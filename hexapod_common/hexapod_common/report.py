@@ -936,7 +936,23 @@ def _energy_runs(data: dict[str, Any]) -> list[str]:
 def _handler(args: argparse.Namespace) -> int:
     import sys
 
-    path, problems, read = _write_report(args.dir)
+    from pathlib import Path
+
+    folder = Path(args.dir)
+    if not folder.is_dir():
+        print(f'hexapod-analyze report: error: {args.dir} is not a folder', file=sys.stderr)
+        return 2
+    try:
+        path, problems, read = _write_report(args.dir)
+    except OSError as err:
+        import errno
+
+        if not (isinstance(err, PermissionError) or err.errno == errno.EROFS):
+            raise
+        # the analysis commands' words, not a raw errno line (outside review C)
+        print(f'hexapod-analyze report: error: {args.dir}: cannot write report.html in the '
+              f'folder ({err.strerror})', file=sys.stderr)
+        return 2
     for text in problems:
         print(f'hexapod-analyze report: warning: {text}', file=sys.stderr)
     if problems and not read:

@@ -10,6 +10,7 @@ import re
 from pathlib import Path
 
 import matplotlib
+import pytest
 
 matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
@@ -174,3 +175,21 @@ def test_the_bench_diagnostics_and_their_warnings_are_in_the_report(tmp_path):
     row = html[html.index('bench bag'):]
     assert 'contact' in row and '0.0123' in row and 'a gap note' in row
     assert 'warning: W&lt;1&gt;' in row
+
+
+@pytest.mark.parametrize('err', [OSError(30, 'Read-only file system'),
+                                 PermissionError(13, 'Permission denied')])
+def test_a_folder_report_cannot_write_to_is_said_in_words(tmp_path, monkeypatch, capsys, err):
+    """A read-only folder gave a raw 'error: [Errno 30] ...' line (an outside review)."""
+    from hexapod_common import report
+    from hexapod_common.analyze_cli import main as analyze
+
+    def refused(_d):
+        raise err
+
+    monkeypatch.setattr(report, '_write_report', refused)
+    assert analyze(['report', str(tmp_path)]) == 2
+    out = capsys.readouterr().err
+    assert 'cannot write report.html in the folder' in out and 'Errno' not in out
+    assert analyze(['report', str(tmp_path / 'missing')]) == 2
+    assert 'is not a folder' in capsys.readouterr().err
