@@ -4,8 +4,9 @@
 folder they cannot write, only when writing their results after the whole analysis (minutes
 on real bags), with a bare ``[Errno 17] File exists``.
 
-Each command owns the files :data:`OUTPUTS` names in its folder: it removes them all before
-it writes (:func:`remove_outputs`), writes its figures, and its JSON result last
+Each command owns the files :data:`OUTPUTS` names in its folder: it sets an earlier run's
+aside while it runs, removes them when it finishes and puts them back when it does not
+(:func:`replacing_outputs`), writes its figures, and its JSON result last
 (:func:`write_text_atomic`), so that a folder never pairs one run's JSON with another run's
 figures, and an interrupted run leaves no result that looks complete (outside review C).
 ``hexapod-analyze report`` assigns figures to results by the same patterns.
@@ -23,7 +24,7 @@ from pathlib import Path
 from .errors import HexapodError
 
 __all__ = ['OUTPUTS', 'OutputDirError', 'creatable_problem', 'owned_by', 'prepare_out_dir',
-           'remove_outputs', 'removed_if_unfinished', 'write_text_atomic']
+           'remove_outputs', 'removed_if_unfinished', 'replacing_outputs', 'write_text_atomic']
 
 #: result JSON -> the figures (file-name patterns) the command writing it may put beside it
 OUTPUTS: dict[str, tuple[str, ...]] = {
@@ -108,6 +109,42 @@ def removed_if_unfinished(out: str | os.PathLike[str], result: str) -> Iterator[
     except BaseException:
         remove_outputs(out, result)
         raise
+
+
+@contextmanager
+def replacing_outputs(out: str | os.PathLike[str], result: str,
+                      keep: tuple[type[BaseException], ...] = ()) -> Iterator[None]:
+    """Run the block as a run of the command writing ``result`` into ``out``: an earlier
+    run's result and figures (:data:`OUTPUTS`) are set aside in a hidden folder beside them
+    first; when the block finishes they are removed, and when it does not (a refused bag,
+    Ctrl-C) what it wrote is removed and the earlier result put back. An exception of a type
+    in ``keep`` is a result of its own (a refused fit that wrote its sessions): it replaces
+    the earlier one. (A first version removed the earlier result before any bag was read: a
+    re-run refused for a missing topic left an empty folder, an outside review.)"""
+    import shutil
+
+    folder = Path(out)
+    aside: Path | None = None
+    if folder.is_dir():
+        owned = [folder / result] + [p for pattern in OUTPUTS.get(result, ())
+                                     for p in folder.glob(pattern)]
+        owned = [p for p in owned if p.is_file()]
+        if owned:
+            aside = Path(tempfile.mkdtemp(prefix=f'.{result}.earlier.', dir=folder))
+            for p in owned:
+                os.replace(p, aside / p.name)
+    try:
+        yield
+    except BaseException as err:
+        if not isinstance(err, keep):
+            remove_outputs(folder, result)
+            if aside is not None:
+                for p in aside.iterdir():
+                    os.replace(p, folder / p.name)
+        raise
+    finally:
+        if aside is not None:
+            shutil.rmtree(aside, ignore_errors=True)
 
 
 def write_text_atomic(path: str | os.PathLike[str], text: str) -> None:

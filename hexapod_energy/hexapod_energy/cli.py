@@ -370,7 +370,16 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> dict[str, Any]:
-    """Carry out the analysis; returns the ``energy.json`` document (also written)."""
+    """Carry out the analysis; returns the ``energy.json`` document (also written). An
+    earlier run's result in ``--out`` is kept when this one fails or is interrupted
+    (:func:`hexapod_common.outdir.replacing_outputs`); a refused bench fit is a result."""
+    from hexapod_common.outdir import replacing_outputs
+
+    with replacing_outputs(args.out, 'energy.json', keep=(FitRefused,)):
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> dict[str, Any]:
     from tqdm import tqdm
     from hexapod_common.progress import bar_options
 

@@ -266,18 +266,18 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     from tqdm import tqdm
     from hexapod_common.progress import bar_options
 
-    from hexapod_common.outdir import prepare_out_dir, remove_outputs, removed_if_unfinished
+    from hexapod_common.outdir import prepare_out_dir, replacing_outputs
 
     if args.slip:
         if args.bench or args.robot:
             raise InvalidInputError('give either --slip BAG... or --bench/--robot BAG..., '
                                     'not both')
         prepare_out_dir(args.out)   # before the analysis, not after it
-        # an earlier run's residuals.json and plots (kept beside a --no-plots run's JSON)
-        remove_outputs(args.out, 'residuals.json')
+        # an earlier run's residuals.json and plots (kept beside a --no-plots run's JSON):
+        # set aside, put back if this run does not finish
         with tqdm(total=len(args.slip), desc='residuals', unit='bag', file=sys.stderr,
                   **bar_options(getattr(args, 'no_progress', False))) as bar, \
-                removed_if_unfinished(args.out, 'residuals.json'):
+                replacing_outputs(args.out, 'residuals.json'):
             return run_slip_loop(list(args.slip), args.out, plots=not args.no_plots,
                                  box=args.box, progress=bar.update)
     if not args.bench or not args.robot:
@@ -323,11 +323,11 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     from hexapod_common.bags import message_progress
 
     quiet = getattr(args, 'no_progress', False)
-    remove_outputs(args.out, 'residuals.json')   # an earlier run's JSON and plots
+    # an earlier run's JSON and plots: set aside, put back if this run does not finish
     with tqdm(total=len(args.bench) + len(args.robot) + 1, desc='residuals', unit='step',
               file=sys.stderr, **bar_options(quiet)) as bar, \
             message_progress('residuals: bag', disable=quiet), \
-            removed_if_unfinished(args.out, 'residuals.json'):   # messages: a long bag
+            replacing_outputs(args.out, 'residuals.json'):   # messages: a long bag
         return run_energy_loop(args.bench, args.robot, args.out,
                                robot_mass_kg=args.robot_mass, payload_kg=args.robot_payload,
                                current_sign=args.current_sign,

@@ -667,7 +667,16 @@ def _positive_kg(text: str) -> float:
 
 
 def run_command(args: argparse.Namespace) -> int:
-    """Handler of ``hexapod-analyze slip``; returns the exit code."""
+    """Handler of ``hexapod-analyze slip``; returns the exit code. An earlier run's result in
+    ``--out`` is kept when this one fails or is interrupted
+    (:func:`hexapod_common.outdir.replacing_outputs`)."""
+    from hexapod_common.outdir import replacing_outputs
+
+    with replacing_outputs(args.out, 'slip.json'):
+        return _run_command(args)
+
+
+def _run_command(args: argparse.Namespace) -> int:
     from tqdm import tqdm
     from hexapod_common.progress import bar_options
 

@@ -62,7 +62,7 @@ def canned_slip(monkeypatch, tmp_path):
     return tmp_path
 
 
-def test_slip_interrupted_while_plotting_leaves_neither_json_nor_old_figures(
+def test_slip_interrupted_while_plotting_puts_the_earlier_result_back(
         canned_slip, monkeypatch, capsys):
     """F1: a Ctrl-C while the figures were drawn left the new, complete-looking slip.json
     beside the previous run's fig7/8/9 (exit 130 'nothing more written')."""
@@ -80,7 +80,9 @@ def test_slip_interrupted_while_plotting_leaves_neither_json_nor_old_figures(
     rc = analyze(['slip', str(canned_slip / 'pace'), '--out', str(out)])
     assert rc == 130
     assert 'interrupted; no result written' in capsys.readouterr().err
-    assert _files(out) == {'notes.txt'}   # not ours: kept
+    # the earlier run's result, whole, is put back (review D: a first version left none)
+    assert _files(out) == set(OLD_SLIP) | {'notes.txt'}
+    assert (out / 'slip.json').read_text() == 'old'
 
 
 def test_slip_writes_its_json_after_the_figures(canned_slip, monkeypatch):
@@ -169,8 +171,8 @@ def test_every_plot_energy_names_is_owned_by_energy_json():
     assert not owned_by('energy.json', 'fig7_speed_vs_sr.png')
 
 
-def test_energy_interrupted_while_plotting_leaves_no_result(robot_bag, tmp_path, monkeypatch,
-                                                            capsys):
+def test_energy_interrupted_while_plotting_puts_the_earlier_result_back(
+        robot_bag, tmp_path, monkeypatch, capsys):
     """F4: a Ctrl-C during the plots kept the old energy.json beside half the new plots;
     report showed the old table above the new figures."""
     import hexapod_energy.plots as plots
@@ -187,7 +189,7 @@ def test_energy_interrupted_while_plotting_leaves_no_result(robot_bag, tmp_path,
                   '2.183', '--no-progress'])
     assert rc == 130
     assert 'interrupted; no result written' in capsys.readouterr().err
-    assert _files(out) == set()
+    assert _files(out) == set(OLD_ENERGY) and (out / 'energy.json').read_text() == 'old'
 
 
 # ------------------------------------------------------------------------- residuals
@@ -229,14 +231,31 @@ def test_residuals_no_plots_removes_the_earlier_plots(fake_loop, tmp_path):
     assert _files(out) == {'residuals.json'}
 
 
-def test_residuals_interrupted_leaves_no_result(fake_loop, tmp_path, capsys):
+def test_residuals_interrupted_puts_the_earlier_result_back(fake_loop, tmp_path, capsys):
     fake_loop['interrupt'] = True
     out = tmp_path / 'o'
     _fill(out, OLD_RESID)
     rc = analyze(['residuals', '--bench', str(tmp_path / 'b'), '--robot', str(tmp_path / 'r'),
                   '--out', str(out), '--no-progress'])
     assert rc == 130
-    assert _files(out) == set()
+    assert _files(out) == set(OLD_RESID) and (out / 'residuals.json').read_text() == 'old'
+
+
+def test_a_refused_re_run_keeps_the_earlier_result(robot_bag, tmp_path, capsys):
+    """Review D: the earlier result was removed before any bag was read, so a re-run refused
+    for a bag lacking a topic left an empty folder. It is now set aside and put back."""
+    out = tmp_path / 'o'
+    _fill(out, OLD_ENERGY + ['notes.txt'])
+    (tmp_path / 'empty').mkdir()
+    rc = analyze(['energy', '--robot', str(tmp_path / 'empty'), '--out', str(out),
+                  '--robot-mass', '2.183', '--no-progress'])
+    assert rc == 2
+    assert _files(out) == set(OLD_ENERGY) | {'notes.txt'}
+    assert (out / 'energy.json').read_text() == 'old'
+    rc = analyze(['energy', '--robot', str(robot_bag), '--out', str(out), '--robot-mass',
+                  '2.183', '--no-progress'])
+    assert rc == 0 and (out / 'energy.json').read_text() != 'old'
+    assert not any(n.startswith('.') for n in _files(out))   # nothing set aside is left
 
 
 # ---------------------------------------------------------------------- the helpers
