@@ -188,10 +188,14 @@ def unknown_overrides(overrides: Iterable[str], declared: Sequence[str]) -> dict
     for name in sorted(set(overrides) - set(declared)):
         if name in _RCLPY_PARAMETERS or name.startswith('qos_overrides.'):
             continue
-        near = difflib.get_close_matches(name, declared, n=1, cutoff=0.6)
+        # a close name is a typo, worth a warning; another is likely a shared parameter
+        # file's (``/**``) for other nodes: said once at info level (review D: 'port' read
+        # "did you mean 'preset'?" on every node of a one-file launch)
+        near = difflib.get_close_matches(name, declared, n=1, cutoff=0.8)
         out[name] = (f'parameter {name!r} is not one of this node\'s: ignored' +
                      (f' (did you mean {near[0]!r}?)' if near else
-                      ' (--help lists them)'))
+                      ' (another node\'s, from a shared parameter file? --help lists this '
+                      'node\'s)'))
     return out
 
 
@@ -237,7 +241,10 @@ def declare_params(node: Any, cls: type[T], *,
     node.unknown_parameters_ = unknown_overrides(
         getattr(node, '_parameter_overrides', {}) or {}, list(values))
     for why in node.unknown_parameters_.values():
-        node.get_logger().warning(why)
+        if 'did you mean' in why:
+            node.get_logger().warning(why)
+        else:
+            node.get_logger().info(why)
 
     def _on_set(parameters: list[Any]) -> SetParametersResult:
         current = dataclasses.asdict(node.params)  # type: ignore[call-overload]

@@ -186,8 +186,12 @@ def test_a_start_up_parameter_the_node_does_not_declare_is_warned_of():
     with ros_env('np') as env:
         node = env.make(_Node, parameter_overrides=[Parameter('rat_hz', value=1.0),
                                                     Parameter('limit', value=2.0),
-                                                    Parameter('zzz', value=1)])
+                                                    Parameter('zzz', value=1),
+                                                    Parameter('lab', value=1)])
         assert node.params.limit == 2.0
-        assert set(node.unknown_parameters_) == {'rat_hz', 'zzz'}
+        assert set(node.unknown_parameters_) == {'rat_hz', 'zzz', 'lab'}
         assert "did you mean 'rate_hz'" in node.unknown_parameters_['rat_hz']
         assert '--help' in node.unknown_parameters_['zzz']
+        # a name far from any of this node's (another node's, from a shared /** file) is no
+        # typo: no wrong hint (review D: 'port' read "did you mean 'preset'?")
+        assert 'did you mean' not in node.unknown_parameters_['lab']
