@@ -227,8 +227,20 @@ def _repeated_bags(args: argparse.Namespace) -> str:
     (``run1`` and ``run1/``, a link), or a folder and a file of it.  Such a bag was analysed
     twice without a word: the prediction error over 3 runs for 2, a slip table of 16 stances
     from 8 (an outside review)."""
+    for key, value in vars(args).items():
+        if key in ('out', 'func', 'command') or not isinstance(value, list):
+            continue
+        # within one option: a bag under two options is for the command to refuse, with
+        # its own reason (review D: '--robot X --slip X' hid 'not both')
+        sub = argparse.Namespace(**{key: value})
+        if why := _repeated_in(_bag_paths(sub)):
+            return why
+    return ''
+
+
+def _repeated_in(paths: list[str]) -> str:
     seen: dict[str, str] = {}
-    for path in _bag_paths(args):
+    for path in paths:
         real = os.path.realpath(path)
         for other_real, other in seen.items():
             inside = (real.startswith(other_real + os.sep)

@@ -170,3 +170,12 @@ def test_a_bag_given_twice_is_refused(argv, tmp_path, capsys):
         analyze([a.format(tmp=tmp_path) for a in argv] + ['--out', str(tmp_path / 'o')])
     err = capsys.readouterr().err
     assert stop.value.code == 2 and 'is given twice' in err and 'Traceback' not in err
+
+
+def test_one_bag_under_two_options_gets_the_commands_own_reason(tmp_path, capsys):
+    """Review D: '--robot X --slip X' read 'given twice', hiding 'not both'."""
+    (tmp_path / 'x').mkdir()
+    rc = analyze(['residuals', '--robot', str(tmp_path / 'x'), '--slip', str(tmp_path / 'x'),
+                  '--out', str(tmp_path / 'o')])
+    err = capsys.readouterr().err
+    assert rc == 2 and 'not both' in err and 'given twice' not in err
