@@ -414,13 +414,16 @@ def power_label_lag_s(
         lo_i -= 1
     while hi_i < len(profile) - 1 and profile[hi_i + 1] >= half:
         hi_i += 1
-    others = [profile[j] for j in range(1, len(profile) - 1) if not lo_i <= j <= hi_i
+    others = [j for j in range(1, len(profile) - 1) if not lo_i <= j <= hi_i
               and profile[j] >= profile[j - 1] and profile[j] >= profile[j + 1]]
-    second = (max(others) - low) / (top - low) if others and top > low else 0.0
+    j2 = max(others, key=lambda j: profile[j]) if others else None
+    second = (profile[j2] - low) / (top - low) if j2 is not None and top > low else 0.0
+    second_lag = float(d_k[j2] * dt_s) if j2 is not None else math.nan
     agree = int(sum(c[a, i] >= 0.8 * c.max() for c in cube))
     distinct = len({round(f, 6) for f in kept})
     return {'lag_s': lag, 'phase_lag': float(phis[a]), 'se_s': se, 'explained': top,
             'explained_at_zero': float(profile[n_d]), 'second': float(second),
+            'second_lag_s': second_lag,
             'agree': agree, 'sessions': n_s, 'frequencies': distinct,
             'search_s': float(search), 'alias_s': float(half_period),
             'edge': bool(i <= 1 or i >= len(profile) - 2)}
