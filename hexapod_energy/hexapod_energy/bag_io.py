@@ -724,9 +724,13 @@ def _session_from_spec(path: str | Path, spec: BenchSessionSpec,
             {'t_s': t_end, 'session_id': Path(path).name, 'state': 'end'}]
 
 
-#: a leg tip above this fraction of its height span (5th to 99th percentile) is lifted, in
-#: a step's swing (:func:`_tip_steps`); a span under STEP_SPAN_M is no step at all
-LIFT_FRACTION = 0.5
+#: a leg tip rising above LIFT_FRACTION of its height span (5th to 99th percentile) lifts
+#: off, and touches down when it falls below DROP_FRACTION (:func:`_tip_steps`): hysteresis,
+#: for a single threshold chattered on the tip's noise at 1 kHz (25 "steps" for 10, median
+#: ground time 0 ms: a healthy 0.5 Hz walk read "no step for 48 s"; outside review D, D6).
+#: A span under STEP_SPAN_M is no step at all
+LIFT_FRACTION = 0.6
+DROP_FRACTION = 0.4
 STEP_SPAN_M = 0.003
 #: ground time before the first (after the last) step beyond this many typical ground times
 #: between steps, plus STANDING_SLACK_S, is standing, not the stance of a step
@@ -739,25 +743,55 @@ PAUSE_GROUND = 2.5
 
 def _tip_steps(t_s: np.ndarray, z_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Lift-off and touchdown stamps [s] of the leg tip's steps (the tip above
-    :data:`LIFT_FRACTION` of its height span), paired: one touchdown after each lift-off.
-    Empty when the span is under :data:`STEP_SPAN_M` (a standing leg)."""
+    :data:`LIFT_FRACTION` of its height span, until it falls below :data:`DROP_FRACTION`),
+    paired: one touchdown after each lift-off. Empty when the span is under
+    :data:`STEP_SPAN_M` (a standing leg)."""
+    rises, falls, _ = _tip_steps_ends(t_s, z_m)
+    return rises, falls
+
+
+def _tip_steps_ends(t_s: np.ndarray, z_m: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, tuple[bool, bool]]:
+    """:func:`_tip_steps`, and whether the tip is lifted at the first and the last sample
+    (in a step cut by the span's ends, not standing)."""
     empty = np.zeros(0)
     if z_m.size < 10:
-        return empty, empty
+        return empty, empty, (False, False)
     lo, hi = np.percentile(z_m, [5, 99])
     if hi - lo < STEP_SPAN_M:
-        return empty, empty
-    up = (z_m > lo + LIFT_FRACTION * (hi - lo)).astype(np.int8)
+        return empty, empty, (False, False)
+    high = z_m > lo + LIFT_FRACTION * (hi - lo)
+    low = z_m < lo + DROP_FRACTION * (hi - lo)
+    k = np.arange(z_m.size)
+    last = np.maximum.accumulate(np.where(high | low, k, -1))
+    if last[-1] < 0:
+        return empty, empty, (False, False)
+    # between the thresholds the tip keeps its state (the first decisive sample's before it)
+    up = high[np.where(last >= 0, last, last[last >= 0][0])].astype(np.int8)
     d = np.diff(up)
+    last_low = np.maximum.accumulate(np.where(low, k, 0))
     # the last low sample before a lift-off, the first low one after a touchdown: a span cut
     # from one to the other holds the step whole
-    rises, falls = t_s[:-1][d == 1], t_s[1:][d == -1]
+    rises, falls = t_s[last_low[:-1][d == 1]], t_s[1:][d == -1]
     if up[0]:
         falls = falls[1:]       # lifted at the start: that step's lift-off is not in the data
     if up[-1]:
         rises = rises[:-1]      # lifted at the end: its touchdown is not in the data
     n = min(rises.size, falls.size)
-    return rises[:n], falls[:n]
+    return rises[:n], falls[:n], (bool(up[0]), bool(up[-1]))
+
+
+def _tip_gaps(t_s: np.ndarray, t0: float, t1: float) -> np.ndarray:
+    """(start, end) rows of the gaps in the sorted tip stamps ``t_s`` of ``[t0, t1)`` (an
+    interval over :data:`LABEL_GAP_INTERVALS` times their median and 50 ms, the phase
+    split's label gaps), counting the span's ends: time the tip is not seen in."""
+    t = np.concatenate(([t0], t_s, [t1]))
+    steps = np.diff(t)
+    if t_s.size < 3:
+        return np.array([[t0, t1]]) if t1 > t0 else np.zeros((0, 2))
+    limit = max(LABEL_GAP_INTERVALS * float(np.median(np.diff(t_s))), 0.05)
+    k = np.flatnonzero(steps > limit)
+    return np.column_stack((t[k], t[k + 1]))
 
 
 @dataclass(frozen=True)
@@ -771,6 +805,7 @@ class SteppingSpan:
     standing_after_s: float    # trimmed from the end (0: kept)
     pauses: int                # stretches without steps inside the walk
     paused_s: float
+    ground_s: float = 0.0      # the typical ground time between steps
 
 
 def stepping_span(t_s: np.ndarray, z_m: np.ndarray, t0: float, t1: float
@@ -783,25 +818,40 @@ def stepping_span(t_s: np.ndarray, z_m: np.ndarray, t0: float, t1: float
     between steps longer than :data:`PAUSE_GROUND` ground times are counted. None with fewer
     than 3 steps (nothing to compare)."""
     m = (t_s >= t0) & (t_s < t1)
-    rises, falls = _tip_steps(t_s[m], z_m[m])
+    rises, falls, (up0, up1) = _tip_steps_ends(t_s[m], z_m[m])
     if rises.size < 3:
         return None
+    # time without tip samples is not ground time: a marker dropout over a swing read as a
+    # pause, or as standing before (after) the walk, a lost message (outside review D, D5)
+    gaps = _tip_gaps(t_s[m], t0, t1)
     ground = rises[1:] - falls[:-1]
-    typical = float(np.median(ground))
+    seen = np.ones(ground.shape, bool)
+    for g0, g1 in gaps:
+        seen &= ~((falls[:-1] <= g0) & (g1 <= rises[1:]))
+    typical = float(np.median(ground[seen] if seen.any() else ground))
     limit = STANDING_GROUND * typical + STANDING_SLACK_S
-    lead, trail = float(rises[0] - t0), float(t1 - falls[-1])
+    before = gaps[:, 1][gaps[:, 1] <= rises[0]]
+    after = gaps[:, 0][gaps[:, 0] >= falls[-1]]
+    # a tip lifted at the span's start (end) is in a step cut there, not standing: a walk
+    # that runs a latency late is cut by its 'cooling' in the swing (outside review D, D4)
+    lead = 0.0 if up0 else float(rises[0] - (before.max() if before.size else t0))
+    trail = 0.0 if up1 else float((after.min() if after.size else t1) - falls[-1])
     start = float(rises[0]) if lead > limit else t0
     # just after the last touchdown's sample (spans are [start, end))
     dt = float(np.median(np.diff(t_s[m])))
     end = min(t1, float(falls[-1]) + 0.5 * dt) if trail > limit else t1
-    long = ground > PAUSE_GROUND * typical + STANDING_SLACK_S
+    long = seen & (ground > PAUSE_GROUND * typical + STANDING_SLACK_S)
     return SteppingSpan(start, end, int(rises.size), start - t0, t1 - end, int(long.sum()),
-                        float(np.sum(ground[long])))
+                        float(np.sum(ground[long])), typical)
 
 
 #: bench data longer than this before the first ``/bench/session`` message is warned about
 #: (it is in no session: a recorder that missed the sequencer's latched first messages)
 UNSESSIONED_LEAD_S = 2.0
+#: a leg that starts stepping up to this long after its session's 'walking' message has a
+#: start latency (a sequencer that does not wait for the gait node; the analysis skips its
+#: first settle_s = 1 s anyway): noted, not warned as a lost message (outside review D, D4)
+START_LATENCY_S = 1.0
 #: a walking session this much longer or shorter than the median walk is noted
 WALK_LENGTH_SPREAD = 0.25
 
@@ -873,6 +923,7 @@ def _repair_sessions(ses: list[dict[str, Any]], tip: list[tuple[float, float]],
     out.sort(key=lambda s: s['t_s'])
     # walks that run into standing (a lost 'cooling') or start before the steps
     lengths: list[tuple[str, float]] = []
+    latencies: list[tuple[str, float]] = []
     for s, t0, t1 in _walking_segments(out, t_end_s):
         if not float(s.get('frequency_hz') or 0.0) > 0:
             continue
@@ -892,15 +943,24 @@ def _repair_sessions(ses: list[dict[str, Any]], tip: list[tuple[float, float]],
                                           x['state'] == 'walking' and
                                           span.end_s <= x['t_s'] < t1)]
             out.append(dict(s, t_s=span.end_s, state='cooling'))
-        if span.standing_before_s > 0 or span.standing_after_s > 0:
-            where = ' and '.join(
-                f'the {edge} {d:.1f} s' for edge, d in (('first', span.standing_before_s),
-                                                        ('last', span.standing_after_s))
-                if d > 0)
+        # the first lift-off comes a ground time after the walk's start (stance first)
+        delay = span.standing_before_s - span.ground_s
+        late = span.standing_before_s > 0 and delay <= START_LATENCY_S
+        if late:
+            latencies.append((s['session_id'], max(delay, 0.0)))
+        before = 0.0 if late else span.standing_before_s
+        if before > 0:
             warnings.append(
-                f'session {s["session_id"]}: its leg tip makes no step in {where} of its '
-                f'{t1 - t0:.1f} s in state walking (a lost /bench/session message?): the walk '
-                f'is taken where it steps ({span.end_s - span.start_s:.1f} s)')
+                f'session {s["session_id"]}: its leg tip starts stepping about {delay:.1f} s '
+                f'after its \'walking\' message (a walk started late, or a lost /bench/session '
+                f'message?): the walk is taken from its first step '
+                f'({span.end_s - span.start_s:.1f} s of {t1 - t0:.1f} s)')
+        if span.standing_after_s > 0:
+            warnings.append(
+                f'session {s["session_id"]}: its leg tip makes no step in the last '
+                f'{span.standing_after_s:.1f} s of its {t1 - t0:.1f} s in state walking (a '
+                f'lost /bench/session message?): the walk is taken where it steps '
+                f'({span.end_s - span.start_s:.1f} s)')
         if span.pauses:
             warnings.append(
                 f'session {s["session_id"]}: its leg tip makes no step for '
@@ -908,6 +968,14 @@ def _repair_sessions(ses: list[dict[str, Any]], tip: list[tuple[float, float]],
                 'standing there is analysed as walking')
         lengths.append((s['session_id'], span.end_s - span.start_s))
         out.sort(key=lambda x: x['t_s'])
+    if latencies:
+        d = [x for _, x in latencies]
+        notes.append(f'{len(latencies)} walking session(s) start stepping about {min(d):.2f} '
+                     f'to {max(d):.2f} s after their \'walking\' message (a start latency, up '
+                     f'to {START_LATENCY_S:g} s taken as one): each walk is taken from its '
+                     'first step: ' +
+                     ', '.join(f'{sid} {x:.2f} s' for sid, x in latencies[:5]) +
+                     (' ...' if len(latencies) > 5 else ''))
     if len(lengths) >= 3:
         mid = float(np.median([d for _, d in lengths]))
         odd = [(sid, d) for sid, d in lengths if abs(d - mid) > WALK_LENGTH_SPREAD * mid]
@@ -923,8 +991,9 @@ def merge_bench_data(datas: Sequence[BenchData], reasons: list[str] | None = Non
     """One-session bench bags (``--bench-sessions``) as one bench: their streams and sessions
     in time order, so that the force clock offset and the force sign are estimated over every
     session together (as for a bag that records them all). None when two bags overlap in time
-    by more than a sample step of the earlier one's ``/battery_state`` (their clocks cannot be
-    one bench's): the bags are then analysed one by one, and ``reasons`` gets why. Bags
+    by more than a sample step (plus the stamps' jitter) of the earlier one's
+    ``/battery_state`` (their clocks cannot be one bench's): the bags are then analysed one by
+    one, and ``reasons`` gets why. Bags
     recorded back to back (a recorder splitting at the sessions' boundaries) overlap by up to
     a step: a session ended at its last stamp plus a step, 0.3 ms after the next bag's first
     stamp, and every bag was analysed alone (its own force offset, and a "force sign not
@@ -932,15 +1001,24 @@ def merge_bench_data(datas: Sequence[BenchData], reasons: list[str] | None = Non
     if not datas:
         return None
 
+    # the battery (power) stream's span: the force stream's clock offset is what the merged
+    # analysis estimates, and a 0.05 s one read as "not one bench's recording" (outside
+    # review D, D7)
     def first(d: BenchData) -> float:
-        return float(min(d.battery_t_s[0], d.force_t_s[0], d.tip_t_s[0]))
+        return float(d.battery_t_s[0]) if d.battery_t_s.size else math.inf
 
     def last(d: BenchData) -> float:
-        return float(max(d.battery_t_s[-1], d.force_t_s[-1], d.tip_t_s[-1]))
+        return float(d.battery_t_s[-1]) if d.battery_t_s.size else -math.inf
 
     def step(d: BenchData) -> float:
+        """A step of the battery stamps plus their jitter (3 robust sigmas of the steps): 3 ms
+        of jitter at 200 Hz overlapped back-to-back bags by 4.8 ms."""
         t = d.battery_t_s
-        return float(np.median(np.diff(t))) if t.size > 1 else 0.0
+        if t.size < 2:
+            return 0.0
+        dt = np.diff(t)
+        mid = float(np.median(dt))
+        return mid + 3.0 * 1.4826 * float(np.median(np.abs(dt - mid)))
 
     order = sorted(range(len(datas)), key=lambda i: first(datas[i]))
     for i, j in zip(order, order[1:]):
@@ -949,8 +1027,9 @@ def merge_bench_data(datas: Sequence[BenchData], reasons: list[str] | None = Non
         if overlap > step(a):
             if reasons is not None:
                 reasons.append(
-                    f'{Path(a.path).name} (to {last(a):.3f} s) and {Path(b.path).name} (from '
-                    f'{first(b):.3f} s) overlap by {overlap:.3g} s: not one bench\'s recording')
+                    f'{Path(a.path).name} (battery to {last(a):.3f} s) and {Path(b.path).name} '
+                    f'(from {first(b):.3f} s) overlap by {overlap:.3g} s: not one bench\'s '
+                    'recording')
             return None
 
     def cat(name: str) -> np.ndarray:
@@ -969,7 +1048,9 @@ def merge_bench_data(datas: Sequence[BenchData], reasons: list[str] | None = Non
     st, ss = by_time(cat('schedule_t_s'), cat('schedule_stance'))
     sessions = []
     for n, i in enumerate(order):
-        nxt = first(datas[order[n + 1]]) if n + 1 < len(order) else math.inf
+        nd = datas[order[n + 1]] if n + 1 < len(order) else None
+        nxt = math.inf if nd is None else min(
+            [first(nd)] + [float(x['t_s']) for x in nd.sessions[:1]])
         # a session's end (its last stamp plus a step) no later than the next bag's start
         sessions += [dict(s, t_s=min(s['t_s'], nxt)) if s['state'] != 'walking' else s
                      for s in datas[i].sessions]

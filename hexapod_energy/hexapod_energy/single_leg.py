@@ -192,6 +192,28 @@ def _common_period_s(frequencies_hz: Sequence[float]) -> float:
     return float(common)
 
 
+def _rival_peaks(lags: np.ndarray, total: np.ndarray, i: int, period_s: float
+                 ) -> list[int]:
+    """Indices of the other local peaks of the combined correlation ``total`` within 10 % of
+    its highest, ``total[i]``: the offset is ambiguous between them. Not ripples on the main
+    peak's flat top (two, 0.068 s apart on a noisy 0.5 and 1 Hz bench, read as "ambiguous by
+    a common period" of 2 s; outside review D, D8): a rival lies beyond the main peak's
+    contiguous region above 80 % (past a dip, the region :func:`_peak_centre` takes), and a
+    quarter of ``period_s`` (the shortest period walked) and 0.05 s away."""
+    top, low = total[i], total.min()
+    level = low + 0.8 * (top - low)
+    lo_i, hi_i = i, i
+    while lo_i > 0 and total[lo_i - 1] >= level:
+        lo_i -= 1
+    while hi_i < len(total) - 1 and total[hi_i + 1] >= level:
+        hi_i += 1
+    apart = max(0.05, 0.25 * period_s)
+    return [j for j in range(1, len(total) - 1)
+            if total[j] >= total[j - 1] and total[j] > total[j + 1]
+            and total[j] >= top - 0.1 * (top - low) and not lo_i <= j <= hi_i
+            and abs(lags[j] - lags[i]) > apart]
+
+
 def align_offset_sessions_s(
     sessions: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float, float]],
     *,
@@ -215,7 +237,8 @@ def align_offset_sessions_s(
     read another peak, or clipped this one, by more than 0.1 period),
     ``disagree`` (sessions whose correlation at the result is below half their peak),
     ``edge`` (the combined peak at the search's edge), ``ambiguous`` (another combined peak
-    within 10 % of the highest).
+    within 10 % of the highest, past a dip below 80 % of it and a quarter of the shortest
+    period away).
     """
     if not sessions:
         raise InvalidInputError('no session to align')
@@ -237,11 +260,7 @@ def align_offset_sessions_s(
         raise InvalidInputError('no session to align')
     total = np.mean(curves, axis=0)
     i = int(np.argmax(total))
-    # other local peaks of the combined correlation nearly as high: ambiguous
-    top, low = total[i], total.min()
-    peaks = [j for j in range(1, len(total) - 1)
-             if total[j] >= total[j - 1] and total[j] > total[j + 1]
-             and total[j] >= top - 0.1 * (top - low) and abs(lags[j] - lags[i]) > 0.05]
+    peaks = _rival_peaks(lags, total, i, 1.0 / max(freqs))
     ambiguous = bool(peaks)
     if ambiguous:   # the one nearest zero, as a single session's window would
         i = min([i] + peaks, key=lambda j: abs(lags[j]))
