@@ -550,6 +550,14 @@ def _run(args: argparse.Namespace) -> dict[str, Any]:
             # basal power and the holding split were empty / null without a word
             doc.setdefault('warnings', []).append(NO_BASAL_NOTE)
             bar.write(f'hexapod-analyze energy: warning: {NO_BASAL_NOTE}', file=sys.stderr)
+        elif model is not None and (uncovered := _loads_without_basal(model)):
+            # a lost 0 Hz session (a recorder that missed the latched first messages): that
+            # load's basal power was the nearest one's without a word (review of the change)
+            line = (f'no 0 Hz session at load(s) {", ".join(f"{m:g}" for m in uncovered)} kg: '
+                    f'their basal power is held from the nearest 0 Hz session\'s (at '
+                    f'{", ".join(f"{m:g}" for m in model.basal_power_w_)} kg), not measured')
+            doc.setdefault('warnings', []).append(line)
+            bar.write(f'hexapod-analyze energy: warning: {line}', file=sys.stderr)
         if model is not None:
             model.bench_leg_ = leg   # the leg whose joint paths map other step geometries
             if model.bench_step_ is None:
@@ -1209,6 +1217,14 @@ def _handler(args: argparse.Namespace) -> int:
                   file=sys.stderr)
     return 0
 
+
+
+def _loads_without_basal(model: Any) -> list[float]:
+    """Walking loads the 0 Hz sessions do not bracket (below the lightest or above the
+    heaviest standing load, by more than 1 g): their basal power is held, not measured."""
+    basal = sorted(model.basal_power_w_)
+    walking = sorted({float(s.load_kg) for s in model.samples_ if s.frequency_hz > 0})
+    return [m for m in walking if m < basal[0] - 1e-3 or m > basal[-1] + 1e-3]
 
 #: warnings printed on the terminal after ``energy`` (all of them are in energy.json)
 MAX_WARNINGS_SHOWN = 12

@@ -206,3 +206,18 @@ def test_abandoned_merge_is_warned(tmp_path, capsys):
     doc = json.loads((tmp_path / 'o' / 'energy.json').read_text())
     assert any('analysed one by one' in w and 'overlap by' in w for w in doc['warnings'])
     assert 'analysed one by one' in capsys.readouterr().err
+
+
+def test_walking_loads_beyond_the_standing_sessions_are_named():
+    """A lost first 0 Hz session (0 kg) left that load's basal power held from 0.1 kg's
+    without a word of its own (review of the change)."""
+    from types import SimpleNamespace
+
+    from hexapod_energy.cli import _loads_without_basal
+
+    def model(basal, walking):
+        return SimpleNamespace(basal_power_w_={m: 2.0 for m in basal}, samples_=[
+            SimpleNamespace(load_kg=m, frequency_hz=1.0) for m in walking])
+
+    assert _loads_without_basal(model((0.1, 0.5), (0.0, 0.1, 0.3, 0.5, 0.6))) == [0.0, 0.6]
+    assert _loads_without_basal(model((0.0, 0.5), (0.0, 0.2, 0.5))) == []
