@@ -24,7 +24,7 @@ from pathlib import Path
 from .errors import HexapodError
 
 __all__ = ['OUTPUTS', 'OutputDirError', 'creatable_problem', 'owned_by', 'prepare_out_dir',
-           'remove_outputs', 'removed_if_unfinished', 'replacing_outputs', 'write_text_atomic']
+           'remove_outputs', 'replacing_outputs', 'write_text_atomic']
 
 #: result JSON -> the figures (file-name patterns) the command writing it may put beside it
 OUTPUTS: dict[str, tuple[str, ...]] = {
@@ -97,18 +97,6 @@ def remove_outputs(out: str | os.PathLike[str], result: str) -> None:
         for path in folder.glob(pattern):
             if path.is_file():
                 path.unlink(missing_ok=True)
-
-
-@contextmanager
-def removed_if_unfinished(out: str | os.PathLike[str], result: str) -> Iterator[None]:
-    """Run the block; when it does not finish (Ctrl-C, an error) remove what it wrote of
-    ``result`` and its figures before the exception goes on: half a run's figures were left
-    as if they were a result."""
-    try:
-        yield
-    except BaseException:
-        remove_outputs(out, result)
-        raise
 
 
 @contextmanager

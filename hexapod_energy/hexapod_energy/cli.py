@@ -462,12 +462,11 @@ def _run(args: argparse.Namespace) -> dict[str, Any]:
                               int(getattr(args, 'legs', None) or 6))
     if why:
         raise EnergyError(why)
-    from hexapod_common.outdir import prepare_out_dir, remove_outputs, write_text_atomic
+    from hexapod_common.outdir import prepare_out_dir, write_text_atomic
 
-    out = prepare_out_dir(args.out)   # a file by that name, no permission: refused up front
-    # energy.json and every plot an earlier run wrote into this folder: plots this run does
-    # not write stayed, and report.html showed them beside the new energy.json (reviews)
-    remove_outputs(out, 'energy.json')
+    # a file by that name, no permission: refused up front. An earlier run's energy.json and
+    # plots are already set aside by :func:`run` (put back if this run does not finish)
+    out = prepare_out_dir(args.out)
     n_steps = len(bench_bags) + len(args.robot) + 1 + (16 if args.sweep else 0) + \
         (1 if args.recommend else 0)
     bar = tqdm(total=n_steps, desc='energy', unit='step', **bar_options(args.no_progress),
@@ -873,10 +872,6 @@ def _run(args: argparse.Namespace) -> dict[str, Any]:
                        err >= RECOMMEND_RESOLUTION else '') + '): measure both on the robot '
                     'before switching')
             bar.update(1)
-    except BaseException as err:
-        if not isinstance(err, FitRefused):   # its energy.json holds the phase powers
-            remove_outputs(out, 'energy.json')   # half a run's plots are not a result
-        raise
     finally:
         reading.close()
         bar.close()

@@ -680,7 +680,7 @@ def _run_command(args: argparse.Namespace) -> int:
     from tqdm import tqdm
     from hexapod_common.progress import bar_options
 
-    from hexapod_common.outdir import prepare_out_dir, remove_outputs
+    from hexapod_common.outdir import prepare_out_dir
 
     warnings: list[str] = []
     if args.mass is None:
@@ -691,8 +691,8 @@ def _run_command(args: argparse.Namespace) -> int:
                         'P/(m g v) (SR); give --mass')
     _check_options(args)
     geometry_overrides = _geometry_overrides(args)
-    out = prepare_out_dir(args.out)   # before the analysis, not after it
-    remove_outputs(out, 'slip.json')   # an earlier run's: never beside this run's
+    # before the analysis, not after it; an earlier run's result is set aside by run_command
+    out = prepare_out_dir(args.out)
     methods = ('auto', 'contact', 'joint', 'xcorr', 'geometry')
     options = {'offset': args.offset if args.offset in methods else float(args.offset),
                'edges': args.edges, 'geometry': args.geometry,
@@ -770,13 +770,11 @@ def _run_command(args: argparse.Namespace) -> int:
            'skipped': skipped, 'skipped_counts': dict(Counter(s['reason'] for s in skipped)),
            'failed_bags': [{'bag': r['bag'], 'error': r['error']} for r in results
                            if 'error' in r], 'warnings': warnings}
-    from hexapod_common.outdir import removed_if_unfinished, write_text_atomic
+    from hexapod_common.outdir import write_text_atomic
 
-    with removed_if_unfinished(out, 'slip.json'):   # figures first, the JSON last
-        if rows:
-            plot_figures(rows, out, mass_kg=args.mass, source=data_source(doc['runs']))
-        write_text_atomic(out / 'slip.json',
-                          json.dumps(json_safe(doc), indent=1, allow_nan=False))
+    if rows:   # figures first, the JSON last
+        plot_figures(rows, out, mass_kg=args.mass, source=data_source(doc['runs']))
+    write_text_atomic(out / 'slip.json', json.dumps(json_safe(doc), indent=1, allow_nan=False))
     for f in doc['failed_bags']:
         print(f"slip: refused {f['bag']}: {f['error']}", file=sys.stderr)
     for w in warnings:
