@@ -379,30 +379,26 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         return _run(args)
 
 
-def _run(args: argparse.Namespace) -> dict[str, Any]:
-    from tqdm import tqdm
-    from hexapod_common.progress import bar_options
+@dataclasses.dataclass
+class _Setup:
+    """The checked inputs of one ``energy`` run (:func:`_checked_setup`)."""
 
-    from hexapod_common.errors import HexapodError
+    bench_bags: list[tuple[str, Any]]   # (path, session spec or None)
+    leg: Any                            # the leg description (``--leg`` or AntBot's)
+    robot: Any                          # :class:`hexapod_energy.prediction.RobotSpec`
+    limits: Any
+    limits_source: str
+    robot_speed: float | None
+    mass_given: bool
+    mass_warning: str
 
-    from hexapod_energy.bag_io import (
-        bench_load_problem,
-        bench_phase_samples,
-        merge_bench_data,
-        read_bench_bag,
-        read_bench_sessions_file,
-        read_robot_segments,
-    )
+
+def _checked_setup(args: argparse.Namespace) -> _Setup:
+    """Refuse bad options up front (before any bag is read) and gather what the run uses;
+    fills ``args.robot_mass`` with AntBot's when not given."""
+    from hexapod_energy.bag_io import read_bench_sessions_file
     from hexapod_energy.leg_description import antbot_leg, load_leg_description
-    from hexapod_energy.metrics import descriptors
-    from hexapod_energy.prediction import (
-        RobotSpec,
-        bench_domain_check,
-        load_offset_problem,
-        NO_BASAL_NOTE,
-        power_breakdown_w,
-    )
-    from hexapod_energy.single_leg import SingleLegModel
+    from hexapod_energy.prediction import RobotSpec, load_offset_problem
 
     if getattr(args, 'folds', 5) < 2:
         raise EnergyError(f'--folds must be >= 2 (k-fold cross-validation), got {args.folds}')
@@ -462,328 +458,49 @@ def _run(args: argparse.Namespace) -> dict[str, Any]:
                               int(getattr(args, 'legs', None) or 6))
     if why:
         raise EnergyError(why)
-    from hexapod_common.outdir import prepare_out_dir, write_text_atomic
+    return _Setup(bench_bags=bench_bags, leg=leg, robot=robot, limits=limits,
+                  limits_source=limits_source, robot_speed=robot_speed,
+                  mass_given=mass_given, mass_warning=mass_warning)
 
+
+def _warn(doc: dict[str, Any], bar: Any, line: str) -> None:
+    """A warning kept in ``energy.json`` and said on the terminal at once (above the bar)."""
+    doc.setdefault('warnings', []).append(line)
+    bar.write(f'hexapod-analyze energy: warning: {line}', file=sys.stderr)
+
+
+def _run(args: argparse.Namespace) -> dict[str, Any]:
+    from contextlib import ExitStack
+
+    from tqdm import tqdm
+
+    from hexapod_common.bags import message_progress
+    from hexapod_common.outdir import prepare_out_dir, write_text_atomic
+    from hexapod_common.progress import bar_options
+
+    setup = _checked_setup(args)
     # a file by that name, no permission: refused up front. An earlier run's energy.json and
     # plots are already set aside by :func:`run` (put back if this run does not finish)
     out = prepare_out_dir(args.out)
-    n_steps = len(bench_bags) + len(args.robot) + 1 + (16 if args.sweep else 0) + \
+    n_steps = len(setup.bench_bags) + len(args.robot) + 1 + (16 if args.sweep else 0) + \
         (1 if args.recommend else 0)
     bar = tqdm(total=n_steps, desc='energy', unit='step', **bar_options(args.no_progress),
                file=sys.stderr)
     # a second bar of the messages read: one long bag shows progress, not 0/2 for minutes
-    from contextlib import ExitStack
-
-    from hexapod_common.bags import message_progress
-
     reading = ExitStack()
     reading.enter_context(message_progress('energy: bag', disable=args.no_progress))
     doc: dict[str, Any] = {'schema': 'hexapod_energy.energy/1', 'plots': []}
-    if mass_warning:
-        doc['warnings'] = [mass_warning]
+    if setup.mass_warning:
+        doc['warnings'] = [setup.mass_warning]
     if not args.recommend and (args.speed is not None or args.payload):
         doc.setdefault('warnings', []).append(
             '--speed and --payload are for --recommend (the target speed and payload), '
             'ignored without it; the robot runs\' payload is --robot-payload')
     try:
-        samples, diags = [], []
-        one_session = []
-        for path, spec in bench_bags:
-            data = read_bench_bag(path, spec, leg_dh=leg.dh, leg_name=leg.name,
-                                  bench_leg=getattr(args, 'bench_leg', None))
-            bar.update(1)
-            if spec is not None:
-                one_session.append(data)
-                continue
-            s, d = bench_phase_samples(data, current_sign=args.current_sign,
-                                       force_sign=getattr(args, 'force_sign', 'auto'),
-                                       phase_split=getattr(args, 'phase_split', 'auto'))
-            samples.extend(s)
-            diags.append(d)
-        # bags of one session each: one bench (force offset and sign from every session)
-        why_apart: list[str] = []
-        merged = merge_bench_data(one_session, why_apart)
-        if why_apart:
-            # said: each bag then gets its own force offset and sign (a 0 Hz bag: unchecked)
-            line = (f'the {len(one_session)} bags of --bench-sessions are analysed one by one, '
-                    f'not as one bench: {why_apart[0]}')
-            doc.setdefault('warnings', []).append(line)
-            bar.write(f'hexapod-analyze energy: warning: {line}', file=sys.stderr)
-        for data in [merged] if merged is not None else one_session:
-            s, d = bench_phase_samples(data, current_sign=args.current_sign,
-                                       force_sign=getattr(args, 'force_sign', 'auto'),
-                                       phase_split=getattr(args, 'phase_split', 'auto'))
-            samples.extend(s)
-            diags.append(d)
-        if mass_given:
-            # loads in grams under the 50 kg bound (0-50 g) are above a small robot's mass
-            carried = args.robot_mass + max(args.payload or 0.0,
-                                            getattr(args, 'robot_payload', None) or 0.0)
-            why = bench_load_problem([(f'session {x.session_id}', x.load_kg) for x in samples],
-                                     robot_mass_kg=carried,
-                                     robot_what='robot (--robot-mass, with any payload)')
-            if why:
-                raise EnergyError(why)
-        for d in diags:
-            # a bench leg not identified (the contact split), a session that walked another
-            # frequency than its label: said on the terminal at once and kept in "warnings"
-            for w in d.get('warnings', []):
-                line = f'{d["bag"]}: {w}'
-                doc.setdefault('warnings', []).append(line)
-                bar.write(f'hexapod-analyze energy: warning: {line}', file=sys.stderr)
-        try:
-            model = SingleLegModel(folds=args.folds).fit(samples) if bench_bags else None
-        except (FitError, InvalidInputError) as err:
-            # the per-session phase powers do not depend on the surfaces: a lab checking its
-            # bench with a short plan gets them (outside review D8), then the refusal
-            doc['bench'] = {'bags': [b for b, _ in bench_bags], 'diagnostics': diags,
-                            'fit': None, 'sessions': [dataclasses.asdict(x) for x in samples],
-                            'fit_error': str(err)}
-            doc['errors'] = [f'bench surface fit refused: {err}']
-            write_text_atomic(out / 'energy.json', json.dumps(json_safe(doc), indent=1))
-            raise FitRefused(
-                f'{err} (the {len(samples)} sessions\' phase powers are in '
-                f'{out / "energy.json"} bench.sessions; no surfaces, no Eq. 1 prediction)',
-                doc.get('warnings', [])) from err
-        if model is not None and not model.basal_power_w_:
-            # basal power and the holding split were empty / null without a word
-            doc.setdefault('warnings', []).append(NO_BASAL_NOTE)
-            bar.write(f'hexapod-analyze energy: warning: {NO_BASAL_NOTE}', file=sys.stderr)
-        elif model is not None and (uncovered := _loads_without_basal(model)):
-            # a lost 0 Hz session (a recorder that missed the latched first messages): that
-            # load's basal power was the nearest one's without a word (review of the change)
-            line = (f'no 0 Hz session at load(s) {", ".join(f"{m:g}" for m in uncovered)} kg: '
-                    f'their basal power is held from the nearest 0 Hz session\'s (at '
-                    f'{", ".join(f"{m:g}" for m in model.basal_power_w_)} kg), not measured')
-            doc.setdefault('warnings', []).append(line)
-            bar.write(f'hexapod-analyze energy: warning: {line}', file=sys.stderr)
-        if model is not None:
-            model.bench_leg_ = leg   # the leg whose joint paths map other step geometries
-            if model.bench_step_ is None:
-                doc.setdefault('warnings', []).append(
-                    'the bench sessions record no step length and height (no /bench/session '
-                    'or /gait/phase with them; give step_length_m and step_height_m in the '
-                    'sessions file): robot runs, sweeps and candidates with another step are '
-                    'read at their phase durations alone, not mapped onto the bench\'s path')
-        bar.update(1)
-        doc['bench'] = ({'bags': [b for b, _ in bench_bags], 'diagnostics': diags,
-                         'fit': model.summary()} if model is not None else None)
-        if model is not None:
-            from hexapod_energy.plots import bench_surfaces_plot
-
-            doc['plots'] += [str(p.relative_to(out)) for p in bench_surfaces_plot(
-                model, out / 'bench_surfaces',
-                title=f'Single-leg bench: {len(model.samples_)} sessions, phase powers and '
-                      'fitted surfaces')]
-
-        opm = leg.output_power_model(args.robot_mass)
-        doc['leg'] = leg.summary()
-        runs = []
-        trend_series: list[dict[str, Any]] = []   # window P_in over time, for the plot
-        failed: list[dict[str, str]] = []
-        for path in args.robot:
-            try:
-                # a bag whose /gait/phase changes schedule (speed sweep, gait switch, stop)
-                # holds one run per walking schedule
-                segments = read_robot_segments(path, mass_kg=robot.mass_kg,
-                                               current_sign=args.current_sign,
-                                               speed_mps=robot_speed)
-            except (EnergyError, HexapodError, ValueError) as err:
-                # one unreadable robot bag does not lose the others: refused by name (as
-                # ``slip`` does); every one refused is an error
-                failed.append({'bag': str(path), 'error': str(err)})
-                if len(args.robot) > 1:  # a lone bag's refusal is the error itself
-                    print(f'hexapod-analyze energy: refused {path}: {err}', file=sys.stderr)
-                bar.update(1)
-                continue
-            for run_ in segments:
-                notes = list(run_.extra.get('notes', []))
-                payload = args.robot_payload if args.robot_payload is not None else \
-                    (run_.payload_kg or 0.0)
-                if args.robot_payload is None and run_.payload_kg:
-                    notes.append(f'payload {run_.payload_kg:g} kg from the bag\'s metadata '
-                                 '(--robot-payload overrides it)')
-                mass = robot.total_mass_kg(payload)
-                standing = run_.gait is not None and run_.gait.period_s <= 0
-                gait = None if standing else gait_from_sample(run_.gait) \
-                    if run_.gait is not None else _given_gait(args, run_, notes, model)
-                predicted = p_model = math.nan
-                breakdown = None
-                if standing:
-                    # every leg holds its share of the body: the bench's 0 Hz sessions
-                    # (basal power at a load) predict it; the joints do no work
-                    p_model = 0.0
-                    legs_st = len(run_.gait.leg_names) or 6
-                    basal = getattr(model, 'basal_power_at_w', None)
-                    held = ''
-                    if basal is not None and math.isfinite(float(basal(0.0))):
-                        from hexapod_gait.gait import carried_mass_per_leg_kg
-                        m_c = float(carried_mass_per_leg_kg(mass, robot.leg_mass_kg,
-                                                            np.array([legs_st]))[0])
-                        b_w = legs_st * float(basal(max(m_c - args.load_offset, 0.0)))
-                        held = (f'; {legs_st} legs at the bench\'s 0 Hz power for the '
-                                f'{m_c:.3g} kg each holds would draw {b_w:.3g} W, '
-                                f'unloaded {legs_st * float(basal(0.0)):.3g} W')
-                    notes.append(f'the robot stands ({run_.windows} window(s) of 1 s): its '
-                                 'input power, speed 0 (CoT undefined); Eq. 1 is for walking, '
-                                 'no prediction' + held)
-                # a RHex-class robot's Buehler clock (rotating legs, no step length): Eq. 1
-                # and the Eq. 6 model are for stepping servo legs (an EduBot run was predicted
-                # at 62.8 W for 34.5 W measured, its P_out 0 W: new-user review)
-                clock = gait is not None and (gait.name == 'buehler' or
-                                              not gait.step_length_m > 0)
-                walked = gait   # the schedule as recorded, for the JSON
-                if clock:
-                    notes.append('a Buehler clock (rotating legs, no step length): the '
-                                 'single-leg bench method (Eq. 1) and the Eq. 6 P_out model '
-                                 'are for stepping servo legs: no prediction, P_out from the '
-                                 'joint efforts only')
-                    gait = None
-                if gait is not None and model is None:
-                    notes.append('no bench bags (--bench): no Eq. 1 prediction')
-                outside: list[str] = []
-                if gait is not None and model is not None:
-                    # Eq. 1 and where its watts go, in one evaluation
-                    breakdown = power_breakdown_w(model, gait, total_mass_kg=mass,
-                                                  leg_mass_kg=robot.leg_mass_kg,
-                                                  swing_load=args.swing_load,
-                                                  load_offset_kg=args.load_offset)
-                    predicted = breakdown['predicted_w']
-                    outside = bench_domain_check(model, gait, total_mass_kg=mass,
-                                                 leg_mass_kg=robot.leg_mass_kg,
-                                                 swing_load=args.swing_load,
-                                                 load_offset_kg=args.load_offset)[0]
-                    if outside:
-                        notes.append('the Eq. 1 prediction extrapolates the bench surfaces: ' +
-                                     '; '.join(outside))
-                    other = _duty_factor_note(model, gait)
-                    if other:
-                        notes.append(other)
-                if gait is not None:
-                    try:
-                        p_model = float(opm.power_out_w(gait, payload_kg=payload))
-                    except (ValueError, ImportError) as err:
-                        doc.setdefault('warnings', []).append(f'{path}: no P_out model: {err}')
-                if gait is not None:  # a schedule the robot cannot walk (--limits, L(t) = 0)
-                    from hexapod_energy.prediction import geometry_limits
-                    from hexapod_energy.recommend import infeasible_schedule
-                    bad = infeasible_schedule(gait, geometry_limits(model, gait, limits))
-                    if bad:
-                        notes.insert(0, 'infeasible schedule, not a gait the robot can '
-                                        'walk: ' + '; '.join(bad))
-                for note in notes:
-                    doc.setdefault('warnings', []).append(f'{path}: {note}')
-                effort_ok = math.isfinite(run_.power_out_w) and args.power_out != 'model'
-                # a continuously rotating leg does little negative work: the PWM-load test
-                # (net / positive power near 1) is for position-controlled servos
-                why = implausible_effort_power(run_.power_out_w, run_.power_in_w,
-                                               math.nan if clock else _net_joint_power_w(run_))
-                # why the joint efforts give no P_out, for the model's note
-                if not math.isfinite(run_.power_out_w):
-                    no_effort = 'no joint efforts in the bag'
-                elif args.power_out == 'model':
-                    no_effort = (f'--power-out model: the joint efforts (P_out '
-                                 f'{run_.power_out_w:.3g} W) not used')
-                else:
-                    no_effort = ''
-                if effort_ok and args.power_out == 'auto' and why:
-                    effort_ok = False
-                    no_effort = f'joint efforts refused: {why}'
-                    doc.setdefault('warnings', []).append(
-                        f'{path}: {why}; ' + ('using the model' if math.isfinite(p_model)
-                                              else 'P_out unknown'))
-                if effort_ok:
-                    p_out, source = run_.power_out_w, 'effort'
-                elif math.isfinite(p_model) and run_.power_in_w > 0 and \
-                        p_model >= run_.power_in_w:
-                    # the model's output above the measured input is impossible: the mass,
-                    # payload or leg described is not this robot's (a 1000 kg payload gave
-                    # efficiency 1.004 and a negative cost of transport, without a word)
-                    p_out, source = math.nan, 'none'
-                    notes.append(
-                        f'the Eq. 6 model gives P_out {p_model:.3g} W, not below the measured '
-                        f'P_in {run_.power_in_w:.3g} W (efficiency >= 1 is impossible): the '
-                        f'mass ({mass:g} kg with the payload), payload or leg given is not '
-                        "this robot's; P_out, efficiency and the costs of transport unknown")
-                    doc.setdefault('warnings', []).append(f'{path}: {notes[-1]}')
-                elif math.isfinite(p_model):
-                    p_out, source = p_model, 'model'
-                    if getattr(args, 'leg', None) is None:
-                        # 'no joint power from the bag' was said of refused efforts too
-                        notes.append(f'P_out from the Eq. 6 model of {leg.name}\'s leg ('
-                                     + (f'{no_effort}; ' if no_effort else '')
-                                     + 'give --leg for another leg)')
-                    elif no_effort.startswith('joint efforts refused'):
-                        notes.append(f'P_out from the Eq. 6 model of {leg.name}\'s leg '
-                                     f'({no_effort})')
-                else:
-                    # no efforts to trust and no model (no gait, or a path the leg cannot
-                    # reach): P_out is unknown, not 0, and so are eta and the CoTs
-                    p_out, source = math.nan, 'none'
-                # the accumulator used robot.mass_kg; descriptors are recomputed with the payload
-                d = descriptors(power_in_w=run_.power_in_w, power_out_w=p_out, mass_kg=mass,
-                                speed_mps=run_.speed_mps)
-                span = run_.extra.get('speed_span')
-                if span is not None:
-                    # speed known over part of the run: what divides by it is over that part
-                    d_span = descriptors(
-                        power_in_w=span['power_in_w'], mass_kg=mass, speed_mps=run_.speed_mps,
-                        power_out_w=span['power_out_w'] if source == 'effort' else p_out)
-                    d = dataclasses.replace(
-                        d, cost_of_transport_j_per_m=d_span.cost_of_transport_j_per_m,
-                        specific_cost_of_transport_j_per_m_kg=(
-                            d_span.specific_cost_of_transport_j_per_m_kg),
-                        specific_resistance=d_span.specific_resistance)
-                    notes.append(
-                        f"speed known in {span['windows']} of {run_.windows} windows: cost of "
-                        f"transport and specific resistance over those ({span['window_s']:.2f} "
-                        f"s, P_in {span['power_in_w']:.2f} W there, {run_.power_in_w:.2f} W "
-                        'over the run)')
-                trend, series = _power_trend(run_)
-                drift = trend_note(trend)
-                if drift:
-                    notes.append(drift)
-                    doc.setdefault('warnings', []).append(f'{path}: {drift}')
-                legs = _leg_count(args, run_) if run_.gait is None else None
-                if series is not None:
-                    trend_series.append({**series, 'predicted_w': predicted,
-                                         'drift': trend['drift'], 'run': len(runs)})
-                runs.append({
-                    'bag': str(path),
-                    'gait': walked.name if walked else ('stand' if standing else None),
-                    'leg_count': walked.leg_count if walked else
-                    (len(run_.gait.leg_names) or None if standing else legs),
-                    'duty_factor': walked.duty_factor if walked else None,
-                    'period_s': walked.period_s if walked else
-                    (0.0 if standing else run_.extra.get('period_s')),
-                    'step_length_m': walked.step_length_m if walked else None,
-                    'step_height_m': walked.step_height_m if walked else None,
-                    'payload_kg': payload, 'mass_kg': mass,
-                    'windows': run_.windows, 'window_s': run_.window_s,
-                    'measured_power_in_w': run_.power_in_w, 'predicted_power_in_w': predicted,
-                    'residual_w': run_.power_in_w - predicted,
-                    'power_breakdown_w': None if breakdown is None else {
-                        **breakdown, 'measured_w': run_.power_in_w,
-                        'unmodelled_w': run_.power_in_w - breakdown['predicted_w'],
-                        'holding_share': breakdown['holding_w'] / run_.power_in_w
-                        if run_.power_in_w > 0 else math.nan,
-                        **({} if math.isfinite(breakdown['holding_w']) else
-                           {'holding_missing': NO_BASAL_NOTE})},
-                    'prediction_outside_bench': outside,
-                    'power_out_w': p_out, 'power_out_source': source, 'power_out_model_w': p_model,
-                    'power_out_effort_w': run_.power_out_w,
-                    'efficiency': d.efficiency, 'speed': d.speed_mps,
-                    'cost_of_transport': d.cost_of_transport_j_per_m,
-                    'specific_cost_of_transport': d.specific_cost_of_transport_j_per_m_kg,
-                    'specific_resistance': d.specific_resistance,
-                    'cycle_source': run_.extra.get('cycle_source', 'gait_phase'),
-                    'speed_source': run_.extra.get('speed_source', ''),
-                    'speed_span': run_.extra.get('speed_span'),
-                    'power_in_trend': trend,
-                    'notes': notes,
-                    'segment': run_.extra.get('segment'),
-                })
-            bar.update(1)
+        model = _fit_bench(args, setup, doc, out, bar)
+        opm = setup.leg.output_power_model(args.robot_mass)
+        doc['leg'] = setup.leg.summary()
+        runs, trend_series, failed = _robot_runs(args, setup, model, opm, doc, bar)
         if args.robot and len(failed) == len(args.robot):
             raise EnergyError(failed[0]['error'] if len(failed) == 1 else
                               'every robot bag was refused: ' + '; '.join(
@@ -792,7 +509,7 @@ def _run(args: argparse.Namespace) -> dict[str, Any]:
         if failed:
             doc['failed_bags'] = failed
         for n in sorted({r['leg_count'] for r in runs if r['leg_count']}):
-            _check_mass(robot, int(n), 'the robot bags')
+            _check_mass(setup.robot, int(n), 'the robot bags')
         if trend_series:
             from hexapod_energy.plots import power_in_over_time_plot
 
@@ -804,79 +521,444 @@ def _run(args: argparse.Namespace) -> dict[str, Any]:
                       f'{TREND_MIN_WINDOWS} cycles and {TREND_MIN_SPAN_S:g} s)')]
         legs_n, legs_source = _robot_leg_count(args, runs, doc)
         if args.sweep or args.recommend:
-            _check_mass(robot, legs_n, legs_source)
-        measured_only = runs
-        runs = [r for r in runs if math.isfinite(r['predicted_power_in_w'])]
-        robot_name = f'{leg.name} robot, {args.robot_mass:.4g} kg'
-        if measured_only and not runs:
-            # no bench model (no --bench): the measured runs still get their plot
-            from hexapod_energy.plots import measured_runs_plot
-
-            doc['plots'] += [str(p.relative_to(out)) for p in measured_runs_plot(
-                [_run_label(r) for r in measured_only],
-                [r['measured_power_in_w'] for r in measured_only],
-                [r['specific_cost_of_transport'] for r in measured_only],
-                out / 'measured_runs',
-                title=f'Measured robot runs ({robot_name}; no --bench: no prediction)')]
-        if runs:
-            meas = np.array([r['measured_power_in_w'] for r in runs])
-            pred = np.array([r['predicted_power_in_w'] for r in runs])
-            err = pred - meas
-            doc['prediction_error'] = {
-                'runs': len(runs), 'rmse_w': float(np.sqrt(np.mean(err**2))),
-                'mae_w': float(np.mean(np.abs(err))), 'bias_w': float(np.mean(err)),
-                'mean_power_w': float(np.mean(meas)),
-                'relative_rmse': float(np.sqrt(np.mean(err**2)) / np.mean(meas)),
-                'max_abs_relative': float(np.max(np.abs(err) / meas)),
-            }
-            from hexapod_energy.plots import prediction_plot, watts_plot
-
-            doc['plots'] += [str(p.relative_to(out)) for p in prediction_plot(
-                [r['speed'] for r in runs], meas, pred, out / 'prediction',
-                labels=[_run_label(r, speed=False) for r in runs],
-                title=f'Eq. 1 prediction against measurement ({robot_name})',
-                outside=[bool(r.get('prediction_outside_bench')) for r in runs])]
-            # a run whose prediction extrapolates the bench says so under its bar
-            labels = [_run_label(r) + ('\n(extrapolated)' if r.get('prediction_outside_bench')
-                                       else '') for r in runs]
-            doc['plots'] += [str(p.relative_to(out)) for p in watts_plot(
-                labels, [r['power_breakdown_w'] for r in runs], meas,
-                [r['power_out_w'] for r in runs], out / 'where_the_watts_go',
-                title=f'{robot_name}; {_run_set_name(runs)}',
-                efficiency=[r['efficiency'] for r in runs])]
-
+            _check_mass(setup.robot, legs_n, legs_source)
+        _prediction_error(doc, runs, out, f'{setup.leg.name} robot, {args.robot_mass:.4g} kg')
         if args.sweep:
             _sweep(doc, model, opm, out, bar, args.load_offset, leg_count=legs_n,
-                   leg_count_source=legs_source, limits=limits, limits_source=limits_source)
+                   leg_count_source=legs_source, limits=setup.limits,
+                   limits_source=setup.limits_source)
         if args.recommend:
-            from hexapod_energy.recommend import recommend_gait
-
-            rec = recommend_gait(model, opm, speed_mps=args.speed, payload_kg=args.payload,
-                                 load_offset_kg=args.load_offset, leg_count=legs_n,
-                                 limits=limits)
-            doc['recommendation'] = {**rec.to_dict(), 'leg_count_source': legs_source,
-                                     'limits_source': limits_source}
-            if rec.note:
-                doc.setdefault('warnings', []).append(f'recommendation: {rec.note}')
-            # a saving smaller than the model's error is not a finding: the measured robot
-            # runs' prediction error when there are some, else the 5 % the issue allows
-            err = doc.get('prediction_error', {}).get('relative_rmse')
-            resolution = max(float(err) if err is not None else 0.0, RECOMMEND_RESOLUTION)
-            saving = rec.saving_fraction
-            doc['recommendation']['model_resolution'] = resolution
-            if saving is not None and 0.0 < saving < resolution:
-                doc.setdefault('warnings', []).append(
-                    f'recommendation: its saving over the default ({100 * saving:.1f} %) is '
-                    f'within the model\'s error ({100 * resolution:.0f} %'
-                    + (', the robot runs\' prediction error' if err is not None and
-                       err >= RECOMMEND_RESOLUTION else '') + '): measure both on the robot '
-                    'before switching')
+            _recommendation(args, doc, model, opm, legs_n, legs_source, setup)
             bar.update(1)
     finally:
         reading.close()
         bar.close()
     write_text_atomic(out / 'energy.json', json.dumps(json_safe(doc), indent=1))   # last
     return doc
+
+
+def _fit_bench(args: argparse.Namespace, setup: _Setup, doc: dict[str, Any], out: Path,
+               bar: Any) -> Any:
+    """Read the bench bags, split their power into phases, fit the surfaces and draw them;
+    ``doc['bench']``. None without bench bags; :class:`FitRefused` (the sessions' phase
+    powers written) when the surfaces cannot be fitted."""
+    from hexapod_common.outdir import write_text_atomic
+
+    from hexapod_energy.bag_io import (
+        bench_load_problem,
+        bench_phase_samples,
+        merge_bench_data,
+        read_bench_bag,
+    )
+    from hexapod_energy.prediction import NO_BASAL_NOTE
+    from hexapod_energy.single_leg import SingleLegModel
+
+    leg, bench_bags = setup.leg, setup.bench_bags
+    samples, diags = [], []
+    one_session = []
+    for path, spec in bench_bags:
+        data = read_bench_bag(path, spec, leg_dh=leg.dh, leg_name=leg.name,
+                              bench_leg=getattr(args, 'bench_leg', None))
+        bar.update(1)
+        if spec is not None:
+            one_session.append(data)
+            continue
+        s, d = bench_phase_samples(data, current_sign=args.current_sign,
+                                   force_sign=getattr(args, 'force_sign', 'auto'),
+                                   phase_split=getattr(args, 'phase_split', 'auto'))
+        samples.extend(s)
+        diags.append(d)
+    # bags of one session each: one bench (force offset and sign from every session)
+    why_apart: list[str] = []
+    merged = merge_bench_data(one_session, why_apart)
+    if why_apart:
+        # said: each bag then gets its own force offset and sign (a 0 Hz bag: unchecked)
+        _warn(doc, bar, f'the {len(one_session)} bags of --bench-sessions are analysed one by '
+                        f'one, not as one bench: {why_apart[0]}')
+    for data in [merged] if merged is not None else one_session:
+        s, d = bench_phase_samples(data, current_sign=args.current_sign,
+                                   force_sign=getattr(args, 'force_sign', 'auto'),
+                                   phase_split=getattr(args, 'phase_split', 'auto'))
+        samples.extend(s)
+        diags.append(d)
+    if setup.mass_given:
+        # loads in grams under the 50 kg bound (0-50 g) are above a small robot's mass
+        carried = args.robot_mass + max(args.payload or 0.0,
+                                        getattr(args, 'robot_payload', None) or 0.0)
+        why = bench_load_problem([(f'session {x.session_id}', x.load_kg) for x in samples],
+                                 robot_mass_kg=carried,
+                                 robot_what='robot (--robot-mass, with any payload)')
+        if why:
+            raise EnergyError(why)
+    for d in diags:
+        # a bench leg not identified (the contact split), a session that walked another
+        # frequency than its label: said on the terminal at once and kept in "warnings"
+        for w in d.get('warnings', []):
+            _warn(doc, bar, f'{d["bag"]}: {w}')
+    try:
+        model = SingleLegModel(folds=args.folds).fit(samples) if bench_bags else None
+    except (FitError, InvalidInputError) as err:
+        # the per-session phase powers do not depend on the surfaces: a lab checking its
+        # bench with a short plan gets them (outside review D8), then the refusal
+        doc['bench'] = {'bags': [b for b, _ in bench_bags], 'diagnostics': diags,
+                        'fit': None, 'sessions': [dataclasses.asdict(x) for x in samples],
+                        'fit_error': str(err)}
+        doc['errors'] = [f'bench surface fit refused: {err}']
+        write_text_atomic(out / 'energy.json', json.dumps(json_safe(doc), indent=1))
+        raise FitRefused(
+            f'{err} (the {len(samples)} sessions\' phase powers are in '
+            f'{out / "energy.json"} bench.sessions; no surfaces, no Eq. 1 prediction)',
+            doc.get('warnings', [])) from err
+    if model is not None and not model.basal_power_w_:
+        # basal power and the holding split were empty / null without a word
+        _warn(doc, bar, NO_BASAL_NOTE)
+    elif model is not None and (uncovered := _loads_without_basal(model)):
+        # a lost 0 Hz session (a recorder that missed the latched first messages): that
+        # load's basal power was the nearest one's without a word (review of the change)
+        _warn(doc, bar,
+              f'no 0 Hz session at load(s) {", ".join(f"{m:g}" for m in uncovered)} kg: '
+              f'their basal power is held from the nearest 0 Hz session\'s (at '
+              f'{", ".join(f"{m:g}" for m in model.basal_power_w_)} kg), not measured')
+    if model is not None:
+        model.bench_leg_ = leg   # the leg whose joint paths map other step geometries
+        if model.bench_step_ is None:
+            doc.setdefault('warnings', []).append(
+                'the bench sessions record no step length and height (no /bench/session '
+                'or /gait/phase with them; give step_length_m and step_height_m in the '
+                'sessions file): robot runs, sweeps and candidates with another step are '
+                'read at their phase durations alone, not mapped onto the bench\'s path')
+    bar.update(1)
+    doc['bench'] = ({'bags': [b for b, _ in bench_bags], 'diagnostics': diags,
+                     'fit': model.summary()} if model is not None else None)
+    if model is not None:
+        from hexapod_energy.plots import bench_surfaces_plot
+
+        doc['plots'] += [str(p.relative_to(out)) for p in bench_surfaces_plot(
+            model, out / 'bench_surfaces',
+            title=f'Single-leg bench: {len(model.samples_)} sessions, phase powers and '
+                  'fitted surfaces')]
+    return model
+
+
+def _robot_runs(args: argparse.Namespace, setup: _Setup, model: Any, opm: Any,
+                doc: dict[str, Any], bar: Any
+                ) -> tuple[list[dict[str, Any]], list[dict[str, Any]], list[dict[str, str]]]:
+    """Every robot bag's runs (one per walking schedule), the P_in-over-time series to draw,
+    and the bags refused (by name; the others are kept)."""
+    from hexapod_common.errors import HexapodError
+
+    from hexapod_energy.bag_io import read_robot_segments
+
+    runs: list[dict[str, Any]] = []
+    trend_series: list[dict[str, Any]] = []   # window P_in over time, for the plot
+    failed: list[dict[str, str]] = []
+    for path in args.robot:
+        try:
+            # a bag whose /gait/phase changes schedule (speed sweep, gait switch, stop)
+            # holds one run per walking schedule
+            segments = read_robot_segments(path, mass_kg=setup.robot.mass_kg,
+                                           current_sign=args.current_sign,
+                                           speed_mps=setup.robot_speed)
+        except (EnergyError, HexapodError, ValueError) as err:
+            # one unreadable robot bag does not lose the others: refused by name (as
+            # ``slip`` does); every one refused is an error
+            failed.append({'bag': str(path), 'error': str(err)})
+            if len(args.robot) > 1:  # a lone bag's refusal is the error itself
+                print(f'hexapod-analyze energy: refused {path}: {err}', file=sys.stderr)
+            bar.update(1)
+            continue
+        for run_ in segments:
+            entry, series = _robot_run(args, setup, model, opm, doc, path, run_)
+            if series is not None:
+                trend_series.append({**series, 'run': len(runs)})
+            runs.append(entry)
+        bar.update(1)
+    return runs, trend_series, failed
+
+
+def _robot_run(args: argparse.Namespace, setup: _Setup, model: Any, opm: Any,
+               doc: dict[str, Any], path: str, run_: Any
+               ) -> tuple[dict[str, Any], dict[str, Any] | None]:
+    """One robot run's ``robot_runs`` entry: measured P_in, the Eq. 1 prediction and where
+    its watts go, P_out (efforts or the Eq. 6 model), the descriptors, and its notes (each
+    also a warning); with its P_in-over-time series when it has one."""
+    from hexapod_energy.metrics import descriptors
+    from hexapod_energy.prediction import NO_BASAL_NOTE, bench_domain_check, power_breakdown_w
+
+    robot = setup.robot
+    notes = list(run_.extra.get('notes', []))
+    payload = args.robot_payload if args.robot_payload is not None else \
+        (run_.payload_kg or 0.0)
+    if args.robot_payload is None and run_.payload_kg:
+        notes.append(f'payload {run_.payload_kg:g} kg from the bag\'s metadata '
+                     '(--robot-payload overrides it)')
+    mass = robot.total_mass_kg(payload)
+    standing = run_.gait is not None and run_.gait.period_s <= 0
+    gait = None if standing else gait_from_sample(run_.gait) \
+        if run_.gait is not None else _given_gait(args, run_, notes, model)
+    predicted = p_model = math.nan
+    breakdown = None
+    if standing:
+        # every leg holds its share of the body: the bench's 0 Hz sessions
+        # (basal power at a load) predict it; the joints do no work
+        p_model = 0.0
+        notes.append(_standing_note(args, run_, model, robot, mass))
+    # a RHex-class robot's Buehler clock (rotating legs, no step length): Eq. 1
+    # and the Eq. 6 model are for stepping servo legs (an EduBot run was predicted
+    # at 62.8 W for 34.5 W measured, its P_out 0 W: new-user review)
+    clock = gait is not None and (gait.name == 'buehler' or not gait.step_length_m > 0)
+    walked = gait   # the schedule as recorded, for the JSON
+    if clock:
+        notes.append('a Buehler clock (rotating legs, no step length): the '
+                     'single-leg bench method (Eq. 1) and the Eq. 6 P_out model '
+                     'are for stepping servo legs: no prediction, P_out from the '
+                     'joint efforts only')
+        gait = None
+    if gait is not None and model is None:
+        notes.append('no bench bags (--bench): no Eq. 1 prediction')
+    outside: list[str] = []
+    if gait is not None and model is not None:
+        # Eq. 1 and where its watts go, in one evaluation
+        breakdown = power_breakdown_w(model, gait, total_mass_kg=mass,
+                                      leg_mass_kg=robot.leg_mass_kg,
+                                      swing_load=args.swing_load,
+                                      load_offset_kg=args.load_offset)
+        predicted = breakdown['predicted_w']
+        outside = bench_domain_check(model, gait, total_mass_kg=mass,
+                                     leg_mass_kg=robot.leg_mass_kg,
+                                     swing_load=args.swing_load,
+                                     load_offset_kg=args.load_offset)[0]
+        if outside:
+            notes.append('the Eq. 1 prediction extrapolates the bench surfaces: ' +
+                         '; '.join(outside))
+        other = _duty_factor_note(model, gait)
+        if other:
+            notes.append(other)
+    if gait is not None:
+        try:
+            p_model = float(opm.power_out_w(gait, payload_kg=payload))
+        except (ValueError, ImportError) as err:
+            doc.setdefault('warnings', []).append(f'{path}: no P_out model: {err}')
+    if gait is not None:  # a schedule the robot cannot walk (--limits, L(t) = 0)
+        from hexapod_energy.prediction import geometry_limits
+        from hexapod_energy.recommend import infeasible_schedule
+        bad = infeasible_schedule(gait, geometry_limits(model, gait, setup.limits))
+        if bad:
+            notes.insert(0, 'infeasible schedule, not a gait the robot can '
+                            'walk: ' + '; '.join(bad))
+    for note in notes:
+        doc.setdefault('warnings', []).append(f'{path}: {note}')
+    p_out, source = _chosen_power_out(args, setup, run_, p_model, clock, mass, notes, doc,
+                                      path)
+    # the accumulator used robot.mass_kg; descriptors are recomputed with the payload
+    d = descriptors(power_in_w=run_.power_in_w, power_out_w=p_out, mass_kg=mass,
+                    speed_mps=run_.speed_mps)
+    span = run_.extra.get('speed_span')
+    if span is not None:
+        # speed known over part of the run: what divides by it is over that part
+        d_span = descriptors(
+            power_in_w=span['power_in_w'], mass_kg=mass, speed_mps=run_.speed_mps,
+            power_out_w=span['power_out_w'] if source == 'effort' else p_out)
+        d = dataclasses.replace(
+            d, cost_of_transport_j_per_m=d_span.cost_of_transport_j_per_m,
+            specific_cost_of_transport_j_per_m_kg=(
+                d_span.specific_cost_of_transport_j_per_m_kg),
+            specific_resistance=d_span.specific_resistance)
+        notes.append(
+            f"speed known in {span['windows']} of {run_.windows} windows: cost of "
+            f"transport and specific resistance over those ({span['window_s']:.2f} "
+            f"s, P_in {span['power_in_w']:.2f} W there, {run_.power_in_w:.2f} W "
+            'over the run)')
+    trend, series = _power_trend(run_)
+    drift = trend_note(trend)
+    if drift:
+        notes.append(drift)
+        doc.setdefault('warnings', []).append(f'{path}: {drift}')
+    legs = _leg_count(args, run_) if run_.gait is None else None
+    if series is not None:
+        series = {**series, 'predicted_w': predicted, 'drift': trend['drift']}
+    entry = {
+        'bag': str(path),
+        'gait': walked.name if walked else ('stand' if standing else None),
+        'leg_count': walked.leg_count if walked else
+        (len(run_.gait.leg_names) or None if standing else legs),
+        'duty_factor': walked.duty_factor if walked else None,
+        'period_s': walked.period_s if walked else
+        (0.0 if standing else run_.extra.get('period_s')),
+        'step_length_m': walked.step_length_m if walked else None,
+        'step_height_m': walked.step_height_m if walked else None,
+        'payload_kg': payload, 'mass_kg': mass,
+        'windows': run_.windows, 'window_s': run_.window_s,
+        'measured_power_in_w': run_.power_in_w, 'predicted_power_in_w': predicted,
+        'residual_w': run_.power_in_w - predicted,
+        'power_breakdown_w': None if breakdown is None else {
+            **breakdown, 'measured_w': run_.power_in_w,
+            'unmodelled_w': run_.power_in_w - breakdown['predicted_w'],
+            'holding_share': breakdown['holding_w'] / run_.power_in_w
+            if run_.power_in_w > 0 else math.nan,
+            **({} if math.isfinite(breakdown['holding_w']) else
+               {'holding_missing': NO_BASAL_NOTE})},
+        'prediction_outside_bench': outside,
+        'power_out_w': p_out, 'power_out_source': source, 'power_out_model_w': p_model,
+        'power_out_effort_w': run_.power_out_w,
+        'efficiency': d.efficiency, 'speed': d.speed_mps,
+        'cost_of_transport': d.cost_of_transport_j_per_m,
+        'specific_cost_of_transport': d.specific_cost_of_transport_j_per_m_kg,
+        'specific_resistance': d.specific_resistance,
+        'cycle_source': run_.extra.get('cycle_source', 'gait_phase'),
+        'speed_source': run_.extra.get('speed_source', ''),
+        'speed_span': run_.extra.get('speed_span'),
+        'power_in_trend': trend,
+        'notes': notes,
+        'segment': run_.extra.get('segment'),
+    }
+    return entry, series
+
+
+def _standing_note(args: argparse.Namespace, run_: Any, model: Any, robot: Any,
+                   mass: float) -> str:
+    """The note of a standing run: no Eq. 1 prediction, with what the bench's 0 Hz sessions
+    say its legs would draw holding the body."""
+    legs_st = len(run_.gait.leg_names) or 6
+    basal = getattr(model, 'basal_power_at_w', None)
+    held = ''
+    if basal is not None and math.isfinite(float(basal(0.0))):
+        from hexapod_gait.gait import carried_mass_per_leg_kg
+        m_c = float(carried_mass_per_leg_kg(mass, robot.leg_mass_kg, np.array([legs_st]))[0])
+        b_w = legs_st * float(basal(max(m_c - args.load_offset, 0.0)))
+        held = (f'; {legs_st} legs at the bench\'s 0 Hz power for the '
+                f'{m_c:.3g} kg each holds would draw {b_w:.3g} W, '
+                f'unloaded {legs_st * float(basal(0.0)):.3g} W')
+    return (f'the robot stands ({run_.windows} window(s) of 1 s): its input power, speed 0 '
+            '(CoT undefined); Eq. 1 is for walking, no prediction' + held)
+
+
+def _chosen_power_out(args: argparse.Namespace, setup: _Setup, run_: Any, p_model: float,
+                      clock: bool, mass: float, notes: list[str], doc: dict[str, Any],
+                      path: str) -> tuple[float, str]:
+    """A run's P_out and its source: the joint efforts when present, trusted and not
+    overridden (``--power-out``), else the Eq. 6 model when it is below the measured P_in,
+    else unknown (NaN, 'none'); why, in the run's notes and the warnings."""
+    effort_ok = math.isfinite(run_.power_out_w) and args.power_out != 'model'
+    # a continuously rotating leg does little negative work: the PWM-load test
+    # (net / positive power near 1) is for position-controlled servos
+    why = implausible_effort_power(run_.power_out_w, run_.power_in_w,
+                                   math.nan if clock else _net_joint_power_w(run_))
+    # why the joint efforts give no P_out, for the model's note
+    if not math.isfinite(run_.power_out_w):
+        no_effort = 'no joint efforts in the bag'
+    elif args.power_out == 'model':
+        no_effort = (f'--power-out model: the joint efforts (P_out '
+                     f'{run_.power_out_w:.3g} W) not used')
+    else:
+        no_effort = ''
+    if effort_ok and args.power_out == 'auto' and why:
+        effort_ok = False
+        no_effort = f'joint efforts refused: {why}'
+        doc.setdefault('warnings', []).append(
+            f'{path}: {why}; ' + ('using the model' if math.isfinite(p_model)
+                                  else 'P_out unknown'))
+    leg = setup.leg
+    if effort_ok:
+        return run_.power_out_w, 'effort'
+    if math.isfinite(p_model) and run_.power_in_w > 0 and p_model >= run_.power_in_w:
+        # the model's output above the measured input is impossible: the mass,
+        # payload or leg described is not this robot's (a 1000 kg payload gave
+        # efficiency 1.004 and a negative cost of transport, without a word)
+        notes.append(
+            f'the Eq. 6 model gives P_out {p_model:.3g} W, not below the measured '
+            f'P_in {run_.power_in_w:.3g} W (efficiency >= 1 is impossible): the '
+            f'mass ({mass:g} kg with the payload), payload or leg given is not '
+            "this robot's; P_out, efficiency and the costs of transport unknown")
+        doc.setdefault('warnings', []).append(f'{path}: {notes[-1]}')
+        return math.nan, 'none'
+    if math.isfinite(p_model):
+        if getattr(args, 'leg', None) is None:
+            # 'no joint power from the bag' was said of refused efforts too
+            notes.append(f'P_out from the Eq. 6 model of {leg.name}\'s leg ('
+                         + (f'{no_effort}; ' if no_effort else '')
+                         + 'give --leg for another leg)')
+        elif no_effort.startswith('joint efforts refused'):
+            notes.append(f'P_out from the Eq. 6 model of {leg.name}\'s leg '
+                         f'({no_effort})')
+        return p_model, 'model'
+    # no efforts to trust and no model (no gait, or a path the leg cannot
+    # reach): P_out is unknown, not 0, and so are eta and the CoTs
+    return math.nan, 'none'
+
+
+def _prediction_error(doc: dict[str, Any], runs: list[dict[str, Any]], out: Path,
+                      robot_name: str) -> None:
+    """``prediction_error`` over the runs with a prediction, and the plots of the runs: the
+    prediction against measurement and where the watts go, or the measured runs alone when
+    there is no bench model."""
+    measured_only = runs
+    runs = [r for r in runs if math.isfinite(r['predicted_power_in_w'])]
+    if measured_only and not runs:
+        # no bench model (no --bench): the measured runs still get their plot
+        from hexapod_energy.plots import measured_runs_plot
+
+        doc['plots'] += [str(p.relative_to(out)) for p in measured_runs_plot(
+            [_run_label(r) for r in measured_only],
+            [r['measured_power_in_w'] for r in measured_only],
+            [r['specific_cost_of_transport'] for r in measured_only],
+            out / 'measured_runs',
+            title=f'Measured robot runs ({robot_name}; no --bench: no prediction)')]
+    if not runs:
+        return
+    meas = np.array([r['measured_power_in_w'] for r in runs])
+    pred = np.array([r['predicted_power_in_w'] for r in runs])
+    err = pred - meas
+    doc['prediction_error'] = {
+        'runs': len(runs), 'rmse_w': float(np.sqrt(np.mean(err**2))),
+        'mae_w': float(np.mean(np.abs(err))), 'bias_w': float(np.mean(err)),
+        'mean_power_w': float(np.mean(meas)),
+        'relative_rmse': float(np.sqrt(np.mean(err**2)) / np.mean(meas)),
+        'max_abs_relative': float(np.max(np.abs(err) / meas)),
+    }
+    from hexapod_energy.plots import prediction_plot, watts_plot
+
+    doc['plots'] += [str(p.relative_to(out)) for p in prediction_plot(
+        [r['speed'] for r in runs], meas, pred, out / 'prediction',
+        labels=[_run_label(r, speed=False) for r in runs],
+        title=f'Eq. 1 prediction against measurement ({robot_name})',
+        outside=[bool(r.get('prediction_outside_bench')) for r in runs])]
+    # a run whose prediction extrapolates the bench says so under its bar
+    labels = [_run_label(r) + ('\n(extrapolated)' if r.get('prediction_outside_bench')
+                               else '') for r in runs]
+    doc['plots'] += [str(p.relative_to(out)) for p in watts_plot(
+        labels, [r['power_breakdown_w'] for r in runs], meas,
+        [r['power_out_w'] for r in runs], out / 'where_the_watts_go',
+        title=f'{robot_name}; {_run_set_name(runs)}',
+        efficiency=[r['efficiency'] for r in runs])]
+
+
+def _recommendation(args: argparse.Namespace, doc: dict[str, Any], model: Any, opm: Any,
+                    legs_n: int, legs_source: str, setup: _Setup) -> None:
+    """``doc['recommendation']``: the gait that minimises CoT/M at ``--speed`` and
+    ``--payload``, with a warning when its saving is within the model's error."""
+    from hexapod_energy.recommend import recommend_gait
+
+    rec = recommend_gait(model, opm, speed_mps=args.speed, payload_kg=args.payload,
+                         load_offset_kg=args.load_offset, leg_count=legs_n,
+                         limits=setup.limits)
+    doc['recommendation'] = {**rec.to_dict(), 'leg_count_source': legs_source,
+                             'limits_source': setup.limits_source}
+    if rec.note:
+        doc.setdefault('warnings', []).append(f'recommendation: {rec.note}')
+    # a saving smaller than the model's error is not a finding: the measured robot
+    # runs' prediction error when there are some, else the 5 % the issue allows
+    err = doc.get('prediction_error', {}).get('relative_rmse')
+    resolution = max(float(err) if err is not None else 0.0, RECOMMEND_RESOLUTION)
+    saving = rec.saving_fraction
+    doc['recommendation']['model_resolution'] = resolution
+    if saving is not None and 0.0 < saving < resolution:
+        doc.setdefault('warnings', []).append(
+            f'recommendation: its saving over the default ({100 * saving:.1f} %) is '
+            f'within the model\'s error ({100 * resolution:.0f} %'
+            + (', the robot runs\' prediction error' if err is not None and
+               err >= RECOMMEND_RESOLUTION else '') + '): measure both on the robot '
+            'before switching')
 
 
 def _actuator_limits(args: argparse.Namespace) -> tuple[Any, str]:
