@@ -71,6 +71,14 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
                           {"damping", "fitted_damping_time_s", "fitted_offset_s",
                           "fitted_rms_m", "undamped_offset_s", "undamped_rms_m"}),
                           "geometry_damping_time_s", "geometry_damping_fitted",
+                          "geometry_leg_stiffness_n_m" (one leg's stiffness from the
+                          body-height fit), "damping_stiffness_check" (that stiffness
+                          over 25 % off EduBot's 3800 N/m with EduBot's damping time:
+                          {"leg_stiffness_n_m", "default_damping_time_s",
+                          "default_offset_s", "default_rms_m", "fitted_damping_time_s",
+                          "fitted_offset_s", "fitted_rms_m", "kept"}),
+                          "effort_contact_lag_s" (aerial gaits: geometric touchdowns
+                          minus hip-effort onsets, median; over 6 ms a warning),
                           "com_height_m" (mocap_origin: median COM height above the
                           origin's plane, with a note that heights are measured from it),
                           "frozen_mocap_samples" (poses repeating the previous one exactly,
@@ -98,7 +106,9 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
       "skipped_counts": {"<reason>": n},   # too_short, nan, mocap_gap, outside_volume,
                                            # transient (--steady-only), ...
       "failed_bags": [{"bag", "error"}],   # e.g. a missing topic
-      "warnings": [str]    # e.g. the robot mass assumed (no --mass)
+      "warnings": [str]    # e.g. the robot mass assumed (no --mass); "<bag>: ..." for a
+                           # run resting on an assumption its data contradict (runs[].warnings,
+                           # also in its notes: legs not EduBot's, efforts against contacts)
     }
 
 Estimators. The top-level per-stance values are the paper's estimator (Komsuoglu et al.:
@@ -493,6 +503,10 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
                     '\'fit\') for a surer offset')
             if tau != 'default':
                 overrides['leg_damping_time_s'] = tau
+            if tau != 'default' or overrides.get('damping_assumed'):
+                # the damping time is given (or checked against undamped legs): no check
+                # against EduBot's leg stiffness
+                overrides['damping_stiffness_n_m'] = None
             geometry = LegGeometry(**overrides)
         res = analyze_run(run, model=model, box=box, offset_s=options.get('offset', 0.0),
                           offset_lag_s=options.get('offset_lag', 0.0),
@@ -553,7 +567,8 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
                                         'liftoff': w.liftoff_s}
                                        for w in res.geometry_windows],
                     'geometry': None if geometry is None else dataclasses.asdict(geometry),
-                    'stances': len(stances), 'skipped': len(res.skipped), 'notes': notes}}
+                    'stances': len(stances), 'skipped': len(res.skipped), 'notes': notes,
+                    'warnings': list(res.warnings)}}
 
 
 def _other_ratio(stance: dict[str, Any]) -> float:
@@ -764,6 +779,9 @@ def _run_command(args: argparse.Namespace) -> int:
              else math.nan,
              'other_nerr_ratio': _other_ratio(s)} for s in stances]
     _note_rest_length_outliers(stances, [r['run'] for r in results if 'run' in r])
+    # a run's result resting on an assumption its data contradict: a warning too
+    warnings.extend(f"{r['bag']}: {w}" for r in results for w in r.get('run', {}).get(
+        'warnings', []))
     doc = {'schema': 'slip/1', 'model': args.model, 'estimator': 'paper', 'starts': args.starts,
            'mass_kg': args.mass, 'stances': stances,
            'runs': [r['run'] for r in results if 'run' in r], 'gaits': gait_table(rows),

@@ -19,6 +19,7 @@ from .energetics import battery_power_w, specific_resistance
 from .errors import SlipDataError, StanceRejectedError
 from .fit import SlipFitResult, SlipFitter, SlipPositionFitter, Stance, validate_stance
 from .geometry import (
+    DAMPING_STIFFNESS_TOLERANCE,
     GeometryFit,
     LegGeometry,
     body_pitch_rad,
@@ -30,6 +31,7 @@ from .geometry import (
 from .model import SlipModel
 from .proprio_edges import (
     alternating_touchdowns,
+    effort_onsets,
     estimate_offset_contacts,
     estimate_offset_joint,
     refine_touchdowns,
@@ -126,6 +128,58 @@ class RunResult:
     paper_windows: list[StanceWindow] = field(default_factory=list)
     geometry_windows: list[StanceWindow] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    #: results resting on an assumption the data contradict (also in ``notes``)
+    warnings: list[str] = field(default_factory=list)
+
+    def warn(self, text: str) -> None:
+        """A note that is also a warning (``slip.json`` ``warnings``, stderr)."""
+        self.notes.append(text)
+        self.warnings.append(text)
+
+
+def _check_hexapod_hips(names: tuple[str, ...], res: RunResult) -> None:
+    """A warning when the joint states lack some of the six hips the tripods (and EduBot's
+    geometry) are made of: the tripods are then built from the hips present (an outside
+    review's 4-hip run: two legs per tripod, the edges 155 ms off, exit 0 without a word)."""
+    six = [f'{leg}_hip' for tp in TRIPODS.values() for leg in tp]
+    missing = [h for h in six if h not in names]
+    if not missing or len(missing) == len(six):
+        return  # all six, or none (refused later, naming the tripods' hips)
+    have = [h for h in six if h in names]
+    res.warn(
+        f'the joint states carry {len(have)} of the six hips the tripods are made of '
+        f'(missing {", ".join(missing)}): the analysis assumes a six-legged RHex-class robot '
+        f'(tripods left L1 R2 L3, right R1 L2 R3; EduBot\'s geometry unless given) and builds '
+        f'each tripod from the hips present; the body-height fit, stream offset, stance '
+        f'edges and SLIP fits are not valid for a robot with other legs (a 4-hip run read '
+        f'every edge about 155 ms off)')
+
+
+#: a path moving faster than this (median over the samples) is not a legged robot in metres
+MAX_PLAUSIBLE_SPEED_M_S = 20.0
+
+
+def _check_position_unit(t_s: FloatArray, p_m: FloatArray, label: str) -> None:
+    """Refuse motion capture whose positions are not in metres (millimetres move the body
+    1000 times faster: an outside review's run was refused as 'not straight, lateral
+    deviation 0.714 m')."""
+    if t_s.size < 3:
+        return
+    dt = np.diff(t_s)
+    ok = dt > 0
+    if not ok.any():
+        return
+    v = np.linalg.norm(np.diff(p_m, axis=0)[ok], axis=1) / dt[ok]
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return
+    speed = float(np.median(v))
+    span = float(np.max(np.ptp(p_m, axis=0)))
+    if speed > MAX_PLAUSIBLE_SPEED_M_S:
+        raise SlipDataError(
+            f'run {label!r}: the motion-capture positions move at a median {speed:.0f} m/s '
+            f'and span {span:.1f} m: not metres? (millimetres would read 1000 times too '
+            f'far; /mocap/body must be in metres, REP-103: scale the bridge\'s output)')
 
 
 def _tripod_mean(names: tuple[str, ...], values: FloatArray, tripod: str) -> FloatArray:
@@ -192,6 +246,111 @@ def _damping_tradeoff(gfit: Any, geometry: LegGeometry, geo_inputs: tuple[Any, .
     if take0:
         return f0, undamped, inputs0
     return gfit, geometry, geo_inputs
+
+
+def _stiffness_check(gfit: Any, geometry: LegGeometry, geo_inputs: tuple[Any, ...],
+                     geo_x: FloatArray, off: float, off_range: float, mass_kg: float,
+                     res: RunResult) -> tuple[Any, LegGeometry, tuple[Any, ...]]:
+    """The default damping time (EduBot's 12.9 N s/m over 3800 N/m) checked against the legs'
+    stiffness that the body-height fit finds (``frame['geometry_leg_stiffness_n_m']``).
+
+    The damping time and the offset trade off (the damper advances the force like a clock
+    shift) and the body-height residual barely tells them apart (an outside review: legs of
+    2000 N/m fitted 0.194 mm rms with EduBot's 3.39 ms, 0.189 mm with 6.31 ms fitted, the
+    offset 10 ms and every edge 7 ms off with the default), but the stiffness is pinned well
+    (EduBot simulated runs 3551-3884 N/m; the review's 2000 and 7000 N/m legs 2095 and 6034).
+    A stiffness more than :data:`DAMPING_STIFFNESS_TOLERANCE` off EduBot's says the legs are
+    not EduBot's: the damping time is then fitted (started from EduBot's damper on the fitted
+    spring) and kept unless it fits the body height clearly worse; a warning either way.
+    """
+    ref = geometry.damping_stiffness_n_m
+    k_leg = float(gfit.stiffness_per_kg) * float(mass_kg)
+    if ref is None or not math.isfinite(k_leg):
+        return gfit, geometry, geo_inputs
+    res.frame['geometry_leg_stiffness_n_m'] = k_leg
+    if abs(k_leg / ref - 1.0) <= DAMPING_STIFFNESS_TOLERANCE or \
+            geometry.leg_damping_time_s is None or k_leg <= 0:
+        return gfit, geometry, geo_inputs
+    tau0 = float(geometry.leg_damping_time_s)
+    free = dataclasses.replace(geometry, leg_damping_time_s=None, damping_stiffness_n_m=None)
+    inputs1 = (free,) + tuple(geo_inputs[1:])
+    head = (f'the legs\' stiffness fitted to the body height, {k_leg:.0f} N/m per leg (mass '
+            f'{mass_kg:g} kg), is not EduBot\'s {ref:.0f} N/m: so EduBot\'s leg damping time '
+            f'({1e3 * tau0:.2f} ms) need not be this robot\'s, and it moves the stream offset '
+            f'and the edges (the two trade off)')
+    try:
+        f1 = fit_ground_offset(*inputs1, initial_offset_s=off, offset_range_s=off_range,
+                               fix_offset=False, x_m=geo_x, tau_s=tau0 * ref / k_leg,
+                               fix_tau=False, fit_pitch_offset=False,
+                               pitch_offset_rad=gfit.pitch_offset_rad)
+    except SlipDataError as err:
+        res.warn(f'{head}; fitting the damping time failed ({err}): EduBot\'s is kept, the '
+                 f'offset {gfit.offset_s:+.4f} s and the edges may be off by several ms; give '
+                 f'--leg-damping-time SECONDS (or check --mass)')
+        return gfit, geometry, geo_inputs
+    take = f1.rms_m <= 1.01 * gfit.rms_m
+    res.frame['damping_stiffness_check'] = {
+        'leg_stiffness_n_m': k_leg, 'default_damping_time_s': tau0,
+        'default_offset_s': gfit.offset_s, 'default_rms_m': gfit.rms_m,
+        'fitted_damping_time_s': f1.damping_ratio_s, 'fitted_offset_s': f1.offset_s,
+        'fitted_rms_m': f1.rms_m, 'kept': 'fitted' if take else 'default'}
+    res.warn(f'{head}. The damping time is fitted: {1e3 * f1.damping_ratio_s:.2f} ms, '
+             f'offset {f1.offset_s:+.4f} s (body-height rms {1e3 * f1.rms_m:.3f} mm), against '
+             f'{gfit.offset_s:+.4f} s ({1e3 * gfit.rms_m:.3f} mm) with EduBot\'s; the '
+             + ('fitted one is kept' if take else 'fitted one fits worse, EduBot\'s is kept '
+                '(the offset and edges may be off by several ms)')
+             + '. Give --leg-damping-time SECONDS if it is known (or check --mass)')
+    if not take:
+        return gfit, geometry, geo_inputs
+    return f1, free, inputs1
+
+
+#: geometric touchdowns and hip-effort onsets further apart than this (median over the legs'
+#: touchdowns) contradict the leg description [s]: EduBot simulated running and jogging
+#: (3 seeds) +1.5 to +2.5 ms; the review's runs: hip zero 0.15 rad +19.6 ms, a logged hip
+#: offset +0.15 rad -12.4 ms, four hips +12.5 ms
+EFFORT_CONTACT_MAX_S = 0.006
+
+
+def _effort_contact_check(contacts: dict[str, FloatArray], names: tuple[str, ...],
+                          tj: FloatArray, effort: FloatArray | None, gfit: Any,
+                          geometry: LegGeometry, res: RunResult) -> None:
+    """The geometric contacts' touchdowns against the hip-effort onsets (the motors feel the
+    landing; an independent clock of the same touchdowns), on aerial gaits (the geometric
+    fit's flight windows; on slow gaits an effort onset need not be a touchdown: EduBot pace
+    and walk +0.4 to +11.8 and -5 ms). The body height alone cannot tell a hip zero off from
+    a clock offset (a hip zero 0.15 rad off fitted 0.209 mm rms, the true zero 0.211 mm: the
+    offset 17.5 ms and every edge off, silently), the efforts can
+    (``frame['effort_contact_lag_s']``: geometric touchdown minus effort onset, median)."""
+    if effort is None or not getattr(gfit, 'flight', False):
+        return
+    diffs = []
+    for leg, iv in contacts.items():
+        col = f'{leg}_hip'
+        if col not in names:
+            continue
+        on = effort_onsets(tj, effort[:, names.index(col)])
+        if on.size == 0:
+            continue
+        for a in np.asarray(iv, dtype=float).reshape(-1, 2)[:, 0]:
+            j = int(np.argmin(np.abs(on - a)))
+            if abs(on[j] - a) < 0.04:
+                diffs.append(a - on[j])
+    if len(diffs) < 6:
+        return
+    lag = float(np.median(diffs))
+    res.frame['effort_contact_lag_s'] = lag
+    if abs(lag) <= EFFORT_CONTACT_MAX_S:
+        return
+    res.warn(
+        f'the legs\' geometric touchdowns come {1e3 * abs(lag):.1f} ms '
+        f'{"after" if lag > 0 else "before"} the hip-effort onsets (median of {len(diffs)}; '
+        f'EduBot simulated aerial gaits: +1.5 to +2.5 ms): the leg description does not fit '
+        f'this robot, and the stream offset ({gfit.offset_s:+.4f} s) and stance edges from it '
+        f'may be off by about as much. Likely causes: a hip encoder zero off (--hip-zero RAD, '
+        f'now {geometry.hip_zero_rad:g}; a positive lag asks for a larger zero), another leg '
+        f'stiffness or damping (--leg-damping-time), another leg geometry (--leg-radius, '
+        f'--hip-x, --hip-z) or hips missing from the joint states')
 
 
 #: a fit from another estimate replaces the first only when it lands this far from it [s]
@@ -668,6 +827,7 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
         res.notes.append(f"geometric stance edges unavailable ({why}): the paper's "
                          'shifted-clock edges are used')
     names = tuple(run.joint_names)
+    _check_hexapod_hips(names, res)
     tj = np.asarray(run.joint_t_s, dtype=float)
     speed = {tp: _tripod_mean(names, run.joint_velocity, tp) for tp in TRIPODS}
     target = ({tp: _tripod_mean(names, run.command_velocity, tp) for tp in TRIPODS}
@@ -687,6 +847,7 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
     if inside.sum() < 10:
         raise SlipDataError(f'run {run.label!r}: {int(inside.sum())} mocap samples inside the '
                             'permissible box, need >= 10')
+    _check_position_unit(tm[inside], pm[inside], run.label)
     quats = np.asarray(run.mocap_quat_xyzw, dtype=float)[inside]
     up = _up_from_quats(quats)
     if check_body_up:
@@ -799,6 +960,9 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                 method == 'geometry':
             gfit, geometry, geo_inputs = _damping_tradeoff(gfit, geometry, geo_inputs, geo_x,
                                                            off, off_range, res)
+        elif method == 'geometry':
+            gfit, geometry, geo_inputs = _stiffness_check(gfit, geometry, geo_inputs, geo_x,
+                                                          off, off_range, model.mass_kg, res)
         if init == 'xcorr' and method == 'geometry':
             gfit = _half_stride_check(gfit, geo_inputs, geo_x, speed, tj, off_range, res,
                                       p0_kw)
@@ -875,6 +1039,7 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                                          pool_steady=pool_edges, info=pooled)
         if pooled:
             res.frame['edges_pooled'] = pooled
+        _effort_contact_check(contacts, names, tj, effort, gfit, geometry, res)
         cut: list[tuple[str, float, float]] = []
         ss = single_support(contacts, TRIPODS, unknown, dropped=cut)
         res.geometry_windows = sorted(
