@@ -195,7 +195,7 @@ def write_foreign_robot_bag(path: str | Path, *, legs: int = 4, duration_s: floa
         if nan_velocity_every and k % nan_velocity_every == 0:
             vel[1] = math.nan
         jp = eff * vel
-        pout.append((ts, float(np.sum(np.abs(jp[np.isfinite(jp)])))))
+        pout.append((ts, float(np.sum(np.clip(jp[np.isfinite(jp)], 0, None)))))
         if odom_twist_only:
             msgs.append((ts + 2e-4, '/odom', 'nav_msgs/msg/Odometry', T['nav_msgs/msg/Odometry'](
                 header=_header(ts), child_frame_id='base_link',

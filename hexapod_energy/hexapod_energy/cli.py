@@ -168,9 +168,8 @@ such fallback is listed in the run's ``notes``.
       "plots": [relative paths]
     }
 
-``power_out_w`` everywhere is the mean *absolute* joint power, Eq. 6 as the authors compute it
-(every joint's work, driving or braking; see :mod:`hexapod_energy.dynamics`), the definition
-the ``energy_monitor`` node uses too.
+``power_out_w`` everywhere is the mean *positive* joint power (servos do not regenerate; see
+:mod:`hexapod_energy.dynamics`), the definition the ``energy_monitor`` node uses too.
 
 Exit codes: 0 success, 2 input refused (missing topic, bad option, nothing analysable), 1 an
 unforeseen failure (a bug), 130 interrupted.
@@ -327,7 +326,7 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
                         'the sweeps\' maximum speeds, the gaits --recommend may choose, and '
                         'the infeasible-schedule warning of robot runs')
     p.add_argument('--power-out', choices=('auto', 'effort', 'model'), default='auto',
-                   help='P_out source: |joint effort x velocity|, the Eq. 6 '
+                   help='P_out source: joint effort x velocity (positive part), the Eq. 6 '
                         'inverse-dynamics model, or auto (default: effort when the bag has '
                         'efforts and they give P_out < P_in, else the model, with a warning)')
     p.add_argument('--robot-speed', type=float, default=None, metavar='V',
@@ -842,7 +841,7 @@ def _chosen_power_out(args: argparse.Namespace, setup: _Setup, run_: Any, p_mode
     else unknown (NaN, 'none'); why, in the run's notes and the warnings."""
     effort_ok = math.isfinite(run_.power_out_w) and args.power_out != 'model'
     # a continuously rotating leg does little negative work: the PWM-load test
-    # (net / absolute power near 1) is for position-controlled servos
+    # (net / positive power near 1) is for position-controlled servos
     why = implausible_effort_power(run_.power_out_w, run_.power_in_w,
                                    math.nan if clock else _net_joint_power_w(run_))
     # why the joint efforts give no P_out, for the model's note

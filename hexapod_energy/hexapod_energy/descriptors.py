@@ -9,8 +9,8 @@ DESIGN §4:
   while discharging, so P_in = -V*I), ``positive_discharge`` (P_in = V*I), or ``auto`` (decided
   once from the first samples: the sign that makes the median power positive).
 - ``power_out`` [W]: mean mechanical output power, the mean over the window's joint samples of
-  ``sum_i |tau_i * qdot_i|``: every joint's work, driving or braking, the definition of
-  :mod:`hexapod_energy.dynamics` (the authors' Eq. 6), from the joint efforts when
+  ``sum_i max(tau_i * qdot_i, 0)``: positive joint work only, the definition of
+  :mod:`hexapod_energy.dynamics` (servos do not regenerate), from the joint efforts when
   ``/joint_states`` carries them, else from ``power_out_model(gait, mass)`` when one is given
   (:func:`model_power_out`), else 0. Drivers that publish efforts but no velocities
   (position-only + load drivers): the joint power comes from the positions, streaming, per
@@ -18,19 +18,19 @@ DESIGN §4:
   consecutive samples of that joint the work is the trapezoid ``0.5 (tau_(k-1) + tau_k)
   (q_k - q_(k-1))`` and the interval's power that work over the interval's length, stamped at
   the interval's midpoint (a position step beyond pi is taken as its 2 pi representative nearest
-  0: wrapped continuous joints); P_out is the mean of ``sum_i |P_i|`` as above, the
-  absolute value taken per joint and interval. Each such window carries the warning
+  0: wrapped continuous joints); P_out is the mean of ``sum_i max(P_i, 0)`` as above, the
+  positive part taken per joint and interval. Each such window carries the warning
   :data:`POSITION_POWER_NOTE`. On simulated EduBot runs (hip torques, 100 Hz) this P_out is
   within 1.6 % of the one from the velocities (running +0.75 %, jogging +1.6 %, pace +1.0 %,
   walk -0.5 %). With neither velocities nor positions the efforts give no P_out (as without
   efforts). With ``power_out_source='auto'`` the efforts must also
   behave like joint torques (:func:`implausible_effort_power`): their P_out below P_in, and
   some negative joint work (a walking robot's joints absorb energy every cycle: lowering legs,
-  braking swings; the net joint power is a small part of the absolute one). Servos without
+  braking swings; the net joint power is a small part of the positive one). Servos without
   torque sensing report something else as effort: the AX series' present load is the PWM
   duty, which carries the back-EMF and so always has the velocity's sign. On the simulated
-  AntBot such efforts give net / absolute joint power 1.000 and P_out 7.1 W at 0.15 m/s and
-  21.7 W at 0.3 m/s, where the joints deliver 0.20 W and 0.83 W (true torques: net / absolute
+  AntBot such efforts give net / positive joint power 1.000 and P_out 7.1 W at 0.15 m/s and
+  21.7 W at 0.3 m/s, where the joints deliver 0.20 W and 0.83 W (true torques: net / positive
   -0.05 to 0.09 over 0.1-0.6 m/s and duty factors 0.5-0.7). Refused efforts give way to the
   model when there is one (else P_out is NaN), with a warning naming the figures.
 - ``speed`` [m/s]: from motion capture when poses cover the window (horizontal displacement /
@@ -145,7 +145,7 @@ def velocityless_note(count: int) -> str:
 
 
 #: ``power_out_source='auto'`` refuses efforts whose net joint power is at least this fraction
-#: of their absolute joint power (no negative work: a duty signal, not a torque).
+#: of their positive joint power (no negative work: a duty signal, not a torque).
 EFFORT_MAX_NET_FRACTION = 0.9
 
 
@@ -210,7 +210,7 @@ def gait_from_sample(sample: GaitPhaseSample) -> Any:
 def model_power_out(output_power: Any, *, robot_mass_kg: float
                     ) -> Callable[[GaitPhaseSample, float], float]:
     """``f(gait_sample, mass_kg) -> P_out [W]`` from an
-    :class:`hexapod_energy.prediction.OutputPowerModel` (Eq. 6, absolute joint power), for
+    :class:`hexapod_energy.prediction.OutputPowerModel` (Eq. 6, positive joint power), for
     :class:`DescriptorAccumulator` when ``/joint_states`` has no efforts.
 
     The payload is ``mass_kg - robot_mass_kg``; a standing or clock-driven schedule (period 0)
@@ -257,8 +257,8 @@ def is_clock_schedule(sample: Any) -> bool:
 def implausible_effort_power(effort_w: float, power_in_w: float, net_w: float) -> str:
     """Why a P_out from joint efforts cannot be the joints' output power ('' if it can).
 
-    ``effort_w`` is the mean absolute joint power from the efforts, ``net_w`` the mean signed
-    one. The joint power must stay below the input power, and the joints must do some
+    ``effort_w`` is the mean positive joint power from the efforts, ``net_w`` the mean signed
+    one. The positive power must stay below the input power, and the joints must do some
     negative work: ``net_w < EFFORT_MAX_NET_FRACTION * effort_w``.
     """
     if not (math.isfinite(effort_w) and effort_w > 0.0):
@@ -268,7 +268,7 @@ def implausible_effort_power(effort_w: float, power_in_w: float, net_w: float) -
                 f'({power_in_w:.3f} W): the efforts are not joint torques (AX-series servos '
                 'report PWM load)')
     if math.isfinite(net_w) and net_w >= EFFORT_MAX_NET_FRACTION * effort_w:
-        return (f'the joint efforts never do negative work (net / absolute joint power '
+        return (f'the joint efforts never do negative work (net / positive joint power '
                 f'{net_w / effort_w:.3f}, P_out {effort_w:.3f} W): a drive duty that follows '
                 'the velocity (AX-series PWM load), not a torque')
     return ''
@@ -358,9 +358,8 @@ def _bracketed_positions(track: Sequence[tuple[float, ...]], t0: float, t1: floa
 
 
 def joint_power_out_w(effort_nm: np.ndarray, velocity_rad_s: np.ndarray) -> float:
-    """Instantaneous output power of one joint sample, ``sum_i |tau_i qdot_i|`` [W] (Eq. 6 as
-    :mod:`hexapod_energy.dynamics` defines it)."""
-    return float(np.sum(np.abs(np.asarray(effort_nm) * np.asarray(velocity_rad_s))))
+    """Instantaneous output power of one joint sample, ``sum_i max(tau_i qdot_i, 0)`` [W]."""
+    return float(np.sum(np.clip(np.asarray(effort_nm) * np.asarray(velocity_rad_s), 0.0, None)))
 
 
 def resolve_current_sign(voltage_v: np.ndarray, current_a: np.ndarray, mode: str) -> float:
@@ -374,11 +373,11 @@ def resolve_current_sign(voltage_v: np.ndarray, current_a: np.ndarray, mode: str
 
 def _mean_joint_power_w(joint: list[tuple[float, tuple[str, ...], np.ndarray, bool]], *,
                         signed: bool = False) -> float:
-    """Sum over joint names of each joint's mean absolute (or, ``signed``, net) power [W] (the
+    """Sum over joint names of each joint's mean positive (or, ``signed``, net) power [W] (the
     mean over samples of the per-sample sum when every sample has the same names); ``joint``
     holds each sample's signed ``effort * velocity``."""
     def part(power: np.ndarray) -> np.ndarray:
-        return power if signed else np.abs(power)
+        return power if signed else np.clip(power, 0.0, None)
 
     names = joint[0][1]
     if all(j[1] == names for j in joint):
@@ -758,7 +757,7 @@ class DescriptorAccumulator:
 
         Drivers that publish a robot's joints in several JointState messages (one per servo
         bus or leg) are handled: P_out is the sum over joint names of each joint's mean
-        absolute power over the window.
+        positive power over the window.
         """
         if not self._clk.observe('joint_states', sample.t_s):
             return []

@@ -20,18 +20,16 @@ Average mechanical (output) power, Eq. 6.  **Definition used here, and everywher
 hexapod_energy** (the ``energy_monitor`` node from joint efforts, the offline analysis, this
 model)::
 
-    P_out = (1 / T) * integral_0^T  sum_j |tau_j(t) qd_j(t)|  dt
+    P_out = (1 / T) * integral_0^T  sum_j max(tau_j(t) qd_j(t), 0)  dt
 
-the mean *absolute* joint power, as the authors' published code computes Eq. 6 (MiMiC-Ant
-``p1_legSimulation.m``: ``sum(abs(DynQ .* qd))``; the equation itself is not in the paper's
-text we hold). Every joint's work counts, driving or braking: a servo does not regenerate,
-it spends current to hold back a load too. With it the simulated AntBot's tripod (beta 0.5)
-has a lowest efficiency of 1.3 % over the bench-covered speeds, inside the paper's
-"min(eta) between 1.1 and 2.0 %"; the mean *positive* joint power (``'positive'``, the work
-the actuators deliver, exactly half of it on a periodic path whose ground force does no net
-work) gives 0.65 %. ``'positive'`` and the signed mean (``'net'``, zero for conservative
-periodic motion) stay available (``definition``). The integral is over one period sampled
-uniformly in phase (exact to the sampling for a periodic trajectory).
+the mean *positive* joint power: the work the actuators deliver.  Servomotors do not regenerate
+(the bridge dissipates braking energy, it never returns it to the supply), so negative joint work
+is not a credit (the signed mean, ``'net'``, is zero for conservative periodic motion) and it is
+not an output either: while a joint is back-driven the load works on the servo, whose loss of
+that energy is part of ``P_loss``.  With ``sum |tau qd|`` (``'absolute'``) that absorbed work would
+count as useful output twice over and the simulated AntBot's efficiency would be ~11 % instead of
+the paper's 0.5-6 %.  The integral is over one period sampled uniformly in phase (exact to the
+sampling for a periodic trajectory).
 
 Speed scaling.  A gait's joint path in *phase* ``phi = t / T`` does not depend on ``T``.  With
 ``q' = dq/dphi`` and ``q'' = d2q/dphi2``, ``qd = q' / T`` and ``qdd = q'' / T^2`` so that::
@@ -301,7 +299,7 @@ class PhaseTorques:
 
 
 def mean_mechanical_power_w(
-    joint_power_w: Any, definition: PowerDefinition = 'absolute', axis: int | Sequence[int] = 0
+    joint_power_w: Any, definition: PowerDefinition = 'positive', axis: int | Sequence[int] = 0
 ) -> np.ndarray:
     """Average mechanical power (Eq. 6) from uniformly sampled joint powers.
 
@@ -310,8 +308,8 @@ def mean_mechanical_power_w(
     joint_power_w : array (..., n, 3) or (n, 3)
         ``tau_j qd_j`` at uniform samples of one period [W].
     definition : {'absolute', 'positive', 'net'}
-        ``mean(sum_j |p_j|)`` (default, see module docstring), ``mean(sum_j max(p_j, 0))``
-        or ``mean(sum_j p_j)``.
+        ``mean(sum_j |p_j|)``, ``mean(sum_j max(p_j, 0))`` (default, see module docstring) or
+        ``mean(sum_j p_j)``.
     axis : int
         Axis of the time samples.
     """

@@ -2,7 +2,7 @@
 
 Subscribes ``/battery_state``, ``/gait/phase``, ``/joint_states`` and ``/mocap/body``; publishes
 ``/energy/descriptors`` each time a window of ``cycles`` gait cycles is complete. P_out is the mean
-absolute joint power (:mod:`hexapod_energy.dynamics`): from joint efforts when present, else from
+positive joint power (:mod:`hexapod_energy.dynamics`): from joint efforts when present, else from
 the Eq. 6 inverse-dynamics model of the gait on ``/gait/phase`` (``power_out_source``). The science
 is in :mod:`hexapod_energy.descriptors`.
 

@@ -90,13 +90,12 @@ def test_predicted_robot_power_within_5_percent(bags, tmp_path) -> None:
     assert err['relative_rmse'] < 0.05
     assert err['max_abs_relative'] < 0.06
     for r in doc['robot_runs']:
-        # Eq. 6 as the authors compute it (sum |tau qd|): 1.4 % at 0.1 m/s, in the paper's
-        # "min(eta) between 1.1 and 2.0 %", rising with speed to 12 % at 0.6 m/s
+        # Eq. 6 positive joint power: the paper's 0.5-6 % efficiency band
         assert r['power_out_source'] == 'model'
-        assert 0.011 < r['efficiency'] < 0.15
+        assert 0.003 < r['efficiency'] < 0.07
         # the simulated /joint_states effort is the AX load (PWM fraction x stall torque), not
         # a torque: effort x velocity overstates P_out (up to more than P_in at 0.6 m/s)
-        assert r['power_out_effort_w'] > 9 * r['power_out_w']
+        assert r['power_out_effort_w'] > 10 * r['power_out_w']
 
 
 def test_paper_load_convention_matches_simulated_robot(bags, tmp_path) -> None:
@@ -160,14 +159,14 @@ def test_finding_best_point_at_maximum_speed(curves) -> None:
 @lru_cache(maxsize=None)
 def _sim_loss_w(**kw) -> float:
     """Whole-cycle mean P_in - P_out of a simulated robot run (measured battery power, the
-    servos' true output power, |tau qd| as Eq. 6), after one settling cycle."""
+    servos' true positive output power), after one settling cycle."""
     cfg = RobotConfig(**kw)
     period = cfg.effective_period_s
     cycles = max(2, math.ceil(4.0 / period))
     tr = simulate_robot(period * (cycles + 1), cfg, seed=5)
     keep = tr.t_s > period + 1e-9
     p_in = -tr.battery_voltage_v[keep] * tr.battery_current_a[keep]
-    p_out = np.abs(tr.true_mechanical_power_w[keep]).sum(axis=1)
+    p_out = np.clip(tr.true_mechanical_power_w[keep], 0.0, None).sum(axis=1)
     return float(np.mean(p_in - p_out))
 
 
