@@ -26,10 +26,22 @@ the mean *positive* joint power: the work the actuators deliver.  Servomotors do
 (the bridge dissipates braking energy, it never returns it to the supply), so negative joint work
 is not a credit (the signed mean, ``'net'``, is zero for conservative periodic motion) and it is
 not an output either: while a joint is back-driven the load works on the servo, whose loss of
-that energy is part of ``P_loss``.  With ``sum |tau qd|`` (``'absolute'``) that absorbed work would
-count as useful output twice over and the simulated AntBot's efficiency would be ~11 % instead of
-the paper's 0.5-6 %.  The integral is over one period sampled uniformly in phase (exact to the
-sampling for a periodic trajectory).
+that energy is part of ``P_loss``.  The integral is over one period sampled uniformly in phase
+(exact to the sampling for a periodic trajectory).
+
+Not the authors' definition.  Eq. 6 itself is not in the paper's text we hold; the authors'
+published code (MiMiC-Ant ``p1_legSimulation.m``) sums ``|tau qd|`` (``'absolute'``), which
+on a periodic path whose ground force does no net work is exactly twice the positive part.
+With it the simulated AntBot's tripod (beta 0.5) has its lowest efficiency on the bench's speeds
+at 1.30 % (0.092 m/s), inside the paper's text's "min(eta) between 1.1 and 2.0 %", where the
+positive part gives 0.65 %; but its efficiency at 0.6 m/s becomes 12 %, outside the 0.5-6 %
+band the project's simulator is held to.  The paper's P_out also differs in two ways this
+model does not follow (an outside review of the equations): its Eq. 4 adds a horizontal
+ground force along the line from the tip to the centre of mass (the authors' code:
+``F_x = F_z (x_tip - x_COM) / z_tip``; x3.4 on P_out at 0.1 m/s, x1.6 at 0.6 m/s with the
+positive part), and its stance tip is 180 mm out and 115 mm down (here 140 and 120 mm: x1.8
+at 0.1 m/s, x1.0 at 0.6 m/s).  ``OutputPowerModel(definition='absolute')`` gives the authors'
+sum.
 
 Speed scaling.  A gait's joint path in *phase* ``phi = t / T`` does not depend on ``T``.  With
 ``q' = dq/dphi`` and ``q'' = d2q/dphi2``, ``qd = q' / T`` and ``qdd = q'' / T^2`` so that::

@@ -90,7 +90,7 @@ def test_predicted_robot_power_within_5_percent(bags, tmp_path) -> None:
     assert err['relative_rmse'] < 0.05
     assert err['max_abs_relative'] < 0.06
     for r in doc['robot_runs']:
-        # Eq. 6 positive joint power: the paper's 0.5-6 % efficiency band
+        # Eq. 6 positive joint power: the simulator's 0.5-6 % efficiency band (its issue)
         assert r['power_out_source'] == 'model'
         assert 0.003 < r['efficiency'] < 0.07
         # the simulated /joint_states effort is the AX load (PWM fraction x stall torque), not
