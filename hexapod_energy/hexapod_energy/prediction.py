@@ -334,7 +334,8 @@ def geometry_limits(model: Any, gait: Any, limits: Any) -> Any:
     their top speed, so a path ``1/k`` times as long needs ``1/k`` times as long
     (:func:`phase_duration_scales`); the step-frequency limit is kept. ``limits`` unchanged
     when the geometry is the bench's or unknown. (A 140 mm step on AntBot's leg: stance 0.22 s,
-    swing 0.19 s; the top speed at beta 0.5 0.63 m/s, not 0.93.)"""
+    swing 0.19 s; the top speed at beta 0.5 0.63 m/s, not the 0.84 m/s that the unscaled
+    limits and the 3 Hz cap give, where the paper puts that step's best point.)"""
     import dataclasses
 
     k_st, k_sw = phase_duration_scales(model, gait)
