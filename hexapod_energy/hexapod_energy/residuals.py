@@ -2132,8 +2132,10 @@ def _large_mass_text(doc: dict[str, Any]) -> str:
         big = a.get('large_for_robot')
         if not big:
             continue
-        gain = [g for b in doc.get('added_params') or []
-                for g in b.get('alternatives', []) if g['name'] == 'power_gain']
+        # the gain read in the mass's place (its own alternative), else beside another effect
+        gain = [g for g in a.get('alternatives', []) if g['name'] == 'power_gain'] or \
+            [g for b in doc.get('added_params') or []
+             for g in b.get('alternatives', []) if g['name'] == 'power_gain']
         out += (f" The carried_mass added, {a['params']['mass_kg']:.3g} kg, is "
                 f"{100 * big['share']:.0f} % of the robot's declared {big['robot_mass_kg']:.3g}"
                 ' kg: more than an undeclared load is likely to be; a gain of the power '
