@@ -639,7 +639,8 @@ class SwingReversal(EnergyEffect):
     tripod runs at 0.14 m read it as 5.8 J s/m (an outside review). The phase durations are
     those Eq. 1 reads the surfaces at for the run's step geometry (``extra['stance_scale']``,
     ``extra['swing_scale']``, :func:`hexapod_energy.prediction.phase_duration_scales`; 1
-    when absent): the swing the surface prices is the bench's swing of that duration. Only a candidate with the
+    when absent): the swing the surface prices is the bench's swing of that duration. Only a
+    candidate with the
     bench's duty factor and step length known (``extra['bench_duty_factor']``,
     ``extra['bench_step_length_m']``, one duty factor on the bench) and robot runs at another
     duty factor. On runs of one duty factor its column is exactly a speed friction's ``v^2``
