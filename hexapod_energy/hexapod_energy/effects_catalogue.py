@@ -636,7 +636,11 @@ class SwingReversal(EnergyEffect):
     ``j_max`` (:attr:`MAX_SWING_SHARE` of the bench's own swing energy per m/s of stance speed;
     at the bound the summary says so). Both stance speeds are taken on the bench's step length:
     a longer step also lengthens the swing, a geometry the bench surfaces do not know, and
-    tripod runs at 0.14 m read it as 5.8 J s/m (an outside review). Only a candidate with the
+    tripod runs at 0.14 m read it as 5.8 J s/m (an outside review). The phase durations are
+    those Eq. 1 reads the surfaces at for the run's step geometry (``extra['stance_scale']``,
+    ``extra['swing_scale']``, :func:`hexapod_energy.prediction.phase_duration_scales`; 1
+    when absent): the swing the surface prices is the bench's swing of that duration. Only a
+    candidate with the
     bench's duty factor and step length known (``extra['bench_duty_factor']``,
     ``extra['bench_step_length_m']``, one duty factor on the bench) and robot runs at another
     duty factor. On runs of one duty factor its column is exactly a speed friction's ``v^2``
@@ -685,11 +689,14 @@ class SwingReversal(EnergyEffect):
         b = np.where(walking, beta, 0.5)
         period = 1.0 / np.where(walking, f, 1.0)
         t_sw = (1.0 - b) * period
+        # the durations Eq. 1 reads the surfaces at for the run's step geometry
+        k_st = np.broadcast_to(np.asarray(ex.get('stance_scale', 1.0), dtype=float), f.shape)
+        k_sw = np.broadcast_to(np.asarray(ex.get('swing_scale', 1.0), dtype=float), f.shape)
         n_sw = table.stance_fraction.shape[1] - np.sum(table.stance_fraction, axis=1)
         # both stance speeds on the bench's step: a step-length mismatch lengthens the swing
         # too (the bench surfaces do not know it) and is not this effect's to claim
-        v_st = step_b / (b * period)
-        v_b = step_b * (1.0 - beta_b) / (beta_b * t_sw)
+        v_st = step_b / (k_st * b * period)
+        v_b = step_b * (1.0 - beta_b) / (beta_b * k_sw * t_sw)
         x = np.where(walking, n_sw / t_sw * (v_st - v_b), 0.0)
         return x if np.all(np.isfinite(x)) else None
 

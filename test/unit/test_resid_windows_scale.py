@@ -31,6 +31,11 @@ def test_windows_equal_the_per_window_baseline():
     # F1): the window sums of the servo temperatures follow temp_excess_k exactly
     ref = {k: new.extra.pop(k) for k in ('temp_sum_c', 'servo_count', 'temp_coldest_c',
                                          'temp_bench_c')}
+    # so are the step geometry's phase-duration factors and the in-run battery voltage
+    # (outside review G): 1 without a model's factors, the window means of |V|
+    newer = {k: new.extra.pop(k) for k in ('stance_scale', 'swing_scale', 'voltage_v')}
+    assert np.all(newer['stance_scale'] == 1.0) and np.all(newer['swing_scale'] == 1.0)
+    assert np.all(newer['voltage_v'] > 0)
     assert bench.max_difference(new, old) <= 1e-12
     assert ref['temp_bench_c'] == 29.0
     np.testing.assert_allclose(ref['temp_sum_c'] - ref['servo_count'] * 29.0,
