@@ -14,6 +14,7 @@ from slip_identification.fit import (
     SlipPositionFitter,
     Stance,
     nerr,
+    nerr_denominator,
     validate_stance,
 )
 from slip_identification.model import SlipModel
@@ -133,7 +134,32 @@ def test_unreachable_fit_reports_not_converged():
 def test_nerr_definition():
     xe = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 2.0, 0.0, 0.0]])
     xm = xe + np.array([[0.0, 0.0, 0.3, 0.4], [0.0, 0.0, 0.0, 0.0]])
-    assert nerr(xm, xe) == pytest.approx(0.5 / 3.0)
+    # bx from the stance's first sample: ||(0,0,0,0)|| + ||(-1,2,0,0)||
+    assert nerr(xm, xe) == pytest.approx(0.5 / math.sqrt(5.0))
+    assert nerr_denominator(xe, origin='world') == pytest.approx(3.0)   # Eq. 2 literally
+    with pytest.raises(ValueError, match='origin'):
+        nerr_denominator(xe, origin='mocap')
+
+
+def test_slip_measure_does_not_depend_on_where_the_world_origin_lies():
+    """The same stance 2 m further along the track (or a mocap origin elsewhere) has the same
+    SLIP-measure: with Eq. 2's world-frame bx a noise-free steady run read nerr 0.0205 near
+    the origin and 0.0066 two metres on (an outside review); the fit itself is unchanged."""
+    def stance(fx: float) -> Stance:
+        return make_stance(np.array([4000.0, 0.15, fx]), sample_hz=120.0, noise_m=5e-4,
+                           rng=np.random.default_rng(3)).stance
+
+    near_s, far_s = stance(0.3), stance(2.3)
+    assert_allclose(far_s.state[:, 0], near_s.state[:, 0] + 2.0, atol=1e-6)
+    near, far = SlipFitter().fit([near_s, far_s]).results_
+    assert 0.005 < near.nerr < 0.2
+    assert far.nerr == pytest.approx(near.nerr, rel=1e-3)
+    assert far.params['stiffness'] == pytest.approx(near.params['stiffness'], rel=1e-3)
+    assert far.params['foot_x'] == pytest.approx(near.params['foot_x'] + 2.0, abs=1e-4)
+    # Eq. 2 read with the world frame's bx: the far stance's error looks several times smaller
+    world = [r.nerr * nerr_denominator(s.state) / nerr_denominator(s.state, origin='world')
+             for r, s in ((near, near_s), (far, far_s))]
+    assert world[1] < 0.5 * world[0]
 
 
 def test_stances_of_other_sample_spacings_fitted_together():
