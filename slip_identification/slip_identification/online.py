@@ -514,7 +514,7 @@ class OnlineSlip:
                 self._warn_throttled(
                     'no_hip_angles', 'geometric stance edges need hip angles (joint_states '
                     "positions), and the last second has none: the paper's clock edges "
-                    '(shifted target edges) are used until they come')
+                    '(shifted target edges) are used until they come', once=True)
                 return None
             self._warn_throttled(
                 'hip_angles_lost', 'hip angles (joint_states positions) missing in the last '
@@ -677,8 +677,9 @@ class OnlineSlip:
         return (self._frame is not None and self._first_inside_s is not None
                 and self._frame[0] - self._first_inside_s >= self.frame_every_s)
 
-    def _warn_throttled(self, key: str, text: str) -> None:
-        """Append ``text`` to :attr:`warnings` on its 1st, 10th, 100th ... occurrence."""
+    def _warn_throttled(self, key: str, text: str, *, once: bool = False) -> None:
+        """Append ``text`` to :attr:`warnings` on its 1st, 10th, 100th ... occurrence (on
+        its first alone with ``once``)."""
         n = self._warn_counts[key] = self._warn_counts.get(key, 0) + 1
-        if n == 1 or n in (10, 100, 1000) or n % 10000 == 0:
+        if n == 1 or not once and (n in (10, 100, 1000) or n % 10000 == 0):
             self.warnings.append(text if n == 1 else f'{text} [{n} steps so far]')
