@@ -25,8 +25,15 @@ buffer, heights above ``ground_m`` in the world frame: the buffered one, or ``wo
 when given, e.g. an offline analysis' frame with its ground; the stream offset is
 ``mocap_offset_s``) instead of the clock's target edges; a window is fitted once the mocap
 covers its lift-off (a piece that touches the buffer's newest sample is not yet finished;
-stances that end before the world frame is ready are not looked for). Without them (or
-without hip angles), the paper's target edges are used.
+stances that end before the world frame is ready are not looked for) and the buffered frame
+has settled (rests on ``frame_every_s`` of path: the first stances wait up to half a second,
+as a frame refitted on every step swung the ground under a jog by centimetres and moved its
+first window by 30 ms between steps, fitted twice: an outside review). A stance overlapping
+one fitted or skipped before is never fitted again. Without them, or without hip angles
+from the start, the paper's target edges are used (said once in :attr:`OnlineSlip.warnings`);
+a step where the contacts cannot be found (hip angles lost, ``leg_contacts`` failing) fits
+nothing and waits, with a throttled warning (it had fallen back to the clock's edges without
+a word).
 
 Other labs' joint states (:class:`.joints.JointFrameAssembler`): messages split over name
 groups are assembled, wrapped hip angles are unwrapped per joint as they arrive, and a driver
@@ -270,7 +277,8 @@ class OnlineSlip:
         if world_frame is not None:
             self._frame = (math.inf, world_frame)
         self.time_jump_s = time_jump_s
-        #: events worth a warning (backward time jumps), one line each, in order
+        #: events worth a warning (backward time jumps, geometric edges missing), one line
+        #: each, in order
         self.warnings: list[str] = []
         #: backward time jumps: (stream, previous stamp, new stamp) [s]
         self.time_jumps: list[tuple[str, float, float]] = []

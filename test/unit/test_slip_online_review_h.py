@@ -147,3 +147,30 @@ def test_clock_edges_without_hip_angles_are_said(jog):
     assert fits
     said = [w for w in core.warnings if "clock edges" in w]
     assert len(said) == 1 and 'hip angles' in said[0]
+
+
+def test_default_parameters_warn_at_startup_with_the_remedy():
+    """Finding 7: with default parameters (no ground, no offset) the node's fits were far
+    from offline (k 35-71 % low) and it said nothing; the startup warning names the
+    consequence and the remedy, and ``hexapod-analyze slip`` prints the parameters."""
+    import dataclasses
+    import math
+
+    pytest.importorskip('rclpy')
+    from slip_identification.cli import live_params_line
+    from slip_identification.slip_node import SlipParams, startup_notes
+
+    (level, text), = startup_notes(SlipParams())
+    assert level == 'warning'
+    for word in ('clock edges', 'no stream offset', '35-71 %', 'hexapod-analyze slip',
+                 '-p ground:=', '-p mocap_offset:=', '-p pitch_offset:='):
+        assert word in text
+    given = dataclasses.replace(SlipParams(), ground=0.0128, mocap_offset=0.0256)
+    assert startup_notes(given) == []
+    assert [lv for lv, _ in startup_notes(dataclasses.replace(given, mocap_offset=0.0))] \
+        == ['info']
+    run = {'bag': 'b', 'edges': 'geometry', 'ground_m': 0.0128, 'offset_s': 0.02561,
+           'frame': {'pitch_offset_deg': -1.5}}
+    assert live_params_line(run).endswith(
+        '-p ground:=0.0128 -p mocap_offset:=0.0256 -p pitch_offset:=-1.50')
+    assert 'mocap_offset:=0.0256 only' in live_params_line({**run, 'ground_m': math.nan})
