@@ -25,8 +25,15 @@ buffer, heights above ``ground_m`` in the world frame: the buffered one, or ``wo
 when given, e.g. an offline analysis' frame with its ground; the stream offset is
 ``mocap_offset_s``) instead of the clock's target edges; a window is fitted once the mocap
 covers its lift-off (a piece that touches the buffer's newest sample is not yet finished;
-stances that end before the world frame is ready are not looked for). Without them (or
-without hip angles), the paper's target edges are used.
+stances that end before the world frame is ready are not looked for) and the buffered frame
+has settled (rests on ``frame_every_s`` of path: the first stances wait up to half a second,
+as a frame refitted on every step swung the ground under a jog by centimetres and moved its
+first window by 30 ms between steps, fitted twice: an outside review). A stance overlapping
+one fitted or skipped before is never fitted again. Without them, or without hip angles
+from the start, the paper's target edges are used (said once in :attr:`OnlineSlip.warnings`);
+a step where the contacts cannot be found (hip angles lost, ``leg_contacts`` failing) fits
+nothing and waits, with a throttled warning (it had fallen back to the clock's edges without
+a word).
 
 Other labs' joint states (:class:`.joints.JointFrameAssembler`): messages split over name
 groups are assembled, wrapped hip angles are unwrapped per joint as they arrive, and a driver
@@ -247,7 +254,12 @@ class OnlineSlip:
         self._cmd_joints = JointFrameAssembler()
         self._cmd_perm: dict[tuple[str, ...], np.ndarray] = {}
         self._early_cmd_names: tuple[str, ...] | None = None
-        self._done: list[tuple[str, float]] = []
+        #: stances fitted or skipped: (tripod, touchdown, lift-off) [s]
+        self._done: list[tuple[str, float, float]] = []
+        #: occurrences of each throttled warning (logged on the 1st, 10th, 100th ...)
+        self._warn_counts: dict[str, int] = {}
+        #: the geometric edges have given windows (a later lack of hip angles is transient)
+        self._geo_seen = False
         self.skipped: list[OnlineSkip] = []
         #: motion-capture gaps (start, end) [s] not yet looked at (geometric edges)
         self._mocap_gaps: list[tuple[float, float, float]] = []   # start, end, stride
@@ -265,7 +277,8 @@ class OnlineSlip:
         if world_frame is not None:
             self._frame = (math.inf, world_frame)
         self.time_jump_s = time_jump_s
-        #: events worth a warning (backward time jumps), one line each, in order
+        #: events worth a warning (backward time jumps, geometric edges missing), one line
+        #: each, in order
         self.warnings: list[str] = []
         #: backward time jumps: (stream, previous stamp, new stamp) [s]
         self.time_jumps: list[tuple[str, float, float]] = []
@@ -296,6 +309,7 @@ class OnlineSlip:
         self._cmd_perm = {}
         self._early_cmd_names = None
         self._done = []
+        self._geo_seen = False
         self._mocap_gaps = []
         self._fitted.clear()
         self._shift_cache = {}
@@ -414,6 +428,12 @@ class OnlineSlip:
         geo_windows = self._geometric_windows(tj, vj, tm, pm, qm)
         if geo_windows is None and len(self._cmd) < 50:
             return []
+        if geo_windows and not self._frame_settled():
+            # found in a frame still refitted on every step (under frame_every_s of path):
+            # its tilt swings with the COM bounce and moved a jog's first window by 30 ms
+            # between steps (fitted twice, 2.008-2.140 and 2.023-2.109 s: an outside review).
+            # Waited for: fitted once the frame rests on frame_every_s of path.
+            geo_windows = []
         tc, vc = self._cmd.t, self._cmd.col(0)
         for tp in ([] if geo_windows is not None else TRIPODS):
             target = _tripod_mean(self.names, vc, tp)
@@ -432,7 +452,7 @@ class OnlineSlip:
                       else single_tripod_stances(windows, shifts, open_windows=opened))
         ready = [w for w in candidates
                  if w.liftoff_s + self.margin_s <= tm[-1]
-                 and not self._is_done(w.tripod, w.liftoff_s)
+                 and not self._is_done(w.tripod, w.liftoff_s, w.touchdown_s)
                  and w.touchdown_s >= max(tj[0], tm[0])]
         if not ready:
             self._skip_stances_in_gaps(float(tm[-1]))
@@ -446,8 +466,9 @@ class OnlineSlip:
         out: list[SlipFitResult] = []
         stances = []
         frame = None
+        ready = self._disjoint(ready)
         for w in ready:
-            self._done.append((w.tripod, w.liftoff_s))
+            self._done.append((w.tripod, w.touchdown_s, w.liftoff_s))
             reason = ''
             if inside.sum() < 10:
                 reason = 'outside_volume'
@@ -485,15 +506,28 @@ class OnlineSlip:
     def _geometric_windows(self, tj: np.ndarray, vj: np.ndarray, tm: np.ndarray,
                            pm: np.ndarray, qm: np.ndarray) -> list[StanceWindow] | None:
         """Single-support windows from the legs' geometric contacts ending after the world
-        frame became ready (none before), or None (no geometry, no hip angles, too little
-        data: the target edges are used)."""
+        frame became ready (none before), or None: no geometry, or no hip angles yet (the
+        target edges are used, with a warning). Too little data, hip angles missing after
+        the geometric edges had worked, or contacts that cannot be found give no windows
+        this step (a throttled warning): the stances wait for the geometric edges. (Every
+        None had made that step fall back to the clock's edges without a word, and a window
+        fitted on them overlapped the geometric one fitted later: an outside review.)"""
         if self.geometry is None or self.ground_m is None:
             return None
         t0 = tj[-1] - self.geometry_window_s
         sj = tj >= t0
         q = self._js.col(1)[sj]
         if not np.all(np.isfinite(q)):
-            return None
+            if not self._geo_seen:
+                self._warn_throttled(
+                    'no_hip_angles', 'geometric stance edges need hip angles (joint_states '
+                    "positions), and the last second has none: the paper's clock edges "
+                    '(shifted target edges) are used until they come', once=True)
+                return None
+            self._warn_throttled(
+                'hip_angles_lost', 'hip angles (joint_states positions) missing in the last '
+                'second: no geometric stance edges until they are back (stances wait)')
+            return []
         inside = permissible_mask(pm, self.box) & ~frozen_pose_mask(pm, qm)
         if self._first_inside_s is None and np.any(inside):
             self._first_inside_s = float(tm[np.argmax(inside)])
@@ -504,7 +538,7 @@ class OnlineSlip:
             self._geo_since_s = float(tm[-1])
         sm = inside & (tm >= t0 - 0.05)
         if sm.sum() < 20 or sj.sum() < 10:
-            return None
+            return []   # out of the box or a gap (counted by _skip_stances_in_gaps)
         frame = self._world_frame(tm, pm, qm, inside)
         z = frame.to_world(pm[sm])[:, 2]
         pitch = body_pitch_rad(frame.rotation, qm[sm])
@@ -513,8 +547,11 @@ class OnlineSlip:
                                              tm[sm], z, pitch, offset_s=0.0,
                                              ground_m=self.ground_m,
                                              pitch_offset_rad=self.pitch_offset_rad)
-        except SlipError:
-            return None
+        except SlipError as err:
+            self._warn_throttled('leg_contacts', f'geometric stance edges not found: {err} '
+                                 '(no stance fitted until they are)')
+            return []
+        self._geo_seen = True
         ss = single_support(contacts, TRIPODS, unknown)
         return sorted((StanceWindow(float(a), float(b), tp, 0.0)
                        for tp, iv in ss.items() for a, b in iv if b >= self._geo_since_s),
@@ -564,8 +601,8 @@ class OnlineSlip:
                 else:           # none fitted after it yet: the stride up to the gap's end
                     tds = list(np.arange(t0 + stride, b, stride))
                 for td in tds:
-                    if not self._is_done(tp, td + dur):
-                        self._done.append((tp, td + dur))
+                    if not self._is_done(tp, td + dur, td):
+                        self._done.append((tp, td, td + dur))
                         self.skipped.append(OnlineSkip(td, td + dur, tp, 'mocap_gap'))
             if not placed:
                 self.skipped.append(OnlineSkip(a, b, '', 'mocap_gap'))
@@ -620,6 +657,37 @@ class OnlineSlip:
             self._frame = (float(tm[-1]), frame)
         return self._frame[1]
 
-    def _is_done(self, tripod: str, liftoff_s: float) -> bool:
-        # the shift over the moving buffer may move an edge by a few ms between steps
-        return any(tp == tripod and abs(lo - liftoff_s) < 0.03 for tp, lo in self._done)
+    def _is_done(self, tripod: str, liftoff_s: float,
+                 touchdown_s: float | None = None) -> bool:
+        """A stance of ``tripod`` fitted or skipped with a lift-off within 30 ms (the shift
+        over the moving buffer may move an edge by a few ms between steps) or overlapping
+        ``touchdown_s``-``liftoff_s``: two fits for one stance are never published."""
+        td = liftoff_s if touchdown_s is None else touchdown_s
+        return any(tp == tripod and (abs(lo - liftoff_s) < 0.03 or min(lo, liftoff_s)
+                                     > max(a, td))
+                   for tp, a, lo in self._done)
+
+    @staticmethod
+    def _disjoint(windows: list[StanceWindow]) -> list[StanceWindow]:
+        """``windows`` without those overlapping an earlier one of the same tripod."""
+        out: list[StanceWindow] = []
+        for w in windows:
+            if not any(o.tripod == w.tripod and min(o.liftoff_s, w.liftoff_s)
+                       > max(o.touchdown_s, w.touchdown_s) for o in out):
+                out.append(w)
+        return out
+
+    def _frame_settled(self) -> bool:
+        """The world frame is fixed (``world_frame``) or rests on ``frame_every_s`` of
+        in-box path (no longer refitted on every step)."""
+        if self.world_frame is not None:
+            return True
+        return (self._frame is not None and self._first_inside_s is not None
+                and self._frame[0] - self._first_inside_s >= self.frame_every_s)
+
+    def _warn_throttled(self, key: str, text: str, *, once: bool = False) -> None:
+        """Append ``text`` to :attr:`warnings` on its 1st, 10th, 100th ... occurrence (on
+        its first alone with ``once``)."""
+        n = self._warn_counts[key] = self._warn_counts.get(key, 0) + 1
+        if n == 1 or not once and (n in (10, 100, 1000) or n % 10000 == 0):
+            self.warnings.append(text if n == 1 else f'{text} [{n} steps so far]')
