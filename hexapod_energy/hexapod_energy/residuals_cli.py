@@ -15,8 +15,8 @@ SLIP, SLIP + leg damping and SLIP + hip torque (:mod:`slip_identification.residu
 
     {"model": "energy"|"slip", "unit": "W"|"nerr", "baseline": {"rmse", "mae", "bias"},
      "candidates": [{"name", "heldout_rmse", "delta_bic", "selected", "params", "stderr",
-                     (slip:) "improves", "rejected_because": [why the parameter is not one
-                     property of the robot]}],
+                     (slip:) "improves", "rejected_because": [why it was not added: a test
+                     it failed, or why its parameter is not one property of the robot]}],
      "effects_added": [names in order], "final": {"rmse", "mae", "bias"},
      "heldout": {"rmse_before", "rmse_after"}, "summary": "plain words", "plots": [...],
      (energy:) "heldout_kind": "held-out time blocks of the same runs ...",
@@ -46,7 +46,19 @@ SLIP, SLIP + leg damping and SLIP + hip torque (:mod:`slip_identification.residu
                             bench's sessions]}],
      (energy:) "windows": {"count", "heldout", "kind", "per_cycle"},
      (energy:) "duty_factors": {"bench", "bench_spread", "runs"},
-     (slip:) "bags", "stances": {"count", "heldout"}, ...}
+     (slip:) "bags", "stances": {"count", "heldout"}, "mass_kg" (the robot mass the
+             templates were fitted with: --mass / --robot-mass, else EduBot's 3.31 kg),
+             "mass_given", "warnings" (the mass assumed), "alternatives": [{"name",
+             "heldout_rmse", "params", "share"}] (an extension that passed every check and
+             removed at least 90 % of the held-out error the added one did), "unexplained":
+             {"pattern": "step"|"trend"|null, "p_value", "explained_share", "significant",
+             "per_run": [{"run", "stances", "ratio", "nerr_before", "nerr_after", "at_s"?}],
+             "isolated": [{"run", "at_s", "nerr", "ratio"}]} (the per-stance nerr left, over
+             each run's time: slip_identification.residuals.nerr_time_pattern), ...}
+    (slip) candidates also carry "lowers_heldout", "consistency" ("one_property",
+    "unphysical_sign": one consistent value of the sign physics forbids, such as a negative
+    leg damping where the stances gain energy, "inconsistent"), "median_significance",
+    "params.per_stance_range"; "rejected_because" lists every reason it was not added.
 
 A candidate record with ``"dropped": true`` was added, then dropped by the backward step (the
 effects added after it explain what it did). ``hot_windings`` on servos that are all about as
@@ -120,8 +132,10 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--slip', nargs='+', default=[], metavar='BAG',
                    help='RHex-class bags for the SLIP loop (instead of --bench/--robot)')
     p.add_argument('--out', required=True, metavar='DIR', help='output folder')
-    p.add_argument('--robot-mass', type=float, default=2.183, metavar='KG',
-                   help='robot mass without payload [kg] (default 2.183, AntBot)')
+    p.add_argument('--robot-mass', '--mass', type=float, default=None, metavar='KG',
+                   help='robot mass without payload [kg] (default 2.183, AntBot, for the '
+                        "energy loop; EduBot's 3.31 for --slip, with a warning: the fitted "
+                        'leg damping and hip torque scale with it)')
     p.add_argument('--robot-payload', type=float, default=0.0, metavar='KG',
                    help='payload of the robot runs [kg] (default 0; unlike energy, not read '
                         "from the bags' metadata: a payload left undeclared is for the loop to "
@@ -171,11 +185,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 def run_slip_loop(bags: list[str], out_dir: str | Path | None = None, *,
                   plots: bool = True, box: Sequence[float] | None = None,
-                  progress: Callable[[int], Any] | None = None) -> dict[str, Any]:
+                  progress: Callable[[int], Any] | None = None,
+                  mass_kg: float | None = None) -> dict[str, Any]:
     """SLIP loop on EduBot bags; writes ``residuals.json`` when ``out_dir`` is given;
-    ``progress(1)`` after each bag."""
+    ``progress(1)`` after each bag. ``mass_kg``: the robot's mass (None: EduBot's 3.31 kg,
+    with a warning; an outside review's ``--robot-mass 3.97`` was taken and ignored)."""
     from slip_identification.cli import read_run
-    from slip_identification.model import SlipModel
+    from slip_identification.model import EDUBOT_MASS_KG, SlipModel
     from slip_identification.pipeline import analyze_run
     from slip_identification.preprocess import Box
     from slip_identification.residuals import (
@@ -184,13 +200,23 @@ def run_slip_loop(bags: list[str], out_dir: str | Path | None = None, *,
         slip_loop_document,
     )
 
+    warnings: list[str] = []
+    if mass_kg is None:
+        mass_kg = EDUBOT_MASS_KG
+        warnings.append(f"robot mass not given: EduBot's {EDUBOT_MASS_KG:g} kg assumed (the "
+                        'fitted leg damping and hip torque scale with it); give --mass')
+    elif not (math.isfinite(mass_kg) and 0 < mass_kg <= 1000):
+        from slip_identification.errors import SlipDataError
+
+        raise SlipDataError(f'--mass must be a robot mass > 0 and up to 1000 kg, got {mass_kg}')
     fits: dict[str, list[Any]] = {'slip': [], **{k: [] for k in SLIP_CANDIDATES}}
     region = Box(tuple(box[:3]), tuple(box[3:])) if box else Box()  # type: ignore[arg-type]
     for path in bags:
         data = read_run(path)
         per: dict[str, dict[str, Any]] = {}
         for name, ext in [('slip', ())] + list(SLIP_CANDIDATES.items()):
-            res = analyze_run(data, model=SlipModel(extensions=ext), box=region,
+            res = analyze_run(data, model=SlipModel(extensions=ext, mass_kg=mass_kg),
+                              box=region,
                               position_fit=False)
             per[name] = {r.label: r for r in res.fits}
         common = [k for k in per['slip'] if all(k in per[n] for n in per)]
@@ -200,6 +226,9 @@ def run_slip_loop(bags: list[str], out_dir: str | Path | None = None, *,
             progress(1)
     doc = slip_loop_document(SlipExtensionSelection().fit(fits))
     doc['bags'] = list(bags)
+    doc['mass_kg'] = float(mass_kg)
+    doc['mass_given'] = not warnings
+    doc['warnings'] = warnings
     if out_dir is not None:
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
@@ -278,11 +307,16 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         with tqdm(total=len(args.slip), desc='residuals', unit='bag', file=sys.stderr,
                   **bar_options(getattr(args, 'no_progress', False))) as bar, \
                 replacing_outputs(args.out, 'residuals.json'):
-            return run_slip_loop(list(args.slip), args.out, plots=not args.no_plots,
-                                 box=args.box, progress=bar.update)
+            doc = run_slip_loop(list(args.slip), args.out, plots=not args.no_plots,
+                                box=args.box, progress=bar.update, mass_kg=args.robot_mass)
+        for w in doc.get('warnings', []):
+            print(f'residuals: warning: {w}', file=sys.stderr)
+        return doc
     if not args.bench or not args.robot:
         raise InvalidInputError('the energy loop needs both --bench BAG... and --robot BAG... '
                                 '(or use --slip BAG...)')
+    if args.robot_mass is None:
+        args.robot_mass = 2.183   # AntBot
     # a negative or NaN mass or payload used to run the loop on a lighter robot, exit 0
     if not (math.isfinite(args.robot_mass) and args.robot_mass > 0):
         raise InvalidInputError(f'--robot-mass must be > 0 kg, got {args.robot_mass}')
