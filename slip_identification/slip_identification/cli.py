@@ -14,7 +14,7 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
          "touchdown", "liftoff" [s, proprioception clock],
          "stiffness" [N/m], "rest_length" [m], "foot_x" [m, world frame],
          "stiffness_stderr", "rest_length_stderr", "foot_x_stderr",
-         "nerr", "converged", "samples", "iterations",
+         "nerr", "nerr_noise_floor", "converged", "samples", "iterations",
          "start" (the Nelder-Mead start kept: paper|stance1|stance2; see "starts"),
          "other_minimum": {same parameter keys, "nerr", "force_swing", "start"} or null
                           (another start's converged result with k 1.5x or l0 1.1x apart:
@@ -96,6 +96,7 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
                                     # no /gait/phase; "frame" also has "box": {"lower_m",
                                     # "upper_m", "source" (given|default|tracked_samples)}
       "gaits": {"<gait>": {"stances", "nerr_mean", "nerr_std", "power_w_mean", ...,
+                           "nerr_noise_floor_median" (what the mocap noise alone gives),
                            "stiffness_median", "stiffness_iqr", "rest_length_median",
                            "rest_length_iqr", "constant_force_stances" (force_swing < 1),
                            "two_minima_stances" (other_minimum's nerr within 10 %)
@@ -538,7 +539,8 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
         for k, v in r.params.items():
             d[k] = _f(v)
             d[f'{k}_stderr'] = _f(r.stderr[k])
-        d.update(nerr=_f(r.nerr), converged=r.converged, samples=r.samples,
+        d.update(nerr=_f(r.nerr), nerr_noise_floor=_f(r.nerr_noise_floor),
+                 converged=r.converged, samples=r.samples,
                  iterations=r.iterations, start=r.start, force_swing=_f(r.force_swing))
         d['other_minimum'] = ({k: (v if isinstance(v, str) else _f(v))
                                for k, v in r.other_minimum.items()}
@@ -792,7 +794,9 @@ def _run_command(args: argparse.Namespace) -> int:
              else math.nan,
              'force_swing': s['force_swing'] if s.get('force_swing') is not None
              else math.nan,
-             'other_nerr_ratio': _other_ratio(s)} for s in stances]
+             'other_nerr_ratio': _other_ratio(s),
+             'nerr_noise_floor': s['nerr_noise_floor'] if s.get('nerr_noise_floor')
+             is not None else math.nan} for s in stances]
     _note_rest_length_outliers(stances, [r['run'] for r in results if 'run' in r])
     # a run's result resting on an assumption its data contradict: a warning too
     warnings.extend(f"{r['bag']}: {w}" for r in results for w in r.get('run', {}).get(

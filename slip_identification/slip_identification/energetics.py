@@ -147,7 +147,8 @@ def gait_table(rows: Sequence[dict[str, float | str]]) -> dict[str, dict[str, fl
     With ``force_swing`` in the rows, ``constant_force_stances`` counts the stances fitted by
     a nearly constant leg force (:func:`.fit.spring_force_swing`); with ``other_nerr_ratio``
     (another minimum's nerr over the kept one's), ``two_minima_stances`` those within
-    :data:`.fit.TWO_MINIMA_NERR_RATIO`.
+    :data:`.fit.TWO_MINIMA_NERR_RATIO`; with ``nerr_noise_floor``, its median
+    ``nerr_noise_floor_median``.
     """
     out: dict[str, dict[str, float]] = {}
     for gait in ordered_gaits(str(r['gait']) for r in rows):
@@ -173,6 +174,13 @@ def gait_table(rows: Sequence[dict[str, float | str]]) -> dict[str, dict[str, fl
             swing = np.array([float(r.get('force_swing', math.nan)) for r in sel])
             # stances whose fit is a nearly constant leg force (k, l0 not identified apart)
             entry['constant_force_stances'] = float(np.sum(swing < FORCE_SWING_MIN))
+        if any('nerr_noise_floor' in r for r in sel):
+            # the part of the SLIP-measure that the motion capture's noise alone gives
+            # (:func:`.fit.nerr_noise_floor`): gaits compare only at one rate and noise
+            floor = np.array([float(r.get('nerr_noise_floor', math.nan)) for r in sel])
+            floor = floor[np.isfinite(floor)]
+            entry['nerr_noise_floor_median'] = float(np.median(floor)) if floor.size \
+                else math.nan
         if any('other_nerr_ratio' in r for r in sel):
             ratio = np.array([float(r.get('other_nerr_ratio', math.inf)) for r in sel])
             # stances with another minimum the data hardly tell from the kept one

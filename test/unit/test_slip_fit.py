@@ -176,3 +176,21 @@ def test_stances_of_other_sample_spacings_fitted_together():
         alone = SlipFitter(stderr=False).fit([st]).results_[0]
         assert_allclose(r.params['stiffness'], alone.params['stiffness'], rtol=1e-6)
     assert_allclose(_params(together)[:, 0], truth[:, 0], rtol=5e-3)
+
+
+def test_nerr_noise_floor_tells_what_the_mocap_noise_alone_gives():
+    """At 500 Hz, 0.2 mm of position noise puts ~0.13 m/s on the spline's velocities: most of
+    the SLIP-measure is then the noise (an outside review: EduBot running read nerr 0.160 at
+    500 Hz against 0.011 without noise); the floor says so. Without noise it is ~0."""
+    from slip_identification.fit import nerr_noise_floor
+
+    params = np.array([4000.0, 0.15, 0.3])
+    noisy = [make_stance(params, sample_hz=500.0, noise_m=2e-4,
+                         rng=np.random.default_rng(k)).stance for k in range(4)]
+    clean = make_stance(params, sample_hz=500.0, noise_m=0.0).stance
+    fits = SlipFitter().fit(noisy + [clean]).results_
+    for s, r in zip(noisy, fits):
+        assert r.nerr_noise_floor == pytest.approx(nerr_noise_floor(s))
+        assert 0.5 * r.nerr < r.nerr_noise_floor < 1.3 * r.nerr
+    assert fits[-1].nerr_noise_floor < 0.05 * fits[0].nerr_noise_floor
+    assert fits[-1].nerr < 0.2 * fits[0].nerr
