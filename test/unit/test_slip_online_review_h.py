@@ -6,9 +6,10 @@ and 2.030-2.096 s (lift-offs 35 ms apart, beyond the 30 ms the memory of fitted 
 allowed). Replayed through the core, the first window was a geometric one found in a world
 frame still refitted on every step (under ``frame_every_s`` of path): its tilt swung with
 the COM bounce, the ground under the robot moved by centimetres and the window by 30 ms
-between steps. Geometric windows now wait for the settled frame, a stance overlapping one
-fitted (or skipped) before is never fitted again, and a step without geometric edges no
-longer falls back to the clock's edges without a word.
+between steps. A stance overlapping one fitted (or skipped) before is never fitted again,
+and a step without geometric edges no longer falls back to the clock's edges without a word.
+(Waiting for the frame to settle was tried and left: a review of the change measured the
+first stances of clean jogs 3-5 ms off with it, within 1.3 ms without.)
 """
 
 from __future__ import annotations
@@ -61,22 +62,21 @@ def overlapping(fits):
             and min(a.liftoff_s, b.liftoff_s) > max(a.touchdown_s, b.touchdown_s)]
 
 
-def test_geometric_windows_wait_for_the_settled_world_frame(jog):
-    """Geometric windows found while the buffered frame is young are fitted once it rests on
-    ``frame_every_s`` of path (not in the swinging frame), each once, within 5 ms of the
-    simulator's single supports."""
+def test_geometric_windows_are_fitted_at_once_each_stance_once(jog):
+    """Geometric windows are fitted on the first sample after lift-off in the young buffered
+    frame, each stance once, within 5 ms of the simulator's single supports (waiting for the
+    frame to rest on ``frame_every_s`` of path put these 3-5 ms off, within 1.3 ms without:
+    a review of the change)."""
     run, setup = jog
     core, fits = feed(run, setup)
-    settled = core._first_inside_s + core.frame_every_s
     assert len(fits) >= 6
-    early = [(f.tripod, f.liftoff_s, t) for f, t in fits if t < settled - 1e-9]
-    assert not early      # fitted at 2.11 s (first in-box mocap 1.53 s) before the fix
     assert not overlapping([f for f, _ in fits])
     for f, _ in fits:
         tr = np.array(run.truth['single_support'][f.tripod])
         j = int(np.argmin(np.abs(tr[:, 0] - f.touchdown_s)))
-        assert abs(f.touchdown_s - tr[j, 0]) < 0.006 and abs(f.liftoff_s - tr[j, 1]) < 0.006
-    # a given world frame is settled from the start: fitted on the first sample after lift-off
+        assert abs(f.touchdown_s - tr[j, 0]) < 0.005 and abs(f.liftoff_s - tr[j, 1]) < 0.005
+    assert np.median(core.latency_s) < 0.02
+    # a given world frame: the same, fitted on the first sample after lift-off
     core, fits = feed(run, setup, world_frame=True)
     assert np.median(core.latency_s) < 0.02
 
