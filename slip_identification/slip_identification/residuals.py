@@ -209,19 +209,21 @@ class SlipExtensionSelection:
         consistent = same >= self.min_same_sign and abs(med) > 2.0 * se
         unphysical = PHYSICAL_SIGN.get(name, 0) > 0 and med <= 0.0
         if unphysical and consistent:
-            why.append(f'unphysical median {med:.3g} (must be > 0), yet {100 * same:.0f} % of '
-                       f'the stances share its sign (standard error {se:.3g} across stances): '
+            why.append(f'the training stances\' median {med:.3g} is unphysical (must be > 0), '
+                       f'yet {100 * same:.0f} % of them share its sign (standard error '
+                       f'{se:.3g} across stances): '
                        + UNPHYSICAL_MEANING.get(name, 'an effect of the other sign that the '
                                                 'template lacks'))
             return why, 'unphysical_sign'
         if unphysical:
-            why.append(f'unphysical median {med:.3g} (must be > 0)')
+            why.append(f'the training stances\' median {med:.3g} is unphysical (must be > 0)')
         if same < self.min_same_sign:
-            why.append(f'sign varies between stances ({100 * same:.0f} % share the median\'s, '
+            why.append(f'sign varies between stances ({100 * same:.0f} % of the training '
+                       f'stances share their median\'s, '
                        f'need {100 * self.min_same_sign:.0f} %)')
         if not abs(med) > 2.0 * se:
-            why.append(f'median {med:.3g} within 2 standard errors ({se:.3g}) of zero across '
-                       'stances')
+            why.append(f'the training stances\' median {med:.3g} within 2 standard errors '
+                       f'({se:.3g}) of zero')
         return why, ('inconsistent' if why else 'one_property')
 
 
@@ -253,18 +255,26 @@ def nerr_time_pattern(run: Sequence[str], t_s: np.ndarray, nerr: np.ndarray, *,
     """
     run = [str(x) for x in run]
     t = np.asarray(t_s, dtype=float)
-    y_all = np.log(np.maximum(np.asarray(nerr, dtype=float), 1e-9))
+    e = np.asarray(nerr, dtype=float)
+    # a stance without a finite nerr (a failed fit) has no place in the pattern: a NaN read
+    # as a trend at p 0.001 and an infinite one stood apart as 'xinf' (a review of the change)
+    ok = np.isfinite(e) & np.isfinite(t)
+    y_all = np.log(np.maximum(np.where(ok, e, 1.0), 1e-9))
     names = list(dict.fromkeys(run))
     rng = np.random.default_rng(seed)
     groups, isolated = [], []
     for name in names:
-        idx = np.array([i for i, r in enumerate(run) if r == name])
+        idx = np.array([i for i, r in enumerate(run) if r == name and ok[i]], dtype=np.intp)
+        if idx.size == 0:
+            continue
         idx = idx[np.argsort(t[idx], kind='stable')]
-        # a stance far above its run's (a knock, a slip, a stall): listed, left out here
+        # a stance far above its run's (a knock, a slip, a stall): listed, left out here;
+        # a run needs min_side stances for its median and spread to say what is usual (of 3,
+        # the spread was 0 and any stance at twice the median stood apart)
         med = float(np.median(y_all[idx]))
         mad = 1.4826 * float(np.median(np.abs(y_all[idx] - med)))
         apart = (y_all[idx] - med >= math.log(isolated_ratio)) & \
-            (y_all[idx] - med > isolated_z * mad)
+            (y_all[idx] - med > isolated_z * mad) & (idx.size >= min_side)
         isolated += [{'run': name, 'at_s': float(t[i]), 'nerr': float(math.exp(y_all[i])),
                       'ratio': float(math.exp(y_all[i] - med))} for i in idx[apart]]
         idx = idx[~apart]
@@ -335,7 +345,8 @@ def _value_text(c: Mapping[str, Any]) -> str:
     pname = c['name']
     p = c['params']
     lo, hi = p.get('per_stance_range', [math.nan, math.nan])
-    return (f'median {pname} {p[pname]:.3g} {p["unit"]}, per stance {lo:.3g} to {hi:.3g}')
+    return (f'median {pname} {p[pname]:.3g} {p["unit"]} over all stances, per stance '
+            f'{lo:.3g} to {hi:.3g}')
 
 
 def _rejected_text(c: Mapping[str, Any], rmse0: float) -> str:

@@ -155,3 +155,19 @@ def test_slip_loop_uses_records_and_warns_about_the_robot_mass(tmp_path):
     args = ap.parse_args(['residuals', '--slip', str(bag), '--out', str(tmp_path / 'o2'),
                           '--mass', 'nan', '--no-plots', '--no-progress'])
     assert args.func(args) == 2
+
+
+def test_time_pattern_leaves_failed_fits_and_short_runs_alone():
+    """A NaN nerr read as a trend at p 0.001, an infinite one stood apart as 'xinf', and in a
+    run of 3 stances any stance at twice the median stood apart (a review of the change)."""
+    from slip_identification.residuals import nerr_time_pattern
+
+    rng = np.random.default_rng(0)
+    t = np.arange(12, dtype=float)
+    e = 0.05 * np.exp(0.05 * rng.standard_normal(12))
+    for bad in (np.nan, np.inf):
+        got = nerr_time_pattern(['a'] * 12, t, np.where(t == 5, bad, e), permutations=199)
+        assert not got['significant'] and got['isolated'] == []
+        assert got['per_run'] == [] or got['per_run'][0]['stances'] == 11
+    short = nerr_time_pattern(['b'] * 3, t[:3], np.array([0.05, 0.05, 0.12]), permutations=99)
+    assert short['isolated'] == []
