@@ -123,7 +123,8 @@ PITCH_OFFSET_RANGE_RAD = math.radians(4.0)
 PITCH_OFFSET_CENTRE_RAD = math.radians(12.0)
 #: the legs' stiffness from the body-height fit (GeometryFit.stiffness_per_kg times the mass)
 #: further than this fraction from LegGeometry.damping_stiffness_n_m refutes the default
-#: damping time (EduBot simulated runs, four gaits x 3 seeds: -6.6 % to +2.2 %)
+#: damping time (EduBot simulated runs, four gaits x 3 seeds: -6.6 % to +2.2 %; a review
+#: of the change read -8.4 % on pace seed 3, 3480 N/m)
 DAMPING_STIFFNESS_TOLERANCE = 0.25
 #: a fitted pitch zero closer than this to the prior is not kept [rad]: on simulated runs with
 #: a known zero the free fit scatters by 0.1-0.2 deg (start-up transients), and kept there it

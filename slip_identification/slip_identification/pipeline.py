@@ -258,7 +258,7 @@ def _stiffness_check(gfit: Any, geometry: LegGeometry, geo_inputs: tuple[Any, ..
     shift) and the body-height residual barely tells them apart (an outside review: legs of
     2000 N/m fitted 0.194 mm rms with EduBot's 3.39 ms, 0.189 mm with 6.31 ms fitted, the
     offset 10 ms and every edge 7 ms off with the default), but the stiffness is pinned well
-    (EduBot simulated runs 3551-3884 N/m; the review's 2000 and 7000 N/m legs 2095 and 6034).
+    (EduBot simulated runs 3480-3930 N/m; the review's 2000 and 7000 N/m legs 2095 and 6034).
     A stiffness more than :data:`DAMPING_STIFFNESS_TOLERANCE` off EduBot's says the legs are
     not EduBot's: the damping time is then fitted (started from EduBot's damper on the fitted
     spring) and kept unless it fits the body height clearly worse; a warning either way.
@@ -307,7 +307,7 @@ def _stiffness_check(gfit: Any, geometry: LegGeometry, geo_inputs: tuple[Any, ..
 
 #: geometric touchdowns and hip-effort onsets further apart than this (median over the legs'
 #: touchdowns) contradict the leg description [s]: EduBot simulated running and jogging
-#: (3 seeds) +1.5 to +2.5 ms; the review's runs: hip zero 0.15 rad +19.6 ms, a logged hip
+#: (3 seeds) +1.5 to +3.8 ms; the review's runs: hip zero 0.15 rad +19.6 ms, a logged hip
 #: offset +0.15 rad -12.4 ms, four hips +12.5 ms
 EFFORT_CONTACT_MAX_S = 0.006
 
@@ -345,7 +345,7 @@ def _effort_contact_check(contacts: dict[str, FloatArray], names: tuple[str, ...
     res.warn(
         f'the legs\' geometric touchdowns come {1e3 * abs(lag):.1f} ms '
         f'{"after" if lag > 0 else "before"} the hip-effort onsets (median of {len(diffs)}; '
-        f'EduBot simulated aerial gaits: +1.5 to +2.5 ms): the leg description does not fit '
+        f'EduBot simulated aerial gaits: +1.5 to +3.8 ms): the leg description does not fit '
         f'this robot, and the stream offset ({gfit.offset_s:+.4f} s) and stance edges from it '
         f'may be off by about as much. Likely causes: a hip encoder zero off (--hip-zero RAD, '
         f'now {geometry.hip_zero_rad:g}; a positive lag asks for a larger zero), another leg '
