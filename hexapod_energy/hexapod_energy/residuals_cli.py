@@ -186,10 +186,12 @@ def build_parser() -> argparse.ArgumentParser:
 def run_slip_loop(bags: list[str], out_dir: str | Path | None = None, *,
                   plots: bool = True, box: Sequence[float] | None = None,
                   progress: Callable[[int], Any] | None = None,
-                  mass_kg: float | None = None) -> dict[str, Any]:
+                  mass_kg: float | None = None, payload_kg: float = 0.0) -> dict[str, Any]:
     """SLIP loop on EduBot bags; writes ``residuals.json`` when ``out_dir`` is given;
     ``progress(1)`` after each bag. ``mass_kg``: the robot's mass (None: EduBot's 3.31 kg,
-    with a warning; an outside review's ``--robot-mass 3.97`` was taken and ignored)."""
+    with a warning; an outside review's ``--robot-mass 3.97`` was taken and ignored);
+    ``payload_kg`` rides on the template's point mass with it (it had been ignored without a
+    word: a review of the change)."""
     from slip_identification.cli import read_run
     from slip_identification.model import EDUBOT_MASS_KG, SlipModel
     from slip_identification.pipeline import analyze_run
@@ -215,7 +217,8 @@ def run_slip_loop(bags: list[str], out_dir: str | Path | None = None, *,
         data = read_run(path)
         per: dict[str, dict[str, Any]] = {}
         for name, ext in [('slip', ())] + list(SLIP_CANDIDATES.items()):
-            res = analyze_run(data, model=SlipModel(extensions=ext, mass_kg=mass_kg),
+            res = analyze_run(data, model=SlipModel(extensions=ext,
+                                                    mass_kg=mass_kg + payload_kg),
                               box=region,
                               position_fit=False)
             per[name] = {r.label: r for r in res.fits}
@@ -228,6 +231,7 @@ def run_slip_loop(bags: list[str], out_dir: str | Path | None = None, *,
     doc['bags'] = list(bags)
     doc['mass_kg'] = float(mass_kg)
     doc['mass_given'] = not warnings
+    doc['payload_kg'] = float(payload_kg)
     doc['warnings'] = warnings
     if out_dir is not None:
         out = Path(out_dir)
@@ -304,11 +308,15 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         prepare_out_dir(args.out)   # before the analysis, not after it
         # an earlier run's residuals.json and plots (kept beside a --no-plots run's JSON):
         # set aside, put back if this run does not finish
+        payload = args.robot_payload
+        if not (math.isfinite(payload) and payload >= 0):
+            raise InvalidInputError(f'--robot-payload must be >= 0 kg, got {payload}')
         with tqdm(total=len(args.slip), desc='residuals', unit='bag', file=sys.stderr,
                   **bar_options(getattr(args, 'no_progress', False))) as bar, \
                 replacing_outputs(args.out, 'residuals.json'):
             doc = run_slip_loop(list(args.slip), args.out, plots=not args.no_plots,
-                                box=args.box, progress=bar.update, mass_kg=args.robot_mass)
+                                box=args.box, progress=bar.update, mass_kg=args.robot_mass,
+                                payload_kg=payload)
         for w in doc.get('warnings', []):
             print(f'residuals: warning: {w}', file=sys.stderr)
         return doc

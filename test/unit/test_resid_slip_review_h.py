@@ -155,6 +155,18 @@ def test_slip_loop_uses_records_and_warns_about_the_robot_mass(tmp_path):
     args = ap.parse_args(['residuals', '--slip', str(bag), '--out', str(tmp_path / 'o2'),
                           '--mass', 'nan', '--no-plots', '--no-progress'])
     assert args.func(args) == 2
+    # a payload rides on the template's point mass too (ignored without a word before: a
+    # review of the change)
+    args = ap.parse_args(['residuals', '--slip', str(bag), '--out', str(tmp_path / 'o3'),
+                          '--robot-mass', '3.31', '--robot-payload', '3.31', '--no-plots',
+                          '--no-progress', '--box', *map(str, box)])
+    assert args.func(args) == 0
+    pay = json.loads((tmp_path / 'o3' / 'residuals.json').read_text())
+    assert pay['mass_kg'] == pytest.approx(3.31) and pay['payload_kg'] == pytest.approx(3.31)
+    for name in ('leg_damping', 'hip_torque'):
+        a = next(c for c in doc['candidates'] if c['name'] == name)['params']
+        b = next(c for c in pay['candidates'] if c['name'] == name)['params']
+        np.testing.assert_allclose(b['per_stance'], a['per_stance'], rtol=1e-9)
 
 
 def test_time_pattern_leaves_failed_fits_and_short_runs_alone():
