@@ -9,6 +9,7 @@ these bags, the column readers 89, 51 and 103 kB/s. Deterministic: tracemalloc, 
 from __future__ import annotations
 
 import dataclasses
+import gc
 import tracemalloc
 
 import numpy as np
@@ -22,6 +23,9 @@ SHORT_S, LONG_S = 12.0, 48.0
 
 
 def _peak_bytes(fn):
+    # garbage left by earlier tests in this worker is collected first: a collection that
+    # falls inside the traced read once made a CI run read 304 kB/s (89 alone)
+    gc.collect()
     tracemalloc.start()
     try:
         out = fn()
@@ -34,9 +38,13 @@ def _growth_per_s(read, bags):
     """Traced peak of ``read(bag)``: its growth per second of bag, and the longer bag's
     result."""
     read(bags[SHORT_S])   # imports and caches outside the measurement
-    short, _ = _peak_bytes(lambda: read(bags[SHORT_S]))
-    long, out = _peak_bytes(lambda: read(bags[LONG_S]))
-    return (long - short) / (LONG_S - SHORT_S), out
+    read(bags[LONG_S])
+    growth, out = [], None
+    for _ in range(2):    # the smaller of two: a one-off allocation elsewhere is not growth
+        short, _ = _peak_bytes(lambda: read(bags[SHORT_S]))
+        long, out = _peak_bytes(lambda: read(bags[LONG_S]))
+        growth.append((long - short) / (LONG_S - SHORT_S))
+    return min(growth), out
 
 
 @pytest.fixture(scope='module')
