@@ -131,3 +131,22 @@ def test_auto_refuses_efforts_that_never_do_negative_work(opm) -> None:
     no_model = feed(DescriptorAccumulator(mass_kg=ROBOT_KG), False, amp=200.0)
     assert all(np.isnan(d.power_out_w) for d in no_model)
     assert all(any('not below P_in' in w for w in d.warnings) for d in no_model)
+
+
+def test_joint_power_is_a_time_average_like_the_input_power() -> None:
+    """A joint sampled twice as densely over half of each cycle: the plain mean of the samples
+    read P_out +21 % (an outside review of the equations); each sample now stands for its
+    time, and evenly spaced samples keep their plain mean."""
+    from hexapod_energy.descriptors import _mean_joint_power_w
+
+    def joint(t):
+        return [(float(x), ('j',), np.array([1.0 + np.sin(2 * np.pi * x)]), False) for x in t]
+
+    dense = np.sort(np.concatenate([np.arange(0, 0.5, 0.005), np.arange(0.5, 1.0, 0.01)]))
+    assert _mean_joint_power_w(joint(dense)) == pytest.approx(1.0, abs=2e-3)
+    even = np.arange(0, 1, 0.01)
+    assert _mean_joint_power_w(joint(even)) == pytest.approx(
+        float(np.mean(1.0 + np.sin(2 * np.pi * even))), rel=1e-12)
+    # joints split over messages (another name set): each joint's own times
+    split = joint(dense) + [(float(x), ('k',), np.array([2.0]), False) for x in even]
+    assert _mean_joint_power_w(split) == pytest.approx(3.0, abs=2e-3)
