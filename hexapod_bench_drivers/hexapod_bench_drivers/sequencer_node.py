@@ -660,7 +660,7 @@ def abort_on_signals(node: BenchSequencerNode,
                      signals: Sequence[int] = (signal.SIGINT, signal.SIGTERM)) -> None:
     """SIGINT / SIGTERM abort the plan safely (:meth:`BenchSequencerNode.request_abort`)
     instead of shutting rclpy down under a walking leg; the node then exits with code 1."""
-    on_stop_signals(node.request_abort, signals)
+    on_stop_signals(node.request_abort, signals, node=node)
 
 
 def _node_aborting_on_signals(**kw: Any) -> BenchSequencerNode:

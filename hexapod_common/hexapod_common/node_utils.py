@@ -60,19 +60,59 @@ T = TypeVar('T')
 
 
 def on_stop_signals(stop: Callable[[str], None],
-                    signals: Sequence[int] = (signal.SIGINT, signal.SIGTERM)) -> None:
+                    signals: Sequence[int] = (signal.SIGINT, signal.SIGTERM), *,
+                    node: Any = None, wall_timeout_s: float = 10.0) -> None:
     """SIGINT / SIGTERM call ``stop('SIGINT received')`` instead of shutting rclpy down: a
     node that moves a leg stops it safely first (the bench sequencer, the gait scheduler) and
-    resolves its ``finished`` future for :func:`run_node`."""
+    resolves its ``finished`` future for :func:`run_node`.
+
+    With ``node`` (which has ``finished``): a steady-clock timer wakes the executor four
+    times a second, so that the signal is handled even when the node's own timers stand still
+    (``use_sim_time`` with a ``/clock`` that stopped or never came: the Python handler only
+    runs when the executor returns, and Ctrl-C and SIGTERM were ignored until SIGKILL; an
+    outside review), and a stop not done ``wall_timeout_s`` of wall time after the first
+    signal while the node's clock moved less than a tenth of that resolves ``finished`` with
+    exit code 1 and an error naming the clock (a clock that runs, however slowly, leaves the
+    node's own stop to finish)."""
+    import time
+
     from rclpy.signals import uninstall_signal_handlers
 
     uninstall_signal_handlers()
+    first: list[float] = []
 
     def handler(signum: int, frame: Any) -> None:
+        if not first:
+            first.append(time.monotonic())
         stop(f'{signal.Signals(signum).name} received')
 
     for sig in signals:
         signal.signal(sig, handler)
+    finished = getattr(node, 'finished', None)
+    if node is None or finished is None:
+        return
+    from rclpy.clock import Clock, ClockType
+
+    node_clock: list[float] = []
+
+    def watch() -> None:
+        if not first or finished.done():
+            return
+        now = node.get_clock().now().nanoseconds * 1e-9
+        if not node_clock:
+            node_clock.append(now)
+        if time.monotonic() - first[0] <= wall_timeout_s or \
+                now - node_clock[0] >= 0.1 * wall_timeout_s:
+            return
+        sim = node.get_parameter('use_sim_time').value if node.has_parameter(
+            'use_sim_time') else False
+        node.get_logger().error(
+            f'the stop did not finish within {wall_timeout_s:g} s of wall time'
+            + (' (use_sim_time is true: the /clock stands still or never came)' if sim
+               else '') + ': exiting with the legs where they are (exit code 1)')
+        finished.set_result(1)
+
+    node.create_timer(0.25, watch, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
 #: set to get the traceback of a start-up failure instead of its one-line summary
 DEBUG_ENV = 'HEXAPOD_DEBUG'
@@ -315,7 +355,9 @@ def run_node(node_factory: Callable[..., Any], args: Sequence[str] | None = None
 
     Any error while the node is built (a refused parameter, a missing file, a bus that does
     not open) is printed as one line naming the node and the error and gives exit code 2;
-    with ``HEXAPOD_DEBUG=1`` the traceback is raised instead.
+    with ``HEXAPOD_DEBUG=1`` the traceback is raised instead. So are ROS arguments that rcl
+    refuses (a params file missing or not YAML) and arguments outside ``--ros-args`` (a
+    ``-p NAME:=VALUE`` typed without it was ignored).
 
     Ctrl-C shuts the context down from rclpy's signal handler while a callback may be
     publishing or the executor building its wait set: the ``RCLError`` or ``InvalidHandle``
@@ -330,7 +372,29 @@ def run_node(node_factory: Callable[..., Any], args: Sequence[str] | None = None
     from rclpy.executors import ExternalShutdownException
 
     stop_errors = stopping_errors()
-    rclpy.init(args=args)
+    argv = list(sys.argv if args is None else args)
+    try:
+        # a params file that is missing or not YAML, a malformed remap: rcl refuses them here
+        # (it was a traceback and exit 1)
+        rclpy.init(args=argv)
+    except Exception as err:
+        if os.environ.get(DEBUG_ENV):
+            raise
+        print(f'{_program_name(node_factory)}: error: the ROS arguments were refused: '
+              f'{str(err).splitlines()[0] if str(err) else type(err).__name__} (set '
+              f'{DEBUG_ENV}=1 for the traceback)', file=sys.stderr)
+        return 2
+    from rclpy.utilities import remove_ros_args
+
+    stray = remove_ros_args(args=argv)[1:]
+    if stray:
+        # '-p speed:=0.3' or '--speed 0.3' without --ros-args were ignored without a word
+        # and the robot walked the defaults (an outside review)
+        rclpy.try_shutdown()
+        print(f'{_program_name(node_factory)}: error: unrecognized argument(s) '
+              f'{" ".join(stray)}: node parameters go after --ros-args (e.g. '
+              '`--ros-args -p NAME:=VALUE`); --help lists them', file=sys.stderr)
+        return 2
     node = None
     try:
         try:

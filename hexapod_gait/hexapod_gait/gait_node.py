@@ -270,9 +270,11 @@ class GaitSchedulerNode(Node):
         Safe from a signal handler: the stand starts on the next timer tick."""
         self._stop_requests += 1
         if self._stop_requests > 1:
-            self.get_logger().warning(f'{reason} again: exiting with the legs where they are')
+            self.get_logger().warning(f'{reason} again: exiting with the legs where they are '
+                                      f'(exit code {EXIT_NOT_STOOD})')
             if not self.finished.done():
-                self.finished.set_result(0)
+                # the legs not stood: exit 1, as a stand refused or timed out (it was 0)
+                self.finished.set_result(EXIT_NOT_STOOD)
             return
         self._stop_reason = reason
 
@@ -346,7 +348,8 @@ def stand_on_signals(node: GaitSchedulerNode,
                      signals: Sequence[int] = (signal.SIGINT, signal.SIGTERM)) -> None:
     """SIGINT / SIGTERM stand the legs before the node exits
     (:meth:`GaitSchedulerNode.request_stop`) instead of shutting rclpy down mid-step."""
-    on_stop_signals(node.request_stop, signals)
+    on_stop_signals(node.request_stop, signals, node=node,
+                    wall_timeout_s=node.params.stop_timeout_s + 1.0)
 
 
 def _node_standing_on_signals(**kw: Any) -> GaitSchedulerNode:

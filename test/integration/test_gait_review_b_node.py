@@ -42,6 +42,9 @@ def test_a_walking_eight_leg_wave_stands_on_ctrl_c():
         _sigint(node)
         assert env.spin_until(node.finished.done, 30)
         assert node.finished.result() == 0 and node.params.stand
+        # the last stand message may still be on its way when the node resolves finished
+        assert env.spin_until(lambda: phases.messages[-1].step_length == 0.0
+                              and all(phases.messages[-1].in_stance), 5)
         last = phases.messages[-1]
         assert last.step_length == 0.0 and all(last.in_stance) and len(last.in_stance) == 8
         assert last.period == pytest.approx(phases.messages[0].period)   # walking period kept

@@ -9,7 +9,7 @@ from hexapod_interfaces.msg import GaitPhase
 from rclpy.parameter import Parameter
 
 from hexapod_common.errors import ParameterError
-from hexapod_gait.gait_node import GaitSchedulerNode
+from hexapod_gait.gait_node import EXIT_NOT_STOOD, GaitSchedulerNode
 
 
 def _overrides(**kw):
@@ -93,9 +93,35 @@ def test_a_signal_stands_the_legs_before_the_node_exits(signals, stood):
             for s, h in saved.items():
                 signal.signal(s, h)
         assert env.spin_until(node.finished.done, 20)
-        assert node.finished.result() == 0
+        # a second signal leaves the legs where they are: exit 1 (it was 0; an outside review)
+        assert node.finished.result() == (0 if stood else EXIT_NOT_STOOD)
         settled = node.scheduler.state(node._now_s()).gait.step_length_m == 0.0
         assert settled is stood and node.params.stand is stood
         if stood:   # the last command published is the stand, every leg in stance
             assert env.spin_until(lambda: phases.messages[-1].step_length == 0.0
                                   and all(phases.messages[-1].in_stance), 5)
+
+
+@pytest.mark.timeout(60)
+def test_a_signal_ends_the_node_when_its_simulated_clock_stands_still():
+    """use_sim_time with no /clock: the gait timer never ticks, so the stand never began and
+    SIGINT / SIGTERM were ignored until SIGKILL (an outside review). A steady-clock timer now
+    handles the signal and, the node's clock not moving, ends it with exit code 1 after
+    stop_timeout_s + 1 s of wall time."""
+    import signal
+
+    from hexapod_gait.gait_node import stand_on_signals
+
+    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    with ros_env('gaitsim') as env:
+        node = env.make(GaitSchedulerNode, parameter_overrides=_overrides(
+            rate=50.0, period=0.5, stop_timeout_s=0.5) + [
+                Parameter('use_sim_time', value=True)])
+        try:
+            stand_on_signals(node)
+            signal.getsignal(signal.SIGINT)(signal.SIGINT, None)   # what Ctrl-C runs
+        finally:
+            for s, h in saved.items():
+                signal.signal(s, h)
+        assert env.spin_until(node.finished.done, 30)
+        assert node.finished.result() == EXIT_NOT_STOOD

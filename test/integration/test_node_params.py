@@ -150,6 +150,24 @@ def test_run_node_start_up_error_is_one_line_and_exit_2(exc, capsys, monkeypatch
     assert not rclpy.ok()   # the context was shut down
 
 
+@pytest.mark.parametrize('argv, says', [
+    (['prog', '-p', 'speed:=0.3'], 'go after --ros-args'),
+    (['prog', '--speed', '0.3', '--ros-args', '-p', 'x:=1'], 'unrecognized argument(s) --speed'),
+    (['prog', '--ros-args', '--params-file', '/nonexistent.yaml'], "Couldn't parse params"),
+    (['prog', '--ros-args', '-r', '__ns:=robot1'], 'ROS arguments were refused'),
+])
+def test_run_node_refuses_stray_and_bad_ros_arguments(argv, says, capsys, monkeypatch):
+    """'-p speed:=0.3' without --ros-args was ignored and the robot walked the defaults; a
+    params file missing or a remap malformed gave a traceback and exit 1 (an outside
+    review): one line, exit 2, no node built."""
+    monkeypatch.delenv('HEXAPOD_DEBUG', raising=False)
+    built = []
+    assert run_node(lambda: built.append(1), argv) == 2
+    err = capsys.readouterr().err
+    assert says in err and 'Traceback' not in err and not built
+    assert not rclpy.ok()
+
+
 def test_run_node_debug_shows_the_traceback(monkeypatch):
     monkeypatch.setenv('HEXAPOD_DEBUG', '1')
     with pytest.raises(ValueError, match='bad'):
