@@ -37,6 +37,7 @@ from rclpy.qos import (
 from hexapod_common.errors import ParameterError
 
 __all__ = [
+    'InputWatch',
     'LATCHED_QOS',
     'RELIABLE_QOS',
     'SENSOR_QOS',
@@ -113,6 +114,70 @@ def on_stop_signals(stop: Callable[[str], None],
         finished.set_result(1)
 
     node.create_timer(0.25, watch, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+class InputWatch:
+    """Says when a node's inputs do not arrive, on the wall clock (a steady timer: also when
+    a simulated clock stands still).
+
+    ``subscriptions`` maps a key to a subscription; the node calls :meth:`seen` with the key
+    on each message. ``mode='all'``: one warning when none of them has delivered for
+    ``timeout_s`` (since start, or since they stopped: a robot in another namespace, every
+    publisher killed); ``'each'``: one warning per subscription that has not delivered for
+    ``timeout_s`` (no ``/mocap/body`` for the SLIP fits). The topic names are the resolved
+    ones (namespace and remaps). Each silence is said once, and its end at info level.
+    Before, ``energy_monitor`` and ``slip_fitter`` said nothing in these cases (an outside
+    review of the live graph). ``timeout_s`` 0 turns it off."""
+
+    def __init__(self, node: Any, subscriptions: dict[str, Any], timeout_s: float, *,
+                 mode: str = 'all', consequence: str = '') -> None:
+        import time
+
+        from rclpy.clock import Clock, ClockType
+
+        self._time = time.monotonic
+        self.node, self.subs, self.timeout_s = node, dict(subscriptions), float(timeout_s)
+        self.mode, self.consequence = mode, consequence
+        start = self._time()
+        self.last = {k: start for k in self.subs}
+        self.ever = {k: False for k in self.subs}
+        self.silent: set[str] = set()
+        #: warnings logged (tests)
+        self.warnings: list[str] = []
+        if self.timeout_s > 0:
+            node.create_timer(min(1.0, self.timeout_s / 4.0), self._check,
+                              clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def seen(self, key: str) -> None:
+        """A message arrived on ``key``."""
+        self.last[key] = self._time()
+        self.ever[key] = True
+        back = [k for k in self.silent if k == key or self.mode == 'all']
+        if back:
+            self.silent.difference_update(back)
+            self.node.get_logger().info(
+                f'{self.subs[key].topic_name}: messages arrive again')
+
+    def _check(self) -> None:
+        now = self._time()
+        quiet = [k for k in self.subs if now - self.last[k] >= self.timeout_s]
+        if self.mode == 'all':
+            groups = [tuple(self.subs)] if len(quiet) == len(self.subs) else []
+        else:
+            groups = [(k,) for k in quiet]
+        for keys in groups:
+            if keys[0] in self.silent:
+                continue
+            self.silent.update(keys)
+            names = ', '.join(self.subs[k].topic_name for k in keys)
+            never = not any(self.ever[k] for k in keys)
+            text = (f'no message on {names} for {self.timeout_s:g} s of wall time'
+                    + (' since start' if never else ' (they stopped)' if len(keys) > 1
+                       else ' (it stopped)')
+                    + (f': {self.consequence}' if self.consequence else '')
+                    + '; check that its publishers run in this namespace and ROS domain')
+            self.warnings.append(text)
+            self.node.get_logger().warning(text)
+
 
 #: set to get the traceback of a start-up failure instead of its one-line summary
 DEBUG_ENV = 'HEXAPOD_DEBUG'

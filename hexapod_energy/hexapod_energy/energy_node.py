@@ -97,6 +97,7 @@ from hexapod_common.conversions import (
 from hexapod_common.node_utils import (
     RELIABLE_QOS,
     SENSOR_QOS,
+    InputWatch,
     declare_params,
     mocap_msg_class,
     overridden,
@@ -173,6 +174,10 @@ class EnergyParams:
         '', 'keep only this battery of battery_state (header.frame_id, else location or '
         'serial_number); empty: several batteries on the topic are summed',
         read_only=True)
+    input_timeout_s: float = param(
+        5.0, 'wall time [s] without any message on battery_state, gait/phase and '
+        'joint_states after which that is warned (0: off)', read_only=True,
+        validate=lambda v: None if math.isfinite(v) and v >= 0 else 'expected >= 0 s')
 
 
 def warning_kind(warning: str) -> str:
@@ -260,11 +265,17 @@ class EnergyMonitorNode(Node):
         self._battery_msgs = 0
         #: set once several publishers on battery_state were seen with one battery name
         self.battery_publishers_warned = False
-        self.create_subscription(GaitPhase, 'gait/phase', self._on_gait, SENSOR_QOS)
-        self.create_subscription(JointState, 'joint_states', self._on_joints, SENSOR_QOS)
+        gait_sub = self.create_subscription(GaitPhase, 'gait/phase', self._on_gait, SENSOR_QOS)
+        joint_sub = self.create_subscription(JointState, 'joint_states', self._on_joints,
+                                             SENSOR_QOS)
         self.create_subscription(mocap_msg_class(p.mocap_type), 'mocap/body', self._on_pose,
                                  SENSOR_QOS)
         self.create_subscription(Odometry, 'odom', self._on_odom, SENSOR_QOS)
+        #: inputs that never come (another namespace) or all stop: said on the wall clock
+        self.inputs = InputWatch(
+            self, {'battery_state': self._battery_sub, 'gait/phase': gait_sub,
+                   'joint_states': joint_sub}, p.input_timeout_s,
+            consequence='no descriptors can be computed')
 
     def _guard(self, what: str, fn: Any, msg: Any) -> Any:
         try:
@@ -328,6 +339,7 @@ class EnergyMonitorNode(Node):
             self.pub.publish(descriptors_to_msg(d))
 
     def _on_battery(self, msg: BatteryState) -> None:
+        self.inputs.seen('battery_state')
         self._publish(self._guard('BatteryState', self._add_battery, msg))
 
     def _add_battery(self, msg: BatteryState) -> list[Descriptors]:
@@ -387,12 +399,14 @@ class EnergyMonitorNode(Node):
                 'header.frame_id (they are then summed) or keep one with -p battery_source')
 
     def _on_gait(self, msg: GaitPhase) -> None:
+        self.inputs.seen('gait/phase')
         self._publish(self._guard('GaitPhase',
                                   lambda m: self.core.add_gait_phase(
                                       self._restamp('gait/phase', gait_phase_from_msg(m))),
                                   msg))
 
     def _on_joints(self, msg: JointState) -> None:
+        self.inputs.seen('joint_states')
         self._publish(self._guard('JointState', self._add_joints, msg))
 
     def _add_joints(self, msg: JointState) -> list[Descriptors]:

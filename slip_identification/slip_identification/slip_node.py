@@ -45,6 +45,7 @@ from hexapod_common.conversions import (
 from hexapod_common.node_utils import (
     RELIABLE_QOS,
     SENSOR_QOS,
+    InputWatch,
     declare_params,
     mocap_msg_class,
     param,
@@ -152,6 +153,10 @@ class SlipParams:
         'TransformStamped (vicon_bridge), PoseWithCovarianceStamped or Odometry',
         validate=lambda v: None if v in MOCAP_TYPES else f'expected one of {list(MOCAP_TYPES)}',
         read_only=True)
+    input_timeout_s: float = param(
+        5.0, 'wall time [s] without messages on joint_states or on mocap/body after which '
+        'that is warned, each (0: off)', read_only=True,
+        validate=lambda v: None if math.isfinite(v) and v >= 0 else 'expected >= 0 s')
 
 
 #: what ``hexapod-analyze slip`` gives the live node, in the startup warning
@@ -229,10 +234,14 @@ class SlipFitterNode(Node):
         for level, text in startup_notes(p):
             getattr(self.get_logger(), level)(text)
         self.pub = self.create_publisher(SlipFit, 'slip/fit', RELIABLE_QOS)
-        self.create_subscription(JointState, 'joint_states', self._on_js, SENSOR_QOS)
+        js_sub = self.create_subscription(JointState, 'joint_states', self._on_js, SENSOR_QOS)
         self.create_subscription(JointState, 'joint_commands', self._on_cmd, SENSOR_QOS)
-        self.create_subscription(mocap_msg_class(p.mocap_type), 'mocap/body', self._on_mocap,
-                                 SENSOR_QOS)
+        mocap_sub = self.create_subscription(mocap_msg_class(p.mocap_type), 'mocap/body',
+                                             self._on_mocap, SENSOR_QOS)
+        #: joint states or motion capture that never come or stop: said on the wall clock
+        self.inputs = InputWatch(self, {'joint_states': js_sub, 'mocap/body': mocap_sub},
+                                 p.input_timeout_s, mode='each',
+                                 consequence='no stance can be fitted')
         order = [f'{side}{k}_hip' for side in 'LR' for k in (1, 2, 3)]
         self._hip_sign = {n: -1.0 for n, v in zip(order, p.hip_signs) if v < 0}
         self._body_up = p.body_up
@@ -288,6 +297,7 @@ class SlipFitterNode(Node):
             self.get_logger().warning(text if n == 1 else f'{text} [{n} such messages so far]')
 
     def _on_js(self, msg: JointState) -> None:
+        self.inputs.seen('joint_states')
         self._guard(self._joint_state, msg, 'joint_states')
 
     def _signed(self, s: Any) -> Any:
@@ -361,6 +371,7 @@ class SlipFitterNode(Node):
             self.core.add_command(s.t_s, s.names, s.velocity)
 
     def _on_mocap(self, msg: PoseStamped) -> None:
+        self.inputs.seen('mocap/body')
         self._guard(self._mocap_and_fit, msg, 'mocap/body')
 
     def _mocap_and_fit(self, msg: PoseStamped) -> None:

@@ -212,3 +212,39 @@ def test_messages_without_velocities_among_ones_with_them_are_left_out(tmp_path:
     assert any('without velocities' in w for w in warnings)
     mean = sum(m.power_out * m.window for m in live) / sum(m.window for m in live)
     assert mean == pytest.approx(runs['sparse']['power_out_w'], rel=1e-9)
+
+
+@pytest.mark.timeout(60)
+def test_inputs_that_never_come_or_stop_are_said() -> None:
+    """energy_monitor in another namespace than the robot, or with every publisher killed,
+    said nothing (an outside review of the live graph); slip_fitter without /mocap/body
+    neither. A steady-clock watch now says so, once per silence, naming the resolved
+    topics."""
+    from hexapod_energy.energy_node import EnergyMonitorNode
+    from slip_identification.slip_node import SlipFitterNode
+
+    with ros_env('review_inputs') as env:
+        energy = env.make(EnergyMonitorNode, parameter_overrides=[
+            Parameter('current_sign', value='ros'), Parameter('input_timeout_s', value=0.5)])
+        slip = env.make(SlipFitterNode, parameter_overrides=[
+            Parameter('input_timeout_s', value=0.5)])
+        assert env.spin_until(lambda: energy.inputs.warnings and slip.inputs.warnings, 20)
+        said = energy.inputs.warnings[0]
+        assert 'since start' in said and f'{env.namespace}/battery_state' in said
+        assert 'gait/phase' in said and 'no descriptors' in said
+        assert len(slip.inputs.warnings) == 2   # each of joint_states and mocap/body
+        # joint states come, motion capture never: only that one is said
+        feeder = env.add(rclpy.create_node('joints', context=env.context,
+                                           namespace=env.namespace))
+        pub = feeder.create_publisher(JointState, 'joint_states', QOS)
+        sent = [0]
+
+        def send() -> None:
+            pub.publish(JointState(name=['L1_hip'], position=[0.1 * sent[0]]))
+            sent[0] += 1
+
+        feeder.create_timer(0.05, send)     # 2 s of joint states, past the 0.5 s timeout
+        assert env.spin_until(lambda: sent[0] >= 40, 20)
+        assert 'joint_states' not in slip.inputs.silent
+        assert 'mocap/body' in slip.inputs.silent and len(slip.inputs.warnings) == 2
+        assert 'no stance can be fitted' in slip.inputs.warnings[-1]
