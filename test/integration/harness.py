@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import os
+import signal
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
@@ -13,7 +14,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 
-__all__ = ['Collector', 'RosEnv', 'ros_env', 'unique_namespace']
+__all__ = ['Collector', 'RosEnv', 'ctrl_c', 'ros_env', 'unique_namespace']
 
 _counter = itertools.count()
 
@@ -105,3 +106,16 @@ def capture_errors(node: Any) -> list[str]:
     original = logger.error
     logger.error = lambda msg, **kw: errors.append(msg) or original(msg, **kw)
     return errors
+
+
+def ctrl_c(install: Callable[[Any], None], node: Any, times: int = 1) -> None:
+    """Install a node's signal handlers (``install(node)``, e.g. ``stand_on_signals``), run
+    what Ctrl-C runs ``times`` times, and put the process's own handlers back."""
+    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        install(node)
+        for _ in range(times):
+            signal.getsignal(signal.SIGINT)(signal.SIGINT, None)
+    finally:
+        for s, h in saved.items():
+            signal.signal(s, h)

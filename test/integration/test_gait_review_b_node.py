@@ -4,10 +4,8 @@ whole side in the air (F3)."""
 
 from __future__ import annotations
 
-import signal
-
 import pytest
-from harness import Collector, ros_env
+from harness import Collector, ctrl_c, ros_env
 from hexapod_interfaces.msg import GaitPhase
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.parameter import Parameter
@@ -20,13 +18,7 @@ def _overrides(**kw):
 
 
 def _sigint(node: GaitSchedulerNode) -> None:
-    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        stand_on_signals(node)
-        signal.getsignal(signal.SIGINT)(signal.SIGINT, None)      # what Ctrl-C runs
-    finally:
-        for s, h in saved.items():
-            signal.signal(s, h)
+    ctrl_c(stand_on_signals, node)
 
 
 @pytest.mark.timeout(90)

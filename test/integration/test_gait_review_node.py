@@ -4,7 +4,7 @@ too short transitions, period in speed mode) and a real stand (FINDINGS G1, G2, 
 from __future__ import annotations
 
 import pytest
-from harness import Collector, ros_env
+from harness import Collector, ctrl_c, ros_env
 from hexapod_interfaces.msg import GaitPhase
 from rclpy.parameter import Parameter
 
@@ -75,23 +75,14 @@ def test_a_signal_stands_the_legs_before_the_node_exits(signals, stood):
     """Ctrl-C stopped the commands wherever the legs were (a bench leg froze 35 mm above the
     ground; the sequencer later cut its torque there): now the legs stand, then the node
     exits; a second signal exits at once."""
-    import signal
-
     from hexapod_gait.gait_node import stand_on_signals
 
-    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
     with ros_env('gaitrev') as env:
         node = env.make(GaitSchedulerNode, parameter_overrides=_overrides(
             rate=50.0, period=0.5, transition_cycles=1.0))
         phases = Collector(env, GaitPhase, 'gait/phase')
         phases.wait_for(env, 10)
-        try:
-            stand_on_signals(node)
-            for _ in range(signals):
-                signal.getsignal(signal.SIGINT)(signal.SIGINT, None)   # what Ctrl-C runs
-        finally:
-            for s, h in saved.items():
-                signal.signal(s, h)
+        ctrl_c(stand_on_signals, node, signals)
         assert env.spin_until(node.finished.done, 20)
         # a second signal leaves the legs where they are: exit 1 (it was 0; an outside review)
         assert node.finished.result() == (0 if stood else EXIT_NOT_STOOD)
@@ -108,20 +99,12 @@ def test_a_signal_ends_the_node_when_its_simulated_clock_stands_still():
     SIGINT / SIGTERM were ignored until SIGKILL (an outside review). A steady-clock timer now
     handles the signal and, the node's clock not moving, ends it with exit code 1 after
     stop_timeout_s + 1 s of wall time."""
-    import signal
-
     from hexapod_gait.gait_node import stand_on_signals
 
-    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
     with ros_env('gaitsim') as env:
         node = env.make(GaitSchedulerNode, parameter_overrides=_overrides(
             rate=50.0, period=0.5, stop_timeout_s=0.5) + [
                 Parameter('use_sim_time', value=True)])
-        try:
-            stand_on_signals(node)
-            signal.getsignal(signal.SIGINT)(signal.SIGINT, None)   # what Ctrl-C runs
-        finally:
-            for s, h in saved.items():
-                signal.signal(s, h)
+        ctrl_c(stand_on_signals, node)
         assert env.spin_until(node.finished.done, 30)
         assert node.finished.result() == EXIT_NOT_STOOD

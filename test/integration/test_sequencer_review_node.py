@@ -5,11 +5,10 @@ the session gait is set atomically and a refused one aborts (FINDINGS S1-S5, S8)
 from __future__ import annotations
 
 import json
-import signal
 
 import pytest
 import rclpy
-from harness import Collector, ros_env
+from harness import Collector, ctrl_c, ros_env
 from hexapod_common.bags import iter_messages, open_reader
 from hexapod_interfaces.msg import BenchSession, GaitPhase, ServoStatus
 from rclpy.parameter import Parameter
@@ -96,16 +95,10 @@ def _check_safe_abort(env, tmp_path, gait, bench, node, sessions):
 
 @pytest.mark.timeout(90)
 def test_sigint_aborts_the_plan_safely(tmp_path):
-    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
     with ros_env('seqrev') as env:
         gait, bench, node, sessions = _start(env, tmp_path)
         _walk(env, gait, sessions)
-        try:
-            abort_on_signals(node)
-            signal.getsignal(signal.SIGINT)(signal.SIGINT, None)   # what Ctrl-C runs
-        finally:
-            for s, h in saved.items():
-                signal.signal(s, h)
+        ctrl_c(abort_on_signals, node)
         assert node.seq.abort_reason == 'SIGINT received'
         _check_safe_abort(env, tmp_path, gait, bench, node, sessions)
 
