@@ -153,7 +153,9 @@ def run_offline(nodes: Sequence[Any], bag: str | Sequence[str], *,
 
     Each bag message is deserialised once into the rclpy type and handed, in bag-time order,
     to every subscription callback of every node on that topic (raw subscriptions get the
-    bytes). Before each message the nodes' ROS clocks are set to its bag time, as ``/clock``
+    bytes; a two-argument callback also gets a message info with the bag time as its
+    timestamps and no publication sequence number: a bag does not keep them). Before each
+    message the nodes' ROS clocks are set to its bag time, as ``/clock``
     would. Publishers on ``capture`` topics (default: every publisher of the nodes) are
     wrapped so the published messages are returned per topic, in order.
     """
@@ -190,12 +192,30 @@ def run_offline(nodes: Sequence[Any], bag: str | Sequence[str], *,
             msg = None
             for sub in subs:
                 if sub.raw:
-                    sub.callback(item.data)
-                    continue
-                if msg is None:
-                    msg = deserialize_message(item.data, source.types[item.topic])
-                sub.callback(msg)
+                    data = item.data
+                else:
+                    if msg is None:
+                        msg = deserialize_message(item.data, source.types[item.topic])
+                    data = msg
+                if _wants_info(sub):
+                    sub.callback(data, _bag_message_info(item.stamp_ns))
+                else:
+                    sub.callback(data)
     return captured
+
+
+def _wants_info(sub: Any) -> bool:
+    """Whether rclpy passes this subscription's callback the message info too."""
+    from rclpy.subscription import Subscription
+
+    return bool(getattr(sub, '_callback_type', None)
+                == Subscription.CallbackType.WithMessageInfo)
+
+
+def _bag_message_info(stamp_ns: int) -> dict[str, Any]:
+    """rclpy's message info for a bag message: its bag time, no sequence numbers."""
+    return {'source_timestamp': stamp_ns, 'received_timestamp': stamp_ns,
+            'publication_sequence_number': None, 'reception_sequence_number': None}
 
 
 def pace(rate: float, bag_t0_ns: int, wall_t0: float, stamp_ns: int) -> None:

@@ -40,8 +40,14 @@ AntBot's made a 1.6 kg robot's P_out that of a 2.183 kg one, +7.5 %). A ``robot_
 
 Several batteries on ``battery_state`` (distinct ``header.frame_id``: a servo pack and a logic
 pack) are summed as they appear (:class:`hexapod_common.battery.BatteryCombiner`, logged), or
-one is kept (parameter ``battery_source``); several publishers whose messages name one battery
-(an empty frame_id) are reported once as an error (their samples would read as the mean).
+one is kept (parameter ``battery_source``); several live publishers whose messages name one
+battery (an empty frame_id) are reported as an error (their samples would read as the mean),
+as are several live publishers on ``gait/phase`` (two schedules interleave: the windows follow
+neither). Live publishers are told from the messages' publication sequence numbers
+(:mod:`hexapod_common.publishers`), not from the graph, which keeps a crashed publisher's
+endpoint until its DDS lease runs out (a respawned driver read as two batteries); once per
+episode, again if it recurs. A middleware that does not number its messages falls back on the
+graph's publisher count for the battery.
 
 Joint states arriving after the battery sample that ends a window (a servo bus behind a USB
 adapter, one message per leg) are waited for: a window is computed once every joint that gave
@@ -104,6 +110,7 @@ from hexapod_common.node_utils import (
     param,
     run_node,
 )
+from hexapod_common.publishers import PublisherSequences, endpoint_names, publication_sequence
 from hexapod_gait.feasibility import ActuatorLimits
 
 from hexapod_energy.descriptors import (
@@ -260,12 +267,22 @@ class EnergyMonitorNode(Node):
         #: messages missing from the input streams, from their stamp gaps (logged on the 1st,
         #: 10th, 100th ... missing message of a topic)
         self.loss = StreamLoss()
-        self._battery_sub = self.create_subscription(BatteryState, 'battery_state',
-                                                     self._on_battery, SENSOR_QOS)
+        # two-argument callbacks: rclpy passes the message info (the publisher's sequence
+        # numbers tell several live publishers apart)
+        self._battery_sub = self.create_subscription(
+            BatteryState, 'battery_state', lambda m, info: self._on_battery(m, info),
+            SENSOR_QOS)
         self._battery_msgs = 0
-        #: set once several publishers on battery_state were seen with one battery name
-        self.battery_publishers_warned = False
-        gait_sub = self.create_subscription(GaitPhase, 'gait/phase', self._on_gait, SENSOR_QOS)
+        #: episodes of several live publishers on battery_state naming one battery, reported
+        self.battery_publishers_warned = 0
+        self._battery_seq = PublisherSequences()
+        self._battery_interleaved = False   # a new episode, judged once the sample is added
+        #: episodes of several live publishers on gait/phase, reported
+        self.gait_publishers_warned = 0
+        self._gait_seq = PublisherSequences()
+        gait_sub = self.create_subscription(GaitPhase, 'gait/phase',
+                                            lambda m, info: self._on_gait(m, info), SENSOR_QOS)
+        self._gait_sub = gait_sub
         joint_sub = self.create_subscription(JointState, 'joint_states', self._on_joints,
                                              SENSOR_QOS)
         self.create_subscription(mocap_msg_class(p.mocap_type), 'mocap/body', self._on_pose,
@@ -338,8 +355,17 @@ class EnergyMonitorNode(Node):
                 continue
             self.pub.publish(descriptors_to_msg(d))
 
-    def _on_battery(self, msg: BatteryState) -> None:
+    def _publisher_names(self, topic: str) -> str:
+        """The graph's publishers of ``topic`` (a crashed one's endpoint may still be listed)."""
+        try:
+            return endpoint_names(self.get_publishers_info_by_topic(topic))
+        except Exception:   # noqa: BLE001 - names for a message only
+            return 'unknown'
+
+    def _on_battery(self, msg: BatteryState, info: Any = None) -> None:
         self.inputs.seen('battery_state')
+        if self._battery_seq.add(publication_sequence(info)):
+            self._battery_interleaved = True
         self._publish(self._guard('BatteryState', self._add_battery, msg))
 
     def _add_battery(self, msg: BatteryState) -> list[Descriptors]:
@@ -362,9 +388,13 @@ class EnergyMonitorNode(Node):
             raw = dataclasses.replace(raw, voltage_v=self._milli[0] * raw.voltage_v,
                                       current_a=self._milli[1] * raw.current_a)
         self._battery_msgs += 1
-        if self._battery_msgs in (20, 200) or self._battery_msgs % 2000 == 0:
-            self._check_battery_publishers()
+        if not self._battery_seq.numbered and (self._battery_msgs in (20, 200)
+                                               or self._battery_msgs % 2000 == 0):
+            self._check_battery_publishers()   # a middleware without sequence numbers
         sample = self.batteries.add(raw)
+        if self._battery_interleaved:
+            self._battery_interleaved = False
+            self._report_battery_publishers(None)
         for note in self.batteries.notes[self._battery_notes:]:
             self.get_logger().warning(note)
         self._battery_notes = len(self.batteries.notes)
@@ -382,24 +412,42 @@ class EnergyMonitorNode(Node):
         return self.core.add_battery(sample)
 
     def _check_battery_publishers(self) -> None:
-        """Warn (once) when battery_state has several publishers but its messages name one
-        battery: their samples interleave and read as one battery, the mean of the packs, not
-        their sum (two monitors with an empty frame_id at 36 W and 6 W read 21 W: an outside
-        review)."""
-        if self.battery_publishers_warned or len(self.batteries.sources_) > 1:
+        """Without sequence numbers: the graph's publisher count, once (a crashed
+        publisher's endpoint counts until its DDS lease runs out)."""
+        if self.battery_publishers_warned:
             return
         n = self.count_publishers(self._battery_sub.topic_name)
         if n > 1:
-            self.battery_publishers_warned = True
-            name = self.batteries.sources_[0] if self.batteries.sources_ else ''
-            self.get_logger().error(
-                f'{n} publishers on {self._battery_sub.topic_name} name one battery '
-                f'(frame_id {name!r}): their samples interleave and are read as one battery '
-                '(the mean of the packs, not their sum); give each monitor its own '
-                'header.frame_id (they are then summed) or keep one with -p battery_source')
+            self._report_battery_publishers(n)
 
-    def _on_gait(self, msg: GaitPhase) -> None:
+    def _report_battery_publishers(self, n: int | None) -> None:
+        """Several publishers on battery_state whose messages name one battery: their
+        samples interleave and read as one battery, the mean of the packs, not their sum (two
+        monitors with an empty frame_id at 36 W and 6 W read 21 W: an outside review)."""
+        if len(self.batteries.sources_) > 1:
+            return   # distinct frame_ids: summed
+        self.battery_publishers_warned += 1
+        topic = self._battery_sub.topic_name
+        name = self.batteries.sources_[0] if self.batteries.sources_ else ''
+        how = ('the graph\'s count' if n is not None
+               else 'their messages\' sequence numbers interleave')
+        self.get_logger().error(
+            f'{n or "several live"} publishers on {topic} name one battery (frame_id '
+            f'{name!r}; {how}; publishers in the graph: {self._publisher_names(topic)}): '
+            'their samples interleave and are read as one '
+            'battery (the mean of the packs, not their sum); give each monitor its own '
+            'header.frame_id (they are then summed) or keep one with -p battery_source')
+
+    def _on_gait(self, msg: GaitPhase, info: Any = None) -> None:
         self.inputs.seen('gait/phase')
+        if self._gait_seq.add(publication_sequence(info)):
+            self.gait_publishers_warned += 1
+            topic = self._gait_sub.topic_name
+            self.get_logger().error(
+                f'several live publishers on {topic} (their messages\' sequence numbers '
+                f'interleave; publishers in the graph: {self._publisher_names(topic)}): two '
+                'gait schedules reach this node and the windows follow neither (cycles are '
+                'cut where the schedules switch); stop all but one gait node')
         self._publish(self._guard('GaitPhase',
                                   lambda m: self.core.add_gait_phase(
                                       self._restamp('gait/phase', gait_phase_from_msg(m))),

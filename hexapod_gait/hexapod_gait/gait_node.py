@@ -22,13 +22,26 @@ Stand / stop: ``ros2 param set /gait_scheduler stand true`` (or ``step_length`` 
 Ctrl-C / SIGTERM (console script): the legs are stood first (``stand``, one transition), and
 the node exits (code 0) once ``gait/phase`` shows the stand settled; if the stand is refused or
 has not settled after ``stop_timeout_s``, it exits with :data:`EXIT_NOT_STOOD` (1), the legs
-where they are; a second signal exits at once (code 0). (Before, the commands stopped wherever
+where they are; a second signal exits at once (code 1). (Before, the commands stopped wherever
 the legs were: a bench leg froze 35 mm above the ground, and the sequencer later cut its torque
 there.) A Buehler clock has no stand: its node exits at once.
+
+One gait node per robot: the node listens to its own topics (``gait/phase``,
+``joint_commands``). It sends its first command ``startup_listen_s`` (0.5 s) after its first
+tick, time for discovery; when the graph then lists another publisher there, it listens
+:data:`STARTUP_LISTEN_S` more for that publisher's messages (a crashed node's endpoint
+stays in the graph until its DDS lease runs out, and sends nothing). A message from another
+publisher before its first command, or within :data:`NEWCOMER_S` of it (told from the
+messages' publication sequence numbers, :mod:`hexapod_common.publishers`), makes it refuse to
+walk: it publishes nothing more and exits with :data:`EXIT_ANOTHER_GAIT` (2). A node walking
+longer than that keeps walking and logs an error (once per episode) naming the publishers:
+the joints follow two schedules until the other stops. (Before, two ``gait_scheduler`` or a
+lab's own command node interleaved their commands without a word.)
 """
 
 from __future__ import annotations
 
+import functools
 import signal
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -45,11 +58,13 @@ from hexapod_common.conversions import s_to_stamp
 from hexapod_common.errors import ParameterError
 from hexapod_common.node_utils import (
     RELIABLE_QOS,
+    SENSOR_QOS,
     declare_params,
     on_stop_signals,
     param,
     run_node,
 )
+from hexapod_common.publishers import PublisherSequences, endpoint_names, publication_sequence
 from hexapod_gait.buehler import BUEHLER_PRESETS, BuehlerClock
 from hexapod_gait.config import build_gait, check_static_support
 from hexapod_gait.errors import HexapodGaitError
@@ -57,12 +72,22 @@ from hexapod_gait.feasibility import ActuatorLimits, period_for_speed
 from hexapod_gait.gait import GAIT_NAMES, GaitPattern
 from hexapod_gait.scheduler import MIN_TRANSITION_CYCLES, GaitScheduler, GaitState
 
-__all__ = ['EXIT_NOT_STOOD', 'GaitParams', 'GaitSchedulerNode', 'gait_state_to_msg',
+__all__ = ['EXIT_ANOTHER_GAIT', 'EXIT_NOT_STOOD', 'NEWCOMER_S', 'STARTUP_LISTEN_S', 'GaitParams',
+           'GaitSchedulerNode', 'gait_state_to_msg',
            'joint_command_msg', 'main', 'stand_on_signals']
 
 #: Exit code of a stop (Ctrl-C / SIGTERM) that could not stand the legs (the stand was refused,
 #: or did not settle within ``stop_timeout_s``): the legs are left where they are.
 EXIT_NOT_STOOD = 1
+#: Exit code of a node that found another publisher on its topics before it had walked
+#: :data:`NEWCOMER_S` (two schedules would drive one robot's joints)
+EXIT_ANOTHER_GAIT = 2
+#: a node that hears another publisher on its topics within this many seconds of its own first
+#: command is the newcomer: it stops (the other walked first)
+NEWCOMER_S = 2.0
+#: before its first command, a node whose topics have another publisher in the graph listens
+#: this long [s] for that publisher's messages (none: a crashed node's endpoint)
+STARTUP_LISTEN_S = 1.0
 
 
 def _positive(v: float) -> str | None:
@@ -104,6 +129,10 @@ class GaitParams:
     stop_timeout_s: float = param(5.0, 'Ctrl-C / SIGTERM: longest wait for the stand before '
                                   'the node exits [s] (exit code 1 if the legs did not stand)',
                                   validate=_positive)
+    startup_listen_s: float = param(
+        0.5, 'before the first command, listen this long [s] for another gait node on '
+        'gait/phase and joint_commands (discovery takes tens of ms; 0: walk at the first tick)',
+        validate=lambda v: None if 0 <= v <= 10 else 'must be in [0, 10]', read_only=True)
     min_swing: float = param(0.16, 'actuator limit: shortest swing [s]', validate=_positive,
                              read_only=True)
     min_stance: float = param(0.15, 'actuator limit: shortest stance [s]', validate=_positive,
@@ -217,6 +246,18 @@ class GaitSchedulerNode(Node):
         self._stop_reason: str | None = None   # a stop requested (signal), not yet begun
         self._stop_began_s: float | None = None
         self._stop_requests = 0
+        # one gait node per robot: its own topics, listened to (module docs)
+        self._own_pubs = {'gait/phase': self.phase_pub, 'joint_commands': self.cmd_pub}
+        self._sequences = {topic: PublisherSequences() for topic in self._own_pubs}
+        for topic, kind in (('gait/phase', GaitPhase), ('joint_commands', JointState)):
+            self.create_subscription(kind, topic, functools.partial(self._on_own_topic, topic),
+                                     SENSOR_QOS, raw=True)
+        self._foreign_before_start: str | None = None
+        self._listen_until_ns: int | None = None
+        self._listen_extended = False
+        self._first_command_ns: int | None = None
+        #: episodes of another publisher on gait/phase or joint_commands, reported
+        self.other_publishers_reported = 0
         self.timer = self.create_timer(1.0 / p.rate, self._on_timer)
         self.get_logger().info(f'walking {self._describe(self._gait)}')
 
@@ -312,6 +353,80 @@ class GaitSchedulerNode(Node):
                 f'(exit code {EXIT_NOT_STOOD})')
             self.finished.set_result(EXIT_NOT_STOOD)
 
+    def _publisher_names(self, topic: str) -> str:
+        """The graph's publishers of one of this node's topics (a crashed node's endpoint may
+        still be listed), for a message."""
+        try:
+            infos = self.get_publishers_info_by_topic(self._own_pubs[topic].topic_name)
+        except Exception:   # noqa: BLE001 - names for a message only
+            return 'unknown'
+        return endpoint_names(infos)
+
+    def _on_own_topic(self, topic: str, data: Any, info: Any) -> None:
+        """A message on one of this node's own topics: its own, or another publisher's."""
+        if self.finished.done():
+            return
+        if self._first_command_ns is None:   # nothing sent yet: another publisher's
+            if self._foreign_before_start is None:
+                self._foreign_before_start = topic
+            return
+        if not self._sequences[topic].add(publication_sequence(info)):
+            return
+        name = self._own_pubs[topic].topic_name
+        now_ns = self.get_clock().now().nanoseconds
+        walked_s = (now_ns - self._first_command_ns) * 1e-9
+        if walked_s < NEWCOMER_S:
+            self.get_logger().error(
+                f'another node publishes on {name} (publishers in the graph: '
+                f'{self._publisher_names(topic)}) since this node started {walked_s:.2f} s ago: '
+                'two schedules would drive the same joints; this node stops publishing and '
+                f'exits (code {EXIT_ANOTHER_GAIT}), the other keeps the robot')
+            self.finished.set_result(EXIT_ANOTHER_GAIT)
+            return
+        self.other_publishers_reported += 1
+        self.get_logger().error(
+            f'another node publishes on {name} (publishers in the graph: '
+            f'{self._publisher_names(topic)}): its messages interleave with this node\'s and the '
+            'joints follow two schedules; stop it (this node, walking for '
+            f'{walked_s:.1f} s, keeps walking)')
+
+    def _listen_before_start(self, now_ns: int) -> bool:
+        """Before the first command: True while this node must not walk yet (another
+        publisher in the graph, listened to for :data:`STARTUP_LISTEN_S`), and the refusal
+        (``finished``) when that publisher spoke."""
+        if self._foreign_before_start is not None:
+            topic = self._foreign_before_start
+            self.get_logger().error(
+                f'another node already publishes on {self._own_pubs[topic].topic_name} '
+                f'(publishers in the graph: {self._publisher_names(topic)}): two schedules would '
+                'drive the same joints; refusing to walk (stop the other gait node first), '
+                f'exit code {EXIT_ANOTHER_GAIT}')
+            self.finished.set_result(EXIT_ANOTHER_GAIT)
+            return True
+        if self._listen_until_ns == 0:        # listened: walking
+            return False
+        if self._listen_until_ns is None:
+            self._listen_until_ns = now_ns + int(self.params.startup_listen_s * 1e9)
+        if now_ns < self._listen_until_ns:
+            return True
+        if not self._listen_extended:
+            busy = [t for t, pub in self._own_pubs.items()
+                    if self.count_publishers(pub.topic_name) > 1]
+            if busy:
+                self._listen_extended = True
+                self._listen_until_ns = now_ns + int(STARTUP_LISTEN_S * 1e9)
+                self.get_logger().warning(
+                    f'the graph lists another publisher on '
+                    f'{self._own_pubs[busy[0]].topic_name} ({self._publisher_names(busy[0])}): '
+                    f'listening {STARTUP_LISTEN_S:g} s for its messages before walking')
+                return True
+        else:
+            self.get_logger().info(
+                f'nothing came from the other publisher in {STARTUP_LISTEN_S:g} s (a stopped '
+                'node\'s endpoint, listed until its DDS lease runs out): walking')
+        self._listen_until_ns = 0
+        return False
+
     def _on_timer(self) -> None:
         now_ns = self.get_clock().now().nanoseconds
         if self.finished.done():
@@ -323,6 +438,8 @@ class GaitSchedulerNode(Node):
         if now_ns <= 0:
             return  # sim time not started
         if self.scheduler is None:
+            if self._listen_before_start(now_ns):
+                return
             self.t0_ns = now_ns
             self.t0_s = now_ns * 1e-9
             self.scheduler = GaitScheduler(
@@ -337,6 +454,8 @@ class GaitSchedulerNode(Node):
             self.get_logger().error(f'no command at t={t:.3f} s: {err}',
                                     throttle_duration_sec=5.0)
             return
+        if self._first_command_ns is None:
+            self._first_command_ns = now_ns
         self.phase_pub.publish(gait_state_to_msg(state, t, t_ns=now_ns))
         self.cmd_pub.publish(joint_command_msg(t, names, q, qd, t_ns=now_ns))
         self.ticks += 1

@@ -40,7 +40,8 @@ def test_sim_robot_follows_the_gait_node() -> None:
 @pytest.mark.timeout(60)
 def test_sim_bench_publishes_force_tip_and_session() -> None:
     with ros_env('simbench') as env:
-        env.make(GaitSchedulerNode, parameter_overrides=[Parameter('period', value=0.5)])
+        env.make(GaitSchedulerNode, parameter_overrides=[Parameter('period', value=0.5),
+                                                   Parameter('startup_listen_s', value=0.0)])
         env.make(SimBenchNode, parameter_overrides=[Parameter('load', value=0.2)])
         force = Collector(env, WrenchStamped, 'bench/ground_force')
         session = Collector(env, BenchSession, 'bench/session')

@@ -1,0 +1,112 @@
+"""One gait node per robot (review K left it): a second ``gait_scheduler``, or a lab's own node
+publishing ``gait/phase`` / ``joint_commands``, interleaved its commands with the first's
+without a word. Now a node that finds another publisher before its first command, or within
+NEWCOMER_S of it, refuses to walk (exit 2, nothing more published); one walking longer logs an
+error and keeps walking; a publisher listed in the graph that sends nothing (a crashed node's
+endpoint until its DDS lease runs out) is waited for, then walked past."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+import rclpy
+from harness import KEEP_ALL_QOS, capture_errors, ros_env
+from hexapod_interfaces.msg import GaitPhase
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import JointState
+
+
+def _gait(env: Any, name: str, **params: Any) -> Any:
+    from hexapod_gait.gait_node import GaitSchedulerNode
+
+    return env.make(GaitSchedulerNode, node_name=name, parameter_overrides=[
+        Parameter(k, value=v) for k, v in params.items()])
+
+
+def _feeder(env: Any) -> tuple[Any, Any, Any]:
+    node = env.add(rclpy.create_node('lab_gait', context=env.context,
+                                     namespace=env.namespace))
+    return (node, node.create_publisher(GaitPhase, 'gait/phase', KEEP_ALL_QOS),
+            node.create_publisher(JointState, 'joint_commands', KEEP_ALL_QOS))
+
+
+@pytest.mark.timeout(120)
+def test_a_second_gait_node_refuses_to_walk_and_the_first_walks_on() -> None:
+    from hexapod_gait.gait_node import EXIT_ANOTHER_GAIT
+
+    with ros_env('gait_two') as env:
+        first = _gait(env, 'gait_a', startup_listen_s=0.0)
+        first_errors = capture_errors(first)
+        assert env.spin_until(lambda: first.ticks >= 10, 30)
+        second = _gait(env, 'gait_b')
+        errors = capture_errors(second)
+        assert env.spin_until(lambda: second.finished.done(), 30)
+        assert second.finished.result() == EXIT_ANOTHER_GAIT
+        assert second.ticks == 0            # not one command of a second schedule
+        ticks = first.ticks
+        assert env.spin_until(lambda: first.ticks >= ticks + 20, 30)
+    assert len(errors) == 1 and 'refusing to walk' in errors[0]
+    assert '/gait_a' in errors[0]           # the other named
+    assert first_errors == [] and not first.finished.done()
+
+
+@pytest.mark.timeout(120)
+def test_a_newcomer_that_walked_before_it_heard_the_other_stops_at_once() -> None:
+    """Discovery can take longer than the start-up listen (1.4 s measured on a busy machine):
+    the newcomer hears the other by the interleaved sequence numbers and stops."""
+    from hexapod_gait.gait_node import EXIT_ANOTHER_GAIT
+
+    with ros_env('gait_late') as env:
+        node = _gait(env, 'gait_late', startup_listen_s=0.0)
+        errors = capture_errors(node)
+        assert env.spin_until(lambda: node.ticks >= 5, 30)
+        _, phase, _ = _feeder(env)
+        assert env.spin_until(lambda: phase.get_subscription_count() >= 1, 20)
+        for k in range(100):
+            phase.publish(GaitPhase(gait='tripod', period=1.0))
+            env.executor.spin_once(timeout_sec=0.0)
+            if node.finished.done():
+                break
+        assert env.spin_until(lambda: node.finished.done(), 20)
+        assert node.finished.result() == EXIT_ANOTHER_GAIT
+        ticks = node.ticks
+        env.spin_until(lambda: node.ticks > ticks, 0.3)
+        assert node.ticks == ticks           # nothing published after the refusal
+    assert len(errors) == 1 and 'stops publishing' in errors[0]
+
+
+@pytest.mark.timeout(120)
+def test_a_walking_node_reports_another_publisher_once_and_walks_on() -> None:
+    from hexapod_gait.gait_node import NEWCOMER_S
+
+    with ros_env('gait_old') as env:
+        node = _gait(env, 'gait_old', startup_listen_s=0.0)
+        errors = capture_errors(node)
+        assert env.spin_until(lambda: node.ticks >= 100 * NEWCOMER_S + 20, 60)
+        _, _, commands = _feeder(env)
+        assert env.spin_until(lambda: commands.get_subscription_count() >= 1, 20)
+        for _ in range(60):
+            commands.publish(JointState(name=['L1_coxa'], position=[0.0]))
+            env.executor.spin_once(timeout_sec=0.02)
+        assert not node.finished.done()
+        assert node.other_publishers_reported == 1
+    assert len(errors) == 1 and 'joint_commands' in errors[0] and 'keeps walking' in errors[0]
+
+
+@pytest.mark.timeout(120)
+def test_a_listed_publisher_that_sends_nothing_is_walked_past() -> None:
+    """A crashed gait node stays in the graph for its DDS lease: a respawned one listens
+    for its messages, hears none, and walks."""
+    with ros_env('gait_stale') as env:
+        _feeder(env)                              # listed, never publishes
+        node = _gait(env, 'gait_respawned', startup_listen_s=0.0)
+        warnings: list[str] = []
+        infos: list[str] = []
+        log = node.get_logger()
+        log.warning = lambda msg, **kw: warnings.append(msg)
+        log.info = lambda msg, **kw: infos.append(msg)
+        assert env.spin_until(lambda: node.ticks >= 5, 30)
+        assert not node.finished.done()
+    assert any('listening' in w and 'lab_gait' in w for w in warnings), warnings
+    assert any('nothing came' in i for i in infos), infos
