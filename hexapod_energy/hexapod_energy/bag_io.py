@@ -1657,6 +1657,7 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
     from hexapod_energy.descriptors import (
         BATTERY_GAP_NOTE,
         JOINT_GAP_NOTE,
+        STILL_JOINTS_NOTE,
         POSITION_POWER_NOTE,
         SLOW_BATTERY_NOTE,
         DescriptorAccumulator,
@@ -1855,6 +1856,12 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
         windows = [d for d in windows if JOINT_GAP_NOTE not in d.warnings]
         notes.append(f'{n_gap} window(s) across a gap in /joint_states (P_out from the efforts '
                      'would miss part of them) left out')
+    n_still = sum(any(w.startswith(STILL_JOINTS_NOTE) for w in d.warnings) for d in windows)
+    if n_still:
+        windows = [d for d in windows
+                   if not any(w.startswith(STILL_JOINTS_NOTE) for w in d.warnings)]
+        notes.append(f'{n_still} window(s) left out: {STILL_JOINTS_NOTE} (their speed and '
+                     'model P_out would be a walking robot\'s)')
     n_neg = sum(d.power_in_w < 0 for d in windows)
     if n_neg:
         notes.append(f'negative mean input power in {n_neg} of {len(windows)} window(s) with '
@@ -1874,6 +1881,11 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
             raise ValueError(f'segment {segment}: this bag has {len(runs)} step period(s)')
         return runs[segment]
     all_windows = list(windows)
+    if not windows and n_still:
+        raise BagContentError(
+            f'bag {path}: every window ({n_still}) left out: {STILL_JOINTS_NOTE}; /gait/phase '
+            'walked a schedule the legs did not follow, so its speed and model P_out would '
+            'be false')
     if not windows or gait is None:
         spans = {}
         for topic, store in stores.items():

@@ -107,6 +107,8 @@ __all__ = [
     'TIME_JUMP_S',
     'MIN_BATTERY_SAMPLES_PER_WINDOW',
     'SLOW_BATTERY_NOTE',
+    'STILL_JOINTS_NOTE',
+    'STILL_JOINTS_RAD',
     'G_MPS2',
     'EFFORT_MAX_NET_FRACTION',
     'POSITION_POWER_NOTE',
@@ -437,6 +439,16 @@ JOINT_GAP_NOTE = ('joint states missing over part of the window (a recording gap
 #: a stream's stamp this far [s] behind its previous one is a backward time jump (a looped
 #: bag, a reset simulation clock); stamps less out of order than this are ordinary jitter
 TIME_JUMP_S = 1.0
+#: a walking schedule's window whose leg joints each moved less than this [rad] (their
+#: position range; an AX-18A reads 0.005 rad a count) is a robot that did not follow it
+STILL_JOINTS_RAD = 0.02
+#: ... and whose joint velocities all stay below this [rad/s] (a driver that fills no positions
+#: but velocities is moving)
+STILL_JOINTS_RAD_S = 0.2
+#: warning of such a window (its speed and model P_out are not the schedule's)
+STILL_JOINTS_NOTE = ('the leg joints did not move in this window while /gait/phase says '
+                     'walking: the robot did not follow the schedule (joint_commands not '
+                     'reaching the driver, the driver not started, torque off?)')
 #: longest window [s]: older samples are dropped (the buffers' bound)
 MAX_WINDOW_S = 60.0
 #: an /odom speed this far (fraction) from the gait schedule's is reported (the schedule's is
@@ -543,6 +555,10 @@ class DescriptorAccumulator:
     # JointState
     _joint: list[tuple[float, tuple[str, ...], np.ndarray, bool]] = field(
         default_factory=list, init=False)
+    #: leg joint positions, for the still-robot check (:meth:`_joint_motion_rad`)
+    # (stamp, names, positions, largest |velocity|)
+    _leg_pos: list[tuple[float, tuple[str, ...], np.ndarray, float]] = field(
+        default_factory=list, init=False)
     _poses: list[tuple[float, float, float, float]] = field(default_factory=list, init=False)
     _boundaries: list[float] = field(default_factory=list, init=False)
     _gait: GaitPhaseSample | None = field(default=None, init=False)
@@ -639,6 +655,7 @@ class DescriptorAccumulator:
         self._pending_battery = []
         self._battery = []
         self._joint = []
+        self._leg_pos = []
         self._poses = []
         self._odom = []
         self._boundaries = []
@@ -676,7 +693,7 @@ class DescriptorAccumulator:
         # (the battery's first entry may be the one kept before the cut: look at its second)
         if any(len(buf) > k and buf[k][0] < slack
                for buf, k in ((self._battery, 1), (self._joint, 0), (self._poses, 0),
-                              (self._odom, 0))) or \
+                              (self._odom, 0), (self._leg_pos, 0))) or \
                 (len(self._gait_hist) > 1 and self._gait_hist[1].t_s < slack):
             self._trim(cut, keep_s=0.0)
 
@@ -797,6 +814,7 @@ class DescriptorAccumulator:
         forgotten, as offline, where the whole bag decides, they are never taken."""
         is_leg = LegJointFilter.is_leg
         self._joint = [j for j in self._joint if any(is_leg(n) for n in j[1])]
+        self._leg_pos = []
         for store in (self._last_joint, self._joint_last, self.joint_power_count_,
                       self.nonfinite_joint_power_):
             for name in [n for n in store if not is_leg(n)]:
@@ -809,6 +827,12 @@ class DescriptorAccumulator:
         """:meth:`add_joint_state` for one sample of leg joints, not a duplicate."""
         if self.joint_cycles_:
             self._check_battery_quiet(sample.t_s)
+        if sample.position.size == len(sample.names) and sample.position.size:
+            vel = np.abs(np.asarray(sample.velocity, dtype=float))
+            vel = vel[np.isfinite(vel)]
+            self._leg_pos.append((sample.t_s, tuple(sample.names),
+                                  np.asarray(sample.position, dtype=float),
+                                  float(vel.max()) if vel.size else 0.0))
         if sample.effort.size and sample.velocity.size == sample.effort.size:
             power = np.asarray(sample.effort, dtype=float) * np.asarray(sample.velocity,
                                                                         dtype=float)
@@ -1168,6 +1192,17 @@ class DescriptorAccumulator:
                 return g
         return self._gait
 
+    def _model_power_out(self, gait: Any, warnings: list[str]) -> float:
+        """The Eq. 6 model's P_out for the window's schedule, NaN with the reason when the
+        model cannot take that schedule (legs named outside the contract's L1..Lk / R1..Rk:
+        the live node dropped every battery sample on it and gave no window, where the
+        offline command gave P_in with P_out null: an outside review)."""
+        try:
+            return float(self.power_out_model(gait, self.mass_kg))
+        except ValueError as err:
+            warnings.append(f'no P_out model for this schedule: {err}; P_out unknown (NaN)')
+            return math.nan
+
     def _window(self, t0: float, t1: float) -> Descriptors:
         gait = self._gait_at(t1)
         warnings: list[str] = []
@@ -1210,6 +1245,7 @@ class DescriptorAccumulator:
         clock = gait is not None and is_clock_schedule(gait)
         has_model = self.power_out_model is not None and gait is not None and not clock
         net = _mean_joint_power_w(joint, signed=True) if joint else math.nan
+        from_model = False
         if joint and self.power_out_source != 'model':
             power_out = _mean_joint_power_w(joint)
             if any(j[3] for j in joint):
@@ -1219,10 +1255,12 @@ class DescriptorAccumulator:
             if why:
                 warnings.append(why + ('; P_out from the Eq. 6 model' if has_model else
                                        '; P_out unknown (NaN)'))
-                power_out = (float(self.power_out_model(gait, self.mass_kg))
+                power_out = (self._model_power_out(gait, warnings)
                              if has_model else math.nan)
+                from_model = has_model
         elif use_model and has_model:
-            power_out = float(self.power_out_model(gait, self.mass_kg))
+            power_out = self._model_power_out(gait, warnings)
+            from_model = True
         elif use_model and clock and self.power_out_model is not None:
             warnings.append(CLOCK_MODEL_NOTE)
             power_out = math.nan
@@ -1238,12 +1276,47 @@ class DescriptorAccumulator:
                                 'P_out = 0')
             power_out = 0.0
         speed, speed_source = self._speed_and_source(t0, t1, gait)
+        # (a stand of a stepping gait, step length and height 0 and no clock sweep, is not
+        # walking; a Buehler clock's legs turn)
+        stand = gait is not None and gait.gait != 'buehler' and not (
+            gait.step_length_m > 0 or gait.step_height_m > 0 or gait.sweep_angle_rad > 0)
+        if gait is not None and (gait.step_length_m > 0 or clock) and not stand:
+            moved = self._joint_motion_rad(t0, t1)
+            if moved is not None and moved < STILL_JOINTS_RAD:
+                # the schedule's speed and the Eq. 6 model are a walking robot's: a robot
+                # standing still read 0.15 m/s, specific resistance 2.85 for 6.93 walking
+                # (an outside review: its joint_commands remapped away, and a simulator
+                # that took the commands 2.2 s late)
+                warnings.append(f'{STILL_JOINTS_NOTE}: largest joint range {moved:.4f} rad')
+                if speed_source == 'gait_schedule':
+                    speed, speed_source = math.nan, 'none'
+                if from_model:
+                    power_out = math.nan
         return descriptors_from_powers(power_in_w=power_in, power_out_w=power_out,
                                        speed_mps=speed, mass_kg=self.mass_kg,
                                        window_s=t1 - t0, t_end_s=t1, cycles=self.cycles,
                                        warnings=tuple(warnings), speed_source=speed_source,
                                        cycle_source='joints' if joint_path else 'gait_phase',
                                        joint_power_net_w=net)
+
+    def _joint_motion_rad(self, t0: float, t1: float) -> float | None:
+        """The largest position range [rad] of any leg joint over the window, None without
+        positions in it; infinite when a joint velocity says it moved (positions a driver
+        leaves constant)."""
+        lo: dict[str, float] = {}
+        hi: dict[str, float] = {}
+        for t, names, pos, speed in self._leg_pos:
+            if not t0 <= t <= t1:
+                continue
+            if speed > STILL_JOINTS_RAD_S:
+                return math.inf   # reported moving (a driver that fills no positions)
+            for name, q in zip(names, pos):
+                if math.isfinite(q):
+                    lo[name] = min(q, lo.get(name, q))
+                    hi[name] = max(q, hi.get(name, q))
+        if not lo:
+            return None
+        return max(hi[n] - lo[n] for n in lo)
 
     def _speed(self, t0: float, t1: float) -> float:
         """Speed [m/s] over the window."""
@@ -1306,6 +1379,7 @@ class DescriptorAccumulator:
         self._battery = ([last_before[-1]] if last_before else []) + \
             [b for b in self._battery if b[0] > t]
         self._joint = [j for j in self._joint if j[0] >= keep_from]
+        self._leg_pos = [j for j in self._leg_pos if j[0] >= keep_from]
         self._poses = [p for p in self._poses if p[0] >= keep_from]
         older = [k for k, g in enumerate(self._gait_hist) if g.t_s <= keep_from]
         if older:   # keep the last one at or before keep_from: it is in force there

@@ -116,6 +116,7 @@ from hexapod_gait.feasibility import ActuatorLimits
 from hexapod_energy.descriptors import (
     BATTERY_GAP_NOTE,
     JOINT_GAP_NOTE,
+    STILL_JOINTS_NOTE,
     DescriptorAccumulator,
     Descriptors,
     model_power_out,
@@ -260,6 +261,8 @@ class EnergyMonitorNode(Node):
         #: windows not published: across a gap in /battery_state (P_in would be interpolated)
         #: or in /joint_states (P_out from the efforts would miss part of the window)
         self.gap_windows = 0
+        #: windows not published: the leg joints did not move while the schedule walked
+        self.still_windows = 0
         self._sign_logged = False
         self._notes_logged = 0
         self._warned: dict[str, int] = {}  # warning kind -> windows seen with it
@@ -352,6 +355,11 @@ class EnergyMonitorNode(Node):
                 # its P_in would be interpolated over missing battery data, or its P_out miss
                 # joint data: not published, as the offline analysis leaves it out
                 self.gap_windows += 1
+                continue
+            if any(w.startswith(STILL_JOINTS_NOTE) for w in d.warnings):
+                # a robot that did not follow the walking schedule: its speed and model P_out
+                # would be a walking robot's; not published, as offline
+                self.still_windows += 1
                 continue
             self.pub.publish(descriptors_to_msg(d))
 
