@@ -279,28 +279,68 @@ def _check_window(args: argparse.Namespace, source: ReplaySource) -> str | None:
 
 
 class _Terminated(Exception):
-    """SIGTERM arrived (raised by :func:`_on_sigterm` in the main thread)."""
+    """SIGTERM arrived (raised by :func:`_on_signal` in the main thread)."""
 
 
-def _on_sigterm(signum: int, frame: Any) -> None:
-    raise _Terminated()
+class _Stop:
+    """The first SIGINT or SIGTERM raises (:class:`KeyboardInterrupt`, :class:`_Terminated`)
+    in the main thread; any later one, or one after :attr:`done`, is ignored, so that a second
+    signal cannot interrupt the exit (a traceback)."""
+
+    def __init__(self) -> None:
+        self.raised = False
+        self.done = False
+
+    def __call__(self, signum: int, frame: Any) -> None:
+        if self.raised or self.done:
+            return
+        self.raised = True
+        raise KeyboardInterrupt() if signum == signal.SIGINT else _Terminated()
 
 
-def _catch_sigterm() -> tuple[bool, Any]:
-    """Make SIGTERM raise :class:`_Terminated` in the main thread; returns whether it did and
-    the handler to put back (not in the main thread, where handlers cannot be set). rclpy's
-    own handler only shut the context down, which a replay sleeping until its next message
-    never saw: it ignored SIGTERM (review: SIGKILL needed)."""
+def _catch_signals(stop: _Stop) -> dict[int, Any]:
+    """Make SIGINT and SIGTERM raise in the main thread (see :class:`_Stop`); returns the
+    handlers to put back (none outside the main thread, where handlers cannot be set).
+
+    rclpy's own handlers only shut the context down: a replay sleeping until its next message
+    never saw SIGTERM (review: SIGKILL needed), and a SIGINT to a replay started in the
+    background of a script (Python's KeyboardInterrupt handler is not installed there, SIGINT
+    being ignored) made the next publish fail with a traceback, "publisher's context is
+    invalid", exit 1 (an outside review, 4 of 4 tries). rclpy is started without them."""
     if threading.current_thread() is not threading.main_thread():
-        return False, None
-    previous = signal.signal(signal.SIGTERM, _on_sigterm)
-    # None: a handler set outside Python (rclpy's), which rclpy puts back itself at shutdown
-    return True, signal.SIG_DFL if previous is None else previous
+        return {}
+    previous = {}
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        old = signal.signal(signum, stop)
+        # None: a handler set outside Python; the default is the closest to put back
+        previous[signum] = signal.SIG_DFL if old is None else old
+    return previous
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """``bag_replay``; exit 0, 2 (refused input), 130 (SIGINT), 143 (SIGTERM)."""
+    stop = _Stop()
+    previous = _catch_signals(stop)
+    node: list[BagReplayNode] = []
+    try:
+        return _main(argv, node)
+    except KeyboardInterrupt:
+        return 130      # Ctrl-C, or kill -INT: nothing on stderr
+    except _Terminated:
+        sent = sum(node[0].published.values()) if node else 0
+        print(f'bag_replay: stopped (SIGTERM) after {sent} messages', file=sys.stderr)
+        return 143
+    finally:
+        stop.done = True
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+
+
+def _main(argv: Sequence[str] | None, made: list[BagReplayNode]) -> int:
+    """:func:`main` with the signals caught; the node goes into ``made`` once created."""
     import rclpy
     from rclpy.executors import ExternalShutdownException
+    from rclpy.signals import SignalHandlerOptions
 
     raw = list(sys.argv[1:] if argv is None else argv)
     # only the --ros-args part goes to rcl: a plain '--remap /a:=/b' of ours was read by rcl as
@@ -320,11 +360,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f'bag_replay: error: {reason}', file=sys.stderr)
         return 2
     use_replay_profile()
-    rclpy.init(args=['bag_replay', *ros_part])
-    caught, previous = _catch_sigterm()
+    # rclpy's signal handlers would replace ours (see _catch_signals)
+    rclpy.init(args=['bag_replay', *ros_part], signal_handler_options=SignalHandlerOptions.NO)
     node = None
     try:
         node = BagReplayNode(args.bag, args.options, progress_every_s=args.progress_every)
+        made.append(node)
         if not node.source.types:
             unknown = '; '.join(f'{t}: {why}' for t, why in node.source.skipped.items())
             raise HexapodError('nothing to replay' + (f' (unknown types: {unknown})'
@@ -355,15 +396,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except HexapodError as err:
         print(f'bag_replay: error: {err}', file=sys.stderr)
         return 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        return 130      # Ctrl-C: rclpy's handler shuts the context down (seen while waiting)
-    except _Terminated:
-        sent = sum(node.published.values()) if node is not None else 0
-        print(f'bag_replay: stopped (SIGTERM) after {sent} messages', file=sys.stderr)
-        return 143
+    except ExternalShutdownException:
+        return 130      # the context was shut down (in a process that set rclpy's handlers)
     finally:
-        if caught:
-            signal.signal(signal.SIGTERM, previous)
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
