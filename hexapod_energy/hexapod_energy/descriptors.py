@@ -468,6 +468,16 @@ def _legs_without_joints(legs: Sequence[str], joint_names: Sequence[str]) -> lis
     return [leg for leg in legs if leg not in have]
 
 
+def _joint_legs_outside(legs: Sequence[str], joint_names: Sequence[str]) -> list[str]:
+    """Legs with joints (``<leg>_<joint>``, contract leg names) that the gait schedule does
+    not name: a gait node walking fewer legs than the robot has (their joints stand); empty
+    when no joint name belongs to the schedule's legs (another naming convention)."""
+    have = {str(n).split('_', 1)[0] for n in joint_names if '_' in str(n)}
+    if not have.intersection(legs):
+        return []
+    return sorted(have - set(legs))
+
+
 @dataclass
 class DescriptorAccumulator:
     """Collects samples and emits :class:`Descriptors` per window of whole gait cycles.
@@ -1235,6 +1245,12 @@ class DescriptorAccumulator:
                 warnings.append(f'the gait schedule names legs {", ".join(missing)} that have no '
                                 f'joint on /joint_states ({len(joint[-1][1])} joints): the gait '
                                 'node and the robot disagree on the legs (leg_count?)')
+            extra = _joint_legs_outside(gait.leg_names, joint[-1][1])
+            if extra:
+                warnings.append(f'legs {", ".join(extra)} have joints on /joint_states that '
+                                f'the gait schedule ({len(gait.leg_names)} legs) does not name: '
+                                'the gait node walks fewer legs than the robot has, and those '
+                                'stand (leg_count?)')
         use_model = self.power_out_source == 'model' or \
             (self.power_out_source == 'auto' and not joint)
         joint_path = self.joint_cycles_

@@ -135,3 +135,24 @@ def test_offline_leaves_the_still_windows_out_and_refuses_a_bag_of_them(tmp_path
     frozen = rewrite_bag(tmp_path / 'base', tmp_path / 'frozen', freeze(1e9))
     with pytest.raises(BagContentError, match='did not move'):
         read_robot_bag(frozen, mass_kg=2.0)
+
+
+def test_a_gait_node_walking_fewer_legs_than_the_robot_is_warned():
+    """Six legs of joints, a four-leg schedule: L3 and R3 stood, silently."""
+    acc = DescriptorAccumulator(mass_kg=2.183, current_sign='ros', power_out_source='effort')
+    out = []
+    four = ('L1', 'R1', 'L2', 'R2')
+    for k in range(400):
+        t = T0 + 0.01 * k
+        ph = 2 * math.pi * (t - T0) / PERIOD
+        out += acc.add_gait_phase(_gait(t, four)) or []
+        out += acc.add_joint_state(JointStateSample(
+            t_s=t + 2e-4, names=NAMES, position=np.array([0.3 * math.sin(ph + n)
+                                                          for n in range(18)]),
+            velocity=np.ones(18), effort=np.full(18, 0.1))) or []
+        out += acc.add_battery(BatterySample(t_s=t + 1e-4, voltage_v=12.0, current_a=-2.0,
+                                             temperature_c=25.0)) or []
+    assert out
+    assert all(any('legs L3, R3 have joints' in w for w in d.warnings) for d in out)
+    six = _run(True)
+    assert not any('have joints on /joint_states' in w for d in six for w in d.warnings)
