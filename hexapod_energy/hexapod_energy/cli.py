@@ -1114,7 +1114,11 @@ def _given_gait(args: argparse.Namespace, run_: Any, notes: list[str],
             '<leg>_<joint> with legs L1..Lk, R1..Rk (DESIGN section 4), so the leg count is '
             'unknown: give --legs N')
     if name == 'tripod' and legs != 6:
+        # a tripod is three legs: on another leg count the alternating gait is the same
+        # pattern (two groups in antiphase); said, as the note would read "as given"
         name = 'alternating'
+        notes.append(f'--gait tripod on {legs} legs: taken as the alternating gait (two '
+                     'groups in antiphase, the tripod of a 6-leg robot)')
     height = getattr(args, 'step_height', None)
     if height is None:
         bench = getattr(model, 'bench_step_', None) if model is not None else None

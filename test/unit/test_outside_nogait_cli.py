@@ -168,3 +168,17 @@ def test_a_model_output_above_the_input_is_not_an_efficiency(bags, tmp_path):
     assert run['power_out_w'] is None and run['efficiency'] is None
     assert run['specific_cost_of_transport'] is None
     assert any('efficiency >= 1 is impossible' in w for w in doc['warnings'])
+
+
+def test_tripod_given_for_four_legs_is_said_to_be_the_alternating_gait(tmp_path):
+    """``--gait tripod`` on a 4-leg bag was silently walked as ``alternating`` while the note
+    said "as given" (an outside review of other robots)."""
+    write_lab_bag(tmp_path / 'quad', simulated_run(legs=4, gait='alternating', duration_s=10.0))
+    code = main(['--robot', str(tmp_path / 'quad'), '--gait', 'tripod', '--duty-factor', '0.5',
+                 '--step-length', '0.1', '--robot-mass', '1.851',
+                 '--out', str(tmp_path / 'o'), '--no-progress'])
+    assert code == 0
+    run = json.loads((tmp_path / 'o' / 'energy.json').read_text())['robot_runs'][0]
+    assert run['gait'] == 'alternating' and run['leg_count'] == 4
+    assert any('--gait tripod on 4 legs: taken as the alternating gait' in n
+               for n in run['notes'])
