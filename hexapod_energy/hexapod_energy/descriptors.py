@@ -267,12 +267,14 @@ def implausible_effort_power(effort_w: float, power_in_w: float, net_w: float) -
         return ''
     if math.isfinite(power_in_w) and 0 < power_in_w <= effort_w:
         return (f'P_out from joint efforts ({effort_w:.3f} W) is not below P_in '
-                f'({power_in_w:.3f} W): the efforts are not joint torques (AX-series servos '
-                'report PWM load)')
+                f'({power_in_w:.3f} W): the efforts are not joint torques (a load or PWM '
+                'reading, as AX-series servos report, or an X-series current not scaled to '
+                'torque)')
     if math.isfinite(net_w) and net_w >= EFFORT_MAX_NET_FRACTION * effort_w:
         return (f'the joint efforts never do negative work (net / positive joint power '
                 f'{net_w / effort_w:.3f}, P_out {effort_w:.3f} W): a drive duty that follows '
-                'the velocity (AX-series PWM load), not a torque')
+                'the velocity (a load or PWM reading, as AX-series servos report), not a '
+                'torque')
     return ''
 
 
