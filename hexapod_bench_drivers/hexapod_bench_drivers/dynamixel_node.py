@@ -44,7 +44,14 @@ from dataclasses import dataclass
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from hexapod_common.node_utils import RELIABLE_QOS, SENSOR_QOS, declare_params, param, run_node
+from hexapod_common.node_utils import (
+    RELIABLE_QOS,
+    SENSOR_QOS,
+    PublishersWatch,
+    declare_params,
+    param,
+    run_node,
+)
 from hexapod_interfaces.msg import ServoStatus
 from rclpy.node import Node
 from rclpy.task import Future
@@ -161,7 +168,12 @@ class DynamixelDriverNode(Node):
         self.pub_joints = self.create_publisher(JointState, 'joint_states', RELIABLE_QOS)
         self.pub_status = self.create_publisher(ServoStatus, 'servo_status', RELIABLE_QOS)
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', RELIABLE_QOS)
-        self.create_subscription(JointState, 'joint_commands', self._on_command, SENSOR_QOS)
+        #: two command sources (two gait nodes, a teleop beside the gait node): said
+        self.command_publishers = PublishersWatch(
+            self, 'two sources command these servos and their targets alternate; stop all '
+            'but one')
+        self.command_publishers.subscription = self.create_subscription(
+            JointState, 'joint_commands', lambda m, info: self._on_command(m, info), SENSOR_QOS)
         self.create_service(SetBool, 'set_torque', self._on_set_torque)
         self.commands_applied = 0
         self.commands_dropped = 0
@@ -204,7 +216,8 @@ class DynamixelDriverNode(Node):
         self._publish_diagnostics()
         self.finished.set_result(EXIT_PORT_LOST)
 
-    def _on_command(self, msg: JointState) -> None:
+    def _on_command(self, msg: JointState, info: Any = None) -> None:
+        self.command_publishers.add(info)
         try:
             self._apply_command(msg)
         except (ValueError, TypeError) as err:

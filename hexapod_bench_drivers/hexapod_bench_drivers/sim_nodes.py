@@ -32,6 +32,7 @@ from hexapod_common.node_utils import (
     LATCHED_QOS,
     RELIABLE_QOS,
     SENSOR_QOS,
+    PublishersWatch,
     declare_params,
     overridden,
     param,
@@ -111,11 +112,18 @@ class _SimNode(Node):
         self.pub_js = self.create_publisher(JointState, 'joint_states', RELIABLE_QOS)
         self.pub_status = self.create_publisher(ServoStatus, 'servo_status', RELIABLE_QOS)
         self.pub_battery = self.create_publisher(BatteryState, 'battery_state', RELIABLE_QOS)
-        self.create_subscription(JointState, 'joint_commands', self._on_commands, SENSOR_QOS)
+        #: two command sources (two gait nodes, a teleop beside the gait node): said
+        self.command_publishers = PublishersWatch(
+            self, 'two sources command these joints and their targets alternate; stop all '
+            'but one')
+        self.command_publishers.subscription = self.create_subscription(
+            JointState, 'joint_commands', lambda m, info: self._on_commands(m, info),
+            SENSOR_QOS)
         self.create_subscription(GaitPhase, 'gait/phase', self._on_gait, SENSOR_QOS)
         self.timer = self.create_timer(1.0 / p.rate, self._on_timer)
 
-    def _on_commands(self, msg: JointState) -> None:
+    def _on_commands(self, msg: JointState, info: Any = None) -> None:
+        self.command_publishers.add(info)
         try:
             s = joint_state_from_msg(msg)
             self.live.commands.update(s.t_s, s.names, s.position, s.velocity)

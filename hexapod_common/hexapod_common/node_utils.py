@@ -39,6 +39,7 @@ from hexapod_common.errors import ParameterError
 __all__ = [
     'InputWatch',
     'LATCHED_QOS',
+    'PublishersWatch',
     'RELIABLE_QOS',
     'SENSOR_QOS',
     'close_node',
@@ -177,6 +178,40 @@ class InputWatch:
                     + '; check that its publishers run in this namespace and ROS domain')
             self.warnings.append(text)
             self.node.get_logger().warning(text)
+
+
+class PublishersWatch:
+    """Logs an error, once per episode, when several live publishers interleave on one
+    subscribed topic, told from the messages' publication sequence numbers
+    (:mod:`hexapod_common.publishers`; a crashed publisher's endpoint, which the graph lists
+    for its DDS lease, is not one). The subscription's callback takes the message info
+    (two arguments) and passes it to :meth:`add`."""
+
+    def __init__(self, node: Any, consequence: str) -> None:
+        from hexapod_common.publishers import PublisherSequences
+
+        self.node, self.consequence = node, consequence
+        self.sequences = PublisherSequences()
+        self.subscription: Any = None
+        #: errors logged (one per episode)
+        self.reported = 0
+
+    def add(self, info: Any) -> bool:
+        """One message's info; True when it starts an episode of several publishers."""
+        from hexapod_common.publishers import endpoint_names, publication_sequence
+
+        if not self.sequences.add(publication_sequence(info)):
+            return False
+        self.reported += 1
+        topic = self.subscription.topic_name if self.subscription is not None else '?'
+        try:
+            names = endpoint_names(self.node.get_publishers_info_by_topic(topic))
+        except Exception:   # noqa: BLE001 - names for a message only
+            names = 'unknown'
+        self.node.get_logger().error(
+            f'several live publishers on {topic} (their messages\' sequence numbers '
+            f'interleave; publishers in the graph: {names}): {self.consequence}')
+        return True
 
 
 #: set to get the traceback of a start-up failure instead of its one-line summary
