@@ -193,19 +193,12 @@ def _infeasible(gait: Any, servo: str = 'ax18a', *, support: bool = True) -> lis
         return []
     import numpy as np
     from hexapod_gait.feasibility import feasibility_violations
+    from hexapod_gait.step_limits import limits_for_gait
 
     lim = servo_limits(servo)
-    try:
-        # the limits are phase durations on AntBot's 100 mm, 40 mm tip path: another step
-        # reaches the servos' top speed at other durations, as hexapod-analyze energy says
-        from hexapod_energy.prediction import geometry_limits
-
-        class _AntBotBench:
-            bench_step_ = (0.10, 0.04)
-
-        lim = geometry_limits(_AntBotBench(), gait, lim)
-    except ImportError:   # pragma: no cover - the energy package is installed alongside
-        pass
+    # the limits are phase durations on AntBot's 100 mm, 40 mm tip path: another step
+    # reaches the servos' top speed at other durations (the gait node's own scaling)
+    lim = limits_for_gait(gait, lim)
     out = feasibility_violations(gait, lim)
     if out:
         whose = "AntBot's servo limits" if servo.lower() in ('ax18a', 'ax-18a') else \

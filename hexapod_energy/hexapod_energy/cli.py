@@ -184,6 +184,7 @@ import math
 import re
 import sys
 import time
+import types
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -742,7 +743,13 @@ def _robot_run(args: argparse.Namespace, setup: _Setup, model: Any, opm: Any,
     if gait is not None:  # a schedule the robot cannot walk (--limits, L(t) = 0)
         from hexapod_energy.prediction import geometry_limits
         from hexapod_energy.recommend import infeasible_schedule
-        bad = infeasible_schedule(gait, geometry_limits(model, gait, setup.limits))
+        from hexapod_gait.step_limits import BENCH_STEP_M
+
+        # no bench (model None) or none that knows its step: the limits' own step, the
+        # 100 mm bench path, on the robot's leg (as the gait node and hexapod-sim check)
+        ref = model if getattr(model, 'bench_step_', None) is not None else \
+            types.SimpleNamespace(bench_step_=BENCH_STEP_M, bench_leg_=setup.leg)
+        bad = infeasible_schedule(gait, geometry_limits(ref, gait, setup.limits))
         if bad:
             notes.insert(0, 'infeasible schedule, not a gait the robot can '
                             'walk: ' + '; '.join(bad))

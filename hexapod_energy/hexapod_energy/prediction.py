@@ -274,7 +274,18 @@ def bench_domain_check(
 
 
 #: step lengths and heights within this fraction of the bench's are taken as the bench's
+#: (:data:`hexapod_gait.step_limits.STEP_GEOMETRY_TOLERANCE`, the one source)
 STEP_GEOMETRY_TOLERANCE = 0.005
+
+
+def _leg_kwargs(leg: Any) -> dict[str, Any]:
+    """``kinematics`` and ``neutral_tip_m`` of a ``LegDescription`` (None: AntBot's leg) for
+    :mod:`hexapod_gait.step_limits`."""
+    if leg is None:
+        return {}
+    from hexapod_gait.kinematics import LegKinematics
+
+    return {'kinematics': LegKinematics(leg.dh), 'neutral_tip_m': leg.neutral_tip_m}
 
 
 def phase_duration_scales(model: Any, gait: Any) -> tuple[float, float]:
@@ -285,30 +296,21 @@ def phase_duration_scales(model: Any, gait: Any) -> tuple[float, float]:
     its bench's geometry (``bench_step_`` None or absent), the gait has no step (a
     clock-driven schedule), or the geometry is the bench's. ``model.bench_leg_`` (a
     :class:`~hexapod_energy.leg_description.LegDescription`, default AntBot's leg) gives the
-    kinematics and tip path."""
+    kinematics and tip path. The computation is
+    :func:`hexapod_gait.step_limits.phase_duration_scales` (shared with the gait node)."""
+    from hexapod_gait.step_limits import phase_duration_scales as scales
+
     geo = getattr(model, 'bench_step_', None)
     length = float(getattr(gait, 'step_length_m', 0.0) or 0.0)
     height = float(getattr(gait, 'step_height_m', 0.0) or 0.0)
     if geo is None or not length > 0 or not height >= 0:
         return 1.0, 1.0
-    lb, hb = float(geo[0]), float(geo[1])
-    if abs(length - lb) <= STEP_GEOMETRY_TOLERANCE * lb and \
-            abs(height - hb) <= STEP_GEOMETRY_TOLERANCE * max(hb, 1e-9):
-        return 1.0, 1.0
-    from hexapod_gait.errors import HexapodGaitError
-
-    leg = getattr(model, 'bench_leg_', None)
-    beta = float(gait.duty_factor)
     try:
-        bench = joint_paths(beta, lb, hb, leg)
-        own = joint_paths(beta, length, height, leg)
-    except HexapodGaitError:
-        # a path the robot's leg cannot reach (another robot's leg on the bench's step):
-        # nothing to map; the prediction's own reach check says so where it matters
+        kw = _leg_kwargs(getattr(model, 'bench_leg_', None))
+    except ValueError:   # a leg the analytic kinematics cannot take: nothing to map
         return 1.0, 1.0
-    if not (own[0] > 0 and own[1] > 0 and bench[0] > 0 and bench[1] > 0):
-        return 1.0, 1.0
-    return bench[0] / own[0], bench[1] / own[1]
+    return scales(float(gait.duty_factor), length, height,
+                  bench_step_m=(float(geo[0]), float(geo[1])), **kw)
 
 
 def load_offset_problem(load_offset_kg: float, mass_kg: float, leg_mass_kg: float,
@@ -345,26 +347,14 @@ def geometry_limits(model: Any, gait: Any, limits: Any) -> Any:
                                min_swing_s=limits.min_swing_s / k_sw)
 
 
-_JOINT_PATHS: dict[tuple[Any, ...], tuple[float, float]] = {}
-
-
 def joint_paths(beta: float, length: float, height: float, leg: Any
                 ) -> tuple[float, float]:
     """Joint-space path lengths ``sum_i integral |dq_i/dphi| dphi`` [rad] of one leg over its
-    stance and over its swing (tripod leg 0; the path does not depend on the gait's legs)."""
-    key = (round(beta, 9), round(length, 9), round(height, 9), id(leg))
-    if key not in _JOINT_PATHS:
-        from hexapod_gait.gait import make_gait
+    stance and over its swing (tripod leg 0; the path does not depend on the gait's legs):
+    :func:`hexapod_gait.step_limits.joint_paths` on ``leg`` (None: AntBot's)."""
+    from hexapod_gait.step_limits import joint_paths as paths
 
-        gait = make_gait('tripod', duty_factor=beta, period_s=1.0, step_length_m=length,
-                         step_height_m=height)
-        kw = leg.path_kwargs() if leg is not None else {}
-        phase, _, d1, _, stance = phase_path(gait, n_samples=400, **kw)
-        speed = np.sum(np.abs(d1), axis=1) / phase.size
-        if len(_JOINT_PATHS) > 4096:
-            _JOINT_PATHS.clear()
-        _JOINT_PATHS[key] = (float(np.sum(speed[stance])), float(np.sum(speed[~stance])))
-    return _JOINT_PATHS[key]
+    return paths(beta, length, height, **_leg_kwargs(leg))
 
 
 def carried_mass_profile_kg(

@@ -7,6 +7,8 @@ Core modules (numpy/scipy only, no rclpy):
   ``carried_mass_per_leg_kg``.
 * :mod:`hexapod_gait.feasibility`: ``ActuatorLimits``, ``check_feasible``, ``max_speed_mps``,
   ``period_for_speed``.
+* :mod:`hexapod_gait.step_limits`: the limits for a step geometry (the bench step's scaled by
+  the joint path), ``limits_for_step``, ``check_feasible_for_step``.
 * :mod:`hexapod_gait.kinematics`: ``DHParameters``, ``ANTBOT_LEG``, ``LegKinematics``.
 * :mod:`hexapod_gait.trajectory`: ``tip_path``, ``LegTrajectory``.
 * :mod:`hexapod_gait.buehler`: ``BuehlerClock``, ``BUEHLER_PRESETS``, ``TRIPOD_LEGS``.

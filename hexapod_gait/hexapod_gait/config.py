@@ -11,9 +11,10 @@ from numpy.typing import ArrayLike
 
 from .buehler import BUEHLER_PRESETS, BuehlerClock
 from .errors import InfeasibleGaitError, InvalidGaitError, UnreachableError
-from .feasibility import ActuatorLimits, check_feasible, period_for_speed
+from .feasibility import ActuatorLimits, period_for_speed
 from .gait import GaitPattern, make_gait
 from .kinematics import Branch, LegKinematics
+from .step_limits import BENCH_STEP_M, check_feasible_for_step, limits_for_step
 from .trajectory import ANTBOT_NEUTRAL_TIP_M, default_forward_axis, tip_path
 
 __all__ = ['build_gait', 'check_reachable', 'check_static_support', 'min_supporting_per_side']
@@ -135,7 +136,9 @@ def build_gait(
         Buehler clock only: a key of :data:`BUEHLER_PRESETS` (``running``, ``jogging``,
         ``pace``, ``walk``); when set, it gives period, duty cycle, sweep and offset.
     limits : ActuatorLimits or None
-        Limits for 3-DOF patterns (None: no check).
+        Limits for 3-DOF patterns at the bench step (None: no check); scaled to this step's
+        joint path (:func:`hexapod_gait.step_limits.limits_for_step`) for the speed's
+        period and the check.
 
     Raises
     ------
@@ -154,15 +157,29 @@ def build_gait(
         raise InvalidGaitError("gait 'custom' needs phase offsets; build it with make_gait")
     if preset:
         raise InvalidGaitError(f'preset is for the buehler gait only, got gait {gait!r}')
+    # the limits are for the bench's step; this step's joint path scales them (step_limits)
+    step = limits_for_step(limits, duty_factor, step_length_m, step_height_m,
+                           kinematics=kinematics, neutral_tip_m=neutral_tip_m) \
+        if limits is not None else None
     if speed_mps > 0.0:
-        period_s = period_for_speed(speed_mps, duty_factor, step_length_m,
-                                    limits if limits is not None else ActuatorLimits(
-                                        1e-12, 1e-12, 1e12))
+        try:
+            period_s = period_for_speed(speed_mps, duty_factor, step_length_m,
+                                        step if step is not None else ActuatorLimits(
+                                            1e-12, 1e-12, 1e12))
+        except InfeasibleGaitError as err:
+            if step is None or step is limits:
+                raise
+            raise InfeasibleGaitError(
+                f'{err} (the limits of a {1e3 * step_length_m:.3g} mm step: swing >= '
+                f'{step.min_swing_s:.3g} s, stance >= {step.min_stance_s:.3g} s; the '
+                f'{limits.min_swing_s:g} s and {limits.min_stance_s:g} s are for the '
+                f'{1e3 * BENCH_STEP_M[0]:g} mm bench step)') from err
     elif speed_mps < 0.0:
         raise InfeasibleGaitError(f'speed must be >= 0 (0 = use the period), got {speed_mps!r}')
     pattern = make_gait(gait, leg_count=leg_count, duty_factor=duty_factor, period_s=period_s,
                         step_length_m=step_length_m, step_height_m=step_height_m)
     if limits is not None:
-        check_feasible(pattern, limits)
+        check_feasible_for_step(pattern, limits, kinematics=kinematics,
+                                neutral_tip_m=neutral_tip_m)
     check_reachable(pattern, kinematics=kinematics, neutral_tip_m=neutral_tip_m)
     return pattern

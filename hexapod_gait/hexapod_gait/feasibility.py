@@ -9,7 +9,9 @@ shortest feasible period
 
 AntBot defaults (DESIGN section 7) reproduce the paper's maximum speeds: 0.60 m/s at beta 0.5,
 0.42 at 0.6, 0.27 at 0.7 and 0.13 for the wave gait at 0.83 with 100 mm steps; 0.84 m/s with
-140 mm steps at beta 0.5.
+140 mm steps at beta 0.5 with these limits as they are. They are for the 100 mm bench step: a
+longer step needs longer phases (:mod:`hexapod_gait.step_limits`, what the gait node, the bench
+sequencer and the simulators check): 0.63 m/s with 140 mm steps.
 """
 
 from __future__ import annotations

@@ -71,6 +71,7 @@ from hexapod_gait.errors import HexapodGaitError
 from hexapod_gait.feasibility import ActuatorLimits, period_for_speed
 from hexapod_gait.gait import GAIT_NAMES, GaitPattern
 from hexapod_gait.scheduler import MIN_TRANSITION_CYCLES, GaitScheduler, GaitState
+from hexapod_gait.step_limits import limits_for_step
 
 __all__ = ['EXIT_ANOTHER_GAIT', 'EXIT_NOT_STOOD', 'NEWCOMER_S', 'STARTUP_LISTEN_S', 'GaitParams',
            'GaitSchedulerNode', 'gait_state_to_msg',
@@ -133,10 +134,12 @@ class GaitParams:
         0.5, 'before the first command, listen this long [s] for another gait node on '
         'gait/phase and joint_commands (discovery takes tens of ms; 0: walk at the first tick)',
         validate=lambda v: None if 0 <= v <= 10 else 'must be in [0, 10]', read_only=True)
-    min_swing: float = param(0.16, 'actuator limit: shortest swing [s]', validate=_positive,
-                             read_only=True)
-    min_stance: float = param(0.15, 'actuator limit: shortest stance [s]', validate=_positive,
-                              read_only=True)
+    min_swing: float = param(0.16, 'actuator limit: shortest swing [s] on the 100 mm, 40 mm '
+                             'bench step (scaled by the joint path of other steps)',
+                             validate=_positive, read_only=True)
+    min_stance: float = param(0.15, 'actuator limit: shortest stance [s] on the 100 mm, 40 mm '
+                              'bench step (scaled by the joint path of other steps)',
+                              validate=_positive, read_only=True)
     max_step_frequency: float = param(3.0, 'actuator limit: highest step frequency [Hz]',
                                       validate=_positive, read_only=True)
 
@@ -155,13 +158,16 @@ def gait_from_params(p: GaitParams) -> GaitPattern | BuehlerClock:
     it is not checked against the actuator timing limits (the walking 8-leg wave at beta 0.875
     could not stand: its stand was checked at ``period`` 1 s, a 0.125 s swing). A walking
     3-DOF gait must keep a leg on the ground on each side (:func:`check_static_support`).
+    The actuator limits are the bench step's, scaled to this step's joint path
+    (:mod:`hexapod_gait.step_limits`): a 140 mm step needs swing >= 0.192 s, stance >= 0.221 s.
     """
     standing = p.gait != 'buehler' and (p.stand or (p.step_length == 0.0
                                                      and p.step_height == 0.0))
     period = p.period
     if standing and p.speed > 0.0 and p.step_length > 0.0:
         try:
-            period = period_for_speed(p.speed, p.duty_factor, p.step_length, _limits(p))
+            period = period_for_speed(p.speed, p.duty_factor, p.step_length, limits_for_step(
+                _limits(p), p.duty_factor, p.step_length, p.step_height))
         except HexapodGaitError:
             pass    # the walking gait is not reachable: the stand keeps ``period``
     gait = build_gait(p.gait, leg_count=p.leg_count, duty_factor=p.duty_factor,

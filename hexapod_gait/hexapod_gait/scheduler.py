@@ -45,10 +45,11 @@ from numpy.typing import ArrayLike, NDArray
 
 from .buehler import BuehlerClock, buehler_angle
 from .errors import InfeasibleGaitError, InvalidGaitError
-from .feasibility import ActuatorLimits, check_feasible
+from .feasibility import ActuatorLimits
 from .gait import GaitPattern, _wrap01
 from .kinematics import Branch, LegKinematics
 from .legs import all_joint_names
+from .step_limits import check_feasible_for_step
 from .trajectory import ANTBOT_NEUTRAL_TIP_M, default_forward_axis, tip_path
 
 __all__ = ['MIN_TRANSITION_CYCLES', 'GaitState', 'GaitScheduler', 'side_support_ok',
@@ -201,7 +202,9 @@ class GaitScheduler:
         Transition duration in periods of the slower of the two gaits,
         >= :data:`MIN_TRANSITION_CYCLES`.
     limits : ActuatorLimits, optional
-        If given, :meth:`set_gait` (and the constructor) refuse infeasible patterns.
+        If given, :meth:`set_gait` (and the constructor) refuse infeasible patterns (the
+        limits of the bench step, scaled to the pattern's step:
+        :func:`hexapod_gait.step_limits.check_feasible_for_step`).
     """
 
     def __init__(
@@ -221,7 +224,8 @@ class GaitScheduler:
         self.is_buehler = isinstance(gait, BuehlerClock)
         pattern = gait.as_pattern(leg_count) if isinstance(gait, BuehlerClock) else gait
         if limits is not None and not self.is_buehler:
-            check_feasible(pattern, limits)
+            check_feasible_for_step(pattern, limits, kinematics=kinematics,
+                                    neutral_tip_m=neutral_tip_m)
         self.leg_names = pattern.leg_names
         self.joint_names = all_joint_names(self.leg_names, 1 if self.is_buehler else 3)
         self.kinematics = kinematics if kinematics is not None else LegKinematics()
@@ -427,7 +431,8 @@ class GaitScheduler:
                 f'{self.leg_names}; the leg count cannot change while walking'
             )
         if self.limits is not None and not self.is_buehler:
-            check_feasible(pattern, self.limits)
+            check_feasible_for_step(pattern, self.limits, kinematics=self.kinematics,
+                                    neutral_tip_m=self.neutral_tip_m)
         t = np.array([t_s])
         r = {k: v[0] for k, v in self._ramp(t).items()}
         c_now = float(self._cycles(t)[0])

@@ -125,6 +125,22 @@ def test_sim_and_energy_agree_on_other_step_geometries(tmp_path, capsys) -> None
     assert rc == 0 and 'infeasible' not in err
 
 
+def test_energy_without_a_bench_reads_the_limits_on_the_steps_path(tmp_path, capsys) -> None:
+    """A review: without --bench (no fitted model) energy checked a robot run against the
+    100 mm bench step's limits whatever its step, so a 140 mm tripod at T 0.4 s (stance 0.2 s,
+    that step needs 0.221 s) passed while hexapod-sim and the gait node refuse it."""
+    from hexapod_energy.cli import main as energy_main
+
+    assert _sim(['--out', str(tmp_path / 'r'), '--period', '0.4', '--step-length', '0.14',
+                 '--duration', '4', '--allow-infeasible'], capsys)[0] == 0
+    out = tmp_path / 'e'
+    assert energy_main(['--robot', str(tmp_path / 'r'), '--robot-mass', '2.183',
+                        '--out', str(out), '--no-progress']) == 0
+    doc = json.loads((out / 'energy.json').read_text())
+    (w,) = [w for w in doc['warnings'] if 'infeasible schedule' in w]
+    assert 'stance lasts 0.2 s < minimum 0.2214 s' in w
+
+
 def _phase(t, gait, period, beta, step=0.1, legs=('L1', 'L2', 'L3', 'R1', 'R2', 'R3')):
     import numpy as np
 

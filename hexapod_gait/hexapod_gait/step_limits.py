@@ -1,0 +1,170 @@
+"""Actuator limits for a step geometry (one source of truth for the gait node, the bench
+sequencer, the simulators and the energy model).
+
+The timing limits of :class:`~hexapod_gait.feasibility.ActuatorLimits` (AntBot: swing >= 0.16 s,
+stance >= 0.15 s, Brodoline et al. 2024) are phase durations measured on the bench's tip path,
+100 mm steps with a 40 mm lift (:data:`BENCH_STEP_M`): the durations in which the joints cover
+that path at the servos' top speed. A step that moves the joints ``1/k`` times as far needs
+``1/k`` times as long (:func:`phase_duration_scales`, the joint path ``sum_i integral |dq_i|``
+over the phase by the leg's inverse kinematics); the step-frequency cap is kept
+(:func:`limits_for_step`). AntBot, duty factor 0.5: a 140 mm step needs swing >= 0.192 s and
+stance >= 0.221 s (top speed 0.63 m/s), a 120 mm step 0.176 s and 0.185 s (0.65 m/s); the bench
+step keeps the limits exactly. No step (length 0: a stand, or a lift in place) keeps them too.
+
+Core module: no ROS.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .errors import HexapodGaitError, InfeasibleGaitError
+from .feasibility import ActuatorLimits, feasibility_violations, min_period_s
+from .gait import GaitPattern
+from .kinematics import ANTBOT_LEG, LegKinematics
+from .trajectory import ANTBOT_NEUTRAL_TIP_M
+
+__all__ = [
+    'BENCH_STEP_M',
+    'STEP_GEOMETRY_TOLERANCE',
+    'check_feasible_for_step',
+    'joint_paths',
+    'limits_for_gait',
+    'limits_for_step',
+    'phase_duration_scales',
+    'step_violations',
+]
+
+#: (step length, step height) [m] of the tip path the actuator limits were measured on
+#: (AntBot's bench: 100 mm steps, 40 mm lift)
+BENCH_STEP_M: tuple[float, float] = (0.10, 0.04)
+#: relative difference of step length and height within which a step is the bench's
+STEP_GEOMETRY_TOLERANCE = 0.005
+#: leg phase samples of the joint path
+_SAMPLES = 400
+
+_JOINT_PATHS: dict[tuple[Any, ...], tuple[float, float]] = {}
+
+
+def joint_paths(beta: float, length: float, height: float, *,
+                kinematics: LegKinematics | None = None,
+                neutral_tip_m: ArrayLike = ANTBOT_NEUTRAL_TIP_M) -> tuple[float, float]:
+    """Joint-space path lengths ``sum_i integral |dq_i/dphi| dphi`` [rad] of one leg over its
+    stance and over its swing (tripod leg 0; the path does not depend on the gait's legs).
+
+    Raises :class:`~hexapod_gait.errors.UnreachableError` for a path the leg cannot reach.
+    """
+    from .gait import make_gait
+    from .trajectory import LegTrajectory
+
+    dh = kinematics.dh if kinematics is not None else ANTBOT_LEG
+    tip = tuple(float(x) for x in np.asarray(neutral_tip_m, dtype=float).reshape(3))
+    key = (round(float(beta), 9), round(float(length), 9), round(float(height), 9), dh, tip)
+    if key not in _JOINT_PATHS:
+        gait = make_gait('tripod', duty_factor=beta, period_s=1.0, step_length_m=length,
+                         step_height_m=height)
+        traj = LegTrajectory(gait, 0, kinematics=kinematics, neutral_tip_m=tip)
+        phase = np.arange(_SAMPLES) / _SAMPLES
+        _, d1, _ = traj.joints(float(gait.phase_offsets[0]) + phase)
+        speed = np.sum(np.abs(np.asarray(d1)), axis=1) / phase.size
+        stance = phase < gait.duty_factor
+        if len(_JOINT_PATHS) > 4096:
+            _JOINT_PATHS.clear()
+        _JOINT_PATHS[key] = (float(np.sum(speed[stance])), float(np.sum(speed[~stance])))
+    return _JOINT_PATHS[key]
+
+
+def phase_duration_scales(
+    duty_factor: float, step_length_m: float, step_height_m: float, *,
+    bench_step_m: tuple[float, float] | None = BENCH_STEP_M,
+    kinematics: LegKinematics | None = None,
+    neutral_tip_m: ArrayLike = ANTBOT_NEUTRAL_TIP_M,
+) -> tuple[float, float]:
+    """Factors ``(k_stance, k_swing)``: the bench step's joint path over the phase divided by
+    this step's, both at ``duty_factor`` on this leg. ``(1, 1)`` when the bench step is
+    unknown (None), there is no step (length 0), the step is the bench's (within
+    :data:`STEP_GEOMETRY_TOLERANCE`) or a path the leg cannot reach (its reach check says
+    so where it matters)."""
+    length = float(step_length_m or 0.0)
+    height = float(step_height_m or 0.0)
+    if bench_step_m is None or not length > 0 or not height >= 0:
+        return 1.0, 1.0
+    lb, hb = float(bench_step_m[0]), float(bench_step_m[1])
+    if abs(length - lb) <= STEP_GEOMETRY_TOLERANCE * lb and \
+            abs(height - hb) <= STEP_GEOMETRY_TOLERANCE * max(hb, 1e-9):
+        return 1.0, 1.0
+    beta = float(duty_factor)
+    kw: dict[str, Any] = {'kinematics': kinematics, 'neutral_tip_m': neutral_tip_m}
+    try:
+        bench = joint_paths(beta, lb, hb, **kw)
+        own = joint_paths(beta, length, height, **kw)
+    except HexapodGaitError:
+        return 1.0, 1.0
+    if not (own[0] > 0 and own[1] > 0 and bench[0] > 0 and bench[1] > 0):
+        return 1.0, 1.0
+    return bench[0] / own[0], bench[1] / own[1]
+
+
+def limits_for_step(
+    limits: ActuatorLimits, duty_factor: float, step_length_m: float,
+    step_height_m: float, **kw: Any,
+) -> ActuatorLimits:
+    """``limits`` (for the bench step) for a step of this length and height: the minimal
+    phase durations divided by :func:`phase_duration_scales` (``kw``: its keywords), the
+    step-frequency cap kept; ``limits`` itself when the scales are 1."""
+    k_st, k_sw = phase_duration_scales(duty_factor, step_length_m, step_height_m, **kw)
+    if k_st == 1.0 and k_sw == 1.0:
+        return limits
+    return dataclasses.replace(limits, min_stance_s=limits.min_stance_s / k_st,
+                               min_swing_s=limits.min_swing_s / k_sw)
+
+
+def limits_for_gait(gait: Any, limits: ActuatorLimits, **kw: Any) -> ActuatorLimits:
+    """:func:`limits_for_step` for ``gait``'s duty factor, step length and height."""
+    return limits_for_step(limits, gait.duty_factor,
+                           float(getattr(gait, 'step_length_m', 0.0) or 0.0),
+                           float(getattr(gait, 'step_height_m', 0.0) or 0.0), **kw)
+
+
+def _step_name(length: float, height: float) -> str:
+    lift = '' if abs(height - BENCH_STEP_M[1]) <= 1e-9 else f' ({1e3 * height:.3g} mm lift)'
+    return f'{1e3 * length:.3g} mm step{lift}'
+
+
+def step_violations(gait: GaitPattern, limits: ActuatorLimits, **kw: Any) -> list[str]:
+    """The limits ``gait`` violates on its step geometry (:func:`limits_for_gait`), each
+    naming the duration that step needs; empty when feasible. At the bench step (or no step)
+    this is :func:`~hexapod_gait.feasibility.feasibility_violations` unchanged."""
+    lim = limits_for_gait(gait, limits, **kw)
+    if lim is limits:
+        return feasibility_violations(gait, limits)
+    step = _step_name(gait.step_length_m, gait.step_height_m)
+    out = []
+    for what, have, need in (('swing', gait.swing_time_s, lim.min_swing_s),
+                             ('stance', gait.stance_time_s, lim.min_stance_s)):
+        if have < need * (1.0 - 1e-9):
+            out.append(f'{what} {have:.3g} s below the {need:.3g} s a {step} needs')
+    if gait.step_frequency_hz > lim.max_step_frequency_hz * (1.0 + 1e-9):
+        out.append(f'step frequency {gait.step_frequency_hz:.4g} Hz > maximum '
+                   f'{lim.max_step_frequency_hz:.4g} Hz')
+    if out:
+        beta = gait.duty_factor
+        t_min = min_period_s(beta, lim)
+        out[-1] += (f' (period {gait.period_s:.4g} s, duty factor {beta:.4g}; this step needs '
+                    f'a period >= {t_min:.4g} s: top speed '
+                    f'{gait.step_length_m / (beta * t_min):.3g} m/s; the {limits.min_swing_s:g} '
+                    f's swing and {limits.min_stance_s:g} s stance limits are for the '
+                    f'{1e3 * BENCH_STEP_M[0]:g} mm bench step)')
+    return out
+
+
+def check_feasible_for_step(gait: GaitPattern, limits: ActuatorLimits, **kw: Any) -> None:
+    """Raise :class:`InfeasibleGaitError` naming every limit ``gait`` violates on its step
+    geometry (:func:`step_violations`); return None if feasible."""
+    problems = step_violations(gait, limits, **kw)
+    if problems:
+        raise InfeasibleGaitError(f'gait {gait.name!r} is infeasible: ' + '; '.join(problems))
