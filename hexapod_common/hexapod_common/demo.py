@@ -28,7 +28,9 @@ import math
 import os
 import random
 import shutil
+import signal
 import sys
+import threading
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -410,12 +412,35 @@ def _child_failed(what: str, rc: int) -> None:
     raise RuntimeError(f'{what} failed with exit code {rc}')
 
 
+class _Terminated(Exception):
+    """SIGTERM arrived (raised in the main thread by :func:`_on_sigterm`)."""
+
+
+def _on_sigterm(signum: int, frame: Any) -> None:
+    raise _Terminated()
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """``hexapod-demo``; Ctrl-C stops it with one line and exit 130 (it printed a traceback,
-    or exit 1 naming a step's exit code 130: an outside review); ``demo.json`` stays
+    or exit 1 naming a step's exit code 130: an outside review), SIGTERM with one line and
+    exit 143 (it died without a word, its bags half written); ``demo.json`` stays
     ``incomplete``."""
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _on_sigterm) if main_thread else None
+    try:
+        return _main_interruptible(argv)
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
+
+
+def _main_interruptible(argv: Sequence[str] | None) -> int:
     try:
         return _main(argv)
+    except _Terminated:
+        print('hexapod-demo: stopped (SIGTERM); the results so far stay in the output folder, '
+              'demo.json says "incomplete"', file=sys.stderr)
+        return 143
     except KeyboardInterrupt:
         print('hexapod-demo: interrupted; the results so far stay in the output folder, '
               'demo.json says "incomplete"', file=sys.stderr)

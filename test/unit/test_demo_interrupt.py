@@ -28,3 +28,21 @@ def test_a_step_interrupted_is_an_interruption_not_a_failure():
         demo._child_failed('hexapod-sim robot', 130)
     with pytest.raises(RuntimeError, match='exit code 1'):
         demo._child_failed('hexapod-sim robot', 1)
+
+
+def test_sigterm_in_the_live_graph_is_one_line_and_exit_143(tmp_path, monkeypatch, capsys):
+    """SIGTERM killed the demo without a word (Known gaps); now it stops as Ctrl-C does."""
+    import os
+    import signal
+
+    def terminated(*_a, **_k):
+        os.kill(os.getpid(), signal.SIGTERM)
+        raise AssertionError('SIGTERM did not stop the demo')
+
+    before = signal.getsignal(signal.SIGTERM)
+    monkeypatch.setattr(demo, 'run_live', terminated)
+    rc = demo.main(['--out', str(tmp_path / 'd')])
+    err = capsys.readouterr().err
+    assert rc == 143 and 'SIGTERM' in err and 'Traceback' not in err
+    assert json.loads((tmp_path / 'd' / 'demo.json').read_text())['status'] == 'incomplete'
+    assert signal.getsignal(signal.SIGTERM) == before
