@@ -348,9 +348,21 @@ class DynamixelDriverNode(Node):
         if self.bus.is_open:
             if self.params.shutdown_action == 'torque_off':
                 try:
-                    self.bus.set_torque(False)
+                    result = self.bus.set_torque(False)
                 except PortLostError as err:
                     self.get_logger().error(f'torque off at shutdown not sent: {err}')
+                else:
+                    # said (it was silent): a servo that did not confirm may still hold
+                    failed = sorted(n for n, ok in result.items() if not ok)
+                    if failed:
+                        self.get_logger().error(
+                            f'torque off at shutdown not confirmed by {", ".join(failed)}: '
+                            'they may still hold their position')
+                    else:
+                        self.get_logger().info(f'torque off on {len(result)} servo(s)')
+            else:
+                self.get_logger().warning('shutdown_action hold: torque left on, the servos '
+                                          'hold their last position')
             self.bus.close()
         super().destroy_node()
 
