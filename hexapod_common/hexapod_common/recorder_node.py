@@ -65,6 +65,11 @@ class BagRecorderNode(Node):
         self.counts: dict[str, int] = {}
         self._subs: dict[str, Any] = {}
         self._warned: set[str] = set()
+        # said at start and per topic as it is subscribed (it printed nothing until it stopped)
+        self.get_logger().info(
+            f'recording into {self.params.output}: '
+            f'{", ".join(self._resolve(t) for t in self.params.topics)} (each once a '
+            'publisher appears)')
         self._discover()
         self.create_timer(self.params.discovery_period, self._discover)
         self.create_timer(self.params.flush_period, self.writer.flush)
@@ -105,6 +110,10 @@ class BagRecorderNode(Node):
                 cls, name, lambda data, _t=name, _m=msgtype: self._on_message(_t, _m, data),
                 qos, raw=True)
             self.counts[name] = 0
+            self.get_logger().info(
+                f'recording {name} ({msgtype}, '
+                f'{"reliable" if reliable else "best effort"}'
+                f'{", transient local" if latched else ""})')
 
     def _on_message(self, topic: str, msgtype: str, data: bytes) -> None:
         self.writer.write(topic, msgtype, data, self.get_clock().now().nanoseconds)
