@@ -730,8 +730,19 @@ def _robot_run(args: argparse.Namespace, setup: _Setup, model: Any, opm: Any,
                                      swing_load=args.swing_load,
                                      load_offset_kg=args.load_offset)[0]
         if outside:
+            from hexapod_energy.prediction import phase_duration_scales
+
+            k_st, k_sw = phase_duration_scales(model, gait)
+            beta, period = gait.duty_factor, gait.period_s
+            # the durations quoted are the bench step's equivalents (an outside review read
+            # "stance 1.8 s" for a 1.4 s stance on an 80 mm step)
+            where = ('' if k_st == 1.0 and k_sw == 1.0 else
+                     f" (durations at the bench step's equivalent, x{k_st:.3g} stance and "
+                     f"x{k_sw:.3g} swing: this run's stance {beta * period:.3g} s and swing "
+                     f"{(1.0 - beta) * period:.3g} s on its {1e3 * gait.step_length_m:.0f} mm "
+                     'step)')
             notes.append('the Eq. 1 prediction extrapolates the bench surfaces: ' +
-                         '; '.join(outside))
+                         '; '.join(outside) + where)
         other = _duty_factor_note(model, gait)
         if other:
             notes.append(other)

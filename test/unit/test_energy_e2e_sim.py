@@ -378,3 +378,18 @@ def test_other_step_geometries_are_mapped_onto_the_bench_path(model, length, hei
                                                   'p_swing_w': model.p_swing_w})(),
                                gait, total_mass_kg=ANTBOT_ROBOT.mass_kg, leg_mass_kg=LEG_KG)
     assert abs(blind / measured - 1) > 0.1                      # the durations alone
+
+
+def test_an_extrapolation_note_gives_the_runs_own_durations(bags, tmp_path) -> None:
+    """The note quoted the bench step's equivalent durations only ("stance 1.8 s" for a
+    1.4 s stance on an 80 mm step: an outside review); it now says so and gives the run's."""
+    write_trace(simulate_robot(9.0, RobotConfig(speed_mps=0.05, step_length_m=0.07), seed=5),
+                tmp_path / 'slow70')
+    args = build_parser().parse_args(['--bench', str(bags / 'bench'), '--robot',
+                                      str(tmp_path / 'slow70'), '--out', str(tmp_path / 'o'),
+                                      '--no-progress'])
+    run(args)
+    doc = json.loads((tmp_path / 'o' / 'energy.json').read_text())
+    [note] = [w for w in doc['warnings'] if 'extrapolates the bench surfaces' in w]
+    assert "durations at the bench step's equivalent" in note
+    assert "this run's stance 1.4 s and swing 1.4 s on its 70 mm step" in note
