@@ -447,6 +447,9 @@ STILL_JOINTS_RAD = 0.02
 #: ... and whose joint velocities all stay below this [rad/s] (a driver that fills no positions
 #: but velocities is moving)
 STILL_JOINTS_RAD_S = 0.2
+#: ... judged on joints with at least this many position samples in the window, spread over
+#: at least half of it (fewer cannot show a still joint: one per cycle reads a range of 0)
+STILL_MIN_SAMPLES = 8
 #: warning of such a window (its speed and model P_out are not the schedule's)
 STILL_JOINTS_NOTE = ('the leg joints did not move in this window while /gait/phase says '
                      'walking: the robot did not follow the schedule (joint_commands not '
@@ -1323,6 +1326,7 @@ class DescriptorAccumulator:
         leaves constant)."""
         lo: dict[str, float] = {}
         hi: dict[str, float] = {}
+        seen: dict[str, list[float]] = {}
         for t, names, pos, speed in self._leg_pos:
             if not t0 <= t <= t1:
                 continue
@@ -1332,9 +1336,16 @@ class DescriptorAccumulator:
                 if math.isfinite(q):
                     lo[name] = min(q, lo.get(name, q))
                     hi[name] = max(q, hi.get(name, q))
-        if not lo:
+                    seen.setdefault(name, []).append(t)
+        # too few samples, or samples bunched in one part of the window, cannot show a still
+        # joint: one sample per gait cycle reads a range of 0 on a walking robot (a review:
+        # joint states at 1 Hz without velocities, every window of a walking run left out)
+        span = t1 - t0
+        judged = [n for n, ts in seen.items()
+                  if len(ts) >= STILL_MIN_SAMPLES and max(ts) - min(ts) >= 0.5 * span]
+        if not judged:
             return None
-        return max(hi[n] - lo[n] for n in lo)
+        return max(hi[n] - lo[n] for n in judged)
 
     def _speed(self, t0: float, t1: float) -> float:
         """Speed [m/s] over the window."""

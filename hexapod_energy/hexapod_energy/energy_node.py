@@ -278,8 +278,10 @@ class EnergyMonitorNode(Node):
         self._battery_msgs = 0
         #: episodes of several live publishers on battery_state naming one battery, reported
         self.battery_publishers_warned = 0
-        self._battery_seq = PublisherSequences()
-        self._battery_interleaved = False   # a new episode, judged once the sample is added
+        # one per battery name (header.frame_id): monitors of distinct names are summed, two
+        # publishers of one name interleave into their mean
+        self._battery_seqs: dict[str, PublisherSequences] = {}
+        self._battery_interleaved: str | None = None   # the name of a new episode
         #: episodes of several live publishers on gait/phase, reported
         self.gait_publishers_warned = 0
         self._gait_seq = PublisherSequences()
@@ -372,8 +374,12 @@ class EnergyMonitorNode(Node):
 
     def _on_battery(self, msg: BatteryState, info: Any = None) -> None:
         self.inputs.seen('battery_state')
-        if self._battery_seq.add(publication_sequence(info)):
-            self._battery_interleaved = True
+        name = str(msg.header.frame_id)
+        seqs = self._battery_seqs.get(name)
+        if seqs is None:
+            seqs = self._battery_seqs[name] = PublisherSequences()
+        if seqs.add(publication_sequence(info)):
+            self._battery_interleaved = name
         self._publish(self._guard('BatteryState', self._add_battery, msg))
 
     def _add_battery(self, msg: BatteryState) -> list[Descriptors]:
@@ -396,13 +402,15 @@ class EnergyMonitorNode(Node):
             raw = dataclasses.replace(raw, voltage_v=self._milli[0] * raw.voltage_v,
                                       current_a=self._milli[1] * raw.current_a)
         self._battery_msgs += 1
-        if not self._battery_seq.numbered and (self._battery_msgs in (20, 200)
-                                               or self._battery_msgs % 2000 == 0):
+        numbered = any(q.numbered for q in self._battery_seqs.values())
+        if not numbered and (self._battery_msgs in (20, 200)
+                             or self._battery_msgs % 2000 == 0):
             self._check_battery_publishers()   # a middleware without sequence numbers
         sample = self.batteries.add(raw)
-        if self._battery_interleaved:
-            self._battery_interleaved = False
-            self._report_battery_publishers(None)
+        if self._battery_interleaved is not None:
+            name, self._battery_interleaved = self._battery_interleaved, None
+            if self.batteries.select is None or self.batteries.select == name:
+                self._report_battery_publishers(None, name)
         for note in self.batteries.notes[self._battery_notes:]:
             self.get_logger().warning(note)
         self._battery_notes = len(self.batteries.notes)
@@ -425,18 +433,19 @@ class EnergyMonitorNode(Node):
         if self.battery_publishers_warned:
             return
         n = self.count_publishers(self._battery_sub.topic_name)
-        if n > 1:
-            self._report_battery_publishers(n)
+        if n > 1 and len(self.batteries.sources_) <= 1 and self.batteries.select is None:
+            self._report_battery_publishers(
+                n, self.batteries.sources_[0] if self.batteries.sources_ else '')
 
-    def _report_battery_publishers(self, n: int | None) -> None:
+    def _report_battery_publishers(self, n: int | None, name: str) -> None:
         """Several publishers on battery_state whose messages name one battery: their
         samples interleave and read as one battery, the mean of the packs, not their sum (two
-        monitors with an empty frame_id at 36 W and 6 W read 21 W: an outside review)."""
-        if len(self.batteries.sources_) > 1:
-            return   # distinct frame_ids: summed
+        monitors with an empty frame_id at 36 W and 6 W read 21 W: an outside review). Told
+        per battery name from the sequence numbers: monitors of distinct names are summed,
+        and one of them doubled is still reported; with ``battery_source`` only the kept
+        name is."""
         self.battery_publishers_warned += 1
         topic = self._battery_sub.topic_name
-        name = self.batteries.sources_[0] if self.batteries.sources_ else ''
         how = ('the graph\'s count' if n is not None
                else 'their messages\' sequence numbers interleave')
         self.get_logger().error(

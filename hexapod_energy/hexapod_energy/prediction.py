@@ -340,7 +340,10 @@ def geometry_limits(model: Any, gait: Any, limits: Any) -> Any:
     limits and the 3 Hz cap give, where the paper puts that step's best point.)"""
     import dataclasses
 
-    k_st, k_sw = phase_duration_scales(model, gait)
+    from hexapod_gait.step_limits import floor_scales
+
+    # a shorter path keeps the bench's limits (hexapod_gait.step_limits.floor_scales)
+    k_st, k_sw = floor_scales(*phase_duration_scales(model, gait))
     if k_st == 1.0 and k_sw == 1.0:
         return limits
     return dataclasses.replace(limits, min_stance_s=limits.min_stance_s / k_st,

@@ -31,11 +31,14 @@ One gait node per robot: the node listens to its own topics (``gait/phase``,
 tick, time for discovery; when the graph then lists another publisher there, it listens
 :data:`STARTUP_LISTEN_S` more for that publisher's messages (a crashed node's endpoint
 stays in the graph until its DDS lease runs out, and sends nothing). A message from another
-publisher before its first command, or within :data:`NEWCOMER_S` of it (told from the
-messages' publication sequence numbers, :mod:`hexapod_common.publishers`), makes it refuse to
-walk: it publishes nothing more and exits with :data:`EXIT_ANOTHER_GAIT` (2). A node walking
-longer than that keeps walking and logs an error (once per episode) naming the publishers:
-the joints follow two schedules until the other stops. (Before, two ``gait_scheduler`` or a
+publisher before its first command makes it refuse to walk: it publishes nothing more and
+exits with :data:`EXIT_ANOTHER_GAIT` (2). After its first command, another publisher is told
+from the messages' publication sequence numbers (:mod:`hexapod_common.publishers`; a
+middleware without them leaves only the check before the first command); which node
+walked first is told from the publishers' sequence numbers (about how many messages each has
+sent): the one ahead by more than :data:`NEWCOMER_MARGIN` keeps walking and logs an error
+(once per episode) naming the publishers, the other stops; two that started within that many
+commands of each other both stop. (Before, two ``gait_scheduler`` or a
 lab's own command node interleaved their commands without a word.)
 """
 
@@ -73,19 +76,19 @@ from hexapod_gait.gait import GAIT_NAMES, GaitPattern
 from hexapod_gait.scheduler import MIN_TRANSITION_CYCLES, GaitScheduler, GaitState
 from hexapod_gait.step_limits import limits_for_step
 
-__all__ = ['EXIT_ANOTHER_GAIT', 'EXIT_NOT_STOOD', 'NEWCOMER_S', 'STARTUP_LISTEN_S', 'GaitParams',
+__all__ = ['EXIT_ANOTHER_GAIT', 'EXIT_NOT_STOOD', 'NEWCOMER_MARGIN', 'STARTUP_LISTEN_S', 'GaitParams',
            'GaitSchedulerNode', 'gait_state_to_msg',
            'joint_command_msg', 'main', 'stand_on_signals']
 
 #: Exit code of a stop (Ctrl-C / SIGTERM) that could not stand the legs (the stand was refused,
 #: or did not settle within ``stop_timeout_s``): the legs are left where they are.
 EXIT_NOT_STOOD = 1
-#: Exit code of a node that found another publisher on its topics before it had walked
-#: :data:`NEWCOMER_S` (two schedules would drive one robot's joints)
+#: Exit code of a node that found another publisher on its topics that walked first, or
+#: started with it (two schedules would drive one robot's joints)
 EXIT_ANOTHER_GAIT = 2
-#: a node that hears another publisher on its topics within this many seconds of its own first
-#: command is the newcomer: it stops (the other walked first)
-NEWCOMER_S = 2.0
+#: a node that hears another publisher on its topics stops unless it has sent more than this
+#: many messages more than the other (the other walked first, or both started together)
+NEWCOMER_MARGIN = 2
 #: before its first command, a node whose topics have another publisher in the graph listens
 #: this long [s] for that publisher's messages (none: a crashed node's endpoint)
 STARTUP_LISTEN_S = 1.0
@@ -381,12 +384,22 @@ class GaitSchedulerNode(Node):
         name = self._own_pubs[topic].topic_name
         now_ns = self.get_clock().now().nanoseconds
         walked_s = (now_ns - self._first_command_ns) * 1e-9
-        if walked_s < NEWCOMER_S:
+        # who walked first: each series' last number is about how many messages its
+        # publisher has sent (ours: the one nearest our own count)
+        lasts = self._sequences[topic].series_last()
+        own = min(lasts, key=lambda n: abs(n - self.ticks))
+        rest = list(lasts)
+        rest.remove(own)
+        other = max(rest) if rest else own
+        if own <= other + NEWCOMER_MARGIN:
+            tie = other <= own + NEWCOMER_MARGIN
             self.get_logger().error(
                 f'another node publishes on {name} (publishers in the graph: '
-                f'{self._publisher_names(topic)}) since this node started {walked_s:.2f} s ago: '
-                'two schedules would drive the same joints; this node stops publishing and '
-                f'exits (code {EXIT_ANOTHER_GAIT}), the other keeps the robot')
+                f'{self._publisher_names(topic)}; its messages about {other}, this node\'s '
+                f'{own}): two schedules would drive the same joints; this node stops '
+                f'publishing and exits (code {EXIT_ANOTHER_GAIT}), '
+                + ('both started within a few commands of each other, so both stop'
+                   if tie else 'the other, walking longer, keeps the robot'))
             self.finished.set_result(EXIT_ANOTHER_GAIT)
             return
         self.other_publishers_reported += 1

@@ -9,7 +9,8 @@ that path at the servos' top speed. A step that moves the joints ``1/k`` times a
 over the phase by the leg's inverse kinematics); the step-frequency cap is kept
 (:func:`limits_for_step`). AntBot, duty factor 0.5: a 140 mm step needs swing >= 0.192 s and
 stance >= 0.221 s (top speed 0.63 m/s), a 120 mm step 0.176 s and 0.185 s (0.65 m/s); the bench
-step keeps the limits exactly. No step (length 0: a stand, or a lift in place) keeps them too.
+step keeps the limits exactly. No step (length 0: a stand, or a lift in place) keeps them too,
+and so does a shorter path than the bench's (:func:`floor_scales`).
 
 Core module: no ROS.
 """
@@ -32,6 +33,7 @@ __all__ = [
     'BENCH_STEP_M',
     'STEP_GEOMETRY_TOLERANCE',
     'check_feasible_for_step',
+    'floor_scales',
     'joint_paths',
     'limits_for_gait',
     'limits_for_step',
@@ -115,12 +117,22 @@ def limits_for_step(
 ) -> ActuatorLimits:
     """``limits`` (for the bench step) for a step of this length and height: the minimal
     phase durations divided by :func:`phase_duration_scales` (``kw``: its keywords), the
-    step-frequency cap kept; ``limits`` itself when the scales are 1."""
-    k_st, k_sw = phase_duration_scales(duty_factor, step_length_m, step_height_m, **kw)
+    step-frequency cap kept; ``limits`` itself when the scales are 1. A shorter path never
+    lowers them (:func:`floor_scales`): the servos' acceleration and the command rate bound a
+    phase too (unfloored, a 20 mm step at beta 0.9 walked 33 ms swings, three commands: a
+    review)."""
+    k_st, k_sw = floor_scales(*phase_duration_scales(duty_factor, step_length_m,
+                                                     step_height_m, **kw))
     if k_st == 1.0 and k_sw == 1.0:
         return limits
     return dataclasses.replace(limits, min_stance_s=limits.min_stance_s / k_st,
                                min_swing_s=limits.min_swing_s / k_sw)
+
+
+def floor_scales(k_stance: float, k_swing: float) -> tuple[float, float]:
+    """Phase-duration scales for the actuator limits: a longer joint path than the bench's
+    (scale below 1) lengthens the minimal phase, a shorter one keeps the bench's."""
+    return min(float(k_stance), 1.0), min(float(k_swing), 1.0)
 
 
 def limits_for_gait(gait: Any, limits: ActuatorLimits, **kw: Any) -> ActuatorLimits:

@@ -142,3 +142,38 @@ def test_one_gait_publisher_is_never_reported() -> None:
         assert env.spin_until(lambda: node._battery_msgs >= 250, 20)
         assert node._gait_seq.numbered
     assert node.gait_publishers_warned == 0 and node.battery_publishers_warned == 0, errors
+
+
+def _publish_batteries(env: Any, node: Any, names: list[str], n: int = 40) -> None:
+    feeder = env.add(rclpy.create_node(f'packs{len(env.nodes)}', context=env.context,
+                                       namespace=env.namespace))
+    pubs = [feeder.create_publisher(BatteryState, 'battery_state', KEEP_ALL_QOS)
+            for _ in names]
+    assert env.spin_until(lambda: all(p.get_subscription_count() >= 1 for p in pubs), 20)
+    for k in range(n):
+        for pub, name in zip(pubs, names):
+            msg = BatteryState(voltage=12.0, current=-1.0)
+            msg.header.stamp = _stamp(20.0 + 0.01 * k)
+            msg.header.frame_id = name
+            pub.publish(msg)
+        env.executor.spin_once(timeout_sec=0.0)
+    env.spin_until(lambda: False, 0.2)
+
+
+@pytest.mark.timeout(120)
+def test_batteries_of_distinct_names_or_one_kept_are_not_reported_a_doubled_one_is() -> None:
+    """A review: with -p battery_source:=servo, a servo and a logic monitor were reported as
+    "name one battery"; and once two names were summed, a doubled one went unreported."""
+    from hexapod_energy.energy_node import EnergyMonitorNode
+
+    with ros_env('battery_names') as env:
+        kept = env.make(EnergyMonitorNode, parameter_overrides=[
+            Parameter('current_sign', value='ros'), Parameter('battery_source', value='servo')])
+        summed = _energy(env)
+        kept_errors = capture_errors(kept)
+        _publish_batteries(env, summed, ['servo', 'logic'])
+        assert kept.battery_publishers_warned == 0, kept_errors
+        assert summed.battery_publishers_warned == 0
+        _publish_batteries(env, summed, ['servo', 'logic', 'servo'])   # servo doubled
+        assert env.spin_until(lambda: summed.battery_publishers_warned == 1, 20)
+        assert kept.battery_publishers_warned == 1       # the kept name, doubled

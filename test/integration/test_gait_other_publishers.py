@@ -1,8 +1,8 @@
 """One gait node per robot (review K left it): a second ``gait_scheduler``, or a lab's own node
 publishing ``gait/phase`` / ``joint_commands``, interleaved its commands with the first's
-without a word. Now a node that finds another publisher before its first command, or within
-NEWCOMER_S of it, refuses to walk (exit 2, nothing more published); one walking longer logs an
-error and keeps walking; a publisher listed in the graph that sends nothing (a crashed node's
+without a word. Now a node that finds another publisher before its first command, or one
+that walked first (more messages sent, by the sequence numbers), refuses to walk (exit 2,
+nothing more published); one that walked first logs an error and keeps walking; a publisher listed in the graph that sends nothing (a crashed node's
 endpoint until its DDS lease runs out) is waited for, then walked past."""
 
 from __future__ import annotations
@@ -63,6 +63,8 @@ def test_a_newcomer_that_walked_before_it_heard_the_other_stops_at_once() -> Non
         assert env.spin_until(lambda: node.ticks >= 5, 30)
         _, phase, _ = _feeder(env)
         assert env.spin_until(lambda: phase.get_subscription_count() >= 1, 20)
+        for k in range(60):        # the other has been walking longer: 60 messages at once
+            phase.publish(GaitPhase(gait='tripod', period=1.0))
         for k in range(100):
             phase.publish(GaitPhase(gait='tripod', period=1.0))
             env.executor.spin_once(timeout_sec=0.0)
@@ -74,16 +76,15 @@ def test_a_newcomer_that_walked_before_it_heard_the_other_stops_at_once() -> Non
         env.spin_until(lambda: node.ticks > ticks, 0.3)
         assert node.ticks == ticks           # nothing published after the refusal
     assert len(errors) == 1 and 'stops publishing' in errors[0]
+    assert 'walking longer, keeps the robot' in errors[0]
 
 
 @pytest.mark.timeout(120)
 def test_a_walking_node_reports_another_publisher_once_and_walks_on() -> None:
-    from hexapod_gait.gait_node import NEWCOMER_S
-
     with ros_env('gait_old') as env:
         node = _gait(env, 'gait_old', startup_listen_s=0.0)
         errors = capture_errors(node)
-        assert env.spin_until(lambda: node.ticks >= 100 * NEWCOMER_S + 20, 60)
+        assert env.spin_until(lambda: node.ticks >= 50, 60)
         _, _, commands = _feeder(env)
         assert env.spin_until(lambda: commands.get_subscription_count() >= 1, 20)
         for _ in range(60):
@@ -92,6 +93,34 @@ def test_a_walking_node_reports_another_publisher_once_and_walks_on() -> None:
         assert not node.finished.done()
         assert node.other_publishers_reported == 1
     assert len(errors) == 1 and 'joint_commands' in errors[0] and 'keeps walking' in errors[0]
+
+
+@pytest.mark.timeout(120)
+def test_two_gait_nodes_started_together_never_both_walk() -> None:
+    """An outside review: two nodes started in one executor both refused, each saying "the
+    other keeps the robot". Now either the one whose listen ended first walks and the other
+    refuses, or (their first commands in one tick) both stop saying so; never both walk."""
+    from hexapod_gait.gait_node import EXIT_ANOTHER_GAIT
+
+    with ros_env('gait_twins') as env:
+        a = _gait(env, 'gait_a', startup_listen_s=0.0)
+        b = _gait(env, 'gait_b', startup_listen_s=0.0)
+        errors = {'a': capture_errors(a), 'b': capture_errors(b)}
+        nodes = {'a': a, 'b': b}
+        assert env.spin_until(lambda: a.finished.done() or b.finished.done(), 30)
+        stopped = [k for k, n in nodes.items() if n.finished.done()]
+        if len(stopped) == 1:
+            [walker] = [n for k, n in nodes.items() if k not in stopped]
+            ticks = walker.ticks
+            assert env.spin_until(lambda: walker.ticks >= ticks + 30, 30)
+        stopped = [k for k, n in nodes.items() if n.finished.done()]
+    assert all(nodes[k].finished.result() == EXIT_ANOTHER_GAIT for k in stopped)
+    if len(stopped) == 2:
+        assert all(len(errors[k]) == 1 and 'both stop' in errors[k][0] for k in stopped)
+    else:
+        [k] = stopped
+        assert len(errors[k]) == 1 and ('already publishes' in errors[k][0]
+                                        or 'walking longer' in errors[k][0])
 
 
 @pytest.mark.timeout(120)

@@ -116,13 +116,24 @@ def test_sim_and_energy_agree_on_other_step_geometries(tmp_path, capsys) -> None
     """A review: the simulator checked AntBot's limits as phase durations whatever the step,
     energy scales them to the step's joint path (geometry_limits): 140 mm steps at 0.8 m/s
     were simulated and then called infeasible, 70 mm at beta 0.7 and 0.2 m/s refused and then
-    called feasible. Both now read the limits on the step's own path."""
+    called feasible. Both now read the limits on the step's own path; a shorter path keeps
+    the bench's limits (a later review: unfloored, a 20 mm step walked 33 ms swings), so
+    the 70 mm step's 0.15 s swing is refused by both."""
+    from hexapod_energy.prediction import geometry_limits
+    from hexapod_energy.recommend import infeasible_schedule
+    from hexapod_gait.feasibility import ActuatorLimits
+    from hexapod_gait.gait import make_gait
+
     rc, err = _sim(['--out', str(tmp_path / 'a'), '--speed', '0.8', '--step-length', '0.14'],
                    capsys)
     assert rc == 2 and 'on this step\'s joint path' in err
     rc, err = _sim(['--out', str(tmp_path / 'b'), '--speed', '0.2', '--duty-factor', '0.7',
                     '--step-length', '0.07'], capsys)
-    assert rc == 0 and 'infeasible' not in err
+    assert rc == 2 and 'swing' in err
+    gait = make_gait('tripod', duty_factor=0.7, period_s=0.5, step_length_m=0.07,
+                     step_height_m=0.04)
+    model = type('Bench', (), {'bench_step_': (0.1, 0.04)})()
+    assert infeasible_schedule(gait, geometry_limits(model, gait, ActuatorLimits()))
 
 
 def test_energy_without_a_bench_reads_the_limits_on_the_steps_path(tmp_path, capsys) -> None:
@@ -183,3 +194,24 @@ def test_live_monitor_notes_an_infeasible_schedule_once() -> None:
     stand = DescriptorAccumulator(mass_kg=2.183)
     stand.add_gait_phase(dataclasses.replace(_phase(0.0, 'tripod', 1.0, 0.5), period_s=0.0))
     assert stand.infeasible_ == [] and stand.notes_ == []
+
+
+@pytest.mark.parametrize('legs,mass', [(4, 1.851), (6, 2.183), (8, 2.515)])
+def test_the_simulated_robot_mass_follows_the_leg_count(tmp_path, capsys, monkeypatch, legs,
+                                                        mass) -> None:
+    """A review: ``hexapod-sim robot --legs 4`` simulated the six-leg 2.183 kg robot while
+    ``sim_robot -p leg_count:=4`` simulates AntBot's body with four legs, 1.851 kg."""
+    from hexapod_bench_drivers import robot_sim
+
+    seen = []
+
+    class Spy(robot_sim.RobotSimulator):
+        def __init__(self, config, **kw):
+            seen.append(config.robot_mass_kg)
+            super().__init__(config, **kw)
+
+    monkeypatch.setattr(robot_sim, 'RobotSimulator', Spy)
+    gait = ['--gait', 'alternating'] if legs != 6 else []
+    rc, err = _sim(['--out', str(tmp_path / 'm'), '--legs', str(legs), *gait], capsys)
+    assert rc == 0, err
+    assert seen == [pytest.approx(mass, abs=1e-3)]

@@ -34,7 +34,7 @@ def _gait(t: float, legs=LEGS, step: float = 0.1) -> GaitPhaseSample:
 
 
 def _run(moving: bool, *, legs=LEGS, velocities: bool = True, still_until: float = -math.inf,
-         model=None, positions: bool = True) -> list:
+         model=None, positions: bool = True, joint_every: int = 1) -> list:
     acc = DescriptorAccumulator(mass_kg=2.183, current_sign='ros', power_out_model=model,
                                 power_out_source='auto' if model else 'effort')
     out = []
@@ -47,9 +47,10 @@ def _run(moving: bool, *, legs=LEGS, velocities: bool = True, still_until: float
         vel = np.array([0.3 * 2 * math.pi * math.cos(ph + 0.2 * n) if move else 0.0
                         for n in range(len(NAMES))])
         out += acc.add_gait_phase(_gait(t, legs)) or []
-        out += acc.add_joint_state(JointStateSample(
-            t_s=t + 2e-4, names=NAMES, position=pos,
-            velocity=vel if velocities else np.zeros(0), effort=np.zeros(0))) or []
+        if k % joint_every == 0:
+            out += acc.add_joint_state(JointStateSample(
+                t_s=t + 2e-4, names=NAMES, position=pos,
+                velocity=vel if velocities else np.zeros(0), effort=np.zeros(0))) or []
         out += acc.add_battery(BatterySample(t_s=t + 1e-4, voltage_v=12.0,
                                              current_a=-(2.0 if move else 0.7),
                                              temperature_c=25.0)) or []
@@ -82,6 +83,14 @@ def test_a_driver_that_fills_no_positions_but_velocities_is_moving():
     """Positions left constant by a driver, velocities real: not a still robot."""
     acc_out = _run(True, positions=False)
     assert not any(_still(d) for d in acc_out)
+
+
+@pytest.mark.parametrize('every', [100, 90, 25])
+def test_joint_states_sampled_once_a_cycle_cannot_show_a_still_robot(every):
+    """A review: joint states at 1 Hz without velocities on a 1 s gait read a range of 0
+    in every window, and every window of a walking run was left out."""
+    out = _run(True, velocities=False, joint_every=every)
+    assert out and not any(_still(d) for d in out)
 
 
 def test_the_model_p_out_of_a_still_window_is_unknown():

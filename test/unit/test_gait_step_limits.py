@@ -131,3 +131,23 @@ def test_a_stand_is_not_checked() -> None:
     assert g.step_length_m == 0.0 and g.period_s == 1.0   # the walking gait is refused
     p = GaitParams(stand=True, step_length=0.14, speed=0.6)
     assert gait_from_params(p).period_s == pytest.approx(0.14 / (0.5 * 0.6))
+
+
+def test_a_shorter_path_keeps_the_bench_limits():
+    """A review: unfloored, a 20 mm step at beta 0.9 and T 0.333 s walked 33 ms swings
+    (three commands at 100 Hz); a 10 mm step's minimal swing fell to 18 ms."""
+    from hexapod_gait.config import build_gait
+    from hexapod_gait.errors import HexapodGaitError
+    from hexapod_gait.feasibility import ActuatorLimits
+    from hexapod_gait.step_limits import limits_for_step
+
+    lim = ActuatorLimits()
+    for length, height in ((0.02, 0.0), (0.01, 0.005), (0.06, 0.01)):
+        short = limits_for_step(lim, 0.75, length, height)
+        assert short.min_swing_s == lim.min_swing_s
+        assert short.min_stance_s == lim.min_stance_s
+    with pytest.raises(HexapodGaitError, match='swing'):
+        build_gait('tripod', leg_count=6, duty_factor=0.9, period_s=1 / 3,
+                   step_length_m=0.02, step_height_m=0.0, limits=lim)
+    longer = limits_for_step(lim, 0.5, 0.14, 0.04)
+    assert longer.min_swing_s == pytest.approx(0.192, abs=1e-3)

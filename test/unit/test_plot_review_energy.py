@@ -432,7 +432,7 @@ def test_model_note_gives_the_reason_efforts_were_refused(tmp_path, monkeypatch)
     note = next(n for n in r['notes'] if n.startswith('P_out from the Eq. 6 model'))
     assert 'no joint power from the bag' not in note
     assert 'joint efforts refused' in note and 'is not below P_in' in note
-    assert 'PWM load' in note
+    assert 'PWM reading' in note
     assert seen['title'].startswith('AntBot robot, 2.183 kg; 1 run (robot): cycles from '
                                     '/gait/phase')
     assert seen['efficiency'] == [r['efficiency']]
