@@ -388,16 +388,17 @@ def _say_slip(slip: dict[str, Any]) -> None:
         _say(f'   {r["gait"]:8s} clock offset {ms(r["offset_s"])} ({r["offset_method"]}; hidden '
              f'{ms(r["true_offset_s"])}), ground {mm(r["ground_m"])} (hidden '
              f'{mm(r["true_ground_m"])}), {r["stances"]} stances')
-    _say('   gait      stances  nerr mean       P [W]         v [m/s]       SR           '
-         '(Table 3 in brackets)')
+    _say('   gait      stances  nerr   nerr world (Table 3)  P [W]         v [m/s]       SR'
+         '           (Table 3 in brackets; nerr: bx from each stance\'s first sample, '
+         'nerr world: Eq. 2 read literally)')
     table3 = _table3()
     order = {g: k for k, g in enumerate(table3)}
     for gait, row in sorted(slip['gaits'].items(), key=lambda kv: order.get(kv[0], 99)):
         ref = table3.get(gait, (math.nan,) * 3)
         sr_ref = ref[1] / (EDUBOT_MASS_KG * 9.81 * ref[2])
         _say(f'   {gait:8s} {int(row.get("stances", 0)):6d}   '
-             f'{row.get("nerr_mean", math.nan):.3f} '
-             f'({ref[0]:.3f})  {row.get("power_w_mean", math.nan):5.1f} ({ref[1]:5.1f})  '
+             f'{row.get("nerr_mean", math.nan):.3f}  {row.get("nerr_world_mean", math.nan):.3f} '
+             f'({ref[0]:.3f})       {row.get("power_w_mean", math.nan):5.1f} ({ref[1]:5.1f})  '
              f'{row.get("speed_mps_mean", math.nan):.2f} ({ref[2]:.2f})   '
              f'{row.get("sr_mean", math.nan):.2f} ({sr_ref:.2f})')
     if slip.get('skipped_counts'):

@@ -329,6 +329,7 @@ def _slip_sections(data: dict[str, Any]) -> list[str]:
         if not any(g in paper for g in gaits):      # another robot's gaits: nothing to compare
             paper = {}
         rows = []
+        world = any(isinstance(e, dict) and 'nerr_world_mean' in e for e in gaits.values())
         for g in _gait_order(gaits):
             e = gaits[g]
             if not isinstance(e, dict):
@@ -336,7 +337,9 @@ def _slip_sections(data: dict[str, Any]) -> list[str]:
             n = e.get('stances')
             ref = paper.get(g) if isinstance(paper.get(g), dict) else {}
             rows.append([_esc(g), _num(int(n) if isinstance(n, (int, float)) else n),
-                         _pm(e.get('nerr_mean'), e.get('nerr_std')),
+                         _pm(e.get('nerr_mean'), e.get('nerr_std'))] +
+                        ([_pm(e.get('nerr_world_mean'), e.get('nerr_world_std'))]
+                         if world else []) + [
                          _pm(e.get('power_w_mean'), e.get('power_w_std')),
                          _pm(e.get('speed_mps_mean'), e.get('speed_mps_std')),
                          _pm(e.get('sr_mean'), e.get('sr_std'))] +
@@ -347,6 +350,13 @@ def _slip_sections(data: dict[str, Any]) -> list[str]:
         head = ['gait', 'stances', 'nerr', 'P [W]', 'v [m/s]', 'SR [-]']
         cap = ('mean \u00b1 sd over the gait\'s stances (P, v and SR are per run, repeated on '
                'each of its stances)')
+        if world:
+            head[3:3] = ['nerr, world frame']
+            cap += ('; nerr normalises by the states with bx from each stance\'s first sample '
+                    '(independent of the frame\'s origin), "nerr, world frame" is Eq. 2 read '
+                    'literally (bx in the run\'s world frame, the paper\'s measure); the '
+                    'stances are the single-support windows from the leg geometry, not the '
+                    'clock\'s edges the paper fitted (README, SLIP)')
         if paper:
             head += ['paper: nerr', 'paper: P [W]', 'paper: v [m/s]', 'paper: SR [-]']
             cap += ('; paper: Komsuoglu et al. Table 3 (EduBot, 3.31 kg; its SR = P / (m g v) '

@@ -14,7 +14,8 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
          "touchdown", "liftoff" [s, proprioception clock],
          "stiffness" [N/m], "rest_length" [m], "foot_x" [m, world frame],
          "stiffness_stderr", "rest_length_stderr", "foot_x_stderr",
-         "nerr", "nerr_noise_floor", "converged", "samples", "iterations",
+         "nerr", "nerr_world" (Eq. 2 read literally, bx in the world frame: the paper's
+         Table 3 measure), "nerr_noise_floor", "converged", "samples", "iterations",
          "start" (the Nelder-Mead start kept: paper|stance1|stance2; see "starts"),
          "other_minimum": {same parameter keys, "nerr", "force_swing", "start"} or null
                           (another start's converged result with k 1.5x or l0 1.1x apart:
@@ -95,7 +96,8 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
                                     # no sample in the default box,
                                     # no /gait/phase; "frame" also has "box": {"lower_m",
                                     # "upper_m", "source" (given|default|tracked_samples)}
-      "gaits": {"<gait>": {"stances", "nerr_mean", "nerr_std", "power_w_mean", ...,
+      "gaits": {"<gait>": {"stances", "nerr_mean", "nerr_std", "nerr_world_mean",
+                           "nerr_world_std", "power_w_mean", ...,
                            "nerr_noise_floor_median" (what the mocap noise alone gives),
                            "stiffness_median", "stiffness_iqr", "rest_length_median",
                            "rest_length_iqr", "constant_force_stances" (force_swing < 1),
@@ -539,7 +541,8 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
         for k, v in r.params.items():
             d[k] = _f(v)
             d[f'{k}_stderr'] = _f(r.stderr[k])
-        d.update(nerr=_f(r.nerr), nerr_noise_floor=_f(r.nerr_noise_floor),
+        d.update(nerr=_f(r.nerr), nerr_world=_f(r.nerr_world),
+                 nerr_noise_floor=_f(r.nerr_noise_floor),
                  converged=r.converged, samples=r.samples,
                  iterations=r.iterations, start=r.start, force_swing=_f(r.force_swing))
         d['other_minimum'] = ({k: (v if isinstance(v, str) else _f(v))
@@ -787,6 +790,7 @@ def _run_command(args: argparse.Namespace) -> int:
     stances = [s for r in results for s in r.get('stances', [])]
     skipped = [s for r in results for s in r.get('skipped', [])]
     rows = [{'gait': s['gait'], 'nerr': s['nerr'] if s['nerr'] is not None else math.nan,
+             'nerr_world': s['nerr_world'] if s.get('nerr_world') is not None else math.nan,
              'power_w': s['power_w'] or math.nan, 'speed_mps': s['speed_mps'] or math.nan,
              'sr': s['sr'] or math.nan,
              'stiffness': s['stiffness'] if s.get('stiffness') is not None else math.nan,

@@ -154,8 +154,10 @@ def gait_table(rows: Sequence[dict[str, float | str]]) -> dict[str, dict[str, fl
     for gait in ordered_gaits(str(r['gait']) for r in rows):
         sel = [r for r in rows if r['gait'] == gait]
         entry: dict[str, float] = {'stances': float(len(sel))}
-        for key in ('nerr', 'power_w', 'speed_mps', 'sr'):
-            vals = np.array([float(r[key]) for r in sel], dtype=float)
+        keys = ('nerr', 'power_w', 'speed_mps', 'sr') + \
+            (('nerr_world',) if any('nerr_world' in r for r in sel) else ())
+        for key in keys:
+            vals = np.array([float(r.get(key, math.nan)) for r in sel], dtype=float)
             vals = vals[np.isfinite(vals)]
             entry[f'{key}_mean'] = float(vals.mean()) if vals.size else math.nan
             entry[f'{key}_std'] = float(vals.std()) if vals.size else math.nan

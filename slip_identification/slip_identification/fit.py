@@ -163,7 +163,7 @@ def nerr(model_state: ArrayLike, measured_state: ArrayLike) -> float:
 
     Parameters
     ----------
-    model_state, measured_state : array_like, shape (N, 4)
+    model_state, measured_state : array_like, shape (N, 4), ``(bx, bx', bz, bz')``
 
     Returns
     -------
@@ -179,7 +179,7 @@ def nerr(model_state: ArrayLike, measured_state: ArrayLike) -> float:
 
 def nerr_denominator(measured_state: ArrayLike, *, origin: str = 'stance') -> float:
     """Eq. 2's normaliser ``sum_i ||x^e_i||`` of a stance's measured states (N, 4)
-    ``(bx, bz, vx, vz)``.
+    ``(bx, bx', bz, bz')``.
 
     ``origin='stance'`` (what nerr uses): ``bx`` from the stance's first sample, so that
     the SLIP-measure does not depend on where the world frame's origin lies (the paper
@@ -233,6 +233,10 @@ class SlipFitResult:
     #: the nerr that the motion capture's white noise alone gives this stance through the
     #: spline's states (:func:`nerr_noise_floor`); NaN when the noise is not known
     nerr_noise_floor: float = math.nan
+    #: Eq. 2 read literally: normalised by the states with ``bx`` in the world frame (the
+    #: paper's Table 3 measure; it depends on where the frame's origin lies, so ``nerr``
+    #: takes ``bx`` from the stance's first sample: :func:`nerr_denominator`)
+    nerr_world: float = math.nan
 
     @property
     def stiffness_npm(self) -> float:
@@ -990,6 +994,7 @@ class SlipFitter:
         # the search minimises nerr over the world-frame normaliser (a constant per stance:
         # the same optimum); reported over the stance's own (:func:`nerr_denominator`)
         rel = nerr_denominator(s.state, origin='world') / nerr_denominator(s.state)
+        f_world = f
         f *= rel
         other: dict[str, Any] = {}
         if alt is not None:
@@ -1004,7 +1009,7 @@ class SlipFitter:
             touchdown_s=s.touchdown_s, liftoff_s=s.liftoff_s, tripod=s.tripod,
             label=s.label, rss=rss, start=start,
             force_swing=spring_force_swing(s, dict(zip(names, map(float, p)))),
-            other_minimum=other, nerr_noise_floor=nerr_noise_floor(s))
+            other_minimum=other, nerr_noise_floor=nerr_noise_floor(s), nerr_world=f_world)
 
 
 #: relative forward-difference step of the position fit's Jacobian (scipy's '2-point')

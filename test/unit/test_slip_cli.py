@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
+import numpy as np
 import pytest
 
 from slip_identification.cli import add_cli
@@ -45,6 +46,10 @@ def test_slip_command_writes_schema_and_refuses_missing_topic(tmp_path):
     assert {x['start'] for x in doc['stances']} <= {'paper', 'stance1', 'stance2'}
     assert s['liftoff'] > s['touchdown']
     assert doc['gaits']['running']['stances'] == len(doc['stances'])
+    # Eq. 2 read literally (world-frame bx) beside the origin-free nerr: per stance and gait
+    world = [x['nerr_world'] for x in doc['stances']]
+    assert all(w is not None and w > 0 for w in world)
+    assert doc['gaits']['running']['nerr_world_mean'] == pytest.approx(np.mean(world))
     assert len(doc['failed_bags']) == 1 and 'lacks topic' in doc['failed_bags'][0]['error']
     # defaults: geometric edges and offset (the bag has hip angles), paper edges side by side
     r = doc['runs'][0]
