@@ -999,6 +999,16 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                          geometry_damping_fitted=geometry.leg_damping_time_s is None)
     res.offset_s = off
     res.offset_method = method
+    if method in ('contact', 'joint', 'xcorr'):
+        # without the leg geometry's fit the first estimates stand alone: good on aerial
+        # gaits, far off on gaits with double support (an outside audit, simulated EduBot:
+        # contact +4 ms running and jogging, +22 / -25 / -8.5 ms pace, +65 ms walk; xcorr
+        # +15 to -99 ms), silently
+        res.warn(f'the stream offset {1e3 * off:+.1f} ms rests on the {method!r} estimate '
+                 'alone (no leg-geometry fit: --geometry none, or no hip angles): on '
+                 'simulated EduBot runs it is within 4 ms on running and jogging but 8-65 ms '
+                 'off on pace and walk (xcorr 15-99 ms); stances and fits move with it. Give '
+                 'the leg geometry, or the offset if it is known (--offset S)')
     res.edges = edges
     tm = tm - off
     track = sagittal_state(tm[inside], pw)
