@@ -218,19 +218,18 @@ def _infeasible(gait: Any, servo: str = 'ax18a', *, support: bool = True) -> lis
 
 def _run_robot(args: argparse.Namespace) -> int:
     from .robot_sim import RobotConfig, RobotSimulator
-    mass = float(RobotConfig.robot_mass_kg)
+    from hexapod_gait.kinematics import ANTBOT_LEG
+
+    # AntBot's body with this many legs (as sim_robot and the leg-count sweep: 1.851 kg on 4
+    # legs); the six-leg 2.183 kg was kept for any leg count (a review)
+    mass = float(RobotConfig.robot_mass_kg) + (args.legs - 6) * sum(ANTBOT_LEG.link_masses_kg)
     if args.payload > MAX_PAYLOAD_RATIO * mass:
         print(f'hexapod-sim robot: error: --payload {args.payload:g} kg is more than '
               f'{MAX_PAYLOAD_RATIO:g} x the robot\'s mass ({mass:g} kg): at most '
               f'{MAX_PAYLOAD_RATIO * mass:.4g} kg', file=sys.stderr)
         return 2
     effects = parse_effects(args.effect, simulator='robot')
-    # AntBot's body with this many legs (as sim_robot and the leg-count sweep: 1.851 kg on 4
-    # legs); the six-leg 2.183 kg was kept for any leg count (a review)
-    from hexapod_gait.kinematics import ANTBOT_LEG
-
-    robot_mass = mass + (args.legs - 6) * sum(ANTBOT_LEG.link_masses_kg)
-    config = RobotConfig(robot_mass_kg=robot_mass,
+    config = RobotConfig(robot_mass_kg=mass,
                          leg_count=args.legs, gait=args.gait, duty_factor=args.duty_factor,
                          period_s=args.period,
                          speed_mps=args.speed if args.speed is not None else 0.0,

@@ -29,11 +29,21 @@ from collections import deque
 from collections.abc import Iterable, Mapping
 from typing import Any
 
-__all__ = ['SEQUENCE_UNSUPPORTED', 'PublisherSequences', 'endpoint_names', 'publication_sequence']
+__all__ = ['SEQUENCE_UNSUPPORTED', 'PublisherSequences', 'endpoint_names', 'publication_sequence',
+           'source_time']
 
 #: ``RMW_MESSAGE_INFO_SEQUENCE_NUMBER_UNSUPPORTED`` (UINT64_MAX): a middleware that does not
 #: number its messages
 SEQUENCE_UNSUPPORTED = 2 ** 64 - 1
+
+
+def source_time(info: Mapping[str, Any] | None) -> float | None:
+    """The time [s] a message was sent, from rclpy's message info (``source_timestamp``),
+    or None."""
+    if not info:
+        return None
+    t = info.get('source_timestamp')
+    return float(t) * 1e-9 if isinstance(t, int) and t > 0 else None
 
 
 def publication_sequence(info: Mapping[str, Any] | None) -> int | None:
@@ -86,6 +96,9 @@ class PublisherSequences:
         self.interleaving = False
         self._last: list[int] = []          # each series' last number
         self._used: list[int] = []          # the message count at each series' last message
+        # each series' first and last (number, time) seen, for its start (series_starts)
+        self._first_at: list[tuple[int, float] | None] = []
+        self._last_at: list[tuple[int, float] | None] = []
         self._current = -1                  # the series of the previous message
         self._switches: deque[int] = deque()
 
@@ -94,8 +107,9 @@ class PublisherSequences:
         """Whether the messages carry sequence numbers (False until one does)."""
         return self.messages > 0
 
-    def add(self, seq: int | None) -> bool:
-        """One message's sequence number (None: not numbered, ignored)."""
+    def add(self, seq: int | None, t_s: float | None = None) -> bool:
+        """One message's sequence number (None: not numbered, ignored) and, optionally, the
+        time it was sent [s] (the message info's ``source_timestamp``: :meth:`series_starts`)."""
         if seq is None:
             self.unnumbered += 1
             return False
@@ -111,18 +125,26 @@ class PublisherSequences:
             if len(self._last) >= self.max_series:
                 oldest = min(range(len(self._used)), key=self._used.__getitem__)
                 del self._last[oldest], self._used[oldest]
+                del self._first_at[oldest], self._last_at[oldest]
                 if self._current == oldest:
                     self._current = -1
                 elif self._current > oldest:
                     self._current -= 1
             self._last.append(seq)
             self._used.append(n)
+            at = (seq, float(t_s)) if t_s is not None else None
+            self._first_at.append(at)
+            self._last_at.append(at)
             best = len(self._last) - 1
         else:
             if best != self._current and self._current >= 0:
                 self._switches.append(n)    # a series seen before speaks again
             self._last[best] = seq
             self._used[best] = n
+            if t_s is not None:
+                self._last_at[best] = (seq, float(t_s))
+                if self._first_at[best] is None:
+                    self._first_at[best] = (seq, float(t_s))
         self._current = best
         # series silent for a whole window are gone (a crashed publisher's last numbers)
         keep = [i for i, u in enumerate(self._used) if n - u <= self.window or i == best]
@@ -130,6 +152,8 @@ class PublisherSequences:
             self._current = keep.index(best)
             self._last = [self._last[i] for i in keep]
             self._used = [self._used[i] for i in keep]
+            self._first_at = [self._first_at[i] for i in keep]
+            self._last_at = [self._last_at[i] for i in keep]
         while self._switches and n - self._switches[0] >= self.window:
             self._switches.popleft()
         if len(self._switches) >= self.min_switches:
@@ -145,6 +169,20 @@ class PublisherSequences:
         """Each live series' last number (about how many messages its publisher has sent,
         when the subscription matched from its start)."""
         return list(self._last)
+
+    def series_starts(self) -> list[float | None]:
+        """Each live series' start [s]: when its publisher sent its number 1, extrapolated at
+        the rate its numbers rose between its first and last messages seen (None with fewer
+        than two timed messages). Unlike the numbers themselves, these compare publishers of
+        different rates (a 10 Hz node walking 4 s against a 100 Hz one walking 1 s)."""
+        out: list[float | None] = []
+        for first, last in zip(self._first_at, self._last_at):
+            if first is None or last is None or last[0] <= first[0] or last[1] <= first[1]:
+                out.append(None)
+                continue
+            period = (last[1] - first[1]) / (last[0] - first[0])
+            out.append(last[1] - (last[0] - 1) * period)
+        return out
 
     @property
     def live_series(self) -> int:

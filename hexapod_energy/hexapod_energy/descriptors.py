@@ -447,9 +447,11 @@ STILL_JOINTS_RAD = 0.02
 #: ... and whose joint velocities all stay below this [rad/s] (a driver that fills no positions
 #: but velocities is moving)
 STILL_JOINTS_RAD_S = 0.2
-#: ... judged on joints with at least this many position samples in the window, spread over
-#: at least half of it (fewer cannot show a still joint: one per cycle reads a range of 0)
-STILL_MIN_SAMPLES = 8
+#: ... judged on joints whose position samples fall in at least this many of
+#: :data:`STILL_PHASE_BINS` phase bins of the gait cycle (samples at one phase cannot show a
+#: still joint: one per cycle reads a range of 0 on a walking robot)
+STILL_MIN_PHASES = 3
+STILL_PHASE_BINS = 10
 #: warning of such a window (its speed and model P_out are not the schedule's)
 STILL_JOINTS_NOTE = ('the leg joints did not move in this window while /gait/phase says '
                      'walking: the robot did not follow the schedule (joint_commands not '
@@ -1302,7 +1304,7 @@ class DescriptorAccumulator:
         stand = gait is not None and gait.gait != 'buehler' and not (
             gait.step_length_m > 0 or gait.step_height_m > 0 or gait.sweep_angle_rad > 0)
         if gait is not None and (gait.step_length_m > 0 or clock) and not stand:
-            moved = self._joint_motion_rad(t0, t1)
+            moved = self._joint_motion_rad(t0, t1, float(gait.period_s))
             if moved is not None and moved < STILL_JOINTS_RAD:
                 # the schedule's speed and the Eq. 6 model are a walking robot's: a robot
                 # standing still read 0.15 m/s, specific resistance 2.85 for 6.93 walking
@@ -1320,7 +1322,7 @@ class DescriptorAccumulator:
                                        cycle_source='joints' if joint_path else 'gait_phase',
                                        joint_power_net_w=net)
 
-    def _joint_motion_rad(self, t0: float, t1: float) -> float | None:
+    def _joint_motion_rad(self, t0: float, t1: float, period_s: float = 0.0) -> float | None:
         """The largest position range [rad] of any leg joint over the window, None without
         positions in it; infinite when a joint velocity says it moved (positions a driver
         leaves constant)."""
@@ -1337,12 +1339,14 @@ class DescriptorAccumulator:
                     lo[name] = min(q, lo.get(name, q))
                     hi[name] = max(q, hi.get(name, q))
                     seen.setdefault(name, []).append(t)
-        # too few samples, or samples bunched in one part of the window, cannot show a still
-        # joint: one sample per gait cycle reads a range of 0 on a walking robot (a review:
-        # joint states at 1 Hz without velocities, every window of a walking run left out)
-        span = t1 - t0
+        # samples at too few phases of the gait cycle cannot show a still joint: one sample
+        # per cycle reads a range of 0 on a walking robot (a review: joint states at 1 Hz
+        # without velocities, every window of a walking run left out); a fixed sample count
+        # missed a still robot at an AX-18A bus's 11 Hz (another review)
+        cycle = period_s if period_s > 0 else (t1 - t0)
         judged = [n for n, ts in seen.items()
-                  if len(ts) >= STILL_MIN_SAMPLES and max(ts) - min(ts) >= 0.5 * span]
+                  if len({int(((t - t0) / cycle % 1.0) * STILL_PHASE_BINS) for t in ts})
+                  >= STILL_MIN_PHASES]
         if not judged:
             return None
         return max(hi[n] - lo[n] for n in judged)

@@ -94,6 +94,7 @@ from hexapod_common.clocks import LiveClockWatch, StreamLoss
 from hexapod_common.conversions import (
     MOCAP_TYPES,
     battery_from_msg,
+    battery_source,
     gait_phase_from_msg,
     joint_state_from_msg,
     odometry_from_msg,
@@ -128,6 +129,10 @@ __all__ = ['EnergyMonitorNode', 'EnergyParams', 'descriptors_to_msg', 'main']
 
 #: AntBot's mass without payload [kg] (Brodoline et al.), assumed when ``mass`` is not given
 ANTBOT_MASS_KG = 2.183
+
+#: battery names whose publishers are told apart (:mod:`hexapod_common.publishers`); more
+#: (names that keep changing) forget the oldest
+MAX_BATTERY_NAMES = 16
 
 #: leading battery samples with V * I == 0 after which the node reports an unmeasured current
 ZERO_POWER_SAMPLES = 100
@@ -374,9 +379,12 @@ class EnergyMonitorNode(Node):
 
     def _on_battery(self, msg: BatteryState, info: Any = None) -> None:
         self.inputs.seen('battery_state')
-        name = str(msg.header.frame_id)
+        name = battery_source(msg)   # as the combiner names it: frame_id, location, serial
         seqs = self._battery_seqs.get(name)
         if seqs is None:
+            if len(self._battery_seqs) >= MAX_BATTERY_NAMES:
+                # names that keep changing (a counter in frame_id): the oldest forgotten
+                del self._battery_seqs[next(iter(self._battery_seqs))]
             seqs = self._battery_seqs[name] = PublisherSequences()
         if seqs.add(publication_sequence(info)):
             self._battery_interleaved = name
@@ -449,8 +457,9 @@ class EnergyMonitorNode(Node):
         how = ('the graph\'s count' if n is not None
                else 'their messages\' sequence numbers interleave')
         self.get_logger().error(
-            f'{n or "several live"} publishers on {topic} name one battery (frame_id '
-            f'{name!r}; {how}; publishers in the graph: {self._publisher_names(topic)}): '
+            f'{n or "several live"} publishers on {topic} name one battery ({name!r}, from '
+            f'header.frame_id, location or serial_number; {how}; publishers in the graph: '
+            f'{self._publisher_names(topic)}): '
             'their samples interleave and are read as one '
             'battery (the mean of the packs, not their sum); give each monitor its own '
             'header.frame_id (they are then summed) or keep one with -p battery_source')

@@ -2,7 +2,8 @@
 
 Publishes ``gait/phase`` (hexapod_interfaces/GaitPhase) and ``joint_commands``
 (sensor_msgs/JointState, position and velocity) at ``rate`` Hz on a timer of the node clock
-(so ``use_sim_time`` works). Parameter changes at run time start a phase-continuous transition
+(so ``use_sim_time`` works); their ``header.frame_id`` is the node's fully qualified name (who
+sent the schedule). Parameter changes at run time start a phase-continuous transition
 (:class:`hexapod_gait.scheduler.GaitScheduler`); an infeasible request is refused with its reason
 and the gait keeps running. The science is in the core modules of :mod:`hexapod_gait`.
 
@@ -35,17 +36,20 @@ publisher before its first command makes it refuse to walk: it publishes nothing
 exits with :data:`EXIT_ANOTHER_GAIT` (2). After its first command, another publisher is told
 from the messages' publication sequence numbers (:mod:`hexapod_common.publishers`; a
 middleware without them leaves only the check before the first command); which node
-walked first is told from the publishers' sequence numbers (about how many messages each has
-sent): the one ahead by more than :data:`NEWCOMER_MARGIN` keeps walking and logs an error
-(once per episode) naming the publishers, the other stops; two that started within that many
-commands of each other both stop. (Before, two ``gait_scheduler`` or a
+walked first is told from each publisher's start, extrapolated from its numbers and send
+times: the one that started more than :data:`NEWCOMER_MARGIN` command periods earlier keeps
+walking and logs an error (once per episode) naming the publishers, the other stops; two that
+started within that of each other both stop. (Before, two ``gait_scheduler`` or a
 lab's own command node interleaved their commands without a word.)
 """
 
 from __future__ import annotations
 
+import collections
 import functools
+import math
 import signal
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -54,6 +58,7 @@ from hexapod_interfaces.msg import GaitPhase
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.serialization import serialize_message
 from rclpy.task import Future
 from sensor_msgs.msg import JointState
 
@@ -67,7 +72,12 @@ from hexapod_common.node_utils import (
     param,
     run_node,
 )
-from hexapod_common.publishers import PublisherSequences, endpoint_names, publication_sequence
+from hexapod_common.publishers import (
+    PublisherSequences,
+    endpoint_names,
+    publication_sequence,
+    source_time,
+)
 from hexapod_gait.buehler import BUEHLER_PRESETS, BuehlerClock
 from hexapod_gait.config import build_gait, check_static_support
 from hexapod_gait.errors import HexapodGaitError
@@ -86,9 +96,36 @@ EXIT_NOT_STOOD = 1
 #: Exit code of a node that found another publisher on its topics that walked first, or
 #: started with it (two schedules would drive one robot's joints)
 EXIT_ANOTHER_GAIT = 2
-#: a node that hears another publisher on its topics stops unless it has sent more than this
-#: many messages more than the other (the other walked first, or both started together)
+#: a node that hears another publisher on its topics stops unless it started more than this
+#: many of its command periods before the other (the other walked first, or both started
+#: together)
 NEWCOMER_MARGIN = 2
+#: without sequence numbers (a middleware that gives none): a node that hears another
+#: publisher within this many seconds of its first command stops
+NEWCOMER_S = 2.0
+#: another publisher silent this long [s] and heard again starts a new episode (judged again)
+FOREIGN_QUIET_S = 2.0
+
+
+class _SentHashes:
+    """The hashes of the last messages a node sent on a topic (a bounded multiset)."""
+
+    def __init__(self, size: int = 512) -> None:
+        self._order: collections.deque[int] = collections.deque()
+        self._count: dict[int, int] = {}
+        self.size = size
+
+    def add(self, h: int) -> None:
+        self._order.append(h)
+        self._count[h] = self._count.get(h, 0) + 1
+        if len(self._order) > self.size:
+            old = self._order.popleft()
+            self._count[old] -= 1
+            if not self._count[old]:
+                del self._count[old]
+
+    def __contains__(self, h: int) -> bool:
+        return h in self._count
 #: before its first command, a node whose topics have another publisher in the graph listens
 #: this long [s] for that publisher's messages (none: a crashed node's endpoint)
 STARTUP_LISTEN_S = 1.0
@@ -257,7 +294,13 @@ class GaitSchedulerNode(Node):
         self._stop_requests = 0
         # one gait node per robot: its own topics, listened to (module docs)
         self._own_pubs = {'gait/phase': self.phase_pub, 'joint_commands': self.cmd_pub}
-        self._sequences = {topic: PublisherSequences() for topic in self._own_pubs}
+        # hashes of the messages this node sent (its own, when they come back), and the other
+        # publishers' numbers and send times
+        self._sent = {topic: _SentHashes() for topic in self._own_pubs}
+        self._foreign = {topic: PublisherSequences() for topic in self._own_pubs}
+        self._foreign_last: dict[str, float] = {}
+        self._foreign_decided: set[str] = set()
+        self._first_command_wall = math.nan
         for topic, kind in (('gait/phase', GaitPhase), ('joint_commands', JointState)):
             self.create_subscription(kind, topic, functools.partial(self._on_own_topic, topic),
                                      SENSOR_QOS, raw=True)
@@ -372,34 +415,52 @@ class GaitSchedulerNode(Node):
         return endpoint_names(infos)
 
     def _on_own_topic(self, topic: str, data: Any, info: Any) -> None:
-        """A message on one of this node's own topics: its own, or another publisher's."""
+        """A message on one of this node's own topics: its own (the very bytes it sent), or
+        another publisher's."""
         if self.finished.done():
             return
         if self._first_command_ns is None:   # nothing sent yet: another publisher's
             if self._foreign_before_start is None:
                 self._foreign_before_start = topic
             return
-        if not self._sequences[topic].add(publication_sequence(info)):
+        if hash(bytes(data)) in self._sent[topic]:
+            return                            # our own
+        foreign = self._foreign[topic]
+        seq = publication_sequence(info)
+        foreign.add(seq, source_time(info))
+        now = time.time()
+        quiet = now - self._foreign_last.get(topic, -math.inf) > FOREIGN_QUIET_S
+        self._foreign_last[topic] = now
+        if quiet:
+            self._foreign_decided.discard(topic)   # a new episode
+        if topic in self._foreign_decided:
             return
+        # who walked first: the other's start, extrapolated from its numbers and send times
+        # (message counts alone misjudge nodes of different rates: a review's 10 Hz node
+        # walking 4 s stopped for a 100 Hz newcomer's 107 messages), against this node's
+        starts = [x for x in foreign.series_starts() if x is not None]
+        if seq is not None and not starts and foreign.messages < 3:
+            return                            # one message: its rate not known yet
+        own_start = self._first_command_wall
+        other_start = min(starts) if starts else None
+        margin = NEWCOMER_MARGIN / self.params.rate
+        walked_s = now - own_start
+        if other_start is None:               # a middleware without numbers: the time rule
+            newcomer, tie = walked_s < NEWCOMER_S, False
+        else:
+            newcomer = own_start >= other_start - margin
+            tie = abs(own_start - other_start) <= margin
+        self._foreign_decided.add(topic)
         name = self._own_pubs[topic].topic_name
-        now_ns = self.get_clock().now().nanoseconds
-        walked_s = (now_ns - self._first_command_ns) * 1e-9
-        # who walked first: each series' last number is about how many messages its
-        # publisher has sent (ours: the one nearest our own count)
-        lasts = self._sequences[topic].series_last()
-        own = min(lasts, key=lambda n: abs(n - self.ticks))
-        rest = list(lasts)
-        rest.remove(own)
-        other = max(rest) if rest else own
-        if own <= other + NEWCOMER_MARGIN:
-            tie = other <= own + NEWCOMER_MARGIN
+        if newcomer:
+            when = ('' if other_start is None else
+                    f'; it started {own_start - other_start:.3f} s before this node')
             self.get_logger().error(
                 f'another node publishes on {name} (publishers in the graph: '
-                f'{self._publisher_names(topic)}; its messages about {other}, this node\'s '
-                f'{own}): two schedules would drive the same joints; this node stops '
-                f'publishing and exits (code {EXIT_ANOTHER_GAIT}), '
-                + ('both started within a few commands of each other, so both stop'
-                   if tie else 'the other, walking longer, keeps the robot'))
+                f'{self._publisher_names(topic)}{when}): two schedules would drive the same '
+                f'joints; this node stops publishing and exits (code {EXIT_ANOTHER_GAIT}), '
+                + ('both started within a few commands of each other, so both stop' if tie
+                   else 'the other, walking longer, keeps the robot'))
             self.finished.set_result(EXIT_ANOTHER_GAIT)
             return
         self.other_publishers_reported += 1
@@ -475,8 +536,17 @@ class GaitSchedulerNode(Node):
             return
         if self._first_command_ns is None:
             self._first_command_ns = now_ns
-        self.phase_pub.publish(gait_state_to_msg(state, t, t_ns=now_ns))
-        self.cmd_pub.publish(joint_command_msg(t, names, q, qd, t_ns=now_ns))
+            self._first_command_wall = time.time()
+        # sent as bytes, their hashes kept: this node knows its own messages when they come
+        # back on its listening subscriptions
+        for topic, msg in (('gait/phase', gait_state_to_msg(state, t, t_ns=now_ns)),
+                           ('joint_commands', joint_command_msg(t, names, q, qd, t_ns=now_ns))):
+            # who sent it (two gait nodes on one clock send the same schedule otherwise byte
+            # for byte, and each would take the other's for its own)
+            msg.header.frame_id = self.get_fully_qualified_name()
+            data = serialize_message(msg)
+            self._sent[topic].add(hash(data))
+            self._own_pubs[topic].publish(data)
         self.ticks += 1
         if self._stop_began_s is not None:
             self._check_stop(state, now_ns * 1e-9)

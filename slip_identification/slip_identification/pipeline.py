@@ -1004,11 +1004,14 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
         # gaits, far off on gaits with double support (an outside audit, simulated EduBot:
         # contact +4 ms running and jogging, +22 / -25 / -8.5 ms pace, +65 ms walk; xcorr
         # +15 to -99 ms), silently
+        why = ('the one chosen (--offset ' + method + '), kept fixed in the leg-geometry fit'
+               if can_geo else 'alone (no leg-geometry fit: --geometry none, or no hip angles)')
         res.warn(f'the stream offset {1e3 * off:+.1f} ms rests on the {method!r} estimate '
-                 'alone (no leg-geometry fit: --geometry none, or no hip angles): on '
-                 'simulated EduBot runs it is within 4 ms on running and jogging but 8-65 ms '
-                 'off on pace and walk (xcorr 15-99 ms); stances and fits move with it. Give '
-                 'the leg geometry, or the offset if it is known (--offset S)')
+                 f'{why}: on simulated EduBot runs it is within 4 ms on running and jogging '
+                 'but 8-65 ms off on pace and walk (xcorr 15-99 ms); stances and fits move '
+                 'with it. ' + ('The default (--offset auto) fits it with the geometry'
+                                if can_geo else 'Give the leg geometry') +
+                 ', or the offset if it is known (--offset S)')
     res.edges = edges
     tm = tm - off
     track = sagittal_state(tm[inside], pw)

@@ -144,7 +144,8 @@ def test_one_gait_publisher_is_never_reported() -> None:
     assert node.gait_publishers_warned == 0 and node.battery_publishers_warned == 0, errors
 
 
-def _publish_batteries(env: Any, node: Any, names: list[str], n: int = 40) -> None:
+def _publish_batteries(env: Any, node: Any, names: list[str], n: int = 40,
+                       field: str = 'frame_id') -> None:
     feeder = env.add(rclpy.create_node(f'packs{len(env.nodes)}', context=env.context,
                                        namespace=env.namespace))
     pubs = [feeder.create_publisher(BatteryState, 'battery_state', KEEP_ALL_QOS)
@@ -154,7 +155,10 @@ def _publish_batteries(env: Any, node: Any, names: list[str], n: int = 40) -> No
         for pub, name in zip(pubs, names):
             msg = BatteryState(voltage=12.0, current=-1.0)
             msg.header.stamp = _stamp(20.0 + 0.01 * k)
-            msg.header.frame_id = name
+            if field == 'frame_id':
+                msg.header.frame_id = name
+            else:
+                setattr(msg, field, name)
             pub.publish(msg)
         env.executor.spin_once(timeout_sec=0.0)
     env.spin_until(lambda: False, 0.2)
@@ -177,3 +181,15 @@ def test_batteries_of_distinct_names_or_one_kept_are_not_reported_a_doubled_one_
         _publish_batteries(env, summed, ['servo', 'logic', 'servo'])   # servo doubled
         assert env.spin_until(lambda: summed.battery_publishers_warned == 1, 20)
         assert kept.battery_publishers_warned == 1       # the kept name, doubled
+
+
+@pytest.mark.timeout(120)
+def test_batteries_named_by_location_are_summed_not_reported() -> None:
+    """A review: packs named by ``location`` (frame_id empty), which the combiner sums, were
+    reported as "name one battery" (the tracking keyed on frame_id alone)."""
+    with ros_env('battery_location') as env:
+        node = _energy(env)
+        errors = capture_errors(node)
+        _publish_batteries(env, node, ['servo', 'logic'], field='location')
+        assert node.battery_publishers_warned == 0, errors
+        assert set(node.batteries.sources_) == {'servo', 'logic'}

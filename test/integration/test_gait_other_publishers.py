@@ -51,23 +51,39 @@ def test_a_second_gait_node_refuses_to_walk_and_the_first_walks_on() -> None:
     assert first_errors == [] and not first.finished.done()
 
 
+def _hear(node: Any, seqs: list[int], t0_s: float, rate_hz: float) -> None:
+    """Another publisher's messages as the node's own-topic subscription takes them: its
+    numbers and send times (a node discovered late, walking since ``t0_s`` at ``rate_hz``)."""
+    for n in seqs:
+        node._on_own_topic('gait/phase', b'', {
+            'publication_sequence_number': n,
+            'source_timestamp': int((t0_s + (n - 1) / rate_hz) * 1e9)})
+        if node.finished.done():
+            return
+
+
 @pytest.mark.timeout(120)
-def test_a_newcomer_that_walked_before_it_heard_the_other_stops_at_once() -> None:
+@pytest.mark.parametrize('rate_hz,walked_s', [(100.0, 3.0), (10.0, 4.0)])
+def test_a_newcomer_that_walked_before_it_heard_the_other_stops_at_once(rate_hz,
+                                                                       walked_s) -> None:
     """Discovery can take longer than the start-up listen (1.4 s measured on a busy machine):
-    the newcomer hears the other by the interleaved sequence numbers and stops."""
+    the newcomer hears the other by the interleaved sequence numbers and stops. Who walked
+    first is judged by the publishers' starts, not their message counts (a review: a 10 Hz
+    node walking 4 s stopped for a 100 Hz newcomer's 107 messages)."""
+    import time
+
     from hexapod_gait.gait_node import EXIT_ANOTHER_GAIT
 
     with ros_env('gait_late') as env:
         node = _gait(env, 'gait_late', startup_listen_s=0.0)
         errors = capture_errors(node)
-        assert env.spin_until(lambda: node.ticks >= 5, 30)
-        _, phase, _ = _feeder(env)
-        assert env.spin_until(lambda: phase.get_subscription_count() >= 1, 20)
-        for k in range(60):        # the other has been walking longer: 60 messages at once
-            phase.publish(GaitPhase(gait='tripod', period=1.0))
-        for k in range(100):
-            phase.publish(GaitPhase(gait='tripod', period=1.0))
-            env.executor.spin_once(timeout_sec=0.0)
+        assert env.spin_until(lambda: node.ticks >= 30, 30)
+        now = time.time()
+        t0 = now - walked_s                      # the other started walked_s ago
+        sent = int(walked_s * rate_hz)
+        for k in range(10):                      # its messages interleave with ours
+            _hear(node, [sent + k], t0, rate_hz)
+            env.executor.spin_once(timeout_sec=0.02)
             if node.finished.done():
                 break
         assert env.spin_until(lambda: node.finished.done(), 20)
@@ -77,6 +93,25 @@ def test_a_newcomer_that_walked_before_it_heard_the_other_stops_at_once() -> Non
         assert node.ticks == ticks           # nothing published after the refusal
     assert len(errors) == 1 and 'stops publishing' in errors[0]
     assert 'walking longer, keeps the robot' in errors[0]
+
+
+@pytest.mark.timeout(120)
+def test_an_older_slow_node_keeps_walking_beside_a_fast_newcomer() -> None:
+    """The reverse of the review's case: this node (10 Hz) walked 3 s, a 100 Hz newcomer
+    with many more messages appears: this node keeps walking and says so."""
+    import time
+
+    with ros_env('gait_slow_old') as env:
+        node = _gait(env, 'gait_slow', startup_listen_s=0.0, rate=10.0)
+        errors = capture_errors(node)
+        assert env.spin_until(lambda: node.ticks >= 30, 30)
+        t0 = time.time() - 0.5                   # the newcomer: 0.5 s at 100 Hz
+        for k in range(20):
+            _hear(node, [50 + k], t0, 100.0)
+            env.executor.spin_once(timeout_sec=0.1)
+        assert not node.finished.done()
+        assert node.other_publishers_reported == 1
+    assert len(errors) == 1 and 'keeps walking' in errors[0]
 
 
 @pytest.mark.timeout(120)

@@ -34,11 +34,12 @@ def _gait(t: float, legs=LEGS, step: float = 0.1) -> GaitPhaseSample:
 
 
 def _run(moving: bool, *, legs=LEGS, velocities: bool = True, still_until: float = -math.inf,
-         model=None, positions: bool = True, joint_every: int = 1) -> list:
+         model=None, positions: bool = True, joint_every: int = 1, cycles: int = 1,
+         steps: int = 600) -> list:
     acc = DescriptorAccumulator(mass_kg=2.183, current_sign='ros', power_out_model=model,
-                                power_out_source='auto' if model else 'effort')
+                                power_out_source='auto' if model else 'effort', cycles=cycles)
     out = []
-    for k in range(600):
+    for k in range(steps):
         t = T0 + 0.01 * k
         ph = 2 * math.pi * (t - T0) / PERIOD
         move = moving and t >= still_until
@@ -91,6 +92,21 @@ def test_joint_states_sampled_once_a_cycle_cannot_show_a_still_robot(every):
     in every window, and every window of a walking run was left out."""
     out = _run(True, velocities=False, joint_every=every)
     assert out and not any(_still(d) for d in out)
+
+
+def test_one_sample_a_cycle_over_windows_of_several_cycles_is_not_judged():
+    """A review: with -p cycles:=8 and joint states once a cycle, walking windows were
+    still flagged (8 samples, all at one phase)."""
+    out = _run(True, velocities=False, joint_every=100, cycles=8, steps=3000)
+    assert out and not any(_still(d) for d in out)
+
+
+@pytest.mark.parametrize('every', [9, 10])
+def test_a_still_robot_is_seen_at_an_ax_bus_rate(every):
+    """A review: at an AX-18A bus's 11 Hz (89 ms cycles) a fixed minimum of 8 samples per
+    window missed a still robot on 1 s (and 0.5 s) cycles."""
+    out = _run(False, velocities=False, joint_every=every)
+    assert out and all(_still(d) for d in out)
 
 
 def test_the_model_p_out_of_a_still_window_is_unknown():

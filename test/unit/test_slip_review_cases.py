@@ -202,6 +202,9 @@ def test_ground_from_the_mocap_origin_is_said_with_the_com_height(jogging):
     # pace and walk, silently); with the geometry it is not
     assert any('rests on the' in w and 'alone' in w for w in res.warnings)
     assert not any('rests on the' in w for w in res_geo.warnings)
+    chosen = analyze_run(raised, box=BOX, offset_s='contact', geometry=geo, position_fit=False)
+    [w] = [w for w in chosen.warnings if 'rests on the' in w]
+    assert 'the one chosen (--offset contact)' in w and '--geometry none' not in w
 
 
 def test_stances_cut_by_the_start_or_end_of_tracking_are_outside_volume(jogging):
