@@ -380,12 +380,14 @@ class EnergyMonitorNode(Node):
     def _on_battery(self, msg: BatteryState, info: Any = None) -> None:
         self.inputs.seen('battery_state')
         name = battery_source(msg)   # as the combiner names it: frame_id, location, serial
-        seqs = self._battery_seqs.get(name)
+        seqs = self._battery_seqs.pop(name, None)   # re-inserted: the dict is in recency order
         if seqs is None:
             if len(self._battery_seqs) >= MAX_BATTERY_NAMES:
-                # names that keep changing (a counter in frame_id): the oldest forgotten
+                # names that keep changing (a counter in frame_id): the least recently heard
+                # forgotten, not a steady pack heard first
                 del self._battery_seqs[next(iter(self._battery_seqs))]
-            seqs = self._battery_seqs[name] = PublisherSequences()
+            seqs = PublisherSequences()
+        self._battery_seqs[name] = seqs
         if seqs.add(publication_sequence(info)):
             self._battery_interleaved = name
         self._publish(self._guard('BatteryState', self._add_battery, msg))

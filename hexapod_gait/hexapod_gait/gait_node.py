@@ -2,8 +2,9 @@
 
 Publishes ``gait/phase`` (hexapod_interfaces/GaitPhase) and ``joint_commands``
 (sensor_msgs/JointState, position and velocity) at ``rate`` Hz on a timer of the node clock
-(so ``use_sim_time`` works); their ``header.frame_id`` is the node's fully qualified name (who
-sent the schedule). Parameter changes at run time start a phase-continuous transition
+(so ``use_sim_time`` works); their ``header.frame_id`` is ``<node>@<pid>@<ns>``: the node's
+fully qualified name, its process and the wall time of its first command (who sent the
+schedule, and since when). Parameter changes at run time start a phase-continuous transition
 (:class:`hexapod_gait.scheduler.GaitScheduler`); an infeasible request is refused with its reason
 and the gait keeps running. The science is in the core modules of :mod:`hexapod_gait`.
 
@@ -36,10 +37,10 @@ publisher before its first command makes it refuse to walk: it publishes nothing
 exits with :data:`EXIT_ANOTHER_GAIT` (2). After its first command, another publisher is told
 from the messages' publication sequence numbers (:mod:`hexapod_common.publishers`; a
 middleware without them leaves only the check before the first command); which node
-walked first is told from each publisher's start, extrapolated from its numbers and send
-times: the one that started more than :data:`NEWCOMER_MARGIN` command periods earlier keeps
-walking and logs an error (once per episode) naming the publishers, the other stops; two that
-started within that of each other both stop. (Before, two ``gait_scheduler`` or a
+walked first is told from each publisher's start: the one another gait node states in its
+frame_id, else extrapolated from its numbers and send times. The one that started more than
+:data:`NEWCOMER_MARGIN_S` earlier keeps walking and logs an error (once per episode) naming
+the publishers, the other stops; two that started within that of each other both stop. (Before, two ``gait_scheduler`` or a
 lab's own command node interleaved their commands without a word.)
 """
 
@@ -48,6 +49,8 @@ from __future__ import annotations
 import collections
 import functools
 import math
+import os
+import re
 import signal
 import time
 from collections.abc import Sequence
@@ -58,7 +61,7 @@ from hexapod_interfaces.msg import GaitPhase
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.serialization import serialize_message
+from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.task import Future
 from sensor_msgs.msg import JointState
 
@@ -86,7 +89,7 @@ from hexapod_gait.gait import GAIT_NAMES, GaitPattern
 from hexapod_gait.scheduler import MIN_TRANSITION_CYCLES, GaitScheduler, GaitState
 from hexapod_gait.step_limits import limits_for_step
 
-__all__ = ['EXIT_ANOTHER_GAIT', 'EXIT_NOT_STOOD', 'NEWCOMER_MARGIN', 'STARTUP_LISTEN_S', 'GaitParams',
+__all__ = ['EXIT_ANOTHER_GAIT', 'EXIT_NOT_STOOD', 'NEWCOMER_MARGIN_S', 'STARTUP_LISTEN_S', 'GaitParams',
            'GaitSchedulerNode', 'gait_state_to_msg',
            'joint_command_msg', 'main', 'stand_on_signals']
 
@@ -97,14 +100,30 @@ EXIT_NOT_STOOD = 1
 #: started with it (two schedules would drive one robot's joints)
 EXIT_ANOTHER_GAIT = 2
 #: a node that hears another publisher on its topics stops unless it started more than this
-#: many of its command periods before the other (the other walked first, or both started
-#: together)
-NEWCOMER_MARGIN = 2
+#: many seconds before the other (the other walked first, or both started together; the same
+#: margin on both sides, whatever their rates)
+NEWCOMER_MARGIN_S = 0.02
 #: without sequence numbers (a middleware that gives none): a node that hears another
 #: publisher within this many seconds of its first command stops
 NEWCOMER_S = 2.0
-#: another publisher silent this long [s] and heard again starts a new episode (judged again)
-FOREIGN_QUIET_S = 2.0
+#: another publisher silent this long [s] (and 3 times its longest gap so far) and heard again
+#: starts a new episode (judged and reported again)
+FOREIGN_QUIET_S = 10.0
+
+#: ``header.frame_id`` of this node's messages: ``<node>@<pid>@<first command, ns of wall
+#: time>`` (who sent it, and since when: :func:`_stated_start`)
+_FRAME_RE = re.compile(r'@(\d+)@(\d+)$')
+
+
+def _stated_start(data: bytes, kind: Any) -> float | None:
+    """The wall time [s] another gait node says it sent its first command (its frame_id),
+    None for a publisher that does not say (not a gait_scheduler, or an older one)."""
+    try:
+        frame = deserialize_message(bytes(data), kind).header.frame_id
+    except Exception:   # noqa: BLE001 - bytes of another type or version: it does not say
+        return None
+    m = _FRAME_RE.search(str(frame))
+    return int(m.group(2)) * 1e-9 if m else None
 
 
 class _SentHashes:
@@ -299,6 +318,8 @@ class GaitSchedulerNode(Node):
         self._sent = {topic: _SentHashes() for topic in self._own_pubs}
         self._foreign = {topic: PublisherSequences() for topic in self._own_pubs}
         self._foreign_last: dict[str, float] = {}
+        self._foreign_gap: dict[str, float] = {}
+        self._own_types = {'gait/phase': GaitPhase, 'joint_commands': JointState}
         self._foreign_decided: set[str] = set()
         self._first_command_wall = math.nan
         for topic, kind in (('gait/phase', GaitPhase), ('joint_commands', JointState)):
@@ -429,21 +450,28 @@ class GaitSchedulerNode(Node):
         seq = publication_sequence(info)
         foreign.add(seq, source_time(info))
         now = time.time()
-        quiet = now - self._foreign_last.get(topic, -math.inf) > FOREIGN_QUIET_S
+        gap = now - self._foreign_last.get(topic, -math.inf)
         self._foreign_last[topic] = now
-        if quiet:
+        longest = self._foreign_gap.get(topic, 0.0)
+        if gap > max(FOREIGN_QUIET_S, 3.0 * longest):
             self._foreign_decided.discard(topic)   # a new episode
+            self._foreign_gap[topic] = 0.0
+        else:
+            self._foreign_gap[topic] = max(longest, gap)
         if topic in self._foreign_decided:
             return
-        # who walked first: the other's start, extrapolated from its numbers and send times
-        # (message counts alone misjudge nodes of different rates: a review's 10 Hz node
-        # walking 4 s stopped for a 100 Hz newcomer's 107 messages), against this node's
+        # who walked first. Another gait node says when it started (its frame_id): both then
+        # judge the same two numbers (a review: starts extrapolated from the numbers moved a
+        # node paused by SIGSTOP later, and both kept walking). Else the other's start is
+        # extrapolated from its numbers and send times (counts alone misjudged nodes of
+        # different rates: a 10 Hz node walking 4 s stopped for a 100 Hz newcomer)
+        stated = _stated_start(data, self._own_types[topic])
         starts = [x for x in foreign.series_starts() if x is not None]
-        if seq is not None and not starts and foreign.messages < 3:
+        if stated is None and seq is not None and not starts and foreign.messages < 3:
             return                            # one message: its rate not known yet
         own_start = self._first_command_wall
-        other_start = min(starts) if starts else None
-        margin = NEWCOMER_MARGIN / self.params.rate
+        other_start = stated if stated is not None else (min(starts) if starts else None)
+        margin = NEWCOMER_MARGIN_S
         walked_s = now - own_start
         if other_start is None:               # a middleware without numbers: the time rule
             newcomer, tie = walked_s < NEWCOMER_S, False
@@ -536,14 +564,16 @@ class GaitSchedulerNode(Node):
             return
         if self._first_command_ns is None:
             self._first_command_ns = now_ns
-            self._first_command_wall = time.time()
+            wall_ns = time.time_ns()
+            self._first_command_wall = wall_ns * 1e-9
+            self._frame_id = f'{self.get_fully_qualified_name()}@{os.getpid()}@{wall_ns}'
         # sent as bytes, their hashes kept: this node knows its own messages when they come
         # back on its listening subscriptions
         for topic, msg in (('gait/phase', gait_state_to_msg(state, t, t_ns=now_ns)),
                            ('joint_commands', joint_command_msg(t, names, q, qd, t_ns=now_ns))):
             # who sent it (two gait nodes on one clock send the same schedule otherwise byte
             # for byte, and each would take the other's for its own)
-            msg.header.frame_id = self.get_fully_qualified_name()
+            msg.header.frame_id = self._frame_id
             data = serialize_message(msg)
             self._sent[topic].add(hash(data))
             self._own_pubs[topic].publish(data)

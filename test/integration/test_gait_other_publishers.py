@@ -174,3 +174,65 @@ def test_a_listed_publisher_that_sends_nothing_is_walked_past() -> None:
         assert not node.finished.done()
     assert any('listening' in w and 'lab_gait' in w for w in warnings), warnings
     assert any('nothing came' in i for i in infos), infos
+
+
+def _stating(start_s: float, seq_t: float) -> bytes:
+    """Another gait node's message: its frame_id states its start (node@pid@ns)."""
+    from rclpy.serialization import serialize_message
+
+    msg = GaitPhase(gait='tripod', period=1.0)
+    msg.header.frame_id = f'/other_gait@4242@{int(start_s * 1e9)}'
+    msg.header.stamp.sec = int(seq_t)
+    return serialize_message(msg)
+
+
+@pytest.mark.timeout(120)
+def test_a_start_another_gait_node_states_is_believed_over_its_numbers() -> None:
+    """A review: a node paused (SIGSTOP) and resumed sent numbers that extrapolate to a later
+    start than its real one, and both nodes kept walking. Gait nodes now state their start
+    in their frame_id; this node (walking 0.3 s) hears one that says it started 10 s ago
+    with numbers that look new: it stops."""
+    import time
+
+    from hexapod_gait.gait_node import EXIT_ANOTHER_GAIT
+
+    with ros_env('gait_stated') as env:
+        node = _gait(env, 'gait_new', startup_listen_s=0.0)
+        errors = capture_errors(node)
+        assert env.spin_until(lambda: node.ticks >= 30, 30)
+        now = time.time()
+        for n in range(1, 6):
+            node._on_own_topic('gait/phase', _stating(now - 10.0, now + 0.01 * n), {
+                'publication_sequence_number': n,
+                'source_timestamp': int((now + 0.01 * n) * 1e9)})
+            if node.finished.done():
+                break
+        assert node.finished.done() and node.finished.result() == EXIT_ANOTHER_GAIT
+    assert 'walking longer, keeps the robot' in errors[0]
+    ahead = float(errors[0].split('it started ')[1].split(' s')[0])
+    assert 9.0 < ahead < 10.0          # 10 s ago, this node 0.3-1 s ago
+
+
+@pytest.mark.timeout(120)
+def test_a_publisher_slower_than_the_quiet_time_is_reported_once(monkeypatch) -> None:
+    """A review: a 0.45 Hz lab node beside a walking gait node was reported on every
+    message (its 2.2 s gaps were each taken for a new episode)."""
+    import time as real_time
+
+    import hexapod_gait.gait_node as gait_node
+
+    with ros_env('gait_slow_lab') as env:
+        node = _gait(env, 'gait_busy', startup_listen_s=0.0)
+        errors = capture_errors(node)
+        assert env.spin_until(lambda: node.ticks >= 30, 30)
+        clock = [real_time.time()]
+        fake = type('T', (), {'time': staticmethod(lambda: clock[0]),
+                              'time_ns': staticmethod(lambda: int(clock[0] * 1e9))})
+        monkeypatch.setattr(gait_node, 'time', fake)
+        for n in range(1, 8):                 # 0.45 Hz, started now
+            clock[0] += 2.2
+            node._on_own_topic('joint_commands', b'', {
+                'publication_sequence_number': n, 'source_timestamp': int(clock[0] * 1e9)})
+        assert not node.finished.done()
+        assert node.other_publishers_reported == 1
+    assert len(errors) == 1
