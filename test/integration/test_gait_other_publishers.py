@@ -144,10 +144,11 @@ def test_two_gait_nodes_started_together_never_both_walk() -> None:
         nodes = {'a': a, 'b': b}
         assert env.spin_until(lambda: a.finished.done() or b.finished.done(), 30)
         stopped = [k for k, n in nodes.items() if n.finished.done()]
-        if len(stopped) == 1:
+        if len(stopped) == 1:      # the other walks on, or stops a moment later (a tie)
             [walker] = [n for k, n in nodes.items() if k not in stopped]
             ticks = walker.ticks
-            assert env.spin_until(lambda: walker.ticks >= ticks + 30, 30)
+            assert env.spin_until(lambda: walker.ticks >= ticks + 30 or walker.finished.done(),
+                                  30)
         stopped = [k for k, n in nodes.items() if n.finished.done()]
     assert all(nodes[k].finished.result() == EXIT_ANOTHER_GAIT for k in stopped)
     if len(stopped) == 2:
