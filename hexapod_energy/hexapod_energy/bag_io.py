@@ -1946,9 +1946,9 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
         n_none = sum(d.speed_source == 'none' for d in wins)
         if n_none:
             seg_notes.append(
-                f'speed unknown in {n_none} of {len(wins)} window(s) (a clock-driven gait '
-                'schedule, /gait/phase step length 0, and no /mocap/body, /odom or given speed '
-                'there): ' + ('speed, cost of transport and specific resistance null'
+                f'speed unknown in {n_none} of {len(wins)} window(s) (a stand or a '
+                'clock-driven gait schedule, /gait/phase step length 0, and no /mocap/body, '
+                '/odom or given speed there): ' + ('speed, cost of transport and specific resistance null'
                               if n_none == len(wins) else 'speed averaged over the others; '
                               'cost of transport and specific resistance over those windows'))
         return RobotRun(

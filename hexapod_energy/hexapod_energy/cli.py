@@ -694,7 +694,13 @@ def _robot_run(args: argparse.Namespace, setup: _Setup, model: Any, opm: Any,
         notes.append(f'payload {run_.payload_kg:g} kg from the bag\'s metadata '
                      '(--robot-payload overrides it)')
     mass = robot.total_mass_kg(payload)
-    standing = run_.gait is not None and run_.gait.period_s <= 0
+    # a robot standing: no schedule period, or the stand of a stepping gait (gait_scheduler's
+    # stand keeps the walking period, step length and height 0; it was read as a Buehler
+    # clock: an outside review)
+    g = run_.gait
+    standing = g is not None and (g.period_s <= 0 or (
+        str(g.gait) != 'buehler' and not g.step_length_m > 0 and not g.step_height_m > 0
+        and not float(getattr(g, 'sweep_angle_rad', 0.0) or 0.0) > 0))
     gait = None if standing else gait_from_sample(run_.gait) \
         if run_.gait is not None else _given_gait(args, run_, notes, model)
     predicted = p_model = math.nan

@@ -181,3 +181,29 @@ def test_a_gait_node_walking_fewer_legs_than_the_robot_is_warned():
     assert all(any('legs L3, R3 have joints' in w for w in d.warnings) for d in out)
     six = _run(True)
     assert not any('have joints on /joint_states' in w for d in six for w in d.warnings)
+
+
+def test_a_gait_schedulers_stand_is_a_standing_run_not_a_buehler_clock(tmp_path):
+    """An outside review: gait_scheduler's stand (the walking period kept, step length and
+    height 0) was read by ``energy`` as a Buehler clock ("rotating legs"); it is a robot
+    standing, predicted from the bench's 0 Hz sessions when a bench is given."""
+    import json
+
+    from hexapod_common.testbags import rewrite_bag, write_foreign_robot_bag
+    from hexapod_energy.cli import main
+
+    write_foreign_robot_bag(tmp_path / 'walk', legs=6, duration_s=12.0)
+
+    def stand(topic, msg):
+        if topic == '/gait/phase':
+            msg.step_length = 0.0
+            msg.step_height = 0.0
+        return None
+
+    rewrite_bag(tmp_path / 'walk', tmp_path / 'stand', stand)
+    assert main(['--robot', str(tmp_path / 'stand'), '--robot-mass', '2.183',
+                 '--out', str(tmp_path / 'o'), '--no-progress']) == 0
+    [run] = json.loads((tmp_path / 'o' / 'energy.json').read_text())['robot_runs']
+    notes = ' '.join(run['notes'])
+    assert 'the robot stands' in notes
+    assert 'Buehler clock' not in notes
