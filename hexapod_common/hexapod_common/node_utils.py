@@ -51,6 +51,7 @@ __all__ = [
     'overridden',
     'param',
     'params_from_overrides',
+    'publisher_names',
     'run_node',
     'stopping_errors',
     'validate_params',
@@ -180,6 +181,18 @@ class InputWatch:
             self.node.get_logger().warning(text)
 
 
+def publisher_names(node: Any, topic: str) -> str:
+    """The graph's publishers of ``topic`` for a message (:func:`hexapod_common.publishers.
+    endpoint_names`; a crashed node's endpoint may still be listed), 'unknown' when the graph
+    cannot be read."""
+    from hexapod_common.publishers import endpoint_names
+
+    try:
+        return endpoint_names(node.get_publishers_info_by_topic(topic))
+    except Exception:   # noqa: BLE001 - names for a message only
+        return 'unknown'
+
+
 class PublishersWatch:
     """Logs an error, once per episode, when several live publishers interleave on one
     subscribed topic, told from the messages' publication sequence numbers
@@ -198,16 +211,13 @@ class PublishersWatch:
 
     def add(self, info: Any) -> bool:
         """One message's info; True when it starts an episode of several publishers."""
-        from hexapod_common.publishers import endpoint_names, publication_sequence
+        from hexapod_common.publishers import publication_sequence
 
         if not self.sequences.add(publication_sequence(info)):
             return False
         self.reported += 1
         topic = self.subscription.topic_name if self.subscription is not None else '?'
-        try:
-            names = endpoint_names(self.node.get_publishers_info_by_topic(topic))
-        except Exception:   # noqa: BLE001 - names for a message only
-            names = 'unknown'
+        names = publisher_names(self.node, topic)
         self.node.get_logger().error(
             f'several live publishers on {topic} (their messages\' sequence numbers '
             f'interleave; publishers in the graph: {names}): {self.consequence}')

@@ -105,13 +105,15 @@ from hexapod_common.node_utils import (
     RELIABLE_QOS,
     SENSOR_QOS,
     InputWatch,
+    PublishersWatch,
     declare_params,
     mocap_msg_class,
     overridden,
     param,
+    publisher_names,
     run_node,
 )
-from hexapod_common.publishers import PublisherSequences, endpoint_names, publication_sequence
+from hexapod_common.publishers import PublisherSequences, publication_sequence
 from hexapod_gait.feasibility import ActuatorLimits
 
 from hexapod_energy.descriptors import (
@@ -287,12 +289,13 @@ class EnergyMonitorNode(Node):
         # publishers of one name interleave into their mean
         self._battery_seqs: dict[str, PublisherSequences] = {}
         self._battery_interleaved: str | None = None   # the name of a new episode
-        #: episodes of several live publishers on gait/phase, reported
-        self.gait_publishers_warned = 0
-        self._gait_seq = PublisherSequences()
+        #: several live publishers on gait/phase (two schedules), said once per episode
+        self.gait_publishers = PublishersWatch(
+            self, 'two gait schedules reach this node and the windows follow neither (cycles '
+            'are cut where the schedules switch); stop all but one gait node')
         gait_sub = self.create_subscription(GaitPhase, 'gait/phase',
                                             lambda m, info: self._on_gait(m, info), SENSOR_QOS)
-        self._gait_sub = gait_sub
+        self.gait_publishers.subscription = gait_sub
         joint_sub = self.create_subscription(JointState, 'joint_states', self._on_joints,
                                              SENSOR_QOS)
         self.create_subscription(mocap_msg_class(p.mocap_type), 'mocap/body', self._on_pose,
@@ -370,12 +373,14 @@ class EnergyMonitorNode(Node):
                 continue
             self.pub.publish(descriptors_to_msg(d))
 
-    def _publisher_names(self, topic: str) -> str:
-        """The graph's publishers of ``topic`` (a crashed one's endpoint may still be listed)."""
-        try:
-            return endpoint_names(self.get_publishers_info_by_topic(topic))
-        except Exception:   # noqa: BLE001 - names for a message only
-            return 'unknown'
+    @property
+    def gait_publishers_warned(self) -> int:
+        """Episodes of several live publishers on gait/phase, reported."""
+        return self.gait_publishers.reported
+
+    @property
+    def _gait_seq(self) -> Any:
+        return self.gait_publishers.sequences
 
     def _on_battery(self, msg: BatteryState, info: Any = None) -> None:
         self.inputs.seen('battery_state')
@@ -461,21 +466,14 @@ class EnergyMonitorNode(Node):
         self.get_logger().error(
             f'{n or "several live"} publishers on {topic} name one battery ({name!r}, from '
             f'header.frame_id, location or serial_number; {how}; publishers in the graph: '
-            f'{self._publisher_names(topic)}): '
+            f'{publisher_names(self, topic)}): '
             'their samples interleave and are read as one '
             'battery (the mean of the packs, not their sum); give each monitor its own '
             'header.frame_id (they are then summed) or keep one with -p battery_source')
 
     def _on_gait(self, msg: GaitPhase, info: Any = None) -> None:
         self.inputs.seen('gait/phase')
-        if self._gait_seq.add(publication_sequence(info)):
-            self.gait_publishers_warned += 1
-            topic = self._gait_sub.topic_name
-            self.get_logger().error(
-                f'several live publishers on {topic} (their messages\' sequence numbers '
-                f'interleave; publishers in the graph: {self._publisher_names(topic)}): two '
-                'gait schedules reach this node and the windows follow neither (cycles are '
-                'cut where the schedules switch); stop all but one gait node')
+        self.gait_publishers.add(info)
         self._publish(self._guard('GaitPhase',
                                   lambda m: self.core.add_gait_phase(
                                       self._restamp('gait/phase', gait_phase_from_msg(m))),

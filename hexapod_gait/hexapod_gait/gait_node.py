@@ -73,11 +73,11 @@ from hexapod_common.node_utils import (
     declare_params,
     on_stop_signals,
     param,
+    publisher_names,
     run_node,
 )
 from hexapod_common.publishers import (
     PublisherSequences,
-    endpoint_names,
     publication_sequence,
     source_time,
 )
@@ -427,13 +427,8 @@ class GaitSchedulerNode(Node):
             self.finished.set_result(EXIT_NOT_STOOD)
 
     def _publisher_names(self, topic: str) -> str:
-        """The graph's publishers of one of this node's topics (a crashed node's endpoint may
-        still be listed), for a message."""
-        try:
-            infos = self.get_publishers_info_by_topic(self._own_pubs[topic].topic_name)
-        except Exception:   # noqa: BLE001 - names for a message only
-            return 'unknown'
-        return endpoint_names(infos)
+        """The graph's publishers of one of this node's topics, for a message."""
+        return publisher_names(self, self._own_pubs[topic].topic_name)
 
     def _on_own_topic(self, topic: str, data: Any, info: Any) -> None:
         """A message on one of this node's own topics: its own (the very bytes it sent), or
