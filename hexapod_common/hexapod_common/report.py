@@ -5,9 +5,10 @@ Collects every ``*.json`` result (``energy.json``, ``slip.json``, ``residuals.js
 section: its plain-words summary, its headline figures as tables (numbers at four significant
 figures, units from the key suffixes), then its own plots inline (base64) with a caption and a
 link to the SVG where one was written; the full JSON folded at the section's end. Plots no
-result claims come last. The header names when the page was generated and the installed
-package versions. A sub-folder holding its own ``report.html`` or ``demo.json`` is another
-run (an older demo run under a newer one): it is left out and named, never interleaved.
+result claims come last. The header names when the page was generated, the installed package
+versions and, from a git checkout, the source commit (energy.json's ``options`` say what the
+analysis ran with). A sub-folder holding its own ``report.html`` or ``demo.json`` is another run
+(an older demo run under a newer one): it is left out and named, never interleaved.
 
 Sections per result:
 
@@ -37,7 +38,7 @@ __all__ = ['add_cli', 'fmt_number', 'unit_of', 'write_report']
 
 #: headline keys rendered as tables, per result file (others are summarised as 'first keys')
 HEADLINES: dict[str, tuple[str, ...] | None] = {
-    'energy.json': ('prediction_error', 'failed_bags'),
+    'energy.json': ('prediction_error', 'robot_mass', 'failed_bags', 'options'),
     'residuals.json': ('model', 'unit', 'baseline', 'effects_added', 'final', 'heldout',
                        'stances', 'unexplained', 'supply_voltage'),
     'slip.json': ('model', 'estimator', 'mass_kg', 'skipped_counts', 'failed_bags'),
@@ -91,7 +92,9 @@ CAPTIONS = (
                       'windows shaded grey; the bottom panel has every window of every run in '
                       'order (held-out windows ringed).'),
     ('residual_regressors', 'Residual against each added effect\'s fitted term: before the '
-                            'effect the points follow the fitted line, after it they are flat.'),
+                            'effect the points follow the fitted line; after it they lose '
+                            'that slope, and what scatter is left (per run, too) is the '
+                            'windows\' noise and what no added effect explains.'),
     ('residual_unexplained', 'What the added effects left, per run, against the window noise.'),
     ('residual_slip_nerr', 'SLIP-measure (nerr) per stance, one series per bag, plain SLIP '
                            '(before) and with the added extension (after).'),
@@ -506,7 +509,23 @@ def _nominal_payload(curves: list[Any]) -> str:
     return f' (nominal payload {1e3 * first.pop():.0f} g)' if len(first) == 1 else ''
 
 
-def _optimal_points(sweeps: Any) -> list[str]:
+def _plotted_points(settings: Any, name: str) -> tuple[dict[str, Any], str]:
+    """A sweep's optimal points as its plot marks them, by curve label, and the table title's
+    payload, when the plot's nominal payload is not the sweep's first (Fig. 3C at 140 g:
+    energy.json ``sweep_settings.plot_optimal_points``); else ``({}, '')``."""
+    plotted = (settings or {}).get('plot_optimal_points') if isinstance(settings, dict) else None
+    rows = plotted.get(name) if isinstance(plotted, dict) else None
+    if not isinstance(rows, list) or not rows:
+        return {}, ''
+    by_label = {r.get('label'): r.get('optimal_points') or {} for r in rows
+                if isinstance(r, dict)}
+    kg = rows[0].get('payload_kg') if isinstance(rows[0], dict) else None
+    title = f' (nominal payload {1e3 * kg:.0f} g, as plotted)' \
+        if isinstance(kg, (int, float)) else ''
+    return by_label, title
+
+
+def _optimal_points(sweeps: Any, settings: Any = None) -> list[str]:
     if not isinstance(sweeps, dict) or not sweeps:
         return []
     parts = ['<h3>Optimal points per sweep (at the nominal payload; 0 g unless named)</h3>']
@@ -514,6 +533,7 @@ def _optimal_points(sweeps: Any) -> list[str]:
     for name, curves in sweeps.items():
         if not isinstance(curves, list):
             continue
+        plotted, plotted_title = _plotted_points(settings, name)
         head = ['curve']
         for _, label, _s in _OPT:
             head += [label, 'at v [m/s]']
@@ -522,7 +542,7 @@ def _optimal_points(sweeps: Any) -> list[str]:
         for c in curves:
             if not isinstance(c, dict):
                 continue
-            pts = c.get('optimal_points') or {}
+            pts = plotted.get(c.get('label')) or c.get('optimal_points') or {}
             row = [_esc(c.get('label', '-'))]
             if c.get('not_walkable'):     # priced as the paper draws it, not a walkable gait
                 row[0] += f'<br><small>not walkable: {_esc(c["not_walkable"])}</small>'
@@ -544,7 +564,8 @@ def _optimal_points(sweeps: Any) -> list[str]:
         if rows and all(r[at_col] == '-' for r in rows):
             head = head[:at_col] + head[at_col + 1:]
             rows = [r[:at_col] + r[at_col + 1:] for r in rows]
-        parts.append(_table(head, rows, name.replace('_', ' ') + _nominal_payload(curves)))
+        parts.append(_table(head, rows, name.replace('_', ' ') +
+                            (plotted_title or _nominal_payload(curves))))
     parts.append('<p>* the point extrapolates the bench surfaces (dotted in the plots)</p>')
     notes = []
     if any_on:
@@ -734,7 +755,7 @@ def _section(path: Path, data: Any) -> list[str]:
     if path.name == 'energy.json':
         parts.extend(_energy_runs(data))
         parts.extend(_recommendation(data.get('recommendation')))
-        parts.extend(_optimal_points(data.get('sweeps')))
+        parts.extend(_optimal_points(data.get('sweeps'), data.get('sweep_settings')))
         parts.extend(_bench_fit(data.get('bench')))
     elif path.name == 'residuals.json':
         parts.extend(_added_params(data.get('added_params')))
@@ -795,11 +816,33 @@ def _versions() -> str:
     return ', '.join(found) or 'unknown'
 
 
+def _source_commit() -> str:
+    """The git commit of the installed code (``abc1234``, ``+ changes`` when the checkout
+    has uncommitted changes), or '' when it is not a git checkout (a wheel) or git is
+    missing: the package versions alone (0.1.0) did not tell two builds apart."""
+    import subprocess
+
+    where = Path(__file__).resolve().parent
+    try:
+        head = subprocess.run(['git', '-C', str(where), 'rev-parse', '--short', 'HEAD'],
+                              capture_output=True, text=True, timeout=5)
+        if head.returncode != 0 or not head.stdout.strip():
+            return ''
+        dirty = subprocess.run(['git', '-C', str(where), 'status', '--porcelain',
+                                '--untracked-files=no'],
+                               capture_output=True, text=True, timeout=5)
+    except (OSError, subprocess.SubprocessError):
+        return ''
+    return head.stdout.strip() + (' + changes' if dirty.stdout.strip() else '')
+
+
 def _header_meta() -> str:
     """The line under the report's title: when it was generated and by which code."""
     stamp = time.strftime('%Y-%m-%d %H:%M:%S %Z', time.localtime())
+    commit = _source_commit()
+    source = f'; source commit {_esc(commit)}' if commit else ''
     return (f'<p class="meta">generated {_esc(stamp)} by <code>hexapod-analyze report</code>; '
-            f'packages: {_esc(_versions())}</p>')
+            f'packages: {_esc(_versions())}{source}</p>')
 
 
 def write_report(out_dir: str | Path) -> Path:

@@ -61,6 +61,7 @@ __all__ = [
     'RobotRun',
     'bench_load_problem',
     'bench_phase_samples',
+    'declared_robot_mass',
     'force_sign_factor',
     'merge_bench_data',
     'read_bench_bag',
@@ -1971,6 +1972,52 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
     if not 0 <= segment < len(segments):
         raise ValueError(f'segment {segment}: this bag has {len(segments)} walking schedule(s)')
     return run_of(segment)
+
+
+#: the key a bag's metadata (``custom_data``, possibly inside a JSON value such as the
+#: simulators' ``hexapod_sim.config``) declares the robot's mass under: legs included,
+#: payload excluded, as ``--robot-mass``
+ROBOT_MASS_KEY = 'robot_mass_kg'
+
+
+def declared_robot_mass(paths: Sequence[str | Path]) -> tuple[float | None, str]:
+    """The robot mass [kg] (payload excluded) the robot bags' metadata declare, and what to
+    say about it: ``(kg, note)`` when every bag that declares one declares the same (to
+    0.1 g), ``(None, '')`` when none does (or a bag cannot be opened: its reading says why
+    later). Bags that declare different masses raise :class:`BagContentError` naming them:
+    one run's CoT and specific resistance would be divided by the other robot's mass.
+    (``hexapod-sim robot --legs 4`` records 1.851 kg, which the analysis replaced by
+    AntBot's 2.183 kg with a warning: CoT/M 15 % low.)"""
+    from hexapod_common.bags import open_reader
+    from hexapod_common.errors import HexapodError
+
+    found: dict[str, float] = {}
+    silent: list[str] = []
+    for path in paths:
+        try:
+            with open_reader(path) as reader:
+                kg = _find_number(_custom_data(reader), (ROBOT_MASS_KEY,))
+        except (HexapodError, OSError, ValueError):
+            continue
+        if kg is not None and math.isfinite(kg) and kg > 0:
+            found[str(path)] = float(kg)
+        else:
+            silent.append(str(path))
+    if not found:
+        return None, ''
+    masses = sorted(set(round(v, 4) for v in found.values()))
+    if len(masses) > 1:
+        each = ', '.join(f'{Path(p).name} {v:.4g} kg' for p, v in found.items())
+        raise BagContentError(
+            f'the robot bags declare different robot masses ({each}): analyse each robot '
+            'apart, or give --robot-mass to use one mass for all')
+    kg = float(np.mean(list(found.values())))
+    note = f'robot mass {kg:.4g} kg (payload excluded) from the bags\' metadata ' \
+           f'({ROBOT_MASS_KEY}; --robot-mass overrides it)'
+    if silent:
+        names = ', '.join(Path(p).name for p in silent[:3]) + (' ...' if len(silent) > 3 else '')
+        note += f'; {len(silent)} bag(s) declare none ({names}) and are taken to be that robot'
+    return kg, note
 
 
 def read_robot_segments(path: str | Path, **kw: Any) -> list[RobotRun]:

@@ -26,15 +26,16 @@ walking sessions for the surface fits (5 with 5 folds,
 :meth:`hexapod_energy.single_leg.SingleLegModel.min_walking_sessions`): ``energy.json`` gets
 the sessions' phase powers (``bench.sessions``) and the refusal (``errors``), exit 2.
 
-``--sweep`` and ``--recommend`` are for the robot described: its mass (``--robot-mass``, default
-AntBot's 2.183 kg with a warning), its leg (``--leg``), its leg count (``--legs N``, else the
-robot bags' gaits or joint names, else 6 with a warning) and its actuator limits (``--limits``,
-default AntBot's servo limits: swing >= 0.16 s, stance >= 0.15 s, step frequency <= 3 Hz).  The
-duty-factor, step-length and gait-type sweeps use the robot's leg count, the leg-count sweep 4, 6
-and 8 legs (Fig. 3D), the power map the robot's alternating gait (tripod for 6 legs), beta 0.5,
-100 mm; ``sweep_settings`` records what was held fixed.  A curve the leg cannot walk (a step out
-of its reach) is skipped with a warning naming the sweep and the curve.  A robot not heavier
-than its legs (``M <= N m_leg``) is refused.
+``--sweep`` and ``--recommend`` are for the robot described: its mass (``--robot-mass``, else
+the robot bags' metadata (``robot_mass_kg``, as ``hexapod-sim robot`` records it; bags declaring
+different masses are refused), else AntBot's 2.183 kg with a warning), its leg (``--leg``), its
+leg count (``--legs N``, else the robot bags' gaits or joint names, else 6 with a warning) and
+its actuator limits (``--limits``, default AntBot's servo limits: swing >= 0.16 s, stance >=
+0.15 s, step frequency <= 3 Hz).  The duty-factor, step-length and gait-type sweeps use the
+robot's leg count, the leg-count sweep 4, 6 and 8 legs (Fig. 3D), the power map the robot's
+alternating gait (tripod for 6 legs), beta 0.5, 100 mm; ``sweep_settings`` records what was held
+fixed.  A curve the leg cannot walk (a step out of its reach) is skipped with a warning naming
+the sweep and the curve.  A robot not heavier than its legs (``M <= N m_leg``) is refused.
 
 Without ``--bench`` (a robot but no single-leg bench) the robot runs get their measured
 descriptors only: ``bench`` and every ``predicted_power_in_w`` are null and
@@ -141,7 +142,9 @@ such fallback is listed in the run's ``notes``.
                   "plot_nominal_payload_kg": {"<sweep name>": kg} (the payload of the
                   four-quadrant plot's solid curves and markers: 0.14 for gait_type, the
                   paper's Fig. 3C load; the curves' "optimal_points" are at their first
-                  payload)},
+                  payload), "plot_optimal_points": {"<sweep name>": [{"label",
+                  "payload_kg", "optimal_points"}]} (the plot's markers, for a plot whose
+                  nominal payload is not the sweep's first: gait_type)},
                                                               # with --sweep
       "gait_type_comparison": {"base", "other" (curve labels: the alternating gait at beta
                   0.5, the wave gait at its typical duty factor), "speeds_mps",
@@ -160,6 +163,12 @@ such fallback is listed in the run's ``notes``.
                   "limits_source"},                           # with --recommend; only
                   # configurations inside the bench's domain unless none is ("note"); it
                   # records "leg_count", "robot_mass_kg", "mass_kg" (with payload), "limits"
+      "options": {option: value} (the options of this analysis, as parsed; bag paths as
+                  given),
+      "robot_mass": {"kg" (payload excluded: CoT, CoT/M, specific resistance, the Eq. 6
+                  model and the sweeps use it), "source" (--robot-mass | bags' metadata
+                  (robot_mass_kg in their custom data, as hexapod-sim records it) |
+                  assumed (AntBot), with a warning), "note" (with the bags' metadata)},
       "warnings": [str],                                      # when any
       "errors": [str],     # the analysis refused after the bench's phase powers were
                            # written (the surface fit: too few walking sessions); exit 2
@@ -291,8 +300,9 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--payload', type=float, default=0.0, metavar='KG',
                    help='payload for --recommend [kg] (default 0)')
     p.add_argument('--robot-mass', type=float, default=None, metavar='KG',
-                   help='robot mass without payload [kg] (default 2.183, AntBot, with a '
-                        'warning: CoT/M and specific resistance scale with it)')
+                   help='robot mass without payload [kg] (default: the robot bags\' '
+                        'declared robot_mass_kg, as hexapod-sim records it, else 2.183, '
+                        'AntBot, with a warning: CoT/M and specific resistance scale with it)')
     p.add_argument('--leg', default=None, metavar='FILE',
                    help="the robot's leg for the Eq. 6 output-power model and the carried "
                    'mass: a YAML/JSON file with a_m, link_masses_kg, neutral_tip_m (DH table, '
@@ -392,6 +402,8 @@ class _Setup:
     robot_speed: float | None
     mass_given: bool
     mass_warning: str
+    mass_note: str = ''                 # the mass taken from the robot bags' metadata
+    mass_source: str = '--robot-mass'   # energy.json "robot_mass" "source"
 
 
 def _checked_setup(args: argparse.Namespace) -> _Setup:
@@ -428,10 +440,18 @@ def _checked_setup(args: argparse.Namespace) -> _Setup:
         # 1e9 m/s was taken (SR 1.6e-9)
         raise EnergyError(f'--robot-speed must be in (0, 20] m/s, got {robot_speed}')
     leg = load_leg_description(args.leg) if getattr(args, 'leg', None) else antbot_leg()
-    mass_warning = ''
+    mass_warning = mass_note = ''
     mass_given = args.robot_mass is not None
+    mass_source = '--robot-mass'
+    if args.robot_mass is None and args.robot:
+        from hexapod_energy.bag_io import declared_robot_mass
+
+        # a simulated robot of another leg count records its mass: AntBot's was assumed
+        args.robot_mass, mass_note = declared_robot_mass(args.robot)
+        mass_source = 'bags\' metadata'
     if args.robot_mass is None:
         args.robot_mass = ANTBOT_MASS_KG
+        mass_source = 'assumed (AntBot)'
         if args.robot or args.sweep or args.recommend:
             mass_warning = (f'robot mass not given (--robot-mass): AntBot\'s {ANTBOT_MASS_KG} '
                             'kg assumed; CoT, CoT/M and specific resistance scale with the '
@@ -461,7 +481,8 @@ def _checked_setup(args: argparse.Namespace) -> _Setup:
         raise EnergyError(why)
     return _Setup(bench_bags=bench_bags, leg=leg, robot=robot, limits=limits,
                   limits_source=limits_source, robot_speed=robot_speed,
-                  mass_given=mass_given, mass_warning=mass_warning)
+                  mass_given=mass_given, mass_warning=mass_warning, mass_note=mass_note,
+                  mass_source=mass_source)
 
 
 def _warn(doc: dict[str, Any], bar: Any, line: str) -> None:
@@ -483,16 +504,21 @@ def _run(args: argparse.Namespace) -> dict[str, Any]:
     # a file by that name, no permission: refused up front. An earlier run's energy.json and
     # plots are already set aside by :func:`run` (put back if this run does not finish)
     out = prepare_out_dir(args.out)
-    n_steps = len(setup.bench_bags) + len(args.robot) + 1 + (16 if args.sweep else 0) + \
-        (1 if args.recommend else 0)
+    n_steps = len(setup.bench_bags) + len(args.robot) + 1 + \
+        (_sweep_steps() if args.sweep else 0) + (1 if args.recommend else 0)
     bar = tqdm(total=n_steps, desc='energy', unit='step', **bar_options(args.no_progress),
                file=sys.stderr)
     # a second bar of the messages read: one long bag shows progress, not 0/2 for minutes
     reading = ExitStack()
     reading.enter_context(message_progress('energy: bag', disable=args.no_progress))
     doc: dict[str, Any] = {'schema': 'hexapod_energy.energy/1', 'plots': []}
+    doc['options'] = _options(args)
+    doc['robot_mass'] = {'kg': float(args.robot_mass), 'source': setup.mass_source}
     if setup.mass_warning:
         doc['warnings'] = [setup.mass_warning]
+    if setup.mass_note:
+        doc['robot_mass']['note'] = setup.mass_note
+        bar.write(f'hexapod-analyze energy: {setup.mass_note}', file=sys.stderr)
     if not args.recommend and (args.speed is not None or args.payload):
         doc.setdefault('warnings', []).append(
             '--speed and --payload are for --recommend (the target speed and payload), '
@@ -1202,6 +1228,10 @@ def _sweep(doc: dict[str, Any], model: Any, opm: Any, out: Path, bar: Any,
         with_payload,
     )
 
+    def tick() -> None:
+        if bar is not None:
+            bar.update(1)
+
     lim = ANTBOT_LIMITS if limits is None else limits
     specs = standard_sweeps(leg_count)
     skipped: list[str] = []
@@ -1232,6 +1262,7 @@ def _sweep(doc: dict[str, Any], model: Any, opm: Any, out: Path, bar: Any,
     titles = {'duty_factor': 'Fig. 3A duty factor', 'step_length': 'Fig. 3B step length',
               'gait_type': 'Fig. 3C gait type', 'leg_count': 'Fig. 3D leg count'}
     for name in specs:
+        tick()   # one step per plot, drawn or not
         if not curves.get(name):
             continue  # every curve skipped (warned)
         # the subtitle (robot mass, the parameters the curves share, the nominal payload and
@@ -1253,8 +1284,16 @@ def _sweep(doc: dict[str, Any], model: Any, opm: Any, out: Path, bar: Any,
                                    title=titles.get(name, name), nominal_payload_kg=nominal)
         doc['sweep_settings'].setdefault('plot_nominal_payload_kg', {})[name] = \
             float(drawn[0].payloads_kg[0]) if nominal is None else nominal
+        if nominal is not None:
+            # the plot's markers are at its nominal payload, not at the sweep's first: the
+            # report's table gave Fig. 3C's 0 g points beside a plot of 140 g (a review)
+            doc['sweep_settings'].setdefault('plot_optimal_points', {})[name] = [
+                {'label': c.spec.label, 'payload_kg': nominal, 'optimal_points':
+                 c.optimal_points(int(np.argmin(np.abs(np.asarray(c.payloads_kg) - nominal))))}
+                for c in drawn]
         doc['plots'] += [str(p.relative_to(out)) for p in paths]
     gait_curves = curves.get('gait_type') or []
+    tick()
     if len(gait_curves) >= 2 and gait_curves[0].spec.gait != gait_curves[1].spec.gait:
         # Fig. 3C's question in one line per payload: where the wave gait loses less
         try:
@@ -1268,6 +1307,7 @@ def _sweep(doc: dict[str, Any], model: Any, opm: Any, out: Path, bar: Any,
                              for p in comparison_plot(cmp, out / 'gait_type_comparison')]
     speeds = np.linspace(0.1, 0.6, 50)
     payloads = np.linspace(0.0, 0.5, 50)
+    tick()
     t0 = time.perf_counter()
     gait = make_gait(alt, leg_count=leg_count)
     try:
@@ -1286,6 +1326,31 @@ def _sweep(doc: dict[str, Any], model: Any, opm: Any, out: Path, bar: Any,
                          gait_label=f'{gait.name} ({gait.leg_count} legs) beta '
                                     f'{gait.duty_factor:g}, step '
                                     f'{1000 * gait.step_length_m:.0f} mm')]
+
+
+def _options(args: argparse.Namespace) -> dict[str, Any]:
+    """The options this analysis ran with (energy.json ``options``, shown by the report):
+    what produced the numbers, beside the bags."""
+    out: dict[str, Any] = {}
+    for key, value in sorted(vars(args).items()):
+        if key in ('func', 'command', 'no_progress') or callable(value):
+            continue
+        if isinstance(value, (list, tuple)):
+            value = [str(v) for v in value]
+        elif not isinstance(value, (str, int, float, bool, type(None))):
+            value = str(value)
+        out[key] = value
+    return out
+
+
+def _sweep_steps() -> int:
+    """The progress bar's steps of ``--sweep``: one per curve, one per four-quadrant plot, the
+    gait-type comparison and the power map (it counted 16 for 14 curves and ticked nothing
+    while the plots were drawn: it stood at 83 % for 15 s and ended at 91 %)."""
+    from hexapod_energy.sweeps import standard_sweeps
+
+    specs = standard_sweeps(6)     # the same curves for every leg count
+    return sum(len(v) for v in specs.values()) + len(specs) + 2
 
 
 def _handler(args: argparse.Namespace) -> int:

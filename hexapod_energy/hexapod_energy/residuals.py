@@ -2460,6 +2460,7 @@ def run_energy_loop(bench_bags: Sequence[str | Path], robot_bags: Sequence[str |
                     load_offset_kg: float = 0.0, plots: bool = True,
                     gait: GivenGait | None = None, phase_split: str = 'auto',
                     progress: Callable[[int], Any] | None = None,
+                    robot_mass_source: str | None = None,
                     max_lag_s: float = 0.15) -> dict[str, Any]:
     """Whole energy loop from bags; writes ``residuals.json`` (and plots) into ``out_dir`` when
     given and returns the document. Prints nothing; ``progress(1)`` after each bag read and
@@ -2504,7 +2505,8 @@ def run_energy_loop(bench_bags: Sequence[str | Path], robot_bags: Sequence[str |
                                 temp_ref_c=_bench_temperature_c(bench_bags), plots=plots,
                                 robot_spec_cls=RobotSpec,
                                 bench_voltage_v=float(np.median(bench_v)) if bench_v else None,
-                                bench_notes=bench_notes, max_lag_s=max_lag_s)
+                                bench_notes=bench_notes, max_lag_s=max_lag_s,
+                                robot_mass_source=robot_mass_source)
     step(1)
     return doc
 
@@ -2573,9 +2575,11 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
                           load_offset_kg: float = 0.0, plots: bool = True,
                           robot_spec_cls: Any = None, bench_voltage_v: float | None = None,
                           bench_notes: dict[str, list[str]] | None = None,
-                          max_lag_s: float = SampleView.max_lag_s) -> dict[str, Any]:
+                          max_lag_s: float = SampleView.max_lag_s,
+                          robot_mass_source: str | None = None) -> dict[str, Any]:
     """The loop on a fitted bench model and read robot runs (tests reuse one bench fit).
     ``max_lag_s``: the largest battery clock offset the per-sample view searches [s].
+    ``robot_mass_source``: where ``robot_mass_kg`` came from (the document's ``robot_mass``).
     ``bench_voltage_v``: the bench's supply voltage, checked against the robot runs'.
     ``bench_notes``: bench bag -> how it was read (``per_bench`` in the document when any)."""
     from hexapod_energy.prediction import RobotSpec, load_offset_problem
@@ -2670,6 +2674,8 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
                                run_t0_s=[float(r.t_s[0]) for r in runs])
     doc['load_offset_kg'] = load_offset_kg
     doc['payload_kg'] = payload_kg
+    if robot_mass_source is not None:
+        doc['robot_mass'] = {'kg': float(robot_mass_kg), 'source': robot_mass_source}
     if view_refused:   # no clock-offset search and no per-sample view: said
         doc['sample_view'] = {'refused': view_refused}
     if sel.selected_:

@@ -25,7 +25,9 @@ SLIP, SLIP + leg damping and SLIP + hip torque (:mod:`slip_identification.residu
                  "effects_added"}]} (each run scored with the effects selected and fitted on
                  the others),
      (energy:) "mass_sensitivity": {"w_per_kg_mean", "uncentred_r_with_constant",
-                 "near_constant"}, "payload_kg",
+                 "near_constant"}, "payload_kg", "robot_mass": {"kg" (payload excluded),
+                 "source" (--robot-mass | bags' metadata (robot_mass_kg, as hexapod-sim
+                 records it) | assumed (AntBot))},
      (energy:) "added_params": [{"name", "params", "stderr",
                                  "alternatives"?: [{"name", "heldout_rmse", "params",
                                                     "stderr", "share",
@@ -133,8 +135,9 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
                    help='RHex-class bags for the SLIP loop (instead of --bench/--robot)')
     p.add_argument('--out', required=True, metavar='DIR', help='output folder')
     p.add_argument('--robot-mass', '--mass', type=float, default=None, metavar='KG',
-                   help='robot mass without payload [kg] (default 2.183, AntBot, for the '
-                        "energy loop; EduBot's 3.31 for --slip, with a warning: the fitted "
+                   help='robot mass without payload [kg] (default for the energy loop: the '
+                        "robot bags' declared robot_mass_kg, else AntBot's 2.183 with a "
+                        "warning; EduBot's 3.31 for --slip, with a warning: the fitted "
                         'leg damping and hip torque scale with it)')
     p.add_argument('--robot-payload', type=float, default=0.0, metavar='KG',
                    help='payload of the robot runs [kg] (default 0; unlike energy, not read '
@@ -323,8 +326,19 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     if not args.bench or not args.robot:
         raise InvalidInputError('the energy loop needs both --bench BAG... and --robot BAG... '
                                 '(or use --slip BAG...)')
+    mass_source = '--robot-mass'
     if args.robot_mass is None:
-        args.robot_mass = 2.183   # AntBot
+        from hexapod_energy.bag_io import declared_robot_mass
+
+        # a simulated robot of another leg count records its mass; AntBot's was assumed
+        # silently (the undeclared-mass effect then measured the difference)
+        args.robot_mass, note = declared_robot_mass(args.robot)
+        mass_source = 'bags\' metadata'
+        if args.robot_mass is None:
+            args.robot_mass, mass_source = 2.183, 'assumed (AntBot)'   # AntBot
+            note = ('warning: robot mass not given (--robot-mass): AntBot\'s 2.183 kg '
+                    'assumed; the undeclared-mass effect is measured against it')
+        print(f'hexapod-analyze residuals: {note}', file=sys.stderr)
     # a negative or NaN mass or payload used to run the loop on a lighter robot, exit 0
     if not (math.isfinite(args.robot_mass) and args.robot_mass > 0):
         raise InvalidInputError(f'--robot-mass must be > 0 kg, got {args.robot_mass}')
@@ -375,7 +389,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                                current_sign=args.current_sign,
                                load_offset_kg=args.load_offset, plots=not args.no_plots,
                                gait=gait, phase_split=getattr(args, 'phase_split', 'auto'),
-                               progress=bar.update, max_lag_s=max_lag)
+                               progress=bar.update, max_lag_s=max_lag,
+                               robot_mass_source=mass_source)
 
 
 def _handler(args: argparse.Namespace) -> int:

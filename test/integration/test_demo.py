@@ -36,6 +36,16 @@ def test_demo_runs_end_to_end(tmp_path):
     assert lab['period_s'] == pytest.approx(lab['reference_period_s'], rel=0.01)
     assert lab['power_in_w'] == pytest.approx(lab['reference_power_in_w'], rel=0.01)
     assert (out / 'report.html').stat().st_size > 10_000
+    # the paper's figures are in the demo and its report (they were in neither): the four
+    # four-quadrant sweeps, the power map and a recommendation at 0.26 m/s
+    sweeps = batch['sweeps']
+    assert set(sweeps['lowest_cot_per_mass']) == {'duty_factor', 'step_length', 'gait_type',
+                                                  'leg_count'}
+    assert sweeps['recommendation']['speed_mps'] == 0.26
+    report = (out / 'report.html').read_text()
+    for name in ('four_quadrant_duty_factor', 'four_quadrant_leg_count', 'power_map'):
+        assert (out / 'energy' / f'{name}.png').is_file() and f'{name}.png' in report
+    assert 'lowest CoT/M' in proc.stdout and 'recommendation at 0.26 m/s' in proc.stdout
     assert (out / 'residuals' / 'residuals.json').is_file()
     # SLIP step: quick settings simulate running and walk; the hidden 25 ms clock offset and
     # the ground height are found, and walking has the larger SLIP-measure (Table 3)

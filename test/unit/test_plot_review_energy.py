@@ -207,6 +207,47 @@ def test_sweep_draws_fig_3c_at_140_g(opm, tmp_path, monkeypatch) -> None:
         assert 'min_efficiency_on_bench' in c and 'min_efficiency_outside_bench' in c
 
 
+def test_report_table_gives_fig_3c_points_as_plotted_and_the_bar_ends(opm, tmp_path,
+                                                                      monkeypatch) -> None:
+    """A review: the report's table headed Fig. 3C "nominal payload 0 g" with the 0 g optimal
+    points beside a plot drawn at 140 g; energy.json now keeps the plot's points and the
+    table gives them. ``--sweep``'s progress steps (16 counted, 14 ticked, none while the
+    plots were drawn) now match its ticks."""
+    from hexapod_common.report import _optimal_points
+    from hexapod_energy import cli
+
+    monkeypatch.setattr(plots, 'four_quadrant_plot', lambda curves, stem, **kw: [])
+    monkeypatch.setattr(plots, 'comparison_plot', lambda cmp, stem: [])
+    monkeypatch.setattr(plots, 'power_map_plot', lambda *a, **kw: [])
+    monkeypatch.setattr(type(opm), 'power_map_w',
+                        lambda self, gait, v, p: np.ones((len(v), len(p))))
+
+    class Bar:
+        n = 0
+
+        def update(self, k: int = 1) -> None:
+            self.n += k
+
+    bar = Bar()
+    doc: dict[str, Any] = {'plots': []}
+    cli._sweep(doc, Phase(), opm, tmp_path, bar)
+    assert bar.n == cli._sweep_steps()
+    plotted = doc['sweep_settings']['plot_optimal_points']
+    assert list(plotted) == ['gait_type']
+    first = doc['sweeps']['gait_type'][0]
+    mark = plotted['gait_type'][0]
+    assert mark['label'] == first['label'] and mark['payload_kg'] == pytest.approx(0.14)
+    at_0 = first['optimal_points']['min_cot_per_mass']['value']
+    at_140 = mark['optimal_points']['min_cot_per_mass']['value']
+    assert at_140 != pytest.approx(at_0)
+    html = '\n'.join(_optimal_points(doc['sweeps'], doc['sweep_settings']))
+    assert 'gait type (nominal payload 140 g, as plotted)' in html
+    assert 'duty factor (nominal payload 0 g)' in html
+    # the gait-type table's first row gives the plotted (140 g) min CoT/M, not the 0 g one
+    row = html.split('gait type (nominal payload 140 g')[1].split('</tr>')[1]
+    assert f'{at_140:.4g}' in row and f'{at_0:.4g}' not in row
+
+
 # ------------------------------------------------------------------- #5 min eta on bench
 
 
