@@ -21,8 +21,11 @@ echo "== unit tests"
 # a file's tests stay together so its module fixtures are built once). The tests that talk to a
 # peer thread on a pseudo-terminal (servo-bus emulator, supply, load cell) run afterwards on
 # their own, so that their reply deadlines do not compete with the other worker for the CPU.
+# (test_dxl_review_fixes and _review_d assert that no reply came late: 3 failed beside a
+# loaded other worker)
 timed=(test/unit/test_dxl_bus.py test/unit/test_dxl_emulator.py test/unit/test_dxl_models.py
-       test/unit/test_power_backends.py test/unit/test_force_backend.py)
+       test/unit/test_power_backends.py test/unit/test_force_backend.py
+       test/unit/test_dxl_review_fixes.py test/unit/test_dxl_review_d.py)
 if [ "$(nproc 2>/dev/null || echo 1)" -ge 2 ]; then
   ignore=(); for f in "${timed[@]}"; do ignore+=(--ignore "$f"); done
   python -m pytest -q -p no:cacheprovider -n 2 --dist loadfile "${ignore[@]}" test/unit "$@" 2>&1 | tee "$tmp/unit.log"
