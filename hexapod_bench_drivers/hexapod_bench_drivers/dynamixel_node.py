@@ -9,7 +9,9 @@ Topics (relative names, so a namespace applies):
   when the temperature abort fires.
 - subscribes ``joint_commands`` (sensor_msgs/JointState): positions -> Goal Position by Sync
   Write; with ``use_command_velocity`` the |velocity| becomes the moving speed. Names not on
-  this bus are ignored.
+  this bus are ignored. While several publishers interleave there, only the commands of the
+  one that was there first are applied, the others' dropped, with an error once per episode
+  (:class:`hexapod_common.node_utils.FirstPublisherWatch`).
 - service ``set_torque`` (std_srvs/SetBool): torque on/off for every servo; turning torque on
   also clears a temperature abort once all servos are below the limit and none reports its
   overheating flag (else refused, "still aborted" with the reason). Servos the bus refused
@@ -47,7 +49,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from hexapod_common.node_utils import (
     RELIABLE_QOS,
     SENSOR_QOS,
-    PublishersWatch,
+    FirstPublisherWatch,
     declare_params,
     param,
     run_node,
@@ -168,10 +170,9 @@ class DynamixelDriverNode(Node):
         self.pub_joints = self.create_publisher(JointState, 'joint_states', RELIABLE_QOS)
         self.pub_status = self.create_publisher(ServoStatus, 'servo_status', RELIABLE_QOS)
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', RELIABLE_QOS)
-        #: two command sources (two gait nodes, a teleop beside the gait node): said
-        self.command_publishers = PublishersWatch(
-            self, 'two sources command these servos and their targets alternate; stop all '
-            'but one')
+        #: two command sources (two gait nodes, a teleop beside the gait node): said, and
+        #: only the commands of the one that was there first are applied
+        self.command_publishers = FirstPublisherWatch(self)
         self.command_publishers.subscription = self.create_subscription(
             JointState, 'joint_commands', lambda m, info: self._on_command(m, info), SENSOR_QOS)
         self.create_service(SetBool, 'set_torque', self._on_set_torque)
@@ -217,7 +218,8 @@ class DynamixelDriverNode(Node):
         self.finished.set_result(EXIT_PORT_LOST)
 
     def _on_command(self, msg: JointState, info: Any = None) -> None:
-        self.command_publishers.add(info)
+        if not self.command_publishers.admit(info, msg.header.frame_id):
+            return                      # another publisher's (the error says so)
         try:
             self._apply_command(msg)
         except (ValueError, TypeError) as err:

@@ -15,6 +15,10 @@ gait node walking 8 legs, ``<leg>_hip`` names) are ignored and reported once per
 as a warning naming them and the simulator's own; a message that matches none of its joints
 (legs) is reported as an error (``sim_live.NameMismatch``). The bench leg takes its three
 joints out of the whole robot's commands, so only a message without them is reported there.
+
+While several publishers interleave on ``/joint_commands``, only the commands of the one that
+was there first are applied, as on the real driver
+(:class:`hexapod_common.node_utils.FirstPublisherWatch`).
 """
 
 from __future__ import annotations
@@ -32,7 +36,7 @@ from hexapod_common.node_utils import (
     LATCHED_QOS,
     RELIABLE_QOS,
     SENSOR_QOS,
-    PublishersWatch,
+    FirstPublisherWatch,
     declare_params,
     overridden,
     param,
@@ -112,10 +116,9 @@ class _SimNode(Node):
         self.pub_js = self.create_publisher(JointState, 'joint_states', RELIABLE_QOS)
         self.pub_status = self.create_publisher(ServoStatus, 'servo_status', RELIABLE_QOS)
         self.pub_battery = self.create_publisher(BatteryState, 'battery_state', RELIABLE_QOS)
-        #: two command sources (two gait nodes, a teleop beside the gait node): said
-        self.command_publishers = PublishersWatch(
-            self, 'two sources command these joints and their targets alternate; stop all '
-            'but one')
+        #: two command sources (two gait nodes, a teleop beside the gait node): said, and
+        #: only the commands of the one that was there first are applied
+        self.command_publishers = FirstPublisherWatch(self)
         self.command_publishers.subscription = self.create_subscription(
             JointState, 'joint_commands', lambda m, info: self._on_commands(m, info),
             SENSOR_QOS)
@@ -123,7 +126,8 @@ class _SimNode(Node):
         self.timer = self.create_timer(1.0 / p.rate, self._on_timer)
 
     def _on_commands(self, msg: JointState, info: Any = None) -> None:
-        self.command_publishers.add(info)
+        if not self.command_publishers.admit(info, msg.header.frame_id):
+            return                      # another publisher's (the error says so)
         try:
             s = joint_state_from_msg(msg)
             self.live.commands.update(s.t_s, s.names, s.position, s.velocity)

@@ -37,6 +37,7 @@ from rclpy.qos import (
 from hexapod_common.errors import ParameterError
 
 __all__ = [
+    'FirstPublisherWatch',
     'InputWatch',
     'LATCHED_QOS',
     'PublishersWatch',
@@ -198,7 +199,8 @@ class PublishersWatch:
     subscribed topic, told from the messages' publication sequence numbers
     (:mod:`hexapod_common.publishers`; a crashed publisher's endpoint, which the graph lists
     for its DDS lease, is not one). The subscription's callback takes the message info
-    (two arguments) and passes it to :meth:`add`."""
+    (two arguments) and passes it to :meth:`add`. It only says so: every message is still
+    used (:class:`FirstPublisherWatch` also drops the other publishers' messages)."""
 
     def __init__(self, node: Any, consequence: str) -> None:
         from hexapod_common.publishers import PublisherSequences
@@ -209,6 +211,15 @@ class PublishersWatch:
         #: errors logged (one per episode)
         self.reported = 0
 
+    @property
+    def topic(self) -> str:
+        """The subscription's resolved topic name ('?' before it is set)."""
+        return self.subscription.topic_name if self.subscription is not None else '?'
+
+    def _consequence(self) -> str:
+        """What the error says follows from the several publishers."""
+        return self.consequence
+
     def add(self, info: Any) -> bool:
         """One message's info; True when it starts an episode of several publishers."""
         from hexapod_common.publishers import publication_sequence
@@ -216,12 +227,84 @@ class PublishersWatch:
         if not self.sequences.add(publication_sequence(info)):
             return False
         self.reported += 1
-        topic = self.subscription.topic_name if self.subscription is not None else '?'
+        topic = self.topic
         names = publisher_names(self.node, topic)
         self.node.get_logger().error(
             f'several live publishers on {topic} (their messages\' sequence numbers '
-            f'interleave; publishers in the graph: {names}): {self.consequence}')
+            f'interleave; publishers in the graph: {names}): {self._consequence()}')
         return True
+
+
+class FirstPublisherWatch(PublishersWatch):
+    """A :class:`PublishersWatch` for a command topic that applies one publisher only: the
+    one that was there first (:class:`hexapod_common.publishers.FirstPublisherGate`; the
+    drivers' ``joint_commands``). The subscription's callback passes each message's info (and
+    its ``header.frame_id``, which names a gait node in the messages) to :meth:`admit` and
+    applies the message only when it returns True.
+
+    Logged: the error of several publishers (once per episode) says which one is followed,
+    that the other's commands are ignored and how many so far; when the episode ends (the
+    numbers calm again, :class:`~hexapod_common.publishers.PublisherSequences`) a warning
+    sums up the commands ignored; a switch to another publisher (the followed one silent
+    :data:`~hexapod_common.publishers.FOLLOWED_QUIET_S`, or another that started first) is
+    said too (info when nothing was dropped: a respawned publisher). A middleware without
+    sequence numbers: every message is applied, as before. The quiet time is measured on the
+    steady clock (also under ``use_sim_time``)."""
+
+    def __init__(self, node: Any, what: str = 'commands') -> None:
+        import time
+
+        from hexapod_common.publishers import FirstPublisherGate
+
+        super().__init__(node, '')
+        self.what = what
+        self.gate = FirstPublisherGate()
+        #: the receiver's clock for the gate [s] (steady; tests may replace it)
+        self.clock: Callable[[], float] = time.monotonic
+        self._dropped_before = 0      # the gate's drops before the current episode
+
+    def _describe(self, ident: int | None = None) -> str:
+        s = self.gate.series(ident)
+        if s is None:
+            return 'none yet'
+        heard = max(0.0, self.clock() - s.first_arrival)
+        return ((f'frame_id {s.label!r}, ' if s.label else '')
+                + f'at message number {s.last_seq}, heard for {heard:.1f} s')
+
+    def _consequence(self) -> str:
+        n = self.gate.dropped - self._dropped_before
+        return (f'only the {self.what} of the publisher that was there first are applied '
+                f'({self._describe()}); the other\'s {self.what} are ignored ({n} dropped so '
+                'far); stop all but one')
+
+    def admit(self, info: Any, label: str = '') -> bool:
+        """One message's info (and label): True to apply it, False to drop it (another
+        publisher's). Logs as the class says."""
+        from hexapod_common.publishers import publication_sequence, source_time
+
+        ok = self.gate.admit(publication_sequence(info), source_time(info), self.clock(),
+                             str(label or ''))
+        was = self.sequences.interleaving
+        self.add(info)
+        log = self.node.get_logger()
+        if was and not self.sequences.interleaving:
+            n = self.gate.dropped - self._dropped_before
+            self._dropped_before = self.gate.dropped
+            log.warning(f'{self.topic}: one publisher again; {n} {self.what} of the other '
+                        f'publisher(s) were ignored in that episode (followed: '
+                        f'{self._describe()})')
+        for sw in self.gate.take_switches():
+            why = (f'the followed publisher was silent for {sw.silent_s:.2f} s'
+                   if sw.reason == 'quiet' else
+                   'another publisher heard at the same time started first')
+            text = f'{self.topic}: {why}: now following another ({self._describe(sw.new)}'
+            if sw.dropped:
+                log.warning(f'{text}; {sw.dropped} of its {self.what} were ignored before)')
+            else:
+                log.info(f'{text})')
+            if not self.sequences.interleaving:
+                self._dropped_before = self.gate.dropped
+        return ok
 
 
 #: set to get the traceback of a start-up failure instead of its one-line summary

@@ -1,6 +1,7 @@
 """The drivers say when two sources command their joints (two gait nodes, a teleop beside the
-gait node): their targets alternate. Said once per episode from the messages' sequence
-numbers; a respawned gait node (one publisher again) is not two."""
+gait node), once per episode from the messages' sequence numbers, and apply only the one that
+was there first (their targets alternated before); a respawned gait node (one publisher
+again) is not two, and is followed."""
 
 from __future__ import annotations
 
@@ -35,19 +36,32 @@ def test_sim_robot_reports_two_command_sources_once() -> None:
             env.executor.spin_once(timeout_sec=0.0)
         assert env.spin_until(lambda: sim.command_publishers.reported >= 1, 20)
         env.spin_until(lambda: False, 0.2)
+        # one of the two followed (both heard together: the first heard), the other dropped
+        gate = sim.command_publishers.gate
+        assert gate.dropped >= 1 and len([s for s in gate.live_series() if s.passed]) == 1
     reported = [e for e in errors if 'joint_commands' in e]
-    assert len(reported) == 1 and 'alternate' in reported[0]
+    assert len(reported) == 1 and "the other's commands are ignored" in reported[0]
 
 
 @pytest.mark.timeout(120)
 def test_one_command_source_restarted_is_not_two() -> None:
+    """... and the respawn is followed: a respawned gait node sends its first command at
+    least its ``startup_listen_s`` (0.5 s, not below FOLLOWED_QUIET_S) after it started, so
+    the driver hears the old series silent that long and drops nothing."""
     from hexapod_bench_drivers.sim_nodes import SimRobotNode
+    from hexapod_common.publishers import FOLLOWED_QUIET_S
 
     with ros_env('one_commander') as env:
         sim = env.make(SimRobotNode, parameter_overrides=[])
         errors = capture_errors(sim)
         names = list(sim.live.joint_names)
-        for _ in range(2):      # a gait node, then its respawn: a new writer, numbers anew
+        watch = sim.command_publishers
+        applied = []
+        for respawn in range(2):  # a gait node, then its respawn: a new writer, numbers anew
+            if respawn:           # (its start-up listen)
+                assert env.spin_until(lambda: watch.clock() - watch.gate.series().last_arrival
+                                      >= FOLLOWED_QUIET_S, 20)
+            applied.append(watch.gate.passed)
             [pub] = _commands(env, 1)
             assert env.spin_until(lambda: pub.get_subscription_count() >= 1, 20)
             for k in range(150):
@@ -57,6 +71,9 @@ def test_one_command_source_restarted_is_not_two() -> None:
             env.nodes[-1].destroy_publisher(pub)
         assert sim.command_publishers.sequences.numbered
         assert sim.command_publishers.reported == 0, errors
+        # the respawn followed: nothing dropped (the old one silent the quiet time before);
+        # every message that arrived applied (best effort: a busy machine may lose some)
+        assert watch.gate.dropped == 0 and watch.gate.passed > applied[1] > 0
 
 
 @pytest.mark.timeout(120)
@@ -83,4 +100,59 @@ def test_dynamixel_driver_reports_two_command_sources(tmp_path) -> None:
                 pub.publish(JointState(name=names, position=[q] * 4))
             env.executor.spin_once(timeout_sec=0.0)
         assert env.spin_until(lambda: node.command_publishers.reported >= 1, 20)
-    assert len([e for e in errors if 'alternate' in e]) == 1
+    assert len([e for e in errors if "the other's commands are ignored" in e]) == 1
+
+
+@pytest.mark.timeout(120)
+def test_sim_robot_applies_only_the_first_source_then_the_one_left() -> None:
+    """A gait node sends 0.1 rad, a second source 0.5 rad interleaved: the simulated joints'
+    targets stay at 0.1 while the first lives; once it is gone and the quiet time passed
+    (FOLLOWED_QUIET_S), the one left is followed. Before, each message of either was applied
+    (the targets jumped between 0.1 and 0.5)."""
+    from hexapod_bench_drivers.sim_nodes import SimRobotNode
+    from hexapod_common.publishers import FOLLOWED_QUIET_S
+
+    with ros_env('first_source') as env:
+        sim = env.make(SimRobotNode, parameter_overrides=[])
+        names = list(sim.live.joint_names)
+        applied: list[float] = []
+        update = sim.live.commands.update
+
+        def record(t_s, names_, position, velocity):
+            applied.append(float(position[0]))
+            return update(t_s, names_, position, velocity)
+        sim.live.commands.update = record
+        warnings: list[str] = []
+        log = sim.get_logger()
+        warn = log.warning
+        log.warning = lambda msg, **kw: warnings.append(msg) or warn(msg, **kw)
+        errors = capture_errors(sim)
+
+        def source(name: str, q: float) -> Any:
+            """A node sending ``q`` to every joint at 100 Hz (a gait node, a teleop)."""
+            node = rclpy.create_node(name, context=env.context, namespace=env.namespace)
+            pub = node.create_publisher(JointState, 'joint_commands', KEEP_ALL_QOS)
+            node.create_timer(0.01, lambda: pub.publish(
+                JointState(name=names, position=[q] * len(names))))
+            return node
+
+        first = source('gait_first', 0.1)
+        env.executor.add_node(first)                 # destroyed below, not by ros_env
+        assert env.spin_until(lambda: len(applied) >= 20, 30)
+        env.add(source('gait_second', 0.5))
+        gate = sim.command_publishers.gate
+        assert env.spin_until(lambda: sim.command_publishers.reported >= 1
+                              and gate.dropped >= 50, 30)
+        assert set(applied) == {0.1}                 # never the second's 0.5
+        env.executor.remove_node(first)              # the first gait node gone
+        first.destroy_node()
+        n = len(applied)
+        assert env.spin_until(lambda: 0.5 in applied[n:], 30)
+        assert set(applied[:n]) == {0.1}
+        after = applied[applied.index(0.5):]
+        assert set(after) == {0.5}                   # the one left, from then on
+        [switch] = [w for w in warnings if 'silent for' in w]
+        silent = float(switch.split('silent for ')[1].split(' s')[0])
+        assert silent >= FOLLOWED_QUIET_S
+    assert len(errors) == 1 and "the other's commands are ignored" in errors[0]
+    assert "applied" in errors[0]
