@@ -31,10 +31,11 @@ line, ``HEXAPOD_DEBUG=1`` for the traceback); 130 interrupted.
 
 Output folders: each command first sets aside (in a hidden folder in ``--out``) its own result
 and figures of an earlier run (``energy.json`` with ``prediction.*``, ``four_quadrant_*`` ...;
-``slip.json`` with ``fig7/8/9_*.png``; ``residuals.json`` with ``residual_*.png``), writes its
-figures, then its JSON last, then drops what it set aside; an interrupted or failed run removes
-what it had written and puts the earlier result back, so a folder never pairs one run's JSON
-with another run's figures, and a failed re-run does not cost the last good result.
+``slip.json`` with ``fig7/8/9_*`` and ``slip_fit_*``; ``residuals.json`` with
+``residual_*.png``), writes its figures, then its JSON last, then drops what it set aside;
+an interrupted or failed run removes what it had written and puts the earlier result back,
+so a folder never pairs one run's JSON with another run's figures, and a failed re-run does
+not cost the last good result.
 """
 
 from __future__ import annotations

@@ -33,7 +33,8 @@ OUTPUTS: dict[str, tuple[str, ...]] = {
                                      'where_the_watts_go', 'power_in_over_time',
                                      'measured_runs', 'bench_surfaces')
         for ext in ('png', 'svg')),
-    'slip.json': ('fig7_*.png', 'fig8_*.png', 'fig9_*.png'),
+    'slip.json': tuple(f'{name}.{ext}' for name in ('fig7_*', 'fig8_*', 'fig9_*',
+                                                    'slip_fit_*') for ext in ('png', 'svg')),
     'residuals.json': ('residual_*.png',),
 }
 

@@ -96,16 +96,28 @@ CAPTIONS = (
                             'that slope, and what scatter is left (per run, too) is the '
                             'windows\' noise and what no added effect explains.'),
     ('residual_unexplained', 'What the added effects left, per run, against the window noise.'),
-    ('residual_slip_nerr', 'SLIP-measure (nerr) per stance, one series per bag, plain SLIP '
-                           '(before) and with the added extension (after).'),
+    ('residual_slip_nerr', 'SLIP-measure nerr per stance (the stances and nerr of '
+                           'hexapod-analyze slip, bx from each stance\'s start), one series '
+                           'per bag: plain SLIP, and with the extension the loop added when '
+                           'it added one.'),
     ('fig7', 'Komsuoglu et al. Fig. 7: speed against specific resistance, one marker per run, '
              'in the paper\'s gait colours (running blue, jogging green, pace purple, walk '
              'red).'),
     ('fig8', 'Komsuoglu et al. Fig. 8: input power against speed, one marker per run, in the '
              'paper\'s gait colours (running blue, jogging green, pace purple, walk red).'),
-    ('fig9', 'Komsuoglu et al. Fig. 9: SLIP-measure (nerr) against specific resistance: every '
-             'stance (dots, jittered sideways), each run\'s median (marker) and interquartile '
-             'range (bar); stances beyond Q3 + 1.5 IQR labelled with their value.'),
+    ('fig9', 'Komsuoglu et al. Fig. 9: SLIP-measure against specific resistance: every '
+             'stance (dots, jittered sideways), each run\'s median (ring) and interquartile '
+             'range (bar); stances beyond Q3 + 1.5 IQR labelled with their value. Left: '
+             'nerr_world, Eq. 2 read literally (bx in the run\'s world frame), the paper\'s '
+             'measure; right: the same stances\' nerr (bx from each stance\'s start, '
+             'independent of the frame\'s origin), the table\'s "nerr" column.'),
+    ('slip_fit', 'SLIP fit against the data: for the best, median and worst stance by nerr '
+                 'of each gait (one row per gait), the measured COM path, fore/aft and '
+                 'vertical speed and leg length to the fitted foot (solid; raw motion-capture '
+                 'samples as dots) against the SLIP re-simulated from the stance\'s fitted '
+                 'k, l0, fx from its first measured state (dashed): the four states Eq. 2 '
+                 'compares. The legend gives each stance\'s index in slip.json\'s stances, '
+                 'touchdown, nerr and nerr_world.'),
 )
 
 

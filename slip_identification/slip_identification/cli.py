@@ -1,6 +1,11 @@
 """``hexapod-analyze slip BAG... --out DIR [--jobs N]``: per-stance SLIP fits of recorded runs.
 
-Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json``::
+Writes ``DIR/slip.json``, the Figs. 7-9 scatter plots (``fig7_speed_vs_sr``,
+``fig8_power_vs_speed``, ``fig9_nerr_vs_sr``: Fig. 9 with ``nerr_world``, Eq. 2 literal, and
+``nerr`` side by side) and ``slip_fit_stances`` (the SLIP fit against the data: measured
+states and the SLIP re-simulated from the fitted parameters for the best, median and worst
+stance by nerr of each gait, :mod:`slip_identification.plots`), each as PNG and SVG.
+Schema of ``slip.json``::
 
     {
       "schema": "slip/1",
@@ -109,6 +114,7 @@ Writes ``DIR/slip.json`` and the Figs. 7-9 scatter plots. Schema of ``slip.json`
       "skipped_counts": {"<reason>": n},   # too_short, nan, mocap_gap, outside_volume,
                                            # transient (--steady-only), ...
       "failed_bags": [{"bag", "error"}],   # e.g. a missing topic
+      "plots": [file names]  # the figures written beside it (PNG and SVG)
       "warnings": [str]    # e.g. the robot mass assumed (no --mass); "<bag>: ..." for a
                            # run resting on an assumption its data contradict (runs[].warnings,
                            # also in its notes: legs not EduBot's, efforts against contacts)
@@ -557,6 +563,7 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
         d.update(power_w=_f(res.power_w), speed_mps=_f(res.speed_mps), sr=_f(res.sr))
         stances.append(d)
     return {'bag': path, 'gait': run.gait, 'stances': stances,
+            'traces': _traces(stances, res, model),
             'skipped': [{'bag': path, **s} for s in res.skipped],
             'run': {'bag': path, 'gait': run.gait,
                     'gaits': list(dict.fromkeys(g for _, g in run.gait_changes)) or [run.gait],
@@ -574,6 +581,26 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
                     'geometry': None if geometry is None else dataclasses.asdict(geometry),
                     'stances': len(stances), 'skipped': len(res.skipped), 'notes': notes,
                     'warnings': list(res.warnings)}}
+
+
+def _traces(stances: list[dict[str, Any]], res: Any, model: SlipModel
+            ) -> list[dict[str, Any] | None]:
+    """The measured states and fits behind ``stances`` for the fit-against-data figure
+    (:func:`.plots.stance_trace`; not written to ``slip.json``), one per stance: every
+    stance's up to :data:`.plots.TRACE_CAP` stances per gait, else that many ranks spread
+    over the gait's nerr (None for the others)."""
+    from .plots import stance_trace, trace_subset
+
+    if len(res.stances) != len(res.fits) or len(res.fits) != len(stances):
+        return [None] * len(stances)
+    keep: set[int] = set()
+    for gait in {str(d['gait']) for d in stances}:
+        idx = [i for i, d in enumerate(stances) if str(d['gait']) == gait]
+        sub = trace_subset([math.nan if stances[i]['nerr'] is None else stances[i]['nerr']
+                            for i in idx])
+        keep.update(idx[j] for j in sub)
+    return [stance_trace(s, r, model) if i in keep else None
+            for i, (s, r) in enumerate(zip(res.stances, res.fits))]
 
 
 def live_params_line(run: dict[str, Any]) -> str:
@@ -788,6 +815,9 @@ def _run_command(args: argparse.Namespace) -> int:
             for b in tqdm(bags, desc='slip', unit='bag', **bar_options()):
                 results.append(analyze_bag(b, options))
     stances = [s for r in results for s in r.get('stances', [])]
+    # each stance's measured states and fit, for the fit-against-data figure (not in the JSON)
+    traces = [t for r in results
+              for t in (r.get('traces') or [None] * len(r.get('stances', [])))]
     skipped = [s for r in results for s in r.get('skipped', [])]
     rows = [{'gait': s['gait'], 'nerr': s['nerr'] if s['nerr'] is not None else math.nan,
              'nerr_world': s['nerr_world'] if s.get('nerr_world') is not None else math.nan,
@@ -813,8 +843,16 @@ def _run_command(args: argparse.Namespace) -> int:
                            if 'error' in r], 'warnings': warnings}
     from hexapod_common.outdir import write_text_atomic
 
+    doc['plots'] = []
     if rows:   # figures first, the JSON last
-        plot_figures(rows, out, mass_kg=args.mass, source=data_source(doc['runs']))
+        from .plots import plot_stance_fits
+
+        source = data_source(doc['runs'])
+        written = list(plot_figures(rows, out, mass_kg=args.mass, source=source) or [])
+        written += plot_stance_fits(stances, traces, out, source=source, mass_kg=args.mass)
+        for p in written:   # each PNG with the SVG beside it
+            doc['plots'] += [q.name for q in (p, p.with_suffix('.svg'))
+                             if q.is_file() and q.name not in doc['plots']]
     write_text_atomic(out / 'slip.json', json.dumps(json_safe(doc), indent=1, allow_nan=False))
     for f in doc['failed_bags']:
         print(f"slip: refused {f['bag']}: {f['error']}", file=sys.stderr)

@@ -237,21 +237,60 @@ def data_source(runs: Sequence[Any]) -> str | None:
             else 'recorded runs')
 
 
+#: Fig. 9's measures: key -> y-axis label (Eq. 2 literal first, the paper's Table 3 measure)
+NERR_MEASURES = (
+    ('nerr_world', "nerr_world: Eq. 2 literal, bx in the run's world frame\n"
+                   "(the paper's SLIP-measure, Table 3)"),
+    ('nerr', "nerr: Eq. 2 with bx from each stance's start\n"
+             '(slip.json nerr; independent of the frame origin)'),
+)
+
+
+def _measures(rows: Sequence[dict[str, float | str]]) -> list[tuple[str, str]]:
+    """Fig. 9's panels: each of :data:`NERR_MEASURES` with a finite value in ``rows``
+    (``nerr`` alone when the rows carry no ``nerr_world``)."""
+    out = [(k, label) for k, label in NERR_MEASURES
+           if any(math.isfinite(float(r.get(k, math.nan))) for r in rows)]
+    return out or [NERR_MEASURES[1]]
+
+
+def _separate_labels(fig: Any, ax: Any, step_pt: float = 8.0, tries: int = 12) -> None:
+    """Move ``ax``'s annotations (offset points) down, one after another, until none
+    overlaps an earlier one (a run's 'n=15' sat on its outlier's '0.10': an outside
+    review)."""
+    renderer = fig.canvas.get_renderer()
+    placed: list[Any] = []
+    for text in ax.texts:
+        if not hasattr(text, 'xyann'):
+            continue
+        for _ in range(tries):
+            box = text.get_window_extent(renderer).expanded(1.05, 1.1)
+            if not any(box.overlaps(b) for b in placed):
+                break
+            x, y = text.xyann
+            text.xyann = (x, y - step_pt)
+        placed.append(text.get_window_extent(renderer))
+
+
 def plot_figures(rows: Sequence[dict[str, float | str]], out_dir: str | Path, *,
                  mass_kg: float | None = None, source: str | None = None) -> list[Path]:
     """Figs. 7 (v vs SR), 8 (P vs v), 9 (nerr vs SR) in the paper's gait colours (running
-    blue, jogging green, pace purple, walk red; legend in Table 3's order).
+    blue, jogging green, pace purple, walk red; legend in Table 3's order), each as PNG and
+    SVG at the energy figures' resolution (:func:`.plots.save_figure`).
 
     Speed, power and SR are run values (repeated on each stance): one marker per run,
     annotated with its stance count ``n``. nerr is per stance: Fig. 9 draws every stance
-    (slightly jittered sideways) and each run's median with its interquartile range; stances
-    beyond Q3 + 1.5 IQR are labelled with their value.
+    (jittered sideways, over its run's marker) and each run's median (ring) with its
+    interquartile range; stances beyond Q3 + 1.5 IQR are labelled with their value. With
+    ``nerr_world`` in the rows Fig. 9 has two panels on one y scale: ``nerr_world`` (Eq. 2
+    read literally, the paper's measure) and ``nerr`` (bx from each stance's start, what
+    ``slip.json``'s ``nerr`` is); the y-axes name them.
 
     Parameters
     ----------
     rows : sequence of dict
         One dict per stance (``gait``, ``nerr``, ``power_w``, ``speed_mps``, ``sr``,
-        optionally ``bag``).
+        optionally ``nerr_world`` and ``bag``).
     out_dir : str or Path
         Output folder.
     mass_kg : float, optional
@@ -263,12 +302,14 @@ def plot_figures(rows: Sequence[dict[str, float | str]], out_dir: str | Path, *,
     Returns
     -------
     list of Path
-        The three PNGs.
+        The three PNGs (an SVG beside each).
     """
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
     from matplotlib.lines import Line2D
+
+    from .plots import save_figure
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -291,59 +332,84 @@ def plot_figures(rows: Sequence[dict[str, float | str]], out_dir: str | Path, *,
         data.append(f'{len(runs)} runs')
     what = ', '.join(x for x in data if x)
     sr_label = 'specific resistance SR [-]'
-    specs = [('fig7_speed_vs_sr.png', 'sr', 'speed_mps', sr_label, 'speed [m/s]',
+    how = '\n(dots: stances; ring and bar: median and IQR per run)'
+    specs = [('fig7_speed_vs_sr', 'sr', ['speed_mps'], sr_label, ['speed [m/s]'],
               'Fig. 7: speed against specific resistance'),
-             ('fig8_power_vs_speed.png', 'speed_mps', 'power_w', 'speed [m/s]',
-              'input power [W]', 'Fig. 8: input power against speed'),
-             ('fig9_nerr_vs_sr.png', 'sr', 'nerr', sr_label,
-              'SLIP-measure nerr [-]\n(dots: stances; marker and bar: median and IQR per run)',
+             ('fig8_power_vs_speed', 'speed_mps', ['power_w'], 'speed [m/s]',
+              ['input power [W]'], 'Fig. 8: input power against speed'),
+             ('fig9_nerr_vs_sr', 'sr', [k for k, _ in _measures(rows)], sr_label,
+              [f'SLIP-measure {label} [-]{how}' for _, label in _measures(rows)],
               'Fig. 9: SLIP-measure against specific resistance')]
-    rng = np.random.default_rng(0)       # the jitter: the same figure on every run
     paths = []
-    for name, kx, ky, lx, ly, title in specs:
-        fig, ax = plt.subplots(figsize=(6.0, 4.6))
+    for name, kx, kys, lx, lys, title in specs:
+        rng = np.random.default_rng(0)       # the jitter: the same figure on every run
+        fig, axs = plt.subplots(1, len(kys), figsize=(6.6 * len(kys), 4.9), squeeze=False,
+                                sharey=True)
         xs_all = [float(np.nanmean([float(r[kx]) for r in run])) for run in runs
                   if np.isfinite([float(r[kx]) for r in run]).any()]
         span = (max(xs_all) - min(xs_all)) if len(xs_all) > 1 else 1.0
-        for run in runs:
-            g = str(run[0]['gait'])
-            xs = np.array([float(r[kx]) for r in run], dtype=float)
-            ys = np.array([float(r[ky]) for r in run], dtype=float)
-            x = float(np.nanmean(xs)) if np.isfinite(xs).any() else math.nan
-            ok = np.isfinite(ys)
-            if ky == 'nerr' and ok.any():
-                y = float(np.median(ys[ok]))
-                q1, q3 = (float(q) for q in np.percentile(ys[ok], [25, 75]))
-                jitter = rng.uniform(-0.012, 0.012, ok.sum()) * (span or 1.0)
-                ax.scatter(x + jitter, ys[ok], s=14, color=color[g], alpha=0.6,
-                           linewidths=0, zorder=2, label='_stances')
-                ax.errorbar([x], [y], yerr=[[y - q1], [q3 - y]], fmt='o', ms=8,
-                            color=color[g], mec='k', mew=0.8, ecolor='k', elinewidth=1.4,
-                            capsize=5, zorder=3, label='_run')
-                far = q3 + 1.5 * (q3 - q1)
-                for v, jx in zip(ys[ok], x + jitter):
-                    if v > far and q3 > q1:
-                        ax.annotate(f'{v:.2f}', (jx, v), textcoords='offset points',
-                                    xytext=(5, -3), fontsize=7, color=color[g])
-            else:
-                y = float(ys[ok].mean()) if ok.any() else math.nan
-                if math.isfinite(y):
-                    ax.plot([x], [y], 'o', ms=8, color=color[g], label='_run')
-            if math.isfinite(x) and math.isfinite(y):
-                ax.annotate(f'n={len(run)}', (x, y), textcoords='offset points',
-                            xytext=(8, 4), fontsize=8)
-        ax.set_xlabel(lx)
-        ax.set_ylabel(ly, fontsize=9 if ky == 'nerr' else None)
-        ax.set_title('\n'.join(x for x in (title, what, '(Komsuoglu et al.; one marker per '
-                                            'run, n = its stances)') if x), fontsize=9)
-        ax.grid(alpha=0.3)
-        ax.margins(0.15)
-        if ky == 'nerr':
-            ax.set_ylim(bottom=0.0)
-        ax.legend(handles=[Line2D([], [], ls='', marker='o', ms=7, color=color[g], label=g)
-                           for g in gaits], title='gait', fontsize=8)
+        for ax, ky, ly in zip(axs[0], kys, lys):
+            nerr = ky.startswith('nerr')
+            for run in runs:
+                g = str(run[0]['gait'])
+                xs = np.array([float(r[kx]) for r in run], dtype=float)
+                ys = np.array([float(r.get(ky, math.nan)) for r in run], dtype=float)
+                x = float(np.nanmean(xs)) if np.isfinite(xs).any() else math.nan
+                ok = np.isfinite(ys)
+                at = (x, math.nan)
+                if nerr and ok.any():
+                    y = float(np.median(ys[ok]))
+                    q1, q3 = (float(q) for q in np.percentile(ys[ok], [25, 75]))
+                    # dots spread wider than the run's ring and drawn over it: every stance
+                    # shows (the filled median marker had hidden running's 0.044-0.101)
+                    # (evenly spaced offsets in random order: a run of few stances spreads
+                    # as wide as one of many)
+                    m = int(ok.sum())
+                    jitter = rng.permutation(np.linspace(-0.06, 0.06, m) if m > 1
+                                             else np.zeros(1)) * (span or 1.0)
+                    ax.errorbar([x], [y], yerr=[[y - q1], [q3 - y]], fmt='o', ms=11,
+                                color=color[g], mfc='none', mec=color[g], mew=2.0,
+                                ecolor='k', elinewidth=1.2, capsize=5, zorder=3,
+                                label='_run')
+                    ax.scatter(x + jitter, ys[ok], s=18, color=color[g], alpha=0.8,
+                               edgecolors='k', linewidths=0.4, zorder=4, label='_stances')
+                    far = q3 + 1.5 * (q3 - q1)
+                    for v, jx in zip(ys[ok], x + jitter):
+                        if v > far and q3 > q1:
+                            ax.annotate(f'{v:.2f}', (jx, v), textcoords='offset points',
+                                        xytext=(5, 0), va='center', fontsize=7,
+                                        color=color[g])
+                    at = (x, float(ys[ok].min()))     # the stance count below its dots
+                else:
+                    y = float(ys[ok].mean()) if ok.any() else math.nan
+                    if math.isfinite(y):
+                        ax.plot([x], [y], 'o', ms=8, color=color[g], label='_run')
+                    at = (x, y)
+                if math.isfinite(at[0]) and math.isfinite(at[1]):
+                    if nerr:
+                        ax.annotate(f'n={len(run)}', at, textcoords='offset points',
+                                    xytext=(0, -9), ha='center', va='top', fontsize=8)
+                    else:
+                        ax.annotate(f'n={len(run)}', at, textcoords='offset points',
+                                    xytext=(8, 4), fontsize=8)
+            ax.set_xlabel(lx)
+            ax.set_ylabel(ly, fontsize=9 if nerr else None)
+            if ax is axs[0][0]:
+                ax.set_title('\n'.join(x for x in (title, what, '(Komsuoglu et al.; one '
+                                                    'marker per run, n = its stances)') if x),
+                             fontsize=9)
+            else:     # Fig. 9's second measure: the same stances
+                ax.set_title(f'the same stances, {ky}\n(Eq. 2 with bx from each stance\'s '
+                             'start: slip.json\'s and the report\'s "nerr")', fontsize=9)
+            ax.grid(alpha=0.3)
+            ax.margins(0.15)
+            if nerr:
+                ax.set_ylim(bottom=0.0)
+                ax.yaxis.set_tick_params(labelleft=True)
+            ax.legend(handles=[Line2D([], [], ls='', marker='o', ms=7, color=color[g],
+                                      label=g) for g in gaits], title='gait', fontsize=8)
         fig.tight_layout()
-        fig.savefig(out / name, dpi=100)
-        plt.close(fig)
-        paths.append(out / name)
+        for ax in axs[0]:
+            _separate_labels(fig, ax)
+        paths.append(save_figure(fig, out / name)[0])
     return paths

@@ -112,6 +112,10 @@ class RunResult:
     """Fits, skipped stances with reasons, and run energetics."""
 
     fits: list[SlipFitResult] = field(default_factory=list)
+    #: the measured stances behind ``fits`` (one each, same order): what the fits and the
+    #: fit-against-data figure re-simulate from, and what the residual loop fits its templates
+    #: to (:func:`hexapod_energy.residuals_cli.run_slip_loop`)
+    stances: list[Stance] = field(default_factory=list)
     position_fits: list[SlipFitResult] = field(default_factory=list)
     skipped: list[dict[str, Any]] = field(default_factory=list)
     skipped_counts: Counter[str] = field(default_factory=Counter)
@@ -1130,6 +1134,7 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
         res.skipped_counts['mocap_gap'] += 1
     if stances:
         res.fits = SlipFitter(model, starts=starts).fit(stances).results_  # type: ignore[arg-type]
+        res.stances = list(stances)
         if position_fit:
             res.position_fits = SlipPositionFitter(
                 model, starts=starts).fit(stances).results_  # type: ignore[arg-type]
