@@ -188,6 +188,7 @@ class BagWriter:
         self._split_index = 0
         self._split_started = 0.0
         self._merged: dict[str, Any] | None = None
+        self._merged_index = -1            # the last split merged into _merged
         self._files_json: list[str] = []   # each split's files entry, serialised once
         self.counts: dict[str, int] = {}
         self.path.mkdir(parents=True)
@@ -235,21 +236,29 @@ class BagWriter:
             self.flush()
 
     def flush(self) -> None:
-        """Close the open split so that everything written so far is durable."""
-        if self._writer is not None:
+        """Close the open split so that everything written so far is durable (also one whose
+        close was interrupted: see :meth:`close`)."""
+        if self._writer is not None or self._tmp_split().exists():
             self._close_split()
 
     def close(self) -> None:
-        """Close the bag; an empty bag still gets valid metadata."""
-        if self._writer is None and self._merged is None:
+        """Close the bag; an empty bag still gets valid metadata.
+
+        Called again after an interruption (a ``KeyboardInterrupt`` from a second Ctrl-C), it
+        finishes the split whose close was cut short: it used to open ``.split_N`` again
+        (``WriterError: exists already``, no ``metadata.yaml``, the last split's data left
+        in the hidden folder; an outside review)."""
+        if self._writer is None and self._merged is None and not self._tmp_split().exists():
             self._ensure_writer()
         self.flush()
 
     # -- splits ----------------------------------------------------------------------------
+    def _tmp_split(self) -> Path:
+        return self.path / f'.split_{self._split_index}'
+
     def _ensure_writer(self) -> Writer:
         if self._writer is None:
-            tmp = self.path / f'.split_{self._split_index}'
-            writer = Writer(tmp, version=9, storage_plugin=self._plugin)
+            writer = Writer(self._tmp_split(), version=9, storage_plugin=self._plugin)
             writer.open()
             for key, value in self._custom.items():
                 writer.set_custom_data(key, value)
@@ -260,19 +269,30 @@ class BagWriter:
         return self._writer
 
     def _close_split(self) -> None:
-        assert self._writer is not None
-        writer, self._writer = self._writer, None
-        writer.close()
-        tmp = Path(writer.path)
-        yaml = YAML(typ='safe')
-        meta = yaml.load((tmp / 'metadata.yaml').read_text(encoding='utf8'))
-        info = meta['rosbag2_bagfile_information']
-        single = info['relative_file_paths'][0]
-        final = f'{self.path.name}_{self._split_index}{Path(single).suffix}'
-        (tmp / single).replace(self.path / final)
-        shutil.rmtree(tmp)
-        info['relative_file_paths'] = [final]
-        info['files'][0]['path'] = final
+        """Close split ``_split_index`` into the bag. Each step can be run again after an
+        interruption: the writer is forgotten once closed, the split's file is moved once,
+        merged once (``_merged_index``), and the hidden folder removed last."""
+        tmp = self._tmp_split()
+        if self._writer is not None:
+            if self._writer.storage is not None:   # None: closed, only forgetting it was cut
+                self._writer.close()
+            self._writer = None
+        if self._merged_index < self._split_index:
+            yaml = YAML(typ='safe')
+            meta = yaml.load((tmp / 'metadata.yaml').read_text(encoding='utf8'))
+            info = meta['rosbag2_bagfile_information']
+            single = info['relative_file_paths'][0]
+            final = f'{self.path.name}_{self._split_index}{Path(single).suffix}'
+            if (tmp / single).exists():
+                (tmp / single).replace(self.path / final)
+            info['relative_file_paths'] = [final]
+            info['files'][0]['path'] = final
+            self._merge(info)
+            self._merged_index = self._split_index
+        shutil.rmtree(tmp, ignore_errors=True)
+        self._split_index += 1
+
+    def _merge(self, info: dict[str, Any]) -> None:
         self._merged = info if self._merged is None else _merge_info(self._merged, info)
         self._merged['custom_data'] = dict(self._custom) or None
         self._merged['ros_distro'] = 'jazzy'
@@ -289,8 +309,6 @@ class BagWriter:
         tmp_meta = self.path / 'metadata.yaml.tmp'
         tmp_meta.write_text(text + '\n', encoding='utf8')
         tmp_meta.replace(self.path / 'metadata.yaml')
-        self._split_index += 1
-
 
 def _merge_info(old: dict[str, Any], new: dict[str, Any]) -> dict[str, Any]:
     """Metadata of two consecutive splits as one bag: ``old`` (the bag so far, owned by the

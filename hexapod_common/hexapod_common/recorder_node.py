@@ -6,27 +6,47 @@ Storage files are closed every ``flush_period`` seconds, so a killed recorder lo
 that much. An existing bag is never overwritten. An output that cannot be created (an existing
 path, a folder that cannot be written) or a ``--flush-period`` that is not a finite number > 0
 is refused before recording (exit 2, one line naming the option).
+Ctrl-C, ``kill -INT`` or ``kill -TERM`` (also to a background job, which ignores SIGINT until
+a program catches it) stop it: exit 0 with a valid bag (empty if nothing came) once the bag
+folder exists, else 130 (SIGINT) or 143 (SIGTERM), one line and no folder (see :func:`main`).
 """
 
 from __future__ import annotations
 
-import argparse
-import math
-import sys
-from collections.abc import Sequence
-from pathlib import Path
-from dataclasses import dataclass
-from typing import Any
+from hexapod_common import stop_signals
 
-from rclpy.node import Node
-from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+# First, before rclpy's second of imports: a `kill -INT` then, to a recorder started in the
+# background by a script (SIGINT ignored), was lost and it recorded on (see stop_signals, main).
+stop_signals.catch_if_program('bag_recorder')
 
-from hexapod_common.bags import BagWriter
-from hexapod_common.cli_args import NumberArgumentParser
-from hexapod_common.errors import HexapodError, UnknownTypeError
-from hexapod_common.node_utils import close_node, declare_params, param, stopping_errors
-from hexapod_common.ros_types import CONTRACT_TOPICS, ros_message_class
+import argparse  # noqa: E402
+import math  # noqa: E402
+import signal  # noqa: E402
+import sys  # noqa: E402
+from collections.abc import Sequence  # noqa: E402
+from pathlib import Path  # noqa: E402
+from dataclasses import dataclass  # noqa: E402
+from typing import Any  # noqa: E402
+
+from rclpy.node import Node  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rclpy.qos import (  # noqa: E402
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+)
+
+from hexapod_common.bags import BagWriter  # noqa: E402
+from hexapod_common.cli_args import NumberArgumentParser  # noqa: E402
+from hexapod_common.errors import HexapodError, UnknownTypeError  # noqa: E402
+from hexapod_common.node_utils import (  # noqa: E402
+    close_node,
+    declare_params,
+    param,
+    stopping_errors,
+)
+from hexapod_common.ros_types import CONTRACT_TOPICS, ros_message_class  # noqa: E402
 
 __all__ = ['BagRecorderNode', 'RecorderParams', 'check_args', 'main']
 
@@ -65,14 +85,22 @@ class BagRecorderNode(Node):
         self.counts: dict[str, int] = {}
         self._subs: dict[str, Any] = {}
         self._warned: set[str] = set()
-        # said at start and per topic as it is subscribed (it printed nothing until it stopped)
-        self.get_logger().info(
-            f'recording into {self.params.output}: '
-            f'{", ".join(self._resolve(t) for t in self.params.topics)} (each once a '
-            'publisher appears)')
-        self._discover()
-        self.create_timer(self.params.discovery_period, self._discover)
-        self.create_timer(self.params.flush_period, self.writer.flush)
+        try:
+            # said at start and per topic as it is subscribed (it printed nothing until it
+            # stopped)
+            self.get_logger().info(
+                f'recording into {self.params.output}: '
+                f'{", ".join(self._resolve(t) for t in self.params.topics)} (each once a '
+                'publisher appears)')
+            self._discover()
+            self.create_timer(self.params.discovery_period, self._discover)
+            self.create_timer(self.params.flush_period, self.writer.flush)
+        except BaseException:
+            # the bag folder exists: close it as a valid (empty) bag. A SIGINT here shut the
+            # context down under the first discovery and left a folder without metadata.yaml
+            # that bag_replay could not read (an outside review)
+            self.writer.close()
+            raise
 
     def _resolve(self, topic: str) -> str:
         return self.resolve_topic_name(topic)
@@ -142,8 +170,34 @@ def check_args(args: argparse.Namespace) -> str | None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """Record until SIGINT or SIGTERM; exit 0 with a valid bag (empty if nothing came) once the
+    bag folder was created, 130 (SIGINT) or 143 (SIGTERM) with one line and no folder when
+    the signal came before, 2 for a refused option or output.
+
+    The signals are noted by :mod:`hexapod_common.stop_signals` (the console script catches
+    them at import, before rclpy's imports) and not by rclpy's handler, which ignored a
+    signal that came before its context existed, and whose ``KeyboardInterrupt`` during the
+    bag's close lost the last split. Once the stop has begun, more signals are only noted."""
+    saved = {sig: signal.getsignal(sig) for sig in stop_signals.STOP_SIGNALS}
+    stop_signals.catch()
+    try:
+        return _record(argv)
+    finally:
+        for sig, handler in saved.items():   # called in-process (a test): its own handlers
+            if handler is not None:
+                signal.signal(sig, handler)
+
+
+def _interrupted(sig: int) -> int:
+    name = signal.Signals(sig).name
+    print(f'bag_recorder: {name} before recording began: no bag written', file=sys.stderr)
+    return stop_signals.EXIT_CODES[sig]
+
+
+def _record(argv: Sequence[str] | None) -> int:
     import rclpy
-    from rclpy.executors import ExternalShutdownException
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
     from rclpy.utilities import remove_ros_args
 
     raw = list(sys.argv[1:] if argv is None else argv)
@@ -166,12 +220,20 @@ def main(argv: Sequence[str] | None = None) -> int:
         overrides.append(Parameter('storage', value=args.storage))
     if args.flush_period is not None:
         overrides.append(Parameter('flush_period', value=args.flush_period))
-    rclpy.init(args=['bag_recorder', *raw])
+    if sig := stop_signals.received():
+        return _interrupted(sig)
+    rclpy.init(args=['bag_recorder', *raw], signal_handler_options=SignalHandlerOptions.NO)
     node = None
     try:
+        if sig := stop_signals.received():
+            return _interrupted(sig)
         node = BagRecorderNode(parameter_overrides=overrides)
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
+        executor = SingleThreadedExecutor(context=node.context)
+        executor.add_node(node)
+        # the noted signal is seen when spin_once returns: within 0.1 s
+        while stop_signals.received() is None and rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
+    except ExternalShutdownException:
         pass
     except (HexapodError, ValueError) as err:
         print(f'bag_recorder: error: {err}', file=sys.stderr)
@@ -182,11 +244,12 @@ def main(argv: Sequence[str] | None = None) -> int:
               f'({err.strerror or err})', file=sys.stderr)
         return 2
     except stopping_errors() as err:
-        # SIGINT shuts the context down under topic discovery or the wait set (a script's
-        # `kill -INT` at start-up gave a traceback and exit 1): a stop, unless still running
+        # the context shut down under topic discovery or the wait set (by another handler
+        # than ours, or rclpy.shutdown): a stop, unless still running
         if rclpy.ok():
             raise err
     finally:
+        stop_signals.catch()     # a second signal no longer interrupts the close
         if node is not None:
             print(f'recorded: {dict(node.counts)}', file=sys.stderr)
         close_node(node)

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from ruamel.yaml import YAML
 
 from hexapod_common.bags import BagWriter, new_msg, open_reader, stamp
@@ -45,3 +47,54 @@ def test_metadata_over_splits_with_an_empty_one(tmp_path):
         assert reader.start_time == 5_000_000_000
         stamps = [m[1] for m in reader.messages()]
     assert len(stamps) == 60 and stamps == sorted(stamps)
+
+
+def _interrupt_once(monkeypatch, owner, name, *, after: bool):
+    """``owner.name`` raises KeyboardInterrupt once (a second Ctrl-C), before or after running."""
+    original = getattr(owner, name)
+    calls = []
+
+    def patched(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 1 and not after:
+            raise KeyboardInterrupt
+        result = original(*args, **kwargs)
+        if len(calls) == 1:
+            raise KeyboardInterrupt
+        return result
+    monkeypatch.setattr(owner, name, patched)
+    return calls
+
+
+@pytest.mark.parametrize('where', ['after the split closed', 'in the merge'])
+def test_a_close_interrupted_then_called_again_keeps_every_split(tmp_path, monkeypatch, where):
+    """A second SIGINT during the recorder's close raised KeyboardInterrupt between the split's
+    close and its merge; close() again opened `.split_0` anew (WriterError, exit 1, no
+    metadata.yaml) or, later in a recording, dropped the last split and left `.split_N` (an
+    outside review). Now close() again finishes the cut split."""
+    from rosbags.rosbag2 import Writer
+
+    from hexapod_common import bags
+
+    bag = tmp_path / 'b'
+    w = BagWriter(bag)
+    t = 1_000_000_000
+    for split in range(2):
+        for _ in range(5):
+            w.write('/battery_state', 'sensor_msgs/msg/BatteryState', _battery(t), t)
+            t += 10_000_000
+        if split == 0:
+            w.flush()
+    if where == 'after the split closed':
+        calls = _interrupt_once(monkeypatch, Writer, 'close', after=True)
+    else:
+        calls = _interrupt_once(monkeypatch, bags, '_merge_info', after=False)
+    with pytest.raises(KeyboardInterrupt):
+        w.close()
+    w.close()          # what close_node's retry does
+    w.close()          # and idempotent after that
+    assert calls
+    assert sorted(p.name for p in bag.iterdir()) == ['b_0.mcap', 'b_1.mcap', 'metadata.yaml']
+    with open_reader(bag) as reader:
+        assert reader.message_count == 10
+        assert len(list(reader.messages())) == 10
