@@ -54,9 +54,10 @@ stances are ``hexapod-analyze slip``'s (geometric single support, fitted mocap o
              slip.json's), "per_run": [{"bag", "edges", "offset_s", "offset_method",
              "stances", "touchdown", "nerr" (plain SLIP, per stance)}]}, "mass_kg" (the
              robot mass the templates were fitted with: --mass / --robot-mass, else
-             EduBot's 3.31 kg), "mass_given", "warnings" (the mass assumed), "alternatives": [{"name",
-             "heldout_rmse", "params", "share"}] (an extension that passed every check and
-             removed at least 90 % of the held-out error the added one did), "unexplained":
+             EduBot's 3.31 kg), "mass_given", "warnings" (the mass assumed),
+             "alternatives": [{"name", "heldout_rmse", "params", "share"}] (an extension
+             that passed every check and removed at least 90 % of the held-out error the
+             added one did), "unexplained":
              {"pattern": "step"|"trend"|null, "p_value", "explained_share", "significant",
              "per_run": [{"run", "stances", "ratio", "nerr_before", "nerr_after", "at_s"?}],
              "isolated": [{"run", "at_s", "nerr", "ratio"}]} (the per-stance nerr left, over
