@@ -101,6 +101,17 @@ class NameMismatch:
             f'(ours: {_listed(self.known)}); check the leg count of the nodes')
 
 
+#: longest a late tick carries the latest command forward [s]; beyond, it is held
+MAX_CARRY_S = 0.1
+#: a command more than :data:`MAX_CARRY_S` after the previous one (and at most this [s]: a
+#: gait node started again), whose joints jump more than :data:`LATE_COMMAND_JUMP_RAD`, came
+#: late: the simulated servos held the old target and now step to the new one, drawing far
+#: more than a walking robot (a busy host: the demo's live robot read 94-98 W for 35 W under
+#: a load average of 8 on two cores, with no word from the simulator)
+LATE_COMMAND_MAX_GAP_S = 5.0
+LATE_COMMAND_JUMP_RAD = 0.05
+
+
 class _Commands:
     """Latest joint commands by name, with a finite-difference acceleration."""
 
@@ -111,11 +122,17 @@ class _Commands:
         self.qd = np.zeros_like(self.q)
         self.qdd = np.zeros_like(self.q)
         self._t_prev: float | None = None
+        #: commands that came late (:data:`LATE_COMMAND_JUMP_RAD`): count, the last gap [s]
+        #: and its largest joint jump [rad]
+        self.late = 0
+        self.late_gap_s = 0.0
+        self.late_jump_rad = 0.0
 
     def update(self, t_s: float, names: tuple[str, ...], position: FloatArray,
                velocity: FloatArray) -> int:
         """Take the joints of ours in a JointState sample; returns how many were used."""
         used = 0
+        q_old = self.q.copy()
         qd_new = self.qd.copy()
         for k, name in enumerate(names):
             i = self.index.get(name)
@@ -128,6 +145,11 @@ class _Commands:
             used += 1
         if self._t_prev is not None and t_s > self._t_prev:
             self.qdd = (qd_new - self.qd) / (t_s - self._t_prev)
+            gap = t_s - self._t_prev
+            jump = float(np.max(np.abs(self.q - q_old))) if used else 0.0
+            if MAX_CARRY_S < gap <= LATE_COMMAND_MAX_GAP_S and jump > LATE_COMMAND_JUMP_RAD:
+                self.late += 1
+                self.late_gap_s, self.late_jump_rad = gap, jump
         self._t_prev = t_s
         self.qd = qd_new
         return used
@@ -138,8 +160,6 @@ class _Commands:
         return self._t_prev
 
 
-#: longest a late tick carries the latest command forward [s]; beyond, it is held
-MAX_CARRY_S = 0.1
 
 
 class LiveRobot:

@@ -30,6 +30,7 @@ from typing import Any
 from rclpy.node import Node
 
 from geometry_msgs.msg import PointStamped, WrenchStamped
+from hexapod_common.clocks import count_milestone
 from hexapod_common.conversions import gait_phase_from_msg, joint_state_from_msg
 from hexapod_common.errors import ParameterError
 from hexapod_common.node_utils import (
@@ -128,12 +129,21 @@ class _SimNode(Node):
     def _on_commands(self, msg: JointState, info: Any = None) -> None:
         if not self.command_publishers.admit(info, msg.header.frame_id):
             return                      # another publisher's (the error says so)
+        commands = self.live.commands
+        late = commands.late
         try:
             s = joint_state_from_msg(msg)
-            self.live.commands.update(s.t_s, s.names, s.position, s.velocity)
+            commands.update(s.t_s, s.names, s.position, s.velocity)
         except (ValueError, IndexError) as err:
             self.get_logger().warning(f'dropped a bad /joint_commands message: {err}')
             return
+        if commands.late > late and count_milestone(commands.late):
+            self.get_logger().warning(
+                f'/joint_commands came {1000 * commands.late_gap_s:.0f} ms after the one '
+                f'before, its joints {commands.late_jump_rad:.2f} rad away ({commands.late} '
+                f'such so far): the simulated servos held the old target, then step to the '
+                'new one and draw far more than a walking robot (a busy host starves the gait '
+                'node or this one of CPU?); the power is not a walking robot\'s')
         self._report(self.command_check.check(tuple(s.names)))
 
     def _on_gait(self, msg: GaitPhase) -> None:

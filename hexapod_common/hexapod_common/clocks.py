@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 __all__ = ['ANOTHER_CLOCK_S', 'FOREIGN_CLOCK_S', 'ClockCheck', 'LiveClockWatch', 'StreamClock',
-           'StreamLoss', 'foreign_clock_note', 'shift_rows']
+           'StreamLoss', 'count_milestone', 'foreign_clock_note', 'shift_rows']
 
 #: a live sample stamped this far [s] from every other stream's newest stamp is held back
 #: (:class:`StreamClock`): a second publisher on another clock, or the whole graph's time moved
@@ -375,6 +375,12 @@ class StreamLoss:
 
 def _topic(key: Any) -> Any:
     return key[0] if isinstance(key, tuple) else key
+
+
+def count_milestone(n: int) -> bool:
+    """Whether the ``n``-th occurrence of something is logged: the 1st, 10th, 100th and
+    1000th, then every 10,000th (as :class:`StreamLoss` logs missing messages)."""
+    return n > 0 and _log_level(n) != _log_level(n - 1)
 
 
 def _log_level(n: int) -> int:
