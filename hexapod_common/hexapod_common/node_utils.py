@@ -242,6 +242,13 @@ class FirstPublisherWatch(PublishersWatch):
     its ``header.frame_id``, which names a gait node in the messages) to :meth:`admit` and
     applies the message only when it returns True.
 
+    Only while the numbers show several publishers interleaving (an episode of
+    :class:`~hexapod_common.publishers.PublisherSequences`: two switch backs within its
+    window) is anything dropped: one publisher's messages always pass, whatever its send
+    clock or losses do to the gate's series (review J5: a sender's clock stepping back 1 s
+    dropped 49 of a lone gait node's commands, an NTP step forward 3,000). The newcomer's
+    first one or two messages, before its numbers have interleaved twice, are applied.
+
     Logged: the error of several publishers (once per episode) says which one is followed,
     that the other's commands are ignored and how many so far; when the episode ends (the
     numbers calm again, :class:`~hexapod_common.publishers.PublisherSequences`) a warning
@@ -261,7 +268,9 @@ class FirstPublisherWatch(PublishersWatch):
         self.gate = FirstPublisherGate()
         #: the receiver's clock for the gate [s] (steady; tests may replace it)
         self.clock: Callable[[], float] = time.monotonic
-        self._dropped_before = 0      # the gate's drops before the current episode
+        self._dropped_before = 0      # the drops before the current episode
+        #: messages dropped (the gate said another's, during an episode)
+        self.dropped = 0
 
     def _describe(self, ident: int | None = None) -> str:
         s = self.gate.series(ident)
@@ -272,7 +281,7 @@ class FirstPublisherWatch(PublishersWatch):
                 + f'at message number {s.last_seq}, heard for {heard:.1f} s')
 
     def _consequence(self) -> str:
-        n = self.gate.dropped - self._dropped_before
+        n = self.dropped - self._dropped_before
         return (f'only the {self.what} of the publisher that was there first are applied '
                 f'({self._describe()}); the other\'s {self.what} are ignored ({n} dropped so '
                 'far); stop all but one')
@@ -286,10 +295,15 @@ class FirstPublisherWatch(PublishersWatch):
                              str(label or ''))
         was = self.sequences.interleaving
         self.add(info)
+        several = self.sequences.interleaving
+        # one publisher (no episode): its message passes whatever the gate's series say
+        ok = ok or not several
+        if not ok:
+            self.dropped += 1
         log = self.node.get_logger()
-        if was and not self.sequences.interleaving:
-            n = self.gate.dropped - self._dropped_before
-            self._dropped_before = self.gate.dropped
+        if was and not several:
+            n = self.dropped - self._dropped_before
+            self._dropped_before = self.dropped
             log.warning(f'{self.topic}: one publisher again; {n} {self.what} of the other '
                         f'publisher(s) were ignored in that episode (followed: '
                         f'{self._describe()})')
@@ -298,12 +312,11 @@ class FirstPublisherWatch(PublishersWatch):
                    if sw.reason == 'quiet' else
                    'another publisher heard at the same time started first')
             text = f'{self.topic}: {why}: now following another ({self._describe(sw.new)}'
-            if sw.dropped:
-                log.warning(f'{text}; {sw.dropped} of its {self.what} were ignored before)')
+            if several:
+                log.warning(f'{text}; its {self.what} were ignored while the other was '
+                            'followed)')
             else:
                 log.info(f'{text})')
-            if not self.sequences.interleaving:
-                self._dropped_before = self.gate.dropped
         return ok
 
 

@@ -38,7 +38,8 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ['FOLLOWED_QUIET_PERIODS', 'FOLLOWED_QUIET_S', 'MAX_NUMBER_EXCESS', 'START_MARGIN_S',
+__all__ = ['FOLLOWED_QUIET_MAX_S', 'FOLLOWED_QUIET_PERIODS', 'FOLLOWED_QUIET_S',
+           'FOLLOWED_QUIET_UNKNOWN_S', 'MAX_NUMBER_EXCESS', 'START_MARGIN_S',
            'SEQUENCE_UNSUPPORTED',
            'FirstPublisherGate', 'GateSwitch', 'PublisherSequences', 'endpoint_names',
            'publication_sequence', 'source_time']
@@ -213,6 +214,10 @@ FOLLOWED_QUIET_S = 0.5
 #: ... or this many of the followed publisher's own mean send periods, when that is longer (a
 #: 1 Hz teleop followed first is not taken for gone between two of its messages)
 FOLLOWED_QUIET_PERIODS = 5.0
+#: ... for a publisher heard once (its rate unknown) [s]
+FOLLOWED_QUIET_UNKNOWN_S = 2.0
+#: ... and at most this, however slow its mean period reads [s]
+FOLLOWED_QUIET_MAX_S = 5.0
 #: Two publishers first heard within :data:`FOLLOWED_QUIET_S` of each other (both were there
 #: before the receiver heard anything): the one whose series started more than this earlier
 #: (:meth:`GateSeries.start`) is followed, else the one heard first (the gait node's
@@ -385,7 +390,10 @@ class FirstPublisherGate:
             if gap - expected > self.max_excess:
                 continue                  # far more numbers than its rate sends: another's
             cost = abs(gap - expected)
-            key = (cost, s.last_t, i)      # on a tie the one due longest
+            # on a tie the one due longest; between series heard once (no rate: every gap of
+            # 1 ties) the one heard last: a 100 Hz newcomer's second number was matched to a
+            # 1 Hz teleop heard once 0.6 s before, which then lost the joints (review J5)
+            key = (cost, s.last_t if period is not None else -s.last_t, i)
             if best is None or key < best:
                 best, found = key, s
         return found
@@ -402,7 +410,13 @@ class FirstPublisherGate:
 
     def _quiet_s(self, s: GateSeries) -> float:
         period = s.period()
-        return max(self.quiet_s, self.quiet_periods * period if period is not None else 0.0)
+        if period is None:
+            # heard once: its rate unknown, a slow teleop is not gone after quiet_s (an
+            # outside review: a 1 Hz publisher heard once lost the joints to a newcomer)
+            return max(self.quiet_s, FOLLOWED_QUIET_UNKNOWN_S)
+        # at most FOLLOWED_QUIET_MAX_S: a mean period inflated by a sender's clock step
+        # (NTP at boot) made it 2,160 s (review J5)
+        return max(self.quiet_s, min(self.quiet_periods * period, FOLLOWED_QUIET_MAX_S))
 
     def _choose(self, s: GateSeries, now_s: float) -> None:
         followed = self.series()

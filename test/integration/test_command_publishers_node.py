@@ -38,7 +38,8 @@ def test_sim_robot_reports_two_command_sources_once() -> None:
         env.spin_until(lambda: False, 0.2)
         # one of the two followed (both heard together: the first heard), the other dropped
         gate = sim.command_publishers.gate
-        assert gate.dropped >= 1 and len([s for s in gate.live_series() if s.passed]) == 1
+        assert sim.command_publishers.dropped >= 1
+        assert len([s for s in gate.live_series() if s.passed]) == 1
     reported = [e for e in errors if 'joint_commands' in e]
     assert len(reported) == 1 and "the other's commands are ignored" in reported[0]
 
@@ -140,16 +141,19 @@ def test_sim_robot_applies_only_the_first_source_then_the_one_left() -> None:
         env.executor.add_node(first)                 # destroyed below, not by ros_env
         assert env.spin_until(lambda: len(applied) >= 20, 30)
         env.add(source('gait_second', 0.5))
-        gate = sim.command_publishers.gate
-        assert env.spin_until(lambda: sim.command_publishers.reported >= 1
-                              and gate.dropped >= 50, 30)
-        assert set(applied) == {0.1}                 # never the second's 0.5
+        watch = sim.command_publishers
+        assert env.spin_until(lambda: watch.reported >= 1 and watch.dropped >= 50, 30)
+        # the second's first one or two commands pass before its numbers have interleaved
+        # twice (one publisher's are never dropped), then none while the first lives
+        early = [k for k, q in enumerate(applied) if q == 0.5]
+        assert len(early) <= 2 and (not early or early[-1] - early[0] <= 4)
+        tail = len(applied)
         env.executor.remove_node(first)              # the first gait node gone
         first.destroy_node()
         n = len(applied)
+        assert set(applied[tail - 20:n]) == {0.1}
         assert env.spin_until(lambda: 0.5 in applied[n:], 30)
-        assert set(applied[:n]) == {0.1}
-        after = applied[applied.index(0.5):]
+        after = applied[applied.index(0.5, n):]
         assert set(after) == {0.5}                   # the one left, from then on
         [switch] = [w for w in warnings if 'silent for' in w]
         silent = float(switch.split('silent for ')[1].split(' s')[0])
