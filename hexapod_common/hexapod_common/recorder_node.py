@@ -183,6 +183,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return _record(argv)
     finally:
+        stop_signals.forget()                # consumed by this run
         for sig, handler in saved.items():   # called in-process (a test): its own handlers
             if handler is not None:
                 signal.signal(sig, handler)

@@ -834,11 +834,16 @@ def _source_commit() -> str:
     missing: the package versions alone (0.1.0) did not tell two builds apart."""
     import subprocess
 
-    where = Path(__file__).resolve().parent
+    here = Path(__file__).resolve()
+    where = here.parent
     try:
+        # this very file tracked by the repository: not a copy installed inside another
+        # checkout (colcon's install/), whose HEAD is not the code that ran (review J5)
+        tracked = subprocess.run(['git', '-C', str(where), 'ls-files', '--error-unmatch',
+                                  here.name], capture_output=True, text=True, timeout=5)
         head = subprocess.run(['git', '-C', str(where), 'rev-parse', '--short', 'HEAD'],
                               capture_output=True, text=True, timeout=5)
-        if head.returncode != 0 or not head.stdout.strip():
+        if tracked.returncode != 0 or head.returncode != 0 or not head.stdout.strip():
             return ''
         dirty = subprocess.run(['git', '-C', str(where), 'status', '--porcelain',
                                 '--untracked-files=no'],

@@ -22,7 +22,7 @@ import signal
 import sys
 from typing import Any
 
-__all__ = ['EXIT_CODES', 'STOP_SIGNALS', 'catch', 'catch_if_program', 'received']
+__all__ = ['EXIT_CODES', 'STOP_SIGNALS', 'catch', 'catch_if_program', 'forget', 'received']
 
 #: exit code of a program stopped by the signal before it did anything (128 + signal number)
 EXIT_CODES = {signal.SIGINT: 130, signal.SIGTERM: 143}
@@ -60,3 +60,8 @@ def received() -> int | None:
     """The first stop signal noted since :func:`catch`, or None."""
     return _received[0] if _received else None
 
+
+def forget() -> None:
+    """Forget the signals noted (a run that consumed them is over: called in-process again,
+    the next run would have stopped at once; review J5)."""
+    _received.clear()

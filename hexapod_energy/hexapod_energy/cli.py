@@ -163,8 +163,8 @@ such fallback is listed in the run's ``notes``.
                   "limits_source"},                           # with --recommend; only
                   # configurations inside the bench's domain unless none is ("note"); it
                   # records "leg_count", "robot_mass_kg", "mass_kg" (with payload), "limits"
-      "options": {option: value} (the options of this analysis, as parsed; bag paths as
-                  given),
+      "options": {option: value} (the options of this analysis once resolved: robot_mass
+                  is the mass used, see robot_mass's source; bag paths as given),
       "robot_mass": {"kg" (payload excluded: CoT, CoT/M, specific resistance, the Eq. 6
                   model and the sweeps use it), "source" (--robot-mass | bags' metadata
                   (robot_mass_kg in their custom data, as hexapod-sim records it) |
@@ -449,6 +449,8 @@ def _checked_setup(args: argparse.Namespace) -> _Setup:
         # a simulated robot of another leg count records its mass: AntBot's was assumed
         args.robot_mass, mass_note = declared_robot_mass(args.robot)
         mass_source = 'bags\' metadata'
+        # a declared mass is a given one (the bench's loads are checked against it)
+        mass_given = args.robot_mass is not None
     if args.robot_mass is None:
         args.robot_mass = ANTBOT_MASS_KG
         mass_source = 'assumed (AntBot)'
@@ -614,7 +616,7 @@ def _fit_bench(args: argparse.Namespace, setup: _Setup, doc: dict[str, Any], out
                                         getattr(args, 'robot_payload', None) or 0.0)
         why = bench_load_problem([(f'session {x.session_id}', x.load_kg) for x in samples],
                                  robot_mass_kg=carried,
-                                 robot_what='robot (--robot-mass, with any payload)')
+                                 robot_what=f'robot ({setup.mass_source}, with any payload)')
         if why:
             raise EnergyError(why)
     for d in diags:

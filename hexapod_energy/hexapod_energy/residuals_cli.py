@@ -371,9 +371,11 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         args.robot_mass, note = declared_robot_mass(args.robot)
         mass_source = 'bags\' metadata'
         if args.robot_mass is None:
-            args.robot_mass, mass_source = 2.183, 'assumed (AntBot)'   # AntBot
-            note = ('warning: robot mass not given (--robot-mass): AntBot\'s 2.183 kg '
-                    'assumed; the undeclared-mass effect is measured against it')
+            from hexapod_energy.cli import ANTBOT_MASS_KG
+
+            args.robot_mass, mass_source = ANTBOT_MASS_KG, 'assumed (AntBot)'
+            note = (f'warning: robot mass not given (--robot-mass): AntBot\'s {ANTBOT_MASS_KG} '
+                    'kg assumed; the undeclared-mass effect is measured against it')
         print(f'hexapod-analyze residuals: {note}', file=sys.stderr)
     # a negative or NaN mass or payload used to run the loop on a lighter robot, exit 0
     if not (math.isfinite(args.robot_mass) and args.robot_mass > 0):
