@@ -26,13 +26,7 @@ from hexapod_common.report import write_report  # noqa: E402
 _REAL_CLOSE = plt.close
 
 
-@pytest.fixture
-def kept(monkeypatch: pytest.MonkeyPatch) -> list[Any]:
-    """The figures the plot functions close, kept open for the test (closed after it)."""
-    got: list[Any] = []
-    monkeypatch.setattr(plt, 'close', lambda fig=None: got.append(fig))
-    yield got
-    _REAL_CLOSE('all')
+# the ``kept`` fixture (figures kept open): test/unit/conftest.py
 
 
 def _page(folder: Path) -> str:
