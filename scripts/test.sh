@@ -38,11 +38,30 @@ else
 fi
 rc=${PIPESTATUS[0]}; [ "$rc" -eq 0 ] || [ "$rc" -eq 5 ] || status=1
 summarise "$tmp/unit.log"
-for f in test/integration/test_*.py; do
-  echo "== $f"
-  python -m pytest -q -p no:cacheprovider "$f" "$@" 2>&1 | tee "$tmp/int.log"
-  rc=${PIPESTATUS[0]}; [ "$rc" -eq 0 ] || [ "$rc" -eq 5 ] || status=1
-  summarise "$tmp/int.log"
+# Integration tests: each file in its own process (rclpy's context and DDS participants do not
+# outlive it), two files at a time, one per core: each file on a ROS domain of its own, so the
+# two running side by side never discover each other's nodes. Longest first (test_demo), so the
+# lanes end together; each file's log is printed whole when it ends.
+run_integration() {  # [PYTEST ARGS...] FILE INDEX (xargs appends the last two)
+  local f=${*: -2:1} i=${*: -1}
+  set -- "${@:1:$(( $# - 2 ))}"
+  local log="$tmp/int_$i.log"
+  ROS_DOMAIN_ID=$(( (domain0 + i) % 100 + 100 )) \
+    python -m pytest -q -p no:cacheprovider "$f" "$@" > "$log" 2>&1
+  echo "$?" > "$log.rc"
+  { flock 9; echo "== $f"; cat "$log"; } 9> "$tmp/print.lock"
+}
+export -f run_integration
+export tmp domain0=$ROS_DOMAIN_ID
+lanes=$(( $(nproc 2>/dev/null || echo 1) >= 2 ? 2 : 1 ))
+files=(test/integration/test_demo.py)
+for f in test/integration/test_*.py; do [ "$f" = "${files[0]}" ] || files+=("$f"); done
+for i in "${!files[@]}"; do printf '%s\0%s\0' "${files[$i]}" "$i"; done |
+  xargs -0 -n 2 -P "$lanes" bash -c 'run_integration "$@"' _ "$@"
+for i in "${!files[@]}"; do
+  rc=$(cat "$tmp/int_$i.log.rc" 2>/dev/null || echo 1)
+  [ "$rc" -eq 0 ] || [ "$rc" -eq 5 ] || { status=1; echo "FAILED: ${files[$i]} (exit $rc)"; }
+  summarise "$tmp/int_$i.log"
 done
 rm -rf "$tmp"
 echo "$passed passed, $failed failed"
