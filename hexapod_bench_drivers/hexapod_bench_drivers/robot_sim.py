@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hexapod_gait.gait import GaitPattern, carried_mass_per_leg_kg, make_gait
-from hexapod_gait.kinematics import ANTBOT_LEG, DHParameters
+from hexapod_gait.kinematics import ANTBOT_LEG, ANTBOT_MASS_KG, DHParameters
 from hexapod_gait.legs import joint_names
 from hexapod_gait.trajectory import ANTBOT_NEUTRAL_TIP_M, LegTrajectory
 
@@ -92,7 +92,7 @@ class RobotConfig:
     speed_mps: float = 0.0
     step_length_m: float = 0.10
     step_height_m: float = 0.04
-    robot_mass_kg: float = 2.183
+    robot_mass_kg: float = ANTBOT_MASS_KG
     payload_kg: float = 0.0
     supply: str = 'supply'
     supply_voltage_v: float = 11.9

@@ -43,7 +43,7 @@ from hexapod_common.node_utils import (
     param,
     run_node,
 )
-from hexapod_gait.kinematics import ANTBOT_LEG
+from hexapod_gait.kinematics import ANTBOT_LEG, ANTBOT_MASS_KG
 from hexapod_interfaces.msg import BenchSession, GaitPhase, ServoStatus
 from sensor_msgs.msg import BatteryState, JointState
 
@@ -73,7 +73,7 @@ class RobotNodeParams:
     leg_count: int = param(6, 'number of legs (even)', validate=lambda x: None
                            if x >= 2 and x % 2 == 0 else 'must be even and >= 2')
     payload: float = param(0.0, 'payload on the body [kg]')
-    robot_mass: float = param(2.183, 'robot mass without payload [kg]', validate=_positive)
+    robot_mass: float = param(ANTBOT_MASS_KG, 'robot mass without payload [kg]', validate=_positive)
     battery: bool = param(False, 'true: 3S LiPo; false: 11.9 V lab supply')
     servo: str = param('ax18a', 'servo preset: ax18a, ax12a, xl430, xm430')
     rate: float = param(100.0, 'publish rate [Hz]', validate=_positive)

@@ -58,6 +58,7 @@ __all__ = [
     'ROBOT_TOPICS',
     'BenchData',
     'BenchSessionSpec',
+    'RobotMass',
     'RobotRun',
     'bench_load_problem',
     'bench_phase_samples',
@@ -68,6 +69,7 @@ __all__ = [
     'read_bench_sessions_file',
     'read_robot_bag',
     'read_robot_segments',
+    'resolve_robot_mass',
 ]
 
 BENCH_TOPICS = ('/battery_state', '/bench/ground_force', '/bench/leg_tip', '/bench/session')
@@ -2018,6 +2020,41 @@ def declared_robot_mass(paths: Sequence[str | Path]) -> tuple[float | None, str]
         names = ', '.join(Path(p).name for p in silent[:3]) + (' ...' if len(silent) > 3 else '')
         note += f'; {len(silent)} bag(s) declare none ({names}) and are taken to be that robot'
     return kg, note
+
+
+@dataclass(frozen=True)
+class RobotMass:
+    """The robot mass an analysis divides by (payload excluded), and where it came from."""
+
+    kg: float
+    source: str      # '--robot-mass', "bags' metadata" or 'assumed (AntBot)'
+    note: str = ''   # what the bags declared (:func:`declared_robot_mass`), else ''
+
+    @property
+    def assumed(self) -> bool:
+        """Neither given nor declared: AntBot's mass stands in."""
+        return self.source == ROBOT_MASS_ASSUMED
+
+
+#: :attr:`RobotMass.source` of a mass nobody gave (AntBot's)
+ROBOT_MASS_ASSUMED = 'assumed (AntBot)'
+
+
+def resolve_robot_mass(given_kg: float | None, robot_bags: Sequence[str | Path]) -> RobotMass:
+    """The robot mass of ``energy`` and ``residuals``: ``given_kg`` (``--robot-mass``), else
+    the one the robot bags declare (:func:`declared_robot_mass`; different ones raise), else
+    AntBot's :data:`~hexapod_gait.kinematics.ANTBOT_MASS_KG`. Each caller words its own
+    warning for an assumed mass (what scales with it differs); the value is not checked here
+    (the callers refuse a non-positive one with their own error types)."""
+    if given_kg is not None:
+        return RobotMass(float(given_kg), '--robot-mass')
+    if robot_bags:
+        kg, note = declared_robot_mass(robot_bags)
+        if kg is not None:
+            return RobotMass(kg, 'bags\' metadata', note)
+    from hexapod_gait.kinematics import ANTBOT_MASS_KG
+
+    return RobotMass(ANTBOT_MASS_KG, ROBOT_MASS_ASSUMED)
 
 
 def read_robot_segments(path: str | Path, **kw: Any) -> list[RobotRun]:

@@ -206,12 +206,10 @@ from hexapod_common.conversions import LEG_JOINT_RE
 from hexapod_common.jsondoc import json_safe
 from hexapod_energy.errors import EnergyError, FitError, InvalidInputError
 from hexapod_energy.trend import TREND_MIN_SPAN_S, TREND_MIN_WINDOWS, power_in_trend, trend_note
+from hexapod_gait.kinematics import ANTBOT_MASS_KG  # the default robot's mass
 
 __all__ = ['add_cli', 'build_parser', 'gait_from_sample', 'main', 'run']
 
-
-#: AntBot's mass without payload [kg] (Brodoline et al.), the default robot
-ANTBOT_MASS_KG = 2.183
 
 
 def _leg_count(args: argparse.Namespace, run_: Any) -> int | None:
@@ -440,24 +438,17 @@ def _checked_setup(args: argparse.Namespace) -> _Setup:
         # 1e9 m/s was taken (SR 1.6e-9)
         raise EnergyError(f'--robot-speed must be in (0, 20] m/s, got {robot_speed}')
     leg = load_leg_description(args.leg) if getattr(args, 'leg', None) else antbot_leg()
-    mass_warning = mass_note = ''
-    mass_given = args.robot_mass is not None
-    mass_source = '--robot-mass'
-    if args.robot_mass is None and args.robot:
-        from hexapod_energy.bag_io import declared_robot_mass
+    from hexapod_energy.bag_io import resolve_robot_mass
 
-        # a simulated robot of another leg count records its mass: AntBot's was assumed
-        args.robot_mass, mass_note = declared_robot_mass(args.robot)
-        mass_source = 'bags\' metadata'
-        # a declared mass is a given one (the bench's loads are checked against it)
-        mass_given = args.robot_mass is not None
-    if args.robot_mass is None:
-        args.robot_mass = ANTBOT_MASS_KG
-        mass_source = 'assumed (AntBot)'
-        if args.robot or args.sweep or args.recommend:
-            mass_warning = (f'robot mass not given (--robot-mass): AntBot\'s {ANTBOT_MASS_KG} '
-                            'kg assumed; CoT, CoT/M and specific resistance scale with the '
-                            'mass')
+    # a simulated robot of another leg count records its mass: AntBot's was assumed
+    mass = resolve_robot_mass(args.robot_mass, args.robot or [])
+    args.robot_mass, mass_source, mass_note = mass.kg, mass.source, mass.note
+    # a declared mass is a given one (the bench's loads are checked against it)
+    mass_given = not mass.assumed
+    mass_warning = ''
+    if mass.assumed and (args.robot or args.sweep or args.recommend):
+        mass_warning = (f'robot mass not given (--robot-mass): AntBot\'s {ANTBOT_MASS_KG} kg '
+                        'assumed; CoT, CoT/M and specific resistance scale with the mass')
     if not (math.isfinite(args.robot_mass) and args.robot_mass > 0):
         raise EnergyError(f'--robot-mass must be > 0 kg, got {args.robot_mass}')
     for flag, value in (('--payload', args.payload),

@@ -115,6 +115,7 @@ from hexapod_common.node_utils import (
 )
 from hexapod_common.publishers import PublisherSequences, publication_sequence
 from hexapod_gait.feasibility import ActuatorLimits
+from hexapod_gait.kinematics import ANTBOT_MASS_KG
 
 from hexapod_energy.descriptors import (
     BATTERY_GAP_NOTE,
@@ -129,8 +130,6 @@ from hexapod_energy.leg_description import antbot_leg, load_leg_description
 
 __all__ = ['EnergyMonitorNode', 'EnergyParams', 'descriptors_to_msg', 'main']
 
-#: AntBot's mass without payload [kg] (Brodoline et al.), assumed when ``mass`` is not given
-ANTBOT_MASS_KG = 2.183
 
 #: battery names whose publishers are told apart (:mod:`hexapod_common.publishers`); more
 #: (names that keep changing) forget the oldest

@@ -45,6 +45,7 @@ from hexapod_common.series import span_mean
 from hexapod_energy.effects_catalogue import EnergyEffect, WindowTable, default_catalogue
 from hexapod_energy.errors import BagContentError, InvalidInputError
 from hexapod_energy.unexplained import unexplained_residual, unexplained_text
+from hexapod_gait.kinematics import ANTBOT_MASS_KG
 
 __all__ = [
     'EffectSelection',
@@ -2455,7 +2456,7 @@ def _bench_temperature_c(bench_bags: Sequence[str | Path]) -> float | None:
 
 
 def run_energy_loop(bench_bags: Sequence[str | Path], robot_bags: Sequence[str | Path],
-                    out_dir: str | Path | None = None, *, robot_mass_kg: float = 2.183,
+                    out_dir: str | Path | None = None, *, robot_mass_kg: float = ANTBOT_MASS_KG,
                     payload_kg: float = 0.0, current_sign: str = 'auto',
                     load_offset_kg: float = 0.0, plots: bool = True,
                     gait: GivenGait | None = None, phase_split: str = 'auto',
@@ -2570,7 +2571,7 @@ def _supply_check(doc: dict[str, Any], runs: Sequence[ResidualRun], bench_v: flo
 
 
 def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
-                          out_dir: str | Path | None = None, *, robot_mass_kg: float = 2.183,
+                          out_dir: str | Path | None = None, *, robot_mass_kg: float = ANTBOT_MASS_KG,
                           payload_kg: float = 0.0, temp_ref_c: float | None = None,
                           load_offset_kg: float = 0.0, plots: bool = True,
                           robot_spec_cls: Any = None, bench_voltage_v: float | None = None,

@@ -362,20 +362,17 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     if not args.bench or not args.robot:
         raise InvalidInputError('the energy loop needs both --bench BAG... and --robot BAG... '
                                 '(or use --slip BAG...)')
-    mass_source = '--robot-mass'
-    if args.robot_mass is None:
-        from hexapod_energy.bag_io import declared_robot_mass
+    from hexapod_energy.bag_io import resolve_robot_mass
 
-        # a simulated robot of another leg count records its mass; AntBot's was assumed
-        # silently (the undeclared-mass effect then measured the difference)
-        args.robot_mass, note = declared_robot_mass(args.robot)
-        mass_source = 'bags\' metadata'
-        if args.robot_mass is None:
-            from hexapod_energy.cli import ANTBOT_MASS_KG
-
-            args.robot_mass, mass_source = ANTBOT_MASS_KG, 'assumed (AntBot)'
-            note = (f'warning: robot mass not given (--robot-mass): AntBot\'s {ANTBOT_MASS_KG} '
-                    'kg assumed; the undeclared-mass effect is measured against it')
+    # a simulated robot of another leg count records its mass; AntBot's was assumed
+    # silently (the undeclared-mass effect then measured the difference)
+    given = args.robot_mass is not None
+    mass = resolve_robot_mass(args.robot_mass, args.robot)
+    args.robot_mass, mass_source = mass.kg, mass.source
+    note = mass.note if not mass.assumed else (
+        f'warning: robot mass not given (--robot-mass): AntBot\'s {mass.kg} kg assumed; the '
+        'undeclared-mass effect is measured against it')
+    if not given:
         print(f'hexapod-analyze residuals: {note}', file=sys.stderr)
     # a negative or NaN mass or payload used to run the loop on a lighter robot, exit 0
     if not (math.isfinite(args.robot_mass) and args.robot_mass > 0):

@@ -29,6 +29,7 @@ from .errors import InvalidGaitError, UnreachableError
 __all__ = [
     'DHParameters',
     'ANTBOT_LEG',
+    'ANTBOT_MASS_KG',
     'UnreachableError',
     'LegKinematics',
     'dh_transform',
@@ -86,6 +87,10 @@ class DHParameters:
 
 
 ANTBOT_LEG = DHParameters()
+
+#: AntBot's mass without payload [kg] (Brodoline et al.; DESIGN §7): the default robot of
+#: the simulators and the analysis when a robot's mass is neither given nor declared
+ANTBOT_MASS_KG = 2.183
 
 
 def dh_transform(theta: float, d: float, a: float, alpha: float) -> NDArray[np.float64]:

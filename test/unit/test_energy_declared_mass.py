@@ -109,6 +109,29 @@ def test_declared_mass_of_bags_without_one(bags, tmp_path) -> None:
     assert declared_robot_mass([tmp_path / 'missing']) == (None, '')
 
 
+def test_one_resolution_of_the_robot_mass(bags, tmp_path) -> None:
+    """``energy`` and ``residuals`` take the mass from one rule (they had a copy each):
+    given, else declared, else AntBot's, the one constant every module uses."""
+    from hexapod_bench_drivers.robot_sim import RobotConfig
+    from hexapod_energy import cli, energy_node, residuals
+    from hexapod_energy.bag_io import resolve_robot_mass
+    from hexapod_gait.kinematics import ANTBOT_MASS_KG
+
+    given = resolve_robot_mass(3.0, [bags / 'four'])
+    assert (given.kg, given.source, given.note, given.assumed) == (3.0, '--robot-mass', '',
+                                                                   False)
+    declared = resolve_robot_mass(None, [bags / 'four'])
+    assert declared.kg == pytest.approx(1.851, abs=1e-3) and not declared.assumed
+    assert declared.source == "bags' metadata" and 'robot_mass_kg' in declared.note
+    for bag_list in ([], [tmp_path / 'missing']):
+        assumed = resolve_robot_mass(None, bag_list)
+        assert (assumed.kg, assumed.source, assumed.assumed) == (ANTBOT_MASS_KG,
+                                                                 'assumed (AntBot)', True)
+    assert ANTBOT_MASS_KG == 2.183 == RobotConfig.robot_mass_kg
+    assert cli.ANTBOT_MASS_KG is energy_node.ANTBOT_MASS_KG is ANTBOT_MASS_KG
+    assert residuals.run_energy_loop.__kwdefaults__['robot_mass_kg'] == ANTBOT_MASS_KG
+
+
 def test_residuals_read_the_declared_mass(bags, tmp_path, capsys) -> None:
     from hexapod_energy.residuals_cli import main as residuals_main
 
