@@ -216,12 +216,9 @@ def run_slip_loop(bags: list[str], out_dir: str | Path | None = None, *,
     pipeline with its bare defaults, the shifted clock's edges and no mocap clock offset:
     another set of stances (22 against slip.json's 23 on the demo's running and walk) and
     another nerr under the same name (running 0.095-0.148 against 0.044-0.101)."""
-    from slip_identification.cli import read_run
+    from slip_identification.cli import analyze_data, default_options, read_run
     from slip_identification.fit import SlipFitter
-    from slip_identification.geometry import LegGeometry
     from slip_identification.model import EDUBOT_MASS_KG, SlipModel
-    from slip_identification.pipeline import analyze_run
-    from slip_identification.preprocess import Box
     from slip_identification.residuals import (
         SLIP_CANDIDATES,
         SlipExtensionSelection,
@@ -238,18 +235,16 @@ def run_slip_loop(bags: list[str], out_dir: str | Path | None = None, *,
 
         raise SlipDataError(f'--mass must be a robot mass > 0 and up to 1000 kg, got {mass_kg}')
     fits: dict[str, list[Any]] = {'slip': [], **{k: [] for k in SLIP_CANDIDATES}}
-    # no --box: the SLIP analysis's own default (its 2 x 1 x 1 m box, or every tracked
-    # sample when the mocap origin is not in the tracking volume)
-    region = Box(tuple(box[:3]), tuple(box[3:])) if box else None  # type: ignore[arg-type]
+    # hexapod-analyze slip's options (its defaults: the leg geometry's single-support edges
+    # and clock offset, the paper's estimator from several starts; no --box: its 2 x 1 x 1 m
+    # box, or every tracked sample when the mocap origin is not in the tracking volume); the
+    # position fit is not needed here
+    options = default_options(mass_kg=mass_kg + payload_kg, model='slip', position_fit=False,
+                              box_lower=list(box[:3]) if box else None,
+                              box_upper=list(box[3:]) if box else None)
     per_run: list[dict[str, Any]] = []
     for path in bags:
-        data = read_run(path)
-        # hexapod-analyze slip's defaults (slip_identification.cli.analyze_bag): the leg
-        # geometry's single-support edges and clock offset, the paper's estimator from its
-        # several starts; the position fit is not needed here
-        res = analyze_run(data, model=SlipModel(mass_kg=mass_kg + payload_kg), box=region,
-                          offset_s='auto', edges='auto', geometry=LegGeometry(),
-                          position_fit=False)
+        res = analyze_data(read_run(path), options).result
         fits['slip'].extend(res.fits)
         for name, ext in SLIP_CANDIDATES.items():
             fits[name].extend(SlipFitter(SlipModel(extensions=ext, mass_kg=mass_kg + payload_kg)

@@ -140,7 +140,7 @@ import sys
 from collections import Counter
 from concurrent.futures import ProcessPoolExecutor, wait
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -472,61 +472,113 @@ def _pitch_offset_arg(text: str) -> str:
     return text
 
 
+class Analysis(NamedTuple):
+    """One run analysed with ``slip``'s options (:func:`analyze_data`)."""
+
+    run: Any                    # the run as analysed (re-expressed by --body-up)
+    result: Any                 # :class:`.pipeline.RunAnalysis`
+    model: SlipModel
+    geometry: LegGeometry | None
+    notes: list[str]            # about the options (the geometry's), before the result's
+
+
+def default_options(**changes: Any) -> dict[str, Any]:
+    """The options of ``hexapod-analyze slip BAG --out DIR`` (its arguments' defaults, the
+    robot mass EduBot's), with ``changes``: another analysis of ``slip``'s stances (the SLIP
+    residual loop) takes them from here, so that the two cannot drift apart (the loop had
+    restated them, and once ran other edges and no clock offset)."""
+    parser = NumberArgumentParser(add_help=False)
+    add_cli(parser.add_subparsers())
+    args = parser.parse_args(['slip', 'BAG', '--out', 'DIR'])
+    args.mass = EDUBOT_MASS_KG
+    options = options_from_args(args)
+    unknown = set(changes) - set(options)
+    if unknown:
+        raise KeyError(f'not slip options: {sorted(unknown)}')
+    options.update(changes)
+    return options
+
+
+def options_from_args(args: argparse.Namespace) -> dict[str, Any]:
+    """:func:`analyze_bag`'s options from ``slip``'s parsed (and checked) arguments."""
+    methods = ('auto', 'contact', 'joint', 'xcorr', 'geometry')
+    return {'offset': args.offset if args.offset in methods else float(args.offset),
+            'edges': args.edges, 'geometry': args.geometry,
+            'geometry_overrides': _geometry_overrides(args),
+            'leg_damping_time': (None if args.leg_damping_time in ('fit', 'none')
+                                 else 'default' if args.leg_damping_time == 'default'
+                                 else float(args.leg_damping_time)),
+            'offset_lag': args.offset_lag, 'max_lateral': args.max_lateral,
+            'mass_kg': args.mass, 'model': args.model, 'position_fit': not args.no_position_fit,
+            'box_lower': args.box[:3] if args.box else None,
+            'box_upper': args.box[3:] if args.box else None,
+            'steady_only': args.steady_only, 'body_up': args.body_up,
+            'pool_edges': not args.no_edge_pooling, 'starts': args.starts,
+            'pitch_offset_rad': (None if args.pitch_offset == 'auto'
+                                 else math.radians(float(args.pitch_offset)))}
+
+
+def analyze_data(run: Any, options: dict[str, Any]) -> Analysis:
+    """Analyse one run read by :func:`read_run` with :func:`analyze_bag`'s ``options``;
+    raises what the pipeline raises on data it refuses."""
+    body_up = options.get('body_up', 'auto')
+    if body_up not in ('auto', 'z'):
+        run = dataclasses.replace(
+            run, mocap_quat_xyzw=rotate_body(run.mocap_quat_xyzw, body_up),
+            notes=run.notes + (f'body orientation re-expressed with the rigid body\'s '
+                               f'{body_up} axis as up (--body-up)',))
+    # no --box: the pipeline's default box, or every tracked sample when the mocap origin
+    # is not in the tracking volume (another lab's frame)
+    box = Box(tuple(options['box_lower']), tuple(options['box_upper'])) \
+        if options.get('box_lower') else None
+    model = SlipModel.from_name(options.get('model', 'slip'),
+                                mass_kg=options.get('mass_kg', EDUBOT_MASS_KG))
+    geometry = None
+    geometry_notes: list[str] = []
+    if options.get('pitch_offset_rad') is not None and \
+            options.get('geometry', 'edubot') != 'edubot':
+        geometry_notes.append('--pitch-offset is not used without a leg geometry (it '
+                              'corrects the pitch of the geometric contacts)')
+    if options.get('geometry', 'edubot') == 'edubot':
+        tau = options.get('leg_damping_time', 'default')
+        overrides = dict(options.get('geometry_overrides') or {})
+        if tau == 'default' and {'leg_radius_m', 'hip_x_m', 'hip_z_m'} & set(overrides):
+            # another robot's legs: EduBot's 3.4 ms damping time need not be theirs (kept
+            # silently, it moved the offset 7 ms and every lift-off 3-5 ms on a lab's
+            # undamped legs); fitting it trades off against the offset, so the default is
+            # checked against undamped legs instead
+            overrides['damping_assumed'] = True
+            geometry_notes.append(
+                'another robot\'s leg geometry without --leg-damping-time: the EduBot '
+                'description\'s damping time (3.4 ms) is assumed and checked against '
+                'undamped legs; give it (seconds, e.g. from a drop test of one leg, or '
+                '\'fit\') for a surer offset')
+        if tau != 'default':
+            overrides['leg_damping_time_s'] = tau
+        if tau != 'default' or overrides.get('damping_assumed'):
+            # the damping time is given (or checked against undamped legs): no check
+            # against EduBot's leg stiffness
+            overrides['damping_stiffness_n_m'] = None
+        geometry = LegGeometry(**overrides)
+    res = analyze_run(run, model=model, box=box, offset_s=options.get('offset', 0.0),
+                      offset_lag_s=options.get('offset_lag', 0.0),
+                      edges=options.get('edges', 'paper'),
+                      max_lateral_m=options.get('max_lateral', 0.05),
+                      position_fit=options.get('position_fit', True), geometry=geometry,
+                      steady_only=options.get('steady_only', False),
+                      check_body_up=body_up == 'auto',
+                      pitch_offset_rad=options.get('pitch_offset_rad'),
+                      pool_edges=options.get('pool_edges', True),
+                      starts=options.get('starts', 'multi'))
+    return Analysis(run, res, model, geometry, geometry_notes)
+
+
 def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
     """Analyse one bag; returns a JSON-able dict (``error`` set when the bag is refused)."""
     from hexapod_common.errors import HexapodError
 
     try:
-        run = read_run(path)
-        body_up = options.get('body_up', 'auto')
-        if body_up not in ('auto', 'z'):
-            run = dataclasses.replace(
-                run, mocap_quat_xyzw=rotate_body(run.mocap_quat_xyzw, body_up),
-                notes=run.notes + (f'body orientation re-expressed with the rigid body\'s '
-                                   f'{body_up} axis as up (--body-up)',))
-        # no --box: the pipeline's default box, or every tracked sample when the mocap origin
-        # is not in the tracking volume (another lab's frame)
-        box = Box(tuple(options['box_lower']), tuple(options['box_upper'])) \
-            if options.get('box_lower') else None
-        model = SlipModel.from_name(options.get('model', 'slip'),
-                                    mass_kg=options.get('mass_kg', EDUBOT_MASS_KG))
-        geometry = None
-        geometry_notes: list[str] = []
-        if options.get('pitch_offset_rad') is not None and \
-                options.get('geometry', 'edubot') != 'edubot':
-            geometry_notes.append('--pitch-offset is not used without a leg geometry (it '
-                                  'corrects the pitch of the geometric contacts)')
-        if options.get('geometry', 'edubot') == 'edubot':
-            tau = options.get('leg_damping_time', 'default')
-            overrides = dict(options.get('geometry_overrides') or {})
-            if tau == 'default' and {'leg_radius_m', 'hip_x_m', 'hip_z_m'} & set(overrides):
-                # another robot's legs: EduBot's 3.4 ms damping time need not be theirs (kept
-                # silently, it moved the offset 7 ms and every lift-off 3-5 ms on a lab's
-                # undamped legs); fitting it trades off against the offset, so the default is
-                # checked against undamped legs instead
-                overrides['damping_assumed'] = True
-                geometry_notes.append(
-                    'another robot\'s leg geometry without --leg-damping-time: the EduBot '
-                    'description\'s damping time (3.4 ms) is assumed and checked against '
-                    'undamped legs; give it (seconds, e.g. from a drop test of one leg, or '
-                    '\'fit\') for a surer offset')
-            if tau != 'default':
-                overrides['leg_damping_time_s'] = tau
-            if tau != 'default' or overrides.get('damping_assumed'):
-                # the damping time is given (or checked against undamped legs): no check
-                # against EduBot's leg stiffness
-                overrides['damping_stiffness_n_m'] = None
-            geometry = LegGeometry(**overrides)
-        res = analyze_run(run, model=model, box=box, offset_s=options.get('offset', 0.0),
-                          offset_lag_s=options.get('offset_lag', 0.0),
-                          edges=options.get('edges', 'paper'),
-                          max_lateral_m=options.get('max_lateral', 0.05),
-                          position_fit=options.get('position_fit', True), geometry=geometry,
-                          steady_only=options.get('steady_only', False),
-                          check_body_up=body_up == 'auto',
-                          pitch_offset_rad=options.get('pitch_offset_rad'),
-                          pool_edges=options.get('pool_edges', True),
-                          starts=options.get('starts', 'multi'))
+        run, res, model, geometry, geometry_notes = analyze_data(read_run(path), options)
     except (SlipError, HexapodError, ValueError, OSError) as err:  # a truncated bag too
         return {'bag': path, 'error': str(err)}
     notes = list(run.notes) + geometry_notes + list(res.notes)
@@ -752,24 +804,9 @@ def _run_command(args: argparse.Namespace) -> int:
         warnings.append(f'robot mass not given: EduBot\'s {EDUBOT_MASS_KG:g} kg assumed for '
                         'P/(m g v) (SR); give --mass')
     _check_options(args)
-    geometry_overrides = _geometry_overrides(args)
+    options = options_from_args(args)
     # before the analysis, not after it; an earlier run's result is set aside by run_command
     out = prepare_out_dir(args.out)
-    methods = ('auto', 'contact', 'joint', 'xcorr', 'geometry')
-    options = {'offset': args.offset if args.offset in methods else float(args.offset),
-               'edges': args.edges, 'geometry': args.geometry,
-               'geometry_overrides': geometry_overrides,
-               'leg_damping_time': (None if args.leg_damping_time in ('fit', 'none')
-                                    else 'default' if args.leg_damping_time == 'default'
-                                    else float(args.leg_damping_time)),
-               'offset_lag': args.offset_lag, 'max_lateral': args.max_lateral,
-               'mass_kg': args.mass, 'model': args.model, 'position_fit': not args.no_position_fit,
-               'box_lower': args.box[:3] if args.box else None,
-               'box_upper': args.box[3:] if args.box else None,
-               'steady_only': args.steady_only, 'body_up': args.body_up,
-               'pool_edges': not args.no_edge_pooling, 'starts': args.starts,
-               'pitch_offset_rad': (None if args.pitch_offset == 'auto'
-                                    else math.radians(float(args.pitch_offset)))}
     bags = [str(b) for b in args.bags]
     results: list[dict[str, Any]] = []
     if args.jobs > 1 and len(bags) > 1:
