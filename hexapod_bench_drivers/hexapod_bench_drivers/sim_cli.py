@@ -213,8 +213,8 @@ def _infeasible(gait: Any, servo: str = 'ax18a', *, support: bool = True) -> lis
     airborne = float(np.diff(np.append(np.asarray(bp, float), 1.0))[supporting == 0].sum())
     if airborne > 1e-9:
         out.append(f'no leg on the ground {100 * airborne:.0f} % of the cycle (L(t) = 0)')
-    elif len(gait.leg_names) >= 4:
-        # every leg of one side in swing at once (a wave at the default duty factor
+    else:
+        # every leg of one side in swing at once (on 4 or more legs) (a wave at the default duty factor
         # 0.5): gait_scheduler refuses it and energy calls the run infeasible; the simulator
         # walked it silently
         from hexapod_gait.config import check_static_support

@@ -126,14 +126,12 @@ def lifted_sides(gait: Any) -> list[str]:
     """Why ``gait`` tips the body over a side: for each side (the legs' first letter) whose
     legs are all in swing at some instant, one sentence (empty when every side keeps a leg
     down; schedules of fewer than 4 legs and standing are not checked).  The rule
-    ``gait_scheduler`` applies (:func:`hexapod_gait.config.check_static_support`): a wave at
+    ``gait_scheduler`` applies (:func:`hexapod_gait.config.unsupported_sides`): a wave at
     duty factor 0.5-0.55 keeps three legs down yet lifts a whole side, and had been
     recommended (an outside review; the ripple at the same duty factor costs the same)."""
-    from hexapod_gait.config import min_supporting_per_side
+    from hexapod_gait.config import unsupported_sides
 
-    if len(gait.leg_names) < 4 or not gait.step_length_m > 0:
-        return []
-    lost = [side for side, n in min_supporting_per_side(gait).items() if n == 0]
+    lost = unsupported_sides(gait)
     if not lost:
         return []
     return [f'every leg of side {"/".join(lost)} is in swing at once ({gait.name}, duty factor '

@@ -17,7 +17,12 @@ from .kinematics import Branch, LegKinematics
 from .step_limits import BENCH_STEP_M, check_feasible_for_step, limits_for_step
 from .trajectory import ANTBOT_NEUTRAL_TIP_M, default_forward_axis, tip_path
 
-__all__ = ['build_gait', 'check_reachable', 'check_static_support', 'min_supporting_per_side']
+__all__ = ['SIDE_RULE_MIN_LEGS', 'build_gait', 'check_reachable', 'check_static_support',
+           'min_supporting_per_side', 'unsupported_sides']
+
+#: fewest legs the whole-side rule applies to: with one leg a side every swing lifts a side
+#: (such a robot balances by other means)
+SIDE_RULE_MIN_LEGS = 4
 
 
 def check_reachable(
@@ -72,31 +77,50 @@ def _largest_gap(offsets: list[float]) -> float:
     return max(b - a for a, b in zip(x, x[1:] + [x[0] + 1.0]))
 
 
-def check_static_support(gait: GaitPattern) -> None:
-    """Raise :class:`InfeasibleGaitError` if at some instant every leg of one side is in swing
-    (the robot falls over that side), e.g. the wave gait at duty factor 0.5. Standing (step
-    length and height 0) always passes.
+def unsupported_sides(gait: GaitPattern) -> list[str]:
+    """The sides (the legs' first letter) whose legs are all in swing at some instant: the
+    whole-side rule of :func:`check_static_support`, ``gait_scheduler``, ``hexapod-sim`` and
+    the energy recommendation (one rule: the simulator and the recommendation each had their
+    own, which differed on stepping in place and on two legs). Empty when the gait stands (step
+    length and height 0) or has fewer than :data:`SIDE_RULE_MIN_LEGS` legs."""
+    if gait.step_length_m == 0.0 and gait.step_height_m == 0.0:
+        return []
+    if len(gait.leg_names) < SIDE_RULE_MIN_LEGS:
+        return []
+    return [side for side, n in min_supporting_per_side(gait).items() if n == 0]
 
-    The message says whether no leg at all is on the ground for part of the cycle (a flight
-    phase, e.g. the alternating gait below 0.5), and names the duty factor the gait's offsets
-    need: the largest gap between the offsets of one side's legs.
+
+def check_static_support(gait: GaitPattern) -> None:
+    """Raise :class:`InfeasibleGaitError` if no leg is on the ground for part of the cycle (a
+    flight phase, e.g. the alternating gait below 0.5, on any number of legs) or, on
+    :data:`SIDE_RULE_MIN_LEGS` or more legs, if at some instant every leg of one side is in
+    swing (the robot falls over that side), e.g. the wave gait at duty factor 0.5 (see
+    :func:`unsupported_sides`). Standing (step length and height 0) always passes.
+
+    The message names the duty factor the gait's offsets need: the largest gap between the
+    offsets of one side's legs (of all legs, under :data:`SIDE_RULE_MIN_LEGS` legs).
     """
     if gait.step_length_m == 0.0 and gait.step_height_m == 0.0:
         return
-    lost = [side for side, n in min_supporting_per_side(gait).items() if n == 0]
-    if not lost:
+    lost = unsupported_sides(gait)
+    if not lost and gait.min_supporting_legs() > 0:
         return
     n, beta = gait.leg_count, gait.duty_factor
     offsets = list(gait.phase_offsets)
-    need = max(_largest_gap([o for o, name in zip(offsets, gait.leg_names) if name[0] == side])
-               for side in {name[0] for name in gait.leg_names})
+    if len(gait.leg_names) < SIDE_RULE_MIN_LEGS:
+        need = _largest_gap(offsets)
+    else:
+        need = max(_largest_gap([o for o, name in zip(offsets, gait.leg_names)
+                                 if name[0] == side])
+                   for side in {name[0] for name in gait.leg_names})
     if gait.min_supporting_legs() == 0:
         x = sorted(o % 1.0 for o in offsets)
         airborne = sum(max(0.0, b - a - beta) for a, b in zip(x, x[1:] + [x[0] + 1.0]))
         raise InfeasibleGaitError(
             f'gait {gait.name!r} at duty factor {beta:g} has a flight phase: no leg on the '
             f'ground for {100 * airborne:.3g} % of the cycle (the robot falls); it needs a duty '
-            f'factor >= {need:.4g} on {n} legs (a leg on the ground on each side)')
+            f'factor >= {need:.4g} on {n} legs' + (' (a leg on the ground on each side)'
+                                                     if lost else ''))
     wave = (f' (the wave walks at 1 - 1/n = {1 - 1 / n:.4g} on {n} legs)'
             if gait.name == 'wave' else '')
     raise InfeasibleGaitError(
