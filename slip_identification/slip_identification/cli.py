@@ -4,8 +4,9 @@ Writes ``DIR/slip.json``, the Figs. 7-9 scatter plots (``fig7_speed_vs_sr``,
 ``fig8_power_vs_speed``, ``fig9_nerr_vs_sr``: Fig. 9 with ``nerr_world``, Eq. 2 literal, and
 ``nerr`` side by side) and ``slip_fit_stances`` (the SLIP fit against the data: measured
 states and the SLIP re-simulated from the fitted parameters for the best, median and worst
-stance by nerr of each gait, :mod:`slip_identification.plots`), each as PNG and SVG.
-Schema of ``slip.json``::
+stance by nerr of each gait, :mod:`slip_identification.plots`), each as PNG and SVG;
+``--no-plots`` writes ``slip.json`` alone (an earlier run's figures in ``DIR`` are removed all
+the same, so that none is left beside the new result). Schema of ``slip.json``::
 
     {
       "schema": "slip/1",
@@ -114,7 +115,8 @@ Schema of ``slip.json``::
       "skipped_counts": {"<reason>": n},   # too_short, nan, mocap_gap, outside_volume,
                                            # transient (--steady-only), ...
       "failed_bags": [{"bag", "error"}],   # e.g. a missing topic
-      "plots": [file names]  # the figures written beside it (PNG and SVG)
+      "plots": [file names]  # the figures written beside it (PNG and SVG; [] with
+                             # --no-plots)
       "warnings": [str]    # e.g. the robot mass assumed (no --mass); "<bag>: ..." for a
                            # run resting on an assumption its data contradict (runs[].warnings,
                            # also in its notes: legs not EduBot's, efforts against contacts)
@@ -881,7 +883,9 @@ def _run_command(args: argparse.Namespace) -> int:
     from hexapod_common.outdir import write_text_atomic
 
     doc['plots'] = []
-    if rows:   # figures first, the JSON last
+    # --no-plots: no figures; an earlier run's were set aside by run_command and are dropped
+    # when this run finishes, so none is left beside this slip.json (as residuals --no-plots)
+    if rows and not getattr(args, 'no_plots', False):   # figures first, the JSON last
         from .plots import plot_stance_fits
 
         source = data_source(doc['runs'])
@@ -982,6 +986,9 @@ def add_cli(subparsers: Any) -> None:
                         'otherwise shrunk toward the same leg\'s at other strides as far as '
                         'the height noise leaves them undetermined (a study of stride-to-'
                         'stride variability wants them alone)')
+    p.add_argument('--no-plots', action='store_true',
+                   help="skip the figures: slip.json alone, its 'plots' []; an earlier run's "
+                        'figures in --out are removed all the same')
     p.set_defaults(func=run_command)
 
 

@@ -117,6 +117,27 @@ def test_slip_with_no_stance_removes_the_earlier_runs_figures(canned_slip, capsy
     assert doc['stances'] == [] and doc['failed_bags']
 
 
+def test_slip_no_plots_draws_nothing_and_removes_the_earlier_figures(canned_slip,
+                                                                     monkeypatch):
+    """``slip --no-plots`` (the analysis tests' runs, which never look at the figures): no
+    figure is drawn, slip.json says 'plots' [] and holds the stances, and the earlier run's
+    figures do not stay beside it (as ``residuals --no-plots``, F5); other files are kept."""
+    import slip_identification.cli as slip_cli
+    import slip_identification.plots as slip_plots
+
+    def drawn(*a, **kw):
+        raise AssertionError('a figure drawn with --no-plots')
+
+    monkeypatch.setattr(slip_cli, 'plot_figures', drawn)
+    monkeypatch.setattr(slip_plots, 'plot_stance_fits', drawn)
+    out = canned_slip / 'out'
+    _fill(out, OLD_SLIP + ['slip_fit_stances.png', 'slip_fit_stances.svg', 'notes.txt'])
+    assert analyze(['slip', str(canned_slip / 'pace'), '--out', str(out), '--no-plots']) == 0
+    assert _files(out) == {'slip.json', 'notes.txt'}
+    doc = json.loads((out / 'slip.json').read_text())
+    assert doc['plots'] == [] and len(doc['stances']) == 2
+
+
 # ---------------------------------------------------------------------------- energy
 
 @pytest.fixture(scope='module')
