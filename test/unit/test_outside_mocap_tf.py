@@ -52,7 +52,9 @@ def _as_tf(src: Path, dst: Path) -> Path:
 
 
 def _slip(bag: Path, out: Path, *pre: str) -> dict:
-    assert analyze([*pre, 'slip', str(bag), '--out', str(out)]) == 0
+    """slip.json of ``slip`` on ``bag`` (exit 0), without figures (--no-plots): these tests
+    read slip.json only."""
+    assert analyze([*pre, 'slip', str(bag), '--out', str(out), '--no-plots']) == 0
     return json.loads((out / 'slip.json').read_text())
 
 
@@ -63,9 +65,17 @@ def bags(tmp_path_factory):
     return root, ref, _as_tf(ref, root / 'tf')
 
 
-def test_slip_reads_the_pose_from_tf(bags, capsys):
-    root, ref_bag, tf_bag = bags
-    ref = _slip(ref_bag, root / 'ref_out')
+@pytest.fixture(scope='module')
+def ref_doc(bags):
+    """slip.json of the bag with the pose topic, the reference of the rosbag2 and the ROS 1
+    tf bags alike (one analysis for both)."""
+    root, ref_bag, _ = bags
+    return _slip(ref_bag, root / 'ref_out')
+
+
+def test_slip_reads_the_pose_from_tf(bags, ref_doc, capsys):
+    root, _, tf_bag = bags
+    ref = ref_doc
     got = _slip(tf_bag, root / 'tf_out', '--mocap-tf', 'world:base_link')
     assert len(ref['stances']) >= 5
     assert [s['touchdown'] for s in got['stances']] == [s['touchdown'] for s in ref['stances']]
@@ -87,7 +97,7 @@ def test_slip_reads_the_pose_from_tf(bags, capsys):
     assert 'PARENT:CHILD' in capsys.readouterr().err
 
 
-def test_ros1_bag_with_tf(bags):
+def test_ros1_bag_with_tf(bags, ref_doc):
     from rosbags.typesys import get_types_from_msg
     from test_outside_ros1 import ROS1
 
@@ -96,7 +106,7 @@ def test_ros1_bag_with_tf(bags):
     from rosbags.rosbag1 import Writer as Ros1Writer
     from test_outside_ros1 import _to_ros1
 
-    root, ref_bag, tf_bag = bags
+    root, _, tf_bag = bags
     bag1 = root / 'tf.bag'
     with open_reader(tf_bag) as reader, Ros1Writer(bag1) as writer:
         conns: dict = {}
@@ -108,9 +118,9 @@ def test_ros1_bag_with_tf(bags):
             ros1 = (ROS1.types[TF](transforms=[_to_ros1(t, TS) for t in msg.transforms])
                     if m.msgtype == TF else _to_ros1(msg, m.msgtype))
             writer.write(conns[m.topic], m.stamp_ns, ROS1.serialize_ros1(ros1, m.msgtype))
-    ref = _slip(ref_bag, root / 'ref1')
     got = _slip(bag1, root / 'ros1', '--mocap-tf', 'world:base_link')
-    assert [s['touchdown'] for s in got['stances']] == [s['touchdown'] for s in ref['stances']]
+    assert [s['touchdown'] for s in got['stances']] == \
+        [s['touchdown'] for s in ref_doc['stances']]
 
 
 def test_truncated_bags_are_refused_in_one_line(bags, capsys):

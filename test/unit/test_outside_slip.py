@@ -116,12 +116,24 @@ def _write(path, run, *, yaw_deg=35.0, shift_m=(2.4, -1.3, 0.0), rate_hz=100.0,
 
 
 def _slip(tmp_path, bag, name, *extra):
+    """``slip`` on ``bag`` into ``tmp_path / name``: (exit code, slip.json). Without figures
+    (--no-plots): these tests read slip.json only, and the figures cost about 2 s a run
+    (test_output_folders.py and test_slip_figures_review_f2.py cover them)."""
     ap = argparse.ArgumentParser()
     sub = ap.add_subparsers(dest='command', required=True)
     add_cli(sub)
-    args = ap.parse_args(['slip', str(bag), '--out', str(tmp_path / name), *extra])
+    args = ap.parse_args(['slip', str(bag), '--out', str(tmp_path / name), '--no-plots',
+                          *extra])
     code = args.func(args)
     return code, json.loads((tmp_path / name / 'slip.json').read_text())
+
+
+@pytest.fixture(scope='module')
+def lab_doc(tmp_path_factory, sim_run):
+    """``slip`` on the lab bag as written by default (35 deg yaw, shifted origin, 100 Hz,
+    mocap 20 ms ahead): (exit code, slip.json). Two tests read this same analysis."""
+    root = tmp_path_factory.mktemp('outside_slip_lab')
+    return _slip(root, _write(root / 'lab', sim_run), 'out_lab')
 
 
 def _medians(doc):
@@ -129,11 +141,10 @@ def _medians(doc):
             float(np.median([s['rest_length'] for s in doc['stances']])))
 
 
-def test_other_lab_frame_100hz_no_efforts_no_gait_phase(tmp_path, sim_run):
+def test_other_lab_frame_100hz_no_efforts_no_gait_phase(tmp_path, sim_run, lab_doc):
     ref = _write(tmp_path / 'ref', sim_run, yaw_deg=0.0, shift_m=(0.0, 0.0, 0.0))
-    lab = _write(tmp_path / 'lab', sim_run)
     code_ref, doc_ref = _slip(tmp_path, ref, 'out_ref')
-    code, doc = _slip(tmp_path, lab, 'out_lab')
+    code, doc = lab_doc
     assert code == 0 and code_ref == 0 and not doc['failed_bags']
     run = doc['runs'][0]
     # the analysis does not depend on where the lab put its origin and axes
@@ -200,10 +211,11 @@ def test_mocap_on_another_clock_refused_in_one_line(tmp_path, sim_run):
     assert '\n' not in err and 'different clocks' in err
 
 
-def test_two_batteries_summed_for_the_specific_resistance(tmp_path, sim_run):
+def test_two_batteries_summed_for_the_specific_resistance(tmp_path, sim_run, lab_doc):
     """The robot's pack and a 4 W logic pack (frame_id ``logic``) on /battery_state: the run's
-    power is their sum (it was their rate-weighted mean), and the specific resistance with it."""
-    _, one = _slip(tmp_path, _write(tmp_path / 'one', sim_run), 'one')
+    power is their sum (it was their rate-weighted mean), and the specific resistance with it.
+    (The robot's pack alone is the default lab bag, ``lab_doc``.)"""
+    _, one = lab_doc
     _, two = _slip(tmp_path, _write(tmp_path / 'two', sim_run, logic_pack_w=4.0), 'two')
     p1, p2 = one['runs'][0]['power_w'], two['runs'][0]['power_w']
     assert p2 == pytest.approx(p1 + 4.0, rel=0.02)

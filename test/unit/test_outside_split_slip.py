@@ -73,10 +73,12 @@ def _rewrite(src, dst, groups, *, jitter_s: float, seed: int = 5,
 
 
 def _slip(tmp_path, bag, name):
+    """``slip`` on ``bag``: (exit code, slip.json). Without figures (--no-plots): these tests
+    read slip.json only."""
     ap = argparse.ArgumentParser()
     sub = ap.add_subparsers(dest='command', required=True)
     add_cli(sub)
-    args = ap.parse_args(['slip', str(bag), '--out', str(tmp_path / name)])
+    args = ap.parse_args(['slip', str(bag), '--out', str(tmp_path / name), '--no-plots'])
     code = args.func(args)
     return code, json.loads((tmp_path / name / 'slip.json').read_text())
 

@@ -229,10 +229,13 @@ def ref_doc(tmp_path_factory, bags):
 
 
 def _slip(tmp_path, bag, name, *extra):
+    """``slip`` on ``bag`` (exit 0, no bag refused): its slip.json. Without figures
+    (--no-plots): these tests read slip.json only."""
     ap = argparse.ArgumentParser()
     sub = ap.add_subparsers(dest='command', required=True)
     add_cli(sub)
-    args = ap.parse_args(['slip', str(bag), '--out', str(tmp_path / name), *extra])
+    args = ap.parse_args(['slip', str(bag), '--out', str(tmp_path / name), '--no-plots',
+                          *extra])
     assert args.func(args) == 0
     doc = json.loads((tmp_path / name / 'slip.json').read_text())
     assert not doc['failed_bags']

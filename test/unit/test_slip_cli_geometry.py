@@ -27,7 +27,8 @@ def test_other_leg_size_given_on_the_command_line(tmp_path) -> None:
     bag = edubot_sim.write_edubot_bag(tmp_path / 'big', 'running', duration_s=4.5, seed=1,
                                       params=params)
     ground, offset = _ground_truth(bag)
-    rc = analyze_main(['slip', str(bag), '--out', str(tmp_path / 'given'),
+    # without figures (--no-plots): the test reads slip.json only
+    rc = analyze_main(['slip', str(bag), '--out', str(tmp_path / 'given'), '--no-plots',
                        '--leg-radius', '0.065', '--hip-x', '0.24', '0', '-0.24'])
     assert rc == 0
     run = json.loads((tmp_path / 'given' / 'slip.json').read_text())['runs'][0]
@@ -37,7 +38,7 @@ def test_other_leg_size_given_on_the_command_line(tmp_path) -> None:
     assert abs(run['ground_m'] - ground) < 0.002
     assert abs(run['offset_s'] - offset) < 0.003      # 2.1 ms on this seed
     # with the EduBot's legs assumed instead, the ground is off by about the leg size difference
-    analyze_main(['slip', str(bag), '--out', str(tmp_path / 'default')])
+    analyze_main(['slip', str(bag), '--out', str(tmp_path / 'default'), '--no-plots'])
     wrong = json.loads((tmp_path / 'default' / 'slip.json').read_text())['runs'][0]
     assert wrong['geometry']['leg_radius_m'] == pytest.approx(0.0525)
     assert abs(wrong['ground_m'] - ground) > 0.01
