@@ -15,12 +15,41 @@ from test_outside_nogait_bag import simulated_run, write_lab_bag
 from hexapod_energy.cli import main
 
 
+@pytest.fixture(scope='module', autouse=True)
+def bench_read_once():
+    """Every run here reads the same bench bag (about 0.9 s each, a dozen times): each read
+    with the same arguments and the same hexapod-analyze settings (remaps, joint map) reads it
+    once, every run given its own copy of the result."""
+    import copy
+    import os
+
+    from hexapod_energy import bag_io
+
+    real, done = bag_io.read_bench_bag, {}
+
+    def read_bench_bag(path, session=None, **kw):
+        env = tuple(sorted((k, v) for k, v in os.environ.items() if k.startswith('HEXAPOD')))
+        key = (str(path), repr(session), repr(sorted(kw.items())), env)
+        if key not in done:
+            done[key] = real(path, session, **kw)
+        return copy.deepcopy(done[key])
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(bag_io, 'read_bench_bag', read_bench_bag)
+        yield
+
+
 @pytest.fixture(scope='module')
-def bags(tmp_path_factory):
+def trace():
+    """The simulated 10 s tripod run the lab bags are written from."""
+    return simulated_run(duration_s=10.0)
+
+
+@pytest.fixture(scope='module')
+def bags(tmp_path_factory, trace):
     root = tmp_path_factory.mktemp('nogait_cli')
     _write_bench(root / 'bench')
     _write_robot(root / 'robot_gait', 0.5)
-    trace = simulated_run(duration_s=10.0)
     write_lab_bag(root / 'lab_odom', trace)
     write_lab_bag(root / 'lab_bare', trace, odom=False)
     return root
@@ -84,42 +113,40 @@ def test_partial_gait_options_refused(bags, tmp_path, capsys):
     assert code == 2 and '--duty-factor' in capsys.readouterr().err
 
 
-def test_joint_names_outside_the_contract_need_legs(tmp_path, capsys):
+def test_joint_names_outside_the_contract_need_legs(bags, trace, tmp_path, capsys):
     """PhantomX-style names (``j_c1_lf``, ``j_thigh_lf``...) say nothing the contract can read
     about the leg count: with ``--gait`` the run is refused naming ``--legs``; with
-    ``--legs 6`` it gets the same prediction as the contract-named twin."""
+    ``--legs 6`` it gets the same prediction as the contract-named twin (``lab_odom``, the
+    same run with the contract's names; the bench is the module's)."""
     import dataclasses
 
-    trace = simulated_run(duration_s=10.0)
     side = {'L': 'l', 'R': 'r'}
     where = {'1': 'f', '2': 'm', '3': 'r'}
     part = {'coxa': 'c1', 'femur': 'thigh', 'tibia': 'tibia'}
     names = tuple(f'j_{part[n.split("_")[1]]}_{side[n[0]]}{where[n[1]]}'
                   for n in trace.joint_names)
     write_lab_bag(tmp_path / 'phantomx', dataclasses.replace(trace, joint_names=names))
-    write_lab_bag(tmp_path / 'contract', trace)
-    _write_bench(tmp_path / 'bench')
     gait = ['--gait', 'tripod', '--duty-factor', '0.5', '--step-length', '0.1']
-    code = main(['--bench', str(tmp_path / 'bench'), '--robot', str(tmp_path / 'phantomx'),
+    code = main(['--bench', str(bags / 'bench'), '--robot', str(tmp_path / 'phantomx'),
                  *gait, '--out', str(tmp_path / 'o'), '--no-progress'])
     err = capsys.readouterr().err
     assert code == 2 and '--legs' in err and 'j_c1_lf' in err
-    doc = _run(tmp_path, tmp_path / 'p', str(tmp_path / 'phantomx'),
-               str(tmp_path / 'contract'), *gait, '--legs', '6')
+    doc = _run(bags, tmp_path / 'p', str(tmp_path / 'phantomx'),
+               str(bags / 'lab_odom'), *gait, '--legs', '6')
     lab, ref = doc['robot_runs']
     assert lab['leg_count'] == ref['leg_count'] == 6
     np.testing.assert_allclose(lab['predicted_power_in_w'], ref['predicted_power_in_w'],
                                rtol=1e-9)
     assert any('given by --legs' in n for n in lab['notes'])
     # without --gait the names are not needed: measured descriptors, leg count unknown
-    doc = _run(tmp_path, tmp_path / 'q', str(tmp_path / 'phantomx'))
+    doc = _run(bags, tmp_path / 'q', str(tmp_path / 'phantomx'))
     assert doc['robot_runs'][0]['leg_count'] is None
     assert doc['robot_runs'][0]['measured_power_in_w'] > 0
     # or the names are mapped to the contract's (hexapod-analyze --joint-map): legs from names
     from hexapod_common.analyze_cli import main as analyze_main
 
     jmap = [f'{a}:={b}' for a, b in zip(names, trace.joint_names)]
-    rc = analyze_main(['--joint-map', *jmap, 'energy', '--bench', str(tmp_path / 'bench'),
+    rc = analyze_main(['--joint-map', *jmap, 'energy', '--bench', str(bags / 'bench'),
                        '--robot', str(tmp_path / 'phantomx'), *gait, '--out',
                        str(tmp_path / 'r'), '--no-progress'])
     assert rc == 0

@@ -30,6 +30,13 @@ def _fitted(gait: str, seed: int):
     return run, args, fit, pw[:, 0]
 
 
+@pytest.fixture(scope='module')
+def walk2():
+    """Walk seed 2 and its geometric fit (:func:`_fitted`), read by two tests (leg_contacts
+    changes none of its arrays)."""
+    return _fitted('walk', 2)
+
+
 def _contacts(args, fit, x, **kw):
     return leg_contacts(*args, offset_s=fit.offset_s, ground_m=fit.ground_m, fit=fit, x_m=x,
                         **kw)[0]
@@ -40,11 +47,11 @@ def _touchdown_error_ms(run, leg: str, t: float) -> float:
     return 1e3 * float(t - tr[np.argmin(np.abs(tr - t))])
 
 
-def test_late_touchdown_pooled_back():
+def test_late_touchdown_pooled_back(walk2):
     """Walk seed 2: R1 lands 8.8 ms late at its third touchdown (0.05 mm of sinking in 5 ms
     while the other legs carry the body); pooled, within 5 ms, and the leg's other edges stay
     within 2 ms of the truth."""
-    run, args, fit, x = _fitted('walk', 2)
+    run, args, fit, x = walk2
     info: dict = {}
     raw = _contacts(args, fit, x, pool_steady=False)
     pooled = _contacts(args, fit, x, info=info)
@@ -73,9 +80,9 @@ def test_sharp_edges_keep_their_own():
         assert np.max(np.abs(pooled[leg] - raw[leg])) < 1e-3
 
 
-def test_no_pooling_without_fit_or_when_off():
+def test_no_pooling_without_fit_or_when_off(walk2):
     """Pooling needs the fit (its residual RMS is the height error); off, nothing moves."""
-    run, args, fit, x = _fitted('walk', 2)
+    run, args, fit, x = walk2
     info: dict = {}
     a = _contacts(args, fit, x, pool_steady=False, info=info)
     assert info == {}
@@ -85,10 +92,10 @@ def test_no_pooling_without_fit_or_when_off():
     assert set(a) == set(b)
 
 
-def test_a_contact_cut_by_the_span_end_is_not_pooled():
+def test_a_contact_cut_by_the_span_end_is_not_pooled(walk2):
     """Mocap cut 4 ms before R1's last lift-off: that contact's end is the span's end, not a
     lift-off, and stays there (it was pooled as one; outside review)."""
-    run = edubot_sim.simulate_edubot('walk', duration_s=4.5, seed=2)
+    run = walk2[0]
     off = run.truth['clock_offset_s']
     t_lo = np.array(run.truth['leg_contact']['R1'])[-1, 1]
     keep = run.mocap_t_s < t_lo + off - 4e-3
