@@ -94,18 +94,19 @@ def _matched(ref, doc):
 
 def test_read_run_assembles_split_frames(bags):
     ref = read_run(bags['ref'])
+    runs = {}
     for key, groups in (('two', 2), ('six', 6)):
-        run = read_run(bags[key])
+        run = runs[key] = read_run(bags[key])
         assert set(run.joint_names) == set(ref.joint_names)
         note = [n for n in run.notes if 'split over' in n]
         assert note and f'split over {groups} name groups: assembled at 100 Hz' in note[0]
         assert run.joint_t_s.size >= ref.joint_t_s.size - 2
         assert run.joint_effort is not None and run.joint_position is not None
         assert run.command_velocity.shape[1] == 6
-    notes = read_run(bags['six']).notes
+    notes = runs['six'].notes
     assert any('/joint_commands: joint states split over 6' in n for n in notes)
     # same stamps on both buses: the frames are the reference's own samples
-    run = read_run(bags['two'])
+    run = runs['two']
     cols = [run.joint_names.index(n) for n in ref.joint_names]
     np.testing.assert_array_equal(run.joint_t_s, ref.joint_t_s)
     for field in ('joint_velocity', 'joint_position', 'joint_effort'):
