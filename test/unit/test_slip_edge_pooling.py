@@ -32,8 +32,8 @@ def _fitted(gait: str, seed: int):
 
 @pytest.fixture(scope='module')
 def walk2():
-    """Walk seed 2 and its geometric fit (:func:`_fitted`), read by two tests (leg_contacts
-    changes none of its arrays)."""
+    """Walk seed 2 and its geometric fit (:func:`_fitted`), read by two tests, and the run
+    by a third (leg_contacts changes none of their arrays)."""
     return _fitted('walk', 2)
 
 

@@ -112,9 +112,9 @@ LABHEX = {'mass_kg': 4.2, 'geometry_overrides': {'leg_radius_m': 0.085,
           'offset': 'auto', 'edges': 'auto', 'position_fit': False}
 
 
-#: LabHex's simulated body motion by its configuration without the fields ``simulate`` does
-#: not read that the bags here vary (a mocap dropout, efforts): the three bags share one
-#: motion, simulated once (a third of this file's time each) instead of three times
+#: LabHex's simulated body motion (``labhex_bag.simulate``) by configuration. The bags here
+#: differ in a mocap dropout or the efforts, which ``simulate`` does not read: the motion is
+#: simulated once for the three (about 2.5 s each) and each build given copies of its stances
 _LABHEX_MOTION: dict = {}
 
 
@@ -123,6 +123,8 @@ def _labhex(tmp_path, name, **cfg):
 
     from hexapod_common import labhex_bag
     from hexapod_common.labhex_bag import Cfg, build
+
+    real = labhex_bag.simulate
 
     def simulate(c):
         key = tuple(sorted((k, v) for k, v in dataclasses.asdict(c).items()
@@ -133,7 +135,6 @@ def _labhex(tmp_path, name, **cfg):
         # copies: build annotates the stance dicts it is given
         return [dict(s) for s in stances], state_at
 
-    real = labhex_bag.simulate
     with mock.patch.object(labhex_bag, 'simulate', simulate):
         truth, _ = build(Cfg(**cfg), tmp_path / name)
     return str(tmp_path / name), truth
