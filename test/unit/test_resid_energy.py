@@ -5,18 +5,17 @@ effects: each effect is selected first, held-out RMSE at least halves, its param
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from hexapod_bench_drivers.bench_sim import BenchPlan, simulate_bench
 from hexapod_bench_drivers.effects import parse_effects
 from hexapod_bench_drivers.robot_sim import RobotConfig, simulate_robot
 from hexapod_bench_drivers.sim_bag import write_trace
 from hexapod_energy import residuals as R
-from hexapod_energy.bag_io import bench_phase_samples, read_bench_bag
 from hexapod_energy.errors import BagContentError
 from hexapod_energy.prediction import RobotSpec
 from hexapod_energy.residuals_cli import add_cli
@@ -28,18 +27,10 @@ LEG_KG = RobotSpec().leg_mass_kg
 
 
 @pytest.fixture(scope='module')
-def bench(tmp_path_factory):
-    """One clean bench bag and its single-leg fit, shared by every test."""
-    path = tmp_path_factory.mktemp('bench') / 'bench'
-    plan = BenchPlan(loads_kg=(0.0, 0.187, 0.4, 0.6),
-                     frequencies_hz=(0.0, 0.75, 1.25, 1.75, 2.25), walk_s=4.0)
-    write_trace(simulate_bench(plan, seed=1), path)
-    data = read_bench_bag(path)
-    samples, _ = bench_phase_samples(data)
-    contact, _ = bench_phase_samples(data, phase_split='contact')
-    return {'path': path, 'model': R.fit_bench_model(samples),
-            'model_contact': R.fit_bench_model(contact),
-            'temp_ref_c': R._bench_temperature_c([path])}
+def bench(resid_bench):
+    """One clean bench bag and its single-leg fit, shared by every test (and by the other
+    residual test files: ``resid_bench`` in conftest.py)."""
+    return resid_bench
 
 
 def robot_bags(root: Path, effects: list[str], *, temps=(26.0, 26.0, 26.0),
@@ -71,8 +62,49 @@ def clean_bags(tmp_path_factory):
 
 
 @pytest.fixture(scope='module')
-def clean(bench, clean_bags):
-    return loop(bench, clean_bags)
+def clean_read(clean_bags):
+    """The clean bags read once; :func:`clean_runs` hands out copies (the loop sets each
+    run's prediction, and tests change their currents)."""
+    return [R.read_residual_run(p) for p in clean_bags]
+
+
+@pytest.fixture
+def clean_runs(clean_read):
+    """A fresh copy of the clean runs, as ``R.read_residual_run`` of each clean bag gives."""
+    return copy.deepcopy(clean_read)
+
+
+@pytest.fixture(scope='module')
+def clean(bench, clean_read):
+    return R.energy_loop_from_runs(bench['model'], copy.deepcopy(clean_read), None,
+                                   temp_ref_c=bench['temp_ref_c'])
+
+
+@pytest.fixture(scope='module')
+def effect_bags(tmp_path_factory):
+    """Robot bags with effects, simulated once per (effects, temperatures): an effect's own
+    case, the CLI test and the bags without /gait/phase read the same runs."""
+    made: dict[tuple, list[Path]] = {}
+
+    def get(effects: list[str], temps=(26.0, 26.0, 26.0)) -> list[Path]:
+        key = (tuple(effects), tuple(temps))
+        if key not in made:
+            made[key] = robot_bags(tmp_path_factory.mktemp('effect'), effects, temps=temps)
+        return made[key]
+    return get
+
+
+@pytest.fixture(scope='module')
+def effect_loop(bench, effect_bags):
+    """The loop on :func:`effect_bags`' runs, once per (effects, temperatures). Read only."""
+    made: dict[tuple, dict] = {}
+
+    def get(effects: list[str], temps=(26.0, 26.0, 26.0)) -> dict:
+        key = (tuple(effects), tuple(temps))
+        if key not in made:
+            made[key] = loop(bench, effect_bags(effects, temps))
+        return made[key]
+    return get
 
 
 def test_clean_runs_leave_no_unexplained_residual(clean):
@@ -84,12 +116,12 @@ def test_clean_runs_leave_no_unexplained_residual(clean):
         [r['measured_w'] for r in clean['per_run']])
 
 
-def test_an_accessory_switched_on_mid_run_is_reported_unexplained(bench, clean_bags, tmp_path):
+def test_an_accessory_switched_on_mid_run_is_reported_unexplained(bench, clean_runs, tmp_path):
     """An effect outside the catalogue: +3 W (a camera or a computer switched on) from the
     middle of each run. The loop fits what it can (here an undeclared mass and thermal drift)
     and said nothing of the 1.4 W it left; now the leftover is named, with its shape: a step
     of about +3 W half-way through the runs."""
-    runs = [R.read_residual_run(p) for p in clean_bags]
+    runs = clean_runs
     for r in runs:
         extra_w = np.where(r.t_s - r.t_s[0] > 0.5 * (r.t_s[-1] - r.t_s[0]), 3.0, 0.0)
         r.current_a = r.current_a + extra_w / r.voltage_v
@@ -124,9 +156,9 @@ CASES = [
 
 @pytest.mark.parametrize('effects,name,param,true,temps', CASES,
                          ids=[c[1] for c in CASES])
-def test_each_effect_is_found_first_and_recovered(bench, tmp_path, effects, name, param, true,
+def test_each_effect_is_found_first_and_recovered(effect_loop, effects, name, param, true,
                                                    temps):
-    doc = loop(bench, robot_bags(tmp_path, effects, temps=temps))
+    doc = effect_loop(effects, temps)
     assert doc['effects_added'][0] == name, doc['summary']
     h = doc['heldout']
     assert h['rmse_after'] <= 0.5 * h['rmse_before']
@@ -283,19 +315,20 @@ def test_clean_data_adds_nothing(clean):
     assert abs(clean['baseline']['bias']) < 0.3
 
 
-def test_warm_servos_are_hot_windings_not_a_friction(bench, clean_bags, tmp_path):
+def test_warm_servos_are_hot_windings_not_a_friction(bench, clean_read, tmp_path):
     """Clean runs whose servos are warmer than the bench's (50, 26 and 38 degC against 27):
     the simulator's copper resistance and magnet flux follow the temperature, so every watt
     costs more. Before ``hot_windings`` the loop named a thermal drift of 0.0063 W/K with a
     speed friction of 1.45 N s/m beside it (there is no friction); now the warm windings alone,
     at the fraction per kelvin the same runs at 26 degC show (0.41-0.45 %/K)."""
     warm = robot_bags(tmp_path / 'warm', [], temps=(50.0, 26.0, 38.0))
-    doc = loop(bench, warm)
+    warm_runs = [R.read_residual_run(p) for p in warm]
+    doc = R.energy_loop_from_runs(bench['model'], copy.deepcopy(warm_runs), None,
+                                  temp_ref_c=bench['temp_ref_c'])
     assert doc['effects_added'] == ['hot_windings']
     per_k = added(doc, 'hot_windings')['params']['per_k']
     truth = []
-    for w, c in zip(warm, clean_bags):
-        rw, rc = R.read_residual_run(w), R.read_residual_run(c)
+    for rw, rc in zip(warm_runs, clean_read):
         dt = (rw.temp_sum_c[0] - rc.temp_sum_c[0]) / rw.servo_count
         if abs(dt) > 1.0:
             truth.append((np.mean(rw.power_w) / np.mean(rc.power_w) - 1.0) / dt)
@@ -305,15 +338,14 @@ def test_warm_servos_are_hot_windings_not_a_friction(bench, clean_bags, tmp_path
     assert h['rmse_after'] < 0.25 * h['rmse_before']
 
 
-def test_paper_load_convention_fits_the_simulated_robot(bench, clean, tmp_path):
+def test_paper_load_convention_fits_the_simulated_robot(bench, clean, clean_runs):
     """The simulated robot's stance tips carry M g / L (its leg's weight included, as Eq. 4
     and a real robot): read at the paper's convention (bench load m_c) the clean runs' bias is
     small (-0.24 W of 27-45 W) and no effect is added. The old simulator's tips carried
     m_leg g less and needed --load-offset = m_leg; that offset now under-predicts the robot."""
     assert clean['effects_added'] == []
     assert abs(clean['baseline']['bias']) < 0.5
-    runs = [R.read_residual_run(p) for p in robot_bags(tmp_path, [])]
-    old = R.energy_loop_from_runs(bench['model'], runs, None, temp_ref_c=bench['temp_ref_c'],
+    old = R.energy_loop_from_runs(bench['model'], clean_runs, None, temp_ref_c=bench['temp_ref_c'],
                                   load_offset_kg=LEG_KG)
     assert old['baseline']['bias'] > clean['baseline']['bias'] + 0.3
 
@@ -343,8 +375,8 @@ def _cli(argv):
     return args.func(args)
 
 
-def test_cli_writes_the_schema_and_plots(bench, tmp_path, capsys):
-    bags = robot_bags(tmp_path / 'r', ['supply_resistance=0.3'])
+def test_cli_writes_the_schema_and_plots(bench, effect_bags, tmp_path, capsys):
+    bags = effect_bags(['supply_resistance=0.3'])     # the supply_resistance case's bags
     out = tmp_path / 'out'
     code = _cli(['residuals', '--bench', str(bench['path']), '--robot', *map(str, bags),
                  '--out', str(out)])
@@ -411,12 +443,12 @@ def _without_gait_phase(src: Path, dst: Path) -> Path:
     return dst
 
 
-def test_bags_without_gait_phase_with_the_gait_given(bench, tmp_path):
+def test_bags_without_gait_phase_with_the_gait_given(bench, effect_bags, effect_loop, tmp_path):
     """Another lab's robot bags (no /gait/phase: its own gait code): with the gait given
     (--gait tripod --duty-factor 0.5 --step-length 0.1) the cycles come from the joints and the
     loop finds the same effect as on the bags with the schedule; without it the error says
     what to give."""
-    bags = robot_bags(tmp_path / 'with', ['basal_power=3'])
+    bags = effect_bags(['basal_power=3'])
     bare = [_without_gait_phase(b, tmp_path / f'bare{i}') for i, b in enumerate(bags)]
     with pytest.raises(BagContentError, match='give --gait, --duty-factor and --step-length'):
         R.read_residual_run(bare[0])
@@ -425,7 +457,7 @@ def test_bags_without_gait_phase_with_the_gait_given(bench, tmp_path):
     assert runs[0].leg_names == ('L1', 'L2', 'L3', 'R1', 'R2', 'R3')
     assert 'cycles and period from the joint positions' in runs[0].notes[0]
     doc = R.energy_loop_from_runs(bench['model'], runs, None, temp_ref_c=bench['temp_ref_c'])
-    ref = loop(bench, bags)
+    ref = effect_loop(['basal_power=3'])           # loop(bench, bags)
     # (kinematic_error, speed_friction, basal_power and carried_mass are all smooth in step
     # frequency: with three frequencies their split is not identifiable, so the test takes
     # the effect whose regressor no other shares)
@@ -468,21 +500,21 @@ def test_thermal_drift_without_servo_temperatures(bench, tmp_path):
     assert doc['heldout']['rmse_after'] <= 0.5 * doc['heldout']['rmse_before']
 
 
-def test_hidden_offsets_and_gains_are_not_confidently_misnamed(bench, clean_bags):
+def test_hidden_offsets_and_gains_are_not_confidently_misnamed(bench, clean_read):
     """An outside review's cases (effects outside the catalogue, hidden in the robot bags):
     - the model over-predicting by 1 W (robot servos 1 K cooler than the bench's): it was named
       thermal_drift (the near-constant temperature column stood for an offset); now nothing is
       added and the leftover is reported: 'the model over-predicts every run';
     - a current sensor reading 5 % high: it was a 0.72 kg payload with no alternative; the
       summary now names power_gain (the gain) beside what is added."""
-    runs = [R.read_residual_run(p) for p in clean_bags]
+    runs = copy.deepcopy(clean_read)
     for r in runs:
         r.current_a = r.current_a - 1.0 / r.voltage_v
         r.power_w = r.voltage_v * r.current_a
     doc = R.energy_loop_from_runs(bench['model'], runs, None, temp_ref_c=bench['temp_ref_c'])
     assert 'thermal_drift' not in doc['effects_added'], doc['summary']
     assert doc['unexplained']['significant'] and 'over-predicts every run' in doc['summary']
-    runs = [R.read_residual_run(p) for p in clean_bags]
+    runs = copy.deepcopy(clean_read)
     for r in runs:
         r.current_a = 1.05 * r.current_a
         r.power_w = r.voltage_v * r.current_a

@@ -5,6 +5,7 @@ energy's ``m_c = (M + payload - L m_leg) / L``."""
 
 from __future__ import annotations
 
+import copy
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -16,7 +17,7 @@ from hexapod_bench_drivers.sim_bag import write_trace
 from hexapod_energy import residuals as R
 from hexapod_energy.effects_catalogue import SwingReversal
 from hexapod_energy.prediction import RobotSpec, phase_duration_scales, predict_power_in_w
-from test_resid_energy import bench, loop  # noqa: F401  (bench: the shared fixture)
+from test_resid_energy import bench  # noqa: F401  (bench: the shared fixture)
 from test_resid_gaits import _table
 
 #: (step length, step height, period): the review's geometries other than the bench's
@@ -35,12 +36,17 @@ def step_bags(tmp_path_factory) -> list[Path]:
     return out
 
 
-def test_runs_of_other_steps_are_predicted_as_energy_predicts_them(bench, step_bags):
+@pytest.fixture(scope='module')
+def step_runs(step_bags) -> list[R.ResidualRun]:
+    """The step bags read once (the loop is given copies: it sets each run's prediction)."""
+    return [R.read_residual_run(p) for p in step_bags]
+
+
+def test_runs_of_other_steps_are_predicted_as_energy_predicts_them(bench, step_bags, step_runs):
     model = bench['model']
     assert model.bench_step_ == pytest.approx((0.1, 0.04), rel=0.01)
     spec = RobotSpec()
-    for path, (length, height, period) in zip(step_bags, STEPS):
-        run = R.read_residual_run(path)
+    for path, run, (length, height, period) in zip(step_bags, step_runs, STEPS):
         assert np.allclose(run.step_height_m, height)
         got = R.predict_run_w(run, model, total_mass_kg=spec.mass_kg,
                               leg_mass_kg=spec.leg_mass_kg)
@@ -55,8 +61,9 @@ def test_runs_of_other_steps_are_predicted_as_energy_predicts_them(bench, step_b
         assert float(np.mean(got)) == pytest.approx(want, rel=0.02), path.name
 
 
-def test_clean_runs_of_other_steps_leave_a_small_residual_and_add_nothing(bench, step_bags):
-    doc = loop(bench, step_bags)
+def test_clean_runs_of_other_steps_leave_a_small_residual_and_add_nothing(bench, step_runs):
+    doc = R.energy_loop_from_runs(bench['model'], copy.deepcopy(step_runs), None,
+                                  temp_ref_c=bench['temp_ref_c'])      # loop(bench, step_bags)
     res = {Path(r['bag']).name: r['measured_w'] - r['predicted_w'] for r in doc['per_run']}
     print('\nother steps, measured - predicted:', {k: round(v, 2) for k, v in res.items()},
           '| baseline', round(doc['baseline']['rmse'], 2), '| added', doc['effects_added'])
@@ -151,10 +158,10 @@ def test_a_carried_mass_large_for_the_robot_is_said_to_read_as_a_gain_too():
             assert 'reads as a mass as well (power_gain, factor 1.0' in doc['summary']
 
 
-def _sagging(bags, drop_v=1.0, per_v=0.04):
-    """The runs with a battery that falls ``drop_v`` through each run, the servos drawing
-    ``per_v`` more per volt of fall (the review's ``soc`` bags)."""
-    runs = [R.read_residual_run(p) for p in bags]
+def _sagging(runs, drop_v=1.0, per_v=0.04):
+    """The runs (as read, left unchanged) with a battery that falls ``drop_v`` through each
+    run, the servos drawing ``per_v`` more per volt of fall (the review's ``soc`` bags)."""
+    runs = copy.deepcopy(runs)
     for r in runs:
         drop = drop_v * (r.t_s - r.t_s[0]) / (r.t_s[-1] - r.t_s[0])
         r.power_w = r.power_w * (1.0 + per_v * drop)
@@ -172,10 +179,10 @@ def test_an_effect_the_in_run_battery_voltage_explains_as_well_is_said(bench):
     import tempfile
 
     with tempfile.TemporaryDirectory() as tmp:
-        bags = robot_bags(Path(tmp), [], run_s=8.0)
-        doc = R.energy_loop_from_runs(bench['model'], _sagging(bags), None,
+        runs = [R.read_residual_run(p) for p in robot_bags(Path(tmp), [], run_s=8.0)]
+        doc = R.energy_loop_from_runs(bench['model'], _sagging(runs), None,
                                       temp_ref_c=bench['temp_ref_c'])
-        steady = R.energy_loop_from_runs(bench['model'], _sagging(bags, 0.0), None,
+        steady = R.energy_loop_from_runs(bench['model'], _sagging(runs, 0.0), None,
                                          temp_ref_c=bench['temp_ref_c'])
     print('\n', doc['effects_added'], doc.get('battery_voltage'), '\n', doc['summary'])
     assert doc['effects_added']

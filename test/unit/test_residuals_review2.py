@@ -10,12 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hexapod_bench_drivers.bench_sim import BenchPlan, simulate_bench
 from hexapod_bench_drivers.effects import parse_effects
 from hexapod_bench_drivers.robot_sim import RobotConfig, simulate_robot
 from hexapod_bench_drivers.sim_bag import write_trace
 from hexapod_energy import residuals as R
-from hexapod_energy.bag_io import bench_phase_samples, read_bench_bag
 from hexapod_energy.effects_catalogue import (
     BasalPower,
     CarriedMass,
@@ -31,13 +29,10 @@ THERMAL_RUN_S = 60.0
 
 
 @pytest.fixture(scope='module')
-def bench(tmp_path_factory):
-    path = tmp_path_factory.mktemp('bench') / 'bench'
-    plan = BenchPlan(loads_kg=(0.0, 0.187, 0.4, 0.6),
-                     frequencies_hz=(0.0, 0.75, 1.25, 1.75, 2.25), walk_s=4.0)
-    write_trace(simulate_bench(plan, seed=1), path)
-    samples, _ = bench_phase_samples(read_bench_bag(path))
-    return {'model': R.fit_bench_model(samples), 'temp_ref_c': R._bench_temperature_c([path])}
+def bench(resid_bench):
+    """The residual tests' bench (4 loads x 5 frequencies, seed 1: ``resid_bench`` in
+    conftest.py, made once for the files that share it)."""
+    return resid_bench
 
 
 def _loop(bench, root: Path, effects: list[str]) -> dict:

@@ -6,6 +6,7 @@ and can be widened; a candidate refused for another reason is not 'no candidate 
 
 from __future__ import annotations
 
+import copy
 from pathlib import Path
 
 import numpy as np
@@ -45,10 +46,17 @@ def basal_bags(tmp_path_factory):
     return _bags(tmp_path_factory.mktemp('basal'), ['basal_power=1'])
 
 
-def _lagged(path: Path, lag_s: float) -> R.ResidualRun:
+@pytest.fixture(scope='module')
+def basal_runs(basal_bags):
+    """The basal bags read once (:func:`_lagged` changes a copy)."""
+    return [R.read_residual_run(p) for p in basal_bags]
+
+
+def _lagged(run: R.ResidualRun, lag_s: float) -> R.ResidualRun:
     """The run with its battery current delayed by ``lag_s`` (stamps and voltage kept, the
-    first samples holding the first reading), as the review's rewrite of /battery_state."""
-    r = R.read_residual_run(path)
+    first samples holding the first reading), as the review's rewrite of /battery_state;
+    ``run`` as read from its bag, left unchanged."""
+    r = copy.deepcopy(run)
     n = int(round(lag_s / float(np.median(np.diff(r.t_s)))))
     cur = np.empty_like(r.current_a)
     cur[n:], cur[:n] = r.current_a[:-n], r.current_a[0]
@@ -94,12 +102,12 @@ def test_samples_shifted_beyond_the_battery_stream_are_dropped_not_held(offset_s
     assert a.joint_t_s is r.joint_t_s       # the joint stream is not on the battery stamps
 
 
-def test_a_lag_beside_a_basal_power_both_found(bench, basal_bags):
+def test_a_lag_beside_a_basal_power_both_found(bench, basal_runs):
     """150 ms current lag beside a real 1 W basal power (the review's b1lag case): the held
     tail inflated the windows' error (3.13 W) and basal_power was refused against it,
     'unexplained' instead. Now the lag is realigned, the error is the clean one's and the
     basal power is found."""
-    doc = _loop(bench, [_lagged(p, 0.15) for p in basal_bags])
+    doc = _loop(bench, [_lagged(r, 0.15) for r in basal_runs])
     assert doc['effects_added'][:1] == ['time_offset'], doc['summary']
     assert 'basal_power' in doc['effects_added'], doc['summary']
     p = next(a for a in doc['added_params'] if a['name'] == 'basal_power')['params']
@@ -110,7 +118,7 @@ def test_a_lag_beside_a_basal_power_both_found(bench, basal_bags):
 
 # --- 3: the lag search's range --------------------------------------------------------------
 
-def test_a_lag_beyond_the_search_is_warned_of_and_found_with_a_wider_search(bench, basal_bags,
+def test_a_lag_beyond_the_search_is_warned_of_and_found_with_a_wider_search(bench, basal_runs,
                                                                             tmp_path):
     """250 ms read +77.3 ms (+-1 ms: the floor), an aliased minimum inside +-150 ms, without a
     word. Now a realignment that removes little of the per-sample error, or a lag at the edge,
@@ -119,7 +127,7 @@ def test_a_lag_beyond_the_search_is_warned_of_and_found_with_a_wider_search(benc
     from hexapod_energy.errors import InvalidInputError
     from hexapod_energy.prediction import RobotSpec
 
-    runs = [_lagged(p, 0.2) for p in basal_bags]
+    runs = [_lagged(r, 0.2) for r in basal_runs]
     spec = RobotSpec()
     for r in runs:
         r.predicted_w = R.predict_run_w(r, bench['model'], total_mass_kg=spec.mass_kg,
@@ -131,7 +139,7 @@ def test_a_lag_beyond_the_search_is_warned_of_and_found_with_a_wider_search(benc
     assert wide.lag_s_ == pytest.approx(0.2, abs=0.01)
     assert wide.selected_ and not wide.warnings_
     # the option reaches the view, and the summary says the warning
-    doc = _loop(bench, [_lagged(p, 0.2) for p in basal_bags])
+    doc = _loop(bench, [_lagged(r, 0.2) for r in basal_runs])
     assert doc['sample_view']['warnings'] and 'Of the clock offset' in doc['summary']
     from hexapod_energy.residuals_cli import build_parser, run
 
@@ -141,19 +149,19 @@ def test_a_lag_beyond_the_search_is_warned_of_and_found_with_a_wider_search(benc
         run(args)
 
 
-def test_a_max_lag_beyond_a_tenth_of_the_runs_is_cut_and_said(bench, basal_bags):
+def test_a_max_lag_beyond_a_tenth_of_the_runs_is_cut_and_said(bench, basal_runs):
     """A review of the change: the search sets aside its largest lag at each end of every
     run, so --max-lag 2 s left 1,200 of 2,055 samples of 10 s runs, and 4-5 s refused the
     view (and the clock-offset search) without a word. The lag is now capped at a tenth of
     the shortest run, said; a refused view is said in the document and the summary."""
-    runs = [_lagged(p, 0.05) for p in basal_bags]
+    runs = [_lagged(r, 0.05) for r in basal_runs]
     doc = _loop(bench, runs, max_lag_s=4.0)
     sv = doc['sample_view']
     assert sv['max_lag_s'] == pytest.approx(0.1 * min(
         float(r.joint_t_s[-1] - r.joint_t_s[0]) for r in runs), rel=1e-9)
     assert sv['warnings'][0].startswith('the clock-offset search was cut from 4 s to 1.00 s')
     assert sv['lag_s'] == pytest.approx(0.05, abs=0.01)
-    short = [_lagged(p, 0.05) for p in basal_bags]
+    short = [_lagged(r, 0.05) for r in basal_runs]
     for r in short:      # too little robot data for the per-sample view
         r.joint_features = r.joint_features[:40]
         r.joint_t_s = r.joint_t_s[:40]
@@ -163,15 +171,15 @@ def test_a_max_lag_beyond_a_tenth_of_the_runs_is_cut_and_said(bench, basal_bags)
 
 
 
-def test_the_max_lag_cap_counts_the_time_both_streams_cover(bench, basal_bags):
+def test_the_max_lag_cap_counts_the_time_both_streams_cover(bench, basal_runs):
     """The cap counted the joint stream's span: a power monitor started 4 s late (battery
     6 s of a 10 s joint stream) was searched up to a tenth of 10 s. It is now a tenth of
     the time both streams cover."""
     from dataclasses import replace
 
     runs = []
-    for p in basal_bags:
-        r = _lagged(p, 0.05)
+    for run in basal_runs:
+        r = _lagged(run, 0.05)
         keep = r.t_s >= r.t_s[0] + 4.0
         runs.append(replace(r, **{k: getattr(r, k)[keep] for k in R.ResidualRun.PER_SAMPLE
                                   if getattr(r, k) is not None
