@@ -55,8 +55,14 @@ def bags(tmp_path_factory) -> Path:
 
 
 @pytest.fixture(scope='module')
-def model(bags) -> SingleLegModel:
-    samples, _ = bench_phase_samples(read_bench_bag(bags / 'bench'))
+def bench_data(bags):
+    """The bench bag read once (the schedule and the contact splits are taken from it)."""
+    return read_bench_bag(bags / 'bench')
+
+
+@pytest.fixture(scope='module')
+def model(bench_data) -> SingleLegModel:
+    samples, _ = bench_phase_samples(bench_data)
     return SingleLegModel().fit(samples)
 
 
@@ -68,8 +74,16 @@ def _analyze(bags: Path, out: Path, *extra: str) -> dict:
     return json.loads((out / 'energy.json').read_text())
 
 
-def test_predicted_robot_power_within_5_percent(bags, tmp_path) -> None:
-    doc = _analyze(bags, tmp_path / 'net', '--power-out', 'model')
+@pytest.fixture(scope='module')
+def model_out(bags, tmp_path_factory) -> tuple[dict, Path]:
+    """``energy --power-out model`` on the bags, run once: its energy.json and output folder
+    (the prediction test and the where-the-watts-go test read the same analysis). Read only."""
+    out = tmp_path_factory.mktemp('model_out') / 'o'
+    return _analyze(bags, out, '--power-out', 'model'), out
+
+
+def test_predicted_robot_power_within_5_percent(model_out) -> None:
+    doc, _ = model_out
     err = doc['prediction_error']
     fit = doc['bench']['fit']
     print(f"\nbench sessions {doc['bench']['diagnostics'][0]['sessions']}, surfaces "
@@ -286,11 +300,11 @@ def test_paper_direction_beta(findings) -> None:
                                                                       duty_factor=0.5)
 
 
-def test_where_the_watts_go(bags, tmp_path) -> None:
+def test_where_the_watts_go(model_out) -> None:
     """Each robot run's Eq. 1 power split by phase and into holding (the bench's basal power
     at the loads the legs carry) and motion; the parts add up to the prediction, the rest is
     what the bench model does not explain; drawn as stacked bars."""
-    doc = _analyze(bags, tmp_path / 'watts', '--power-out', 'model')
+    doc, out = model_out
     basal = doc['bench']['fit']['basal_power_w']
     assert basal, 'the plan has 0 Hz sessions'
     print()
@@ -313,10 +327,10 @@ def test_where_the_watts_go(bags, tmp_path) -> None:
     assert shares[0] == max(shares) and shares[-1] == min(shares)
     assert np.all(np.diff(motion) > 0)
     assert 'where_the_watts_go.png' in doc['plots']
-    assert (tmp_path / 'watts' / 'where_the_watts_go.png').stat().st_size > 10_000
+    assert (out / 'where_the_watts_go.png').stat().st_size > 10_000
 
 
-def test_schedule_split_transfers_to_other_gaits(bags, model, tmp_path) -> None:
+def test_schedule_split_transfers_to_other_gaits(bench_data, model, tmp_path) -> None:
     """Eq. 1 composes the bench's phase powers on the commanded timeline: labelled by the bench
     leg's commanded stance (the default with /gait/phase) the prediction of gaits far from the
     bench's beta 0.5 holds; labelled by the sensed contact (the paper's split: the contact
@@ -325,8 +339,7 @@ def test_schedule_split_transfers_to_other_gaits(bags, model, tmp_path) -> None:
     from hexapod_energy.bag_io import read_robot_bag
     from hexapod_energy.descriptors import gait_from_sample
 
-    contact = SingleLegModel().fit(bench_phase_samples(read_bench_bag(bags / 'bench'),
-                                                       phase_split='contact')[0])
+    contact = SingleLegModel().fit(bench_phase_samples(bench_data, phase_split='contact')[0])
     cases = [('wave', 0.83, 0.1), ('tetrapod', 0.67, 0.15)]
     errors = {}
     for gait, beta, speed in cases:

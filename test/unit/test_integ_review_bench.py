@@ -71,13 +71,20 @@ def benches(tmp_path_factory) -> dict[str, Path]:
     return out
 
 
+@pytest.fixture(scope='module')
+def one_ref(benches) -> tuple[list[PhaseSample], dict]:
+    """The one-leg bag's phase powers and diagnostics, the reference of the rewritten bags'
+    (read once for the tests that compare with it). Read only."""
+    return bench_phase_samples(read_bench_bag(benches['one']))
+
+
 def _powers(samples: list[PhaseSample]) -> np.ndarray:
     return np.array([[s.load_kg, s.frequency_hz, s.p_stance_w, s.p_swing_w]
                      for s in samples])
 
 
-def test_six_leg_schedule_takes_the_bench_leg_from_joint_states(benches):
-    ref, ref_diag = bench_phase_samples(read_bench_bag(benches['one']))
+def test_six_leg_schedule_takes_the_bench_leg_from_joint_states(benches, one_ref):
+    ref, ref_diag = one_ref
     assert ref_diag['phase_split'] == 'schedule' and not ref_diag['warnings']
     data = read_bench_bag(benches['six'])
     got, diag = bench_phase_samples(data)
@@ -88,13 +95,14 @@ def test_six_leg_schedule_takes_the_bench_leg_from_joint_states(benches):
     np.testing.assert_allclose(_powers(got), _powers(ref), rtol=1e-12)
 
 
-def test_unknown_bench_leg_is_a_top_level_warning(benches, tmp_path, capsys):
-    got, diag = bench_phase_samples(read_bench_bag(benches['six_two_js']))
+def test_unknown_bench_leg_is_a_top_level_warning(benches, one_ref, tmp_path, capsys):
+    data = read_bench_bag(benches['six_two_js'])
+    got, diag = bench_phase_samples(data)
     assert diag['phase_split'] == 'contact'
     assert any('bench leg is not identified' in w and "['L1', 'R2']" in w
                for w in diag['warnings']), diag['warnings']
     # the contact split asked for: the leg is not needed, a note only
-    _, diag = bench_phase_samples(read_bench_bag(benches['six_two_js']), phase_split='contact')
+    _, diag = bench_phase_samples(data, phase_split='contact')
     assert not diag['warnings'] and any('not identified' in n for n in diag['notes'])
     assert main(['--bench', str(benches['six_two_js']), '--out', str(tmp_path / 'a'),
                  '--no-progress']) == 0
@@ -107,7 +115,7 @@ def test_unknown_bench_leg_is_a_top_level_warning(benches, tmp_path, capsys):
     doc = json.loads((tmp_path / 'b' / 'energy.json').read_text())
     assert not doc.get('warnings')
     assert doc['bench']['diagnostics'][0]['phase_split'] == 'schedule'
-    ref, _ = bench_phase_samples(read_bench_bag(benches['one']))
+    ref, _ = one_ref
     np.testing.assert_allclose(
         [[s['p_stance_w'], s['p_swing_w']] for s in doc['bench']['fit']['sessions']],
         [[s.p_stance_w, s.p_swing_w] for s in ref], rtol=1e-12)
@@ -116,14 +124,14 @@ def test_unknown_bench_leg_is_a_top_level_warning(benches, tmp_path, capsys):
     assert 'R9 is not on /gait/phase' in capsys.readouterr().err
 
 
-def test_session_labelled_another_frequency_than_walked(benches, tmp_path, capsys):
+def test_session_labelled_another_frequency_than_walked(benches, one_ref, tmp_path, capsys):
     def relabel(topic: str, msg) -> None:
         _six_legs(topic, msg)
         if topic == '/bench/session' and msg.frequency == 1.5:
             msg.frequency = 3.0   # the sequencer's label; the gait node walked 1.5 Hz
 
     bag = rewrite_bag(benches['one'], tmp_path / 'relabelled', relabel)
-    ref, _ = bench_phase_samples(read_bench_bag(benches['one']))
+    ref, _ = one_ref
     got, diag = bench_phase_samples(read_bench_bag(bag))
     named = [w for w in diag['warnings'] if 'labelled 3 Hz but /gait/phase walked 1.5 Hz' in w]
     assert len(named) == 2, diag['warnings']   # one per load, each naming its session
@@ -195,7 +203,7 @@ def test_a_refused_fit_still_writes_the_sessions(tmp_path, capsys):
                                [s.p_stance_w for s in ref], rtol=1e-12)
 
 
-def test_session_labelled_another_duty_factor_than_walked(benches, tmp_path):
+def test_session_labelled_another_duty_factor_than_walked(benches, one_ref, tmp_path):
     """The frequency matched but the duty factor did not (the gait node left at beta 0.6):
     it was not compared; now the walked duty factor is used, warned."""
     def relabel(topic: str, msg) -> None:
@@ -204,7 +212,7 @@ def test_session_labelled_another_duty_factor_than_walked(benches, tmp_path):
             msg.duty_factor = 0.6   # the sequencer's label; the gait node walked 0.5
 
     bag = rewrite_bag(benches['one'], tmp_path / 'relabelled_beta', relabel)
-    ref, _ = bench_phase_samples(read_bench_bag(benches['one']))
+    ref, _ = one_ref
     got, diag = bench_phase_samples(read_bench_bag(bag))
     named = [w for w in diag['warnings']
              if 'duty_factor labelled 0.6 but /gait/phase walked 0.5' in w]

@@ -74,14 +74,30 @@ def bench(tmp_path_factory):
                   for split, ref in refs.items()}
 
 
+@pytest.fixture(scope='module')
+def session_bags(bench, tmp_path_factory):
+    """:func:`_walking_bags` of the bench, cut once per variant (with and without
+    /gait/phase) for every test that reads them; a test's sessions file goes beside them (its
+    bag names relative to the file's folder). Read only."""
+    root, _ = bench
+    made: dict[bool, list[tuple[Path, float, float]]] = {}
+
+    def get(drop_gait: bool) -> list[tuple[Path, float, float]]:
+        if drop_gait not in made:
+            made[drop_gait] = _walking_bags(root / 'orig', tmp_path_factory.mktemp('sessions'),
+                                            drop_gait=drop_gait)
+        return made[drop_gait]
+    return get
+
+
 @pytest.mark.parametrize('drop_gait', [False, True], ids=['gait_phase', 'tip_period'])
-def test_one_bag_per_session_gives_the_sessions_phase_powers(bench, tmp_path, drop_gait):
+def test_one_bag_per_session_gives_the_sessions_phase_powers(bench, session_bags, drop_gait):
     """Merged (one bench: the force offset and sign from every session) the one-session bags
     give the original's phase powers (split by the commanded schedule with /gait/phase, by
     contact without it); each frequency's source is noted."""
-    root, refs = bench
+    _, refs = bench
     ref = refs['contact' if drop_gait else 'schedule']
-    bags = _walking_bags(root / 'orig', tmp_path, drop_gait=drop_gait)
+    bags = session_bags(drop_gait)
     datas = [read_bench_bag(bag, BenchSessionSpec(load_kg=load)) for bag, load, _ in bags]
     for d, (_, _, freq) in zip(datas, bags):
         [note] = [n for n in d.notes if n.startswith('no /bench/session')]
@@ -100,11 +116,11 @@ def test_one_bag_per_session_gives_the_sessions_phase_powers(bench, tmp_path, dr
     assert not any('force sign not checked' in n for n in diag['notes'])
 
 
-def test_cli_reads_the_sessions_file_and_fits(bench, tmp_path):
-    root, refs = bench
+def test_cli_reads_the_sessions_file_and_fits(bench, session_bags, tmp_path):
+    _, refs = bench
     ref = refs['contact']
-    bags = _walking_bags(root / 'orig', tmp_path, drop_gait=True)
-    csv = tmp_path / 'sessions.csv'
+    bags = session_bags(True)
+    csv = bags[0][0].parent / 'cli_sessions.csv'
     lines = ['# one row per bag; empty frequency: from the bag', 'bag,load_kg,frequency_hz']
     lines += [f'{b.name},{load},' for b, load, _ in bags]
     csv.write_text('\n'.join(lines) + '\n')
@@ -194,23 +210,21 @@ def test_a_force_of_another_type_is_named(bench, tmp_path):
         wrench_from_msg(object())
 
 
-def test_a_bag_without_sessions_given_with_bench_names_the_option(bench, tmp_path):
-    root, _ = bench
-    bag, _, _ = _walking_bags(root / 'orig', tmp_path, drop_gait=False)[0]
+def test_a_bag_without_sessions_given_with_bench_names_the_option(session_bags):
+    bag, _, _ = session_bags(False)[0]
     with pytest.raises(BagContentError, match='--bench-sessions CSV'):
         read_bench_bag(bag)
 
 
 @pytest.mark.parametrize('drop_gait', [False, True])
-def test_one_session_bags_keep_their_step_geometry(bench, tmp_path, drop_gait):
+def test_one_session_bags_keep_their_step_geometry(session_bags, tmp_path, drop_gait):
     """A review of the step-geometry mapping: a bench given with --bench-sessions never knew
     its step length and height (the CSV's step_length_m alone, no height, the bags' own
     /gait/phase unused), so other steps were read at their durations alone in silence. The
     geometry now comes from /gait/phase, else from the file's step_length_m and
     step_height_m; without either, energy.json warns."""
-    root, _ = bench
-    bags = _walking_bags(root / 'orig', tmp_path, drop_gait=drop_gait)
-    csv = tmp_path / 'sessions.csv'
+    bags = session_bags(drop_gait)
+    csv = bags[0][0].parent / 'geometry_sessions.csv'
     head = 'bag,load_kg' + ('' if not drop_gait else ',step_length_m,step_height_m')
     rows = [f'{b.name},{load}' + ('' if not drop_gait else ',0.1,0.04') for b, load, _ in bags]
     csv.write_text('\n'.join([head, *rows]) + '\n')
