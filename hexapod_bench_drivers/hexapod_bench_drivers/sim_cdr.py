@@ -82,6 +82,13 @@ def _prefix(names: tuple[str, ...], frame_id: str) -> tuple[bytes, int]:
 _PAD = tuple(b'\x00' * i for i in range(8))
 _STAMP = struct.Struct('<iI')
 _U32 = struct.Struct('<I')
+_NAN = float('nan')
+#: BatteryState from ``voltage`` to ``present`` (4-aligned after the header's frame_id)
+_BATTERY_FIELDS = struct.Struct('<fffffffBBB?')
+#: GaitPhase's period, duty factor, step length and height, sweep and leg-offset angles and
+#: cycle phase (8-aligned)
+_GAIT_NUMBERS = struct.Struct('<ddddddd')
+_U8 = struct.Struct('<B')
 
 
 def joint_state(t_ns: int, names: Sequence[str], position: ArrayLike, velocity: ArrayLike,
@@ -105,37 +112,80 @@ def joint_state(t_ns: int, names: Sequence[str], position: ArrayLike, velocity: 
     return b''.join(parts)
 
 
+@lru_cache(maxsize=64)
+def _battery_blocks(frame_id: str) -> tuple[bytes, bytes]:
+    """BatteryState's encoded ``frame_id`` (after the stamp, padded to the 4-aligned
+    ``voltage``) and its constant tail (the empty cell arrays, location and serial number)."""
+    b = CdrBuffer()
+    b.pack('iI', 4, 0, 0)
+    b.string(frame_id)
+    b.align(4)
+    head = b.bytes()[12:]
+    b = CdrBuffer()
+    b.pos = 4     # after the 4-aligned 'fffffffBBB?' block: only the position mod 4 counts
+    b.array((), 'f4')
+    b.array((), 'f4')
+    b.string('')
+    b.string('')
+    return head, b.bytes()[4:]
+
+
 def battery_state(t_ns: int, voltage_v: float, current_a: float, *, status: int,
                   technology: int = 3, frame_id: str = '') -> bytes:
-    """sensor_msgs/msg/BatteryState with unknown (NaN) temperature, charge and capacities."""
-    nan = float('nan')
+    """sensor_msgs/msg/BatteryState with unknown (NaN) temperature, charge and capacities
+    (the same bytes as :class:`CdrBuffer` field by field; the constant parts cached)."""
+    head, tail = _battery_blocks(frame_id)
+    nan = _NAN
+    return b''.join((_HEADER, _STAMP.pack(int(t_ns // 1_000_000_000),
+                                          int(t_ns % 1_000_000_000)), head,
+                     _BATTERY_FIELDS.pack(voltage_v, nan, current_a, nan, nan, nan, nan,
+                                          status, 1, technology, True), tail))
+
+
+@lru_cache(maxsize=64)
+def _gait_blocks(gait: str, leg_names: tuple[str, ...], n_offsets: int,
+                 n_stance: int) -> tuple[bytes, bytes, bytes]:
+    """GaitPhase's constant parts around its numbers: the header's empty frame_id and the gait
+    name (padded to the 8-aligned period); the leg names and the offsets' count (padded to
+    their 8-aligned values); the in-stance flags' count. Every block starts and ends where
+    the message's own alignment puts it, so the blocks and the numbers join into the bytes
+    :class:`CdrBuffer` writes field by field."""
     b = CdrBuffer()
-    b.header(t_ns, frame_id)
-    b.pack('fffffff', 4, voltage_v, nan, current_a, nan, nan, nan, nan)
-    b.pack('BBB?', 1, status, 1, technology, True)
-    b.array((), 'f4')
-    b.array((), 'f4')
+    b.pack('iI', 4, 0, 0)
     b.string('')
-    b.string('')
-    return b.bytes()
+    b.string(gait)
+    b.align(8)
+    head = b.bytes()[12:]
+    b = CdrBuffer()
+    b.pos = 8     # after the 8-aligned numbers: only the position mod 8 counts
+    b.strings(leg_names)
+    b.pack('I', 4, n_offsets)
+    if n_offsets:
+        b.align(8)
+    names = b.bytes()[4:]
+    b = CdrBuffer()
+    # after the offsets' 8-byte values (ending 8-aligned), or after their count if none
+    b.pos = 8 + (0 if n_offsets else len(names) % 8)
+    b.pack('I', 4, n_stance)
+    return head, names, b.bytes()[4:]
 
 
 def gait_phase(t_ns: int, gait: str, period_s: float, duty_factor: float, step_length_m: float,
                step_height_m: float, cycle_phase: float, leg_names: Sequence[str],
                phase_offsets: ArrayLike, in_stance: ArrayLike, supporting_legs: int,
                sweep_angle_rad: float = 0.0, leg_offset_rad: float = 0.0) -> bytes:
-    """hexapod_interfaces/msg/GaitPhase."""
-    b = CdrBuffer()
-    b.header(t_ns, '')
-    b.string(gait)
-    b.pack('dddddd', 8, period_s, duty_factor, step_length_m, step_height_m, sweep_angle_rad,
-           leg_offset_rad)
-    b.pack('d', 8, cycle_phase)
-    b.strings(leg_names)
-    b.array(phase_offsets, 'f8')
-    b.array(np.asarray(in_stance, dtype=bool).view(np.uint8), 'u1')
-    b.pack('B', 1, supporting_legs)
-    return b.bytes()
+    """hexapod_interfaces/msg/GaitPhase (the same bytes as :class:`CdrBuffer` field by field;
+    the names and counts, constant along a trace, cached)."""
+    offsets = np.ascontiguousarray(phase_offsets, dtype='<f8')
+    stance = np.ascontiguousarray(np.asarray(in_stance, dtype=bool).view(np.uint8),
+                                  dtype='u1')
+    head, names, count = _gait_blocks(gait, tuple(leg_names), offsets.size, stance.size)
+    return b''.join((_HEADER, _STAMP.pack(int(t_ns // 1_000_000_000),
+                                          int(t_ns % 1_000_000_000)), head,
+                     _GAIT_NUMBERS.pack(period_s, duty_factor, step_length_m, step_height_m,
+                                        sweep_angle_rad, leg_offset_rad, cycle_phase),
+                     names, offsets.tobytes(), count, stance.tobytes(),
+                     _U8.pack(supporting_legs)))
 
 
 def servo_status(t_ns: int, names: Sequence[str], temperature_c: ArrayLike,
