@@ -1,9 +1,9 @@
 """The bag readers keep what they read as compact columns (``hexapod_common.bags.
-SampleColumns``), not one sample object per message (README known gaps: a 60 min 18-joint
-robot bag took 2 GB in ``energy``). Checked by what each reader's traced peak memory grows per
-second of bag between a short and a longer bag of the same robot (imports and fixed costs
-cancel): the old readers grew 249 kB/s (robot), 157 kB/s (residuals) and 275 kB/s (slip) on
-these bags, the column readers 89, 51 and 103 kB/s. Deterministic: tracemalloc, no wall clock.
+SampleColumns``), not one sample object per message (docs/known_gaps_history.md: a 60 min
+18-joint robot bag took 2 GB in ``energy``). Checked by what each reader's traced peak memory
+grows per second of bag between a short and a longer bag of the same robot (imports and fixed
+costs cancel): the old readers grew 249 kB/s (robot), 157 kB/s (residuals) and 275 kB/s (slip)
+on these bags, the column readers 89, 51 and 103 kB/s. Deterministic: tracemalloc, no wall clock.
 """
 
 from __future__ import annotations
