@@ -16,7 +16,9 @@ from __future__ import annotations
 import math
 from typing import Any
 
-__all__ = ['HAVE_NUMBA', 'substeps']
+import numpy as np
+
+__all__ = ['HAVE_NUMBA', 'substeps', 'warm']
 
 try:
     from numba import njit
@@ -112,3 +114,21 @@ def substeps(n_sub: int, h: float, goal: Any, setpoint: Any, limited: Any,
             sums[0, j] += _max(uj * i, 0.0)
             sums[1, j] += i * i
         q[j], w[j], setpoint[j], u[j] = qj, wj, sp, uj
+
+
+_WARM: list[bool] = []
+
+
+def warm() -> None:
+    """Load (or compile) :func:`substeps` now: its first call takes 0.6 s even from numba's
+    disk cache, which inside a servo-bus emulator's first reply made a real driver read its
+    servos as silent. :class:`~hexapod_bench_drivers.servo_model.ServoModel` calls this when
+    built (once per process)."""
+    if not HAVE_NUMBA or _WARM:
+        return
+    f = np.zeros(1)
+    substeps(1, 1e-3, f.copy(), f.copy(), np.zeros(1, dtype=bool), f.copy(), False,
+             f.copy(), f.copy(), f.copy(), 0.0, 1.0, f.copy(), f.copy(), f.copy(), True,
+             f.copy(), f.copy(), f.copy(), 0.0, f.copy(), 0.0, 0.0, 0.0, f.copy(), False,
+             f.copy(), np.zeros((6, 1)))
+    _WARM.append(True)

@@ -468,6 +468,8 @@ class ServoModel:
         self._eta = p.gear_efficiency
         self._r_ref = p.winding_resistance_ohm
         self._kp = 1.0 / p.compliance_slope_rad
+        if self.compiled:
+            _servo_kernel.warm()   # its first call loads numba's cache (0.6 s): now, not mid-run
 
     # --- state access ---------------------------------------------------------------------------
     def output_position_rad(self, external_torque_nm: ArrayLike | None = None) -> FloatArray:
