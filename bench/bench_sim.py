@@ -3,7 +3,8 @@
 Prints, for the servo hexapod (18 AX-18A, 0.6 m/s tripod, 100 Hz) and a bench plan, the
 simulated seconds per wall second of physics alone and of physics plus bag writing (target:
 >= 20x real time). Baseline measured in the same run: the same trace written with rosbags'
-generic message classes and ``serialize_cdr`` instead of the simulators' cached CDR encoders.
+generic message classes and ``serialize_cdr`` instead of the simulators' cached CDR encoders,
+and the physics with the servo model's numpy sub-step loop instead of its compiled one.
 
     .venv/bin/python bench/bench_sim.py [--duration 20]
 """
@@ -20,6 +21,7 @@ import numpy as np
 
 from hexapod_bench_drivers.bench_sim import BenchPlan, simulate_bench
 from hexapod_bench_drivers.robot_sim import RobotConfig, simulate_robot
+from hexapod_bench_drivers.servo_model import ServoModel
 from hexapod_bench_drivers.sim_bag import write_trace
 from hexapod_common.bags import BagWriter, new_msg, stamp
 
@@ -51,9 +53,15 @@ def main() -> None:
     args = ap.parse_args()
     tmp = Path(tempfile.mkdtemp(prefix='bench_sim_'))
 
+    simulate_robot(0.1)      # warm: imports and the compiled servo loop loaded
     t0 = time.perf_counter()
     trace = simulate_robot(args.duration, RobotConfig(speed_mps=0.6))
     t_sim = time.perf_counter() - t0
+    ServoModel.compiled = False          # baseline: the numpy sub-step loop
+    t0 = time.perf_counter()
+    simulate_robot(args.duration, RobotConfig(speed_mps=0.6))
+    t_sim_np = time.perf_counter() - t0
+    ServoModel.compiled = True
     t0 = time.perf_counter()
     counts = write_trace(trace, tmp / 'robot')
     t_bag = time.perf_counter() - t0
@@ -63,7 +71,8 @@ def main() -> None:
     sim_s = args.duration
     n_msgs = sum(counts.values())
     print(f'robot (18 servos, 100 Hz, {sim_s:g} s simulated, {n_msgs} messages)')
-    print(f'  physics only        : {sim_s / t_sim:7.1f} x real time')
+    print(f'  physics only        : {sim_s / t_sim:7.1f} x real time   baseline (numpy '
+          f'servo loop): {sim_s / t_sim_np:7.1f} x   ratio {t_sim_np / t_sim:.2f}x')
     print(f'  physics + bag       : {sim_s / (t_sim + t_bag):7.1f} x real time  (target >= 20)')
     print(f'  bag writer          : {n_msgs / t_bag:9.0f} msg/s   baseline (rosbags generic, '
           f'3 of 5 topics): {3 * trace.sample_count / t_base:9.0f} msg/s   ratio '
