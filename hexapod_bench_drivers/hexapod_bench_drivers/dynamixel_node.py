@@ -41,6 +41,12 @@ All bus logic lives in :class:`hexapod_bench_drivers.dynamixel_bus.DynamixelBus`
 
 from __future__ import annotations
 
+# first: a SIGINT or SIGTERM during the imports below is noted, not lost (a background
+# job starts with SIGINT ignored); run_node acts on it (hexapod_common.stop_signals)
+from hexapod_common import stop_signals  # noqa: E402,I001
+
+stop_signals.catch_if_program('dynamixel_driver')
+
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any

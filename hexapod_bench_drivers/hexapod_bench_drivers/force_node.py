@@ -17,6 +17,12 @@ rate, counts and the last force.
 
 from __future__ import annotations
 
+# first: a SIGINT or SIGTERM during the imports below is noted, not lost (a background
+# job starts with SIGINT ignored); run_node acts on it (hexapod_common.stop_signals)
+from hexapod_common import stop_signals  # noqa: E402,I001
+
+stop_signals.catch_if_program('force_sensor')
+
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass

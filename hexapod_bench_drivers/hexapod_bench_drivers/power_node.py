@@ -21,6 +21,12 @@ achieved read rate, error counts and the last values; a read rate below 80 % is 
 
 from __future__ import annotations
 
+# first: a SIGINT or SIGTERM during the imports below is noted, not lost (a background
+# job starts with SIGINT ignored); run_node acts on it (hexapod_common.stop_signals)
+from hexapod_common import stop_signals  # noqa: E402,I001
+
+stop_signals.catch_if_program('power_monitor')
+
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass

@@ -69,6 +69,12 @@ session's walk to ``<output_dir>/<session_id>`` with the bench topics that
 
 from __future__ import annotations
 
+# first: a SIGINT or SIGTERM during the imports below is noted, not lost (a background
+# job starts with SIGINT ignored); run_node acts on it (hexapod_common.stop_signals)
+from hexapod_common import stop_signals  # noqa: E402,I001
+
+stop_signals.catch_if_program('bench_sequencer')
+
 import signal
 from collections.abc import Sequence
 from dataclasses import dataclass

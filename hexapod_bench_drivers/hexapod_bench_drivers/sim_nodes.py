@@ -23,6 +23,13 @@ was there first are applied, as on the real driver
 
 from __future__ import annotations
 
+# first: a SIGINT or SIGTERM during the imports below is noted, not lost (a background
+# job starts with SIGINT ignored); run_node acts on it (hexapod_common.stop_signals)
+from hexapod_common import stop_signals  # noqa: E402,I001
+
+stop_signals.catch_if_program('sim_robot')
+stop_signals.catch_if_program('sim_bench')
+
 import math
 from dataclasses import dataclass
 from typing import Any

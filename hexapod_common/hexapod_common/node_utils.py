@@ -577,6 +577,22 @@ def run_node(node_factory: Callable[..., Any], args: Sequence[str] | None = None
     import rclpy
     from rclpy.executors import ExternalShutdownException
 
+    from hexapod_common import stop_signals
+
+    def stopped_before_start() -> int | None:
+        # a stop signal noted by the console script's first statements (stop_signals): a
+        # node started in the background by a script ignored SIGINT until rclpy.init, and ran
+        # on (an outside review); now it stops before it starts, with one line
+        sig = stop_signals.received() if stop_signals.caught_program() else None
+        if sig is None:
+            return None
+        rclpy.try_shutdown()
+        print(f'{_program_name(node_factory)}: {signal.Signals(sig).name} before the node '
+              'started: stopped', file=sys.stderr)
+        return stop_signals.EXIT_CODES[sig]
+
+    if (code := stopped_before_start()) is not None:
+        return code
     stop_errors = stopping_errors()
     argv = list(sys.argv if args is None else args)
     try:
@@ -590,6 +606,8 @@ def run_node(node_factory: Callable[..., Any], args: Sequence[str] | None = None
               f'{str(err).splitlines()[0] if str(err) else type(err).__name__} (set '
               f'{DEBUG_ENV}=1 for the traceback)', file=sys.stderr)
         return 2
+    if (code := stopped_before_start()) is not None:
+        return code     # noted while rclpy installed its own handlers
     from rclpy.utilities import remove_ros_args
 
     stray = remove_ros_args(args=argv)[1:]

@@ -22,13 +22,15 @@ import signal
 import sys
 from typing import Any
 
-__all__ = ['EXIT_CODES', 'STOP_SIGNALS', 'catch', 'catch_if_program', 'forget', 'received']
+__all__ = ['EXIT_CODES', 'STOP_SIGNALS', 'catch', 'catch_if_program', 'caught_program',
+           'forget', 'received']
 
 #: exit code of a program stopped by the signal before it did anything (128 + signal number)
 EXIT_CODES = {signal.SIGINT: 130, signal.SIGTERM: 143}
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 _received: list[int] = []
+_program: list[str] = []
 
 
 def _note(signum: int, frame: Any) -> None:
@@ -53,7 +55,14 @@ def catch_if_program(name: str) -> bool:
     if os.path.basename(sys.argv[0] if sys.argv else '') != name:
         return False
     catch()
+    _program.append(name)
     return True
+
+
+def caught_program() -> str | None:
+    """The console script's name when :func:`catch_if_program` caught the signals in this
+    process, else None (a test or another program importing the module)."""
+    return _program[0] if _program else None
 
 
 def received() -> int | None:

@@ -71,6 +71,12 @@ are counted from the gaps in each stream's stamps (:class:`hexapod_common.clocks
 
 from __future__ import annotations
 
+# first: a SIGINT or SIGTERM during the imports below is noted, not lost (a background
+# job starts with SIGINT ignored); run_node acts on it (hexapod_common.stop_signals)
+from hexapod_common import stop_signals  # noqa: E402,I001
+
+stop_signals.catch_if_program('energy_monitor')
+
 import dataclasses
 import math
 import re

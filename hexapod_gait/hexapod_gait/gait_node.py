@@ -46,6 +46,12 @@ lab's own command node interleaved their commands without a word.)
 
 from __future__ import annotations
 
+# first: a SIGINT or SIGTERM during the imports below is noted, not lost (a background
+# job starts with SIGINT ignored); run_node acts on it (hexapod_common.stop_signals)
+from hexapod_common import stop_signals  # noqa: E402,I001
+
+stop_signals.catch_if_program('gait_scheduler')
+
 import collections
 import functools
 import math

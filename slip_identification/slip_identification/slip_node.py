@@ -24,6 +24,12 @@ motion-capture gap) are counted by reason (``skipped_counts``) and logged on eac
 
 from __future__ import annotations
 
+# first: a SIGINT or SIGTERM during the imports below is noted, not lost (a background
+# job starts with SIGINT ignored); run_node acts on it (hexapod_common.stop_signals)
+from hexapod_common import stop_signals  # noqa: E402,I001
+
+stop_signals.catch_if_program('slip_fitter')
+
 import dataclasses
 import math
 from dataclasses import dataclass
