@@ -14,7 +14,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 
-__all__ = ['Collector', 'RosEnv', 'ctrl_c', 'ros_env', 'unique_namespace']
+__all__ = ['Collector', 'RosEnv', 'ctrl_c', 'ros_env', 'unique_namespace', 'wait_until_loaded']
 
 _counter = itertools.count()
 
@@ -119,3 +119,21 @@ def ctrl_c(install: Callable[[Any], None], node: Any, times: int = 1) -> None:
     finally:
         for s, h in saved.items():
             signal.signal(s, h)
+
+
+def wait_until_loaded(proc: Any, library: str, timeout_s: float = 60.0) -> bool:
+    """Poll a child's memory mappings (no sleep, to catch its imports in progress) until
+    ``library`` is loaded, the child ends or ``timeout_s`` passes; True if loaded."""
+    import time
+    from pathlib import Path
+
+    def maps() -> str:
+        try:
+            return Path(f'/proc/{proc.pid}/maps').read_text()
+        except OSError:
+            return ''
+
+    deadline = time.monotonic() + timeout_s
+    while library not in maps() and proc.poll() is None and time.monotonic() < deadline:
+        pass
+    return library in maps()

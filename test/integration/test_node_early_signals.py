@@ -10,19 +10,11 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
 
 BIN = Path(sys.executable).parent
-
-
-def _maps(pid: int) -> str:
-    try:
-        return Path(f'/proc/{pid}/maps').read_text()
-    except OSError:
-        return ''
 
 
 def _background(program: str) -> subprocess.Popen:
@@ -38,12 +30,10 @@ def _background(program: str) -> subprocess.Popen:
     ('gait_scheduler', signal.SIGINT), ('energy_monitor', signal.SIGINT),
     ('sim_robot', signal.SIGINT), ('slip_fitter', signal.SIGTERM)])
 def test_a_signal_during_the_imports_stops_the_node(program, sig):
+    from harness import wait_until_loaded
+
     proc = _background(program)
-    deadline = time.monotonic() + 60
-    while 'rclpy' not in _maps(proc.pid) and proc.poll() is None \
-            and time.monotonic() < deadline:
-        pass                 # polling the child's mappings: no sleep, to catch the imports
-    assert 'rclpy' in _maps(proc.pid), 'rclpy was never loaded'
+    assert wait_until_loaded(proc, 'rclpy'), 'rclpy was never loaded'
     proc.send_signal(sig)
     try:
         out, _ = proc.communicate(timeout=60)

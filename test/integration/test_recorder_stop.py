@@ -8,7 +8,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
@@ -87,13 +86,6 @@ def _background_recorder(bag: Path) -> subprocess.Popen:
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
 
 
-def _maps(pid: int) -> str:
-    try:
-        return Path(f'/proc/{pid}/maps').read_text()
-    except OSError:
-        return ''
-
-
 def _stopped(proc: subprocess.Popen, timeout_s: float = 30) -> tuple[int | None, str]:
     try:
         out, _ = proc.communicate(timeout=timeout_s)
@@ -120,12 +112,10 @@ def test_a_background_recorder_stops_on_a_sigint_during_its_imports(tmp_path: An
     0-0.8 s). The SIGINT goes as soon as rclpy's extension is loaded (its imports run, its
     handler not there yet): exit 130, one line, no bag folder."""
     bag = tmp_path / 'bag'
+    from harness import wait_until_loaded
+
     proc = _background_recorder(bag)
-    deadline = time.monotonic() + 30
-    while 'rclpy' not in _maps(proc.pid) and proc.poll() is None \
-            and time.monotonic() < deadline:
-        pass                 # polling the child's mappings: no sleep, to catch the imports
-    assert 'rclpy' in _maps(proc.pid), 'rclpy was never loaded'
+    assert wait_until_loaded(proc, 'rclpy', 30.0), 'rclpy was never loaded'
     proc.send_signal(signal.SIGINT)
     code, out = _stopped(proc)
     assert code == 130, out
