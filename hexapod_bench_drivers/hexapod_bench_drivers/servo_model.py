@@ -512,6 +512,49 @@ class ServoModel:
             setattr(self, k, np.array(state[k], copy=True))
 
     # --- integration ----------------------------------------------------------------------------
+    def _step_compiled(self, dt_s: float, goal: FloatArray, tau_ext: FloatArray,
+                       volts: FloatArray) -> ServoOutput:
+        """:meth:`step` after its input checks, compiled (:func:`_servo_kernel.step_all`:
+        the numpy code below, per servo, to the bit)."""
+        p = self.params
+        n = self.count
+        n_sub = max(1, math.ceil(dt_s / self.max_substep_s - 1e-9))
+        prm = np.array([
+            p.position_min_rad, p.position_max_rad, p.temperature_limit_c, self._r_ref,
+            p.copper_temp_coeff_per_k, p.reference_temperature_c, self._ke,
+            p.magnet_temp_coeff_per_k, self._kp, p.compliance_margin_rad,
+            p.coulomb_friction_nm, p.viscous_friction_nm_s, p.stick_speed_rad_s,
+            1.0 - self._eta, p.friction_smoothing_rad_s, p.reflected_inertia_kgm2,
+            p.standby_current_a, self.ambient_temperature_c, self.thermal_drift_w_k,
+            math.exp(-dt_s / p.thermal_time_constant_s), p.thermal_resistance_k_w,
+            p.min_voltage_v, p.max_voltage_v], dtype=float)
+        deflection = _floats(self._deflection(tau_ext), n)
+        q = np.array(self.motor_position_rad, dtype=float)
+        w = np.array(self.velocity_rad_s, dtype=float)
+        temp = np.array(self.temperature_c, dtype=float)
+        setpoint = np.array(self._setpoint_rad, dtype=float)
+        out = np.empty((10, n))
+        flags = np.empty((3, n), dtype=np.int64)
+        rec = self.record_losses
+        losses = np.empty((9, n))
+        _servo_kernel.step_all(
+            float(dt_s), n_sub, _floats(goal, n), _floats(tau_ext, n), _floats(volts, n),
+            deflection, q, w, temp, setpoint, self._overheated, self.torque_enabled,
+            _floats(self.torque_limit, n), _floats(self.moving_speed_rad_s, n),
+            _floats(self.extra_friction_nm, n), _floats(self.extra_power_w, n),
+            _floats(self.inertia_kgm2, n), prm, rec, out, flags, losses)
+        self.motor_position_rad, self.velocity_rad_s = q, w
+        self.temperature_c, self._setpoint_rad = temp, setpoint
+        drive = flags[2] == 1
+        return ServoOutput(
+            position_rad=out[0], velocity_rad_s=out[1], torque_nm=out[2], current_a=out[3],
+            temperature_c=out[4], load_fraction=out[5], power_w=out[6],
+            mechanical_power_w=out[7], winding_loss_w=out[8],
+            reported_temperature_c=flags[0].copy(), reported_voltage_v=out[9],
+            error=flags[1].astype(np.uint8), torque_enabled=drive,
+            losses=dict(zip(('standby', 'extra', 'copper', 'coulomb', 'gear', 'viscous',
+                             'kinetic', 'load', 'brake'), losses)) if rec else None)
+
     def step(self, dt_s: float, goal_position_rad: ArrayLike,
              external_torque_nm: ArrayLike = 0.0,
              supply_voltage_v: ArrayLike = 12.0) -> ServoOutput:
@@ -545,6 +588,8 @@ class ServoModel:
             raise ServoParamsError('step(): goal_position_rad, external_torque_nm and '
                                    'supply_voltage_v must be finite')
         self._last_external_nm = tau_ext
+        if self.compiled and _servo_kernel.HAVE_NUMBA:
+            return self._step_compiled(dt_s, goal, tau_ext, volts)
         powered = volts >= 1.0
         self._overheated |= self.temperature_c > p.temperature_limit_c
         drive = self.torque_enabled & powered & ~self._overheated
@@ -582,24 +627,9 @@ class ServoModel:
         absolute, maximum, minimum, where, sign = (np.absolute, np.maximum, np.minimum,
                                                    np.where, np.sign)
         rec = self.record_losses
-        if self.compiled and _servo_kernel.HAVE_NUMBA:
-            # the same loop per servo, compiled (equal to the numpy loop below to the bit)
-            setpoint = np.array(setpoint, dtype=float)
-            sums = np.zeros((6, n))
-            _servo_kernel.substeps(
-                n_sub, h, np.ascontiguousarray(goal, dtype=float), setpoint,
-                np.ascontiguousarray(limited), np.ascontiguousarray(speed_limit, dtype=float),
-                any_limited, q, w, _floats(deflection, n), float(margin), float(kp),
-                _floats(umax, n), _floats(volt_over_r, n), _floats(ke_over_r, n), all_drive,
-                drive_f, _floats(ke, n), _floats(coulomb, n), float(mu), tau_ext, float(visc),
-                float(w_s), float(w_eps), _floats(h_inv_j, n), rec, u, sums)
-            sum_bridge, sum_i2, sum_coulomb, sum_gear, sum_visc, sum_brake = sums
-            n_loop = 0
-        else:
-            n_loop = n_sub
-        if rec and n_loop:
+        if rec:
             sum_coulomb, sum_gear, sum_visc, sum_brake = (np.zeros(n) for _ in range(4))
-        for _ in range(n_loop):
+        for _ in range(n_sub):
             if any_limited:
                 dq = np.clip(goal - setpoint, -speed_limit * h, speed_limit * h)
                 setpoint = where(limited, setpoint + dq, goal)

@@ -1,7 +1,7 @@
-"""The servo model's compiled sub-step loop (numba) against its numpy loop: the same numbers
-to the bit, step after step, on every branch (Karnopp stick-slip and dithered friction, speed
-limits, torque off, unpowered and overheated servos, torque limits, the loss breakdown), and
-on a whole simulated robot run."""
+"""The servo model's compiled step (numba) against its numpy code: the same numbers to the bit,
+step after step, on every branch (Karnopp stick-slip and dithered friction, speed limits,
+torque off, unpowered and overheated servos, torque limits, backlash, extra power and thermal
+drift, heating and cooling, the loss breakdown), and on a whole simulated robot run."""
 
 from __future__ import annotations
 
@@ -30,14 +30,17 @@ def _outputs_equal(a, b) -> None:
 @pytest.mark.parametrize('smoothing', [0.0, 1.0])
 @pytest.mark.parametrize('params', ['ax18a', 'xm430'])
 def test_compiled_loop_equals_the_numpy_loop(params, smoothing):
-    p = ServoParams.by_name(params).with_changes(friction_smoothing_rad_s=smoothing)
+    p = ServoParams.by_name(params).with_changes(friction_smoothing_rad_s=smoothing,
+                                                 backlash_rad=0.01)
     n = 12
     start = np.random.default_rng(7).uniform(-1, 1, n)
     models = []
     for compiled in (True, False):
         m = ServoModel(p, count=n, initial_position_rad=start,
                        extra_friction_nm=np.linspace(0.0, 0.05, n), max_substep_s=3.3e-3,
-                       record_losses=True, load_inertia_kgm2=np.linspace(0, 1e-4, n))
+                       record_losses=True, load_inertia_kgm2=np.linspace(0, 1e-4, n),
+                       extra_power_w=np.linspace(0.0, 0.5, n), thermal_drift_w_k=0.05,
+                       initial_temperature_c=np.linspace(20.0, 60.0, n))
         m.compiled = compiled
         models.append(m)
     a, b = models
