@@ -140,3 +140,39 @@ def test_cli_robot_and_bench(tmp_path, capsys) -> None:
     assert json.loads(capsys.readouterr().out)['messages']['/bench/session'] == 7
     assert cli_main(['robot', '--out', str(tmp_path / 'x'), '--effect', 'nope=1']) == 2
     assert 'nope' in capsys.readouterr().err
+
+
+def test_cached_gait_and_battery_encoders_on_every_alignment() -> None:
+    """The GaitPhase and BatteryState encoders join cached constant blocks (names, counts,
+    frame ids) around the numbers: equal to rosbags' bytes for gait names, frame ids and leg
+    counts of every length (each shifts the alignment of what follows), empty sequences
+    included, and the same block reused with other numbers."""
+    rng = np.random.default_rng(5)
+    for k in range(300):
+        t_ns = int(rng.integers(0, 2**31 * 10**9))
+        gait = 'g' * int(rng.integers(0, 12))
+        n = int(rng.integers(0, 9))
+        legs = [f'L{j}' + 'x' * int(rng.integers(0, 5)) for j in range(n)]
+        offsets = rng.uniform(0, 1, n if k % 3 else 0).tolist()
+        stance = (rng.uniform(0, 1, n) < 0.5).tolist()
+        numbers = rng.normal(0, 1, 7).tolist()
+        same_bytes(new_msg('hexapod_interfaces/msg/GaitPhase', header=stamp(t_ns), gait=gait,
+                           period=numbers[0], duty_factor=numbers[1], step_length=numbers[2],
+                           step_height=numbers[3], sweep_angle=numbers[4],
+                           leg_offset=numbers[5], cycle_phase=numbers[6], leg_names=legs,
+                           phase_offsets=offsets, in_stance=stance,
+                           supporting_legs=sum(stance)),
+                   'hexapod_interfaces/msg/GaitPhase',
+                   cdr.gait_phase(t_ns, gait, numbers[0], numbers[1], numbers[2], numbers[3],
+                                  numbers[6], legs, offsets, stance, sum(stance),
+                                  sweep_angle_rad=numbers[4], leg_offset_rad=numbers[5]))
+        frame = 'f' * int(rng.integers(0, 10))
+        v, i = float(rng.uniform(6, 13)), float(rng.normal(0, 3))
+        status = int(rng.integers(0, 5))
+        bat = new_msg('sensor_msgs/msg/BatteryState', header=stamp(t_ns, frame), voltage=v,
+                      temperature=math.nan, current=i, charge=math.nan, capacity=math.nan,
+                      design_capacity=math.nan, percentage=math.nan,
+                      power_supply_status=status, power_supply_health=1,
+                      power_supply_technology=3, present=True)
+        assert cdr.battery_state(t_ns, v, i, status=status, frame_id=frame) == \
+            bytes(typestore().serialize_cdr(bat, 'sensor_msgs/msg/BatteryState'))
