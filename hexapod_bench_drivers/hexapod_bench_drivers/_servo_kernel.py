@@ -70,7 +70,7 @@ def warm() -> None:
     f = np.zeros(1)
     step_all(1e-3, 1, f, f.copy(), f.copy(), f.copy(), f.copy(), f.copy(), f.copy(), f.copy(),
              np.zeros(1, dtype=np.bool_), np.ones(1, dtype=np.bool_), f.copy(), f.copy(),
-             f.copy(), f.copy(), np.ones(1), np.ones(23), True, np.empty((10, 1)),
+             f.copy(), f.copy(), np.ones(1), np.ones(21), True, np.empty((10, 1)),
              np.empty((3, 1), dtype=np.int64), np.empty((9, 1)))
     _WARM.append(True)
 
@@ -82,9 +82,9 @@ def step_all(dt: float, n_sub: int, goal_in: Any, tau_ext: Any, volts: Any, defl
              inertia: Any, prm: Any, rec: bool, out: Any, flags: Any, losses: Any) -> None:
     """A whole :meth:`ServoModel.step` after its input checks, per servo, in the numpy
     code's order of operations (``test/unit/test_servo_kernel.py``). State arrays (``q``,
-    ``w``, ``temp``, ``setpoint``, ``overheated``) are updated in place. ``prm``: position
-    min and max, temperature limit, reference resistance, copper coefficient, reference
-    temperature, back-EMF constant, magnet coefficient, compliance slope's inverse, margin,
+    ``w``, ``temp``, ``setpoint``, ``overheated``) are updated in place. ``goal_in``: clipped
+    to the mechanical range and checked finite by the caller. ``prm``: temperature limit,
+    reference resistance, copper coefficient, reference temperature, back-EMF constant, magnet coefficient, compliance slope's inverse, margin,
     Coulomb and viscous friction, stick speed, 1 - gear efficiency, friction smoothing,
     reflected inertia, standby current, ambient temperature, thermal drift, exp(-dt /
     tau_th), thermal resistance, minimum and maximum voltage. ``out`` rows: position,
@@ -94,11 +94,11 @@ def step_all(dt: float, n_sub: int, goal_in: Any, tau_ext: Any, volts: Any, defl
     brake."""
     n = q.shape[0]
     h = dt / n_sub
-    (pos_min, pos_max, t_limit, r_ref, cu, t_ref, ke0, mag, kp, margin, coulomb0, visc,
-     w_eps, mu, w_s, refl, standby, ambient, drift, decay, r_th, v_min, v_max) = (
+    (t_limit, r_ref, cu, t_ref, ke0, mag, kp, margin, coulomb0, visc, w_eps, mu, w_s, refl,
+     standby, ambient, drift, decay, r_th, v_min, v_max) = (
         prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6], prm[7], prm[8], prm[9],
         prm[10], prm[11], prm[12], prm[13], prm[14], prm[15], prm[16], prm[17], prm[18],
-        prm[19], prm[20], prm[21], prm[22])
+        prm[19], prm[20])
     drive_all = True
     any_limited = False
     for j in range(n):
@@ -111,8 +111,7 @@ def step_all(dt: float, n_sub: int, goal_in: Any, tau_ext: Any, volts: Any, defl
     for j in range(n):
         powered = volts[j] >= 1.0
         drive = flags[2, j] == 1
-        goal = _min(_max(goal_in[j], pos_min), pos_max) if goal_in[j] == goal_in[j] \
-            else goal_in[j]
+        goal = goal_in[j]
         resistance = r_ref * (1.0 + cu * (temp[j] - t_ref))
         if drive:
             tl = torque_limit[j]

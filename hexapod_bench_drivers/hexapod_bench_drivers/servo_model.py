@@ -512,15 +512,14 @@ class ServoModel:
             setattr(self, k, np.array(state[k], copy=True))
 
     # --- integration ----------------------------------------------------------------------------
-    def _step_compiled(self, dt_s: float, goal: FloatArray, tau_ext: FloatArray,
+    def _step_compiled(self, dt_s: float, n_sub: int, goal: FloatArray, tau_ext: FloatArray,
                        volts: FloatArray) -> ServoOutput:
         """:meth:`step` after its input checks, compiled (:func:`_servo_kernel.step_all`:
         the numpy code below, per servo, to the bit)."""
         p = self.params
         n = self.count
-        n_sub = max(1, math.ceil(dt_s / self.max_substep_s - 1e-9))
         prm = np.array([
-            p.position_min_rad, p.position_max_rad, p.temperature_limit_c, self._r_ref,
+            p.temperature_limit_c, self._r_ref,
             p.copper_temp_coeff_per_k, p.reference_temperature_c, self._ke,
             p.magnet_temp_coeff_per_k, self._kp, p.compliance_margin_rad,
             p.coulomb_friction_nm, p.viscous_friction_nm_s, p.stick_speed_rad_s,
@@ -588,12 +587,12 @@ class ServoModel:
             raise ServoParamsError('step(): goal_position_rad, external_torque_nm and '
                                    'supply_voltage_v must be finite')
         self._last_external_nm = tau_ext
+        n_sub = max(1, math.ceil(dt_s / self.max_substep_s - 1e-9))
         if self.compiled and _servo_kernel.HAVE_NUMBA:
-            return self._step_compiled(dt_s, goal, tau_ext, volts)
+            return self._step_compiled(dt_s, n_sub, goal, tau_ext, volts)
         powered = volts >= 1.0
         self._overheated |= self.temperature_c > p.temperature_limit_c
         drive = self.torque_enabled & powered & ~self._overheated
-        n_sub = max(1, math.ceil(dt_s / self.max_substep_s - 1e-9))
         h = dt_s / n_sub
 
         resistance = self.winding_resistance_ohm()
