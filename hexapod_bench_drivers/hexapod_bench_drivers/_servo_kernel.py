@@ -85,8 +85,8 @@ def step_all(dt: float, n_sub: int, goal_in: Any, tau_ext: Any, volts: Any, defl
     ``w``, ``temp``, ``setpoint``, ``overheated``) are updated in place. ``goal_in``: clipped
     to the mechanical range and checked finite by the caller. ``prm``: temperature limit,
     reference resistance, copper coefficient, reference temperature, back-EMF constant,
-    magnet coefficient, compliance slope's inverse, margin, Coulomb and viscous friction, stick speed, 1 - gear efficiency, friction smoothing,
-    reflected inertia, standby current, ambient temperature, thermal drift, exp(-dt /
+    magnet coefficient, compliance slope's inverse, margin, Coulomb and viscous friction,
+    stick speed, 1 - gear efficiency, friction smoothing, reflected inertia, standby current, ambient temperature, thermal drift, exp(-dt /
     tau_th), thermal resistance, minimum and maximum voltage. ``out`` rows: position,
     velocity, torque, current, temperature, load fraction, power, mechanical power, winding
     loss, reported voltage; ``flags`` rows (int64): reported temperature, error bits, drive;
