@@ -80,18 +80,18 @@ def step_all(dt: float, n_sub: int, goal_in: Any, tau_ext: Any, volts: Any, defl
              q: Any, w: Any, temp: Any, setpoint: Any, overheated: Any, enabled: Any,
              torque_limit: Any, speed_limit: Any, extra_friction: Any, extra_power: Any,
              inertia: Any, prm: Any, rec: bool, out: Any, flags: Any, losses: Any) -> None:
-    """A whole :meth:`ServoModel.step` after its input checks, per servo, in the numpy
-    code's order of operations (``test/unit/test_servo_kernel.py``). State arrays (``q``,
-    ``w``, ``temp``, ``setpoint``, ``overheated``) are updated in place. ``goal_in``: clipped
-    to the mechanical range and checked finite by the caller. ``prm``: temperature limit,
-    reference resistance, copper coefficient, reference temperature, back-EMF constant,
-    magnet coefficient, compliance slope's inverse, margin, Coulomb and viscous friction,
-    stick speed, 1 - gear efficiency, friction smoothing, reflected inertia, standby current, ambient temperature, thermal drift, exp(-dt /
-    tau_th), thermal resistance, minimum and maximum voltage. ``out`` rows: position,
-    velocity, torque, current, temperature, load fraction, power, mechanical power, winding
-    loss, reported voltage; ``flags`` rows (int64): reported temperature, error bits, drive;
-    ``losses`` rows (``rec``): standby, extra, copper, Coulomb, gear, viscous, kinetic, load,
-    brake."""
+    """A whole :meth:`ServoModel.step` after its input checks, per servo, in the numpy code's
+    order of operations (``test/unit/test_servo_kernel.py``). State arrays (``q``, ``w``,
+    ``temp``, ``setpoint``, ``overheated``) are updated in place. ``goal_in``: clipped to the
+    mechanical range and checked finite by the caller. ``prm``: temperature limit, reference
+    resistance, copper coefficient, reference temperature, back-EMF constant, magnet
+    coefficient, compliance slope's inverse, margin, Coulomb and viscous friction, stick speed,
+    1 - gear efficiency, friction smoothing, reflected inertia, standby current, ambient
+    temperature, thermal drift, exp(-dt / tau_th), thermal resistance, minimum and maximum
+    voltage. ``out`` rows: position, velocity, torque, current, temperature, load fraction,
+    power, mechanical power, winding loss, reported voltage; ``flags`` rows (int64): reported
+    temperature, error bits, drive; ``losses`` rows (``rec``): standby, extra, copper, Coulomb,
+    gear, viscous, kinetic, load, brake."""
     n = q.shape[0]
     h = dt / n_sub
     (t_limit, r_ref, cu, t_ref, ke0, mag, kp, margin, coulomb0, visc, w_eps, mu, w_s, refl,
