@@ -83,7 +83,7 @@ from scipy.interpolate import CubicHermiteSpline, CubicSpline, PPoly
 from scipy.optimize import least_squares, minimize, minimize_scalar
 from scipy.signal import savgol_filter
 
-from ._geometry_kernels import HAVE_NUMBA, simulate_windows
+from ._geometry_kernels import HAVE_NUMBA, cost_mse, leg_gaps, simulate_windows
 from .errors import SlipDataError
 from .stance import longest_free_segment
 from .steady import steady_start_s, white_noise_std
@@ -108,6 +108,10 @@ GRAVITY_M_S2 = 9.81
 #: run the output-error refinement's simulation compiled when numba is installed (the numpy
 #: loop otherwise; the two agree to rounding, test_slip_geometry_kernel.py)
 COMPILED_SIMULATION = True
+#: evaluate the equation-error cost's scalar path (the offset and ground searches) compiled
+#: when numba is installed (the numpy code otherwise; the two agree to rounding,
+#: test_slip_geometry_kernel.py)
+COMPILED_COST = True
 #: span of the pitch smoother [s] (:func:`leg_contacts`' default): a local quadratic over the
 #: odd number of mocap samples nearest to it (9 at 120 Hz; module docs), used when the pitch's
 #: noise is above :data:`PITCH_NOISE_MIN_RAD`
@@ -452,18 +456,28 @@ class _Body:
 
         The ground only shifts the result: the gaps above ``ground_m = 0`` are cached for the
         last (grid, offset, tilt, pitch zero, height) and the ground subtracted."""
+        return self.gaps_above_zero(tf, offset_s) - ground_m
+
+    def gaps_above_zero(self, tf: FloatArray, offset_s: float) -> FloatArray:
+        """:meth:`gaps` for ground height 0, cached (read only)."""
         key = (offset_s, self.tilt, self.pitch0, self._h_version)
         if self._gap_tf is not tf or self._gap_key != key:
             tt = tf + offset_s
             z = self.height(tt)
             b = self.bs(tt)
+            if COMPILED_COST and HAVE_NUMBA:
+                gap = leg_gaps(z, b, self.hip_angles(tf), tt, self.hx, self.geo.hip_z_m,
+                               self.geo.hip_zero_rad, self.geo.leg_radius_m, self.tm[0],
+                               self.tm[-1])
+                self._gap0, self._gap_tf, self._gap_key = gap, tf, key
+                return gap
             hip = (z[:, None] - self.hx[None, :] * np.sin(b)[:, None]
                    + self.geo.hip_z_m * np.cos(b)[:, None])
             psi = self.hip_angles(tf) + b[:, None] + self.geo.hip_zero_rad
             gap = hip - rest_height_m(psi, self.geo.leg_radius_m)
             gap[(tt < self.tm[0]) | (tt > self.tm[-1])] = np.inf
             self._gap0, self._gap_tf, self._gap_key = gap, tf, key
-        return self._gap0 - ground_m
+        return self._gap0
 
 
 def auto_pitch_smoothing(t_s: ArrayLike, pitch_rad: ArrayLike) -> int:
@@ -573,6 +587,10 @@ def _cost(body: _Body, masks: list[NDArray[np.bool_]], tf: FloatArray,
     solved after.
     """
     step_s = float(tf[1] - tf[0])
+    if COMPILED_COST and HAVE_NUMBA and not (full or per_window):
+        _, sel, sizes, bounds = _window_index(body, masks)
+        return cost_mse(body.gaps_above_zero(tf, offset_s), ground_m, model, tau_s, step_s,
+                        tf, body.tm[sel], offset_s, body.z[sel], bounds, sizes, GRAVITY_M_S2)
     pen = _force(body, tf, offset_s, ground_m, model, tau_s)
     i1 = np.concatenate([[0.0], np.cumsum(0.5 * (pen[1:] + pen[:-1])) * step_s])
     i2 = np.concatenate([[0.0], np.cumsum(0.5 * (i1[1:] + i1[:-1])) * step_s])

@@ -108,3 +108,63 @@ def test_fit_same_with_the_compiled_simulation(monkeypatch, pace_args) -> None:
     a, b = fits
     assert b.offset_s == pytest.approx(a.offset_s, abs=1e-9)
     assert b.ground_m == pytest.approx(a.ground_m, abs=1e-9)
+
+
+def test_compiled_cost_matches_the_numpy_cost(monkeypatch, pace_args) -> None:
+    """The equation-error cost's scalar path compiled against the numpy code: both models,
+    two window lists, grounds from far below the legs (no contact: every window's 2 x 2
+    system singular, the pseudo-inverse) to deep contact, offsets, tilts, damping times."""
+    args, x = pace_args
+    body = geometry._Body(*args, x_m=x)
+    tf = np.arange(body.tm[0] + 0.05, body.tm[-1] - 0.05, 1e-3)
+    fixed = geometry._windows(body.tm, 0.1)
+    inside = (body.tm > tf[0] + 0.03) & (body.tm < tf[-1] - 0.03)
+    fixed = [k & inside for k in fixed if np.sum(k & inside) >= 8]
+    flight = geometry._flight_windows(body, tf[0] + 0.03, tf[-1] - 0.03, 0.0, 0.0)
+    assert len(fixed) >= 6
+    n_cases = 0
+    for masks in (fixed, fixed[::2], flight) if len(flight) >= 3 else (fixed, fixed[::2]):
+        for tilt, p0 in ((0.0, 0.0), (0.002, -0.01)):
+            body.set_tilt(tilt, p0)
+            for d in (-0.004, 0.0, 0.0071):
+                for g in (-0.5, 0.0, 0.015, 0.02, 0.025, 0.03):
+                    for model, tau in (('clipped', 0.0034), ('clipped', 0.0),
+                                       ('linear', 0.0)):
+                        out = []
+                        for compiled in (False, True):
+                            monkeypatch.setattr(geometry, 'COMPILED_COST', compiled)
+                            out.append(geometry._cost(body, masks, tf, d, g, model=model,
+                                                      tau_s=tau))
+                        ref, got = out
+                        assert np.isfinite(ref) and ref >= 0.0
+                        # both solve normal equations: with the legs in contact each is
+                        # about 1e-10 (relative) from a least-squares solve of the windows;
+                        # at a ground where the legs barely touch (0.015 m) the contact term
+                        # is nearly collinear with the free ones and both are 1e-7 to 1e-4
+                        # from it
+                        rel = 5e-9 if g >= 0.02 else 3e-4
+                        assert got == pytest.approx(ref, rel=rel, abs=1e-18)
+                        n_cases += 1
+    assert n_cases >= 216
+
+
+def test_compiled_gaps_match_the_numpy_gaps(monkeypatch, pace_args) -> None:
+    """The legs' gaps compiled against the numpy code (rest height of toe and rolling
+    contact, a leg pointing up, samples outside the motion capture's span: +inf)."""
+    args, x = pace_args
+    body = geometry._Body(*args, x_m=x)
+    tf = np.arange(body.tm[0] - 0.02, body.tm[-1] + 0.02, 1e-3)
+    for tilt, p0, d in ((0.0, 0.0, 0.0), (0.002, -0.01, 0.004), (0.0, 2.0, -0.003)):
+        body.set_tilt(tilt, p0)
+        out = []
+        for compiled in (False, True):
+            monkeypatch.setattr(geometry, 'COMPILED_COST', compiled)
+            body._gap_key = None
+            out.append(body.gaps(tf, d, 0.01).copy())
+        ref, got = out
+        assert np.isinf(ref[0]).all() and np.isinf(ref[-1]).all()
+        np.testing.assert_array_equal(np.isinf(got), np.isinf(ref))
+        fin = np.isfinite(ref)
+        np.testing.assert_allclose(got[fin], ref[fin], rtol=0, atol=1e-14)
+    # the three branches of the rest height occur
+    assert np.any(ref[fin] > 0.5)     # a leg pointing up: rest height -1 m
