@@ -10,7 +10,8 @@ fast as possible. A negative rate or offset is refused, and so is a rate below
 the bag's end (exit 2). Every ``--progress-every`` seconds (default 5, 0 = never) a line on
 stderr says how many messages were sent of how many and how far into the bag the replay is,
 also while it waits for a message that is not due yet. Ctrl-C stops it with exit code 130,
-SIGTERM with 143 (the messages sent so far on stderr), also in the middle of a long wait.
+SIGTERM with 143 (each with one line on stderr: the messages sent so far), also in the middle
+of a long wait.
 """
 
 from __future__ import annotations
@@ -324,12 +325,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     node: list[BagReplayNode] = []
     try:
         return _main(argv, node)
-    except KeyboardInterrupt:
-        return 130      # Ctrl-C, or kill -INT: nothing on stderr
-    except _Terminated:
+    except (KeyboardInterrupt, _Terminated) as stopped:
+        # Ctrl-C, kill -INT or kill -TERM: how far the replay got, in one line
         sent = sum(node[0].published.values()) if node else 0
-        print(f'bag_replay: stopped (SIGTERM) after {sent} messages', file=sys.stderr)
-        return 143
+        name = 'SIGINT' if isinstance(stopped, KeyboardInterrupt) else 'SIGTERM'
+        print(f'bag_replay: stopped ({name}) after {sent} messages', file=sys.stderr)
+        return 130 if name == 'SIGINT' else 143
     finally:
         stop.done = True
         for signum, handler in previous.items():
