@@ -78,14 +78,18 @@ def stance_trace(stance: Stance, fit: SlipFitResult, model: SlipModel) -> dict[s
 
 def trace_subset(nerrs: Sequence[float], cap: int = TRACE_CAP) -> set[int]:
     """Indices of ``nerrs`` whose traces are kept: all up to ``cap``, else ``cap`` ranks
-    spread evenly from the lowest to the highest (the finite ones)."""
+    spread evenly from the lowest to the highest (the finite ones), the middle one being the
+    whole list's lower-middle rank, so that the kept stances' median (:func:`pick_stances`)
+    is the median of them all."""
     vals = np.asarray(nerrs, dtype=float)
     ok = np.flatnonzero(np.isfinite(vals))
     if ok.size <= cap:
         return set(ok.tolist())
     order = ok[np.argsort(vals[ok], kind='stable')]
-    ranks = np.unique(np.round(np.linspace(0, order.size - 1, cap)).astype(int))
-    return set(order[ranks].tolist())
+    ranks = np.round(np.linspace(0, order.size - 1, cap)).astype(int)
+    # rounding half to even put the kept middle one rank above it for an even count
+    ranks[(cap - 1) // 2] = (order.size - 1) // 2
+    return set(order[np.unique(ranks)].tolist())
 
 
 def simulate_trace(trace: dict[str, Any]) -> FloatArray:

@@ -245,3 +245,26 @@ def test_residual_nerr_plot_promises_no_after_series_when_nothing_was_added(
     cap = _caption(tmp_path / 'residual_slip_nerr.png')
     assert '(after)' not in cap and 'No extension was added' in cap
     _REAL_CLOSE('all')
+
+
+@pytest.mark.parametrize('n', [110, 250, 251, 1000])
+def test_kept_traces_median_is_the_median_of_all_stances(n: int) -> None:
+    """With more stances of a gait than the figure keeps traces of (TRACE_CAP), the stance
+    drawn as "median" is the median of all of them (the lower-middle rank), not the median
+    of the kept ones (a known gap: with an even count the kept middle was one rank above);
+    best and worst stay the extremes."""
+    from slip_identification.plots import TRACE_CAP, pick_stances, trace_subset
+
+    rng = np.random.default_rng(n)
+    nerrs = rng.uniform(0.02, 0.9, n)
+    nerrs[rng.integers(0, n, 3)] = np.nan            # unfitted stances carry no trace
+    keep = trace_subset(nerrs)
+    assert len(keep) == TRACE_CAP
+    finite = np.flatnonzero(np.isfinite(nerrs))
+    order = finite[np.argsort(nerrs[finite], kind='stable')]
+    recs = [{'gait': 'running', 'nerr': None if not np.isfinite(e) else float(e)}
+            for e in nerrs]
+    traces = [{} if i in keep else None for i in range(n)]
+    picks = dict(pick_stances(recs, traces)['running'])
+    assert picks == {'best': order[0], 'median': order[(order.size - 1) // 2],
+                     'worst': order[-1]}
