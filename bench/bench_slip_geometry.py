@@ -11,7 +11,8 @@ refined to the effort onset (at the true offset), and the ground at the mocap or
 ground estimate). Prints the median absolute errors of both and their ratio.
 
 Usage: ``python bench/bench_slip_geometry.py [--duration 4.5] [--seeds 1 2 3]
-[--refine output|none]``
+[--refine output|none] [--numpy-cost]`` (``--numpy-cost``: the fit's cost in numpy, as before
+it was compiled, for the time per run against the compiled one)
 """
 
 from __future__ import annotations
@@ -53,7 +54,13 @@ def main() -> None:
     ap.add_argument('--seeds', type=int, nargs='+', default=[1, 2, 3])
     ap.add_argument('--refine', choices=REFINE_MODES, default='output',
                     help='refinement of the ground and offset fit (geometry.py)')
+    ap.add_argument('--numpy-cost', action='store_true',
+                    help="the fit's cost and leg gaps in numpy instead of the compiled kernels "
+                         '(geometry.COMPILED_COST)')
     args = ap.parse_args()
+    if args.numpy_cost:
+        from slip_identification import geometry
+        geometry.COMPILED_COST = False
     rows = []
     for gait in ('running', 'jogging', 'pace', 'walk'):
         for run in simulate_edubot_batch(gait, duration_s=args.duration, seeds=args.seeds):
