@@ -239,6 +239,9 @@ class SlipFitterNode(Node):
                                starts=p.starts)
         for level, text in startup_notes(p):
             getattr(self.get_logger(), level)(text)
+        # the compiled fit loaded now, not in the first stance's publish latency
+        warm_s = self.core.warm_up()
+        self.get_logger().debug(f'fit kernels loaded in {warm_s:.2f} s')
         self.pub = self.create_publisher(SlipFit, 'slip/fit', RELIABLE_QOS)
         js_sub = self.create_subscription(JointState, 'joint_states', self._on_js, SENSOR_QOS)
         self.create_subscription(JointState, 'joint_commands', self._on_cmd, SENSOR_QOS)
