@@ -14,7 +14,9 @@ more, every sample gives one combined sample at its time, whose power ``V * I`` 
 the sources of each one's latest ``V_k * I_k`` (voltage: the reference source's, the first
 seen; current: the summed power over that voltage, in the messages' own sign convention, so
 the current-sign detection downstream sees it as one pack's). A source silent for more than
-``max(stale_s, 5 x its own sample interval)`` leaves the sum, noted. Offline readers pass every
+``max(stale_s, 5 x its own sample interval)`` leaves the sum, noted; before its second report
+its interval is unknown, and it stays in the sum for up to :data:`FIRST_REPORT_STALE_S` (a
+monitor reporting every 3 s is not cut from 2 s to its second report). Offline readers pass every
 source found in the bag (``expected``), so no sum is formed before each has reported once;
 the live node learns them as they come (noted when one appears late).
 
@@ -37,12 +39,15 @@ import numpy as np
 from .conversions import BatterySample
 
 __all__ = ['AbsentBatteryFilter', 'BATTERY_SOURCE_ENV', 'MILLI_THRESHOLD', 'milli_factors',
-           'BatteryCombiner', 'combine_battery_samples', 'STALE_S',
+           'BatteryCombiner', 'combine_battery_samples', 'FIRST_REPORT_STALE_S', 'STALE_S',
            'prepare_battery_samples', 'selected_source', 'unmeasured_power']
 
 #: a source silent for longer than this (or 5 of its own sample intervals, if longer) [s]
 #: leaves the sum
 STALE_S = 2.0
+#: a source seen once (its interval unknown) stays in the sum this long [s] waiting for its
+#: second report: monitors reporting as slowly as every 10 s are summed without a hole
+FIRST_REPORT_STALE_S = 10.0
 #: environment variable naming the one battery to keep (``hexapod-analyze --battery-source``,
 #: inherited by its ``--jobs`` workers)
 BATTERY_SOURCE_ENV = 'HEXAPOD_BATTERY_SOURCE'
@@ -77,7 +82,8 @@ class BatteryCombiner:
         when it is not among the first 20). :func:`combine_battery_samples` keeps a stream
         of one source whatever its name.
     stale_s : float
-        A source silent longer than ``max(stale_s, 5 x its interval)`` leaves the sum.
+        A source silent longer than ``max(stale_s, 5 x its interval)`` leaves the sum
+        (``max(stale_s, FIRST_REPORT_STALE_S)`` before its second report).
     """
 
     def __init__(self, expected: Sequence[str] | None = None, select: str | None = None,
@@ -160,7 +166,8 @@ class BatteryCombiner:
         power = 0.0
         for name in self._order:
             s = self._src[name]
-            limit = max(self.stale_s, 5.0 * s.interval_s)
+            limit = max(self.stale_s, 5.0 * s.interval_s if s.interval_s > 0
+                        else FIRST_REPORT_STALE_S)
             if t - s.t_s > limit:
                 if not s.stale:
                     s.stale = True

@@ -173,3 +173,25 @@ def test_millivolts_and_milliamps_are_scaled(tmp_path):
     got = read_robot_bag(tmp_path / 'mv', mass_kg=2.0)
     assert got.power_in_w == pytest.approx(ref.power_in_w, rel=1e-9)
     assert any('voltage in milli-units' in n for n in got.extra['notes'])
+
+
+def test_a_slow_monitor_is_summed_before_its_second_report():
+    """A logic-pack monitor reporting every 3 s beside a 10 Hz servo pack: its interval is
+    unknown until its second report. It was left out of the sum from 2 s (``STALE_S``) to that
+    report (30 W instead of 35 W for a second, noted as silent); now it is kept, and one that
+    stops after its first report still leaves the sum (after ``FIRST_REPORT_STALE_S``)."""
+    servo = [BatterySample(0.1 * k, 12.0, -30.0 / 12.0, 0.0, 'servo') for k in range(200)]
+    logic = [BatterySample(0.05 + 3.0 * k, 7.4, -5.0 / 7.4, 0.0, 'logic') for k in range(7)]
+    out, notes = combine_battery_samples(servo + logic)
+    assert all(_power(s) == pytest.approx(35.0, rel=1e-12) for s in out)
+    assert not any('silent' in n for n in notes)
+    # live, a monitor that reports once and dies: summed for 10 s, then left out
+    comb = BatteryCombiner()
+    powers = []
+    for k in range(200):
+        powers.append(_power(comb.add(BatterySample(0.1 * k, 12.0, -2.5, 0.0, 'servo'))))
+        if k == 5:
+            powers.append(_power(comb.add(BatterySample(0.55, 7.4, -5.0 / 7.4, 0.0, 'logic'))))
+    assert powers[-1] == pytest.approx(30.0) and max(powers) == pytest.approx(35.0)
+    assert sum(p == pytest.approx(35.0) for p in powers) == 101   # 0.55 s to 10.5 s
+    assert "'logic' silent for more than 10.0 s" in ' '.join(comb.finish())
