@@ -674,6 +674,8 @@ class DynamixelBus:
         #: went to that ID: another packet like it is a second servo at that ID (a late reply
         #: belongs to an unanswered request, whose retry asks for another length)
         self._answered: dict[int, int] = {}
+        #: joints the last :meth:`set_torque` did not write because its ``stop`` asked so
+        self.not_written: list[str] = []
         #: index in ``servos`` of the last servo whose READ started at Torque Enable (single
         #: READs: one servo a cycle in turn, see :meth:`_torque_turn`)
         self._round_robin = -1
@@ -1680,20 +1682,27 @@ class DynamixelBus:
         return f'{r.name} (id {r.servo_id}) ' + ' and '.join(why)
 
     # --- writing ---------------------------------------------------------------------------
-    def set_torque(self, enabled: bool, names: Iterable[str] | None = None) -> dict[str, bool]:
+    def set_torque(self, enabled: bool, names: Iterable[str] | None = None, *,
+                   stop: Callable[[], bool] | None = None) -> dict[str, bool]:
         """Torque Enable on (True) or off for ``names`` (all by default); per-joint success.
 
         Turning torque on clears an abort only once every servo that answers is below the
         limit and none reports its overheating flag; else nothing is written and
         ``abort_reason`` says which servo keeps the abort. Nothing is written once the port is
         lost (all False).
+
+        ``stop``: asked before each servo's write; once it returns True nothing more is
+        written (a stop requested during the torque-on pass at start-up: Ctrl-C, SIGTERM), the
+        servos not written are False and named in :attr:`not_written`.
         """
+        self.not_written = []
         if not self.is_open:
             return {n: False for n in (names if names is not None else self.joint_names)}
         with self._port_guard():
-            return self._set_torque(enabled, names)
+            return self._set_torque(enabled, names, stop)
 
-    def _set_torque(self, enabled: bool, names: Iterable[str] | None) -> dict[str, bool]:
+    def _set_torque(self, enabled: bool, names: Iterable[str] | None,
+                    stop: Callable[[], bool] | None = None) -> dict[str, bool]:
         if enabled and self.aborted:
             readings = self._read_all()
             hot = [r for r in readings if r.ok and (r.temperature_c >= self.temperature_limit_c
@@ -1708,6 +1717,10 @@ class DynamixelBus:
         out = {}
         for name in (names if names is not None else self.joint_names):
             s = self._by_name[name]
+            if stop is not None and (self.not_written or stop()):
+                self.not_written.append(name)
+                out[name] = False
+                continue
             if s.table is None:
                 out[name] = False
                 continue

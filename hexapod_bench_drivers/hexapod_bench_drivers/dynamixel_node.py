@@ -36,6 +36,9 @@ ERROR on /diagnostics naming the port, and the node stops with exit code 1 (no t
 the dead port at shutdown).
 
 On shutdown, torque is turned off (``shutdown_action: torque_off``) or left on (``hold``).
+A stop (Ctrl-C, SIGTERM) while the node starts ends the torque-on pass at the next servo, and
+any stop or error once the bus is open releases it the same way (``start-up stopped: ...``
+logged) before the node stops as before (exit 0 for a stop, 2 for an error).
 All bus logic lives in :class:`hexapod_bench_drivers.dynamixel_bus.DynamixelBus`.
 """
 
@@ -61,6 +64,7 @@ from hexapod_common.node_utils import (
     run_node,
 )
 from hexapod_interfaces.msg import ServoStatus
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.task import Future
 from sensor_msgs.msg import JointState
@@ -154,6 +158,18 @@ class DynamixelDriverNode(Node):
             silent_after=p.silent_after,
             probe_interval_cycles=max(1, int(round(p.probe_interval_s * p.rate_hz))),
             temperature_limit_c=p.temperature_limit_c, rate_hz=p.rate_hz).open()
+        try:
+            self._start()
+        except BaseException:
+            # a stop (Ctrl-C, SIGTERM: the context shut down, the next create_* raises) or an
+            # error after the bus opened: the servos are released as at shutdown, said; run_node
+            # never gets the node to destroy (an outside review: all 18 servos left torqued)
+            self._release_bus('start-up stopped: ')
+            raise
+
+    def _start(self) -> None:
+        """The rest of the constructor, once the bus is open."""
+        p = self.params
         #: done with the exit code when the node stops by itself (the port lost), see run_node
         self.finished = Future()
         for h in self.bus.health():
@@ -167,12 +183,22 @@ class DynamixelDriverNode(Node):
             self.get_logger().warning(note)
         if p.torque_on_start:
             refused = self.bus.refused
-            failed = [n for n, ok in self.bus.set_torque(True).items()
-                      if not ok and n not in refused]
+            # a stop requested meanwhile (rclpy's signal handler shuts the context down but
+            # does not interrupt this constructor) ends the pass: no torque on after it
+            results = self.bus.set_torque(True, stop=lambda: not self.context.ok())
+            skipped = self.bus.not_written
+            failed = [n for n, ok in results.items()
+                      if not ok and n not in refused and n not in skipped]
             if failed:
                 self.get_logger().error(f'torque on failed for {failed}')
             for note in self.bus.take_notes():
                 self.get_logger().warning(note)
+            if skipped:
+                self.get_logger().warning(f'stop requested while torque was turned on: not sent '
+                                          f'to {", ".join(skipped)}')
+                raise ExternalShutdownException()
+        if not self.context.ok():
+            raise ExternalShutdownException()   # stopped during bus.open(): nothing torqued
         self.pub_joints = self.create_publisher(JointState, 'joint_states', RELIABLE_QOS)
         self.pub_status = self.create_publisher(ServoStatus, 'servo_status', RELIABLE_QOS)
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', RELIABLE_QOS)
@@ -352,26 +378,31 @@ class DynamixelDriverNode(Node):
         d.values = [KeyValue(key=k, value=str(v)) for k, v in values.items()]
         return d
 
-    def destroy_node(self) -> None:
-        if self.bus.is_open:
-            if self.params.shutdown_action == 'torque_off':
-                try:
-                    result = self.bus.set_torque(False)
-                except PortLostError as err:
-                    self.get_logger().error(f'torque off at shutdown not sent: {err}')
-                else:
-                    # said (it was silent): a servo that did not confirm may still hold
-                    failed = sorted(n for n, ok in result.items() if not ok)
-                    if failed:
-                        self.get_logger().error(
-                            f'torque off at shutdown not confirmed by {", ".join(failed)}: '
-                            'they may still hold their position')
-                    else:
-                        self.get_logger().info(f'torque off on {len(result)} servo(s)')
+    def _release_bus(self, prefix: str = '') -> None:
+        """``shutdown_action`` applied (torque off, or left on), said, and the bus closed."""
+        if not self.bus.is_open:
+            return
+        if self.params.shutdown_action == 'torque_off':
+            try:
+                result = self.bus.set_torque(False)
+            except PortLostError as err:
+                self.get_logger().error(f'{prefix}torque off at shutdown not sent: {err}')
             else:
-                self.get_logger().warning('shutdown_action hold: torque left on, the servos '
-                                          'hold their last position')
-            self.bus.close()
+                # said (it was silent): a servo that did not confirm may still hold
+                failed = sorted(n for n, ok in result.items() if not ok)
+                if failed:
+                    self.get_logger().error(
+                        f'{prefix}torque off at shutdown not confirmed by {", ".join(failed)}: '
+                        'they may still hold their position')
+                else:
+                    self.get_logger().info(f'{prefix}torque off on {len(result)} servo(s)')
+        else:
+            self.get_logger().warning(f'{prefix}shutdown_action hold: torque left on, the '
+                                      'servos hold their last position')
+        self.bus.close()
+
+    def destroy_node(self) -> None:
+        self._release_bus()
         super().destroy_node()
 
 

@@ -33,7 +33,8 @@ register answers).
 holding the bus, as a USB adapter's latency timer does (FTDI/U2D2: 16 ms by default on Linux).
 :attr:`EmulatedServo.read_hook` is called before a servo answers a READ, Sync Read or Bulk
 Read, fast ones included (a test can stamp each reply, e.g. count requests in Present
-Position).
+Position); :attr:`EmulatedServo.write_hook` after it takes a write, before its reply (a test
+can act at the moment a register is written, e.g. stop the driver at a Torque Enable).
 
 Bus and adapter faults: :attr:`ServoBusEmulator.echo` returns every byte the host sends before
 the replies (a half-duplex adapter without direction control);
@@ -382,6 +383,10 @@ class EmulatedServo:
     #: called (under the bus lock) before the servo answers a READ, Sync Read or Bulk Read
     #: (Fast Sync/Bulk Read and Protocol 1.0 Bulk Read included)
     read_hook: Callable[[EmulatedServo], None] | None = field(init=False, default=None)
+    #: called (under the bus lock) with the address and bytes of every write the servo takes
+    #: (WRITE, SYNC_WRITE, BULK_WRITE, ACTION), once it is applied and before any reply
+    write_hook: Callable[[EmulatedServo, int, bytes], None] | None = field(init=False,
+                                                                           default=None)
 
     def __post_init__(self) -> None:
         self.memory = bytearray(self.table.memory_size)
@@ -909,6 +914,8 @@ class ServoBusEmulator:
                 data = bytearray(data)
                 data[torque - address] = 0
             servo.memory[address:address + len(data)] = data
+            if servo.write_hook is not None:
+                servo.write_hook(servo, address, bytes(data))
         return err
 
     def _handle(self, pkt: _Packet) -> list[tuple[float, bytes]]:
