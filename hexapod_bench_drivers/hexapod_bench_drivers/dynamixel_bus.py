@@ -66,8 +66,9 @@ which names the known models. The model number (register 0) is read again when a
 after a failed cycle or silence (before its data are decoded), when it refuses a READ (an
 access error), and at every PING: another model at the ID (a servo replaced, another servo
 set to the ID) is left out naming both models (``refused``) until the driver is restarted or
-the first model answers there again. Only Torque Enable, Goal Position and Moving Speed / Profile
-Velocity are ever written (never the AX compliance or MX gain registers at 26-29).
+the first model answers there again. Only Torque Enable, Goal Position, Moving Speed / Profile
+Velocity and (Protocol 1.0, after an Alarm Shutdown, below) Torque Limit are ever written (never
+the AX compliance or MX gain registers at 26-29, never EEPROM).
 
 Operating Mode (Protocol 2.0, register 11) is read at open: in Extended Position (4) and
 Current-based Position (5) modes goals span +-1 048 575 ticks (multi-turn); a servo in a mode
@@ -86,6 +87,15 @@ it raises a new hardware error flag (Alarm Shutdown turns torque off): ``torque_
 the register, also between those events through the reads of step 4 (a servo rebooted
 between two reads, no reply missed), and torque lost that the driver had turned on is reported
 in ``ServoHealth.torque_lost`` (never turned on again by the bus: call ``set_torque(True)``).
+
+Protocol 1.0 Alarm Shutdown: AX/RX/MX(1.0) firmware signals it by setting Torque Limit (34) to 0
+and keeps Torque Enable at 1 (e-Manual, Torque Limit: "the motor loses its torque because the
+value becomes 0"; it stays 0 after the error clears). The READs that start at Torque Enable
+reach Torque Limit (24-43, no extra request): a Torque Limit of 0 where the driver turned torque
+on is torque lost (``torque_enabled`` False, ``torque_lost`` naming register 34). Torque on reads
+Torque Enable and Torque Limit back in one READ; a Torque Limit of 0 is written back from Max
+Torque (14, EEPROM, its power-on value) and read back, refused with the reason when Max Torque
+is 0 too or the error is still on: torque on never succeeds with Torque Limit 0.
 
 Run-time transitions (a servo going silent or answering again, a hardware error flag appearing or
 clearing, torque lost, the loop rate falling below :data:`RATE_LOW_FRACTION` of the requested
@@ -150,6 +160,7 @@ from hexapod_bench_drivers.control_tables import (
     P2_STATUS_ERRORS,
     ControlTable,
     ControlTableError,
+    Register,
     decode_error_flags,
     table_for_model,
 )
@@ -1371,6 +1382,7 @@ class DynamixelBus:
         #: present values (step 4 of the module doc)
         status: dict[int, tuple[bool | None, int | None]] = {}
         asked: set[int] = set()    # ids in this cycle's Sync Read of registers 64-70 / 70
+        limits: dict[int, int] = {}   # Protocol 1.0 Torque Limit read this cycle, by id
         if synced:
             blocks: dict[tuple[int, int], list[_Servo]] = {}
             for s in active:
@@ -1410,6 +1422,8 @@ class DynamixelBus:
                     flags = None
                     if self.protocol == 2:
                         flags = data[s.table.reg('hardware_error_status').address - torque]
+                    else:   # Torque Limit (34) is inside: 0 is a Protocol 1.0 Alarm Shutdown
+                        limits[sid] = s.table.decode('torque_limit', data, torque)
                     status[sid] = (bool(data[0]), flags)
                     data = data[-s.table.read_block[1]:]
             if data is not None:
@@ -1468,7 +1482,8 @@ class DynamixelBus:
             self._note_flags(s, flags)
             h.last_error_flags = flags
             if was_failing or new_flags or on is not None:
-                self._check_torque(s, came_back=was_failing, on=on, err=status_error)
+                self._check_torque(s, came_back=was_failing, on=on, err=status_error,
+                                   limit=limits.get(sid))
             st = s.table.decode_present(data)
             j = s.joint
             readings.append(ServoReading(
@@ -1574,32 +1589,46 @@ class DynamixelBus:
             self.events.event((s.joint.servo_id, 'flags'), 'info',
                               f'{name} hardware error flags cleared')
 
-    def _read_torque_enable(self, s: _Servo) -> tuple[bool | None, int]:
-        """Torque Enable read by one READ: (on, status error); (None, 0) unread."""
+    def _read_torque_enable(self, s: _Servo) -> tuple[bool | None, int, int | None]:
+        """Torque Enable read by one READ: (on, status error, Protocol 1.0 Torque Limit, which
+        the READ then reaches: registers 24-35); (None, 0, None) unread."""
         assert s.table is not None
         reg = s.table.reg('torque_enable')
-        data, err = self._read_single(s, reg.address, reg.size, 1 + self.retries)
+        p1_limit = self._p1_torque_limit(s)
+        end = reg.address + reg.size if p1_limit is None else p1_limit.address + p1_limit.size
+        data, err = self._read_single(s, reg.address, end - reg.address, 1 + self.retries)
         if data is None:
-            return None, 0   # counted; tried again later
-        return bool(data[0]), err
+            return None, 0, None   # counted; tried again later
+        limit = None if p1_limit is None else s.table.decode('torque_limit', data, reg.address)
+        return bool(data[0]), err, limit
+
+    def _p1_torque_limit(self, s: _Servo) -> Register | None:
+        """Torque Limit (34) of a Protocol 1.0 servo, whose Alarm Shutdown sets it to 0 (AX/RX/MX
+        e-Manual, Torque Limit) and leaves Torque Enable at 1; None on Protocol 2.0."""
+        if self.protocol != 1 or s.table is None or 'torque_limit' not in s.table.registers:
+            return None
+        return s.table.reg('torque_limit')
 
     def _check_torque(self, s: _Servo, came_back: bool, on: bool | None = None,
-                      err: int = 0) -> None:
+                      err: int = 0, limit: int | None = None) -> None:
         """Torque Enable (``on``, read here if not given) after a servo answered again
         (``came_back``), raised a new hardware error, or as read in :meth:`_read_all` (step 4
         of the module doc): ``torque_enabled`` follows it, and torque the driver had turned on
-        but the servo lost is reported (``torque_lost``). ``err``: the status error of this
+        but the servo lost is reported (``torque_lost``). On Protocol 1.0 a Torque Limit
+        (``limit``, read with it) of 0 is torque lost as well: the Alarm Shutdown of AX/RX/MX
+        servos zeroes it and keeps Torque Enable at 1. ``err``: the status error of this
         cycle's reply; the flags are those of this cycle (``last_error_flags``)."""
         assert s.table is not None
         reg = s.table.reg('torque_enable')
         if on is None:
-            on, torque_err = self._read_torque_enable(s)
+            on, torque_err, limit = self._read_torque_enable(s)
             if on is None:
                 return
             err |= torque_err
+        limp = bool(on) and limit == 0      # Protocol 1.0 Alarm Shutdown
         expected = s.health.torque_enabled
-        s.health.torque_enabled = on
-        if on or not expected:
+        s.health.torque_enabled = on and not limp
+        if s.health.torque_enabled or not expected:
             return
         flags = s.health.last_error_flags | (err & 0x7F if self.protocol == 1 else 0)
         names = list(decode_error_flags(self.protocol, flags))
@@ -1607,14 +1636,23 @@ class DynamixelBus:
             why = 'came back with torque off (power cycled or hardware error?)'
         elif flags:
             why = f'turned torque off itself with hardware error {names} (Alarm Shutdown)'
+        elif limp:
+            why = 'lost its torque in an Alarm Shutdown (its error flag already cleared)'
         else:
             why = ('torque off between two reads, no reply missed (rebooted, or power cycled '
                    'within a cycle?)')
         hint = ('; an X-series or MX(2.0) servo in hardware-error shutdown needs a REBOOT'
                 if self.protocol == 2 and flags else '')
+        if limp:
+            what = ('Torque Limit (register 34) reads 0 (a Protocol 1.0 Alarm Shutdown; Torque '
+                    'Enable still reads 1) where the driver had turned torque on')
+            hint = ('; set_torque(True) writes Torque Limit back from Max Torque (register '
+                    '14) once the error is gone')
+        else:
+            what = f'Torque Enable (register {reg.address}) reads 0 where the driver had ' \
+                'turned it on'
         s.health.torque_lost = (
-            f'{why}: Torque Enable (register {reg.address}) reads 0 where the driver had '
-            f'turned it on' + (f', hardware error {names}' if flags and came_back else '')
+            f'{why}: {what}' + (f', hardware error {names}' if flags and came_back else '')
             + f'; the joint is limp; check its power, cable and load, then call set_torque(True)'
             + hint)
         self.events.event((s.joint.servo_id, 'torque'), 'warning',
@@ -1729,6 +1767,7 @@ class DynamixelBus:
                 out[name] = False
                 continue
             ok = False
+            limit_stuck = False     # Protocol 1.0 Torque Limit stayed 0 after it was written
             s.health.torque_error = ''
             g0, n0 = s.health.streak_garbled, s.health.streak_no_reply
             for k in range(1 + self.retries):
@@ -1750,7 +1789,11 @@ class DynamixelBus:
                     # Torque on is read back at every level (a servo in hardware-error
                     # shutdown acknowledges the write and keeps Torque Enable 0); torque off
                     # only where the write is not acknowledged (Status Return Level 1).
-                    data, read_error = self._read_single(s, address, 1, 1)
+                    # Protocol 1.0 torque on: up to Torque Limit (24-35, one READ)
+                    p1_limit = self._p1_torque_limit(s) if enabled else None
+                    end = (address + 1 if p1_limit is None
+                           else p1_limit.address + p1_limit.size)
+                    data, read_error = self._read_single(s, address, end - address, 1)
                     if data is None:
                         continue  # the read-back was counted
                     if data[0] != value:
@@ -1759,6 +1802,14 @@ class DynamixelBus:
                             self._refuse_torque(s, flags)
                             break
                         continue  # the write was lost: send it again
+                    if p1_limit is not None and not s.table.decode('torque_limit', data,
+                                                                   address):
+                        restored = self._restore_torque_limit(s, error | read_error)
+                        limit_stuck = restored is None
+                        if restored is None:
+                            continue    # not confirmed: the whole write again
+                        if not restored:
+                            break       # refused, torque_error says why
                 ok = True
                 break
             if ok:
@@ -1772,6 +1823,9 @@ class DynamixelBus:
                            'this ID?')
                 elif silent:
                     why = 'no reply'
+                elif limit_stuck:
+                    why = ('Torque Limit (register 34) still reads 0 after Max Torque was '
+                           'written to it (Alarm Shutdown)')
                 else:
                     why = 'Torque Enable did not read back as written'
                 state = 'on' if enabled else 'off'
@@ -1779,7 +1833,52 @@ class DynamixelBus:
             out[name] = ok
         return out
 
-    def _refuse_torque(self, s: _Servo, flags: int) -> None:
+    def _restore_torque_limit(self, s: _Servo, status_error: int) -> bool | None:
+        """A Protocol 1.0 servo whose Torque Limit reads 0 at torque on (an Alarm Shutdown,
+        e-Manual, Torque Limit 34: the servo stays limp with Torque Enable 1 until a non-zero
+        value is written): Torque Limit written back from Max Torque (14, EEPROM, its power-on
+        value) and read back. True restored (noted); False refused, ``torque_error`` says why
+        (Max Torque 0 too, or the error still on); None not confirmed (tried again)."""
+        assert s.table is not None
+        limit, top = s.table.reg('torque_limit'), s.table.reg('max_torque')
+        name = f'{s.joint.name} (id {s.joint.servo_id})'
+        data, err = self._read_single(s, top.address, top.size, 1 + self.retries)
+        if data is None:
+            return None
+        max_torque = s.table.decode('max_torque', data, top.address)
+        if max_torque == 0:
+            s.health.torque_error = (
+                f'torque on refused: Torque Limit (register {limit.address}) reads 0 (Alarm '
+                f'Shutdown, or set so) and Max Torque (register {top.address}, EEPROM), its '
+                'power-on value, is 0 too: the servo would stay limp; set Max Torque, e.g. with '
+                'Dynamixel Wizard (this driver never writes EEPROM)')
+            self.notes.append(f'{name} {s.health.torque_error}')
+            return False
+        sid = s.joint.servo_id
+        self._prepare([sid])
+        result = self.packet.write2ByteTxOnly(self.port, sid, limit.address, max_torque)
+        error = 0
+        if result == COMM_SUCCESS and s.health.status_return_level >= 2:
+            self.port.setPacketTimeout(self._status_bytes(0))
+            _ack, error, result = self._receive(sid, 0)
+        if result != COMM_SUCCESS:
+            self._count(s, result)
+            return None
+        data, read_error = self._read_single(s, limit.address, limit.size, 1)
+        if data is None:
+            return None
+        if s.table.decode('torque_limit', data, limit.address):
+            self.notes.append(f'{name} Torque Limit (register {limit.address}) read 0 (a '
+                              f'Protocol 1.0 Alarm Shutdown): written back to Max Torque '
+                              f'{max_torque} (register {top.address})')
+            return True
+        flags = self._hardware_flags(s, status_error | err | error | read_error)
+        if flags:
+            self._refuse_torque(s, flags, f'Torque Limit (register {limit.address}) stays 0')
+            return False
+        return None
+
+    def _refuse_torque(self, s: _Servo, flags: int, held: str = '') -> None:
         """The servo keeps torque off with a hardware error: recorded and noted."""
         s.health.last_error_flags = flags
         s.health.error_replies += 1
@@ -1791,7 +1890,8 @@ class DynamixelBus:
                    'cause is gone')
         else:
             why = (f'status error {flags:#04x} {list(decode_error_flags(self.protocol, flags))}: '
-                   'the servo keeps torque off while the error lasts (Alarm Shutdown)')
+                   'the servo keeps torque off while the error lasts (Alarm Shutdown'
+                   + (f'; {held}' if held else '') + ')')
         s.health.torque_error = f'torque on refused by the servo: {why}'
         self.notes.append(f'{s.joint.name} (id {s.joint.servo_id}) {s.health.torque_error}')
 

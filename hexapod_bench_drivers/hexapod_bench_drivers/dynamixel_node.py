@@ -16,13 +16,15 @@ Topics (relative names, so a namespace applies):
   also clears a temperature abort once all servos are below the limit and none reports its
   overheating flag (else refused, "still aborted" with the reason). Servos the bus refused
   (unknown model, Status Return Level 0, an Operating Mode that ignores goals) do not make it
-  fail; the message names them, and the servo's own reason when torque on fails.
+  fail; the message names them, and the servo's own reason when torque on fails. On Protocol
+  1.0 a Torque Limit left at 0 by an Alarm Shutdown is written back from Max Torque (refused,
+  with the reason, when Max Torque is 0 or the error lasts).
 
 /diagnostics: ERROR for a servo left out (with the refusal; ``model changed: ...`` naming both
 models when another model answers at its ID, also left out of ``joint_states``), silent, when
 aborted, when the port is lost, for a servo that lost the torque the driver turned on (``came
 back with torque off``, or ``torque off between two reads`` found by the bus's periodic
-Torque Enable reads;
+Torque Enable reads, or a Protocol 1.0 Alarm Shutdown: Torque Limit, register 34, reads 0;
 ``torque_enabled`` then False) or for two replies to one request (``duplicate id?``); WARN for
 a servo whose commands are refused (its mode), which refused torque on (hardware error) or
 reports hardware error flags; OK otherwise.

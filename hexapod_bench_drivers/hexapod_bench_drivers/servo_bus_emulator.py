@@ -23,12 +23,14 @@ instructions get status packets only for PING and the reads. Status Return Level
 Fault injection per servo (:meth:`ServoBusEmulator.inject`): ``no_answer`` (silent),
 ``bad_checksum`` (reply with a corrupted checksum/CRC), ``error_bits`` (hardware error flags in
 the reply; Protocol 2.0 sets Hardware Error Status and the alert bit; a flag selected in the
-Shutdown register turns torque off and keeps Torque Enable at 0, on Protocol 2.0 until REBOOT
-clears the fault), ``late_reply`` (answer
-after a delay, holding the bus as a slow servo does), ``overheat`` (present temperature forced),
-``refuse`` (a READ, Sync Read or Bulk Read answered with ``error_bits`` as the status error and no
-data: Protocol 2.0 Access Error 0x07 is what a servo of another model whose table lacks the
-register answers).
+Shutdown register is an Alarm Shutdown: on Protocol 2.0 torque off, Torque Enable kept at 0
+until REBOOT clears the fault; on Protocol 1.0, as the AX/RX/MX e-Manual says under Torque
+Limit (34), Torque Limit becomes 0 and Torque Enable keeps its value, and only a non-zero
+Torque Limit written once the error is gone gives the servo its torque back), ``late_reply``
+(answer after a delay, holding the bus as a slow servo does), ``overheat`` (present
+temperature forced), ``refuse`` (a READ, Sync Read or Bulk Read answered with ``error_bits``
+as the status error and no data: Protocol 2.0 Access Error 0x07 is what a servo of another
+model whose table lacks the register answers).
 :attr:`ServoBusEmulator.adapter_latency_s` delays every reply on its way to the host without
 holding the bus, as a USB adapter's latency timer does (FTDI/U2D2: 16 ms by default on Linux).
 :attr:`EmulatedServo.read_hook` is called before a servo answers a READ, Sync Read or Bulk
@@ -469,6 +471,8 @@ class _Group:
         self.r_temp_limit = r['temperature_limit']
         self.r_moving = r['moving']
         self.r_shutdown = r['shutdown']
+        #: Protocol 1.0: an Alarm Shutdown sets Torque Limit to 0 (Torque Enable unchanged)
+        self.r_torque_limit = r['torque_limit'] if p1 else None
         self.r_hw = r.get('hardware_error_status')
         self.r_mode = r.get('operating_mode')   # Protocol 2.0
         self.r_p1_current = r.get('current')   # MX-64/MX-106 on Protocol 1.0 (2048 = 0 A)
@@ -497,6 +501,8 @@ class _Group:
         phys = self.physics
         mems = [s.memory for s in self.servos]
         phys.torque_enabled = np.array([_get(m, self.r_torque) != 0 for m in mems])
+        if self.r_torque_limit is not None:   # Protocol 1.0: Torque Limit 0 is limp too
+            phys.torque_enabled &= np.array([_get(m, self.r_torque_limit) != 0 for m in mems])
         limits = np.array([_get(m, self.r_limit) for m in mems], dtype=float)
         if t.protocol == 1:
             limits = np.bitwise_and(limits.astype(int), 0x3FF).astype(float)
@@ -570,8 +576,12 @@ class _Group:
             if self.r_hw is not None:
                 _put(m, self.r_hw, flags)
             if flags & m[self.r_shutdown.address]:
-                # Real servos drop torque on an error selected in the Shutdown register.
-                m[self.r_torque.address] = 0
+                # Real servos drop torque on an error selected in the Shutdown register:
+                # Protocol 1.0 by Torque Limit 0 (e-Manual, Torque Limit 34), 2.0 Torque Enable
+                if self.r_torque_limit is not None:
+                    _put(m, self.r_torque_limit, 0)
+                else:
+                    m[self.r_torque.address] = 0
 
 
 # --- the bus ---------------------------------------------------------------------------------
@@ -738,6 +748,8 @@ class ServoBusEmulator:
                 if reg.writable and reg.address >= torque:
                     _put(servo.memory, reg, reg.default)
             servo.set('goal_position', servo.get('present_position'))
+            if servo.protocol == 1:   # Torque Limit starts at Max Torque (EEPROM, 14)
+                servo.set('torque_limit', servo.get('max_torque'))
             servo.registered = None
             servo.faults.clear()
 
@@ -906,13 +918,17 @@ class ServoBusEmulator:
     def _write(self, servo: EmulatedServo, address: int, data: bytes) -> int:
         err = self._access(servo, address, len(data), write=True)
         if err == 0:
-            torque = servo.table.reg('torque_enable').address
-            if (address <= torque < address + len(data) and data[torque - address]
+            # Hardware-error shutdown while the error lasts: Protocol 2.0 Torque Enable stays 0
+            # (X series: until REBOOT); Protocol 1.0 Torque Limit stays 0. The write is
+            # otherwise applied and the reply carries the error (alert bit / error byte).
+            held = 'torque_enable' if servo.protocol == 2 else 'torque_limit'
+            reg = servo.table.reg(held)
+            if (address < reg.address + reg.size and reg.address < address + len(data)
                     and servo.hardware_errors() & servo.get('shutdown')):
-                # Hardware-error shutdown: Torque Enable stays 0 (X series: until REBOOT),
-                # the write is otherwise applied and the reply carries the error (alert bit).
                 data = bytearray(data)
-                data[torque - address] = 0
+                for at in range(max(address, reg.address),
+                                min(address + len(data), reg.address + reg.size)):
+                    data[at - address] = 0
             servo.memory[address:address + len(data)] = data
             if servo.write_hook is not None:
                 servo.write_hook(servo, address, bytes(data))

@@ -365,15 +365,17 @@ def test_status_return_level_0_refused_by_name(model, protocol):
                                                  ('ax18a', 1, 'Alarm Shutdown')])
 def test_torque_on_refused_by_a_servo_in_hardware_error_shutdown(model, protocol, tail):
     """Overload (0x20, in the Shutdown register): the servo acknowledges the torque write and
-    keeps Torque Enable 0. Reported as a failure naming the error (before: success), the
-    others turned on; once the fault is gone, torque on succeeds."""
+    keeps Torque Enable 0 (Protocol 2.0) or Torque Limit 0 (Protocol 1.0 Alarm Shutdown).
+    Reported as a failure naming the error (before: success), the others turned on; once the
+    fault is gone, torque on succeeds."""
+    held = 'torque_enable' if protocol == 2 else 'torque_limit'
     with ServoBusEmulator.of_model(model, [1, 2]) as emu, \
             DynamixelBus(emu.port_name, _joints(2), protocol=protocol,
                          timeout_margin_ms=10.0) as bus:
         bus.take_notes()
         emu.inject(1, 'error_bits', error_bits=0x20)
         assert bus.set_torque(True) == {'j1': False, 'j2': True}
-        assert [emu.read_register(i, 'torque_enable') for i in (1, 2)] == [0, 1]
+        assert [emu.read_register(i, held) > 0 for i in (1, 2)] == [False, True]
         h = bus.health()
         assert not h[0].torque_enabled and h[0].last_error_flags == 0x20
         assert 'overload' in h[0].torque_error and tail in h[0].torque_error

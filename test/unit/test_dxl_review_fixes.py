@@ -71,13 +71,15 @@ def test_power_cycled_servo_reported_torque_off(model, protocol):
 
 @pytest.mark.parametrize('model,protocol', P1P2)
 def test_hardware_error_shutdown_torque_state_follows_register(model, protocol):
-    """Overload with Alarm Shutdown: the servo turns torque off. Before, torque_enabled stayed
-    True; now it follows Torque Enable and the loss names the error."""
+    """Overload with Alarm Shutdown: the servo turns torque off (Protocol 1.0: Torque Limit
+    0, Torque Enable kept). Before, torque_enabled stayed True; now it follows the registers
+    and the loss names the error."""
     with ServoBusEmulator.of_model(model, [1, 2]) as emu, _bus(emu, 2, protocol) as bus:
         assert all(bus.set_torque(True).values())
         emu.inject(1, 'error_bits', error_bits=0x20)
         bus.poll()
-        assert emu.read_register(1, 'torque_enable') == 0
+        held = 'torque_enable' if protocol == 2 else 'torque_limit'
+        assert emu.read_register(1, held) == 0
         h = bus.health()
         assert not h[0].torque_enabled and h[1].torque_enabled
         assert "turned torque off itself with hardware error ['overload']" in h[0].torque_lost

@@ -46,3 +46,75 @@ def test_set_torque_stops_writing_once_stop_is_requested(model, protocol):
             [1] * k + [0] * (n - k)
         # an unstopped call clears the list
         assert all(bus.set_torque(False).values()) and bus.not_written == []
+
+
+# --- 2: Protocol 1.0 Alarm Shutdown sets Torque Limit to 0 ------------------------------------
+def _poll_until(bus, predicate, max_cycles=100):
+    for _ in range(max_cycles):
+        result = bus.poll()
+        if predicate(result):
+            return result
+    raise AssertionError('condition not reached')
+
+
+def test_p1_alarm_shutdown_is_torque_lost_and_torque_on_restores_torque_limit():
+    """AX-18A id 2 overloads: its firmware sets Torque Limit (34) to 0 and keeps Torque Enable
+    1 (e-Manual); the flag then clears with the load, Torque Limit stays 0. Before: torque
+    'ok', set_torque(True) 'success' with the servo limp. Now torque lost naming register 34,
+    and torque on writes Torque Limit back from Max Torque."""
+    with ServoBusEmulator.of_model('ax18a', [1, 2, 3]) as emu, _bus(emu, 3, 1) as bus:
+        assert all(bus.set_torque(True).values())
+        bus.take_events()
+        emu.inject(2, 'error_bits', error_bits=0x20)            # overload: Alarm Shutdown
+        bus.poll()
+        assert emu.read_register(2, 'torque_limit') == 0
+        assert emu.read_register(2, 'torque_enable') == 1
+        h = bus.health()[1]
+        assert not h.torque_enabled
+        assert "turned torque off itself with hardware error ['overload']" in h.torque_lost
+        assert 'Torque Limit (register 34) reads 0' in h.torque_lost
+        assert any('j2 (id 2)' in m and 'register 34' in m for _lv, m in bus.take_events())
+        emu.clear_faults(2)                                     # the load is gone
+        for _ in range(6):                                      # twice round the servos
+            bus.poll()
+        assert emu.read_register(2, 'torque_limit') == 0
+        assert not bus.health()[1].torque_enabled and bus.health()[1].torque_lost
+        bus.take_notes()
+        assert bus.set_torque(True) == {'j1': True, 'j2': True, 'j3': True}
+        assert emu.read_register(2, 'torque_limit') == 1023 == emu.read_register(2, 'max_torque')
+        assert bus.health()[1].torque_enabled and bus.health()[1].torque_lost == ''
+        assert any('j2 (id 2) Torque Limit (register 34) read 0' in n
+                   and 'written back to Max Torque 1023' in n for n in bus.take_notes())
+        for _ in range(6):
+            bus.poll()
+        assert bus.health()[1].torque_enabled and bus.health()[1].torque_lost == ''
+
+
+def test_p1_torque_limit_zero_found_by_the_round_robin_without_a_flag():
+    """The flag came and went between two reads: Torque Limit 0 alone is found by the
+    READ that starts at Torque Enable (one servo a cycle), no extra request."""
+    with ServoBusEmulator.of_model('ax18a', [1, 2, 3]) as emu, _bus(emu, 3, 1) as bus:
+        assert all(bus.set_torque(True).values())
+        bus.poll()
+        before = emu.packets_received
+        emu.servo(3).set('torque_limit', 0)
+        _poll_until(bus, lambda r: not bus.health()[2].torque_enabled, max_cycles=3)
+        assert emu.packets_received - before <= 3 * 3     # one READ per servo a cycle
+        lost = bus.health()[2].torque_lost
+        assert lost.startswith('lost its torque in an Alarm Shutdown (its error flag already '
+                               'cleared): Torque Limit (register 34) reads 0')
+        assert all(h.torque_enabled for h in bus.health()[:2])
+
+
+def test_p1_torque_on_refused_when_max_torque_is_zero_too():
+    """Torque Limit 0 and Max Torque 0 (nothing to restore from): torque on fails with the
+    reason, nothing written to EEPROM (before: 'torque on', the servo limp)."""
+    with ServoBusEmulator.of_model('ax18a', [1, 2]) as emu, _bus(emu, 2, 1) as bus:
+        emu.servo(1).set('max_torque', 0)
+        emu.servo(1).set('torque_limit', 0)
+        assert bus.set_torque(True) == {'j1': False, 'j2': True}
+        why = bus.health()[0].torque_error
+        assert 'Torque Limit (register 34) reads 0' in why
+        assert 'Max Torque (register 14, EEPROM)' in why and 'is 0 too' in why
+        assert emu.read_register(1, 'max_torque') == 0 == emu.read_register(1, 'torque_limit')
+        assert not bus.health()[0].torque_enabled
