@@ -97,8 +97,15 @@ Torque Enable and Torque Limit back in one READ; a Torque Limit of 0 is written 
 Torque (14, EEPROM, its power-on value) and read back, refused with the reason when Max Torque
 is 0 too or the error is still on: torque on never succeeds with Torque Limit 0.
 
+Goal limits: goals are clipped to the servo's own limits, read at open (Protocol 1.0 CW/CCW
+Angle Limit 6/8; 2.0 Min/Max Position Limit 52/48 in position mode 3, not in the multi-turn
+modes), where a goal outside is not applied (1.0 Angle Limit Error, 2.0 Data Limit Error, no
+status to a Sync Write); else to one turn. Clipped goals are counted (``goals_clipped``) and said
+once per episode (a run of clipped goals), naming the joint, the angle and the limit in the
+joint frame.
+
 Run-time transitions (a servo going silent or answering again, a hardware error flag appearing or
-clearing, torque lost, the loop rate falling below :data:`RATE_LOW_FRACTION` of the requested
+clearing, torque lost, goals clipped to the servo's limits, the loop rate falling below :data:`RATE_LOW_FRACTION` of the requested
 rate, given ``rate_hz``; a corrupted instruction reported by a servo) are queued for the log once
 per transition, throttled per kind and servo (:class:`EventLog`, :meth:`DynamixelBus.take_events`).
 
@@ -154,6 +161,7 @@ from dynamixel_sdk.robotis_def import COMM_RX_CORRUPT, COMM_RX_TIMEOUT, COMM_SUC
 
 from hexapod_bench_drivers.control_tables import (
     ERROR_OVERHEATING,
+    EXTENDED_POSITION_LIMIT,
     GOAL_POSITION_MODES,
     MULTI_TURN_MODES,
     OPERATING_MODES,
@@ -532,6 +540,10 @@ class ServoHealth:
     #: answering, but over another servo at its ID, at another baud rate or through noise
     streak_garbled: int = 0
     streak_no_reply: int = 0
+    #: goals clipped to the servo's limits (:meth:`DynamixelBus.write_goals`), and the last
+    #: one described while they keep coming ('' once a goal is inside the limits again)
+    goals_clipped: int = 0
+    goal_clip: str = ''
     #: the kinds of the last failed requests ('g' garbled, 'n' no reply, 'r' refused by the
     #: servo), newest last
     recent_failures: deque[str] = field(default_factory=lambda: deque(maxlen=RECENT_FAILURES))
@@ -596,6 +608,9 @@ class _Servo:
     first_model: ControlTable | None = None
     #: the servo refused a READ it received intact (an access error): its model is read again
     refused_read: bool = False
+    #: (low, high, registers) Goal Position ticks it accepts, read at open (Protocol 1.0
+    #: CW/CCW Angle Limit; 2.0 Min/Max Position Limit in position mode), else None
+    goal_range: tuple[int, int, str] | None = None
 
 
 class DynamixelBus:
@@ -1073,6 +1088,7 @@ class DynamixelBus:
                 return False
             self._read_operating_mode(s)
             self._read_wheel_mode(s)
+            self._read_position_limits(s)
             if first is not None and s.refusal.startswith('model changed'):
                 self.events.event((s.joint.servo_id, 'model'), 'info',
                                   f'{s.joint.name} (id {s.joint.servo_id}) answers as '
@@ -1225,9 +1241,14 @@ class DynamixelBus:
                               f'(registers {cw.address}, {ccw.address}) not read; wheel mode '
                               'not checked')
             return
-        if t.decode('cw_angle_limit', data, cw.address) or t.decode('ccw_angle_limit', data,
-                                                                    cw.address):
+        low = t.decode('cw_angle_limit', data, cw.address)
+        high = t.decode('ccw_angle_limit', data, cw.address)
+        if low or high:
             s.command_refusal = ''
+            # goals are clipped to them (a goal outside is an Angle Limit Error, not applied);
+            # an MX in multi-turn mode (both 4095) is left to its one-turn clip
+            s.goal_range = ((low, high, f'CW/CCW Angle Limit (registers {cw.address}/'
+                             f'{ccw.address})') if low < high else None)
             return
         s.command_refusal = (
             f'wheel mode: CW Angle Limit (register {cw.address}) and CCW Angle Limit (register '
@@ -1236,6 +1257,70 @@ class DynamixelBus:
             f'{t.max_tick} (joint mode), e.g. with Dynamixel Wizard: this driver never writes '
             'configuration registers')
         self.notes.append(f'{s.joint.name} (id {s.joint.servo_id}): {s.command_refusal}')
+
+    def _read_position_limits(self, s: _Servo) -> None:
+        """Protocol 2.0 Min/Max Position Limit (52/48), which bound Goal Position in position
+        mode (3) only (a goal outside gets Data Limit Error and is not applied): goals are
+        clipped to them (:meth:`write_goals`). Not in the multi-turn modes 4 and 5."""
+        assert s.table is not None
+        t = s.table
+        if 'min_position_limit' not in t.registers:
+            return      # Protocol 1.0: CW/CCW Angle Limit (:meth:`_read_wheel_mode`)
+        s.goal_range = None
+        if s.health.operating_mode != 3:
+            return
+        high, low = t.reg('max_position_limit'), t.reg('min_position_limit')
+        start = min(high.address, low.address)
+        end = max(high.address + high.size, low.address + low.size)
+        data, _ = self._read_settled(s, start, end - start)
+        if data is None:
+            self.notes.append(f'{s.joint.name} (id {s.joint.servo_id}): Min/Max Position Limit '
+                              f'(registers {low.address}/{high.address}) not read; goals '
+                              'clipped to one turn only')
+            return
+        lo = t.decode('min_position_limit', data, start)
+        hi = t.decode('max_position_limit', data, start)
+        if lo <= hi:
+            s.goal_range = (lo, hi, f'Min/Max Position Limit (registers {low.address}/'
+                                    f'{high.address})')
+
+    def _clip_goal(self, s: _Servo, target: float, multi_turn: bool) -> int:
+        """Goal Position tick of ``target`` (joint frame [rad]) inside the servo's limits (its
+        angle or position limits read at open, else one turn, or +-1 048 575 ticks in the
+        multi-turn modes). A goal clipped is counted (``goals_clipped``); the first of an
+        episode (clipped goals in a row) is a warning event naming the joint, the angle and
+        the limit in the joint frame; ``goal_clip`` describes the last one until a goal inside
+        ends the episode (info event)."""
+        assert s.table is not None
+        t = s.table
+        tick = t.rad_to_position(s.joint.to_servo(target), multi_turn=True)
+        if multi_turn:
+            lo, hi, regs = -EXTENDED_POSITION_LIMIT, EXTENDED_POSITION_LIMIT, 'multi-turn range'
+        elif s.goal_range is not None:
+            lo, hi, regs = s.goal_range
+        else:
+            lo, hi, regs = 0, t.max_tick, 'one turn'
+        name = f'{s.joint.name} (id {s.joint.servo_id})'
+        if lo <= tick <= hi:
+            if s.health.goal_clip:
+                s.health.goal_clip = ''
+                self.events.event((s.joint.servo_id, 'limit'), 'info',
+                                  f'{name} goals inside its limits again '
+                                  f'({s.health.goals_clipped} clipped so far)')
+            return tick
+        edge = lo if tick < lo else hi
+        s.health.goals_clipped += 1
+        first = not s.health.goal_clip
+        j_lo, j_hi = sorted(s.joint.to_joint(t.position_to_rad(x)) for x in (lo, hi))
+        limit = s.joint.to_joint(t.position_to_rad(edge))
+        s.health.goal_clip = (
+            f'goal {target:.3f} rad beyond its limit {limit:.3f} rad (joint frame; limits '
+            f'{j_lo:.3f}..{j_hi:.3f} rad from {regs}, ticks {lo}..{hi}): clipped to the limit')
+        if first:
+            self.events.event((s.joint.servo_id, 'limit'), 'warning',
+                              f'{name} {s.health.goal_clip}; the joint does not reach its '
+                              'commands (said once until a goal inside the limits)')
+        return edge
 
     @property
     def refused(self) -> dict[str, str]:
@@ -1900,8 +1985,10 @@ class DynamixelBus:
         """Sync Write goal positions (joint frame) and, if given, moving speeds; 0 if aborted.
 
         Unknown names, non-finite values and servos whose commands are refused (Operating
-        Mode, see :attr:`refused`) are skipped. Goals are clipped to one turn, or to
-        +-1 048 575 ticks in the multi-turn modes 4 and 5. A speed of 0 means 'as fast as
+        Mode, see :attr:`refused`) are skipped. Goals are clipped to the servo's limits read
+        at open (Protocol 1.0 CW/CCW Angle Limit, 2.0 Min/Max Position Limit in position
+        mode), else one turn, or to +-1 048 575 ticks in the multi-turn modes 4 and 5; a
+        clipped goal is counted and said (:meth:`_clip_goal`). A speed of 0 means 'as fast as
         possible' (the servos' own convention). Returns the number of servos written.
         """
         if self.aborted or not self.is_open:
@@ -1920,8 +2007,7 @@ class DynamixelBus:
                 continue
             t = s.table
             multi_turn = s.health.operating_mode in MULTI_TURN_MODES
-            goal = t.encode('goal_position',
-                            t.rad_to_position(s.joint.to_servo(target), multi_turn=multi_turn))
+            goal = t.encode('goal_position', self._clip_goal(s, target, multi_turn))
             speed = None if speeds_rad_s is None else speeds_rad_s.get(name)
             if speed is not None and math.isfinite(speed):
                 start, length = t.goal_block

@@ -27,10 +27,13 @@ back with torque off``, or ``torque off between two reads`` found by the bus's p
 Torque Enable reads, or a Protocol 1.0 Alarm Shutdown: Torque Limit, register 34, reads 0;
 ``torque_enabled`` then False) or for two replies to one request (``duplicate id?``); WARN for
 a servo whose commands are refused (its mode), which refused torque on (hardware error) or
-reports hardware error flags; OK otherwise.
+reports hardware error flags, or whose goals are being clipped to its angle limits (CW/CCW
+Angle Limit; Min/Max Position Limit in position mode: the count, the last commanded angle and
+the limit, in the joint frame; until a goal inside the limits); OK otherwise.
 
 Log: start-up findings and bus notes as warnings; run-time transitions (a servo silent or back,
-a hardware error flag, torque lost, the loop rate well below ``rate_hz``) once per transition,
+a hardware error flag, torque lost, goals clipped to a servo's limits, the loop rate well
+below ``rate_hz``) once per transition,
 throttled (warning; info on recovery).
 
 The port failing at run time (a USB adapter unplugged) is logged once as an error, published as
@@ -361,6 +364,9 @@ class DynamixelDriverNode(Node):
         elif servo.command_refusal:
             d.level = DiagnosticStatus.WARN
             d.message = f'read only, commands refused: {servo.command_refusal}'
+        elif h.goal_clip:
+            d.level = DiagnosticStatus.WARN
+            d.message = f'{h.goals_clipped} goals clipped so far: {h.goal_clip}'
         elif h.torque_error:
             d.level, d.message = DiagnosticStatus.WARN, h.torque_error
         elif flags:
@@ -376,6 +382,7 @@ class DynamixelDriverNode(Node):
                   'duplicate_replies': h.duplicate_replies,
                   'rejected_instructions': h.rejected_instructions,
                   'refused_instructions': h.refused_instructions,
+                  'goals_clipped': h.goals_clipped,
                   'reply_margin_ms': f'{self.bus.reply_margin_ms:.0f}'}
         d.values = [KeyValue(key=k, value=str(v)) for k, v in values.items()]
         return d

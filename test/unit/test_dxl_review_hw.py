@@ -118,3 +118,66 @@ def test_p1_torque_on_refused_when_max_torque_is_zero_too():
         assert 'Max Torque (register 14, EEPROM)' in why and 'is 0 too' in why
         assert emu.read_register(1, 'max_torque') == 0 == emu.read_register(1, 'torque_limit')
         assert not bus.health()[0].torque_enabled
+
+
+# --- 3: goals beyond the servo's angle / position limits ---------------------------------------
+def test_p1_goals_clipped_to_cw_ccw_angle_limits_counted_and_said_once():
+    """AX-18A ids 1 and 2 limited to ticks 300..700 (id 2 mounted reversed, direction -1). A
+    goal of 1.2 rad (tick 922) was written as is: the servo refuses it (Angle Limit Error, no
+    status to a Sync Write) and nobody was told. Now clipped to the limit, counted, one
+    warning per joint per episode in the joint frame, info when goals are inside again."""
+    from hexapod_bench_drivers.control_tables import AX18A
+
+    joints = [JointConfig('j1', 1), JointConfig('j2', 2, direction=-1), JointConfig('j3', 3)]
+    with ServoBusEmulator.of_model('ax18a', [1, 2, 3]) as emu:
+        for i in (1, 2):
+            emu.servo(i).set('cw_angle_limit', 300)
+            emu.servo(i).set('ccw_angle_limit', 700)
+        with _bus(emu, 3, 1, joints=joints) as bus:
+            bus.take_events()
+            for _ in range(5):
+                assert bus.write_goals({'j1': 1.2, 'j2': 1.2, 'j3': 0.5}) == 3
+                bus.poll()
+            assert [emu.read_register(i, 'goal_position') for i in (1, 2, 3)] == [
+                700, 300, AX18A.rad_to_position(0.5)]
+            h = bus.health()
+            assert [x.goals_clipped for x in h] == [5, 5, 0]
+            tick = AX18A.rad_per_tick
+            warnings = [m for lv, m in bus.take_events() if lv == 'warning']
+            assert len(warnings) == 2
+            assert warnings[0].startswith(
+                f'j1 (id 1) goal 1.200 rad beyond its limit {188 * tick:.3f} rad (joint frame; '
+                f'limits {-212 * tick:.3f}..{188 * tick:.3f} rad from CW/CCW Angle Limit '
+                '(registers 6/8), ticks 300..700): clipped to the limit')
+            assert warnings[1].startswith(f'j2 (id 2) goal 1.200 rad beyond its limit '
+                                          f'{212 * tick:.3f} rad')
+            assert 'goal 1.200 rad' in h[0].goal_clip and h[2].goal_clip == ''
+            bus.write_goals({'j1': 0.1, 'j2': 1.2})
+            bus.poll()
+            assert h[0].goal_clip == '' and h[1].goal_clip and h[1].goals_clipped == 6
+            infos = [m for lv, m in bus.take_events() if lv == 'info']
+            assert infos == ['j1 (id 1) goals inside its limits again (5 clipped so far)']
+
+
+def test_p2_goals_clipped_to_min_max_position_limit_in_position_mode_only():
+    """XM430 ids 1 and 2 with Min/Max Position Limit 1536..2560; id 2 in extended position
+    mode (4), where the limits do not apply. 1.2 rad is tick 2830: a Data Limit Error on id
+    1 (not applied, not said) before; now clipped to 2560, written as is on id 2."""
+    from hexapod_bench_drivers.control_tables import XM430
+    from hexapod_bench_drivers.servo_bus_emulator import EmulatedServo
+
+    servos = [EmulatedServo(i, XM430) for i in (1, 2)]
+    for s in servos:
+        s.set('min_position_limit', 1536)
+        s.set('max_position_limit', 2560)
+    servos[1].set('operating_mode', 4)
+    with ServoBusEmulator(servos) as emu, _bus(emu, 2, 2) as bus:
+        bus.take_events()
+        assert bus.write_goals({'j1': 1.2, 'j2': 1.2}) == 2
+        bus.poll()
+        assert emu.read_register(1, 'goal_position') == 2560
+        assert emu.read_register(2, 'goal_position') == XM430.rad_to_position(1.2) == 2830
+        h = bus.health()
+        assert (h[0].goals_clipped, h[1].goals_clipped) == (1, 0)
+        assert 'Min/Max Position Limit (registers 52/48), ticks 1536..2560' in h[0].goal_clip
+        assert [lv for lv, m in bus.take_events()] == ['warning']
