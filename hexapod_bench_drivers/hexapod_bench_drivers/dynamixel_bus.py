@@ -105,9 +105,10 @@ once per episode (a run of clipped goals), naming the joint, the angle and the l
 joint frame.
 
 Run-time transitions (a servo going silent or answering again, a hardware error flag appearing or
-clearing, torque lost, goals clipped to the servo's limits, the loop rate falling below :data:`RATE_LOW_FRACTION` of the requested
-rate, given ``rate_hz``; a corrupted instruction reported by a servo) are queued for the log once
-per transition, throttled per kind and servo (:class:`EventLog`, :meth:`DynamixelBus.take_events`).
+clearing, torque lost, goals clipped to the servo's limits, the loop rate falling below
+:data:`RATE_LOW_FRACTION` of the requested rate, given ``rate_hz``; a corrupted instruction
+reported by a servo) are queued for the log once per transition, throttled per kind and servo
+(:class:`EventLog`, :meth:`DynamixelBus.take_events`).
 
 The port: an ``OSError`` from the serial device (a USB adapter unplugged: EIO), or the
 ``termios.error`` the input flush before each transaction raises then, closes the bus and
