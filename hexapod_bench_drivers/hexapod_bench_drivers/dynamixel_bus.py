@@ -192,6 +192,7 @@ __all__ = [
     'ServoHealth',
     'ServoReading',
     'TORQUE_CHECK_INTERVAL_CYCLES',
+    'TorqueOffReport',
     'load_joint_map',
     'parse_joint_map',
     'usb_latency_timer_ms',
@@ -593,6 +594,51 @@ class PollResult:
     abort_reason: str = ''
 
 
+@dataclass(frozen=True)
+class TorqueOffReport:
+    """What torque off at shutdown did (:meth:`DynamixelBus.torque_off_at_shutdown`), by joint.
+
+    confirmed : Torque Enable 0 acknowledged or read back.
+    unconfirmed : servos the driver wrote (torque on, goals) whose torque off was not
+        confirmed (silent, garbled, left out since): they may still hold their position.
+    blind : left out at Status Return Level 0 with a known model: Torque Enable 0 sent, no
+        reply expected (such a servo executes writes; it never answers).
+    never_written : left out (unknown model, Status Return Level 0 of an unknown model,
+        silent since start): never written by the driver; their torque state is unknown.
+    port_error : the port failed when torque off was sent (nothing confirmed).
+    """
+
+    confirmed: tuple[str, ...] = ()
+    unconfirmed: tuple[str, ...] = ()
+    blind: tuple[str, ...] = ()
+    never_written: tuple[str, ...] = ()
+    port_error: str = ''
+
+    @property
+    def ok(self) -> bool:
+        """Every servo the driver wrote confirmed torque off."""
+        return not self.unconfirmed and not self.port_error
+
+    def lines(self) -> list[tuple[str, str]]:
+        """(level 'info', 'warning' or 'error', message) for the log."""
+        out = []
+        if self.port_error:
+            out.append(('error', f'torque off at shutdown not sent: {self.port_error}'))
+        if self.unconfirmed:
+            out.append(('error', 'torque off at shutdown not confirmed by '
+                        f'{", ".join(self.unconfirmed)}: they may still hold their position'))
+        if self.blind:
+            out.append(('warning', 'torque off at shutdown sent without a reply to '
+                        f'{", ".join(self.blind)} (left out at Status Return Level 0: the servo '
+                        'carries out writes but never answers): not confirmed'))
+        if self.never_written:
+            out.append(('warning', f'{", ".join(self.never_written)}: left out, never written; '
+                        'torque state unknown'))
+        if self.confirmed:
+            out.append(('info', f'torque off on {len(self.confirmed)} servo(s)'))
+        return out
+
+
 @dataclass
 class _Servo:
     joint: JointConfig
@@ -612,6 +658,11 @@ class _Servo:
     #: (low, high, registers) Goal Position ticks it accepts, read at open (Protocol 1.0
     #: CW/CCW Angle Limit; 2.0 Min/Max Position Limit in position mode), else None
     goal_range: tuple[int, int, str] | None = None
+    #: the driver sent it a torque write or a goal (its torque may be on because of the driver)
+    written: bool = False
+    #: the control table of a servo left out at Status Return Level 0 whose model is known
+    #: (Protocol 2.0: from its PING reply): torque off is sent to it blind at shutdown
+    level0_table: ControlTable | None = None
 
 
 class DynamixelBus:
@@ -1163,6 +1214,8 @@ class DynamixelBus:
         self.notes.append(f'{s.joint.name} (id {s.joint.servo_id}) left out: {s.refusal}')
 
     def _refuse_level_0(self, s: _Servo) -> None:
+        if s.table is not None:     # Protocol 2.0: the model came with the PING's reply
+            s.level0_table = s.table
         s.table = None
         s.health.model = 'unreadable (Status Return Level 0)'
         s.refusal = (f'answers PING but no READ: its Status Return Level is 0 (the servo '
@@ -1863,6 +1916,7 @@ class DynamixelBus:
                 value = int(bool(enabled))
                 sid = s.joint.servo_id
                 self._prepare([sid])
+                s.written = True
                 result = self.packet.write1ByteTxOnly(self.port, sid, address, value)
                 error = 0
                 if result == COMM_SUCCESS and s.health.status_return_level >= 2:
@@ -1918,6 +1972,43 @@ class DynamixelBus:
                 s.health.torque_error = f'torque {state} not confirmed: {why}'
             out[name] = ok
         return out
+
+    def torque_off_at_shutdown(self) -> TorqueOffReport:
+        """Torque off on every servo, as at shutdown, reported by joint (:class:`TorqueOffReport`):
+        a servo left out at Status Return Level 0 whose model is known gets Torque Enable 0
+        without waiting for a reply; other left-out servos are not written. Never raises for
+        the port (its failure is in ``port_error``)."""
+        try:
+            result = self.set_torque(False)
+        except PortLostError as err:
+            return TorqueOffReport(port_error=str(err))
+        confirmed, unconfirmed, blind, never = [], [], [], []
+        for s in self.servos:
+            name = s.joint.name
+            if s.table is not None:
+                (confirmed if result.get(name) else unconfirmed).append(name)
+            elif s.level0_table is not None and self._torque_off_blind(s):
+                blind.append(name)
+            elif s.written:
+                unconfirmed.append(name)   # e.g. another model answers at its ID since
+            else:
+                never.append(name)
+        return TorqueOffReport(tuple(confirmed), tuple(unconfirmed), tuple(blind), tuple(never))
+
+    def _torque_off_blind(self, s: _Servo) -> bool:
+        """Torque Enable 0 to a servo at Status Return Level 0 (no reply): True when sent."""
+        assert s.level0_table is not None
+        if not self.is_open:
+            return False
+        try:
+            with self._port_guard():
+                sid = s.joint.servo_id
+                self._prepare([sid])
+                address = s.level0_table.reg('torque_enable').address
+                return bool(self.packet.write1ByteTxOnly(self.port, sid, address, 0)
+                            == COMM_SUCCESS)
+        except PortLostError:
+            return False
 
     def _restore_torque_limit(self, s: _Servo, status_error: int) -> bool | None:
         """A Protocol 1.0 servo whose Torque Limit reads 0 at torque on (an Alarm Shutdown,
@@ -2023,6 +2114,7 @@ class DynamixelBus:
                 group = groups[(start, length)] = GroupSyncWrite(self.port, self.packet, start,
                                                                  length)
             group.addParam(s.joint.servo_id, list(payload))
+            s.written = True
             count += 1
         for group in groups.values():
             self._prepare()   # never talk over a late reply (a collision on the half-duplex line)

@@ -41,6 +41,11 @@ ERROR on /diagnostics naming the port, and the node stops with exit code 1 (no t
 the dead port at shutdown).
 
 On shutdown, torque is turned off (``shutdown_action: torque_off``) or left on (``hold``).
+Torque off that a servo the driver had written did not confirm (silent, garbled replies) is
+logged as an error naming it and the node exits with code 3 (``EXIT_TORQUE_OFF_UNCONFIRMED``)
+instead of 0; a servo left out (unknown model, Status Return Level 0) is named "left out, never
+written; torque state unknown", except one at Status Return Level 0 whose model is known
+(Protocol 2.0), which is sent Torque Enable 0 without waiting for a reply, said.
 A stop (Ctrl-C, SIGTERM) while the node starts ends the torque-on pass at the next servo, and
 any stop or error once the bus is open releases it the same way (``start-up stopped: ...``
 logged) before the node stops as before (exit 0 for a stop, 2 for an error).
@@ -85,10 +90,14 @@ from hexapod_bench_drivers.dynamixel_bus import (
     load_joint_map,
 )
 
-__all__ = ['DynamixelDriverNode', 'DynamixelDriverParams', 'EXIT_PORT_LOST', 'main']
+__all__ = ['DynamixelDriverNode', 'DynamixelDriverParams', 'EXIT_PORT_LOST',
+           'EXIT_TORQUE_OFF_UNCONFIRMED', 'main']
 
 #: exit code of the node when its port fails at run time (a USB adapter unplugged)
 EXIT_PORT_LOST = 1
+#: exit code of a stop whose torque off at shutdown some servo the driver had written did not
+#: confirm (silent, garbled), or that the port failing then kept from being sent
+EXIT_TORQUE_OFF_UNCONFIRMED = 3
 
 
 def _positive(v: float) -> str | None:
@@ -177,6 +186,9 @@ class DynamixelDriverNode(Node):
         p = self.params
         #: done with the exit code when the node stops by itself (the port lost), see run_node
         self.finished = Future()
+        #: the exit code after a stop (run_node): EXIT_TORQUE_OFF_UNCONFIRMED when torque off
+        #: at shutdown was not confirmed, else 0
+        self.exit_code_on_stop = 0
         for h in self.bus.health():
             self.get_logger().info(f'servo id {h.servo_id}: {h.model}'
                                    + (' (silent)' if h.silent else ''))
@@ -392,19 +404,20 @@ class DynamixelDriverNode(Node):
         if not self.bus.is_open:
             return
         if self.params.shutdown_action == 'torque_off':
-            try:
-                result = self.bus.set_torque(False)
-            except PortLostError as err:
-                self.get_logger().error(f'{prefix}torque off at shutdown not sent: {err}')
-            else:
-                # said (it was silent): a servo that did not confirm may still hold
-                failed = sorted(n for n, ok in result.items() if not ok)
-                if failed:
-                    self.get_logger().error(
-                        f'{prefix}torque off at shutdown not confirmed by {", ".join(failed)}: '
-                        'they may still hold their position')
+            # said (it was silent): a servo that did not confirm may still hold; one the driver
+            # never wrote is named as such (an outside review: "not confirmed" for servos left
+            # out at start)
+            report = self.bus.torque_off_at_shutdown()
+            log = self.get_logger()
+            for level, line in report.lines():
+                if level == 'error':   # one call site per severity (rclpy requires it)
+                    log.error(prefix + line)
+                elif level == 'warning':
+                    log.warning(prefix + line)
                 else:
-                    self.get_logger().info(f'{prefix}torque off on {len(result)} servo(s)')
+                    log.info(prefix + line)
+            if not report.ok:
+                self.exit_code_on_stop = EXIT_TORQUE_OFF_UNCONFIRMED
         else:
             self.get_logger().warning(f'{prefix}shutdown_action hold: torque left on, the '
                                       'servos hold their last position')

@@ -97,3 +97,25 @@ def test_goals_clipped_warn_on_diagnostics_with_the_count(tmp_path):
         n = len(diags.messages)
         assert env.spin_until(lambda: len(diags.messages) >= n + 2, 30.0)
         assert _status(diags, 'j1').level == DiagnosticStatus.OK
+
+
+@pytest.mark.timeout(90)
+def test_left_out_servos_named_as_never_written_at_shutdown(tmp_path):
+    """AX-18A j2 at Status Return Level 0 (left out, its model unread on Protocol 1.0): the
+    shutdown line named it 'not confirmed: they may still hold their position' though the
+    driver never wrote it. Now 'left out, never written; torque state unknown' (a warning),
+    and the exit code stays 0 since every servo the driver wrote confirmed."""
+    with ServoBusEmulator.of_model('ax18a', [1, 2]) as emu, ros_env('dxl_hw') as env:
+        emu.servo(2).set('status_return_level', 0)
+        node = _node(env, emu, tmp_path, 1, retries=0)
+        lines = []
+        log = node.get_logger()
+        for level in ('info', 'warning', 'error'):
+            setattr(log, level, lambda msg, _lv=level, **kw: lines.append((_lv, msg)))
+        env.nodes.remove(node)
+        env.executor.remove_node(node)
+        node.destroy_node()
+        assert ('warning', 'j2: left out, never written; torque state unknown') in lines
+        assert ('info', 'torque off on 1 servo(s)') in lines
+        assert not [m for lv, m in lines if lv == 'error']
+        assert node.exit_code_on_stop == 0

@@ -6,6 +6,7 @@ angle limits, torque off at shutdown, -0.0 at rest."""
 from __future__ import annotations
 
 import math
+import threading
 
 import pytest
 
@@ -181,3 +182,58 @@ def test_p2_goals_clipped_to_min_max_position_limit_in_position_mode_only():
         assert (h[0].goals_clipped, h[1].goals_clipped) == (1, 0)
         assert 'Min/Max Position Limit (registers 52/48), ticks 1536..2560' in h[0].goal_clip
         assert [lv for lv, m in bus.take_events()] == ['warning']
+
+
+# --- 4: torque off at shutdown -----------------------------------------------------------------
+def test_torque_off_at_shutdown_names_what_it_did_to_each_servo():
+    """XL430 bus: j1 answers; j2 is at Status Return Level 0 (model known from its PING,
+    torque on from an earlier run); j3 is an unknown model (number 1240, XC330); j4 goes
+    silent after torque on. Before: 'not confirmed by j2, j3, j4' for all three. Now j2 gets
+    Torque Enable 0 without a reply, j3 is named as never written, j4 as not confirmed."""
+    import dataclasses
+
+    from hexapod_bench_drivers.control_tables import XL430
+    from hexapod_bench_drivers.servo_bus_emulator import EmulatedServo
+
+    servos = [EmulatedServo(1, XL430), EmulatedServo(2, XL430),
+              EmulatedServo(3, dataclasses.replace(XL430, model_number=1240)),
+              EmulatedServo(4, XL430)]
+    servos[1].set('status_return_level', 0)
+    servos[1].set('torque_enable', 1)
+    servos[2].set('torque_enable', 1)
+    written = threading.Event()   # the blind write, which no reply tells the bus about
+    servos[1].write_hook = lambda s, at, data: written.set()
+    with ServoBusEmulator(servos) as emu, _bus(emu, 4, 2, retries=0) as bus:
+        assert set(bus.refused) == {'j2', 'j3'}
+        assert bus.set_torque(True) == {'j1': True, 'j2': False, 'j3': False, 'j4': True}
+        emu.inject(4, 'no_answer')
+        report = bus.torque_off_at_shutdown()
+        assert written.wait(10.0)
+        assert (report.confirmed, report.unconfirmed, report.blind, report.never_written) == (
+            ('j1',), ('j4',), ('j2',), ('j3',))
+        assert not report.ok
+        assert [emu.read_register(i, 'torque_enable') for i in (1, 2, 3)] == [0, 0, 1]
+        lines = report.lines()
+        assert lines == [
+            ('error', 'torque off at shutdown not confirmed by j4: they may still hold their '
+                      'position'),
+            ('warning', 'torque off at shutdown sent without a reply to j2 (left out at Status '
+                        'Return Level 0: the servo carries out writes but never answers): not '
+                        'confirmed'),
+            ('warning', 'j3: left out, never written; torque state unknown'),
+            ('info', 'torque off on 1 servo(s)')]
+
+
+def test_p1_level_0_servo_of_unknown_model_is_not_written_and_ok():
+    """Protocol 1.0 reads the model by a READ, which a Status Return Level 0 servo never
+    answers: its model (and Torque Enable address) is unknown, so nothing is sent to it; the
+    servos the driver wrote all confirmed: ok (exit 0)."""
+    with ServoBusEmulator.of_model('ax18a', [1, 2]) as emu:
+        emu.servo(2).set('status_return_level', 0)
+        emu.servo(2).set('torque_enable', 1)
+        with _bus(emu, 2, 1, retries=0) as bus:
+            bus.set_torque(True)
+            report = bus.torque_off_at_shutdown()
+            assert report.confirmed == ('j1',) and report.never_written == ('j2',)
+            assert report.ok and not report.blind and not report.unconfirmed
+            assert emu.read_register(2, 'torque_enable') == 1
