@@ -1625,12 +1625,13 @@ class DynamixelBus:
                                    limit=limits.get(sid))
             st = s.table.decode_present(data)
             j = s.joint
+            # + 0.0: a direction -1 joint at rest read -0.0 (an outside review)
             readings.append(ServoReading(
                 name=j.name, servo_id=sid, ok=True,
-                position_rad=j.to_joint(st.position_rad),
-                velocity_rad_s=j.direction * st.velocity_rad_s,
-                effort_nm=j.direction * st.load_fraction * s.table.stall_torque_nm,
-                load_fraction=j.direction * st.load_fraction,
+                position_rad=j.to_joint(st.position_rad) + 0.0,
+                velocity_rad_s=j.direction * st.velocity_rad_s + 0.0,
+                effort_nm=j.direction * st.load_fraction * s.table.stall_torque_nm + 0.0,
+                load_fraction=j.direction * st.load_fraction + 0.0,
                 voltage_v=st.voltage_v, temperature_c=st.temperature_c, error_flags=flags))
         return tuple(readings)
 

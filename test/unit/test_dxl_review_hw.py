@@ -237,3 +237,16 @@ def test_p1_level_0_servo_of_unknown_model_is_not_written_and_ok():
             assert report.confirmed == ('j1',) and report.never_written == ('j2',)
             assert report.ok and not report.blind and not report.unconfirmed
             assert emu.read_register(2, 'torque_enable') == 1
+
+
+# --- 5: no -0.0 --------------------------------------------------------------------------------
+@pytest.mark.parametrize('model,protocol', P1P2)
+def test_reversed_joint_at_rest_reads_plus_zero(model, protocol):
+    """A direction -1 joint at rest published velocity and effort -0.0."""
+    joints = [JointConfig('j1', 1, direction=-1)]
+    with ServoBusEmulator.of_model(model, [1]) as emu, _bus(emu, 1, protocol,
+                                                            joints=joints) as bus:
+        r = bus.poll().readings[0]
+        assert r.ok
+        for value in (r.position_rad, r.velocity_rad_s, r.effort_nm, r.load_fraction):
+            assert value == 0.0 and math.copysign(1.0, value) == 1.0
