@@ -97,6 +97,7 @@ __all__ = [
     'FIT_MODELS',
     'fit_ground_offset',
     'leg_contacts',
+    'offset_ground_grid',
     'rest_height_m',
     'single_support',
     'stride_slope_rad',
@@ -1394,6 +1395,54 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
                        pitch_offset_se_rad=st.p0_se if pitch_fitted else math.nan,
                        tilt_source=tilt_source, stiffness_per_kg=st.k_per_kg,
                        samples=st.n_samples, flight=flight)
+
+
+def offset_ground_grid(geometry: LegGeometry, joint_names: tuple[str, ...],
+                       joint_t_s: ArrayLike, joint_position: ArrayLike,
+                       joint_velocity: ArrayLike, mocap_t_s: ArrayLike, height_m: ArrayLike,
+                       pitch_rad: ArrayLike, *, initial_offset_s: float,
+                       offset_range_s: float = 0.2,
+                       ground_range_m: tuple[float, float] = (-0.25, 0.25),
+                       offset_step_s: float = 5e-3, ground_step_m: float = 2e-3,
+                       window_s: float = 0.1, max_windows: int = 60,
+                       pitch_offset_rad: float = 0.0, x_m: ArrayLike | None = None
+                       ) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The coarse stage's cost of :func:`fit_ground_offset` on a whole grid of stream offsets
+    and ground heights: ``(offsets, grounds, cost)``, ``cost[i, j]`` the mean squared residual
+    of the body's vertical dynamics at ``(offsets[i], grounds[j])``.
+
+    :func:`fit_ground_offset` picks the ground at its start and searches the offset near that
+    ground only; from a start far off (a cross-correlation 80 ms off, no hip efforts) that
+    ground is far off too (143 mm on an outside review's run) and the true pair is never
+    visited. This grid visits every pair, for a start to fit from. The model is the coarse
+    stage's (the geometry's damping time when known, else the linear model's free damping);
+    level ground, the pitch zero ``pitch_offset_rad``; at most ``max_windows`` windows of
+    ``window_s``, spread over the run (the cost of a grid point grows with the samples).
+    Raises SlipDataError when the streams overlap too little."""
+    body = _Body(geometry, tuple(joint_names), joint_t_s, joint_position, joint_velocity,
+                 mocap_t_s, height_m, pitch_rad, x_m, 0)
+    masks = _windows(body.tm, window_s)
+    t_lo = max(body.tm[0], body.t_j[0] + initial_offset_s + offset_range_s + 0.02)
+    t_hi = min(body.tm[-1], body.t_j[-1] + initial_offset_s - offset_range_s - 0.02)
+    keep = (body.tm >= t_lo) & (body.tm <= t_hi)
+    masks = [k & keep for k in masks]
+    masks = [k for k in masks if k.sum() >= 8]
+    if len(masks) < 3:
+        raise SlipDataError(f'offset grid: {len(masks)} mocap windows overlap the hip angles '
+                            f'over +-{offset_range_s:g} s, need >= 3')
+    if len(masks) > max_windows:
+        masks = [masks[int(i)] for i in np.linspace(0, len(masks) - 1, max_windows)]
+    tau = geometry.leg_damping_time_s
+    model = 'clipped' if tau is not None else 'linear'
+    reach = offset_range_s + 0.015
+    tf = np.arange(t_lo - initial_offset_s - reach, t_hi - initial_offset_s + reach, 1e-3)
+    body.set_tilt(0.0, float(pitch_offset_rad))
+    offsets = initial_offset_s + np.arange(-offset_range_s, offset_range_s + 1e-9,
+                                           offset_step_s)
+    grounds = np.arange(ground_range_m[0], ground_range_m[1] + 1e-9, ground_step_m)
+    cost = np.array([[_cost(body, masks, tf, float(d), float(g), model=model,
+                            tau_s=tau or 0.0) for g in grounds] for d in offsets])
+    return offsets, grounds, cost
 
 
 def leg_contacts(geometry: LegGeometry, joint_names: tuple[str, ...], joint_t_s: ArrayLike,

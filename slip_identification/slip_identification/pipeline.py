@@ -24,6 +24,7 @@ from .geometry import (
     LegGeometry,
     body_pitch_rad,
     fit_ground_offset,
+    offset_ground_grid,
     leg_contacts,
     white_noise_std,
     single_support,
@@ -407,6 +408,71 @@ def _other_starts(gfit: Any, geo_inputs: tuple[Any, ...], geo_x: FloatArray, fir
     return best
 
 
+#: grid candidates (local minima of the best cost over the ground) refitted at most
+GRID_CANDIDATES = 3
+
+
+def _grid_start(gfit: Any, geo_inputs: tuple[Any, ...], geo_x: FloatArray, start: float,
+                off_range: float, res: RunResult, p0_kw: dict[str, Any]) -> Any:
+    """A fit from a whole grid of offsets and ground heights, when the first leaves the body
+    height unexplained (residual over :data:`GEOMETRY_RESIDUAL_HIGH` times the mocap noise);
+    the better fit is returned (else None).
+
+    The geometric fit takes the ground at its start and searches the offset near that ground;
+    from a start far off (without hip efforts the cross-correlation's: 96 ms off on an
+    outside review's RHex-class runner) the ground was 143 mm off, the offset 76 ms off with
+    a residual 10 times the noise, and every stiffness and rest length 5 times off, with a note
+    only. The grid (:func:`~slip_identification.geometry.offset_ground_grid`, +-0.2 s, or twice
+    the first search's range, by +-25 cm) gives up to :data:`GRID_CANDIDATES` starts (the
+    best ground at each offset, its local minima, the lowest first); one is kept when it
+    lowers the body-height residual by :data:`HALF_STRIDE_BETTER` (``frame['offset_grid']``).
+    """
+    noise = white_noise_std(geo_inputs[6])
+    if gfit.rms_m <= GEOMETRY_RESIDUAL_HIGH * max(noise, 1e-4):
+        return None
+    half = max(2.0 * off_range, 0.2)
+    try:
+        offs, grounds, cost = offset_ground_grid(
+            *geo_inputs, initial_offset_s=start, offset_range_s=half, x_m=geo_x,
+            pitch_offset_rad=float(p0_kw.get('pitch_offset_rad', 0.0)))
+    except SlipDataError:
+        return None
+    best_j = np.argmin(cost, axis=1)
+    prof = cost[np.arange(offs.size), best_j]
+    minima = [i for i in range(offs.size)
+              if (i == 0 or prof[i] <= prof[i - 1]) and
+              (i == offs.size - 1 or prof[i] <= prof[i + 1])]
+    minima.sort(key=lambda i: prof[i])
+    tried = []
+    best = gfit
+    for i in minima[:GRID_CANDIDATES]:
+        d, g = float(offs[i]), float(grounds[best_j[i]])
+        if abs(d - gfit.offset_s) < 0.01 and abs(g - gfit.ground_m) < 0.01:
+            continue   # the first fit's own basin
+        try:
+            f = fit_ground_offset(*geo_inputs, initial_offset_s=d, offset_range_s=0.03,
+                                  ground_range_m=(g - 0.02, g + 0.02), fix_offset=False,
+                                  x_m=geo_x, **p0_kw)
+        except SlipDataError:
+            continue
+        tried.append({'start_s': d, 'start_ground_m': g, 'offset_s': f.offset_s,
+                      'ground_m': f.ground_m, 'rms_m': f.rms_m})
+        if f.rms_m < best.rms_m * (1 - HALF_STRIDE_BETTER):
+            best = f
+    res.frame['offset_grid'] = {'first_offset_s': gfit.offset_s, 'first_ground_m': gfit.ground_m,
+                                'first_rms_m': gfit.rms_m, 'range_s': half, 'tried': tried,
+                                'kept': best is not gfit}
+    if best is gfit:
+        return None
+    res.notes.append(
+        f'the geometric fit from the first estimate ({start:+.4f} s) left the body height '
+        f'unexplained ({1e3 * gfit.rms_m:.2f} mm RMS against {1e3 * noise:.2f} mm of mocap '
+        f'noise at {gfit.offset_s:+.4f} s, ground {gfit.ground_m:+.3f} m); a grid of offsets '
+        f'(+-{half:.2f} s) and grounds found a better start: offset {best.offset_s:+.4f} s, '
+        f'ground {best.ground_m:+.3f} m, {1e3 * best.rms_m:.2f} mm RMS, kept')
+    return best
+
+
 def _stride_period_s(tj: FloatArray, speed: dict[str, FloatArray]) -> float:
     """Stride period [s] of a RHex-class run: one hip revolution per stride (the tripods'
     mean hip speed), NaN when the hips do not turn on (not a rotating-leg gait)."""
@@ -468,14 +534,17 @@ def _half_stride_check(gfit: Any, geo_inputs: tuple[Any, ...], geo_x: FloatArray
             f'the start {best.offset_s:+.4f} s fits the body height clearly better (rms '
             f'{1e3 * best.rms_m:.3f} mm against {1e3 * gfit.rms_m:.3f} mm)')
     elif min(rms) < gfit.rms_m * (1 + HALF_STRIDE_BETTER):
-        res.notes.append(
+        # a warning: the tripods' labels (and every per-tripod figure) may be swapped
+        res.warn(
             f'offset ambiguous by half a stride ({half:.3f} s): without hip efforts the '
             f'geometric fit cannot tell the tripods apart (they mirror each other in the '
             f'sagittal plane; body-height rms {1e3 * gfit.rms_m:.3f} mm at '
             f'{gfit.offset_s:+.4f} s, ' + ', '.join(
                 f'{1e3 * f.rms_m:.3f} mm at {f.offset_s:+.4f} s' for f in alt) +
-            '); the cross-correlation\'s sign chose it. If the stances look swapped (tripod '
-            'labels, foot positions a step off), give --offset, or record hip efforts')
+            '); the first fit\'s was kept (from the cross-correlation, or a grid search when '
+            'that left the body height unexplained), so the tripods\' labels and their '
+            'figures may be swapped. If the stances look swapped (foot positions a step '
+            'off), give --offset, or record hip efforts')
     if best is gfit:
         return free_fit
     try:
@@ -661,7 +730,7 @@ def _check_geometry_residual(gfit: GeometryFit, height_m: FloatArray, res: RunRe
     res.frame['geometry_residual_ratio'] = ratio
     res.frame['geometry_fit_poor'] = poor
     if poor:
-        res.notes.append(
+        res.warn(
             f'the geometric fit does not explain the body height: residual '
             f'{1e3 * gfit.rms_m:.2f} mm RMS against {1e3 * noise:.2f} mm of motion-capture '
             f'noise, over {gfit.windows} windows. The stream offset ({gfit.offset_s:+.4f} s), '
@@ -948,6 +1017,10 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                     f'{wide.ground_m:+.3f} m, offset {wide.offset_s:+.3f} s, rms '
                     f'{1e3 * wide.rms_m:.2f} mm (the mocap origin is not on the floor)')
                 gfit = wide
+        if method == 'geometry':
+            found = _grid_start(gfit, geo_inputs, geo_x, off, off_range, res, p0_kw)
+            if found is not None:
+                gfit, off = found, found.offset_s
         if method == 'geometry' and init in ('contact', 'joint'):
             others: dict[str, float] = {}
             for name in ('contact', 'joint'):
