@@ -85,7 +85,9 @@ the same, so that none is left beside the new result). Schema of ``slip.json``::
                           "default_offset_s", "default_rms_m", "fitted_damping_time_s",
                           "fitted_offset_s", "fitted_rms_m", "kept"}),
                           "effort_contact_lag_s" (aerial gaits: geometric touchdowns
-                          minus hip-effort onsets, median; over 6 ms a warning),
+                          minus hip-effort onsets, median; a warning when it is over 6 ms
+                          from minus "effort_onset_rise_s", how late a slowly rising effort
+                          crosses the onset's threshold),
                           "com_height_m" (mocap_origin: median COM height above the
                           origin's plane, with a note that heights are measured from it),
                           "frozen_mocap_samples" (poses repeating the previous one exactly,
@@ -588,10 +590,15 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
         notes.append('no /gait/phase in the bag: the gait name is unknown')
     gaits = list(dict.fromkeys(g for _, g in run.gait_changes))
     if len(gaits) > 1:
+        en = res.frame.get('energetics') or {}
+        span = (f' ({en["start_s"]:.2f} to {en["end_s"]:.2f} s, {en["whole_cycles"]} cycles)'
+                if en.get('whole_cycles') else '')
+        # not 'over the whole bag': a robot standing before it runs has no gait cycles there
+        # (an outside review's 10 s standing then running: 60.0 W, the running's, was right)
         notes.append(f'the gait changes in this bag ({" -> ".join(gaits)}): each stance is '
                      'labelled with the gait at its touchdown; power, speed and specific '
-                     'resistance are over the whole bag (record one gait per bag for '
-                     'Table 3)')
+                     'resistance are over the whole gait cycles the motion capture tracked'
+                     f'{span}, of every gait in them (record one gait per bag for Table 3)')
     stances = []
     pos = {r.label: r for r in res.position_fits}
     for r in res.fits:

@@ -221,20 +221,29 @@ def _stances_in_gaps(cut: list[tuple[str, float, float]], unknown: FloatArray,
 
 
 def _damping_tradeoff(gfit: Any, geometry: LegGeometry, geo_inputs: tuple[Any, ...],
-                      geo_x: FloatArray, off: float, off_range: float, res: RunResult
+                      geo_x: FloatArray, off: float, off_range: float, res: RunResult,
+                      given: dict[str, Any] | None = None
                       ) -> tuple[Any, LegGeometry, tuple[Any, ...]]:
     """The legs' damping time unknown: the fit with it free against undamped legs.
 
     The damper advances the leg force like a clock shift, so the damping time and the offset
     trade off and the free fit can settle on either (undamped legs of another lab fitted 3.4
     ms and an offset 7.4 ms late). The lower body-height RMS is kept and both are reported.
+
+    ``given``: the offset is given (``--offset``), and these are the first fit's pitch-zero
+    arguments; the undamped fit keeps the offset and gets the same pitch-zero freedom. Before,
+    a given offset left EduBot's 3.4 ms unchecked on an outside review's undamped legs: a
+    spurious pitch zero of -2.44 deg was fitted to make up for it and the edges were 8-16 ms
+    off.
     """
     undamped = dataclasses.replace(geometry, leg_damping_time_s=0.0, damping_assumed=False)
     inputs0 = (undamped,) + tuple(geo_inputs[1:])
+    kw: dict[str, Any] = ({'fix_offset': True, **given} if given is not None else
+                          {'fix_offset': False, 'fit_pitch_offset': False,
+                           'pitch_offset_rad': gfit.pitch_offset_rad})
     try:
         f0 = fit_ground_offset(*inputs0, initial_offset_s=off, offset_range_s=off_range,
-                               fix_offset=False, x_m=geo_x, fit_pitch_offset=False,
-                               pitch_offset_rad=gfit.pitch_offset_rad)
+                               x_m=geo_x, **kw)
     except SlipDataError:
         return gfit, geometry, geo_inputs
     how = 'fitted' if geometry.leg_damping_time_s is None else 'assumed'
@@ -329,7 +338,7 @@ def _effort_contact_check(contacts: dict[str, FloatArray], names: tuple[str, ...
     (``frame['effort_contact_lag_s']``: geometric touchdown minus effort onset, median)."""
     if effort is None or not getattr(gfit, 'flight', False):
         return
-    diffs = []
+    diffs, rises = [], []
     for leg, iv in contacts.items():
         col = f'{leg}_hip'
         if col not in names:
@@ -337,20 +346,32 @@ def _effort_contact_check(contacts: dict[str, FloatArray], names: tuple[str, ...
         on = effort_onsets(tj, effort[:, names.index(col)])
         if on.size == 0:
             continue
+        # the onset is a threshold crossing (15 % of the effort's range): a force rising
+        # slowly crosses it late. Its foot, the line through the 15 % and 50 % crossings
+        # taken back to the baseline, says how late (an outside review's undamped legs, 0.13 s
+        # stances: 6 ms, and a warning that the leg description did not fit the robot)
+        half = effort_onsets(tj, effort[:, names.index(col)], threshold_frac=0.5)
         for a in np.asarray(iv, dtype=float).reshape(-1, 2)[:, 0]:
             j = int(np.argmin(np.abs(on - a)))
             if abs(on[j] - a) < 0.04:
                 diffs.append(a - on[j])
+                k = np.searchsorted(half, on[j])
+                if k < half.size and half[k] - on[j] < 0.04:
+                    rises.append((half[k] - on[j]) * 0.15 / 0.35)
     if len(diffs) < 6:
         return
     lag = float(np.median(diffs))
+    rise = float(np.median(rises)) if len(rises) >= 6 else 0.0
     res.frame['effort_contact_lag_s'] = lag
-    if abs(lag) <= EFFORT_CONTACT_MAX_S:
-        return
+    res.frame['effort_onset_rise_s'] = rise
+    if abs(lag + rise) <= EFFORT_CONTACT_MAX_S:
+        return    # touchdowns within 6 ms of the efforts' feet
     res.warn(
         f'the legs\' geometric touchdowns come {1e3 * abs(lag):.1f} ms '
         f'{"after" if lag > 0 else "before"} the hip-effort onsets (median of {len(diffs)}; '
-        f'EduBot simulated aerial gaits: +1.5 to +3.8 ms): the leg description does not fit '
+        f'{1e3 * (lag + rise):+.1f} ms from where the efforts start rising, their threshold '
+        f'crossed {1e3 * rise:.1f} ms into the rise; EduBot simulated aerial gaits: +1.5 to '
+        f'+3.8 ms from the onsets): the leg description does not fit '
         f'this robot, and the stream offset ({gfit.offset_s:+.4f} s) and stance edges from it '
         f'may be off by about as much. Likely causes: a hip encoder zero off (--hip-zero RAD, '
         f'now {geometry.hip_zero_rad:g}; a positive lag asks for a larger zero), another leg '
@@ -1034,9 +1055,10 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
             if other is not None:
                 gfit, off = other, other.offset_s
         if (geometry.leg_damping_time_s is None or geometry.damping_assumed) and \
-                method == 'geometry':
-            gfit, geometry, geo_inputs = _damping_tradeoff(gfit, geometry, geo_inputs, geo_x,
-                                                           off, off_range, res)
+                method in ('geometry', 'given'):
+            gfit, geometry, geo_inputs = _damping_tradeoff(
+                gfit, geometry, geo_inputs, geo_x, off, off_range, res,
+                given=p0_kw if method == 'given' else None)
         elif method == 'geometry':
             gfit, geometry, geo_inputs = _stiffness_check(gfit, geometry, geo_inputs, geo_x,
                                                           off, off_range, model.mass_kg, res)
