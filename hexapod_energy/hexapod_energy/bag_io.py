@@ -166,6 +166,11 @@ class BenchData:
     gait_rows: np.ndarray = field(default_factory=lambda: np.zeros((0, GAIT_COLUMNS)))
     #: what must reach ``energy.json`` ``warnings`` (not only the diagnostics' notes)
     warnings: list[str] = field(default_factory=list)
+    #: the legs of a several-leg ``/gait/phase``, in the order of its in_stance (the bits of
+    #: :attr:`gait_rows`' stance code), and the bench leg among them ('' unknown); for naming
+    #: the leg whose schedule agrees with the measured contact (:func:`bench_phase_samples`)
+    schedule_legs: tuple[str, ...] = ()
+    bench_leg: str = ''
 
 
 #: columns of :attr:`BenchData.gait_rows`
@@ -504,7 +509,8 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
     bat = [(b.t_s, b.voltage_v, b.current_a) for _, _, _, b in combined]
     if session is not None:
         ses = _session_from_spec(path, session, bat, frc, tip, periods, notes_out,
-                                 duties=duties, steps=steps, warnings=warnings)
+                                 duties=duties, steps=steps, warnings=warnings,
+                                 gait_rows=gait_rows)
     elif ses and bat and frc and tip:
         why = bench_load_problem([(f'/bench/session {s["session_id"]}', s['load_kg'])
                                   for s in ses if math.isfinite(s['load_kg'])])
@@ -541,7 +547,10 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
                      np.array([t for t, _ in sched], dtype=float),
                      np.array([v for _, v in sched], dtype=bool),
                      np.array(sorted(gait_rows), dtype=float).reshape(-1, GAIT_COLUMNS),
-                     warnings)
+                     warnings,
+                     next((tuple(n) for _, n, _ in schedule if len(n) > 1), ()),
+                     tip_leg[0] if tip_leg else next((n[0] for _, n, _ in schedule
+                                                      if len(n) == 1), ''))
 
 
 def _bench_schedule(rows: list[tuple[float, tuple[str, ...], tuple[bool, ...]]],
@@ -667,7 +676,8 @@ def _session_from_spec(path: str | Path, spec: BenchSessionSpec,
                        tip: list[tuple[float, float]], periods: list[float],
                        notes: list[str], *, duties: Sequence[float] = (),
                        steps: Sequence[tuple[float, float]] = (),
-                       warnings: list[str] | None = None) -> list[dict[str, Any]]:
+                       warnings: list[str] | None = None,
+                       gait_rows: Sequence[tuple[float, ...]] = ()) -> list[dict[str, Any]]:
     """The one walking session of a bag without ``/bench/session`` (see
     :class:`BenchSessionSpec`); its frequency's source goes into ``notes``. The duty factor:
     the spec's, else ``/gait/phase``'s (``duties``), else unknown (0: the phase split then
@@ -677,7 +687,12 @@ def _session_from_spec(path: str | Path, spec: BenchSessionSpec,
     A walking session is the part of the bag where the leg tip steps (:func:`stepping_span`):
     standing before and after the walk (a recorder started and stopped by hand) is cut off and
     noted (analysed as walking it read P_swing -29 % on the outside review's bench of 2 s +
-    10 s + 3 s); pauses without steps inside it are a warning (``warnings``)."""
+    10 s + 3 s); pauses without steps inside it are a warning (``warnings``). When the bag's
+    ``/gait/phase`` (``gait_rows``, :attr:`BenchData.gait_rows`) stands before (after) its
+    walk, that end of the walk is the schedule's (:func:`_schedule_walk_span`): the tip
+    cannot tell standing from the last stance under 1.25 ground times, and 0.5-1.5 s of
+    standing after the last step was analysed as walking (outside review, A1: P_stance
+    -16.7 % at 0.75 Hz with a 1.0 s tail, silently)."""
     if not (bat and frc and tip):
         return []   # the caller names the empty topic
     if spec.frequency_hz is not None:
@@ -703,7 +718,18 @@ def _session_from_spec(path: str | Path, spec: BenchSessionSpec,
         t_tip = np.array(sorted(tip))
         span = stepping_span(t_tip[:, 0], t_tip[:, 1], t0, t_end)
     whole = f'{t_end - t0:.1f} s'
-    if span is not None and (span.standing_before_s > 0 or span.standing_after_s > 0):
+    by_schedule = _schedule_walk_span(gait_rows, t0, t_end) if freq > 0 else None
+    if by_schedule is not None:
+        start, end = by_schedule
+        if span is not None:   # an end the schedule does not cut is the tip's
+            start = start if start > t0 else span.start_s
+            end = end if end < t_end else span.end_s
+        before, after = start - t0, t_end - end
+        t0, t_end = start, end
+        part = (f'its walking part ({t_end - t0:.1f} s of {whole}, where /gait/phase walks: '
+                f'{before:.1f} s before and {after:.1f} s after left out as standing) is one '
+                'session')
+    elif span is not None and (span.standing_before_s > 0 or span.standing_after_s > 0):
         t0, t_end = span.start_s, span.end_s
         part = (f'its walking part ({t_end - t0:.1f} s of {whole}, where the leg tip steps: '
                 f'{span.standing_before_s:.1f} s before and {span.standing_after_s:.1f} s '
@@ -725,6 +751,37 @@ def _session_from_spec(path: str | Path, spec: BenchSessionSpec,
              'step_height_m': spec.step_height_m or (
                  float(np.median([g[1] for g in steps])) if steps else 0.0)},
             {'t_s': t_end, 'session_id': Path(path).name, 'state': 'end'}]
+
+
+def _schedule_walk_span(gait_rows: Sequence[tuple[float, ...]], t0: float, t1: float
+                        ) -> tuple[float, float] | None:
+    """The walk of ``[t0, t1)`` by its ``/gait/phase`` rows (:attr:`BenchData.gait_rows`):
+    from midway between the last standing row before the first walking row (step frequency
+    > 0) and that row, to midway between the last walking row and the standing row after it
+    (an end without standing rows is ``t0`` or ``t1``). None when the schedule never stands
+    there, or has fewer than 4 rows or no walking row."""
+    if len(gait_rows) < 4:
+        return None
+    g = np.array(sorted(r[:2] for r in gait_rows), dtype=float)
+    g = g[(g[:, 0] >= t0) & (g[:, 0] < t1)]
+    walking = g[:, 1] > 0 if g.size else np.zeros(0, bool)
+    if walking.sum() < 2 or walking.all():
+        return None
+    k = np.flatnonzero(walking)
+    first, last = int(k[0]), int(k[-1])
+    start = 0.5 * (g[first - 1, 0] + g[first, 0]) if first > 0 else t0
+    end = 0.5 * (g[last, 0] + g[last + 1, 0]) if last + 1 < len(g) else t1
+    # a standing label or two where the walk is commanded (a gait node's first message) is
+    # no standing to cut: the whole-cycle window holds less than a cycle of it
+    start = start if start - t0 >= SCHEDULE_STANDING_MIN_S else t0
+    end = end if t1 - end >= SCHEDULE_STANDING_MIN_S else t1
+    if start == t0 and end == t1:
+        return None
+    return float(start), float(end)
+
+
+#: standing on ``/gait/phase`` shorter than this before (after) its walk is not cut off [s]
+SCHEDULE_STANDING_MIN_S = 0.1
 
 
 #: a leg tip rising above LIFT_FRACTION of its height span (5th to 99th percentile) lifts
@@ -1061,7 +1118,9 @@ def merge_bench_data(datas: Sequence[BenchData], reasons: list[str] | None = Non
     return BenchData(', '.join(datas[i].path for i in order), bt, bv, ba, ft, fz, tt, tz,
                      sessions, notes, st, ss, by_time_rows(cat('gait_rows')),
                      [f'{Path(datas[i].path).name}: {w}' for i in order
-                      for w in datas[i].warnings])
+                      for w in datas[i].warnings],
+                     next((d.schedule_legs for d in datas if d.schedule_legs), ()),
+                     next((d.bench_leg for d in datas if d.bench_leg), ''))
 
 
 def _walking_segments(sessions: list[dict[str, Any]], t_end_s: float
@@ -1179,6 +1238,7 @@ def bench_phase_samples(
     guessed: list[float] = []
     force_gaps: set[str] = set()
     label_gaps: set[str] = set()
+    agreement: dict[str, list[float]] = {}   # per leg: each cycle's schedule-contact agreement
     for s, t0, t1 in segments:
         a = t0 + settle_s if t1 - t0 > 2 * settle_s else t0
         f = s['frequency_hz']
@@ -1203,6 +1263,9 @@ def bench_phase_samples(
         if s['frequency_hz'] > 0 and covered:
             t_tip, st = data.schedule_t_s[sm], data.schedule_stance[sm]
             splits['schedule'] = splits.get('schedule', 0) + 1
+            _schedule_contact_cycles(data, offset, a, t1, s['frequency_hz'], t_tip, st,
+                                     agreement, force_threshold_n=force_threshold_n,
+                                     height_margin_m=height_margin_m)
         elif s['frequency_hz'] > 0 and len(t_tip) >= 4:
             ft = data.force_t_s + offset
             fz = np.interp(t_tip, ft, data.force_z_n)
@@ -1234,6 +1297,7 @@ def bench_phase_samples(
             if not np.all(np.diff(t_tip) <= label_gap):
                 label_gaps.add(s['session_id'])
         labelled.append((s, a, t1, t_tip, st, duty, label_gap))
+    _check_schedule_contact(data, agreement, phase_split)
     # the power monitor's clock against the labels' (tip or /gait/phase): a 0.2 s offset
     # swapped the phase powers in silence (3 Hz stance 5.21 -> 15.41 W; outside review A, F1)
     lag, lag_diag = _power_lag_s(data, power, labelled, notes, warnings)
@@ -1301,6 +1365,89 @@ def bench_phase_samples(
                             not splits.get('schedule') else
                             'mixed' if splits else 'none')}
     return samples, diag
+
+
+#: a cycle whose commanded stance agrees with the measured contact in fewer than this
+#: fraction of its labels disagrees; a schedule that disagrees in more than
+#: SCHEDULE_DISAGREE_CYCLES of its cycles is not the bench leg's (stance and swing swapped)
+SCHEDULE_AGREE = 0.5
+SCHEDULE_DISAGREE_CYCLES = 0.5
+#: the key of the bench leg's own schedule in the agreement record
+_BENCH_KEY = ''
+
+
+def _schedule_contact_cycles(data: BenchData, offset: float, a: float, t1: float,
+                             frequency_hz: float, t_lab: np.ndarray, stance: np.ndarray,
+                             out: dict[str, list[float]], *,
+                             force_threshold_n: float | None = None,
+                             height_margin_m: float = 0.01) -> None:
+    """Per whole cycle of ``[a, t1)``, the fraction of the labels ``t_lab`` where the
+    commanded ``stance`` agrees with the contact the bench measures (the force above its
+    threshold and the tip low: :func:`stance_mask`), appended to ``out['']``; the same for
+    every leg of a several-leg ``/gait/phase`` (:attr:`BenchData.schedule_legs`, from the
+    stance code of :attr:`BenchData.gait_rows`) under its name. Labels where the force or
+    the tip is not seen are left out."""
+    from hexapod_energy.single_leg import stance_mask
+
+    if t_lab.size < 8 or data.force_t_s.size < 4 or data.tip_t_s.size < 4:
+        return
+    ft = data.force_t_s + offset
+    seen = ~(_far_from(t_lab, ft) | _far_from(t_lab, data.tip_t_s))
+    if seen.sum() < 8:
+        return
+    t = t_lab[seen]
+    fz = np.interp(t, ft, data.force_z_n)
+    z = np.interp(t, data.tip_t_s, data.tip_z_m)
+    if not np.ptp(fz) > 0:
+        return
+    contact = stance_mask(fz, z, force_threshold_n=force_threshold_n,
+                          height_margin_m=height_margin_m)
+    cycle = np.floor((t - a) * frequency_hz).astype(int)
+    n_cycles = int(math.floor((t1 - a) * frequency_hz + CYCLE_TOLERANCE))
+    labels: dict[str, np.ndarray] = {_BENCH_KEY: stance[seen]}
+    if data.schedule_legs and data.gait_rows.size:
+        rows = data.gait_rows
+        k = np.clip(np.searchsorted(rows[:, 0], t), 0, len(rows) - 1)
+        same = np.abs(rows[k, 0] - t) < 1e-9
+        if same.all():
+            code = rows[k, 5].astype(np.int64)
+            for i, leg in enumerate(data.schedule_legs[:52]):
+                labels[leg] = ((code >> i) & 1).astype(bool)
+    for key, lab in labels.items():
+        for c in range(n_cycles):
+            m = cycle == c
+            if m.sum() >= 4:
+                out.setdefault(key, []).append(float(np.mean(lab[m] == contact[m])))
+
+
+def _check_schedule_contact(data: BenchData, agreement: dict[str, list[float]],
+                            phase_split: str) -> None:
+    """Refuse a schedule split whose commanded stance disagrees with the measured contact
+    (:func:`_schedule_contact_cycles`) in most cycles: the schedule is not the bench leg's (a
+    ``--bench-leg`` of the other tripod swapped every session's phases, Eq. 1 -23 %, silently:
+    outside review, A2); names the leg whose schedule agrees when one does."""
+    own = agreement.get(_BENCH_KEY, [])
+    if phase_split == 'contact' or len(own) < 3:
+        return
+    bad = sum(x < SCHEDULE_AGREE for x in own)
+    if bad <= SCHEDULE_DISAGREE_CYCLES * len(own):
+        return
+    leg = data.bench_leg or 'the bench leg'
+    others = {k: float(np.mean([x >= SCHEDULE_AGREE for x in v]))
+              for k, v in agreement.items() if k != _BENCH_KEY and k != data.bench_leg
+              and len(v) == len(own)}
+    good = sorted((k for k, v in others.items() if v > 1.0 - SCHEDULE_DISAGREE_CYCLES),
+                  key=lambda k: (-others[k], k))
+    hint = (f'the schedule of {", ".join(good)} agrees in {100 * others[good[0]]:.0f} % of '
+            f'the cycles: is the bench leg {" or ".join(good)} (--bench-leg {good[0]})?'
+            if good else
+            'no leg of /gait/phase agrees: check in_stance and the force and tip streams')
+    raise BagContentError(
+        f'bag {data.path}: the commanded stance of {leg} on /gait/phase disagrees with the '
+        f'contact the bench measures (force and leg tip) in {bad} of {len(own)} walking '
+        f'cycles (mean agreement {100 * float(np.mean(own)):.0f} %): split by it, stance and '
+        f'swing would be swapped. {hint} (--phase-split contact splits by the contact '
+        'instead)')
 
 
 def _force_offset_s(data: BenchData, segments: list[tuple[dict[str, Any], float, float]],
