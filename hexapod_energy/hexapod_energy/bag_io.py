@@ -1808,6 +1808,7 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
         BATTERY_GAP_NOTE,
         JOINT_GAP_NOTE,
         STILL_JOINTS_NOTE,
+        ZERO_EFFORT_NOTE,
         POSITION_POWER_NOTE,
         SLOW_BATTERY_NOTE,
         DescriptorAccumulator,
@@ -1971,7 +1972,12 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
             acc.add_pose(sample)
     # efforts count only when they gave a joint power (with velocities, or without them
     # from position differences); efforts alone leave P_out unknown, not 0 W
-    has_effort = acc.joint_power_samples_ > 0
+    has_effort = acc.joint_power_samples_ > acc.zero_effort_samples_
+    if acc.joint_power_samples_ and not has_effort:
+        # a driver without an effort interface filling effort with 0.0: P_out 0 W and
+        # efficiency 0 were reported as measured (outside review, A3); as without efforts
+        notes.append(f'{ZERO_EFFORT_NOTE} (all {acc.joint_power_samples_} samples): P_out '
+                     'not from the efforts')
     if acc.repeated_poses_:
         notes.append(f'{acc.repeated_poses_} /mocap/body sample(s) repeat the previous pose '
                      'exactly (the bridge repeating its last pose after losing the body): '

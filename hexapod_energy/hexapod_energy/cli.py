@@ -200,7 +200,11 @@ from typing import Any
 
 import numpy as np
 
-from hexapod_energy.descriptors import gait_from_sample, implausible_effort_power
+from hexapod_energy.descriptors import (
+    ZERO_EFFORT_NOTE,
+    gait_from_sample,
+    implausible_effort_power,
+)
 from hexapod_common.cli_args import NumberArgumentParser
 from hexapod_common.conversions import LEG_JOINT_RE
 from hexapod_common.jsondoc import json_safe
@@ -889,7 +893,9 @@ def _chosen_power_out(args: argparse.Namespace, setup: _Setup, run_: Any, p_mode
                                    math.nan if clock else _net_joint_power_w(run_))
     # why the joint efforts give no P_out, for the model's note
     if not math.isfinite(run_.power_out_w):
-        no_effort = 'no joint efforts in the bag'
+        no_effort = ('the joint efforts are all 0.0: no effort interface'
+                     if any(n.startswith(ZERO_EFFORT_NOTE) for n in notes)
+                     else 'no joint efforts in the bag')
     elif args.power_out == 'model':
         no_effort = (f'--power-out model: the joint efforts (P_out '
                      f'{run_.power_out_w:.3g} W) not used')
@@ -916,14 +922,14 @@ def _chosen_power_out(args: argparse.Namespace, setup: _Setup, run_: Any, p_mode
         doc.setdefault('warnings', []).append(f'{path}: {notes[-1]}')
         return math.nan, 'none'
     if math.isfinite(p_model):
+        # said whenever the model stands in (with --leg and no efforts nothing said so but
+        # power_out_source; and a leg file named "Oktopus-8 leg" read "Oktopus-8 leg's leg")
+        whose = leg.name if leg.name.lower().rstrip().endswith('leg') else f'{leg.name}\'s leg'
+        why = [no_effort] if no_effort else []
         if getattr(args, 'leg', None) is None:
-            # 'no joint power from the bag' was said of refused efforts too
-            notes.append(f'P_out from the Eq. 6 model of {leg.name}\'s leg ('
-                         + (f'{no_effort}; ' if no_effort else '')
-                         + 'give --leg for another leg)')
-        elif no_effort.startswith('joint efforts refused'):
-            notes.append(f'P_out from the Eq. 6 model of {leg.name}\'s leg '
-                         f'({no_effort})')
+            why.append('give --leg for another leg')
+        notes.append(f'P_out {p_model:.4g} W from the Eq. 6 model of {whose}'
+                     + (f' ({"; ".join(why)})' if why else ''))
         return p_model, 'model'
     # no efforts to trust and no model (no gait, or a path the leg cannot
     # reach): P_out is unknown, not 0, and so are eta and the CoTs

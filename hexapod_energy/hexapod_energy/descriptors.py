@@ -146,6 +146,12 @@ def velocityless_note(count: int) -> str:
             'messages carry them: left out of P_out (not mixed with position differences)')
 
 
+#: a window whose joint efforts are all exactly 0.0 (a driver without an effort interface fills
+#: the field with zeros): no efforts, not P_out 0 W and efficiency 0 (outside review, A3)
+ZERO_EFFORT_NOTE = ('JointState.effort is 0.0 on every joint (a driver without an effort '
+                    'interface fills it with zeros): taken as no joint efforts')
+
+
 #: ``power_out_source='auto'`` refuses efforts whose net joint power is at least this fraction
 #: of their positive joint power (no negative work: a duty signal, not a torque).
 EFFORT_MAX_NET_FRACTION = 0.9
@@ -375,7 +381,7 @@ def resolve_current_sign(voltage_v: np.ndarray, current_a: np.ndarray, mode: str
     return current_sign_factor(voltage_v, current_a, mode)
 
 
-def _mean_joint_power_w(joint: list[tuple[float, tuple[str, ...], np.ndarray, bool]], *,
+def _mean_joint_power_w(joint: list[tuple[float, tuple[str, ...], np.ndarray, bool, bool]], *,
                         signed: bool = False) -> float:
     """Sum over joint names of each joint's mean positive (or, ``signed``, net) power [W] (the
     mean of the per-sample sum when every sample has the same names), each mean over time
@@ -389,7 +395,7 @@ def _mean_joint_power_w(joint: list[tuple[float, tuple[str, ...], np.ndarray, bo
         t = np.array([j[0] for j in joint], dtype=float)
         return _time_mean(t, np.array([float(np.sum(part(j[2]))) for j in joint]))
     series: dict[str, tuple[list[float], list[float]]] = {}
-    for t_s, js_names, power, _ in joint:
+    for t_s, js_names, power, *_ in joint:
         for name, p in zip(js_names, part(power)):
             ts, ps = series.setdefault(name, ([], []))
             ts.append(float(t_s))
@@ -601,6 +607,8 @@ class DescriptorAccumulator:
     _seen_gait: bool = field(default=False, init=False)
     #: joint samples that gave a joint power (from velocities or position differences)
     joint_power_samples_: int = field(default=0, init=False)
+    #: of those, the samples whose efforts were all exactly 0.0 (:data:`ZERO_EFFORT_NOTE`)
+    zero_effort_samples_: int = field(default=0, init=False)
     #: per joint name: samples whose effort * velocity was finite / not finite (left out)
     joint_power_count_: dict[str, int] = field(default_factory=dict, init=False)
     nonfinite_joint_power_: dict[str, int] = field(default_factory=dict, init=False)
@@ -868,8 +876,11 @@ class DescriptorAccumulator:
                 self.joint_power_count_[name] = self.joint_power_count_.get(name, 0) + 1
                 self._joint_last[name] = max(sample.t_s, self._joint_last.get(name, -math.inf))
             if names:
-                self._push_joint((sample.t_s, names, power, False))
+                effort = np.asarray(sample.effort, dtype=float)
+                zero = bool(np.all(effort[np.isfinite(effort)] == 0.0))
+                self._push_joint((sample.t_s, names, power, False, zero))
                 self.joint_power_samples_ += 1
+                self.zero_effort_samples_ += zero
         elif sample.effort.size and sample.position.size == sample.effort.size:
             self._add_position_power(sample)
         if not self.joint_cycles_:
@@ -906,7 +917,7 @@ class DescriptorAccumulator:
             del self._recent_js[next(iter(self._recent_js))]
         return False
 
-    def _push_joint(self, entry: tuple[float, tuple[str, ...], Any, bool]) -> None:
+    def _push_joint(self, entry: tuple[float, tuple[str, ...], Any, bool, bool]) -> None:
         """One joint-power sample; its interval from the previous one is kept for the gap
         check (split messages of one frame, a fraction of a ms apart, are not intervals)."""
         if self._joint and entry[0] - self._joint[-1][0] > 1e-3:
@@ -931,6 +942,7 @@ class DescriptorAccumulator:
         names: list[str] = []
         power: list[float] = []
         mids: list[float] = []
+        taus: list[float] = []
         t = float(sample.t_s)
         skipped = False
         for name, q, tau in zip(sample.names, np.asarray(sample.position, dtype=float),
@@ -949,6 +961,7 @@ class DescriptorAccumulator:
             t0, q0, tau0 = prev
             dq = unwrap_near(float(q), q0) - q0
             names.append(name)
+            taus += [tau0, float(tau)]
             power.append(0.5 * (tau0 + float(tau)) * dq / (t - t0))
             mids.append(0.5 * (t0 + t))
         self.velocityless_skipped_ += skipped
@@ -956,8 +969,10 @@ class DescriptorAccumulator:
             self._joint_last[name] = t
         if names:
             # one entry per sample; its stamp is the midpoint of its joints' intervals
-            self._push_joint((float(np.mean(mids)), tuple(names), np.array(power), True))
+            zero = not any(taus)
+            self._push_joint((float(np.mean(mids)), tuple(names), np.array(power), True, zero))
             self.joint_power_samples_ += 1
+            self.zero_effort_samples_ += zero
 
     def add_odometry(self, sample: OdometrySample) -> None:
         """Add an odometry pose (horizontal position in the odometry frame, for the speed) and
@@ -1258,15 +1273,25 @@ class DescriptorAccumulator:
                                 f'the gait schedule ({len(gait.leg_names)} legs) does not name: '
                                 'the gait node walks fewer legs than the robot has, and those '
                                 'stand (leg_count?)')
-        use_model = self.power_out_source == 'model' or \
-            (self.power_out_source == 'auto' and not joint)
-        joint_path = self.joint_cycles_
         # a Buehler clock (RHex-class legs turning, no step length): the Eq. 6 model is for
         # stepping legs (it gave 0 W), and a turning leg does little negative work, so the
         # PWM-load test is not for it (live EduBot windows read P_out 0 W in 12 of 17, the
         # offline command 11.6 W from the same efforts: an outside review)
         clock = gait is not None and is_clock_schedule(gait)
         has_model = self.power_out_model is not None and gait is not None and not clock
+        zero_effort = bool(joint) and all(j[4] for j in joint) and \
+            self.power_out_source != 'model'
+        if zero_effort:
+            # efforts all 0.0 (no effort interface): as without efforts, P_out unknown when
+            # no model gives it (P_out 0 W and efficiency 0 passed every test: net / positive
+            # joint power is 0 / 0)
+            warnings.append(ZERO_EFFORT_NOTE + (
+                '; P_out from the Eq. 6 model' if has_model and self.power_out_source == 'auto'
+                else '; P_out unknown (NaN)'))
+            joint = []
+        use_model = self.power_out_source == 'model' or \
+            (self.power_out_source == 'auto' and not joint)
+        joint_path = self.joint_cycles_
         net = _mean_joint_power_w(joint, signed=True) if joint else math.nan
         from_model = False
         if joint and self.power_out_source != 'model':
@@ -1297,7 +1322,7 @@ class DescriptorAccumulator:
             if self.power_out_source == 'model':
                 warnings.append('power_out_source is model but no model or gait schedule: '
                                 'P_out = 0')
-            power_out = 0.0
+            power_out = math.nan if zero_effort else 0.0
         speed, speed_source = self._speed_and_source(t0, t1, gait)
         # (a stand of a stepping gait, step length and height 0 and no clock sweep, is not
         # walking; a Buehler clock's legs turn)
