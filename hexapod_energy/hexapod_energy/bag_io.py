@@ -1807,6 +1807,8 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
     from hexapod_energy.descriptors import (
         BATTERY_GAP_NOTE,
         JOINT_GAP_NOTE,
+        LEG_MISMATCH_NOTE,
+        SCHEDULE_SPEED_NOTE,
         STILL_JOINTS_NOTE,
         ZERO_EFFORT_NOTE,
         POSITION_POWER_NOTE,
@@ -2023,6 +2025,19 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
         notes.append(f'negative mean input power in {n_neg} of {len(windows)} window(s) with '
                      f'the current sign {current_sign}: check the battery current sign '
                      '(--current-sign)')
+    fast = sorted({w for d in windows for w in d.warnings if w.startswith(SCHEDULE_SPEED_NOTE)})
+    if fast:
+        notes.append(fast[0])
+    legs_differ = sorted({w for d in windows for w in d.warnings
+                          if w.startswith(LEG_MISMATCH_NOTE)})
+    if legs_differ:
+        # said on every live window, dropped offline: an 8-leg robot under a gait node left
+        # at leg_count 6 got a 6-leg Eq. 1 prediction in silence (outside review, A4)
+        n_legs = sum(any(w.startswith(LEG_MISMATCH_NOTE) for w in d.warnings) for d in windows)
+        notes.append(f'{legs_differ[0]} ({n_legs} of {len(windows)} window(s)); the Eq. 1 '
+                     'prediction and P_out model are for the legs /gait/phase names' +
+                     (f' [{len(legs_differ) - 1} more variant(s)]' if len(legs_differ) > 1
+                      else ''))
     n_slow = sum(SLOW_BATTERY_NOTE in d.warnings for d in windows)
     if n_slow:
         notes.append(f'{SLOW_BATTERY_NOTE} ({n_slow} of {len(windows)} window(s))')
@@ -2101,9 +2116,13 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
             seg_notes.append(ODOM_TWIST_NOTE)
         n_none = sum(d.speed_source == 'none' for d in wins)
         if n_none:
+            too_fast = any(w.startswith(SCHEDULE_SPEED_NOTE) for d in wins
+                           for w in d.warnings)
             seg_notes.append(
-                f'speed unknown in {n_none} of {len(wins)} window(s) (a stand or a '
-                'clock-driven gait schedule, /gait/phase step length 0, and no /mocap/body, '
+                f'speed unknown in {n_none} of {len(wins)} window(s) (' +
+                ('the gait schedule\'s speed refused as not metres per second'
+                 if too_fast else 'a stand or a clock-driven gait schedule, /gait/phase step '
+                 'length 0') + ', and no /mocap/body, '
                 '/odom or given speed there): ' + ('speed, cost of transport and specific resistance null'
                               if n_none == len(wins) else 'speed averaged over the others; '
                               'cost of transport and specific resistance over those windows'))

@@ -201,6 +201,7 @@ from typing import Any
 import numpy as np
 
 from hexapod_energy.descriptors import (
+    MAX_SPEED_MPS,
     ZERO_EFFORT_NOTE,
     gait_from_sample,
     implausible_effort_power,
@@ -438,9 +439,11 @@ def _checked_setup(args: argparse.Namespace) -> _Setup:
         # 0 was read as a Buehler clock (no prediction) without naming the option
         raise EnergyError(f'--step-length must be > 0 m, got {args.step_length}')
     robot_speed = getattr(args, 'robot_speed', None)
-    if robot_speed is not None and not (math.isfinite(robot_speed) and 0 < robot_speed <= 20):
+    if robot_speed is not None and not (math.isfinite(robot_speed) and
+                                        0 < robot_speed <= MAX_SPEED_MPS):
         # 1e9 m/s was taken (SR 1.6e-9)
-        raise EnergyError(f'--robot-speed must be in (0, 20] m/s, got {robot_speed}')
+        raise EnergyError(f'--robot-speed must be in (0, {MAX_SPEED_MPS:g}] m/s, got '
+                          f'{robot_speed}')
     leg = load_leg_description(args.leg) if getattr(args, 'leg', None) else antbot_leg()
     from hexapod_energy.bag_io import resolve_robot_mass
 

@@ -146,6 +146,28 @@ def velocityless_note(count: int) -> str:
             'messages carry them: left out of P_out (not mixed with position differences)')
 
 
+#: the fastest speed [m/s] taken from a legged robot's gait schedule (as ``energy
+#: --robot-speed`` and ``slip`` bound theirs): beyond it the schedule's units are wrong
+MAX_SPEED_MPS = 20.0
+#: the start of a window's warning for a schedule faster than MAX_SPEED_MPS
+SCHEDULE_SPEED_NOTE = 'the gait schedule\'s speed is beyond any legged robot'
+
+
+def schedule_speed_note(gait: Any) -> str:
+    """The warning of a ``/gait/phase`` whose speed is above :data:`MAX_SPEED_MPS` (outside
+    review, A5: step_length in mm read 160 m/s, CoT/M 0.0557 for 55.65)."""
+    length = float(gait.step_length_m)
+    return (f'{SCHEDULE_SPEED_NOTE}: {gait.speed_mps:.4g} m/s (step_length {length:g} / '
+            f'(duty_factor {gait.duty_factor:g} x period {gait.period_s:g} s)), above '
+            f'{MAX_SPEED_MPS:g} m/s: step_length looks like millimetres (GaitPhase '
+            f'step_length and step_height are metres: {length:g} mm is {length / 1000:g} m); '
+            'speed, cost of transport and specific resistance unknown')
+
+
+#: the start of a window's warning that ``/gait/phase`` and ``/joint_states`` name other legs
+LEG_MISMATCH_NOTE = 'legs of /gait/phase and /joint_states differ'
+
+
 #: a window whose joint efforts are all exactly 0.0 (a driver without an effort interface fills
 #: the field with zeros): no efforts, not P_out 0 W and efficiency 0 (outside review, A3)
 ZERO_EFFORT_NOTE = ('JointState.effort is 0.0 on every joint (a driver without an effort '
@@ -1264,12 +1286,14 @@ class DescriptorAccumulator:
         if joint and gait is not None:
             missing = _legs_without_joints(gait.leg_names, joint[-1][1])
             if missing:
-                warnings.append(f'the gait schedule names legs {", ".join(missing)} that have no '
+                warnings.append(f'{LEG_MISMATCH_NOTE}: the gait schedule names legs '
+                                f'{", ".join(missing)} that have no '
                                 f'joint on /joint_states ({len(joint[-1][1])} joints): the gait '
                                 'node and the robot disagree on the legs (leg_count?)')
             extra = _joint_legs_outside(gait.leg_names, joint[-1][1])
             if extra:
-                warnings.append(f'legs {", ".join(extra)} have joints on /joint_states that '
+                warnings.append(f'{LEG_MISMATCH_NOTE}: legs {", ".join(extra)} have joints '
+                                'on /joint_states that '
                                 f'the gait schedule ({len(gait.leg_names)} legs) does not name: '
                                 'the gait node walks fewer legs than the robot has, and those '
                                 'stand (leg_count?)')
@@ -1324,6 +1348,10 @@ class DescriptorAccumulator:
                                 'P_out = 0')
             power_out = math.nan if zero_effort else 0.0
         speed, speed_source = self._speed_and_source(t0, t1, gait)
+        if speed_source == 'gait_schedule' and gait is not None and speed > MAX_SPEED_MPS:
+            # a step length in mm walked at 160 m/s: CoT/M and SR 1000x low, silently
+            warnings.append(schedule_speed_note(gait))
+            speed, speed_source = math.nan, 'none'
         # (a stand of a stepping gait, step length and height 0 and no clock sweep, is not
         # walking; a Buehler clock's legs turn)
         stand = gait is not None and gait.gait != 'buehler' and not (

@@ -1,0 +1,94 @@
+"""Outside review (octopod lab), robot-bag input mistakes that gave wrong numbers silently:
+
+* A4: a gait node left at leg_count 6 on an 8-leg robot: the live windows warned (legs with
+  joints the schedule does not name), the offline ``energy.json`` had no word of it;
+* A5: ``/gait/phase`` step_length in mm: speed 160 m/s, CoT/M and SR 1000x low, accepted;
+* B1: joint velocities in deg/s with positions in rad: P_out 57x too large (21.5 W for 0.375
+  W, efficiency 0.597) passed every plausibility test.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from rosbags.rosbag2 import Writer
+
+from hexapod_common.bags import open_reader
+from hexapod_common.testbags import foreign_typestore
+from hexapod_common.testbags import write_foreign_robot_bag as write_bag
+from hexapod_energy.bag_io import read_robot_bag
+from hexapod_energy.cli import main
+from hexapod_energy.descriptors import LEG_MISMATCH_NOTE, MAX_SPEED_MPS, SCHEDULE_SPEED_NOTE
+
+MASS = 2.0
+
+
+def _rewrite(src, dst, topic, edit):
+    store = foreign_typestore()
+    with open_reader(src) as reader, Writer(dst, version=9) as w:
+        conns = {c.id: w.add_connection(c.topic, c.msgtype, typestore=store)
+                 for c in reader.connections}
+        for conn, t_ns, data in reader.messages():
+            if conn.topic == topic:
+                msg = store.deserialize_cdr(data, conn.msgtype)
+                edit(msg)
+                data = store.serialize_cdr(msg, conn.msgtype)
+            w.write(conns[conn.id], t_ns, data)
+    return dst
+
+
+def _notes(run) -> str:
+    return ' '.join(run.extra.get('notes', ()))
+
+
+def _cli(bag, out):
+    assert main(['--robot', str(bag), '--robot-mass', str(MASS), '--no-progress',
+                 '--out', str(out)]) == 0
+    doc = json.loads((out / 'energy.json').read_text())
+    return doc, doc['robot_runs'][0]
+
+
+@pytest.fixture(scope='module')
+def src(tmp_path_factory):
+    root = tmp_path_factory.mktemp('robot_inputs')
+    write_bag(root / 'src', legs=6, duration_s=12.0, storage='mcap')
+    return root
+
+
+def test_fewer_legs_on_the_schedule_reach_the_offline_warnings(src, tmp_path):
+    def four_legs(msg):
+        msg.leg_names = list(msg.leg_names)[:4]
+        msg.phase_offsets = np.asarray(msg.phase_offsets)[:4]
+        msg.in_stance = np.asarray(msg.in_stance)[:4]
+
+    bag = _rewrite(src / 'src', tmp_path / 'legs4', '/gait/phase', four_legs)
+    run = read_robot_bag(bag, mass_kg=MASS)
+    assert LEG_MISMATCH_NOTE in _notes(run) and 'leg_count?' in _notes(run)
+    doc, _ = _cli(bag, tmp_path / 'o')
+    assert any(LEG_MISMATCH_NOTE in w for w in doc['warnings'])
+    # the schedule of all the legs: nothing said
+    ref = read_robot_bag(src / 'src', mass_kg=MASS)
+    assert LEG_MISMATCH_NOTE not in _notes(ref)
+
+
+def test_a_schedule_speed_in_millimetres_is_refused_as_a_speed(src, tmp_path):
+    ref = read_robot_bag(src / 'src', mass_kg=MASS)
+
+    def millimetres(msg):
+        msg.step_length = msg.step_length * 1000.0
+        msg.step_height = msg.step_height * 1000.0
+
+    bag = _rewrite(src / 'src', tmp_path / 'mm', '/gait/phase', millimetres)
+    assert ref.speed_mps * 1000 > MAX_SPEED_MPS
+    run = read_robot_bag(bag, mass_kg=MASS)
+    assert math.isnan(run.speed_mps)
+    assert SCHEDULE_SPEED_NOTE in _notes(run) and 'millimetres' in _notes(run)
+    doc, r = _cli(bag, tmp_path / 'o')
+    assert r['speed'] is None and r['specific_resistance'] is None
+    assert r['specific_cost_of_transport'] is None
+    assert any(SCHEDULE_SPEED_NOTE in w for w in doc['warnings'])
+    # metres: the speed stands
+    assert 0 < ref.speed_mps < MAX_SPEED_MPS and SCHEDULE_SPEED_NOTE not in _notes(ref)
