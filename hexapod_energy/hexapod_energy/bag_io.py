@@ -1815,6 +1815,7 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
         SLOW_BATTERY_NOTE,
         DescriptorAccumulator,
         resolve_current_sign,
+        velocity_units_note,
         velocityless_note,
     )
 
@@ -2025,6 +2026,11 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
         notes.append(f'negative mean input power in {n_neg} of {len(windows)} window(s) with '
                      f'the current sign {current_sign}: check the battery current sign '
                      '(--current-sign)')
+    # joint velocities against the positions' derivative over the whole bag (the windows'
+    # warnings say it as the samples came); deg/s velocities read P_out 57x (outside review B1)
+    units = velocity_units_note(acc.velocity_ratio())
+    if units:
+        notes.append(units)
     fast = sorted({w for d in windows for w in d.warnings if w.startswith(SCHEDULE_SPEED_NOTE)})
     if fast:
         notes.append(fast[0])

@@ -202,6 +202,7 @@ import numpy as np
 
 from hexapod_energy.descriptors import (
     MAX_SPEED_MPS,
+    VELOCITY_UNITS_NOTE,
     ZERO_EFFORT_NOTE,
     gait_from_sample,
     implausible_effort_power,
@@ -894,6 +895,12 @@ def _chosen_power_out(args: argparse.Namespace, setup: _Setup, run_: Any, p_mode
     # (net / positive power near 1) is for position-controlled servos
     why = implausible_effort_power(run_.power_out_w, run_.power_in_w,
                                    math.nan if clock else _net_joint_power_w(run_))
+    if math.isfinite(run_.power_out_w) and \
+            any(n.startswith(VELOCITY_UNITS_NOTE) for n in notes):
+        # deg/s velocities: P_out 57x (21.5 W for 0.375 W passed every test); above P_in the
+        # refusal blamed the efforts (outside review B1, C3)
+        why = (f'P_out from effort x velocity ({run_.power_out_w:.3g} W) is not the joints\' '
+               'output: the joint velocities are not rad/s (see the note on them)')
     # why the joint efforts give no P_out, for the model's note
     if not math.isfinite(run_.power_out_w):
         no_effort = ('the joint efforts are all 0.0: no effort interface'

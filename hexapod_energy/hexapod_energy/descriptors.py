@@ -164,6 +164,35 @@ def schedule_speed_note(gait: Any) -> str:
             'speed, cost of transport and specific resistance unknown')
 
 
+#: joint velocity against the position's derivative: the median ratio over moving samples
+#: (:meth:`DescriptorAccumulator.velocity_ratio`) within these bounds is deg/s against rad
+#: (57.3), or the inverse; samples moving slower than VELOCITY_CHECK_MIN_RAD_S by their
+#: positions, or over intervals longer than VELOCITY_CHECK_MAX_DT_S, are not compared
+VELOCITY_DEG_RATIO = (40.0, 80.0)
+VELOCITY_CHECK_MIN_RAD_S = 0.05
+VELOCITY_CHECK_MAX_DT_S = 0.2
+VELOCITY_CHECK_MIN_SAMPLES = 50
+VELOCITY_CHECK_KEEP = 4000
+#: the start of the warning of joint velocities in deg/s
+VELOCITY_UNITS_NOTE = 'the joint velocities are not rad/s'
+
+
+def velocity_units_note(ratio: float) -> str:
+    """What a velocity / d(position)/dt ratio near 57.3 (or 1/57.3) says ('' otherwise)."""
+    lo, hi = VELOCITY_DEG_RATIO
+    if lo <= ratio <= hi:
+        return (f'{VELOCITY_UNITS_NOTE}: JointState.velocity is {ratio:.1f} times the '
+                'derivative of the positions (median over moving samples; 57.3 = deg/s '
+                'against rad): the velocities look like deg/s (the contract is rad/s, REP-103), '
+                'so effort x velocity is 57x the joint power')
+    if 1.0 / hi <= ratio <= 1.0 / lo:
+        return (f'the joint positions are not radians: the derivative of JointState.position '
+                f'is {1.0 / ratio:.1f} times the velocity (median over moving samples): the '
+                'positions look like degrees (the contract is rad, REP-103); P_out from effort '
+                'x velocity is kept, the joint cycles and motion checks read the positions')
+    return ''
+
+
 #: the start of a window's warning that ``/gait/phase`` and ``/joint_states`` name other legs
 LEG_MISMATCH_NOTE = 'legs of /gait/phase and /joint_states differ'
 
@@ -631,6 +660,11 @@ class DescriptorAccumulator:
     joint_power_samples_: int = field(default=0, init=False)
     #: of those, the samples whose efforts were all exactly 0.0 (:data:`ZERO_EFFORT_NOTE`)
     zero_effort_samples_: int = field(default=0, init=False)
+    #: velocity / d(position)/dt of the last VELOCITY_CHECK_KEEP moving joint samples
+    _velocity_ratios: deque[float] = field(
+        default_factory=lambda: deque(maxlen=VELOCITY_CHECK_KEEP), init=False)
+    _velocity_prev: dict[tuple[str, ...], tuple[float, np.ndarray, np.ndarray]] = field(
+        default_factory=dict, init=False)
     #: per joint name: samples whose effort * velocity was finite / not finite (left out)
     joint_power_count_: dict[str, int] = field(default_factory=dict, init=False)
     nonfinite_joint_power_: dict[str, int] = field(default_factory=dict, init=False)
@@ -880,6 +914,9 @@ class DescriptorAccumulator:
             self._leg_pos.append((sample.t_s, tuple(sample.names),
                                   np.asarray(sample.position, dtype=float),
                                   float(vel.max()) if vel.size else 0.0))
+        if sample.velocity.size == sample.position.size == len(sample.names) and \
+                sample.velocity.size:
+            self._compare_velocity(sample)
         if sample.effort.size and sample.velocity.size == sample.effort.size:
             power = np.asarray(sample.effort, dtype=float) * np.asarray(sample.velocity,
                                                                         dtype=float)
@@ -918,6 +955,38 @@ class DescriptorAccumulator:
             return []
         self._boundaries.extend(new)
         return self._emit()
+
+    def _compare_velocity(self, sample: JointStateSample) -> None:
+        """Each moving joint's velocity (mean of this and its previous sample's) over its
+        position's derivative between them, kept for :meth:`velocity_ratio` (deg/s velocities
+        with rad positions read P_out 21.5 W for 0.375 W and passed every test: outside
+        review, B1)."""
+        names = tuple(sample.names)
+        q = np.asarray(sample.position, dtype=float)
+        v = np.asarray(sample.velocity, dtype=float)
+        prev = self._velocity_prev.get(names)
+        self._velocity_prev[names] = (sample.t_s, q, v)
+        if len(self._velocity_prev) > 64:   # names that keep changing: forget the oldest
+            del self._velocity_prev[next(iter(self._velocity_prev))]
+        if prev is None:
+            return
+        dt = sample.t_s - prev[0]
+        if not 0.0 < dt <= VELOCITY_CHECK_MAX_DT_S:
+            return
+        dq = q - prev[1]
+        dq = dq - 2.0 * math.pi * np.round(dq / (2.0 * math.pi))
+        rate = dq / dt
+        mean_v = 0.5 * (v + prev[2])
+        ok = np.isfinite(rate) & np.isfinite(mean_v) & \
+            (np.abs(rate) > VELOCITY_CHECK_MIN_RAD_S) & (mean_v != 0.0)
+        self._velocity_ratios.extend((mean_v[ok] / rate[ok]).tolist())
+
+    def velocity_ratio(self) -> float:
+        """Median of the joint velocity over its position's derivative (NaN with fewer than
+        :data:`VELOCITY_CHECK_MIN_SAMPLES` moving samples): 1 for consistent units."""
+        if len(self._velocity_ratios) < VELOCITY_CHECK_MIN_SAMPLES:
+            return math.nan
+        return float(np.median(np.fromiter(self._velocity_ratios, float)))
 
     def _duplicate_joint_state(self, sample: JointStateSample) -> bool:
         """Whether ``sample`` repeats one of the last :data:`DUPLICATE_MEMORY` joint states
@@ -1318,12 +1387,17 @@ class DescriptorAccumulator:
         joint_path = self.joint_cycles_
         net = _mean_joint_power_w(joint, signed=True) if joint else math.nan
         from_model = False
+        units = velocity_units_note(self.velocity_ratio()) if joint else ''
+        if units:
+            warnings.append(units)
         if joint and self.power_out_source != 'model':
             power_out = _mean_joint_power_w(joint)
             if any(j[3] for j in joint):
                 warnings.append(POSITION_POWER_NOTE)
-            why = (implausible_effort_power(power_out, power_in, math.nan if clock else net)
-                   if self.power_out_source == 'auto' else '')
+            why = ('' if self.power_out_source != 'auto' else
+                   'P_out from effort x velocity refused (velocities not rad/s)'
+                   if units.startswith(VELOCITY_UNITS_NOTE) else
+                   implausible_effort_power(power_out, power_in, math.nan if clock else net))
             if why:
                 warnings.append(why + ('; P_out from the Eq. 6 model' if has_model else
                                        '; P_out unknown (NaN)'))

@@ -92,3 +92,44 @@ def test_a_schedule_speed_in_millimetres_is_refused_as_a_speed(src, tmp_path):
     assert any(SCHEDULE_SPEED_NOTE in w for w in doc['warnings'])
     # metres: the speed stands
     assert 0 < ref.speed_mps < MAX_SPEED_MPS and SCHEDULE_SPEED_NOTE not in _notes(ref)
+
+
+def _consistent_joints(src, dst, *, deg=False):
+    """``src`` with positions that integrate the velocities (rad), the velocities in deg/s
+    when ``deg``."""
+    from hexapod_common.testbags import PERIOD_S
+
+    def edit(msg):
+        t = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+        phase = 2 * np.pi * (t / PERIOD_S + np.arange(len(msg.name)) / 7)
+        msg.position = 0.6 * PERIOD_S / (2 * np.pi) * np.sin(phase)
+        msg.velocity = 0.6 * np.cos(phase) * (180 / np.pi if deg else 1.0)
+
+    return _rewrite(src, dst, '/joint_states', edit)
+
+
+def test_velocities_in_degrees_per_second_are_not_taken_as_joint_power(src, tmp_path):
+    from hexapod_energy.descriptors import VELOCITY_UNITS_NOTE
+    from test_energy_review_zero_effort import _live
+
+    ok = _consistent_joints(src / 'src', tmp_path / 'rad')
+    deg = _consistent_joints(src / 'src', tmp_path / 'deg', deg=True)
+    ref = read_robot_bag(ok, mass_kg=MASS)
+    run = read_robot_bag(deg, mass_kg=MASS)
+    assert VELOCITY_UNITS_NOTE not in _notes(ref)
+    assert run.power_out_w == pytest.approx(ref.power_out_w * 180 / np.pi, rel=1e-6)
+    assert VELOCITY_UNITS_NOTE in _notes(run) and '57.3 times' in _notes(run)
+    _, r_ok = _cli(ok, tmp_path / 'o_rad')
+    doc, r = _cli(deg, tmp_path / 'o_deg')
+    assert r_ok['power_out_source'] == 'effort'
+    assert r['power_out_source'] == 'model' and r['power_out_w'] < run.power_out_w / 10
+    text = ' '.join(doc['warnings'])
+    # the refusal names the velocities, not the efforts (C3)
+    assert 'not rad/s' in text and 'the efforts are not joint torques' not in text
+    # live: the windows say it and take the model
+    live = _live(deg)
+    assert live and all(any(w.startswith(VELOCITY_UNITS_NOTE) for w in d.warnings)
+                        for d in live)
+    assert all(d.power_out_w < run.power_out_w / 10 for d in live)
+    assert not any(any(w.startswith(VELOCITY_UNITS_NOTE) for w in d.warnings)
+                   for d in _live(ok))
