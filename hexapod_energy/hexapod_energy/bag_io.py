@@ -912,6 +912,9 @@ UNSESSIONED_LEAD_S = 2.0
 #: start latency (a sequencer that does not wait for the gait node; the analysis skips its
 #: first settle_s = 1 s anyway): noted, not warned as a lost message (outside review D, D4)
 START_LATENCY_S = 1.0
+#: a session of only 'done' messages followed by less than this much data [s] is the plan's
+#: end marker (noted, not warned)
+DONE_MARKER_S = 1.0
 #: a walking session this much longer or shorter than the median walk is noted
 WALK_LENGTH_SPREAD = 0.25
 
@@ -965,13 +968,20 @@ def _repair_sessions(ses: list[dict[str, Any]], tip: list[tuple[float, float]],
         t1 = next((s['t_s'] for s in out[k[-1] + 1:]), t_end_s)
         freq = max(float(out[i].get('frequency_hz') or 0.0) for i in k)
         states = ', '.join(dict.fromkeys(out[i]['state'] for i in k))
+        length = max(t1 - t0, 0.0)   # a marker after the data's end: 0 s (it read "-0.0 s")
+        if all(out[i]['state'] == 'done' for i in k) and length < DONE_MARKER_S:
+            # the plan's end-of-plan marker under its own id: nothing was to walk (outside
+            # review C4: a warning for a benign marker)
+            notes.append(f'session {sid}: only the end-of-plan marker \'done\' '
+                         f'({length:.1f} s of data after it): nothing to analyse')
+            continue
         span = stepping_span(t_tip, z_tip, t0, t1) if freq > 0 else None
         if span is None or span.steps < 3 or span.end_s - span.start_s < 2.0 / freq:
             warnings.append(
                 f'session {sid} never reports state walking (only {states}; a lost '
                 f'/bench/session message?) and its leg tip ' +
                 ('does not step' if freq > 0 else 'cannot show a 0 Hz walk') +
-                f': its {t1 - t0:.1f} s of data are left out')
+                f': its {length:.1f} s of data are left out')
             continue
         base = max(k, key=lambda i: float(out[i].get('frequency_hz') or 0.0))
         out.append(dict(out[base], t_s=span.start_s, state='walking'))

@@ -459,6 +459,13 @@ def _checked_setup(args: argparse.Namespace) -> _Setup:
                         'assumed; CoT, CoT/M and specific resistance scale with the mass')
     if not (math.isfinite(args.robot_mass) and args.robot_mass > 0):
         raise EnergyError(f'--robot-mass must be > 0 kg, got {args.robot_mass}')
+    if args.robot_mass > ROBOT_MASS_MAX_KG:
+        # 3200 (grams) was taken as kg: SR 0.00717 and CoT/M 0.0557, 1000x low
+        raise EnergyError(
+            f'robot mass {args.robot_mass:g} kg ({mass_source}) is above {ROBOT_MASS_MAX_KG:g} '
+            'kg, more than a legged robot this method is for (its legs on a single-leg bench '
+            'of at most 50 kg each): it looks like grams. --robot-mass is kilograms '
+            f'({args.robot_mass:g} g is {args.robot_mass / 1000:g} kg)')
     for flag, value in (('--payload', args.payload),
                         ('--robot-payload', getattr(args, 'robot_payload', None))):
         # a negative or NaN payload gave a lighter robot (or NaN descriptors) and a 1e9 kg
@@ -774,8 +781,13 @@ def _robot_run(args: argparse.Namespace, setup: _Setup, model: Any, opm: Any,
                      f"x{k_sw:.3g} swing: this run's stance {beta * period:.3g} s and swing "
                      f"{(1.0 - beta) * period:.3g} s on its {1e3 * gait.step_length_m:.0f} mm "
                      'step)')
+            basal = getattr(model, 'basal_power_w_', None) or {}
+            load_note = ('; the power breakdown\'s holding_w extrapolates the 0 Hz sessions\' '
+                         'basal power along its last load step the same way'
+                         if basal and len(basal) >= 2 and any('load' in x for x in outside)
+                         else '')
             notes.append('the Eq. 1 prediction extrapolates the bench surfaces: ' +
-                         '; '.join(outside) + where)
+                         '; '.join(outside) + where + load_note)
         other = _duty_factor_note(model, gait)
         if other:
             notes.append(other)
@@ -804,8 +816,19 @@ def _robot_run(args: argparse.Namespace, setup: _Setup, model: Any, opm: Any,
     # the accumulator used robot.mass_kg; descriptors are recomputed with the payload
     d = descriptors(power_in_w=run_.power_in_w, power_out_w=p_out, mass_kg=mass,
                     speed_mps=run_.speed_mps)
+    unpowered = run_.power_in_w <= 0
+    if unpowered:
+        # a negative P_in (a current sign forced wrong): efficiency -0.21, CoT -271.9 and SR
+        # -7.17 were written where P_out >= P_in nulls them (outside review C2)
+        nan = math.nan
+        d = dataclasses.replace(d, efficiency=nan, cost_of_transport_j_per_m=nan,
+                                specific_cost_of_transport_j_per_m_kg=nan,
+                                specific_resistance=nan)
+        notes.append(f'measured P_in {run_.power_in_w:.3g} W is not positive (the battery '
+                     'current sign? --current-sign): efficiency, the costs of transport and '
+                     'the specific resistance unknown')
     span = run_.extra.get('speed_span')
-    if span is not None:
+    if span is not None and not unpowered:
         # speed known over part of the run: what divides by it is over that part
         d_span = descriptors(
             power_in_w=span['power_in_w'], mass_kg=mass, speed_mps=run_.speed_mps,
@@ -882,6 +905,12 @@ def _standing_note(args: argparse.Namespace, run_: Any, model: Any, robot: Any,
                 f'unloaded {legs_st * float(basal(0.0)):.3g} W')
     return (f'the robot stands ({run_.windows} window(s) of 1 s): its input power, speed 0 '
             '(CoT undefined); Eq. 1 is for walking, no prediction' + held)
+
+
+#: a robot mass above this [kg] is refused as not kilograms (outside review B2: 3200 for a 3.2
+#: kg octopod passed); the heaviest legged robots measured this way are tens of kg, and four
+#: legs at the bench's BENCH_LOAD_MAX_KG carry 200 kg
+ROBOT_MASS_MAX_KG = 200.0
 
 
 def _chosen_power_out(args: argparse.Namespace, setup: _Setup, run_: Any, p_model: float,
@@ -998,11 +1027,19 @@ def _recommendation(args: argparse.Namespace, doc: dict[str, Any], model: Any, o
     ``--payload``, with a warning when its saving is within the model's error."""
     from hexapod_energy.recommend import recommend_gait
 
+    # the robot's own lift when its runs walked one (every candidate was priced at AntBot's
+    # 40 mm: +4.3 % for a robot lifting 30 mm, and the JSON did not say so)
+    lifts = [float(r['step_height_m']) for r in doc.get('robot_runs', [])
+             if isinstance(r.get('step_height_m'), (int, float))
+             and math.isfinite(r['step_height_m']) and r['step_height_m'] > 0]
+    height, height_source = (float(np.median(lifts)), 'the robot runs\' gait schedules') \
+        if lifts else (0.04, 'default (AntBot\'s 40 mm; no robot run with a step height)')
     rec = recommend_gait(model, opm, speed_mps=args.speed, payload_kg=args.payload,
                          load_offset_kg=args.load_offset, leg_count=legs_n,
-                         limits=setup.limits)
+                         limits=setup.limits, step_height_m=height)
     doc['recommendation'] = {**rec.to_dict(), 'leg_count_source': legs_source,
-                             'limits_source': setup.limits_source}
+                             'limits_source': setup.limits_source,
+                             'step_height_source': height_source}
     if rec.note:
         doc.setdefault('warnings', []).append(f'recommendation: {rec.note}')
     # a saving smaller than the model's error is not a finding: the measured robot

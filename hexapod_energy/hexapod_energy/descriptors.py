@@ -240,12 +240,15 @@ def descriptors_from_powers(*, power_in_w: float, power_out_w: float, speed_mps:
     # the definitions are hexapod_energy.metrics' (DESIGN section 4), NaN where undefined
     loss = float(metrics.power_loss(power_in_w, power_out_w))
     eff = float(metrics.efficiency(power_in_w, power_out_w)) if power_in_w > 0 else math.nan
-    moving = speed_mps > 0 and mass_kg > 0
+    # a negative input power (a current sign forced wrong) gives no costs either: CoT -271.9
+    # and SR -7.17 were published beside a null efficiency (outside review C2)
+    moving = speed_mps > 0 and mass_kg > 0 and not power_in_w <= 0
     return Descriptors(
         t_end_s=t_end_s, window_s=window_s, mass_kg=mass_kg, speed_mps=speed_mps,
         power_in_w=power_in_w, power_out_w=power_out_w, power_loss_w=loss, efficiency=eff,
         cost_of_transport_j_per_m=float(metrics.cost_of_transport(
-            power_in_w, power_out_w, speed_mps)) if speed_mps > 0 else math.nan,
+            power_in_w, power_out_w, speed_mps)) if speed_mps > 0 and not power_in_w <= 0
+        else math.nan,
         specific_cost_of_transport=float(metrics.specific_cost_of_transport(
             power_in_w, power_out_w, mass_kg, speed_mps)) if moving else math.nan,
         specific_resistance=float(metrics.specific_resistance(

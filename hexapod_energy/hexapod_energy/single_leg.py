@@ -979,11 +979,23 @@ class SingleLegModel:
         return self.domain_[phase]
 
     def basal_power_at_w(self, load_kg: float) -> float:
-        """Basal power interpolated over the 0 Hz sessions' loads [W] (nan without any)."""
+        """Basal power interpolated over the 0 Hz sessions' loads [W] (nan without any);
+        beyond them extrapolated along the line through the two nearest loads, as the phase
+        surfaces (linear in the load) extrapolate Eq. 1 there: held at the heaviest load's
+        value, the power breakdown's holding_w read 9.6 W for 13.2 beside an Eq. 1 that
+        extrapolated (outside review B4). One load: that value."""
         if not self.basal_power_w_:
             return float('nan')
-        loads = np.array(list(self.basal_power_w_))
-        return float(np.interp(load_kg, loads, np.array(list(self.basal_power_w_.values()))))
+        order = sorted(self.basal_power_w_)
+        loads = np.array(order, dtype=float)
+        power = np.array([self.basal_power_w_[k] for k in order], dtype=float)
+        m = float(load_kg)
+        if loads.size >= 2 and (m > loads[-1] or m < loads[0]):
+            i = (-2, -1) if m > loads[-1] else (0, 1)
+            slope = (power[i[1]] - power[i[0]]) / (loads[i[1]] - loads[i[0]])
+            end = i[1] if m > loads[-1] else i[0]
+            return float(power[end] + slope * (m - loads[end]))
+        return float(np.interp(m, loads, power))
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready description of the fit."""
