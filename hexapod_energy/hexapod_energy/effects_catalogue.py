@@ -21,9 +21,11 @@ thermal_drift       energy drawn since the run's start [kJ], only  ``w_per_kj`` 
 hot_windings        mean_i (T_i - T_ref) x P_pred [K W]; its      ``per_k`` [1/K]
                     variation must explain too
 kinematic_error     step frequency 1/T from /gait/phase [Hz]      ``w_per_hz`` [W/Hz]
-supply_resistance   -I^2 [A^2], only when V falls with I          ``resistance_ohm`` [ohm] from
+supply_resistance   -I^2 [A^2], only when V falls with I (before  ``resistance_ohm`` [ohm] from
                                                                   the V-I slope, and
                                                                   ``power_coefficient_ohm``
+cable_resistance    I^2 [A^2], a resistance after the monitor       ``resistance_ohm`` [ohm]
+                    (its own R I^2 is measured)
 speed_friction      DRIVE_LOSS_FACTOR * v^2 [m^2/s^2]              ``c_n_s_per_m`` [N s/m]
 leg_anomaly         fraction of the window leg j is in stance     ``power_w`` [W], ``leg``
 carried_mass        dP_pred/dM, the bench model's mass            ``mass_kg`` [kg]
@@ -64,6 +66,7 @@ import numpy as np
 __all__ = [
     'DRIVE_LOSS_FACTOR',
     'BasalPower',
+    'CableResistance',
     'CarriedMass',
     'EnergyEffect',
     'HotWindings',
@@ -332,19 +335,33 @@ class ThermalDrift(EnergyEffect):
 
     def params(self, coef, stderr, table):  # type: ignore[no-untyped-def]
         ref = self._reference(table) if coef.size == 2 else None
+        # per servo-kelvin: the regressor sums over the servos, so the robot's extra power per
+        # kelvin of its mean servo temperature is N times it (an outside review read 'W/K'
+        # 18x off); both are given, the unit said
+        n = table.extra.get('servo_count')
+        n_mean = float(np.mean(np.asarray(n, dtype=float))) if n is not None and \
+            np.size(n) else math.nan
+        per = {'w_per_k_unit': 'W per kelvin of each servo (the regressor sums the servos)'}
+        if math.isfinite(n_mean) and n_mean > 0:
+            per.update(servo_count=n_mean, w_per_k_of_mean_temperature=float(coef[0]) * n_mean)
         if ref is None:
-            return {'w_per_k': float(coef[0])}, {'w_per_k': float(stderr[0])}
+            return ({'w_per_k': float(coef[0]), **per},
+                    {'w_per_k': float(stderr[0]), 'w_per_k_of_mean_temperature':
+                     float(stderr[0]) * n_mean if math.isfinite(n_mean) else math.nan,
+                     'servo_count': 0.0})
         a, c = float(coef[0]), float(coef[1])
         anchor, lo, hi, _ = ref
         t_r = anchor - c / a if a > 0 else math.nan
         se_r = float(stderr[1]) / a if a > 0 else math.nan
-        p: dict[str, Any] = {'w_per_k': a, 'reference_c': t_r,
+        p: dict[str, Any] = {'w_per_k': a, **per, 'reference_c': t_r,
                              'reference_range_c': [round(lo, 2), round(hi, 2)]}
         if a > 0 and t_r <= lo + 0.01:
             p['reference_at_bound'] = 'lower'
         elif a > 0 and t_r >= hi - 0.01:
             p['reference_at_bound'] = 'upper'
-        return p, {'w_per_k': float(stderr[0]), 'reference_c': se_r}
+        return p, {'w_per_k': float(stderr[0]), 'reference_c': se_r, 'servo_count': 0.0,
+                   'w_per_k_of_mean_temperature': float(stderr[0]) * n_mean
+                   if math.isfinite(n_mean) else math.nan}
 
 
 #: Largest relative rise of a servo's input power per kelvin of winding temperature that
@@ -488,6 +505,41 @@ class SupplyResistance(EnergyEffect):
                  'power_coefficient_ohm': float(coef[0])},
                 {'resistance_ohm': table.supply_slope_stderr_ohm,
                  'power_coefficient_ohm': float(stderr[0])})
+
+
+class CableResistance(EnergyEffect):
+    """Series resistance *after* the monitor (a tether or cable to the robot, a connector, a
+    switch): the monitor measures the cable's own loss with the robot's power,
+    ``P += R I^2`` [ohm], ``I`` the monitor's current (window mean of ``I^2``).
+
+    The opposite side of :class:`SupplyResistance` (a resistance before the monitor sags the
+    voltage the servos see: the power the monitor reads falls). Brodoline et al.'s own setup,
+    an external supply whose current is measured on its cable, has this one; the monitor's
+    voltage does not fall with the current through it, so no V-I slope shows it. An outside
+    review's 0.15 ohm (1.1-7.9 W per run) read as a speed friction of 9.23 N s/m and hot
+    windings, with no candidate for it. Equivalently ``R (P / V)^2`` from the measured power
+    and voltage. Bounded by :attr:`upper` (a cable of several ohms would drop volts at a few
+    amperes, which a robot's servos would not walk on).
+    """
+
+    name, unit = 'cable_resistance', 'ohm'
+    #: the largest series resistance taken as a cable [ohm]: 1 ohm drops 3-6 V at the
+    #: AX-18A robot's 3-6 A (12 V servos would brown out)
+    upper = 1.0
+    #: the window-mean I^2 spread [A^2] below which it says nothing
+    MIN_SPREAD_A2 = 1.0
+
+    def applicable(self, table: WindowTable) -> bool:
+        x = np.asarray(table.current_sq_a2, dtype=float)
+        return bool(x.size and np.all(np.isfinite(x)) and np.ptp(x) > self.MIN_SPREAD_A2)
+
+    def columns(self, table: WindowTable) -> np.ndarray:
+        return np.asarray(table.current_sq_a2, dtype=float)[:, None]
+
+    def params(self, coef, stderr, table):  # type: ignore[no-untyped-def]
+        return ({'resistance_ohm': float(coef[0]),
+                 'side': 'after the monitor (a cable or tether to the robot)'},
+                {'resistance_ohm': float(stderr[0])})
 
 
 class SpeedFriction(EnergyEffect):
@@ -816,8 +868,8 @@ def default_catalogue(leg_names: tuple[str, ...] = ()) -> list[EnergyEffect]:
     """
     effects: list[EnergyEffect] = [BasalPower(), ThermalDrift(), ThermalDriftTime(),
                                    HotWindings(), KinematicError(), SupplyResistance(),
-                                   SpeedFriction(), CarriedMass(), SwingReversal(),
-                                   StandingHold(), PowerGain()]
+                                   CableResistance(), SpeedFriction(), CarriedMass(),
+                                   SwingReversal(), StandingHold(), PowerGain()]
     effects += [LegAnomaly(leg_index=j, leg=n) for j, n in enumerate(leg_names)]
     effects.append(TimeOffset())
     return effects

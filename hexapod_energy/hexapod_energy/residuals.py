@@ -21,6 +21,10 @@
    (an effect chosen first can be explained away by later ones). An effect added
    after others whose fitted contribution follows theirs (``|r| >= 0.9``) is reported as
    collinear: the runs cannot tell it from a correction of the earlier effects' models.
+   An exchange step then swaps an added effect for a candidate that, in its place, is better
+   on the held-out blocks by 2 standard errors (a paired test over the blocks,
+   :func:`_heldout_z`); a candidate in its place that is not worse by 2 standard errors is
+   named beside it, and the document's ``attribution`` says the runs cannot tell them apart.
 4. **Report.** :func:`energy_loop_document` gives the ``residuals.json`` content.
 
 The analysis never reads the simulator's effect metadata. Core functions take arrays; the
@@ -1200,6 +1204,33 @@ def split_mask(table: WindowTable, *, block_s: float = 2.0, every: int = 3) -> n
     return held
 
 
+def _heldout_z(table: WindowTable, held: np.ndarray, term_a: np.ndarray, term_b: np.ndarray,
+               *, block_s: float = 2.0) -> float:
+    """Paired test of two fitted model terms on the held-out windows: per held-out block
+    (the :func:`split_mask` blocks, so that neighbouring windows' correlated errors count
+    once), the sum of ``(y - term_b)^2 - (y - term_a)^2``; their mean over its standard
+    error. Positive: ``b`` is worse. 0 with fewer than 3 blocks or no spread."""
+    y = table.residual_w
+    d = (y - term_b) ** 2 - (y - term_a) ** 2
+    sums = []
+    for r in np.unique(table.run):
+        m = (table.run == r) & held
+        if not np.any(m):
+            continue
+        t = table.t_s[table.run == r]
+        block = np.floor((table.t_s[m] - t.min()) / block_s).astype(int)
+        dm = d[m]
+        sums += [float(np.sum(dm[block == k])) for k in np.unique(block)]
+    s = np.asarray(sums)
+    if s.size < 3:
+        return 0.0
+    sd = float(np.std(s, ddof=1))
+    if not sd > 0:
+        return 0.0 if abs(float(np.mean(s))) <= 1e-12 else math.copysign(math.inf,
+                                                                        float(np.mean(s)))
+    return float(np.mean(s) / (sd / math.sqrt(s.size)))
+
+
 def _span_r(effect: EnergyEffect, others: Sequence[EnergyEffect], table: WindowTable,
             train: np.ndarray) -> np.ndarray | None:
     """Per column of ``effect``, its uncentred multiple correlation with the span of
@@ -1272,7 +1303,9 @@ class SupplyResistanceDrive(EnergyEffect):
 
     The monitored voltage is ``V = V_s - R I``; ``resistance_ohm`` is the lagged V-I slope
     (exact, from the monitor's two channels) and ``V_s`` each run's source voltage
-    (:func:`source_voltage_v`). The cable's own ``R I^2`` is outside the monitor, and a PWM
+    (:func:`source_voltage_v`). This is a resistance *before* the monitor: the cable's own
+    ``R I^2`` is outside it (one after the monitor, whose loss it measures, is
+    :class:`~hexapod_energy.effects_catalogue.CableResistance`), and a PWM
     servo that follows its command draws ``u V i`` with ``u V = i R_w + k_e w``: the same power
     at any supply voltage. What the sag changes is
 
@@ -1373,6 +1406,13 @@ class EffectSelection:
     max_collinearity: float = 0.9
     alternative_share: float = 0.9
     max_span_r: float = 0.995
+    #: paired held-out test (:func:`_heldout_z`): an effect swapped for an added one that
+    #: does not make the held-out blocks worse by this many standard errors explains the
+    #: residual about as well (the runs cannot tell the two apart); one that makes them
+    #: better by as many is swapped in (:meth:`_exchange`)
+    swap_z: float = 2.0
+    #: ... and it must remove at least this share of what the added effect removes
+    swap_min_share: float = 0.5
     max_companion_r: float = 0.95
     history_: list[dict[str, Any]] = field(default_factory=list, repr=False)
 
@@ -1467,6 +1507,7 @@ class EffectSelection:
         cat = self.catalogue if self.catalogue is not None else \
             residual_catalogue(table.leg_names)
         cands = [e for e in cat if e.applicable(table)]
+        self._held_back = self._look_alikes(cands, table, train, held)
         y = table.residual_w
         selected: list[EnergyEffect] = []
         _, _, term0, sse = self._fit(selected, table, train)
@@ -1479,6 +1520,7 @@ class EffectSelection:
         while True:
             best: tuple[float, int, float] | None = None
             passing: dict[int, dict[str, Any]] = {}
+            terms: dict[int, np.ndarray] = {}
             rejected: list[dict[str, Any]] = []
             for ci, e in enumerate(cands):
                 if e in selected:
@@ -1525,7 +1567,8 @@ class EffectSelection:
                                    'model, not name an effect of its own')
                 if ok:
                     passing[ci] = rec
-                if ok and e.selectable_on(table) and (best is None or rmse < best[0]):
+                    terms[ci] = term
+                if ok and self._selectable(e, table) and (best is None or rmse < best[0]):
                     best = (rmse, ci, dbic)
             gain_rec = next((r for r in passing.values() if r['name'] == 'power_gain'), None)
             stop = False
@@ -1577,10 +1620,17 @@ class EffectSelection:
                 name = cands[cj].name
                 if cj == ci or name == cands[ci].name or share < self.alternative_share:
                     continue
+                # 90 % of a large gain can still be plainly worse on the held-out blocks
+                # (speed_friction 0.52 W beside a cable's 0.22 W was 'nearly as well'); what
+                # is never added (a gain, uniformly warm windings) stays named as a hedge
+                z = _heldout_z(table, held, terms[ci], terms[cj])
+                if not z < self.swap_z and self._selectable(cands[cj], table):
+                    continue
                 if name not in alts or rec['heldout_rmse'] < alts[name]['heldout_rmse']:
                     alts[name] = {'name': name, 'heldout_rmse': rec['heldout_rmse'],
                                   'params': rec['params'], 'stderr': rec['stderr'],
-                                  'share': float(share), 'chosen_heldout_rmse': rmse}
+                                  'share': float(share), 'chosen_heldout_rmse': rmse,
+                                  'z': float(z)}
             if alts:
                 alternatives[cands[ci].name] = sorted(alts.values(),
                                                       key=lambda a: a['heldout_rmse'])
@@ -1596,6 +1646,8 @@ class EffectSelection:
             records[ci]['note'] = ('added, then dropped: the effects added after it explain '
                                    'what it did (with them it no longer lowers the error)')
             alternatives.pop(e.name, None)
+        self.exchanged_ = self._exchange(cands, selected, records, alternatives, table,
+                                         train, held)
         # an effect the loop added is not also an alternative to another
         added_names = {e.name for e in selected}
         for name in list(alternatives):
@@ -1604,6 +1656,7 @@ class EffectSelection:
                 del alternatives[name]
         self.mass_sensitivity_ = self._mass_alternatives(cands, selected, alternatives,
                                                          table, train, held)
+        self._swap_alternatives(cands, selected, alternatives, table, train, held)
         for ci, e in enumerate(cands):
             if e.name in ('basal_power', 'carried_mass') and ci in records:
                 records[ci]['selected'] = e in selected
@@ -1638,6 +1691,155 @@ class EffectSelection:
         self.final_params_ = self._params(selected, coef, se, table)
         self.collinearity_ = self._collinearity(selected, coef, table)
         return self
+
+    #: (effect, its physical look-alike): the effect is added only where, each fitted alone,
+    #: it beats the look-alike on the held-out blocks by :attr:`swap_z` standard errors;
+    #: elsewhere it is named beside what is added, never added itself
+    look_alikes: tuple[tuple[str, str], ...] = (('cable_resistance', 'speed_friction'),)
+
+    def _look_alikes(self, cands: Sequence[EnergyEffect], table: WindowTable,
+                     train: np.ndarray, held: np.ndarray) -> set[int]:
+        """The candidates held back as alternatives (:attr:`look_alikes`). A cable's
+        ``R I^2`` and a ground friction's drive loss both grow with the current (a friction's
+        torque costs copper loss): on the simulated robot a 15 N s/m friction read as a
+        0.39 ohm cable (held-out 0.29 W against 0.46 W, paired z = -1.3), on an outside
+        review's bags a 0.15 ohm cable beat the friction at z = -4.1."""
+        out: set[int] = set()
+        for name, other in self.look_alikes:
+            a = next((e for e in cands if e.name == name), None)
+            b = next((e for e in cands if e.name == other), None)
+            if a is None or b is None:
+                continue
+            z = _heldout_z(table, held, self._fit([b], table, train)[2],
+                           self._fit([a], table, train)[2])
+            if not z <= -self.swap_z:
+                out.add(id(a))
+        return out
+
+    def _selectable(self, e: EnergyEffect, table: WindowTable) -> bool:
+        """:meth:`EnergyEffect.selectable_on`, and not held back as a look-alike."""
+        return e.selectable_on(table) and id(e) not in getattr(self, '_held_back', set())
+
+    def _swappable(self, e: EnergyEffect, selected: Sequence[EnergyEffect]) -> bool:
+        """Whether ``e`` may stand in an added effect's place in the final comparisons (not a
+        companion, a clock offset or an effect of a name already added)."""
+        return not (e in selected or getattr(e, 'companion', False) or e.name == 'time_offset'
+                    or e.name in {x.name for x in selected})
+
+    def _exchange(self, cands: Sequence[EnergyEffect], selected: list[EnergyEffect],
+                  records: dict[int, dict[str, Any]],
+                  alternatives: dict[str, list[dict[str, Any]]], table: WindowTable,
+                  train: np.ndarray, held: np.ndarray) -> list[dict[str, Any]]:
+        """The exchange step of stepwise selection: an added effect is replaced by another
+        candidate that, beside the other added effects, makes the held-out blocks better by
+        :attr:`swap_z` standard errors (:func:`_heldout_z`) and lowers the training BIC by
+        ``min_delta_bic``, while passing the tests it would have been added by. Greedy
+        forward selection took the first round's best and never reached the true pair: a
+        hidden basal power 2 W and kinematic error 1.5 W/Hz read an undeclared 0.52 kg plus
+        0.77 W (held-out 0.284 W) where kinematic_error beside the basal power gave 0.249 W
+        (an outside review). Returns the exchanges made."""
+        done: list[dict[str, Any]] = []
+        for _ in range(len(selected) + 2):
+            if not selected:
+                break
+            r_s, bic_s, _, _ = self._score(selected, table, train, held)
+            term_s = self._fit(selected, table, train)[2]
+            best: tuple[float, EnergyEffect, EnergyEffect, float, dict[str, Any]] | None = None
+            for a in selected:
+                if getattr(a, 'companion', False) or a.name == 'time_offset':
+                    continue
+                rest = [x for x in selected if x is not a]
+                for b in cands:
+                    if not self._swappable(b, selected) or not self._selectable(b, table):
+                        continue
+                    trial = [b if x is a else x for x in selected]
+                    rmse, bic, coef, se = self._score(trial, table, train, held)
+                    if not (bic - bic_s < -self.min_delta_bic and rmse < r_s):
+                        continue
+                    z = _heldout_z(table, held, term_s, self._fit(trial, table, train)[2])
+                    if not z <= -self.swap_z:
+                        continue
+                    if self._indistinguishable(b, rest, table, train) or \
+                            self._implausible(trial, self._params(trial, coef, se, table),
+                                              table):
+                        continue
+                    if b.needs_variation_on(table) and not self._variation_explains(
+                            b, rest, table, train, held,
+                            self._score(rest, table, train, held)[0] if rest else
+                            float(np.sqrt(np.mean(table.residual_w[held] ** 2)))):
+                        continue
+                    p, e = self._params(trial, coef, se, table)[trial.index(b)]
+                    if best is None or rmse < best[0]:
+                        best = (rmse, a, b, z, {'params': p, 'stderr': e})
+            if best is None:
+                break
+            rmse, a, b, z, pe = best
+            selected[selected.index(a)] = b
+            ia, ib = cands.index(a), cands.index(b)
+            why = (f'exchanged for {b.name}: beside the other added effects it makes the '
+                   f'held-out blocks better (held-out {r_s:.3g} -> {rmse:.3g} W, paired '
+                   f'z = {z:.1f})')
+            records[ia] = dict(records.get(ia, {'name': a.name, 'params': {}, 'stderr': {}}),
+                               selected=False, exchanged_for=b.name, note=f'added, then {why}')
+            records[ib] = {'name': b.name, 'heldout_rmse': rmse, 'delta_bic': None,
+                           'selected': True, 'exchanged_with': a.name, **pe}
+            alternatives[b.name] = alternatives.pop(a.name, [])
+            done.append({'removed': a.name, 'added': b.name, 'heldout_rmse_before': r_s,
+                         'heldout_rmse_after': rmse, 'z': z})
+        return done
+
+    def _swap_alternatives(self, cands: Sequence[EnergyEffect], selected: list[EnergyEffect],
+                           alternatives: dict[str, list[dict[str, Any]]], table: WindowTable,
+                           train: np.ndarray, held: np.ndarray) -> None:
+        """Name, per added effect, the candidates that in its place (beside the other added
+        effects) do not make the held-out blocks worse by :attr:`swap_z` standard errors
+        (:func:`_heldout_z`) and remove at least :attr:`swap_min_share` of what it removes:
+        the runs cannot tell them apart. Appended to ``alternatives`` (``why``: 'swapped').
+        Compared only in the round it was added, a leg anomaly picked on BIC (held-out
+        1.667 W) stood alone where a basal power gave 1.685 W, z = 1.3; and an effect added
+        beside another was never compared in that company (an outside review)."""
+        if not selected:
+            return
+        y = table.residual_w
+        r_s = self._score(selected, table, train, held)[0]
+        term_s = self._fit(selected, table, train)[2]
+        for a in selected:
+            if getattr(a, 'companion', False) or a.name == 'time_offset':
+                continue
+            rest = [x for x in selected if x is not a]
+            r_rest = self._score(rest, table, train, held)[0] if rest else \
+                float(np.sqrt(np.mean(y[held] ** 2)))
+            gain = r_rest - r_s
+            if not gain > 0:
+                continue
+            have = {x['name'] for x in alternatives.get(a.name, [])}
+            found: dict[str, dict[str, Any]] = {}
+            for b in cands:
+                if not self._swappable(b, selected) or b.name in have:
+                    continue
+                trial = [b if x is a else x for x in selected]
+                rmse, _, coef, se = self._score(trial, table, train, held)
+                share = (r_rest - rmse) / gain
+                if share < self.swap_min_share:
+                    continue
+                z = _heldout_z(table, held, term_s, self._fit(trial, table, train)[2])
+                if not z < self.swap_z:
+                    continue
+                p, e = self._params(trial, coef, se, table)[trial.index(b)]
+                rec = {'name': b.name, 'heldout_rmse': rmse, 'params': p, 'stderr': e,
+                       'share': float(share), 'chosen_heldout_rmse': r_s, 'z': float(z),
+                       'why': ('in its place, beside the other added effects, the held-out '
+                               f'blocks are not worse (paired z = {z:+.1f}, under '
+                               f'{self.swap_z:g})')}
+                why = b.implausible(p, table)
+                if why:
+                    rec['implausible'] = why
+                if b.name not in found or rmse < found[b.name]['heldout_rmse']:
+                    found[b.name] = rec
+            if found:
+                alternatives[a.name] = sorted(alternatives.get(a.name, []) +
+                                              list(found.values()),
+                                              key=lambda x: x['heldout_rmse'])
 
     #: the mass sensitivity column is 'nearly constant' at this uncentred correlation with a
     #: constant: an undeclared mass and a basal power then read the same (four tripod runs at
@@ -1794,7 +1996,7 @@ class EffectSelection:
         for group in sets:
             r_c, bic_c, _, _ = score(selected + group)
             for ci, e in enumerate(cands):
-                if e in selected or e in comps or not e.selectable_on(table) \
+                if e in selected or e in comps or not self._selectable(e, table) \
                         or e.name == 'time_offset':
                     continue
                 trial = selected + [e] + group
@@ -1918,14 +2120,31 @@ class EffectSelection:
         return out
 
 
+#: runs left out must lose at least this share of their error for the effects to transfer
+TRANSFER_MIN_GAIN = 0.05
+#: ... and at least this share of what the held-out time blocks lost
+TRANSFER_BLOCK_SHARE = 0.5
+#: a left-out error above this multiple of the held-out blocks' is said (partly transfers)
+TRANSFER_BLOCK_RATIO = 2.0
+
+
 def leave_one_run_out(table: WindowTable, *, run_names: Sequence[str] | None = None,
-                      min_runs: int = 3) -> dict[str, Any] | None:
+                      min_runs: int = 3, heldout: tuple[float, float] | None = None
+                      ) -> dict[str, Any] | None:
     """The loop's error on runs it has not seen: for each run, the effects are selected and
     fitted (:class:`EffectSelection`, its own time-block split) on the other runs and the
     left-out run's windows are scored, before (the bench model alone) and after. None with
     fewer than ``min_runs`` runs. The block-held-out figure holds out time blocks of the same
     runs that chose the effects; across runs the error was 2-4 times larger and in two of an
-    outside review's cases the correction made a new run worse."""
+    outside review's cases the correction made a new run worse.
+
+    ``transfers`` is true only when the runs left out lose at least
+    :data:`TRANSFER_MIN_GAIN` of their error and, with ``heldout`` (the held-out blocks'
+    RMSE before and after), at least :data:`TRANSFER_BLOCK_SHARE` of what the blocks lost:
+    it read true at 1.10 -> 1.09 W (an outside review: true in all nine of its cases).
+    ``verdict``: 'transfers', 'partly' (it transfers, but the left-out error stays above
+    :data:`TRANSFER_BLOCK_RATIO` times the blocks': 1.05 W against 0.36 W), 'little' (it
+    lowers the left-out error, by less than those shares) or 'worse'."""
     ids = np.unique(table.run)
     if ids.size < min_runs:
         return None
@@ -1958,9 +2177,31 @@ def leave_one_run_out(table: WindowTable, *, run_names: Sequence[str] | None = N
         return None
     b, a = np.concatenate(before), np.concatenate(after)
     rb, ra = float(np.sqrt(np.mean(b ** 2))), float(np.sqrt(np.mean(a ** 2)))
-    return {'kind': 'runs left out: effects selected and fitted on the other runs, each left-'
-                    'out run scored in turn', 'rmse_before': rb, 'rmse_after': ra,
-            'transfers': bool(ra <= rb), 'per_run': per}
+    ok = ra <= (1.0 - TRANSFER_MIN_GAIN) * rb
+    out: dict[str, Any] = {
+        'kind': 'runs left out: effects selected and fitted on the other runs, each left-out '
+                'run scored in turn', 'rmse_before': rb, 'rmse_after': ra}
+    if heldout is not None and all(math.isfinite(x) for x in heldout):
+        hb, ha = float(heldout[0]), float(heldout[1])
+        share = (rb - ra) / (hb - ha) if hb - ha > 0 else math.nan
+        out['heldout_blocks'] = {'rmse_before': hb, 'rmse_after': ha}
+        out['share_of_block_gain'] = share
+        out['ratio_to_blocks_after'] = ra / ha if ha > 0 else math.nan
+        ok = ok and not share < TRANSFER_BLOCK_SHARE
+    if ra > rb:
+        verdict = 'worse'
+    elif not ok:
+        verdict = 'little'
+    elif out.get('ratio_to_blocks_after', 0.0) > TRANSFER_BLOCK_RATIO:
+        verdict = 'partly'
+    else:
+        verdict = 'transfers'
+    out.update(transfers=bool(ok), verdict=verdict,
+               criterion=f'left-out error lower by >= {100 * TRANSFER_MIN_GAIN:g} %' + (
+                   f' and by >= {100 * TRANSFER_BLOCK_SHARE:g} % of what the held-out blocks '
+                   'lost' if heldout is not None else ''),
+               per_run=per)
+    return out
 
 
 def _constant_r(x: np.ndarray) -> float:
@@ -2099,6 +2340,7 @@ def energy_loop_document(table: WindowTable, sel: EffectSelection,
             'per_run': [{'run': names[k] if k < len(names) else f'run {k}',
                          'excess_k': float(np.mean(dt[table.run == k]))}
                         for k in np.unique(table.run)]}
+    doc['attribution'] = _attribution(doc)
     doc['summary'] = summary_text(doc)
     return doc
 
@@ -2173,15 +2415,18 @@ def _temperature_text(doc: dict[str, Any]) -> str:
     runs = ', '.join(f"{Path(str(r['run'])).name} {r['excess_k']:+.1f} K"
                      for r in st.get('per_run', []))
     added = 'hot_windings' in doc.get('effects_added', [])
+    named = any(x['name'] == 'hot_windings' for a in doc.get('added_params', [])
+                for x in a.get('alternatives', []))
+    # 'may account for part of the residual' only when one is left (it ended every summary,
+    # clean runs and a fully explained basal power too: an outside review)
+    left = bool((doc.get('unexplained') or {}).get('significant'))
     return (f" The robot's servos were {abs(mean):.1f} K {'warmer' if mean > 0 else 'cooler'} "
             f'than the bench\'s on average ({runs})' + (
                 '.' if added else
                 ': hot windings (copper resistance and magnet flux change every watt by about '
-                '0.4 %/K) '
-                + ('are named above as an alternative.'
-                   if any(x['name'] == 'hot_windings' for a in doc.get('added_params', [])
-                          for x in a.get('alternatives', []))
-                   else 'may account for part of the residual.')))
+                '0.4 %/K) are named above as an alternative.' if named else
+                ': hot windings (copper resistance and magnet flux change every watt by about '
+                '0.4 %/K) may account for part of the residual left.' if left else '.'))
 
 
 def _fmt_params(params: dict[str, Any], stderr: dict[str, Any]) -> str:
@@ -2193,7 +2438,8 @@ def _fmt_params(params: dict[str, Any], stderr: dict[str, Any]) -> str:
                     else f'{k} = {v}'
                     for k, v in params.items()
                     if k not in ('same_stance_as', 'reference_range_c',
-                                 'reference_at_bound', 'swing_while_it_stands'))
+                                 'reference_at_bound', 'swing_while_it_stands',
+                                 'w_per_k_unit', 'servo_count', 'side'))
     same = params.get('same_stance_as')
     swing = params.get('swing_while_it_stands')
     if same:  # legs these runs cannot tell from the named one: said, not hidden
@@ -2264,11 +2510,15 @@ def _summary_effects(doc: dict[str, Any]) -> str:
                 f"{x['heldout_rmse']:.3g} {unit}"
                 + (f"; implausible: {x['implausible']}" if x.get('implausible') else '') + ')'
                 for x in xs)
-        if near:
-            others.append(f"The same residual is explained nearly as well by {alt_text(near)}: "
-                          f"these runs cannot tell it from {a['name']}; runs that differ in "
-                          'what the two depend on (gait, duty factor, load, standing) would.')
         coll = a.get('collinearity') or {}
+        hint = _tell_apart_hint(doc)
+        undecided = bool(near and not better and not a.get('constant_beside')
+                         and not coll.get('collinear'))
+        if near and not undecided:
+            text = (f"The same residual is explained nearly as well by {alt_text(near)}: "
+                    f"these runs cannot tell it from {a['name']}{hint}.")
+            if text not in others:   # two leg anomalies share one list
+                others.append(text)
         if better:
             chosen = better[0].get('chosen_heldout_rmse')
             gain = any(x['name'] == 'power_gain' for x in better)
@@ -2282,6 +2532,17 @@ def _summary_effects(doc: dict[str, Any]) -> str:
                             'rather than an effect the model missed; power_gain is never added, '
                             'so check the power monitor against a known load.' if gain else
                             f": these runs cannot tell it from {a['name']}.")))
+        elif undecided:
+            # not 'the model missed' it: another candidate in its place does about as well
+            # (a leg anomaly named with no doubt where a basal power did as well: an
+            # outside review)
+            chosen = near[0].get('chosen_heldout_rmse')
+            doubts.append((a['name'],
+                           f"The loop added {a['name']} ({ps}), but {alt_text(near)} "
+                           'explains the same residual nearly as well' +
+                           (f" (held-out {chosen:.3g} {unit} with {a['name']})"
+                            if isinstance(chosen, float) else '') +
+                           f": these runs cannot tell it from {a['name']}{hint}."))
         elif a.get('constant_beside'):
             with_ = ' and '.join(a['constant_beside'])
             un = coll.get('uncentred_correlation')
@@ -2363,6 +2624,74 @@ def _summary_effects(doc: dict[str, Any]) -> str:
     return ' '.join([out] + [d for _, d in doubts] + others + [_loro_text(doc)]).rstrip()
 
 
+def _tell_apart_hint(doc: dict[str, Any]) -> str:
+    """'; runs ... might tell them apart' naming only what these runs do not vary already
+    (they span several gaits: the hint said 'gait, duty factor' to runs of three gaits and
+    three duty factors, an outside review), '' when nothing is left to suggest."""
+    missing = []
+    if len((doc.get('duty_factors') or {}).get('runs', [])) < 2:
+        missing.append('another gait or duty factor')
+    runs = doc.get('per_run') or []
+    if runs and not any(float(r.get('period_s') or 0.0) <= 0.0 for r in runs):
+        missing.append('a standing run')
+    if not doc.get('payload_kg'):
+        missing.append('a known payload')
+    if not missing:
+        return ''
+    return f"; runs with {', '.join(missing[:-1])}{' or ' if len(missing) > 1 else ''}" \
+        f'{missing[-1]} might tell them apart'
+
+
+def _attribution(doc: dict[str, Any]) -> dict[str, Any]:
+    """Which added effects these runs name (``identified``) and which they cannot tell from
+    another candidate (``undecided``: a plausible alternative explains the residual about
+    as well) or from a correction of another added effect (``suspect``: a constant beside
+    it, a collinear contribution, or one that absorbs a step or offsets left unexplained). ``effects_added`` lists what the fit includes; a script
+    that read it took a kinematic error for what a gain explained better (an outside
+    review)."""
+    identified, undecided, suspect = [], [], []
+    for a in doc.get('added_params') or []:
+        alts = [x for x in a.get('alternatives') or [] if not x.get('implausible')]
+        coll = (a.get('collinearity') or {}).get('collinear')
+        a['identified'] = not alts and not a.get('constant_beside') and not coll
+        if alts:
+            chosen = alts[0].get('chosen_heldout_rmse')
+            undecided.append({
+                'effect': a['name'], 'or': sorted({x['name'] for x in alts}),
+                'better': sorted({x['name'] for x in alts if x.get('share', 0.0) >= 1.0
+                                  or (isinstance(chosen, float) and
+                                      x['heldout_rmse'] <= chosen)})})
+        elif a.get('constant_beside') or coll:
+            suspect.append({'effect': a['name'],
+                            'beside': a.get('constant_beside') or
+                            (a.get('collinearity') or {}).get('with', [])})
+        else:
+            identified.append(a['name'])
+    u = doc.get('unexplained') or {}
+    if identified and u.get('significant') and u.get('pattern') in ('step', 'run_offsets'):
+        # what is left is a step or offsets between runs no effect explains: the fitted
+        # effects probably absorb part of it (the summary says so; the JSON did not)
+        for name in identified:
+            suspect.append({'effect': name, 'absorbs': u['pattern']})
+        for a in doc.get('added_params') or []:
+            a['identified'] = False
+        identified = []
+    if not doc.get('added_params'):
+        status = 'nothing added'
+    elif undecided:
+        status = 'undecided'
+    elif suspect and not identified:
+        status = 'suspect'
+    elif suspect:
+        status = 'identified, with suspect companions'
+    else:
+        status = 'identified'
+    return {'status': status, 'identified': identified, 'undecided': undecided,
+            'suspect': suspect,
+            'kind': 'effects_added is what the fit includes; identified: the added effects '
+                    'no other candidate explains about as well in their place'}
+
+
 def _rejected_text(doc: dict[str, Any]) -> str:
     """Candidates that lowered the held-out error by the selection's test but were not added
     (each with the reason its record gives), '' when none did."""
@@ -2432,6 +2761,18 @@ def _loro_text(doc: dict[str, Any]) -> str:
                  if r['rmse_after'] > r['rmse_before']]
         return text + (': the added effects do not transfer to a new run (worse than the '
                        f"model alone on {', '.join(worse)}).")
+    verdict = lo.get('verdict')
+    if verdict == 'little':
+        hb = lo.get('heldout_blocks') or {}
+        blocks = (f", where the held-out blocks went {hb['rmse_before']:.3g} -> "
+                  f"{hb['rmse_after']:.3g} {unit}" if hb else '')
+        return text + (f'{blocks}: the added effects hardly transfer to a new run; they fit '
+                       'these runs rather than name what a new run will draw.')
+    if verdict == 'partly':
+        hb = lo.get('heldout_blocks') or {}
+        return text + (f": the added effects transfer only in part (a new run keeps "
+                       f"{lo['ratio_to_blocks_after']:.1f} times the held-out blocks' "
+                       f"{hb.get('rmse_after', math.nan):.3g} {unit}).")
     return text + '.'
 
 
@@ -2680,7 +3021,8 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
     if view_refused:   # no clock-offset search and no per-sample view: said
         doc['sample_view'] = {'refused': view_refused}
     if sel.selected_:
-        loro = leave_one_run_out(table, run_names=[r.name for r in runs])
+        loro = leave_one_run_out(table, run_names=[r.name for r in runs],
+                                 heldout=(sel.rmse_heldout_before_, sel.rmse_heldout_after_))
         if loro is not None:
             doc['leave_one_run_out'] = loro
     bg = _bench_gait(model)

@@ -22,9 +22,18 @@ stances are ``hexapod-analyze slip``'s (geometric single support, fitted mocap o
      "heldout": {"rmse_before", "rmse_after"}, "summary": "plain words", "plots": [...],
      (energy:) "heldout_kind": "held-out time blocks of the same runs ...",
      (energy, 3+ runs, effects added:) "leave_one_run_out": {"kind", "rmse_before",
-                 "rmse_after", "transfers", "per_run": [{"run", "rmse_before", "rmse_after",
-                 "effects_added"}]} (each run scored with the effects selected and fitted on
-                 the others),
+                 "rmse_after", "transfers" (the runs left out lose >= 5 % of their error and
+                 >= half of what the held-out blocks lost), "verdict" ("transfers", "partly":
+                 left-out error above twice the blocks', "little", "worse"), "criterion",
+                 "heldout_blocks", "share_of_block_gain", "ratio_to_blocks_after",
+                 "per_run": [{"run", "rmse_before", "rmse_after", "effects_added"}]} (each run
+                 scored with the effects selected and fitted on the others),
+     (energy:) "attribution": {"status" ("identified", "identified, with suspect
+                 companions", "suspect", "undecided", "nothing added"), "identified": [added effects
+                 no other candidate explains about as well in their place], "undecided":
+                 [{"effect", "or": [candidates as good], "better": [those better]}],
+                 "suspect": [{"effect", "beside" | "absorbs"}], "kind"}: effects_added is
+                 what the fit includes, attribution what the runs name,
      (energy:) "mass_sensitivity": {"w_per_kg_mean", "uncentred_r_with_constant",
                  "near_constant"}, "payload_kg", "robot_mass": {"kg" (payload excluded),
                  "source" (--robot-mass | bags' metadata (robot_mass_kg, as hexapod-sim
@@ -33,7 +42,9 @@ stances are ``hexapod-analyze slip``'s (geometric single support, fitted mocap o
                                  "alternatives"?: [{"name", "heldout_rmse", "params",
                                                     "stderr", "share",
                                                     "chosen_heldout_rmse",
-                                                    "implausible"?}],
+                                                    "implausible"?, "z"?, "why"?}],
+                                 "identified": false when an alternative, a constant beside
+                                 it or a collinear contribution leaves it undecided,
                                  "collinearity"?: {"with", "correlation" (null for a
                                  constant contribution: "correlation_kind"),
                                  "uncentred_correlation", "collinear"},
@@ -80,8 +91,18 @@ when significant (an effect outside the catalogue: an accessory switched on mid-
 on another floor) the summary says so and gives its shape.
 
 ``alternatives`` (energy): other candidates that explained the same residual nearly as well
-(at least 90 % of the held-out error the added effect removed): the runs cannot tell them
-apart, and the summary says so. Energy candidates: ``basal_power``, ``thermal_drift`` (on the
+(at least 90 % of the held-out error the added effect removed in its round, and not worse on
+the held-out blocks by 2 standard errors, ``z``, unless never added like ``power_gain``; or,
+in its place beside the other added effects, not worse by 2 standard errors and removing at
+least half of what it removes, ``why``): the runs cannot tell them apart, and the summary
+says so. After forward selection an added effect is exchanged for a candidate that, in its
+place, is better on the held-out blocks by 2 standard errors (its record: ``exchanged_for``).
+``cable_resistance`` [ohm]: a resistance after the monitor (a cable or tether to the robot),
+whose ``R I^2`` the monitor measures; added only where it beats ``speed_friction`` (whose
+drive loss also grows with the current) by 2 standard errors, else named beside. The
+``thermal_drift`` slope ``w_per_k`` is per servo-kelvin; ``w_per_k_of_mean_temperature``
+is the robot's per kelvin of its mean servo temperature. Energy candidates: ``basal_power``,
+``thermal_drift`` (on the
 servo temperatures, or without ``/servo_status`` on the energy drawn since the run started),
 ``hot_windings`` (servos warmer than the bench's: the predicted power times their mean excess
 temperature, ``per_k`` [1/K]), ``kinematic_error``, ``supply_resistance``,
