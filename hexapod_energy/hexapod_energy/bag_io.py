@@ -1818,6 +1818,8 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
         BATTERY_GAP_NOTE,
         JOINT_GAP_NOTE,
         LEG_MISMATCH_NOTE,
+        PARTIAL_POSE_NOTE,
+        POSE_FALLBACK_NOTE,
         SCHEDULE_SPEED_NOTE,
         STILL_JOINTS_NOTE,
         ZERO_EFFORT_NOTE,
@@ -1995,6 +1997,9 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
         notes.append(f'{acc.repeated_poses_} /mocap/body sample(s) repeat the previous pose '
                      'exactly (the bridge repeating its last pose after losing the body): '
                      'left out of the speed')
+    if acc.nonfinite_poses_:
+        notes.append(f'{acc.nonfinite_poses_} /mocap/body sample(s) with a non-finite position '
+                     '(NaN: the bridge lost the body?) left out of the speed')
     if any(POSITION_POWER_NOTE in d.warnings for d in windows):
         notes.append(POSITION_POWER_NOTE)
     if acc.velocityless_skipped_:
@@ -2031,6 +2036,15 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
                    if not any(w.startswith(STILL_JOINTS_NOTE) for w in d.warnings)]
         notes.append(f'{n_still} window(s) left out: {STILL_JOINTS_NOTE} (their speed and '
                      'model P_out would be a walking robot\'s)')
+    for start in (POSE_FALLBACK_NOTE, PARTIAL_POSE_NOTE):
+        # a window whose motion capture was lost around a bound took the gait schedule's
+        # speed in silence (an occlusion every 5 s, 0.16 s between poses: run speed -4 %,
+        # an outside review); now the window says so, and the run too
+        said = [w for d in windows for w in d.warnings if w.startswith(start)]
+        if said:
+            n_said = sum(any(w.startswith(start) for w in d.warnings) for d in windows)
+            notes.append(f'{start} in {n_said} of {len(windows)} window(s), e.g. ' +
+                         said[0][len(start) + 2:])
     n_neg = sum(d.power_in_w < 0 for d in windows)
     if n_neg:
         notes.append(f'negative mean input power in {n_neg} of {len(windows)} window(s) with '

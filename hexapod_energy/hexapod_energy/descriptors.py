@@ -85,7 +85,7 @@ from typing import Any
 
 import numpy as np
 
-from hexapod_common.clocks import StreamClock, foreign_clock_note
+from hexapod_common.clocks import FOREIGN_CLOCK_S, StreamClock, foreign_clock_note
 from hexapod_common.conversions import (
     BatterySample,
     GaitPhaseSample,
@@ -101,6 +101,7 @@ from hexapod_energy.cycles import CycleSettings, JointCycleTracker, unwrap_near
 from hexapod_energy.metrics import G_MPS2
 
 __all__ = [
+    'ArrivalClockGate',
     'AUTO_UNANIMOUS_SAMPLES',
     'CYCLE_QUIET_S',
     'MAX_WINDOW_S',
@@ -193,6 +194,12 @@ def velocity_units_note(ratio: float) -> str:
     return ''
 
 
+#: said once when /mocap/body gives a pose with a non-finite position
+NONFINITE_POSE_NOTE = ('mocap/body poses with a non-finite position (NaN: the bridge lost the '
+                       'body?) are left out of the speed; windows they leave without poses '
+                       'are warned')
+
+
 #: the start of a window's warning that ``/gait/phase`` and ``/joint_states`` name other legs
 LEG_MISMATCH_NOTE = 'legs of /gait/phase and /joint_states differ'
 
@@ -229,13 +236,16 @@ class Descriptors:
     cycle_source: str = ''   # gait_phase or joints
     #: mean net (signed) joint power from the efforts [W]; NaN without efforts
     joint_power_net_w: float = math.nan
+    #: where P_out came from: effort, model, none (unknown) or '' (0 W, no source)
+    power_out_source: str = ''
 
 
 def descriptors_from_powers(*, power_in_w: float, power_out_w: float, speed_mps: float,
                             mass_kg: float, window_s: float = 0.0, t_end_s: float = 0.0,
                             cycles: int = 1, warnings: tuple[str, ...] = (),
                             speed_source: str = '', cycle_source: str = '',
-                            joint_power_net_w: float = math.nan) -> Descriptors:
+                            joint_power_net_w: float = math.nan,
+                            power_out_source: str = '') -> Descriptors:
     """All descriptors from mean powers, speed and mass (NaN where undefined, e.g. v = 0)."""
     # the definitions are hexapod_energy.metrics' (DESIGN section 4), NaN where undefined
     loss = float(metrics.power_loss(power_in_w, power_out_w))
@@ -254,7 +264,8 @@ def descriptors_from_powers(*, power_in_w: float, power_out_w: float, speed_mps:
         specific_resistance=float(metrics.specific_resistance(
             power_in_w, mass_kg, speed_mps)) if moving else math.nan,
         cycles=cycles, warnings=warnings, speed_source=speed_source,
-        cycle_source=cycle_source, joint_power_net_w=joint_power_net_w)
+        cycle_source=cycle_source, joint_power_net_w=joint_power_net_w,
+        power_out_source=power_out_source)
 
 
 def gait_from_sample(sample: GaitPhaseSample) -> Any:
@@ -397,28 +408,83 @@ def _gap_in_window(t: np.ndarray, t0: float, t1: float, steps: Any, *,
         bool(np.max(np.diff(pts)) > max(BATTERY_GAP_INTERVALS * typical, 0.25))
 
 
-def _bracketed_positions(track: Sequence[tuple[float, ...]], t0: float, t1: float, n: int,
-                         max_gap_s: float) -> np.ndarray | None:
-    """Positions (first ``n`` coordinates) at ``t0`` and ``t1``, each linearly interpolated
-    between the two samples around it when they lie within ``max_gap_s`` of each other; None
-    when either bound has no such pair.
+#: a motion-capture (or odometry) gap up to this long [s] across a window bound is bridged:
+#: the body's position at the bound is interpolated between the poses around it (at most half
+#: the window; always 0.1 of it). An occlusion across a cycle boundary every 5 s (0.16 s
+#: between poses at 120 Hz) had sent 1 window in 5 to the gait schedule's speed in silence:
+#: 0.200 m/s for the mocap's 0.250, specific resistance +25 % (an outside live review)
+POSE_GAP_S = 0.5
+#: a window whose bounds cannot be bridged takes its speed from the poses it holds when they
+#: span at least this share of it (displacement over their span), said in its warnings
+POSE_MIN_COVER = 0.5
+#: the start of a window's warning that its speed is from motion capture over part of it
+PARTIAL_POSE_NOTE = 'motion capture lost over part of the window'
+#: the start of a window's warning that motion capture gave it no speed
+POSE_FALLBACK_NOTE = 'no motion-capture speed for this window'
 
-    The speed over a window of whole gait cycles is the displacement between its bounds: the
-    samples nearest inside them cut a part of the cycle (an EduBot walk, whose body speed
-    swings within the stride, read 0.1802 m/s for 0.1813; an independent review)."""
-    ends = []
-    for t in (t0, t1):
-        before = [p for p in track if p[0] <= t]
-        after = [p for p in track if p[0] >= t]
-        if not before or not after:
-            return None
-        a, b = max(before), min(after)
-        if b[0] - a[0] > max_gap_s:
-            return None
-        pa, pb = np.asarray(a[1:1 + n], dtype=float), np.asarray(b[1:1 + n], dtype=float)
-        w = 0.0 if b[0] == a[0] else (t - a[0]) / (b[0] - a[0])
-        ends.append(pa + w * (pb - pa))
-    return np.array(ends)
+
+#: the speed sources as a window's warning names them
+_SPEED_SOURCE_NAMES = {'gait_schedule': 'the gait schedule', 'odometry': '/odom',
+                       'given': 'the given speed', 'none': 'nowhere: speed unknown'}
+
+
+def _position_at(track: Sequence[tuple[float, ...]], t: float, n: int,
+                 max_gap_s: float) -> tuple[np.ndarray, float] | None:
+    """Position (first ``n`` coordinates) at ``t``, linearly interpolated between the two
+    samples around it, and their distance apart [s]; None without a sample on each side
+    within ``max_gap_s`` of each other."""
+    before = [p for p in track if p[0] <= t]
+    after = [p for p in track if p[0] >= t]
+    if not before or not after:
+        return None
+    a, b = max(before), min(after)
+    if b[0] - a[0] > max_gap_s:
+        return None
+    pa, pb = np.asarray(a[1:1 + n], dtype=float), np.asarray(b[1:1 + n], dtype=float)
+    w = 0.0 if b[0] == a[0] else (t - a[0]) / (b[0] - a[0])
+    return pa + w * (pb - pa), b[0] - a[0]
+
+
+def _track_speed(track: Sequence[tuple[float, ...]], t0: float, t1: float,
+                 n: int) -> tuple[float | None, str]:
+    """Speed [m/s] over ``[t0, t1]`` from a pose track (first ``n`` coordinates), and a
+    warning ('' when the poses cover the window).
+
+    The speed over a window of whole gait cycles is the displacement between its bounds, each
+    bound's position interpolated between the samples around it (the samples nearest inside
+    cut a part of the cycle: an EduBot walk, whose body speed swings within the stride, read
+    0.1802 m/s for 0.1813; an independent review). A gap around a bound up to
+    :data:`POSE_GAP_S` (at most half the window; always 0.1 of it) is bridged, warned when it
+    is over 0.1 of the window. A bound not bridged is replaced by the pose nearest it inside
+    the window: the speed is the displacement over the poses' span, warned unless they reach
+    within 0.1 of the window of both bounds; spanning less than :data:`POSE_MIN_COVER` of the window, None
+    (the window has no speed from this track)."""
+    w = t1 - t0
+    inside = sorted(p for p in track if t0 <= p[0] <= t1)
+    short = 0.1 * w
+    ends: list[tuple[float, np.ndarray]] = []
+    bridged = 0.0
+    for t, nearest in ((t0, inside[:1]), (t1, inside[-1:])):
+        at = _position_at(track, t, n, max(short, min(POSE_GAP_S, 0.5 * w)))
+        if at is not None:
+            ends.append((t, at[0]))
+            bridged = max(bridged, at[1])
+        elif nearest:
+            ends.append((nearest[0][0], np.asarray(nearest[0][1:1 + n], dtype=float)))
+        else:
+            return None, ''
+    span = ends[1][0] - ends[0][0]
+    if not span > 0 or span < POSE_MIN_COVER * w:
+        return None, ''
+    speed = float(math.hypot(*(ends[1][1] - ends[0][1]))) / span
+    if ends[0][0] - t0 < short and t1 - ends[1][0] < short:
+        if bridged <= short:
+            return speed, ''
+        return speed, (f'{PARTIAL_POSE_NOTE}: no pose for {bridged:.3f} s across a window '
+                       'bound; the body position there interpolated across the gap')
+    return speed, (f'{PARTIAL_POSE_NOTE}: speed from the poses over {100 * span / w:.0f} % '
+                   f'of it ({ends[0][0] - t0:.3f} s after its start to {t1 - ends[1][0]:.3f} s '
+                   'before its end)')
 
 
 def joint_power_out_w(effort_nm: np.ndarray, velocity_rad_s: np.ndarray) -> float:
@@ -545,6 +611,89 @@ def _joint_legs_outside(legs: Sequence[str], joint_names: Sequence[str]) -> list
     return sorted(have - set(legs))
 
 
+class ArrivalClockGate:
+    """A live node's check, from each topic's first message on, for a topic stamped on another
+    clock than the others (a micro-ROS battery board stamping its uptime, without time
+    synchronisation): each message's header stamp minus its arrival on the node clock, per
+    topic (its last message's); topics whose offsets lie within ``threshold_s`` of each other
+    share a clock, the largest such group is the reference (on a tie, the one nearest the node
+    clock; no judgement while the node clock reads 0, under ``use_sim_time`` before
+    ``/clock``). A topic outside it is on another clock: :meth:`observe` says so once, and
+    its messages are refused until their stamps come back to the reference (a board
+    restarted and synchronised again), which is said too.
+
+    The judgement at the 200th and 2000th message of all topics
+    (:class:`hexapod_common.clocks.LiveClockWatch`) missed a board that joined after them,
+    which read as a battery silent for 1795857615.9 s (logged 3 times a second, no window);
+    a board restarted mid-run read as a looped bag, then as a stopped gait node (an outside
+    live review). The threshold is the accumulator's far-clock bound (an hour): a looped bag
+    or a replay moves every topic together, and a simulation clock resets the node clock too.
+    """
+
+    def __init__(self, threshold_s: float = FOREIGN_CLOCK_S) -> None:
+        self.threshold_s = float(threshold_s)
+        #: per topic: header stamp - arrival on the node clock of its last message [s]
+        self.offsets: dict[str, float] = {}
+        #: topics found on another clock, refused now
+        self.foreign: set[str] = set()
+        #: messages refused as stamped on another clock
+        self.refused = 0
+        self._groups = 0
+
+    def _reference(self, now_s: float) -> set[str] | None:
+        """The topics on the reference clock (None: no judgement)."""
+        order = sorted(self.offsets, key=self.offsets.__getitem__)
+        groups: list[list[str]] = []
+        for topic in order:
+            if groups and self.offsets[topic] - self.offsets[groups[-1][-1]] <= \
+                    self.threshold_s:
+                groups[-1].append(topic)
+            else:
+                groups.append([topic])
+        self._groups = len(groups)
+        if len(groups) < 2:
+            return None
+        size = max(len(g) for g in groups)
+        best = [g for g in groups if len(g) == size]
+        if len(best) > 1:
+            if now_s <= 0:
+                return None
+            best.sort(key=lambda g: min(abs(self.offsets[t]) for t in g))
+        return set(best[0])
+
+    def observe(self, topic: str, stamp_s: float, now_s: float) -> tuple[bool, str, str]:
+        """One message: (keep it, log level '' / 'error' / 'info', text to log)."""
+        if stamp_s == 0.0:
+            return True, '', ''
+        self.offsets[topic] = stamp_s - now_s
+        ref = self._reference(now_s)
+        far = ref is not None and topic not in ref
+        if far:
+            self.refused += 1
+            if topic in self.foreign:
+                return False, '', ''
+            self.foreign.add(topic)
+            assert ref is not None
+            others = sorted(ref)
+            ref_off = float(np.median([self.offsets[t] for t in others]))
+            return False, 'error', (
+                f'{topic} stamped on another clock: header stamps '
+                f'{self.offsets[topic] - ref_off:+.1f} s from those of {", ".join(others)} '
+                f'(each against the node clock on arrival; a board stamping its uptime, without '
+                'time synchronisation?): its messages cannot be matched with the others\' and '
+                'are left out until its stamps are on their clock; give the publisher a '
+                'synchronised clock (offline, hexapod-analyze re-stamps it from the bag\'s '
+                'receive times)')
+        if topic in self.foreign:
+            if ref is None and self._groups > 1:   # undecided (a tie): still refused
+                self.refused += 1
+                return False, '', ''
+            self.foreign.discard(topic)
+            return True, 'info', (f'{topic} stamped on the other topics\' clock again: its '
+                                  'messages are used again')
+        return True, '', ''
+
+
 @dataclass
 class DescriptorAccumulator:
     """Collects samples and emits :class:`Descriptors` per window of whole gait cycles.
@@ -612,6 +761,12 @@ class DescriptorAccumulator:
     time_jumps_: list[tuple[str, float, float]] = field(default_factory=list, init=False)
     #: /mocap/body samples left out: the previous pose repeated exactly (tracking lost)
     repeated_poses_: int = field(default=0, init=False)
+    #: /mocap/body samples left out: a position not finite (a bridge's NaN while tracking
+    #: is lost)
+    nonfinite_poses_: int = field(default=0, init=False)
+    # whether /mocap/body gave a pose since the start (or the last time jump): a window it
+    # gives no speed then falls back with a warning
+    _mocap_seen: bool = field(default=False, init=False)
     #: pending windows given up because they would be longer than ``max_window_s``
     dropped_windows_: int = field(default=0, init=False)
     #: samples dropped because they were stamped before a time jump but arrived after it
@@ -622,6 +777,7 @@ class DescriptorAccumulator:
     _sign_votes: list[int] = field(default_factory=lambda: [0, 0], init=False)
     _quiet_noted: bool = field(default=False, init=False)
     _battery_quiet_noted: bool = field(default=False, init=False)
+    _battery_foreign_noted: bool = field(default=False, init=False)
     # the last /battery_state intervals [s], for the gap check (the buffer is trimmed)
     _battery_steps: deque[float] = field(default_factory=lambda: deque(maxlen=64), init=False)
     _joint_steps: deque[float] = field(default_factory=lambda: deque(maxlen=64), init=False)
@@ -734,6 +890,7 @@ class DescriptorAccumulator:
         # (the stream clock has started again from t and marked the other streams' stale)
         self._quiet_noted = False
         self._battery_quiet_noted = False
+        self._battery_foreign_noted = False
         self._battery_steps.clear()
         self._joint_steps.clear()
         self._pending_battery = []
@@ -741,6 +898,7 @@ class DescriptorAccumulator:
         self._joint = []
         self._leg_pos = []
         self._poses = []
+        self._mocap_seen = False
         self._odom = []
         self._boundaries = []
         self._gait = None
@@ -811,6 +969,15 @@ class DescriptorAccumulator:
         word)."""
         last = self._clk.last.get('battery_state')
         ref = last if last is not None else self._clk.first
+        if last is not None and t - ref > FOREIGN_CLOCK_S:
+            if self._battery_foreign_noted:
+                return
+            self._battery_foreign_noted = self._battery_quiet_noted = True
+            self.notes_.append(
+                f'/battery_state stamped {t - ref:.0f} s behind the gait cycles: on another '
+                'clock (a board stamping its uptime, without time synchronisation?); no window '
+                'can complete until it is stamped on theirs')
+            return
         if ref is None or t - ref < self.quiet_s or self._battery_quiet_noted:
             return
         self._battery_quiet_noted = True
@@ -828,7 +995,12 @@ class DescriptorAccumulator:
             return []
         if prev is not None and sample.t_s > prev:
             self._battery_steps.append(sample.t_s - prev)
-        self._battery_quiet_noted = False
+        cycle = [self._clk.last[k] for k in self._cycle_streams() if k in self._clk.last]
+        if not cycle or sample.t_s >= max(cycle) - self.quiet_s:
+            # the pause is over only when the battery is back on the gait cycles' time: a board
+            # stamping its uptime (no time sync) reset it at every accepted sample, and 'no
+            # /battery_state for 1795857615.9 s' was logged 3 times a second (an outside review)
+            self._battery_quiet_noted = self._battery_foreign_noted = False
         self._check_quiet(sample.t_s)
         self._bound()
         if self.sign_ is None:
@@ -1092,6 +1264,13 @@ class DescriptorAccumulator:
             return
         p = sample.position_m
         pose = (float(p[0]), float(p[1]), float(p[2]))
+        if not all(math.isfinite(x) for x in pose):
+            # a bridge publishing NaN while the body is lost: NaN speed, CoT and specific
+            # resistance were published in 2 windows of 5, silently (an outside review)
+            self.nonfinite_poses_ += 1
+            if self.nonfinite_poses_ == 1:
+                self.notes_.append(NONFINITE_POSE_NOTE)
+            return
         if self._poses and self._poses[-1][1:] == pose:
             # a pose repeated to the last bit: a bridge repeating its last pose after losing
             # the body (real tracking noise never repeats); its new stamp would read as the
@@ -1099,6 +1278,7 @@ class DescriptorAccumulator:
             self.repeated_poses_ += 1
             return
         self._poses.append((sample.t_s, *pose))
+        self._mocap_seen = True
 
     def add_gait_phase(self, sample: GaitPhaseSample) -> list[Descriptors]:
         """Add a gait schedule sample; a wrap of the cycle phase marks a cycle boundary."""
@@ -1356,13 +1536,17 @@ class DescriptorAccumulator:
             # from 11.3 to 8.5 W: the empty windows counted 0 W)
             warnings.append(JOINT_GAP_NOTE)
         if joint and gait is not None:
-            missing = _legs_without_joints(gait.leg_names, joint[-1][1])
+            # every joint the window's messages name: a driver publishing one JointState per
+            # leg had the last message's 3 joints compared, and 5 legs of 6 called missing on
+            # every window (an outside live review)
+            names = sorted({n for j in joint for n in j[1]})
+            missing = _legs_without_joints(gait.leg_names, names)
             if missing:
                 warnings.append(f'{LEG_MISMATCH_NOTE}: the gait schedule names legs '
                                 f'{", ".join(missing)} that have no '
-                                f'joint on /joint_states ({len(joint[-1][1])} joints): the gait '
+                                f'joint on /joint_states ({len(names)} joints): the gait '
                                 'node and the robot disagree on the legs (leg_count?)')
-            extra = _joint_legs_outside(gait.leg_names, joint[-1][1])
+            extra = _joint_legs_outside(gait.leg_names, names)
             if extra:
                 warnings.append(f'{LEG_MISMATCH_NOTE}: legs {", ".join(extra)} have joints '
                                 'on /joint_states that '
@@ -1424,7 +1608,7 @@ class DescriptorAccumulator:
                 warnings.append('power_out_source is model but no model or gait schedule: '
                                 'P_out = 0')
             power_out = math.nan if zero_effort else 0.0
-        speed, speed_source = self._speed_and_source(t0, t1, gait)
+        speed, speed_source = self._speed_and_source(t0, t1, gait, warnings)
         if speed_source == 'gait_schedule' and gait is not None and speed > MAX_SPEED_MPS:
             # a step length in mm walked at 160 m/s: CoT/M and SR 1000x low, silently
             warnings.append(schedule_speed_note(gait))
@@ -1445,12 +1629,14 @@ class DescriptorAccumulator:
                     speed, speed_source = math.nan, 'none'
                 if from_model:
                     power_out = math.nan
+        out_source = ('none' if not math.isfinite(power_out) else 'model' if from_model
+                      else 'effort' if joint and self.power_out_source != 'model' else '')
         return descriptors_from_powers(power_in_w=power_in, power_out_w=power_out,
                                        speed_mps=speed, mass_kg=self.mass_kg,
                                        window_s=t1 - t0, t_end_s=t1, cycles=self.cycles,
                                        warnings=tuple(warnings), speed_source=speed_source,
                                        cycle_source='joints' if joint_path else 'gait_phase',
-                                       joint_power_net_w=net)
+                                       joint_power_net_w=net, power_out_source=out_source)
 
     def _joint_motion_rad(self, t0: float, t1: float, period_s: float = 0.0) -> float | None:
         """The largest position range [rad] of any leg joint over the window, None without
@@ -1485,17 +1671,23 @@ class DescriptorAccumulator:
         """Speed [m/s] over the window."""
         return self._speed_and_source(t0, t1)[0]
 
-    def _speed_and_source(self, t0: float, t1: float,
-                          gait: GaitPhaseSample | None = None) -> tuple[float, str]:
+    def _speed_and_source(self, t0: float, t1: float, gait: GaitPhaseSample | None = None,
+                          notes: list[str] | None = None) -> tuple[float, str]:
         """Speed [m/s] over the window and its source.
 
         A clock-driven schedule (the Buehler clock of RHex-class robots: step length 0 while
         the legs turn, so ``speed_mps`` 0) does not know the speed: it is not taken as 0 m/s
         (which used to average the EduBot's 0.88 m/s with zeros outside the mocap volume);
         odometry, the given speed, or unknown (NaN) stand in for it.
+
+        Motion capture over part of the window (an occlusion) gives the speed as
+        :func:`_track_speed` says, with a warning in ``notes``; a window it gives no speed
+        (after poses came) falls back to the next source with a warning naming it (it used to
+        in silence: +25 % specific resistance in one window of five, an outside review).
         """
         if gait is None:
             gait = self._gait
+        lost = ''
         schedule = gait is not None and (gait.speed_mps > 0 or gait.period_s <= 0)
         for source, track in (('mocap', self._poses), ('odometry', self._odom)):
             poses = sorted(p for p in track if t0 <= p[0] <= t1)
@@ -1513,28 +1705,38 @@ class DescriptorAccumulator:
                         v_odom = float(np.mean(twist))
                     if abs(v_odom - v_sched) > ODOM_DISAGREE * v_sched:
                         self.odometry_disagreements_.append((v_sched, v_odom))
+                if lost and notes is not None:
+                    notes.append(lost + '; speed from the gait schedule (step_length / '
+                                 '(duty_factor x period))')
                 return v_sched, 'gait_schedule'
-            if len(poses) >= 2 and poses[0][0] - t0 < 0.1 * (t1 - t0) and \
-                    t1 - poses[-1][0] < 0.1 * (t1 - t0):
-                n = 3 if source == 'mocap' else 2
-                ends = _bracketed_positions(track, t0, t1, n, 0.1 * (t1 - t0))
-                if ends is not None:
-                    # the displacement over exactly the window's whole cycles
-                    speed = math.hypot(*(ends[1] - ends[0])) / (t1 - t0)
-                else:
-                    d = [b - a for a, b in zip(poses[0][1:1 + n], poses[-1][1:1 + n])]
-                    speed = math.hypot(*d) / (poses[-1][0] - poses[0][0])
-                if source == 'odometry':
-                    twist = np.array([p[3] for p in poses])
-                    twist = twist[np.isfinite(twist)]
-                    if speed < ODOM_STILL_MPS and twist.size and \
-                            float(np.mean(twist)) > ODOM_STILL_MPS:
-                        # a velocity-only estimator: the pose stays at 0, the twist moves
-                        return float(np.mean(twist)), 'odometry_twist'
-                return speed, source
+            n = 3 if source == 'mocap' else 2
+            speed, why = _track_speed(track, t0, t1, n) if track else (None, '')
+            if speed is None:
+                if source == 'mocap' and self._mocap_seen:
+                    inside = [p[0] for p in track if t0 <= p[0] <= t1]
+                    cover = (max(inside) - min(inside)) / (t1 - t0) if inside else 0.0
+                    lost = (f'{POSE_FALLBACK_NOTE}: its poses span {100 * cover:.0f} % of it '
+                            f'(under {100 * POSE_MIN_COVER:.0f} %; the body lost by the '
+                            'motion capture?)')
+                continue
+            if source == 'odometry':
+                twist = np.array([p[3] for p in poses])
+                twist = twist[np.isfinite(twist)]
+                if speed < ODOM_STILL_MPS and twist.size and \
+                        float(np.mean(twist)) > ODOM_STILL_MPS:
+                    # a velocity-only estimator: the pose stays at 0, the twist moves
+                    return float(np.mean(twist)), 'odometry_twist'
+            if why and notes is not None:
+                notes.append(why)
+            return speed, source
         if self.speed_mps > 0:
-            return self.speed_mps, 'given'
-        return (math.nan if self.joint_cycles_ or gait is not None else 0.0), 'none'
+            speed, source = self.speed_mps, 'given'
+        else:
+            speed, source = (math.nan if self.joint_cycles_ or gait is not None else 0.0), \
+                'none'
+        if lost and notes is not None:
+            notes.append(lost + f'; speed from {_SPEED_SOURCE_NAMES.get(source, source)}')
+        return speed, source
 
     def _trim(self, t: float, *, keep_s: float = 1.0) -> None:
         keep_from = t - keep_s

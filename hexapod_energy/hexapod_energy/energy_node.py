@@ -125,6 +125,7 @@ from hexapod_gait.kinematics import ANTBOT_MASS_KG
 
 from hexapod_energy.descriptors import (
     BATTERY_GAP_NOTE,
+    ArrivalClockGate,
     JOINT_GAP_NOTE,
     STILL_JOINTS_NOTE,
     DescriptorAccumulator,
@@ -252,6 +253,13 @@ class EnergyMonitorNode(Node):
         if p.power_out_source != 'effort':
             model = model_power_out(leg.output_power_model(self.robot_mass_kg),
                                     robot_mass_kg=self.robot_mass_kg)
+        #: the P_out model's leg given (-p leg_file), else AntBot's (said at the first
+        #: window whose P_out is the model's)
+        self._leg_given = bool(p.leg_file)
+        self._leg_name = getattr(leg, 'name', '') or 'the leg file'
+        #: the P_out source of the last published window, and its switches logged
+        self._pout_source = ''
+        self.pout_switches = 0
         self.core = DescriptorAccumulator(mass_kg=p.mass, cycles=p.cycles,
                                           current_sign=p.current_sign, power_out_model=model,
                                           power_out_source=p.power_out_source,
@@ -262,6 +270,8 @@ class EnergyMonitorNode(Node):
         self._absent = AbsentBatteryFilter()   # present = false samples (no battery)
         self._battery_notes = 0
         self._clocks = LiveClockWatch()   # stamps against the node clock
+        #: topics stamped on another clock, told from their first messages (left out)
+        self.clock_gate = ArrivalClockGate()
         self._zero_power: int | None = 0   # leading battery samples with V * I == 0
         self._milli: tuple[float, float] | None = None
         self.pub = self.create_publisher(EnergeticDescriptors, 'energy/descriptors',
@@ -323,8 +333,15 @@ class EnergyMonitorNode(Node):
 
     def _restamp(self, topic: str, sample: Any) -> Any:
         """``sample`` stamped with the node's clock when its header stamp is zero; a stamped
-        one is checked for its clock and for messages missing before it."""
+        one is checked for its clock and for messages missing before it. None: stamped on
+        another clock than the other topics (:class:`ArrivalClockGate`), left out."""
         if sample.t_s != 0.0:
+            keep, level, text = self.clock_gate.observe(
+                topic, sample.t_s, self.get_clock().now().nanoseconds * 1e-9)
+            if level:
+                getattr(self.get_logger(), level)(text)
+            if not keep:
+                return None
             self._check_clock(topic, sample.t_s)
             self._count_loss(topic, sample)
             return sample
@@ -376,7 +393,42 @@ class EnergyMonitorNode(Node):
                 # would be a walking robot's; not published, as offline
                 self.still_windows += 1
                 continue
+            self._say_pout_source(d)
             self.pub.publish(descriptors_to_msg(d))
+
+    def _say_pout_source(self, d: Descriptors) -> None:
+        """Say where P_out comes from when that changes: the first model window (AntBot's leg
+        unless -p leg_file gives one: 0.398 W where the lab robot's joints gave 5.17 W, without
+        a word), and every switch between the efforts and the model mid-series (logged on the
+        1st, 10th ... window of its warning only, so the series mixed the two silently; an
+        outside live review). Switches beyond the 20th are logged on the 100th, 1000th ..."""
+        src = d.power_out_source
+        if src not in ('effort', 'model') or src == self._pout_source:
+            return
+        prev, self._pout_source = self._pout_source, src
+        log = self.get_logger()
+        if not prev:
+            if src == 'model':
+                whose = (self._leg_name if self._leg_given else "AntBot's leg (no -p leg_file)")
+                log.warning(f'P_out from the Eq. 6 model of {whose}, not measured: no usable '
+                            'joint efforts on /joint_states' + (
+                                '' if self._leg_given else
+                                "; for this robot's own leg give -p leg_file:=LEG.yaml "
+                                '(hexapod_energy.leg_description), or publish joint efforts'))
+            return
+        self.pout_switches += 1
+        n = self.pout_switches
+        if n > 20 and n not in (100, 1000) and n % 10000:
+            return
+        what = ('the Eq. 6 model' + ('' if self._leg_given else " (AntBot's leg)")
+                if src == 'model' else 'the joint efforts')
+        why = ''
+        if src == 'model':
+            why = next((w.split(';')[0] for w in d.warnings
+                        if 'P_out from the Eq. 6 model' in w), 'no joint efforts in it')
+        log.warning(f'P_out switches to {what} from the window ending {d.t_end_s:.3f} s '
+                    f'(was {"the joint efforts" if prev == "effort" else "the model"})'
+                    + (f': {why}' if why else '') + f' [{n} switch(es) so far]')
 
     @property
     def gait_publishers_warned(self) -> int:
@@ -404,6 +456,8 @@ class EnergyMonitorNode(Node):
 
     def _add_battery(self, msg: BatteryState) -> list[Descriptors]:
         raw = self._restamp('battery_state', battery_from_msg(msg))
+        if raw is None:
+            return []
         if not self._absent.keep(raw):
             if self._absent.dropped == 1:   # once: a gap in the battery stream follows
                 self.get_logger().warning(
@@ -479,10 +533,11 @@ class EnergyMonitorNode(Node):
     def _on_gait(self, msg: GaitPhase, info: Any = None) -> None:
         self.inputs.seen('gait/phase')
         self.gait_publishers.add(info)
-        self._publish(self._guard('GaitPhase',
-                                  lambda m: self.core.add_gait_phase(
-                                      self._restamp('gait/phase', gait_phase_from_msg(m))),
-                                  msg))
+        self._publish(self._guard('GaitPhase', self._add_gait, msg))
+
+    def _add_gait(self, msg: GaitPhase) -> list[Descriptors]:
+        sample = self._restamp('gait/phase', gait_phase_from_msg(msg))
+        return [] if sample is None else self.core.add_gait_phase(sample)
 
     def _on_joints(self, msg: JointState) -> None:
         self.inputs.seen('joint_states')
@@ -498,7 +553,10 @@ class EnergyMonitorNode(Node):
                 throttle_duration_sec=5.0)
         skipped = self.core.velocityless_skipped_
         non_legs = len(self.core.leg_joints_.dropped)
-        out = self.core.add_joint_state(self._restamp('joint_states', sample))
+        sample = self._restamp('joint_states', sample)
+        if sample is None:
+            return []
+        out = self.core.add_joint_state(sample)
         if self.core.velocityless_skipped_ and not skipped:   # once
             self.get_logger().warning('joint_states: ' + velocityless_note(1))
         if len(self.core.leg_joints_.dropped) > non_legs:   # once per new name
@@ -511,14 +569,20 @@ class EnergyMonitorNode(Node):
                 'twice: a replayed bag\'s duplicates, a bridge): left out, as offline')
         return out
 
+    @staticmethod
+    def _feed(add: Any, sample: Any) -> None:
+        """``add(sample)`` unless the sample was left out (None)."""
+        if sample is not None:
+            add(sample)
+
     def _on_odom(self, msg: Odometry) -> None:
-        self._guard('Odometry', lambda m: self.core.add_odometry(
-                        self._restamp('odom', odometry_from_msg(m))), msg)
+        self._guard('Odometry', lambda m: self._feed(
+            self.core.add_odometry, self._restamp('odom', odometry_from_msg(m))), msg)
         self._publish(None)
 
     def _on_pose(self, msg: PoseStamped) -> None:
-        self._guard('PoseStamped', lambda m: self.core.add_pose(
-                        self._restamp('mocap/body', pose_from_msg(m))), msg)
+        self._guard('PoseStamped', lambda m: self._feed(
+            self.core.add_pose, self._restamp('mocap/body', pose_from_msg(m))), msg)
         self._publish(None)
 
 
