@@ -70,6 +70,9 @@ from .preprocess import Box
 
 __all__ = ['SlipFitterNode', 'SlipParams', 'main', 'result_to_msg', 'startup_notes']
 
+#: leg joint states without any ``<leg>_hip`` joint after which that is warned (once)
+HIPLESS_MESSAGES = 50
+
 #: distinct drop reasons counted separately; beyond them, one shared count
 MAX_DROP_REASONS = 64
 
@@ -273,6 +276,31 @@ class SlipFitterNode(Node):
         #: behind its input loses the oldest queued ones without a word): logged on the 1st,
         #: 10th, 100th ... of a topic
         self.loss = StreamLoss()
+        #: leg joint states seen without any ``<leg>_hip`` joint (None once a hip came)
+        self._hipless: int | None = 0
+        self._joint_names: set[str] = set()
+
+    def _check_hips(self, names: Any) -> None:
+        """Warn once when :data:`HIPLESS_MESSAGES` leg joint states came and none named a
+        ``<leg>_hip`` joint: the stance detection needs the hips' angles, so nothing will be
+        fitted (a 3-DOF hexapod's ``L1_coxa/femur/tibia`` gave no fit and no word why: an
+        outside live review)."""
+        if self._hipless is None:
+            return
+        if any(str(n).endswith('_hip') for n in names):
+            self._hipless = None
+            return
+        self._hipless += 1
+        if len(self._joint_names) < 64:
+            self._joint_names.update(str(n) for n in names)
+        if self._hipless == HIPLESS_MESSAGES:
+            shown = sorted(self._joint_names)
+            self.get_logger().warning(
+                f'joint_states: no <leg>_hip joint in {HIPLESS_MESSAGES} messages (joints '
+                f'{", ".join(shown[:6])}{" ..." if len(shown) > 6 else ""}): nothing can be '
+                'fitted. slip_fitter is for RHex-class robots, one rotating hip per leg named '
+                'L1_hip ... R3_hip, whose angles give the stances (-p ground) or the Buehler '
+                'clock; a stepping robot\'s coxa/femur/tibia joints give neither')
 
     def _on_change(self, new: SlipParams) -> str | None:
         """Apply a run-time change of ``mass`` or ``margin`` (the others are read only)."""
@@ -359,6 +387,7 @@ class SlipFitterNode(Node):
         s = self._legs_only('joint_states', self._signed(joint_state_from_msg(msg)))
         if s is None:
             return
+        self._check_hips(s.names)
         if s.t_s != 0.0:
             s = self._unrepeated('joint_states', tuple(s.names), s)
             if s is None:

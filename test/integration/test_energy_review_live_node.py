@@ -173,3 +173,34 @@ def test_no_efforts_and_no_leg_file_is_said_once():
         said = [w for w in rig.logged['warning'] if "Eq. 6 model of AntBot's leg" in w]
         assert len(said) == 1 and 'leg_file' in said[0]
 
+
+@pytest.mark.timeout(180)
+def test_slip_fitter_says_why_a_hipless_robot_gets_no_fit():
+    """slip_fitter fed a 3-DOF hexapod (L1_coxa/femur/tibia, no <leg>_hip): no fit and no word
+    why. Now one warning after 50 such joint states, none for a robot with hips."""
+    from slip_identification.slip_node import HIPLESS_MESSAGES, SlipFitterNode
+
+    with ros_env('slip_hipless') as env:
+        node = env.make(SlipFitterNode)
+        said: list[str] = []
+        warn = node.get_logger().warning
+        node.get_logger().warning = lambda msg, **kw: said.append(msg) or warn(msg, **kw)
+        feeder = env.add(rclpy.create_node('lab_robot', context=env.context,
+                                           namespace=env.namespace))
+        pub = feeder.create_publisher(JointState, 'joint_states', QOS)
+        assert env.spin_until(lambda: pub.get_subscription_count() >= 1, 20)
+        t0 = node.get_clock().now().nanoseconds * 1e-9
+
+        def send(k: int, joints: tuple[str, ...]) -> None:
+            js = JointState(name=[f'{leg}_{j}' for leg in LEGS for j in joints],
+                            position=[0.1] * 6 * len(joints), velocity=[0.0] * 6 * len(joints))
+            js.header.stamp = _stamp(t0 + 0.004 * k)
+            pub.publish(js)
+            before = node.received
+            assert env.spin_until(lambda: node.received > before, 10)
+
+        for k in range(2 * HIPLESS_MESSAGES):
+            send(k, ('coxa', 'femur', 'tibia'))
+        hipless = [w for w in said if 'no <leg>_hip joint' in w]
+        assert len(hipless) == 1 and 'L1_coxa' in hipless[0] and 'nothing can be fitted' in \
+            hipless[0]
