@@ -1158,6 +1158,44 @@ def _walking_segments(sessions: list[dict[str, Any]], t_end_s: float
     return out
 
 
+#: a bench session's /gait/phase covers it when it holds at least this share of a label per
+#: :data:`SCHEDULE_LABEL_S` over the session ...
+SCHEDULE_MIN_SHARE = 0.8
+SCHEDULE_LABEL_S = 0.02
+#: ... and no gap longer than this [s] between labels (or the session's ends)
+SCHEDULE_MAX_GAP_S = 0.1
+
+
+def schedule_coverage(t_s: np.ndarray, t0: float, t1: float) -> str:
+    """Why the ``/gait/phase`` labels stamped ``t_s`` (sorted, inside ``[t0, t1)``) do not
+    cover a bench session ('' when they do): fewer than :data:`SCHEDULE_MIN_SHARE` of one per
+    :data:`SCHEDULE_LABEL_S` (and 4), or a gap over :data:`SCHEDULE_MAX_GAP_S`. A label per
+    20 ms counted exactly failed a 50 Hz bench gait node by one sample in 24 sessions of 30,
+    which then took the contact split under a note saying they had no /gait/phase (another
+    review)."""
+    span = t1 - t0
+    if not t_s.size:
+        return 'no /gait/phase there'
+    need = max(4.0, SCHEDULE_MIN_SHARE * span / SCHEDULE_LABEL_S)
+    if t_s.size < need:
+        return (f'/gait/phase too sparse: {t_s.size} label(s) over {span:.2f} s, fewer than '
+                f'{SCHEDULE_MIN_SHARE * 100:.0f} % of one per {1e3 * SCHEDULE_LABEL_S:.0f} ms')
+    gap = float(np.max(np.diff(np.concatenate(([t0], np.sort(t_s), [t1])))))
+    if gap > SCHEDULE_MAX_GAP_S:
+        return f'/gait/phase silent for {gap:.3f} s (over {SCHEDULE_MAX_GAP_S:g} s)'
+    return ''
+
+
+def _coverage_reasons(reasons: list[str]) -> str:
+    """The reasons of :func:`schedule_coverage`, counted by kind."""
+    kinds: dict[str, list[str]] = {}
+    for r in reasons:
+        kinds.setdefault(r.split(':')[0], []).append(r)
+    return '; '.join(f'{len(v)} session(s): {v[0]}' + (' ...' if len(v) > 1 and
+                                                     v[0] != v[-1] else '')
+                     for v in kinds.values()) or 'no /gait/phase there'
+
+
 def bench_phase_samples(
     data: BenchData,
     *,
@@ -1248,6 +1286,7 @@ def bench_phase_samples(
     guessed: list[float] = []
     force_gaps: set[str] = set()
     label_gaps: set[str] = set()
+    uncovered: list[str] = []   # why the schedule did not cover a walking session
     agreement: dict[str, list[float]] = {}   # per leg: each cycle's schedule-contact agreement
     for s, t0, t1 in segments:
         a = t0 + settle_s if t1 - t0 > 2 * settle_s else t0
@@ -1268,8 +1307,10 @@ def bench_phase_samples(
             continue
         t_tip = data.tip_t_s[tm]
         sm = (data.schedule_t_s >= a) & (data.schedule_t_s < t1)
-        # the schedule covers the session when it has a label per 20 ms at least
-        covered = sm.sum() >= max(4.0, 50.0 * (t1 - a)) and phase_split != 'contact'
+        why_not = schedule_coverage(data.schedule_t_s[sm], a, t1)
+        covered = not why_not and phase_split != 'contact'
+        if why_not and s['frequency_hz'] > 0 and phase_split != 'contact':
+            uncovered.append(why_not)
         if s['frequency_hz'] > 0 and covered:
             t_tip, st = data.schedule_t_s[sm], data.schedule_stance[sm]
             splits['schedule'] = splits.get('schedule', 0) + 1
@@ -1361,11 +1402,12 @@ def bench_phase_samples(
                      'stance +20 %, swing -20 %)')
     if phase_split == 'schedule' and splits.get('contact'):
         raise BagContentError(f'bag {data.path}: /gait/phase does not cover '
-                              f'{splits["contact"]} walking session(s); use the contact split')
+                              f'{splits["contact"]} walking session(s) '
+                              f'({_coverage_reasons(uncovered)}); use the contact split')
     if phase_split == 'auto' and splits.get('schedule') and splits.get('contact'):
         notes.append(f'stance and swing split by the commanded schedule in '
                      f'{splits["schedule"]} walking session(s), by contact in '
-                     f'{splits["contact"]} (no /gait/phase there)')
+                     f'{splits["contact"]} ({_coverage_reasons(uncovered)})')
     diag = {'bag': data.path, 'force_offset_s': offset, 'current_sign': sign,
             'power_lag_s': lag, 'power_lag': lag_diag,
             'force_sign': f_sign, 'sessions': len(samples), 'notes': notes,
