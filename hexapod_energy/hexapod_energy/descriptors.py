@@ -457,8 +457,8 @@ def _track_speed(track: Sequence[tuple[float, ...]], t0: float, t1: float,
     :data:`POSE_GAP_S` (at most half the window; always 0.1 of it) is bridged, warned when it
     is over 0.1 of the window. A bound not bridged is replaced by the pose nearest it inside
     the window: the speed is the displacement over the poses' span, warned unless they reach
-    within 0.1 of the window of both bounds; spanning less than :data:`POSE_MIN_COVER` of the window, None
-    (the window has no speed from this track)."""
+    within 0.1 of the window of both bounds; spanning less than :data:`POSE_MIN_COVER` of
+    the window, None (the window has no speed from this track)."""
     w = t1 - t0
     inside = sorted(p for p in track if t0 <= p[0] <= t1)
     short = 0.1 * w
