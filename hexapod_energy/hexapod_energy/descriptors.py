@@ -34,10 +34,11 @@ DESIGN §4:
   -0.05 to 0.09 over 0.1-0.6 m/s and duty factors 0.5-0.7). Refused efforts give way to the
   model when there is one (else P_out is NaN), with a warning naming the figures.
 - ``speed`` [m/s]: from motion capture when poses cover the window (horizontal displacement /
-  window), else the gait schedule's step_length / (beta T), else from odometry
-  (``nav_msgs/Odometry`` positions, differenced the same way in the odometry frame), else a
-  given constant
-  ``speed_mps``; with none of these the speed is 0 on the gait-schedule path (as before) and
+  window; a gap in the poses up to 0.5 s across a bound is bridged, a window the poses cover
+  at least half of takes their span, both warned: :func:`_track_speed`; non-finite poses are
+  left out, noted once), else (with a warning naming the fallback when poses came) the gait
+  schedule's step_length / (beta T), else from odometry (``nav_msgs/Odometry`` positions,
+  differenced the same way in the odometry frame), else a given constant ``speed_mps``; with none of these the speed is 0 on the gait-schedule path (as before) and
   NaN on the joint path (unknown: CoT and specific resistance NaN).
 - ``power_loss = power_in - power_out``, ``efficiency = power_out / power_in``,
   ``cost_of_transport = power_loss / speed``, ``specific_cost_of_transport = power_loss /
