@@ -635,8 +635,9 @@ class ArrivalClockGate:
         self.threshold_s = float(threshold_s)
         #: per topic: header stamp - arrival on the node clock of its last message [s]
         self.offsets: dict[str, float] = {}
-        #: topics found on another clock, refused now
+        #: topics found on another clock, refused now; and every topic ever found so
         self.foreign: set[str] = set()
+        self.reported: set[str] = set()
         #: messages refused as stamped on another clock
         self.refused = 0
         self._groups = 0
@@ -674,6 +675,7 @@ class ArrivalClockGate:
             if topic in self.foreign:
                 return False, '', ''
             self.foreign.add(topic)
+            self.reported.add(topic)
             assert ref is not None
             others = sorted(ref)
             ref_off = float(np.median([self.offsets[t] for t in others]))

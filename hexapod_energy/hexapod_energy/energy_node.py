@@ -346,8 +346,12 @@ class EnergyMonitorNode(Node):
         if sample.t_s != 0.0:
             keep, level, text = self.clock_gate.observe(
                 topic, sample.t_s, self.get_clock().now().nanoseconds * 1e-9)
-            if level:
-                getattr(self.get_logger(), level)(text)
+            # one call site per severity (rclpy refuses another severity from the same line:
+            # the message that came back on the clock was dropped with that error)
+            if level == 'error':
+                self.get_logger().error(text)
+            elif level:
+                self.get_logger().info(text)
             if not keep:
                 return None
             self._check_clock(topic, sample.t_s)
@@ -372,7 +376,8 @@ class EnergyMonitorNode(Node):
     def _check_clock(self, topic: str, t_s: float) -> None:
         """Report (once) a topic stamped on another clock than the others."""
         for err in self._clocks.observe(topic, t_s, self.get_clock().now().nanoseconds * 1e-9):
-            self.get_logger().error(err)
+            if not any(err.startswith(f'{t} stamped') for t in self.clock_gate.reported):
+                self.get_logger().error(err)   # (not twice: the gate said it from the start)
 
     def _publish(self, results: Sequence[Descriptors] | None) -> None:
         notes = self.core.notes_

@@ -189,7 +189,7 @@ def test_arrival_clock_gate_finds_a_late_unsynced_board_at_its_first_message():
     assert g.observe('gait/phase', now + 0.8, now + 0.8)[0]
     keep, level, text = g.observe('battery_state', now + 0.9, now + 0.9)
     assert keep and level == 'info'
-    assert g.refused == 2
+    assert g.refused == 2 and g.reported == {'battery_state'} and not g.foreign
     # a replay or a looped bag moves every topic together: nothing refused
     g = ArrivalClockGate()
     for k in range(20):
