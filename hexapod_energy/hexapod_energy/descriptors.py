@@ -38,8 +38,9 @@ DESIGN §4:
   at least half of takes their span, both warned: :func:`_track_speed`; non-finite poses are
   left out, noted once), else (with a warning naming the fallback when poses came) the gait
   schedule's step_length / (beta T), else from odometry (``nav_msgs/Odometry`` positions,
-  differenced the same way in the odometry frame), else a given constant ``speed_mps``; with none of these the speed is 0 on the gait-schedule path (as before) and
-  NaN on the joint path (unknown: CoT and specific resistance NaN).
+  differenced the same way in the odometry frame), else a given constant ``speed_mps``;
+  with none of these the speed is 0 on the gait-schedule path (as before) and NaN on the
+  joint path (unknown: CoT and specific resistance NaN).
 - ``power_loss = power_in - power_out``, ``efficiency = power_out / power_in``,
   ``cost_of_transport = power_loss / speed``, ``specific_cost_of_transport = power_loss /
   (mass * speed)``, ``specific_resistance = power_in / (mass * g * speed)``.
