@@ -470,7 +470,9 @@ def test_model_note_gives_the_reason_efforts_were_refused(tmp_path, monkeypatch)
         '--out', str(tmp_path / 'out'), '--no-progress']))
     r = doc['robot_runs'][0]
     assert r['power_out_source'] == 'model'
-    note = next(n for n in r['notes'] if n.startswith('P_out from the Eq. 6 model'))
+    # (the note names the model's P_out first since the energy review: 'P_out 0.3715 W from
+    # the Eq. 6 model of AntBot's leg (...)')
+    note = next(n for n in r['notes'] if n.startswith('P_out ') and 'from the Eq. 6 model' in n)
     assert 'no joint power from the bag' not in note
     assert 'joint efforts refused' in note and 'is not below P_in' in note
     assert 'PWM reading' in note
