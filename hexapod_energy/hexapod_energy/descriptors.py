@@ -472,11 +472,11 @@ def _track_speed(track: Sequence[tuple[float, ...]], t0: float, t1: float,
         if at is not None:
             ends.append((t, at[0]))
             bridged = max(bridged, at[1])
-        elif nearest and (t == t1 or tracked_before):
-            # the start bound falls back on the poses inside only after a loss of tracking
-            # (poses before it): a window the body enters the volume in is not a whole
-            # window of motion (slip.json's whole cycles leave it out: SR 1.743 against
-            # energy's 1.837 on a jogging run when it was taken)
+        elif nearest and (t == t1 or tracked_before or nearest[0][0] - t0 < short):
+            # the start bound falls back on the poses inside (beyond 0.1 of the window) only
+            # after a loss of tracking (poses before it): a window the body enters the volume
+            # in is not a whole window of motion (slip.json's whole cycles leave it out: SR
+            # 1.743 against energy's 1.837 on a jogging run when it was taken)
             ends.append((nearest[0][0], np.asarray(nearest[0][1:1 + n], dtype=float)))
         else:
             return None, ''
