@@ -1879,6 +1879,20 @@ class DynamixelBus:
         with self._port_guard():
             return self._set_torque(enabled, names, stop)
 
+    def _write_acked(self, s: _Servo, write: Callable[[int], int]) -> tuple[int, int]:
+        """One write to ``s`` (``write(servo_id)`` sends it, no reply awaited) and, at Status
+        Return Level 2, its status packet: (result, status error); a failure is counted."""
+        sid = s.joint.servo_id
+        self._prepare([sid])
+        result = write(sid)
+        error = 0
+        if result == COMM_SUCCESS and s.health.status_return_level >= 2:
+            self.port.setPacketTimeout(self._status_bytes(0))
+            _ack, error, result = self._receive(sid, 0)
+        if result != COMM_SUCCESS:
+            self._count(s, result)
+        return result, error
+
     def _set_torque(self, enabled: bool, names: Iterable[str] | None,
                     stop: Callable[[], bool] | None = None) -> dict[str, bool]:
         if enabled and self.aborted:
@@ -1915,16 +1929,10 @@ class DynamixelBus:
                     s.health.retries += 1
                 address = s.table.reg('torque_enable').address
                 value = int(bool(enabled))
-                sid = s.joint.servo_id
-                self._prepare([sid])
                 s.written = True
-                result = self.packet.write1ByteTxOnly(self.port, sid, address, value)
-                error = 0
-                if result == COMM_SUCCESS and s.health.status_return_level >= 2:
-                    self.port.setPacketTimeout(self._status_bytes(0))
-                    _ack, error, result = self._receive(sid, 0)
+                result, error = self._write_acked(s, lambda sid: self.packet.write1ByteTxOnly(
+                    self.port, sid, address, value))
                 if result != COMM_SUCCESS:
-                    self._count(s, result)
                     continue
                 if enabled or s.health.status_return_level < 2:
                     # Torque on is read back at every level (a servo in hardware-error
@@ -2032,15 +2040,9 @@ class DynamixelBus:
                 'Dynamixel Wizard (this driver never writes EEPROM)')
             self.notes.append(f'{name} {s.health.torque_error}')
             return False
-        sid = s.joint.servo_id
-        self._prepare([sid])
-        result = self.packet.write2ByteTxOnly(self.port, sid, limit.address, max_torque)
-        error = 0
-        if result == COMM_SUCCESS and s.health.status_return_level >= 2:
-            self.port.setPacketTimeout(self._status_bytes(0))
-            _ack, error, result = self._receive(sid, 0)
+        result, error = self._write_acked(s, lambda sid: self.packet.write2ByteTxOnly(
+            self.port, sid, limit.address, max_torque))
         if result != COMM_SUCCESS:
-            self._count(s, result)
             return None
         data, read_error = self._read_single(s, limit.address, limit.size, 1)
         if data is None:
