@@ -48,7 +48,8 @@ written; torque state unknown", except one at Status Return Level 0 whose model 
 (Protocol 2.0), which is sent Torque Enable 0 without waiting for a reply, said.
 A stop (Ctrl-C, SIGTERM) while the node starts ends the torque-on pass at the next servo, and
 any stop or error once the bus is open releases it the same way (``start-up stopped: ...``
-logged) before the node stops as before (exit 0 for a stop, 2 for an error).
+logged) before the node stops (exit 0 for a stop, 3 for a stop whose torque off was not
+confirmed, 2 for an error).
 All bus logic lives in :class:`hexapod_bench_drivers.dynamixel_bus.DynamixelBus`.
 """
 
@@ -174,11 +175,18 @@ class DynamixelDriverNode(Node):
             temperature_limit_c=p.temperature_limit_c, rate_hz=p.rate_hz).open()
         try:
             self._start()
-        except BaseException:
+        except BaseException as err:
             # a stop (Ctrl-C, SIGTERM: the context shut down, the next create_* raises) or an
             # error after the bus opened: the servos are released as at shutdown, said; run_node
             # never gets the node to destroy (an outside review: all 18 servos left torqued)
+            self.exit_code_on_stop = 0
             self._release_bus('start-up stopped: ')
+            # run_node has no node to ask: the exit code travels with the stop (it was 0 even
+            # when the torque off after the stop was not confirmed)
+            try:
+                err.exit_code_on_stop = self.exit_code_on_stop
+            except (AttributeError, TypeError):     # an exception type without attributes
+                pass
             raise
 
     def _start(self) -> None:

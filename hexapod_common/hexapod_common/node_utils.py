@@ -558,7 +558,9 @@ def run_node(node_factory: Callable[..., Any], args: Sequence[str] | None = None
 
     A node that has a ``finished`` attribute (an ``rclpy.task.Future``) is spun until that
     future is done, and its result is the exit code (a plan that ends, a replay that finishes).
-    After a stop, a node's ``exit_code_on_stop`` (set by its ``destroy_node``) is the exit code.
+    After a stop, a node's ``exit_code_on_stop`` (set by its ``destroy_node``) is the exit code;
+    a stop while the node is built gives the ``exit_code_on_stop`` of the exception its
+    constructor raised after cleaning up (0 when it has none).
 
     Any error while the node is built (a refused parameter, a missing file, a bus that does
     not open) is printed as one line naming the node and the error and gives exit code 2;
@@ -621,14 +623,18 @@ def run_node(node_factory: Callable[..., Any], args: Sequence[str] | None = None
               '`--ros-args -p NAME:=VALUE`); --help lists them', file=sys.stderr)
         return 2
     node = None
+    start_code = 0      # a stop while the node was built: the code its clean-up gave it
     try:
         try:
             node = node_factory()
-        except (KeyboardInterrupt, ExternalShutdownException):
+        except (KeyboardInterrupt, ExternalShutdownException) as err:
+            start_code = _stop_code(err)
             raise
         except Exception as err:
             if isinstance(err, stop_errors) and not rclpy.ok():
-                return 0     # Ctrl-C while the node was being built: a stop, not an error
+                # Ctrl-C while the node was being built: a stop, not an error (exit 0, or
+                # the code its clean-up gave: dynamixel_driver's torque off not confirmed)
+                return _stop_code(err)
             if os.environ.get(DEBUG_ENV):
                 raise
             what = str(err) if isinstance(err, ParameterError) else \
@@ -656,8 +662,14 @@ def run_node(node_factory: Callable[..., Any], args: Sequence[str] | None = None
         close_node(node)
     # a node whose clean-up in destroy_node failed sets ``exit_code_on_stop`` (dynamixel_driver:
     # torque off at shutdown not confirmed); an outside review: it exited 0
-    code = getattr(node, 'exit_code_on_stop', 0)
-    return code if isinstance(code, int) else 0
+    return _stop_code(node) or start_code
+
+
+def _stop_code(obj: Any) -> int:
+    """``obj.exit_code_on_stop`` when it is an int (a node after its clean-up, or the stop
+    exception its constructor raised after cleaning up), else 0."""
+    code = getattr(obj, 'exit_code_on_stop', 0)
+    return code if isinstance(code, int) and not isinstance(code, bool) else 0
 
 
 def spin_until_done(node: Any, future: Any) -> None:
