@@ -75,6 +75,7 @@ from hexapod_common.node_utils import (
     run_node,
 )
 from hexapod_interfaces.msg import ServoStatus
+from rclpy import logging as rclpy_logging
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.task import Future
@@ -215,12 +216,12 @@ class DynamixelDriverNode(Node):
             failed = [n for n, ok in results.items()
                       if not ok and n not in refused and n not in skipped]
             if failed:
-                self.get_logger().error(f'torque on failed for {failed}')
+                self._stop_logger().error(f'torque on failed for {failed}')
             for note in self.bus.take_notes():
-                self.get_logger().warning(note)
+                self._stop_logger().warning(note)
             if skipped:
-                self.get_logger().warning(f'stop requested while torque was turned on: not sent '
-                                          f'to {", ".join(skipped)}')
+                self._stop_logger().warning('stop requested while torque was turned on: not '
+                                            f'sent to {", ".join(skipped)}')
                 raise ExternalShutdownException()
         if not self.context.ok():
             raise ExternalShutdownException()   # stopped during bus.open(): nothing torqued
@@ -416,7 +417,7 @@ class DynamixelDriverNode(Node):
             # never wrote is named as such (an outside review: "not confirmed" for servos left
             # out at start)
             report = self.bus.torque_off_at_shutdown()
-            log = self.get_logger()
+            log = self._stop_logger()
             for level, line in report.lines():
                 if level == 'error':   # one call site per severity (rclpy requires it)
                     log.error(prefix + line)
@@ -427,9 +428,19 @@ class DynamixelDriverNode(Node):
             if not report.ok:
                 self.exit_code_on_stop = EXIT_TORQUE_OFF_UNCONFIRMED
         else:
-            self.get_logger().warning(f'{prefix}shutdown_action hold: torque left on, the '
-                                      'servos hold their last position')
+            self._stop_logger().warning(f'{prefix}shutdown_action hold: torque left on, the '
+                                   'servos hold their last position')
         self.bus.close()
+
+    def _stop_logger(self) -> Any:
+        """The node's logger while its context is valid. After a stop (Ctrl-C, SIGTERM: the
+        context shut down) the lines go to the logger ``<node>.shutdown``, which has no
+        /rosout publisher: through the node's own, every line at shutdown was followed by
+        "Failed to publish log message to rosout: publisher's context is invalid"."""
+        log = self.get_logger()
+        if self.context.ok():
+            return log
+        return rclpy_logging.get_logger(f'{log.name}.shutdown')
 
     def destroy_node(self) -> None:
         self._release_bus()

@@ -66,3 +66,8 @@ def test_exit_code_says_whether_torque_off_was_confirmed(tmp_path, silent):
         assert proc.returncode == 0, out
         assert f'torque off on {N} servo(s)' in out
         assert final == [0, 0, 0]
+    # the node's /rosout publisher is invalid after the stop: its lines go to
+    # 'dynamixel_driver.shutdown' (each was followed by "Failed to publish log message to
+    # rosout: publisher's context is invalid")
+    assert 'Failed to publish' not in out, out
+    assert '[dynamixel_driver.shutdown]: ' in out, out

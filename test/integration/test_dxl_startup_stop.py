@@ -36,6 +36,9 @@ def _capture(node_class, lines):
             for level in ('info', 'warning', 'error'):
                 setattr(log, level, lambda msg, _lv=level, **kw: lines.append((_lv, msg)))
             return log
+
+        def _stop_logger(self):      # the lines at a stop, too (they use '<node>.shutdown')
+            return self.get_logger()
     return Captured
 
 
