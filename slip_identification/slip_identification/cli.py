@@ -66,6 +66,10 @@ the same, so that none is left beside the new result). Schema of ``slip.json``::
                           "steady_start_s" (--steady-only; null when no steady state),
                           "steady_state_seen" (false: the pitch repeats in no two gait
                           periods, with a note; null: under two periods or no gait period),
+                          "speed_trend" (three whole cycles or more: the per-cycle speeds'
+                          linear trend {"accel_mps2", "t_stat", "relative_change",
+                          "cycles", "slope_equivalent_deg"}; over 0.15 m/s^2, t >= 4 and
+                          5 % a warning: gravity is taken normal to the ground),
                           "edges_pooled"
                           (geometry edges pooled with the same leg's at other strides in
                           steady state: {"pooled_edges",

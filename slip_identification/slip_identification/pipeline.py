@@ -20,6 +20,7 @@ from .errors import SlipDataError, StanceRejectedError
 from .fit import SlipFitResult, SlipFitter, SlipPositionFitter, Stance, validate_stance
 from .geometry import (
     DAMPING_STIFFNESS_TOLERANCE,
+    GRAVITY_M_S2,
     GeometryFit,
     LegGeometry,
     body_pitch_rad,
@@ -1240,7 +1241,28 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
     res.sr = specific_resistance(res.power_w, model.mass_kg, res.speed_mps)
     if res.frame.get('ground_source') == 'mocap_origin':
         _note_ground_from_origin(res, track.state[:, 2])
+    _note_gravity_normal_to_ground(res)
     return res
+
+
+#: a ground tilted more than this [deg] from the motion capture's z axis is noted
+GROUND_TILT_NOTE_DEG = 1.0
+
+
+def _note_gravity_normal_to_ground(res: RunResult) -> None:
+    """Say that gravity is taken normal to the fitted ground when that ground is tilted from
+    the motion capture's z axis: right for a level floor under a tilted mocap frame, biased on
+    a slope seen by a level one (nothing said it; an outside review's 2 deg slope read the
+    paper estimator's stiffness +12 to +39 %)."""
+    tilt = res.frame.get('tilt_deg')
+    if tilt is None or not math.isfinite(tilt) or abs(tilt) <= GROUND_TILT_NOTE_DEG:
+        return
+    res.notes.append(
+        f'gravity is taken normal to the fitted ground, which is tilted {abs(tilt):.1f} deg '
+        'from the motion capture\'s z axis: right for a level floor under a tilted mocap '
+        'frame; if the mocap z is vertical (a ground plane calibrated level), the floor slopes '
+        'and the stance fits leave the along-ground part of gravity to the spring (an outside '
+        'review\'s 2 deg slope read the paper estimator\'s stiffness +12 to +39 %)')
 
 
 #: a whole cycle whose mean input power is this far from the run's median cycle is noted
@@ -1331,6 +1353,7 @@ def _run_energetics(run: RunData, res: RunResult, t_s: FloatArray, x_m: FloatArr
                                'steady_only': steady, 'cycle_power_w': cycle_w}
     if tx.size > 1 and b > a:
         res.speed_mps = float((np.interp(b, tx, xx) - np.interp(a, tx, xx)) / (b - a))
+        _check_speed_trend(res, tx, xx, starts)
     cw = np.asarray(cycle_w, dtype=float)
     fin = np.isfinite(cw)
     if fin.sum() >= 3:
@@ -1346,6 +1369,68 @@ def _run_energetics(run: RunData, res: RunResult, t_s: FloatArray, x_m: FloatArr
                 f'{100 * CYCLE_POWER_SPREAD:.0f} % from the median cycle ({med:.1f} W): '
                 f'{listed}{more}; they are in the run\'s power, speed and specific '
                 f'resistance{hint}')
+
+
+#: a steady change of the forward speed over the whole cycles beyond this acceleration
+#: [m/s^2] (the along-ground gravity of a 1 deg slope: 0.17) is warned when it is also
+#: significant (:data:`SPEED_TREND_T`) and changes the speed by :data:`SPEED_TREND_CHANGE`
+SPEED_TREND_ACCEL_MPS2 = 0.15
+#: t-statistic of the per-cycle speeds' linear trend that counts as significant
+SPEED_TREND_T = 4.0
+#: relative change of the speed over the cycles that counts
+SPEED_TREND_CHANGE = 0.05
+
+
+def _check_speed_trend(res: RunResult, t_s: FloatArray, x_m: FloatArray,
+                       cycle_starts_s: FloatArray) -> None:
+    """Warn when the forward speed changes steadily from cycle to cycle.
+
+    The SLIP fits take gravity normal to the fitted ground, so on a slope (or with a mocap
+    frame whose z is not vertical: the same data) the along-ground component of gravity is
+    left to the spring: an outside review's 2 deg downhill run (speed 1.0 -> 1.4 m/s) read
+    the paper estimator's stiffness +12 to +39 % with no word. A start-up or a speed change
+    is not steady either. ``frame['speed_trend']`` keeps the per-cycle speeds' linear trend
+    (``accel_mps2``, its t-statistic, the change over the cycles and the slope in degrees
+    that along-ground gravity alone would need).
+    """
+    starts = np.asarray(cycle_starts_s, dtype=float)
+    if starts.size < 4:      # three whole cycles at least
+        return
+    xs = np.interp(starts, t_s, x_m)
+    dt = np.diff(starts)
+    if np.any(dt <= 0):
+        return
+    v = np.diff(xs) / dt
+    tm = 0.5 * (starts[:-1] + starts[1:])
+    tc = tm - tm.mean()
+    den = float(np.sum(tc ** 2))
+    if den <= 0 or not np.all(np.isfinite(v)):
+        return
+    accel = float(np.sum(tc * (v - v.mean())) / den)
+    resid = v - v.mean() - accel * tc
+    dof = v.size - 2
+    se = math.sqrt(float(np.sum(resid ** 2)) / dof / den) if dof > 0 else math.nan
+    t_stat = abs(accel) / se if se > 0 else (math.inf if dof > 0 else math.nan)
+    span = float(tm[-1] - tm[0])
+    mean_v = float(np.mean(np.abs(v)))
+    change = abs(accel) * span / mean_v if mean_v > 0 else math.inf
+    slope_deg = math.degrees(math.asin(min(1.0, abs(accel) / GRAVITY_M_S2)))
+    res.frame['speed_trend'] = {'accel_mps2': accel, 't_stat': t_stat,
+                                'relative_change': change, 'cycles': int(v.size),
+                                'slope_equivalent_deg': slope_deg}
+    if not (abs(accel) > SPEED_TREND_ACCEL_MPS2 and t_stat >= SPEED_TREND_T
+            and change > SPEED_TREND_CHANGE):
+        return
+    how = 'speeds up' if accel * np.sign(np.mean(v)) > 0 else 'slows down'
+    res.warn(
+        f'the robot {how} steadily over its {v.size} whole cycles: {float(v[0]):.3f} -> '
+        f'{float(v[-1]):.3f} m/s, {accel:+.2f} m/s^2 (t = {t_stat:.1f}), what the along-ground '
+        f'gravity of a {slope_deg:.1f} deg slope gives. The SLIP fits take gravity normal to '
+        'the fitted ground: on a slope, or with a motion-capture frame whose z is not '
+        'vertical, that part of gravity is left to the spring (an outside review\'s 2 deg '
+        'slope read the paper estimator\'s stiffness +12 to +39 %), and a start-up or speed '
+        'change is no steady gait either; walk level ground at a steady speed, or read the '
+        'stiffness of these stances with care')
 
 
 def _note_battery_gap(res: RunResult, t_s: FloatArray, a: float, b: float) -> None:
