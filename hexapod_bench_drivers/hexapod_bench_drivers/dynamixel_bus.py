@@ -161,6 +161,7 @@ from dynamixel_sdk.protocol1_packet_handler import PKT_LENGTH as P1_PKT_LENGTH
 from dynamixel_sdk.robotis_def import COMM_RX_CORRUPT, COMM_RX_TIMEOUT, COMM_SUCCESS, INST_PING
 
 from hexapod_bench_drivers.control_tables import (
+    ALL_MODELS,
     ERROR_OVERHEATING,
     EXTENDED_POSITION_LIMIT,
     GOAL_POSITION_MODES,
@@ -594,6 +595,17 @@ class PollResult:
     abort_reason: str = ''
 
 
+def _p1_torque_off_table() -> ControlTable | None:
+    """A Protocol 1.0 table whose Torque Enable address every described 1.0 model shares
+    (24), for the blind torque off of a servo whose model a Status Return Level 0 hides."""
+    p1 = [t for t in ALL_MODELS if t.protocol == 1]
+    addresses = {t.reg('torque_enable').address for t in p1}
+    return p1[0] if len(addresses) == 1 else None
+
+
+P1_TORQUE_OFF_TABLE = _p1_torque_off_table()
+
+
 @dataclass(frozen=True)
 class TorqueOffReport:
     """What torque off at shutdown did (:meth:`DynamixelBus.torque_off_at_shutdown`), by joint.
@@ -601,10 +613,11 @@ class TorqueOffReport:
     confirmed : Torque Enable 0 acknowledged or read back.
     unconfirmed : servos the driver wrote (torque on, goals) whose torque off was not
         confirmed (silent, garbled, left out since): they may still hold their position.
-    blind : left out at Status Return Level 0 with a known model: Torque Enable 0 sent, no
-        reply expected (such a servo executes writes; it never answers).
-    never_written : left out (unknown model, Status Return Level 0 of an unknown model,
-        silent since start): never written by the driver; their torque state is unknown.
+    blind : left out at Status Return Level 0 (Protocol 2.0: model known from its PING;
+        Protocol 1.0: every described model has Torque Enable at 24): Torque Enable 0 sent,
+        no reply expected (such a servo executes writes; it never answers).
+    never_written : left out (unknown model, silent since start): never written by the
+        driver; their torque state is unknown.
     port_error : the port failed when torque off was sent (nothing confirmed).
     """
 
@@ -1216,6 +1229,11 @@ class DynamixelBus:
     def _refuse_level_0(self, s: _Servo) -> None:
         if s.table is not None:     # Protocol 2.0: the model came with the PING's reply
             s.level0_table = s.table
+        elif self.protocol == 1:
+            # Protocol 1.0's PING carries no model, but every described 1.0 model has Torque
+            # Enable at 24: it is turned off at shutdown too (it was left as it was, torque
+            # state unknown)
+            s.level0_table = P1_TORQUE_OFF_TABLE
         s.table = None
         s.health.model = 'unreadable (Status Return Level 0)'
         s.refusal = (f'answers PING but no READ: its Status Return Level is 0 (the servo '

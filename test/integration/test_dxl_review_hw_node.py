@@ -101,13 +101,24 @@ def test_goals_clipped_warn_on_diagnostics_with_the_count(tmp_path):
 
 @pytest.mark.timeout(90)
 def test_left_out_servos_named_as_never_written_at_shutdown(tmp_path):
-    """AX-18A j2 at Status Return Level 0 (left out, its model unread on Protocol 1.0): the
-    shutdown line named it 'not confirmed: they may still hold their position' though the
-    driver never wrote it. Now 'left out, never written; torque state unknown' (a warning),
-    and the exit code stays 0 since every servo the driver wrote confirmed."""
-    with ServoBusEmulator.of_model('ax18a', [1, 2]) as emu, ros_env('dxl_hw') as env:
+    """AX-18A j2 at Status Return Level 0 (left out, its model unread on Protocol 1.0) and j3
+    of an unknown model (left out): the shutdown line named them 'not confirmed: they may
+    still hold their position' though the driver never wrote them. Now j3 is 'left out, never
+    written; torque state unknown' (a warning) and j2 is sent Torque Enable 0 at 24 without a
+    reply (every described 1.0 model has it there), also a warning; the exit code stays 0
+    since every servo the driver wrote confirmed."""
+    import dataclasses
+
+    from hexapod_bench_drivers.control_tables import AX18A
+    from hexapod_bench_drivers.servo_bus_emulator import EmulatedServo
+
+    servos = [EmulatedServo(1, AX18A), EmulatedServo(2, AX18A),
+              EmulatedServo(3, dataclasses.replace(AX18A, model_number=999))]
+    with ServoBusEmulator(servos) as emu, ros_env('dxl_hw') as env:
         emu.servo(2).set('status_return_level', 0)
-        node = _node(env, emu, tmp_path, 1, retries=0)
+        emu.servo(2).set('torque_enable', 1)
+        emu.servo(3).set('torque_enable', 1)
+        node = _node(env, emu, tmp_path, 1, n=3, retries=0)
         lines = []
         log = node.get_logger()
         for level in ('info', 'warning', 'error'):
@@ -115,7 +126,12 @@ def test_left_out_servos_named_as_never_written_at_shutdown(tmp_path):
         env.nodes.remove(node)
         env.executor.remove_node(node)
         node.destroy_node()
-        assert ('warning', 'j2: left out, never written; torque state unknown') in lines
+        assert ('warning', 'j3: left out, never written; torque state unknown') in lines
+        assert ('warning', 'torque off at shutdown sent without a reply to j2 (left out at '
+                'Status Return Level 0: the servo carries out writes but never answers): not '
+                'confirmed') in lines
         assert ('info', 'torque off on 1 servo(s)') in lines
         assert not [m for lv, m in lines if lv == 'error']
         assert node.exit_code_on_stop == 0
+        assert env.spin_until(lambda: emu.read_register(2, 'torque_enable') == 0, 10.0)
+        assert emu.read_register(3, 'torque_enable') == 1

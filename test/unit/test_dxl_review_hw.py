@@ -224,19 +224,23 @@ def test_torque_off_at_shutdown_names_what_it_did_to_each_servo():
             ('info', 'torque off on 1 servo(s)')]
 
 
-def test_p1_level_0_servo_of_unknown_model_is_not_written_and_ok():
+def test_p1_level_0_servo_gets_torque_off_at_24_and_is_ok():
     """Protocol 1.0 reads the model by a READ, which a Status Return Level 0 servo never
-    answers: its model (and Torque Enable address) is unknown, so nothing is sent to it; the
-    servos the driver wrote all confirmed: ok (exit 0)."""
+    answers, but every described 1.0 model has Torque Enable at 24: it is sent Torque Enable 0
+    without a reply (it was left torqued, "never written; torque state unknown"); the servos
+    the driver wrote all confirmed: ok (exit 0)."""
     with ServoBusEmulator.of_model('ax18a', [1, 2]) as emu:
         emu.servo(2).set('status_return_level', 0)
-        emu.servo(2).set('torque_enable', 1)
+        emu.servo(2).set('torque_enable', 1)      # torqued by an earlier program
+        written = threading.Event()
+        emu.servo(2).write_hook = lambda s, at, data: written.set()
         with _bus(emu, 2, 1, retries=0) as bus:
             bus.set_torque(True)
             report = bus.torque_off_at_shutdown()
-            assert report.confirmed == ('j1',) and report.never_written == ('j2',)
-            assert report.ok and not report.blind and not report.unconfirmed
-            assert emu.read_register(2, 'torque_enable') == 1
+            assert written.wait(10.0)
+            assert report.confirmed == ('j1',) and report.blind == ('j2',)
+            assert report.ok and not report.never_written and not report.unconfirmed
+            assert emu.read_register(2, 'torque_enable') == 0
 
 
 # --- 5: no -0.0 --------------------------------------------------------------------------------
