@@ -676,6 +676,9 @@ class _Servo:
     #: the control table of a servo left out at Status Return Level 0 whose model is known
     #: (Protocol 2.0: from its PING reply): torque off is sent to it blind at shutdown
     level0_table: ControlTable | None = None
+    #: Protocol 1.0: the last non-zero Torque Limit (34) read, what torque on writes back
+    #: after an Alarm Shutdown zeroed it (0: none read yet, Max Torque then)
+    torque_limit_seen: int = 0
 
 
 class DynamixelBus:
@@ -1784,6 +1787,8 @@ class DynamixelBus:
                 return
             err |= torque_err
         limp = bool(on) and limit == 0      # Protocol 1.0 Alarm Shutdown
+        if limit:
+            s.torque_limit_seen = limit
         expected = s.health.torque_enabled
         s.health.torque_enabled = on and not limp
         if s.health.torque_enabled or not expected:
@@ -1969,8 +1974,11 @@ class DynamixelBus:
                             self._refuse_torque(s, flags)
                             break
                         continue  # the write was lost: send it again
-                    if p1_limit is not None and not s.table.decode('torque_limit', data,
-                                                                   address):
+                    seen = (s.table.decode('torque_limit', data, address)
+                            if p1_limit is not None else None)
+                    if seen:
+                        s.torque_limit_seen = seen
+                    if seen == 0:
                         restored = self._restore_torque_limit(s, error | read_error)
                         limit_stuck = restored is None
                         if restored is None:
@@ -2041,8 +2049,10 @@ class DynamixelBus:
         """A Protocol 1.0 servo whose Torque Limit reads 0 at torque on (an Alarm Shutdown,
         e-Manual, Torque Limit 34: the servo stays limp with Torque Enable 1 until a non-zero
         value is written): Torque Limit written back from Max Torque (14, EEPROM, its power-on
-        value) and read back. True restored (noted); False refused, ``torque_error`` says why
-        (Max Torque 0 too, or the error still on); None not confirmed (tried again)."""
+        value) and read back; a lower Torque Limit read before the shutdown (set by hand) is
+        written back instead (it was replaced by Max Torque). True restored (noted); False
+        refused, ``torque_error`` says why (Max Torque 0 too, or the error still on); None not
+        confirmed (tried again)."""
         assert s.table is not None
         limit, top = s.table.reg('torque_limit'), s.table.reg('max_torque')
         name = f'{s.joint.name} (id {s.joint.servo_id})'
@@ -2058,17 +2068,19 @@ class DynamixelBus:
                 'Dynamixel Wizard (this driver never writes EEPROM)')
             self.notes.append(f'{name} {s.health.torque_error}')
             return False
+        value = min(s.torque_limit_seen, max_torque) if s.torque_limit_seen else max_torque
         result, error = self._write_acked(s, lambda sid: self.packet.write2ByteTxOnly(
-            self.port, sid, limit.address, max_torque))
+            self.port, sid, limit.address, value))
         if result != COMM_SUCCESS:
             return None
         data, read_error = self._read_single(s, limit.address, limit.size, 1)
         if data is None:
             return None
         if s.table.decode('torque_limit', data, limit.address):
+            to = (f'Max Torque {max_torque} (register {top.address})' if value == max_torque
+                  else f'{value}, its value before (Max Torque {max_torque})')
             self.notes.append(f'{name} Torque Limit (register {limit.address}) read 0 (a '
-                              f'Protocol 1.0 Alarm Shutdown): written back to Max Torque '
-                              f'{max_torque} (register {top.address})')
+                              f'Protocol 1.0 Alarm Shutdown): written back to {to}')
             return True
         flags = self._hardware_flags(s, status_error | err | error | read_error)
         if flags:

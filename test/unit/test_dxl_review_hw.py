@@ -91,6 +91,25 @@ def test_p1_alarm_shutdown_is_torque_lost_and_torque_on_restores_torque_limit():
         assert bus.health()[1].torque_enabled and bus.health()[1].torque_lost == ''
 
 
+def test_p1_torque_on_after_an_alarm_keeps_a_torque_limit_set_by_hand():
+    """A Torque Limit set lower by hand (512 of Max Torque 1023) before the driver started is
+    written back after an Alarm Shutdown zeroed it (it became 1023, full torque)."""
+    with ServoBusEmulator.of_model('ax18a', [1, 2]) as emu:
+        emu.servo(2).set('torque_limit', 512)
+        with _bus(emu, 2, 1) as bus:
+            assert all(bus.set_torque(True).values())
+            emu.inject(2, 'error_bits', error_bits=0x20)        # overload: Alarm Shutdown
+            bus.poll()
+            assert emu.read_register(2, 'torque_limit') == 0
+            emu.clear_faults(2)
+            bus.take_notes()
+            assert bus.set_torque(True) == {'j1': True, 'j2': True}
+            assert emu.read_register(2, 'torque_limit') == 512
+            assert any('j2 (id 2) Torque Limit (register 34) read 0' in n and
+                       'written back to 512, its value before (Max Torque 1023)' in n
+                       for n in bus.take_notes())
+
+
 def test_p1_torque_limit_zero_found_by_the_round_robin_without_a_flag():
     """The flag came and went between two reads: Torque Limit 0 alone is found by the
     READ that starts at Torque Enable (one servo a cycle), no extra request."""
