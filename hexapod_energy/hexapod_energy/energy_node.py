@@ -128,6 +128,7 @@ from hexapod_common.node_utils import (
     run_node,
 )
 from hexapod_common.publishers import PublisherSequences, publication_sequence
+from hexapod_common.renaming_logger import RenamingLogger, topic_renames
 from hexapod_gait.feasibility import ActuatorLimits
 from hexapod_gait.kinematics import ANTBOT_MASS_KG
 
@@ -240,6 +241,9 @@ class EnergyMonitorNode(Node):
                  namespace: str | None = None, node_name: str = 'energy_monitor') -> None:
         super().__init__(node_name, context=context, namespace=namespace or '',
                          parameter_overrides=parameter_overrides or [])
+        #: the node's logger naming the topics as remapped (a namespace, ``-r``): the core's
+        #: messages name the contract's ("no /battery_state" for a remapped /lab/power)
+        self._renaming_logger = RenamingLogger(super().get_logger())
         p = declare_params(self, EnergyParams)
         #: start-up warnings (an assumed mass, a robot_mass above mass), logged once each
         self.start_warnings: list[str] = []
@@ -321,14 +325,23 @@ class EnergyMonitorNode(Node):
         self.gait_publishers.subscription = gait_sub
         joint_sub = self.create_subscription(JointState, 'joint_states', self._on_joints,
                                              SENSOR_QOS)
-        self.create_subscription(mocap_msg_class(p.mocap_type), 'mocap/body', self._on_pose,
-                                 SENSOR_QOS)
-        self.create_subscription(Odometry, 'odom', self._on_odom, SENSOR_QOS)
+        mocap_sub = self.create_subscription(mocap_msg_class(p.mocap_type), 'mocap/body',
+                                             self._on_pose, SENSOR_QOS)
+        odom_sub = self.create_subscription(Odometry, 'odom', self._on_odom, SENSOR_QOS)
+        self._renaming_logger.set_renames(topic_renames({
+            'battery_state': self._battery_sub, 'gait/phase': gait_sub,
+            'joint_states': joint_sub, 'mocap/body': mocap_sub, 'odom': odom_sub}))
         #: inputs that never come (another namespace) or all stop: said on the wall clock
         self.inputs = InputWatch(
             self, {'battery_state': self._battery_sub, 'gait/phase': gait_sub,
                    'joint_states': joint_sub}, p.input_timeout_s,
             consequence='no descriptors can be computed')
+
+    def get_logger(self) -> Any:
+        """The node's logger; its messages name the topics as this node resolved them
+        (:class:`hexapod_common.renaming_logger.RenamingLogger`)."""
+        log = getattr(self, '_renaming_logger', None)
+        return log if log is not None else super().get_logger()
 
     def _guard(self, what: str, fn: Any, msg: Any) -> Any:
         try:
