@@ -137,7 +137,7 @@ def gait_colors(gaits: Iterable[str]) -> dict[str, str]:
     return out
 
 
-def gait_table(rows: Sequence[dict[str, float | str]]) -> dict[str, dict[str, float]]:
+def gait_table(rows: Sequence[dict[str, float | str]]) -> dict[str, dict[str, float | int]]:
     """Table 3: per gait mean and std of ``nerr``, ``power_w``, ``speed_mps`` (and ``sr``),
     the gaits in Table 3's order (running, jogging, pace, walk, then any other); with
     ``stiffness`` and ``rest_length`` in the rows, their median and interquartile range.
@@ -148,12 +148,13 @@ def gait_table(rows: Sequence[dict[str, float | str]]) -> dict[str, dict[str, fl
     a nearly constant leg force (:func:`.fit.spring_force_swing`); with ``other_nerr_ratio``
     (another minimum's nerr over the kept one's), ``two_minima_stances`` those within
     :data:`.fit.TWO_MINIMA_NERR_RATIO`; with ``nerr_noise_floor``, its median
-    ``nerr_noise_floor_median``.
+    ``nerr_noise_floor_median``. The three counts (``stances`` and the two above) are ints,
+    so that slip.json writes them as JSON integers.
     """
-    out: dict[str, dict[str, float]] = {}
+    out: dict[str, dict[str, float | int]] = {}
     for gait in ordered_gaits(str(r['gait']) for r in rows):
         sel = [r for r in rows if r['gait'] == gait]
-        entry: dict[str, float] = {'stances': float(len(sel))}
+        entry: dict[str, float | int] = {'stances': len(sel)}
         keys = ('nerr', 'power_w', 'speed_mps', 'sr') + \
             (('nerr_world',) if any('nerr_world' in r for r in sel) else ())
         for key in keys:
@@ -175,7 +176,7 @@ def gait_table(rows: Sequence[dict[str, float | str]]) -> dict[str, dict[str, fl
         if any('force_swing' in r for r in sel):
             swing = np.array([float(r.get('force_swing', math.nan)) for r in sel])
             # stances whose fit is a nearly constant leg force (k, l0 not identified apart)
-            entry['constant_force_stances'] = float(np.sum(swing < FORCE_SWING_MIN))
+            entry['constant_force_stances'] = int(np.sum(swing < FORCE_SWING_MIN))
         if any('nerr_noise_floor' in r for r in sel):
             # the part of the SLIP-measure that the motion capture's noise alone gives
             # (:func:`.fit.nerr_noise_floor`): gaits compare only at one rate and noise
@@ -186,7 +187,7 @@ def gait_table(rows: Sequence[dict[str, float | str]]) -> dict[str, dict[str, fl
         if any('other_nerr_ratio' in r for r in sel):
             ratio = np.array([float(r.get('other_nerr_ratio', math.inf)) for r in sel])
             # stances with another minimum the data hardly tell from the kept one
-            entry['two_minima_stances'] = float(np.sum(ratio <= TWO_MINIMA_NERR_RATIO))
+            entry['two_minima_stances'] = int(np.sum(ratio <= TWO_MINIMA_NERR_RATIO))
         out[gait] = entry
     return out
 
