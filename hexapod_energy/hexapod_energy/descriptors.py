@@ -1724,9 +1724,17 @@ class DescriptorAccumulator:
                 if source == 'mocap' and self._mocap_seen:
                     inside = [p[0] for p in track if t0 <= p[0] <= t1]
                     cover = (max(inside) - min(inside)) / (t1 - t0) if inside else 0.0
-                    lost = (f'{POSE_FALLBACK_NOTE}: its poses span {100 * cover:.0f} % of it '
-                            f'(under {100 * POSE_MIN_COVER:.0f} %; the body lost by the '
-                            'motion capture?)')
+                    if cover >= POSE_MIN_COVER:
+                        # _track_speed leaves out a window the body enters the volume in
+                        # (no pose before it); it had been called "under 50 %" at 54 %
+                        lost = (f'{POSE_FALLBACK_NOTE}: the body entered the motion-capture '
+                                f'volume {min(inside) - t0:.3f} s after its start (its poses '
+                                f'span {100 * cover:.0f} % of it; not a whole window of '
+                                'motion)')
+                    else:
+                        lost = (f'{POSE_FALLBACK_NOTE}: its poses span {100 * cover:.0f} % of '
+                                f'it (under {100 * POSE_MIN_COVER:.0f} %; the body lost by the '
+                                'motion capture?)')
                 continue
             if source == 'odometry':
                 twist = np.array([p[3] for p in poses])
