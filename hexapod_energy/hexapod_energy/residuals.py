@@ -121,6 +121,9 @@ class ResidualRun:
     step_height_m: np.ndarray | None = None
     stance_scale: np.ndarray | None = None
     swing_scale: np.ndarray | None = None
+    #: the payload the bag's metadata declares [kg] (None: none); the loop takes the
+    #: declared payload from ``--robot-payload`` only, and says when the two differ
+    bag_payload_kg: float | None = None
 
     #: the per-sample arrays on the battery stamps (cut together by :meth:`realigned`)
     PER_SAMPLE = ('t_s', 'voltage_v', 'current_a', 'power_w', 'cycle_phase', 'period_s',
@@ -301,6 +304,9 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
 
     with open_reader(path) as reader:
         reader_notes = list(getattr(reader, 'notes', ()))  # metadata.yaml vs storage, ...
+        from hexapod_energy.bag_io import _custom_data, _find_number
+
+        bag_payload = _find_number(_custom_data(reader), ('payload_kg', 'payload'))
         present = sorted({c.topic for c in reader.connections})
         if any(c.topic in ('/bench/session', '/bench/ground_force') and c.msgcount
                for c in reader.connections):
@@ -405,6 +411,7 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
             leg_names=tuple(pattern.leg_names),
             phase_offsets=tuple(float(x) for x in pattern.phase_offsets), gait=pattern.name)
         run.notes = battery_notes + notes
+        run.bag_payload_kg = bag_payload
         return _finish_run(run, b, t, temps, mech_rows, per_joint)
     t = b[:, 0]
     # the gait samples in stamp order (a stable sort, as the samples' list sort was)
@@ -436,6 +443,7 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
         leg_names=tuple(last.leg_names),
         phase_offsets=tuple(float(x) for x in last.phase_offsets), gait=last.gait)
     run.notes = battery_notes + list(run.notes)
+    run.bag_payload_kg = bag_payload
     return _finish_run(run, b, t, temps, mech_rows, per_joint)
 
 
@@ -2593,8 +2601,9 @@ def _summary_effects(doc: dict[str, Any]) -> str:
         others.append(f"The bench's mass sensitivity ({ms['w_per_kg_mean']:.2f} W/kg at these "
                       'runs) is nearly constant over them, so an undeclared mass and a basal '
                       'power read the same' + (
-                          '; it is unverified on this robot: no run declares a payload (a run '
-                          'with a known payload beside these would test it).'
+                          '; it is unverified on this robot: no payload was declared to the '
+                          'loop (--robot-payload; a run with a known payload beside these '
+                          'would test it).'
                           if not doc.get('payload_kg') else '.'))
     others += _implausible_texts(doc, fmt)
     u = doc.get('unexplained') or {}
@@ -2853,6 +2862,28 @@ def run_energy_loop(bench_bags: Sequence[str | Path], robot_bags: Sequence[str |
     return doc
 
 
+def _bag_payloads(doc: dict[str, Any], runs: Sequence[ResidualRun], payload_kg: float) -> None:
+    """Runs whose bag declares another payload than the loop's (``--robot-payload``): the
+    loop predicts them with its own, so the difference is left for ``carried_mass`` to find.
+    Said in the run's notes and ``bag_payloads_kg`` (an outside review: `energy` read a bag's
+    0.3 kg, `residuals` predicted the run without it, found 1.94 kg undeclared and said that
+    no run declares a payload)."""
+    differ = {}
+    for entry, r in zip(doc['per_run'], runs):
+        kg = r.bag_payload_kg
+        if kg is None or not math.isfinite(kg) or abs(kg - payload_kg) <= 1e-9:
+            continue
+        differ[r.name] = kg
+        entry['bag_payload_kg'] = kg
+        entry['notes'].append(
+            f'its bag declares a payload of {kg:g} kg (metadata), the loop took '
+            f'{payload_kg:g} kg (--robot-payload, the payload it is told; unlike energy it does '
+            'not read the bags\' one): the difference is predicted as not carried, for the '
+            f'loop to find as carried_mass; give --robot-payload {kg:g} to declare it')
+    if differ:
+        doc['bag_payloads_kg'] = differ
+
+
 #: a robot supply this far (relative) from the bench's is said: the bench surfaces hold at the
 #: bench's voltage (a servo's drive losses and speed depend on it)
 SUPPLY_MISMATCH = 0.03
@@ -3043,6 +3074,7 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
                        'sample_rmse_w': float(np.sqrt(np.mean((r.power_w - r.predicted_w)**2))),
                        'stream_lag_s': r.lag_s, 'notes': list(r.notes),
                        'outside_bench': outside_runs[i]} for i, r in enumerate(runs)]
+    _bag_payloads(doc, runs, payload_kg)
     doc['summary'] = summary_text(doc)
     if bench_notes and any(bench_notes.values()):
         doc['per_bench'] = [{'bag': b, 'notes': list(n)} for b, n in bench_notes.items()]

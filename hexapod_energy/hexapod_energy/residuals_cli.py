@@ -435,13 +435,19 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
               file=sys.stderr, **bar_options(quiet)) as bar, \
             message_progress('residuals: bag', disable=quiet), \
             replacing_outputs(args.out, 'residuals.json'):   # messages: a long bag
-        return run_energy_loop(args.bench, args.robot, args.out,
-                               robot_mass_kg=args.robot_mass, payload_kg=args.robot_payload,
-                               current_sign=args.current_sign,
-                               load_offset_kg=args.load_offset, plots=not args.no_plots,
-                               gait=gait, phase_split=getattr(args, 'phase_split', 'auto'),
-                               progress=bar.update, max_lag_s=max_lag,
-                               robot_mass_source=mass_source)
+        doc = run_energy_loop(args.bench, args.robot, args.out,
+                              robot_mass_kg=args.robot_mass, payload_kg=args.robot_payload,
+                              current_sign=args.current_sign,
+                              load_offset_kg=args.load_offset, plots=not args.no_plots,
+                              gait=gait, phase_split=getattr(args, 'phase_split', 'auto'),
+                              progress=bar.update, max_lag_s=max_lag,
+                              robot_mass_source=mass_source)
+    for bag, kg in doc.get('bag_payloads_kg', {}).items():
+        print(f'hexapod-analyze residuals: warning: {bag} declares a payload of {kg:g} kg in '
+              f'its metadata; the loop takes --robot-payload ({args.robot_payload:g} kg) and '
+              'leaves the difference for carried_mass to find (give --robot-payload to '
+              'declare it)', file=sys.stderr)
+    return doc
 
 
 def _handler(args: argparse.Namespace) -> int:

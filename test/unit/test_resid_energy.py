@@ -202,6 +202,14 @@ def test_undeclared_payload_is_named_with_its_mass(bench, tmp_path):
     assert 'carried_mass (mass_kg = ' in doc['summary']
     if first['name'] != 'carried_mass':
         assert 'cannot tell it from' in doc['summary']
+    # the bags declare it in their metadata (energy reads it): said per run, not hidden (an
+    # outside review: the summary said that no run declares a payload)
+    assert set(doc['bag_payloads_kg'].values()) == {0.5} and len(doc['bag_payloads_kg']) == 3
+    for entry in doc['per_run']:
+        assert entry['bag_payload_kg'] == 0.5
+        assert any('its bag declares a payload of 0.5 kg' in n and '--robot-payload 0.5' in n
+                   for n in entry['notes'])
+    assert 'no run declares a payload' not in doc['summary']
 
 
 def test_carried_mass_is_recovered_where_the_gait_tells_it_apart():
