@@ -271,6 +271,10 @@ def recommend_gait(
     evaluated = rejected = outside = 0
     why: dict[str, list[str]] = {}
     for name in gaits:
+        if name == 'alternating':
+            # the default's name for it: 'tripod' on 6 legs (the recommendation read
+            # "alternating beta 0.50 ... (default tripod beta 0.5)", one gait under two names)
+            name = default_gait_name(leg_count)
         betas = list(duty_factors) if duty_factors is not None else list(DEFAULT_DUTY_FACTORS)
         if duty_factors is None:
             try:

@@ -82,6 +82,16 @@ def test_recommendation_beats_or_equals_default(opm) -> None:
         rec.best.step_length_m)
 
 
+def test_recommendation_names_the_six_leg_alternating_gait_tripod(opm) -> None:
+    """One gait, one name: the candidates' 'alternating' on 6 legs is the default's 'tripod'
+    (an outside review: "alternating beta 0.50 ... (default tripod beta 0.5)")."""
+    rec = recommend_gait(Phase(), opm, speed_mps=0.26, gaits=('alternating',),
+                         duty_factors=(0.5,), step_lengths_m=(0.10,))
+    assert rec.best.gait == rec.default.gait == 'tripod'
+    assert rec.best.specific_cost_of_transport == pytest.approx(
+        rec.default.specific_cost_of_transport)
+
+
 def test_recommendation_refuses_unreachable_speed(opm) -> None:
     with pytest.raises(InvalidInputError, match='no feasible gait'):
         recommend_gait(Phase(), opm, speed_mps=5.0, gaits=('alternating',))
