@@ -406,9 +406,14 @@ class BenchSequencerNode(Node):
         run = self.sim_run
         if run.done:
             return
+        n_events = len(run.events)
         cmd = self.last_command = run.step()
         if cmd.finished_session:
             self.get_logger().info(f'session {cmd.finished_session} done')
+        for e in run.events[n_events:]:
+            if e.kind == 'interrupted':
+                self.get_logger().error(f'session {e.session_id} aborted: its partial bag '
+                                        f'is {e.detail}, not counted')
         t_s = SIM_EPOCH_S + run.bench.t_s
         sec, nanosec = s_to_stamp(t_s)
         clock = Clock()

@@ -133,9 +133,10 @@ class SimulatedBench:
 class RunEvent:
     """Something that happened in a simulated run (for logs and tests).
 
-    kind : 'walk' (measured walk started), 'bag' (a session's bag written), 'finished'
-        (session completed and saved in the state file), 'load' (load changed), 'state'
-        (sequencer state changed).
+    kind : 'walk' (measured walk started), 'bag' (a session's bag written), 'interrupted'
+        (an aborted walk's partial bag moved aside; detail: where), 'finished' (session
+        completed and saved in the state file), 'load' (load changed), 'state' (sequencer
+        state changed).
     temperatures_c : servo temperatures when it happened [degC].
     """
 
@@ -242,7 +243,8 @@ class SimulatedBenchRun:
     def _record_transition(self, cmd: SequencerCommand) -> None:
         s = cmd.session
         if self._recording is not None and (not cmd.record or s != self._recording):
-            self._write_bag()
+            # an abort mid-walk: the session is not counted, its partial bag goes aside
+            self._write_bag(aborted=cmd.state == 'aborted')
         if cmd.record and self._recording is None and s is not None:
             self._recording = s
             self._parts = []
@@ -251,7 +253,10 @@ class SimulatedBenchRun:
                                            s.step_length_m, s.step_height_m)]
             self._event('walk', s.session_id)
 
-    def _write_bag(self) -> None:
+    def _write_bag(self, *, aborted: bool = False) -> None:
+        """Write the session's walk to ``<output_dir>/<session_id>``; an aborted walk's
+        partial bag is then moved aside to ``<session_id>.interrupted-N`` (event
+        ``interrupted``), as the external backend does, so it is never read as a session."""
         from .sim_bag import write_trace
 
         s, parts = self._recording, self._parts
@@ -262,4 +267,7 @@ class SimulatedBenchRun:
         path.parent.mkdir(parents=True, exist_ok=True)
         move_aside(path)
         write_trace(self.bench.trace(parts, self._records, s), path, storage=self.storage)
+        if aborted:
+            self._event('interrupted', s.session_id, str(move_aside(path)))
+            return
         self._event('bag', s.session_id, str(path))
