@@ -574,7 +574,15 @@ def run_node(node_factory: Callable[..., Any], args: Sequence[str] | None = None
     stop (exit 0), as is a second ``KeyboardInterrupt`` during the clean-up.
     """
     if wants_help(sys.argv[1:] if args is None else args):
-        print(node_help(node_factory, params))
+        try:
+            print(node_help(node_factory, params), flush=True)
+        except BrokenPipeError:
+            # the reader has gone (``NODE --help | head -1``): no traceback, and no second
+            # one when the interpreter flushes stdout at exit
+            try:
+                os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            except (OSError, ValueError):
+                pass
         return 0
 
     import rclpy
