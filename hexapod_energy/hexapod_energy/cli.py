@@ -591,31 +591,46 @@ def _fit_bench(args: argparse.Namespace, setup: _Setup, doc: dict[str, Any], out
     leg, bench_bags = setup.leg, setup.bench_bags
     samples, diags = [], []
     one_session = []
+    recorded_one = []       # bags whose /bench/session names one session (bench_sequencer's)
+    alone = []
     for path, spec in bench_bags:
         data = read_bench_bag(path, spec, leg_dh=leg.dh, leg_name=leg.name,
                               bench_leg=getattr(args, 'bench_leg', None))
         bar.update(1)
         if spec is not None:
             one_session.append(data)
+        elif len({x.get('session_id') for x in data.sessions if x.get('session_id')}) == 1:
+            recorded_one.append(data)
+        else:
+            alone.append(data)
+
+    def phases(data: Any) -> None:
+        s, d = bench_phase_samples(data, current_sign=args.current_sign,
+                                   force_sign=getattr(args, 'force_sign', 'auto'),
+                                   phase_split=getattr(args, 'phase_split', 'auto'))
+        samples.extend(s)
+        diags.append(d)
+
+    for data in alone:
+        phases(data)
+    # bags of one session each: one bench (force offset and sign from every session, the
+    # power clock's lag over the walking frequencies). bench_sequencer writes one bag per
+    # session: each was analysed alone, its force sign and power lag never checked (an
+    # outside review of the README's commands)
+    for group, what in ((one_session, 'of --bench-sessions'),
+                        (recorded_one, 'each recording one session on /bench/session')):
+        if not group or (len(group) < 2 and group is recorded_one):
+            for data in group:
+                phases(data)
             continue
-        s, d = bench_phase_samples(data, current_sign=args.current_sign,
-                                   force_sign=getattr(args, 'force_sign', 'auto'),
-                                   phase_split=getattr(args, 'phase_split', 'auto'))
-        samples.extend(s)
-        diags.append(d)
-    # bags of one session each: one bench (force offset and sign from every session)
-    why_apart: list[str] = []
-    merged = merge_bench_data(one_session, why_apart)
-    if why_apart:
-        # said: each bag then gets its own force offset and sign (a 0 Hz bag: unchecked)
-        _warn(doc, bar, f'the {len(one_session)} bags of --bench-sessions are analysed one by '
-                        f'one, not as one bench: {why_apart[0]}')
-    for data in [merged] if merged is not None else one_session:
-        s, d = bench_phase_samples(data, current_sign=args.current_sign,
-                                   force_sign=getattr(args, 'force_sign', 'auto'),
-                                   phase_split=getattr(args, 'phase_split', 'auto'))
-        samples.extend(s)
-        diags.append(d)
+        why_apart: list[str] = []
+        merged = merge_bench_data(group, why_apart)
+        if why_apart:
+            # said: each bag then gets its own force offset and sign (a 0 Hz bag: unchecked)
+            _warn(doc, bar, f'the {len(group)} bench bags {what} are analysed one by one, '
+                            f'not as one bench: {why_apart[0]}')
+        for data in [merged] if merged is not None else group:
+            phases(data)
     if setup.mass_given:
         # loads in grams under the 50 kg bound (0-50 g) are above a small robot's mass
         carried = args.robot_mass + max(args.payload or 0.0,
