@@ -2003,7 +2003,7 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
     # message before the legs' is left out, a bag of other names is read whole)
     acc.leg_joints_ = LegJointFilter(legs_present=LegJointFilter.names_have_legs(
         stores['/joint_states'].distinct('names')))
-    changes: list[tuple[float, tuple[Any, ...], Any]] = []   # schedule changes on /gait/phase
+    changes: list[tuple[Any, ...]] = []   # schedule changes on /gait/phase, with history
     # header-stamp order (recorders store receive order; stamps may be a few ms out of order),
     # each sample rebuilt from the columns as it is fed
     for topic, sample in _stamp_ordered(stores, order):
@@ -2015,11 +2015,14 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
             gait = sample
             key = _schedule_key(sample)
             if not changes or not _same_schedule(changes[-1][1], key):
-                changes.append((sample.t_s, key, sample))
+                changes.append((sample.t_s, key, sample, [(sample.t_s, sample.t_s, sample)]))
             else:
                 # the schedule's latest sample stands for it: the first one within the
-                # tolerance may still be settling (beta 0.7499711 for 0.75 after a transition)
-                changes[-1] = (changes[-1][0], changes[-1][1], sample)
+                # tolerance may still be settling (beta 0.7499711 for 0.75 after a transition);
+                # a window takes the one in force at its end (_window_schedule): the latest
+                # may be the next transition's start (a stand: step 79.91 mm for 80 mm)
+                _note_schedule_sample(changes[-1][3], sample)
+                changes[-1] = (changes[-1][0], changes[-1][1], sample, changes[-1][3])
             windows.extend(acc.add_gait_phase(sample))
         elif topic == '/joint_states':
             windows.extend(acc.add_joint_state(sample) or ())
@@ -2445,7 +2448,7 @@ def _schedule_label(g: Any) -> str:
             f'{g.step_length_m:g} m')
 
 
-def _window_schedule(d: Any, changes: list[tuple[float, tuple[Any, ...], Any]]) -> Any:
+def _window_schedule(d: Any, changes: list[tuple[Any, ...]]) -> Any:
     """The /gait/phase sample of the one schedule in force over window ``d`` (standing,
     period 0, included: its windows are DescriptorAccumulator.STAND_WINDOW_S long), None when
     the schedule changes inside it."""
@@ -2457,14 +2460,37 @@ def _window_schedule(d: Any, changes: list[tuple[float, tuple[Any, ...], Any]]) 
         k0 = 0
     if not all(_same_schedule(changes[k][1], changes[k0][1]) for k in range(k0, k1 + 1)):
         return None
-    return changes[k0][2]
+    if k1 < 0 or len(changes[k1]) < 4:
+        return changes[k0][2]
+    # the sample in force at the window's end: its settled values, not a later one's
+    hist = changes[k1][3]
+    j = int(np.searchsorted([h[1] for h in hist], t1 + 1e-9, side='right')) - 1
+    return hist[max(j, 0)][2]
+
+
+#: schedule samples kept per schedule: at most one per this long [s] (the latest of it)
+SCHEDULE_HISTORY_S = 0.05
+
+
+def _note_schedule_sample(hist: list[tuple[float, float, Any]], sample: Any) -> None:
+    """Keep ``sample`` in a schedule's history ``[(bin start, sample time, sample)]``: a
+    new entry when its values changed and the last entry is ``SCHEDULE_HISTORY_S`` old, else
+    in place of the last entry when they changed (a gait node recomputing its period each
+    tick keeps at most 20 entries a second; a steady one, one)."""
+    start, _, last = hist[-1]
+    if _schedule_key(sample) == _schedule_key(last):
+        return
+    if sample.t_s - start < SCHEDULE_HISTORY_S:
+        hist[-1] = (start, sample.t_s, sample)
+    else:
+        hist.append((sample.t_s, sample.t_s, sample))
 
 
 #: standing windows (1 s each) a stop needs to be a run of its own
 MIN_STAND_WINDOWS = 3
 
 
-def _schedule_segments(windows: list[Any], changes: list[tuple[float, tuple[Any, ...], Any]]
+def _schedule_segments(windows: list[Any], changes: list[tuple[Any, ...]]
                        ) -> list[tuple[Any, float, int, list[Any]]]:
     """Consecutive windows under one walking schedule: ``(gait sample, start [s], window
     count, windows)`` in time order; a schedule met again later is a new segment."""
@@ -2479,9 +2505,10 @@ def _schedule_segments(windows: list[Any], changes: list[tuple[float, tuple[Any,
         if not _same_schedule(key, last_key):
             out.append((g, float(d.t_end_s - d.window_s), 0, []))
             last_key = key
-        gs, t0, n, ws = out[-1]
+        _, t0, n, ws = out[-1]
         ws.append(d)
-        out[-1] = (gs, t0, n + 1, ws)
+        # the segment's schedule: the one in force at its last window's end (settled)
+        out[-1] = (g, t0, n + 1, ws)
     return out
 
 
