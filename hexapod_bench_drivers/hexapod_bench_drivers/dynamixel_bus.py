@@ -760,6 +760,8 @@ class DynamixelBus:
         #: run-time transitions for the log (see :meth:`take_events`)
         self.events = EventLog()
         self.rate = RateMonitor(rate_hz) if rate_hz else None
+        #: goal names not in the joint map, already said (see :meth:`write_goals`)
+        self.unknown_command_names: set[str] = set()
         #: the adapter echoes transmitted bytes (seen at least once; the echo is skipped)
         self.echo = False
         #: why the port was lost (see :class:`PortLostError`), else ''
@@ -2125,6 +2127,17 @@ class DynamixelBus:
                      speeds_rad_s: Mapping[str, float] | None) -> int:
         groups: dict[tuple[int, int], GroupSyncWrite] = {}
         count = 0
+        unknown = sorted(set(positions_rad) - set(self._by_name)
+                         - self.unknown_command_names)
+        if unknown:
+            # said once per new name: a gait node at another leg_count or a typo in the joint
+            # map (L1_femor) left joints uncommanded without a word (a quadruped review)
+            self.unknown_command_names.update(unknown)
+            missing = sorted(set(self._by_name) - set(positions_rad))
+            self.notes.append(
+                f'joint_commands name joint(s) not in the joint map, ignored: {unknown}'
+                + (f'; the map\'s joints without a command there: {missing}' if missing
+                   else '') + ' (the gait node\'s leg_count, or the names in joints_file?)')
         for name, target in positions_rad.items():
             s = self._by_name.get(name)
             if (s is None or s.table is None or s.command_refusal
