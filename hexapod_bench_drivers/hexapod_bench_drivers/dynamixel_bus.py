@@ -362,11 +362,16 @@ class JointConfig:
         return (joint_rad - self.offset_rad) * self.direction
 
 
+#: keys of one joint map entry (``name`` in the list form)
+_JOINT_KEYS = frozenset({'name', 'id', 'direction', 'offset_rad'})
+
+
 def parse_joint_map(data: Mapping[str, Any]) -> tuple[JointConfig, ...]:
     """Joint map from a mapping ``{'joints': {name: {id, direction, offset_rad}}}``.
 
     ``joints`` may also be a list of ``{name, id, direction, offset_rad}``. ``direction`` is +1 or
-    -1 (default +1); ``offset_rad`` defaults to 0. Names and IDs must be unique.
+    -1 (default +1); ``offset_rad`` defaults to 0 and must be finite. Names and IDs must be
+    unique; any other key is refused (a ``dirction: -1`` typo left a mirrored joint at +1).
     """
     joints = data.get('joints') if isinstance(data, Mapping) else None
     if joints is None:
@@ -377,6 +382,10 @@ def parse_joint_map(data: Mapping[str, Any]) -> tuple[JointConfig, ...]:
     for name, spec in items:
         if not isinstance(name, str) or not name or not isinstance(spec, Mapping):
             raise JointMapError(f'joint map: entry {name!r}: expected a name and a mapping')
+        unknown = sorted(str(k) for k in set(spec) - _JOINT_KEYS)
+        if unknown:
+            raise JointMapError(f'joint map: entry {name!r}: unknown key(s) {unknown}; '
+                                f'expected {sorted(_JOINT_KEYS - {"name"})}')
         try:
             servo_id = int(spec['id'])
             direction = int(spec.get('direction', 1))
@@ -388,6 +397,9 @@ def parse_joint_map(data: Mapping[str, Any]) -> tuple[JointConfig, ...]:
             raise JointMapError(f'joint map: {name!r} id {servo_id}: expected 0..252')
         if direction not in (1, -1):
             raise JointMapError(f'joint map: {name!r} direction {direction}: expected 1 or -1')
+        if not math.isfinite(offset):
+            raise JointMapError(f'joint map: {name!r} offset_rad {offset}: expected a finite '
+                                'angle [rad]')
         out.append(JointConfig(name, servo_id, direction, offset))
     names = [j.name for j in out]
     ids = [j.servo_id for j in out]
