@@ -24,7 +24,6 @@ Core module: no rclpy.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -34,10 +33,6 @@ from hexapod_energy.dynamics import LegSpec
 from hexapod_energy.errors import InvalidInputError
 
 __all__ = ['LegDescription', 'antbot_leg', 'load_leg_description']
-
-_KEYS = {'name', 'a_m', 'alpha_rad', 'd_m', 'theta_offset_rad', 'link_masses_kg',
-         'joint_limits_rad', 'neutral_tip_m'}
-
 
 @dataclass(frozen=True)
 class LegDescription:
@@ -92,69 +87,14 @@ def antbot_leg() -> LegDescription:
     return LegDescription(ANTBOT_LEG, tuple(ANTBOT_NEUTRAL_TIP_M), 'AntBot')  # type: ignore[arg-type]
 
 
-def _triple(doc: dict[str, Any], key: str, path: Path, *, positive: bool = False,
-            nonneg: bool = False) -> tuple[float, float, float]:
-    value = doc[key]
-    try:
-        out = tuple(float(x) for x in value)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f'leg file {path}: {key} must be 3 numbers, got {value!r}') \
-            from None
-    if len(out) != 3 or not all(math.isfinite(x) for x in out):
-        raise InvalidInputError(f'leg file {path}: {key} must be 3 finite numbers, got {value!r}')
-    if nonneg and any(x < 0 for x in out):
-        raise InvalidInputError(f'leg file {path}: {key} must be >= 0, got {list(out)}')
-    if positive and any(x <= 0 for x in out[1:]):
-        raise InvalidInputError(f'leg file {path}: {key}: femur and tibia must be > 0, got '
-                                f'{list(out)}')
-    return out  # type: ignore[return-value]
-
-
 def load_leg_description(path: str | Path) -> LegDescription:
-    """Read and check a leg file (module docs); raises :class:`InvalidInputError` naming the
-    file and the problem."""
-    from ruamel.yaml import YAML
-    from ruamel.yaml.error import YAMLError
+    """Read and check a leg file (module docs; :func:`hexapod_gait.leg_file.read_leg_file`,
+    which ``gait_scheduler`` reads too); raises :class:`InvalidInputError` naming the file and
+    the problem."""
+    from hexapod_gait.leg_file import LegFileError, read_leg_file
 
-    from hexapod_gait.config import check_reachable
-    from hexapod_gait.errors import InvalidGaitError, UnreachableError
-    from hexapod_gait.gait import make_gait
-    from hexapod_gait.kinematics import DHParameters, LegKinematics
-
-    path = Path(path)
     try:
-        doc = YAML(typ='safe').load(path.read_text(encoding='utf8'))
-    except OSError as err:
-        raise InvalidInputError(f'leg file {path}: {err.strerror or err}') from None
-    except YAMLError as err:
-        raise InvalidInputError(f'leg file {path} is not YAML/JSON: '
-                                f'{str(err).splitlines()[0]}') from None
-    if not isinstance(doc, dict):
-        raise InvalidInputError(f'leg file {path}: expected a mapping of {sorted(_KEYS)}')
-    unknown = sorted(set(doc) - _KEYS)
-    if unknown:
-        raise InvalidInputError(f'leg file {path}: unknown key(s) {unknown}; expected '
-                                f'{sorted(_KEYS)}')
-    missing = [k for k in ('a_m', 'link_masses_kg', 'neutral_tip_m') if k not in doc]
-    if missing:
-        raise InvalidInputError(f'leg file {path}: missing {missing}')
-    kw: dict[str, Any] = {'a_m': _triple(doc, 'a_m', path, positive=True, nonneg=True),
-                          'link_masses_kg': _triple(doc, 'link_masses_kg', path, nonneg=True)}
-    for key in ('alpha_rad', 'd_m', 'theta_offset_rad'):
-        if key in doc:
-            kw[key] = _triple(doc, key, path)
-    if 'joint_limits_rad' in doc:
-        try:
-            kw['joint_limits_rad'] = tuple((float(lo), float(hi))
-                                           for lo, hi in doc['joint_limits_rad'])
-        except (TypeError, ValueError):
-            raise InvalidInputError(f'leg file {path}: joint_limits_rad must be 3 [lower, '
-                                    f'upper] pairs, got {doc["joint_limits_rad"]!r}') from None
-    tip = _triple(doc, 'neutral_tip_m', path)
-    try:
-        dh = DHParameters(**kw)
-        kin = LegKinematics(dh)
-        check_reachable(make_gait('tripod'), kinematics=kin, neutral_tip_m=tip)
-    except (InvalidGaitError, UnreachableError) as err:
-        raise InvalidInputError(f'leg file {path}: {err}') from None
-    return LegDescription(dh, tip, str(doc.get('name') or path.stem))
+        leg = read_leg_file(path)
+    except LegFileError as err:
+        raise InvalidInputError(str(err)) from None
+    return LegDescription(leg.dh, leg.neutral_tip_m, leg.name)

@@ -91,6 +91,7 @@ from hexapod_gait.buehler import BUEHLER_PRESETS, BuehlerClock
 from hexapod_gait.config import build_gait, check_static_support
 from hexapod_gait.errors import HexapodGaitError
 from hexapod_gait.feasibility import ActuatorLimits, period_for_speed
+from hexapod_gait.leg_file import LegFile, LegFileError, read_leg_file
 from hexapod_gait.gait import GAIT_NAMES, GaitPattern
 from hexapod_gait.scheduler import MIN_TRANSITION_CYCLES, GaitScheduler, GaitState
 from hexapod_gait.step_limits import limits_for_step
@@ -207,6 +208,9 @@ class GaitParams:
                               validate=_positive, read_only=True)
     max_step_frequency: float = param(3.0, 'actuator limit: highest step frequency [Hz]',
                                       validate=_positive, read_only=True)
+    leg_file: str = param('', "the robot's leg (YAML/JSON: DH table, link masses, "
+                          "neutral_tip_m; hexapod_gait.leg_file); empty = AntBot's",
+                          read_only=True)
 
 
 def _limits(p: GaitParams) -> ActuatorLimits:
@@ -214,7 +218,8 @@ def _limits(p: GaitParams) -> ActuatorLimits:
                           max_step_frequency_hz=p.max_step_frequency)
 
 
-def gait_from_params(p: GaitParams) -> GaitPattern | BuehlerClock:
+def gait_from_params(p: GaitParams, leg: LegFile | None = None
+                     ) -> GaitPattern | BuehlerClock:
     """The gait the parameters describe (raises a :class:`HexapodGaitError` with the reason).
 
     Standing (``stand``, or step length and height 0) keeps the walking gait's cycle clock: the
@@ -228,11 +233,14 @@ def gait_from_params(p: GaitParams) -> GaitPattern | BuehlerClock:
     """
     standing = p.gait != 'buehler' and (p.stand or (p.step_length == 0.0
                                                      and p.step_height == 0.0))
+    # the leg's joint paths (another robot's leg file): its reach and actuator limits
+    on_leg: dict[str, Any] = {} if leg is None else {
+        'kinematics': leg.kinematics(), 'neutral_tip_m': leg.neutral_tip_m}
     period = p.period
     if standing and p.speed > 0.0 and p.step_length > 0.0:
         try:
             period = period_for_speed(p.speed, p.duty_factor, p.step_length, limits_for_step(
-                _limits(p), p.duty_factor, p.step_length, p.step_height))
+                _limits(p), p.duty_factor, p.step_length, p.step_height, **on_leg))
         except HexapodGaitError:
             pass    # the walking gait is not reachable: the stand keeps ``period``
     gait = build_gait(p.gait, leg_count=p.leg_count, duty_factor=p.duty_factor,
@@ -240,7 +248,7 @@ def gait_from_params(p: GaitParams) -> GaitPattern | BuehlerClock:
                       step_height_m=0.0 if standing else p.step_height,
                       speed_mps=0.0 if standing else p.speed,
                       sweep_angle_rad=p.sweep_angle, leg_offset_rad=p.leg_offset,
-                      preset=p.preset, limits=None if standing else _limits(p))
+                      preset=p.preset, limits=None if standing else _limits(p), **on_leg)
     if isinstance(gait, GaitPattern):
         check_static_support(gait)
     return gait
@@ -304,8 +312,19 @@ class GaitSchedulerNode(Node):
         p = declare_params(self, GaitParams, on_change=self._on_change)
         # added last, so rclpy runs it before the change is applied
         self.add_on_set_parameters_callback(self._refuse_period_in_speed_mode)
+        #: the robot's leg (leg_file), None for AntBot's: the joint commands' inverse
+        #: kinematics, the stand pose and the reach checks (they were AntBot's on any robot)
+        self.leg: LegFile | None = None
+        if p.leg_file:
+            try:
+                self.leg = read_leg_file(p.leg_file)
+            except LegFileError as err:
+                raise ParameterError(f'leg_file refused: {err}') from err
+            self.get_logger().info(f'leg {self.leg.name!r} from {p.leg_file}: link lengths '
+                                   f'{[round(x, 4) for x in self.leg.dh.a_m]} m, neutral tip '
+                                   f'{[round(x, 4) for x in self.leg.neutral_tip_m]} m')
         try:
-            self._gait = gait_from_params(p)
+            self._gait = gait_from_params(p, self.leg)
         except HexapodGaitError as err:
             raise ParameterError(f'gait parameters refused: {err}') from err
         self.phase_pub = self.create_publisher(GaitPhase, 'gait/phase', RELIABLE_QOS)
@@ -368,7 +387,7 @@ class GaitSchedulerNode(Node):
     def _on_change(self, new: GaitParams) -> str | None:
         """Validate a run-time change and start a transition; a returned string refuses it."""
         try:
-            gait = gait_from_params(new)
+            gait = gait_from_params(new, self.leg)
             if self.scheduler is not None:
                 cycles = self.scheduler.transition_cycles
                 self.scheduler.transition_cycles = new.transition_cycles
@@ -551,9 +570,11 @@ class GaitSchedulerNode(Node):
                 return
             self.t0_ns = now_ns
             self.t0_s = now_ns * 1e-9
+            on_leg: dict[str, Any] = {} if self.leg is None else {
+                'kinematics': self.leg.kinematics(), 'neutral_tip_m': self.leg.neutral_tip_m}
             self.scheduler = GaitScheduler(
                 self._gait, 0.0, leg_count=self.params.leg_count,
-                transition_cycles=self.params.transition_cycles)
+                transition_cycles=self.params.transition_cycles, **on_leg)
         assert self.t0_ns is not None
         t = (now_ns - self.t0_ns) * 1e-9
         try:
