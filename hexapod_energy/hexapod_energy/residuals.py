@@ -2812,7 +2812,7 @@ def run_energy_loop(bench_bags: Sequence[str | Path], robot_bags: Sequence[str |
                     gait: GivenGait | None = None, phase_split: str = 'auto',
                     progress: Callable[[int], Any] | None = None,
                     robot_mass_source: str | None = None,
-                    max_lag_s: float = 0.15) -> dict[str, Any]:
+                    max_lag_s: float = 0.15, leg: Any = None) -> dict[str, Any]:
     """Whole energy loop from bags; writes ``residuals.json`` (and plots) into ``out_dir`` when
     given and returns the document. Prints nothing; ``progress(1)`` after each bag read and
     after the loop. ``max_lag_s``: the largest battery clock offset searched [s].
@@ -2820,9 +2820,18 @@ def run_energy_loop(bench_bags: Sequence[str | Path], robot_bags: Sequence[str |
     ``load_offset_kg``: subtracted from the carried mass before the bench surfaces are read
     (0 by the paper: a robot's stance tip carries ``M g / L``, the simulated robot's too
     (``robot_sim.tip_forces_n``), the bench tip ``(m_leg + load) g``). ``phase_split``: the
-    bench's stance/swing labels (:func:`hexapod_energy.bag_io.bench_phase_samples`)."""
+    bench's stance/swing labels (:func:`hexapod_energy.bag_io.bench_phase_samples`).
+    ``leg``: the robot's (and bench's) leg, a
+    :class:`~hexapod_energy.leg_description.LegDescription` (``--leg FILE``; None: AntBot's):
+    its mass is what Eq. 1's stance legs carry, its joint paths map other step geometries
+    (an outside review: AntBot's 0.166 kg legs were used for any robot, silently)."""
+    from functools import partial
+
     from hexapod_energy.bag_io import bench_phase_samples, read_bench_bag
+    from hexapod_energy.leg_description import antbot_leg
     from hexapod_energy.prediction import RobotSpec
+
+    leg = leg if leg is not None else antbot_leg()
 
     if not bench_bags:
         raise InvalidInputError('the energy loop needs --bench BAG (at least one bench bag)')
@@ -2833,7 +2842,7 @@ def run_energy_loop(bench_bags: Sequence[str | Path], robot_bags: Sequence[str |
     bench_v: list[float] = []
     bench_notes: dict[str, list[str]] = {}
     for p in bench_bags:
-        data = read_bench_bag(p)
+        data = read_bench_bag(p, leg_dh=leg.dh, leg_name=leg.name)
         bench_notes[str(p)] = list(data.notes)
         s, _ = bench_phase_samples(data, current_sign=current_sign, phase_split=phase_split)
         samples.extend(s)
@@ -2842,11 +2851,9 @@ def run_energy_loop(bench_bags: Sequence[str | Path], robot_bags: Sequence[str |
             bench_v.append(float(np.nanmedian(v)))
         step(1)
     model = fit_bench_model(samples)
-    from hexapod_energy.leg_description import antbot_leg
-
     # the leg whose joint paths map other step geometries onto the bench's (as energy's
-    # bench fit sets it; the residual loop's robot is AntBot's leg, RobotSpec's default)
-    model.bench_leg_ = antbot_leg()
+    # bench fit sets it); the robot's legs are the same leg
+    model.bench_leg_ = leg
     runs = []
     for p in robot_bags:
         runs.append(read_residual_run(p, current_sign=current_sign, gait=gait))
@@ -2854,10 +2861,10 @@ def run_energy_loop(bench_bags: Sequence[str | Path], robot_bags: Sequence[str |
     doc = energy_loop_from_runs(model, runs, out_dir, robot_mass_kg=robot_mass_kg,
                                 payload_kg=payload_kg, load_offset_kg=load_offset_kg,
                                 temp_ref_c=_bench_temperature_c(bench_bags), plots=plots,
-                                robot_spec_cls=RobotSpec,
+                                robot_spec_cls=partial(RobotSpec, leg=leg.spec),
                                 bench_voltage_v=float(np.median(bench_v)) if bench_v else None,
                                 bench_notes=bench_notes, max_lag_s=max_lag_s,
-                                robot_mass_source=robot_mass_source)
+                                robot_mass_source=robot_mass_source, leg=leg.summary())
     step(1)
     return doc
 
@@ -2949,7 +2956,8 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
                           robot_spec_cls: Any = None, bench_voltage_v: float | None = None,
                           bench_notes: dict[str, list[str]] | None = None,
                           max_lag_s: float = SampleView.max_lag_s,
-                          robot_mass_source: str | None = None) -> dict[str, Any]:
+                          robot_mass_source: str | None = None,
+                          leg: dict[str, Any] | None = None) -> dict[str, Any]:
     """The loop on a fitted bench model and read robot runs (tests reuse one bench fit).
     ``max_lag_s``: the largest battery clock offset the per-sample view searches [s].
     ``robot_mass_source``: where ``robot_mass_kg`` came from (the document's ``robot_mass``).
@@ -3080,6 +3088,8 @@ def energy_loop_from_runs(model: Any, runs: Sequence[ResidualRun],
         doc['per_bench'] = [{'bag': b, 'notes': list(n)} for b, n in bench_notes.items()]
     if temp_ref_c is not None:
         doc['temperature_reference_c'] = temp_ref_c
+    if leg is not None:
+        doc['leg'] = leg   # the robot's leg (--leg; LegDescription.summary())
     _supply_check(doc, runs, bench_voltage_v)
     if out_dir is not None:
         out = Path(out_dir)

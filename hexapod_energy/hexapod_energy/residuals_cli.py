@@ -37,7 +37,9 @@ stances are ``hexapod-analyze slip``'s (geometric single support, fitted mocap o
      (energy:) "mass_sensitivity": {"w_per_kg_mean", "uncentred_r_with_constant",
                  "near_constant"}, "payload_kg", "robot_mass": {"kg" (payload excluded),
                  "source" (--robot-mass | bags' metadata (robot_mass_kg, as hexapod-sim
-                 records it) | assumed (AntBot))},
+                 records it) | assumed (AntBot))}, "leg": {"name", "a_m", ...,
+                 "link_masses_kg", "neutral_tip_m"} (--leg FILE, default AntBot's; as
+                 energy.json "leg"),
      (energy:) "added_params": [{"name", "params", "stderr",
                                  "alternatives"?: [{"name", "heldout_rmse", "params",
                                                     "stderr", "share",
@@ -165,6 +167,10 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
                         "robot bags' declared robot_mass_kg, else AntBot's 2.183 with a "
                         "warning; EduBot's 3.31 for --slip, with a warning: the fitted "
                         'leg damping and hip torque scale with it)')
+    p.add_argument('--leg', default=None, metavar='FILE',
+                   help="the robot's leg for the energy loop (a leg file, as energy --leg: "
+                        'DH table, link masses, stance pose; its mass sets what a stance leg '
+                        "carries in Eq. 1, its joint paths the step scaling); default AntBot's")
     p.add_argument('--robot-payload', type=float, default=0.0, metavar='KG',
                    help='payload of the robot runs [kg] (default 0; unlike energy, not read '
                         "from the bags' metadata: a payload left undeclared is for the loop to "
@@ -400,11 +406,12 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         raise InvalidInputError(f'--max-lag must be 0.01-5 s, got {max_lag}')
     if not math.isfinite(args.load_offset):
         raise InvalidInputError(f'--load-offset must be finite, got {args.load_offset}')
+    from hexapod_energy.leg_description import antbot_leg, load_leg_description
+
+    leg = load_leg_description(args.leg) if getattr(args, 'leg', None) else antbot_leg()
     legs = getattr(args, 'legs', None)
     if legs is not None:
-        from hexapod_energy.prediction import RobotSpec
-
-        leg_kg = RobotSpec(mass_kg=args.robot_mass).leg_mass_kg
+        leg_kg = leg.spec.leg_mass_kg
         if legs < 2 or legs % 2 or legs * leg_kg >= args.robot_mass:
             # --legs 1e9 built a billion-leg gait before anything checked it (OOM)
             raise InvalidInputError(
@@ -441,7 +448,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                               load_offset_kg=args.load_offset, plots=not args.no_plots,
                               gait=gait, phase_split=getattr(args, 'phase_split', 'auto'),
                               progress=bar.update, max_lag_s=max_lag,
-                              robot_mass_source=mass_source)
+                              robot_mass_source=mass_source, leg=leg)
     for bag, kg in doc.get('bag_payloads_kg', {}).items():
         print(f'hexapod-analyze residuals: warning: {bag} declares a payload of {kg:g} kg in '
               f'its metadata; the loop takes --robot-payload ({args.robot_payload:g} kg) and '
