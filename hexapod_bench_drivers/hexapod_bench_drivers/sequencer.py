@@ -161,8 +161,10 @@ def _float(data: Mapping[str, Any], key: str, default: float) -> float:
     return out
 
 
-def _check_gaits(sessions: Sequence[SessionSpec], limits: Any) -> None:
-    """Refuse a session gait the gait node would refuse (actuator limits, leg reach)."""
+def _check_gaits(sessions: Sequence[SessionSpec], limits: Any, leg: Any = None) -> None:
+    """Refuse a session gait the gait node would refuse (actuator limits, leg reach) on
+    ``leg`` (a :class:`hexapod_gait.leg_file.LegFile`, the gait node's ``-p leg_file``; None:
+    AntBot's leg)."""
     from hexapod_gait.config import build_gait
     from hexapod_gait.errors import HexapodGaitError
     from hexapod_gait.feasibility import ActuatorLimits
@@ -176,21 +178,28 @@ def _check_gaits(sessions: Sequence[SessionSpec], limits: Any) -> None:
         if key in checked:
             continue
         checked.add(key)
+        own = {} if leg is None else {'kinematics': leg.kinematics(),
+                                      'neutral_tip_m': leg.neutral_tip_m}
         try:
             build_gait('tripod', duty_factor=s.duty_factor, period_s=1.0 / f,
                        step_length_m=s.step_length_m, step_height_m=s.step_height_m,
-                       limits=limits)
+                       limits=limits, **own)
         except HexapodGaitError as err:
             raise PlanError(f'plan: session {s.session_id} ({f:g} Hz, duty factor '
                             f'{s.duty_factor:g}, step {s.step_length_m:g} m): the gait node '
                             f'would refuse it: {err}; change or remove it') from err
 
 
-def load_plan(source: str | Path | Mapping[str, Any], *, limits: Any = None) -> BenchPlan:
+def load_plan(source: str | Path | Mapping[str, Any], *, limits: Any = None,
+              leg: Any = None) -> BenchPlan:
     """A BenchPlan from a YAML file or a mapping (see module doc).
 
     ``limits`` : :class:`hexapod_gait.feasibility.ActuatorLimits` the session gaits must meet
     (default: the gait node's defaults).
+    ``leg`` : :class:`hexapod_gait.leg_file.LegFile` of the bench leg (the gait node's
+    ``-p leg_file``), whose reach and joint paths the gaits are checked on; None: AntBot's
+    (an outside review: a plan the gait node walks on a longer leg was refused as one "the gait
+    node would refuse", and one it refuses on a shorter leg was accepted).
     """
     if isinstance(source, Mapping):
         data = source
@@ -246,7 +255,7 @@ def load_plan(source: str | Path | Mapping[str, Any], *, limits: Any = None) -> 
                 f'{s.step_length_m!r} m): the second would be skipped; remove the repeat or '
                 'make the values differ in the 3rd (kg, m) or 2nd (Hz, duty) decimal')
         seen[s.session_id] = s
-    _check_gaits(sessions, limits)
+    _check_gaits(sessions, limits, leg)
     return BenchPlan(sessions, gate, tol, limit)
 
 

@@ -108,6 +108,7 @@ from hexapod_bench_drivers.dynamixel_bus import config_file
 from hexapod_bench_drivers.sequencer import (
     HEAT_FREQUENCY_HZ,
     BenchSequencer,
+    PlanError,
     SequencerCommand,
     load_plan,
     move_aside,
@@ -142,6 +143,9 @@ class BenchSequencerParams:
 
     plan_file: str = param('', 'YAML bench plan (see hexapod_bench_drivers.sequencer).',
                            validate=lambda v: None if v else 'expected a YAML file path')
+    leg_file: str = param('', "the bench leg's file (gait_scheduler's -p leg_file: DH table, "
+                          "link masses, neutral_tip_m), the plan's gaits are checked on its "
+                          "reach and joint paths; empty: AntBot's leg")
     state_file: str = param('bench_state.json', 'Progress file (resume after a crash).')
     output_dir: str = param('bench_bags', 'Folder of the per-session bags.')
     record_topics: tuple = param(DEFAULT_RECORD, 'Topics recorded while walking.')
@@ -194,7 +198,20 @@ class BenchSequencerNode(Node):
         super().__init__('bench_sequencer', context=context,
                          parameter_overrides=parameter_overrides, namespace=namespace, **kw)
         p = self.params = declare_params(self, BenchSequencerParams)
-        plan = load_plan(config_file(p.plan_file))   # bench_plan.yaml: the package config
+        leg = None
+        if p.leg_file:
+            from hexapod_gait.leg_file import LegFileError, read_leg_file
+
+            try:
+                leg = read_leg_file(p.leg_file)
+            except LegFileError as err:
+                raise PlanError(f'leg_file refused: {err}') from err
+        # bench_plan.yaml: the package config
+        plan = load_plan(config_file(p.plan_file), leg=leg)
+        if leg is not None and p.backend == 'sim':
+            self.get_logger().warning(
+                f"backend sim simulates AntBot's leg, not {leg.name!r} of {p.leg_file}: the "
+                'plan is checked on the leg file, the simulated sessions walk AntBot\'s leg')
         self.sim_run: Any = None
         if p.backend == 'sim':
             from hexapod_bench_drivers.bench_sim import BenchConfig
