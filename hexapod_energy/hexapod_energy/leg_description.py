@@ -4,20 +4,9 @@ The Eq. 6 model computes the joint torques of one leg along the gait's tip path 
 kinematics, then Pinocchio's inverse dynamics). By default that leg is AntBot's (DESIGN §7);
 a PhantomX or any 3-DOF leg with a coxa joint about the vertical and femur and tibia joints
 parallel (standard DH ``alpha = (pi/2, 0, 0)``, ``d2 = d3 = 0``) is described in a YAML (or
-JSON) file and given with ``hexapod-analyze energy --leg FILE``::
-
-    name: PhantomX MK-III           # optional, shown in energy.json
-    a_m: [0.052, 0.066, 0.133]      # DH link lengths [m]
-    alpha_rad: [1.5708, 0, 0]       # optional (this is the only analytic form)
-    d_m: [0, 0, 0]                  # optional
-    theta_offset_rad: [0, 0, 0]     # optional: theta_i = q_i + offset_i
-    link_masses_kg: [0.02, 0.08, 0.06]
-    joint_limits_rad: [[-2.6, 2.6], [-2.6, 2.6], [-2.6, 2.6]]   # optional
-    neutral_tip_m: [0.13, 0.0, -0.10]   # stance midpoint in the leg base frame [m]
-
-Every key is checked (unknown keys refused, lengths and signs named in the error); the gait's
-default path (tripod, 100 mm steps, 40 mm high) must lie inside the leg's workspace from that
-stance pose, else the file is refused saying which point leaves it.
+JSON) file and given with ``hexapod-analyze energy --leg FILE`` (``energy_monitor -p
+leg_file``). The file's format and checks are :mod:`hexapod_gait.leg_file`'s, which
+``gait_scheduler -p leg_file`` reads too: one file describes the leg everywhere.
 
 Core module: no rclpy.
 """

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from rosbags.rosbag2 import StoragePlugin, Writer
 
-from hexapod_common.bags import typestore
+from energy_bench_bags import _Msgs as BenchMsgs
 from hexapod_energy.residuals_cli import add_cli
 
 G = 9.81
@@ -46,25 +46,9 @@ def p_swing(f: float, m: float) -> float:
     return 0.8 + 0.3 * m + 1.5 * f
 
 
-class _Msgs:
-    def __init__(self) -> None:
-        self.store = typestore()
-        self.T = self.store.types
-
-    def header(self, t: float):
-        sec = int(math.floor(t))
-        ns = min(int(round((t - sec) * 1e9)), 999_999_999)
-        return self.T['std_msgs/msg/Header'](
-            stamp=self.T['builtin_interfaces/msg/Time'](sec=sec, nanosec=ns), frame_id='')
-
-    def battery(self, t: float, p: float):
-        nan = float('nan')
-        return self.T['sensor_msgs/msg/BatteryState'](
-            header=self.header(t), voltage=12.0, temperature=nan, current=-p / 12.0,
-            charge=nan, capacity=nan, design_capacity=nan, percentage=0.8,
-            power_supply_status=2, power_supply_health=0, power_supply_technology=3,
-            present=True, cell_voltage=np.zeros(0, np.float32),
-            cell_temperature=np.zeros(0, np.float32), location='', serial_number='')
+class _Msgs(BenchMsgs):
+    """energy_bench_bags' messages (header, battery, wrench, point) plus this file's
+    gait phase, bench session and bag writer."""
 
     def gait(self, t: float, period: float, cyc: float, legs: dict[str, float]):
         stance = [((cyc - o) % 1.0) < BETA for o in legs.values()] if period else \
@@ -81,17 +65,6 @@ class _Msgs:
         return self.T['hexapod_interfaces/msg/BenchSession'](
             header=self.header(t), session_id=sid, state=state, load_mass=float(load),
             frequency=float(freq), duty_factor=BETA, step_length=STEP, step_height=HEIGHT)
-
-    def wrench(self, t: float, fz: float):
-        V3 = self.T['geometry_msgs/msg/Vector3']
-        return self.T['geometry_msgs/msg/WrenchStamped'](
-            header=self.header(t), wrench=self.T['geometry_msgs/msg/Wrench'](
-                force=V3(x=0.0, y=0.0, z=float(fz)), torque=V3(x=0.0, y=0.0, z=0.0)))
-
-    def point(self, t: float, z: float):
-        return self.T['geometry_msgs/msg/PointStamped'](
-            header=self.header(t), point=self.T['geometry_msgs/msg/Point'](x=0.0, y=0.0,
-                                                                          z=float(z)))
 
     def write(self, path: Path, rec: list) -> None:
         rec.sort(key=lambda r: r[0])
