@@ -2001,8 +2001,11 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
                                 speed_mps=speed_mps or 0.0)
     # offline the whole bag says whether it names leg joints: nothing is held (a gripper's
     # message before the legs' is left out, a bag of other names is read whole)
-    acc.leg_joints_ = LegJointFilter(legs_present=LegJointFilter.names_have_legs(
-        stores['/joint_states'].distinct('names')))
+    name_sets = list(stores['/joint_states'].distinct('names'))
+    acc.leg_joints_ = LegJointFilter(legs_present=LegJointFilter.names_have_legs(name_sets))
+    # every joint name the run records (the command checks the legs' joints against the
+    # Eq. 6 model's 3-DOF leg)
+    all_joint_names = sorted({str(n) for names in name_sets for n in names})
     changes: list[tuple[Any, ...]] = []   # schedule changes on /gait/phase, with history
     # header-stamp order (recorders store receive order; stamps may be a few ms out of order),
     # each sample rebuilt from the columns as it is fed
@@ -2208,6 +2211,7 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
             speed_mps=_known_mean(w, [d.speed_mps for d in wins]), gait=gait_k,
             payload_kg=payload, current_sign=float(acc.sign_ or 0.0),
             extra={'custom_data': custom, 'notes': seg_notes, 'cycle_source': 'gait_phase',
+                   'joint_name_set': all_joint_names,
                    'speed_source': '+'.join(sorted({d.speed_source for d in wins})),
                    'windows': list(wins), 'speed_span': speed_span(wins, has_effort),
                    'segment': {'index': k, 'of': len(segments), 't_start_s': t_seg0,

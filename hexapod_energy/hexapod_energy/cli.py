@@ -218,6 +218,30 @@ __all__ = ['add_cli', 'build_parser', 'gait_from_sample', 'main', 'run']
 
 
 
+#: the joints of the Eq. 6 model's leg (AntBot's or ``--leg``'s: a 3-DOF leg,
+#: :mod:`hexapod_energy.leg_description`)
+MODEL_LEG_JOINTS = ('coxa', 'femur', 'tibia')
+
+
+def model_leg_mismatch(joint_names: Sequence[str]) -> str:
+    """Why the Eq. 6 model's 3-DOF leg cannot be this robot's leg, from the contract leg
+    joints a run records: '' when every leg named has exactly ``<leg>_coxa``, ``_femur`` and
+    ``_tibia`` (or no joint follows the contract's ``L1..Lk/R1..Rk_<joint>``), else the
+    legs and their joints (a 12-servo hexapod's coxa and femur, a 4-DOF leg's tarsus: the
+    model's 0.31 W was reported as their P_out, efficiency and CoT/M with a note that said
+    to give --leg, which describes 3-DOF legs only: an outside review)."""
+    legs: dict[str, set[str]] = {}
+    for n in joint_names:
+        if LEG_JOINT_RE.match(str(n)):
+            leg, joint = str(n).split('_', 1)
+            legs.setdefault(leg, set()).add(joint)
+    bad: dict[tuple[str, ...], list[str]] = {}
+    for leg, joints in sorted(legs.items()):
+        if joints != set(MODEL_LEG_JOINTS):
+            bad.setdefault(tuple(sorted(joints)), []).append(leg)
+    return '; '.join(f'{", ".join(lg)}: {", ".join(j)}' for j, lg in bad.items())
+
+
 def _leg_count(args: argparse.Namespace, run_: Any) -> int | None:
     """Legs of a run without /gait/phase: ``--legs``, else counted from joint names that
     follow the contract (``L1..Lk``/``R1..Rk`` + ``_<joint>``), else None."""
@@ -806,7 +830,14 @@ def _robot_run(args: argparse.Namespace, setup: _Setup, model: Any, opm: Any,
         other = _duty_factor_note(model, gait)
         if other:
             notes.append(other)
-    if gait is not None:
+    shape = model_leg_mismatch(run_.extra.get('joint_name_set')
+                               or run_.extra.get('joint_names') or [])
+    if gait is not None and shape:
+        # a leg the model cannot describe: its P_out is not this robot's
+        notes.append(f'no Eq. 6 P_out model: its leg ({setup.leg.name}) has the joints '
+                     f'{", ".join(MODEL_LEG_JOINTS)}, this robot\'s legs have others '
+                     f'({shape}); P_out from the joint efforts only, unknown without them')
+    elif gait is not None:
         try:
             p_model = float(opm.power_out_w(gait, payload_kg=payload))
         except (ValueError, ImportError) as err:
