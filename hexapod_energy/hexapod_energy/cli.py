@@ -209,6 +209,7 @@ from hexapod_energy.descriptors import (
 )
 from hexapod_common.cli_args import NumberArgumentParser
 from hexapod_common.conversions import LEG_JOINT_RE
+from hexapod_energy.descriptors import MODEL_LEG_JOINTS, model_leg_mismatch
 from hexapod_common.jsondoc import json_safe
 from hexapod_energy.errors import EnergyError, FitError, InvalidInputError
 from hexapod_energy.trend import TREND_MIN_SPAN_S, TREND_MIN_WINDOWS, power_in_trend, trend_note
@@ -216,30 +217,6 @@ from hexapod_gait.kinematics import ANTBOT_MASS_KG  # the default robot's mass
 
 __all__ = ['add_cli', 'build_parser', 'gait_from_sample', 'main', 'run']
 
-
-
-#: the joints of the Eq. 6 model's leg (AntBot's or ``--leg``'s: a 3-DOF leg,
-#: :mod:`hexapod_energy.leg_description`)
-MODEL_LEG_JOINTS = ('coxa', 'femur', 'tibia')
-
-
-def model_leg_mismatch(joint_names: Sequence[str]) -> str:
-    """Why the Eq. 6 model's 3-DOF leg cannot be this robot's leg, from the contract leg
-    joints a run records: '' when every leg named has exactly ``<leg>_coxa``, ``_femur`` and
-    ``_tibia`` (or no joint follows the contract's ``L1..Lk/R1..Rk_<joint>``), else the
-    legs and their joints (a 12-servo hexapod's coxa and femur, a 4-DOF leg's tarsus: the
-    model's 0.31 W was reported as their P_out, efficiency and CoT/M with a note that said
-    to give --leg, which describes 3-DOF legs only: an outside review)."""
-    legs: dict[str, set[str]] = {}
-    for n in joint_names:
-        if LEG_JOINT_RE.match(str(n)):
-            leg, joint = str(n).split('_', 1)
-            legs.setdefault(leg, set()).add(joint)
-    bad: dict[tuple[str, ...], list[str]] = {}
-    for leg, joints in sorted(legs.items()):
-        if joints != set(MODEL_LEG_JOINTS):
-            bad.setdefault(tuple(sorted(joints)), []).append(leg)
-    return '; '.join(f'{", ".join(lg)}: {", ".join(j)}' for j, lg in bad.items())
 
 
 def _leg_count(args: argparse.Namespace, run_: Any) -> int | None:

@@ -91,6 +91,7 @@ from hexapod_common.clocks import FOREIGN_CLOCK_S, StreamClock, foreign_clock_no
 from hexapod_common.conversions import (
     BatterySample,
     GaitPhaseSample,
+    LEG_JOINT_RE,
     JointStateSample,
     LegJointFilter,
     OdometrySample,
@@ -103,6 +104,8 @@ from hexapod_energy.cycles import CycleSettings, JointCycleTracker, unwrap_near
 from hexapod_energy.metrics import G_MPS2
 
 __all__ = [
+    'MODEL_LEG_JOINTS',
+    'model_leg_mismatch',
     'ArrivalClockGate',
     'AUTO_UNANIMOUS_SAMPLES',
     'CYCLE_QUIET_S',
@@ -703,6 +706,31 @@ class ArrivalClockGate:
         return True, '', ''
 
 
+#: the joints of the Eq. 6 model's leg (AntBot's or ``--leg``'s: a 3-DOF leg,
+#: :mod:`hexapod_energy.leg_description`)
+MODEL_LEG_JOINTS = ('coxa', 'femur', 'tibia')
+
+
+def model_leg_mismatch(joint_names: Sequence[str]) -> str:
+    """Why the Eq. 6 model's 3-DOF leg cannot be this robot's leg, from the contract leg
+    joints a run records: '' when every leg named has three joints (``<leg>_coxa``,
+    ``_femur``, ``_tibia``, or three of other names a ``--leg`` file may describe), or no
+    joint follows the contract's ``L1..Lk/R1..Rk_<joint>``; else the legs and their joints
+    (a 12-servo hexapod's coxa and femur, a 4-DOF leg's tarsus: the model's 0.31 W was
+    reported as their P_out, efficiency and CoT/M with a note that said to give --leg,
+    which describes 3-DOF legs only: an outside review)."""
+    legs: dict[str, set[str]] = {}
+    for n in joint_names:
+        if LEG_JOINT_RE.match(str(n)):
+            leg, joint = str(n).split('_', 1)
+            legs.setdefault(leg, set()).add(joint)
+    bad: dict[tuple[str, ...], list[str]] = {}
+    for leg, joints in sorted(legs.items()):
+        if len(joints) != len(MODEL_LEG_JOINTS):
+            bad.setdefault(tuple(sorted(joints)), []).append(leg)
+    return '; '.join(f'{", ".join(lg)}: {", ".join(j)}' for j, lg in bad.items())
+
+
 @dataclass
 class DescriptorAccumulator:
     """Collects samples and emits :class:`Descriptors` per window of whole gait cycles.
@@ -853,6 +881,9 @@ class DescriptorAccumulator:
     velocityless_skipped_: int = field(default=0, init=False)
 
     def __post_init__(self) -> None:
+        #: every joint name taken (legs only once a leg joint is named): the Eq. 6 model's
+        #: 3-DOF leg against the robot's legs (model_leg_mismatch)
+        self._joint_names_seen: set[str] = set()
         self._clk = StreamClock(self.time_jump_s, self._restart,
                                 lambda stream, t: self.notes_.append(
                                     foreign_clock_note(stream, t)))
@@ -1071,6 +1102,7 @@ class DescriptorAccumulator:
             self._purge_non_leg_joints()
         if legs is None or self._duplicate_joint_state(legs):
             return []
+        self._joint_names_seen.update(legs.names)
         return self._add_joint_sample(legs)
 
     def _purge_non_leg_joints(self) -> None:
@@ -1512,6 +1544,12 @@ class DescriptorAccumulator:
         model cannot take that schedule (legs named outside the contract's L1..Lk / R1..Rk:
         the live node dropped every battery sample on it and gave no window, where the
         offline command gave P_in with P_out null: an outside review)."""
+        shape = model_leg_mismatch(sorted(self._joint_names_seen))
+        if shape:
+            warnings.append(f'no P_out model for these legs: the Eq. 6 model\'s leg has the '
+                            f'joints {", ".join(MODEL_LEG_JOINTS)}, /joint_states names others '
+                            f'({shape}); P_out unknown (NaN) without usable joint efforts')
+            return math.nan
         try:
             return float(self.power_out_model(gait, self.mass_kg))
         except ValueError as err:

@@ -4,7 +4,8 @@ with 4-DOF legs (``<leg>_tarsus`` beside coxa, femur and tibia). Without joint e
 P_out, efficiency and CoT/M were AntBot's 3-DOF leg model (0.307 W for a 2.0 kg tripod at
 0.16 m/s, exit 0) with a note that said to give ``--leg``, which takes 3-DOF legs only; now
 the model is not evaluated for such legs (P_out from efforts, else unknown, with a
-warning). Measured numbers from the efforts were right and stay so (every joint counted)."""
+warning; live, `energy_monitor` likewise). Measured numbers from the efforts were right and
+stay so (every joint counted)."""
 
 from __future__ import annotations
 
@@ -15,8 +16,10 @@ import numpy as np
 import pytest
 from rosbags.rosbag2 import Writer
 
+from hexapod_common.conversions import BatterySample, GaitPhaseSample, JointStateSample
 from hexapod_common.testbags import foreign_typestore
-from hexapod_energy.cli import main, model_leg_mismatch
+from hexapod_energy.cli import main
+from hexapod_energy.descriptors import DescriptorAccumulator, model_leg_mismatch
 
 LEGS = ('L1', 'L2', 'L3', 'R1', 'R2', 'R3')
 OFFSETS = (0.0, 0.5, 0.0, 0.5, 0.0, 0.5)   # tripod: L1 R2 L3 against R1 L2 R3
@@ -90,6 +93,8 @@ def test_model_leg_mismatch_names_the_legs_and_their_joints() -> None:
     assert model_leg_mismatch(three) == ''
     assert model_leg_mismatch(three + ['gripper']) == ''
     assert model_leg_mismatch(['j_c1_lf', 'hip_0']) == ''   # not the contract's names
+    # three joints of other names: a --leg file may describe them
+    assert model_leg_mismatch([f'{leg}_{j}' for leg in LEGS for j in ('a', 'b', 'c')]) == ''
     assert model_leg_mismatch([n for n in three if not n.endswith('tibia')]) == \
         'L1, L2, L3, R1, R2, R3: coxa, femur'
     assert model_leg_mismatch(three + ['L1_tarsus']) == 'L1: coxa, femur, tarsus, tibia'
@@ -119,3 +124,38 @@ def test_efforts_give_every_joints_power(tmp_path, joints) -> None:
 def test_three_dof_legs_keep_the_model(tmp_path) -> None:
     _, run, _ = _run(tmp_path, ('coxa', 'femur', 'tibia'), effort=False)
     assert run['power_out_source'] == 'model' and run['power_out_w'] > 0
+
+
+def _live_windows(joints) -> list:
+    """The live accumulator (``energy_monitor``'s core) fed a tripod without efforts, its
+    model a stub of 0.5 W."""
+    acc = DescriptorAccumulator(mass_kg=2.0, current_sign='ros',
+                                power_out_model=lambda gait, mass: 0.5)
+    names = tuple(f'{leg}_{j}' for leg in LEGS for j in joints)
+    rng = np.random.default_rng(0)
+    out = []
+    for k in range(500):
+        t = 0.01 * k
+        out += acc.add_gait_phase(GaitPhaseSample(
+            t_s=t, gait='tripod', period_s=PERIOD_S, duty_factor=BETA, step_length_m=STEP_M,
+            step_height_m=0.04, sweep_angle_rad=0.0, leg_offset_rad=0.0,
+            cycle_phase=(t / PERIOD_S) % 1.0, leg_names=LEGS, phase_offsets=np.array(OFFSETS),
+            in_stance=np.ones(6, bool), supporting_legs=3))
+        acc.add_joint_state(JointStateSample(t, names, rng.normal(size=len(names)),
+                                             rng.normal(size=len(names)), np.empty(0)))
+        out += acc.add_battery(BatterySample(t, VOLT_V, CURRENT_A, 25.0))
+    assert out
+    return out
+
+
+@pytest.mark.parametrize('joints', [('coxa', 'femur'), ('coxa', 'femur', 'tibia', 'tarsus')])
+def test_live_no_eq6_model_for_legs_it_cannot_describe(joints) -> None:
+    for d in _live_windows(joints):
+        assert math.isnan(d.power_out_w) and d.power_out_source == 'none'
+        assert any('no P_out model for these legs' in w for w in d.warnings)
+        assert d.power_in_w == pytest.approx(20.0)
+
+
+def test_live_three_dof_legs_keep_the_model() -> None:
+    for d in _live_windows(('coxa', 'femur', 'tibia')):
+        assert d.power_out_w == 0.5 and d.power_out_source == 'model'
