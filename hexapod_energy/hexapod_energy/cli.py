@@ -219,6 +219,10 @@ __all__ = ['add_cli', 'build_parser', 'gait_from_sample', 'main', 'run']
 
 
 
+#: a run's note when its legs are not the Eq. 6 model's (model_leg_mismatch)
+NO_MODEL_LEG_NOTE = 'no Eq. 6 P_out model: its leg'
+
+
 def _leg_count(args: argparse.Namespace, run_: Any) -> int | None:
     """Legs of a run without /gait/phase: ``--legs``, else counted from joint names that
     follow the contract (``L1..Lk``/``R1..Rk`` + ``_<joint>``), else None."""
@@ -558,6 +562,15 @@ def _run(args: argparse.Namespace) -> dict[str, Any]:
         legs_n, legs_source = _robot_leg_count(args, runs, doc)
         if args.sweep or args.recommend:
             _check_mass(setup.robot, legs_n, legs_source)
+            other = sorted({r['bag'] for r in runs if any(
+                str(n).startswith(NO_MODEL_LEG_NOTE) for n in r.get('notes', []))})
+            if other:
+                # the sweeps' P_out, reach and step lengths are the model leg's: a 2-DOF
+                # hexapod was recommended 140 mm steps of AntBot's leg without a word
+                doc.setdefault('warnings', []).append(
+                    f'--sweep/--recommend describe a robot with {setup.leg.name}\'s 3-DOF '
+                    f'leg (reach, Eq. 6 P_out), not the legs of {", ".join(other)} (their '
+                    'joints per leg differ): not this robot\'s figures')
         _prediction_error(doc, runs, out, f'{setup.leg.name} robot, {args.robot_mass:.4g} kg')
         if args.sweep:
             _sweep(doc, model, opm, out, bar, args.load_offset, leg_count=legs_n,
@@ -811,7 +824,7 @@ def _robot_run(args: argparse.Namespace, setup: _Setup, model: Any, opm: Any,
                                or run_.extra.get('joint_names') or [])
     if gait is not None and shape:
         # a leg the model cannot describe: its P_out is not this robot's
-        notes.append(f'no Eq. 6 P_out model: its leg ({setup.leg.name}) has the joints '
+        notes.append(f'{NO_MODEL_LEG_NOTE} ({setup.leg.name}) has the joints '
                      f'{", ".join(MODEL_LEG_JOINTS)}, this robot\'s legs have others '
                      f'({shape}); P_out from the joint efforts only, unknown without them')
     elif gait is not None:

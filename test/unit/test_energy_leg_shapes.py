@@ -159,3 +159,18 @@ def test_live_no_eq6_model_for_legs_it_cannot_describe(joints) -> None:
 def test_live_three_dof_legs_keep_the_model() -> None:
     for d in _live_windows(('coxa', 'femur', 'tibia')):
         assert d.power_out_w == 0.5 and d.power_out_source == 'model'
+
+
+def test_sweep_and_recommend_say_they_are_not_these_legs(tmp_path) -> None:
+    """--sweep/--recommend are the model leg's (reach, P_out): said for 2-DOF robot runs."""
+    from test_energy_cli import _write_bench
+
+    _write_bench(tmp_path / 'bench')
+    _write(tmp_path / 'robot', ('coxa', 'femur'), effort=True)
+    out = tmp_path / 'out'
+    assert main(['--bench', str(tmp_path / 'bench'), '--robot', str(tmp_path / 'robot'),
+                 '--robot-mass', '2.0', '--recommend', '--speed', '0.16', '--out', str(out),
+                 '--no-progress']) == 0
+    warnings = json.loads((out / 'energy.json').read_text())['warnings']
+    assert any(w.startswith('--sweep/--recommend describe a robot with AntBot') and
+               str(tmp_path / 'robot') in w for w in warnings)
