@@ -510,7 +510,8 @@ class SampleView:
     of the training SSE over ``lag`` (a 5 ms scan over ``|lag| <= max_lag_s``, then a 0.5 ms
     scan around the best and a parabola through the three lowest points: the least-squares
     form of a cross-correlation peak with parabolic refinement). ``time_offset`` is selected
-    when the held-out per-sample RMSE falls by more than ``min_improvement`` and the training
+    when the held-out per-sample RMSE falls by more than ``min_improvement`` (and by more
+    than ``min_gain_w``, rounding) and the training
     BIC (one more parameter) by more than ``min_delta_bic``, and the lag exceeds
     ``min_lag_fraction`` of the battery sample period: within a sample, what instant each
     stream's value stands for (the monitor's current is a mean over its sample, a joint state
@@ -548,6 +549,10 @@ class SampleView:
     #: a selected lag that leaves more than this fraction of the per-sample error is warned
     #: of (clean 50-150 ms offsets leave 24-28 %)
     min_lag_gain: float = 0.5
+    #: a per-sample error removed by the lag below this [W] is rounding, not a clock offset
+    #: (a constant battery power, 1e-14 W of rounding left by the joint shape's fit, had a
+    #: -30 ms time_offset added, stderr 1 ms: an outside review); monitors resolve mW
+    min_gain_w: float = 1e-6
 
     def _design(self, runs: Sequence[ResidualRun], lag_s: float
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -614,6 +619,7 @@ class SampleView:
         self.min_lag_s_ = self.min_lag_fraction * dt
         self.selected_ = bool(self.delta_bic_ < -self.min_delta_bic
                               and rm1 < (1 - self.min_improvement) * rm0
+                              and rm0 - rm1 > self.min_gain_w
                               and abs(lag) > self.min_lag_s_)
         self.samples_ = (n, int(self._design(runs, 0.0)[2].sum()))
         # the scan sees |lag| <= max_lag_s only: a lag beyond it gives the best lag inside
