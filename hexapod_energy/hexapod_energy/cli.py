@@ -826,7 +826,8 @@ def _robot_run(args: argparse.Namespace, setup: _Setup, model: Any, opm: Any,
         # a leg the model cannot describe: its P_out is not this robot's
         notes.append(f'{NO_MODEL_LEG_NOTE} ({setup.leg.name}) has the joints '
                      f'{", ".join(MODEL_LEG_JOINTS)}, this robot\'s legs have others '
-                     f'({shape}); P_out from the joint efforts only, unknown without them')
+                     f'({shape}); P_out from the joint efforts only (--power-out auto or '
+                     'effort), unknown without them')
     elif gait is not None:
         try:
             p_model = float(opm.power_out_w(gait, payload_kg=payload))
