@@ -536,7 +536,8 @@ class LegJointFilter:
         names = sorted(self.dropped)
         shown = ', '.join(names[:6]) + (f' and {len(names) - 6} more' if len(names) > 6 else '')
         return (f'joint(s) {shown} are not leg joints (L1..Lk/R1..Rk_<joint>): left out of '
-                f'{out_of}; rename leg joints with --joint-map if they are legs')
+                f'{out_of}; rename leg joints with --joint-map if they are legs (a live '
+                f'node reads the map from {JOINT_MAP_ENV}, JSON {{"recorded": "L1_coxa"}})')
 
 
 __all__ += ['LEG_JOINT_RE', 'LegJointFilter']

@@ -35,6 +35,9 @@ def test_the_filter_keeps_leg_joints_and_streams_of_other_names():
     assert f.apply(legs) is legs
     assert f.dropped == {'gripper_left': 2, 'gripper_right': 1}
     assert f.note().startswith('joint(s) gripper_left, gripper_right are not leg joints')
+    # live nodes take the map from the environment, not from --joint-map (a review)
+    assert f.note().endswith('(a live node reads the map from HEXAPOD_JOINT_MAP, JSON '
+                             '{"recorded": "L1_coxa"})')
     assert 'out of the gait cycles and P_out' in f.note()
     # empty velocity or effort arrays stay empty
     s = JointStateSample(0.4, ('L1_coxa', 'gripper_left'), np.zeros(2), np.zeros(0),
