@@ -790,7 +790,10 @@ def _mocap(p: EdubotParams, eff: dict[str, float], rng: np.random.Generator,
     half_len = 0.5 * min((bx1 - bx0) / max(abs(math.cos(yaw)), 1e-9),
                          (by1 - by0) / max(abs(math.sin(yaw)), 1e-9))
     centre = np.array([0.5 * (bx0 + bx1), 0.5 * (by0 + by1), z0])
-    x_c = x_settle + half_len
+    # the volume lies ahead along the travel after the settling: behind the start for a robot
+    # walking backwards (a clock turning the hips the other way)
+    travel = 1.0 if state[-1, 0] >= x_settle else -1.0
+    x_c = x_settle + travel * half_len
     offset = centre - rot @ np.array([x_c, 0.0, 0.0])
     # mocap sampling in its own clock
     toff = eff['time_offset']

@@ -161,7 +161,7 @@ from .model import EDUBOT_MASS_KG, SlipModel
 from .geometry import LegGeometry
 from .joints import assemble_joint_frames, note_out_of_order, rotation_signs
 from .pipeline import RunData, analyze_run, rotate_body
-from .preprocess import Box
+from .preprocess import Box, walks_backwards
 from .stamps import RepeatedStamps
 
 __all__ = ['add_cli', 'analyze_bag', 'live_params_line', 'main', 'read_run']
@@ -290,6 +290,15 @@ def read_run(path: str | Path) -> RunData:
     notes.extend(joints.notes)
     signs = rotation_signs(joints.position) if joints.position is not None else \
         np.ones(len(names))
+    hips = [n for n in names if n.endswith('_hip')]
+    if hips and all(signs[names.index(n)] < 0 for n in hips) and len(mo):
+        # every hip turns backwards: mirrored motors, or a robot walking backwards (its body
+        # moving against the rigid body's heading), which the pipeline reads as such
+        net = [-4.0] * len(hips)   # rotation_signs: each below -pi
+        ix = np.argsort(_rows(mo, 't_s'), kind='stable')
+        if walks_backwards(_rows(mo, 'position_m')[ix], _rows(mo, 'orientation_xyzw')[ix],
+                           net)[0]:
+            signs = np.ones(len(names))
     if (signs < 0).any():
         joints = dataclasses.replace(
             joints, position=joints.position * signs, velocity=joints.velocity * signs,
@@ -300,13 +309,12 @@ def read_run(path: str | Path) -> RunData:
         notes.append(f'{", ".join(flipped)} turn backwards over the run (net rotation below '
                      '-pi: motors mounted mirrored?): their angles, speeds, efforts and commanded '
                      f'speeds are negated (online: slip_fitter -p hip_signs:={online})')
-        hips = [n for n in names if n.endswith('_hip')]
         if hips and set(hips) <= set(flipped):
-            notes.append('every hip turns backwards: if the motors are not mirrored the robot '
-                         'walked backwards, which the leg geometry does not handle (it takes '
-                         'the legs named 1 as ahead along the travel, so hip heights, contacts, '
-                         'the offset and the edges would be wrong; an outside review measured '
-                         '10.8 ms edge RMS against 0.8 forward)')
+            notes.append('every hip turns backwards while the body moves along the motion-'
+                         'capture rigid body\'s heading (or the heading is unknown): read as '
+                         'motors mounted mirrored on a robot walking forward. A robot walking '
+                         'backwards is read as such when its body moves against the rigid '
+                         'body\'s x axis (runs[].frame.walks_backwards)')
     if not len(jc):
         command_t_s, command_velocity = np.zeros(0), np.zeros((0, len(names)))
         notes.append('no usable /joint_commands (the Buehler clock\'s target speeds): the '

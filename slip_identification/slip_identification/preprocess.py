@@ -42,6 +42,7 @@ __all__ = [
     'permissible_mask',
     'resample_cubic',
     'sagittal_state',
+    'walks_backwards',
 ]
 
 FloatArray = NDArray[np.float64]
@@ -172,7 +173,8 @@ def frozen_pose_mask(p_mocap_m: ArrayLike, quat_xyzw: ArrayLike | None = None, *
 
 
 def fit_world_frame(p_mocap_m: ArrayLike, *, up_mocap: ArrayLike | None = None,
-                    com_height_m: float | None = None) -> WorldFrame:
+                    com_height_m: float | None = None, backwards: bool = False
+                    ) -> WorldFrame:
     """World frame from the COM path inside the permissible box (time-ordered, (n, 3)).
 
     A straight run's COM path is (nearly) a line, so it fixes the travel direction and its
@@ -192,6 +194,9 @@ def fit_world_frame(p_mocap_m: ArrayLike, *, up_mocap: ArrayLike | None = None,
     com_height_m : float, optional
         Mean COM height above the ground; default: the ground plane passes through the
         mocap origin (Vicon calibrates its origin on the floor).
+    backwards : bool
+        The robot walks backwards (:func:`walks_backwards`): x points against the travel,
+        along the robot's heading, so that its front hips lie at +x and its speed is negative.
     """
     p = np.asarray(p_mocap_m, dtype=float)
     p = p[np.all(np.isfinite(p), axis=1)]
@@ -200,6 +205,8 @@ def fit_world_frame(p_mocap_m: ArrayLike, *, up_mocap: ArrayLike | None = None,
     c = p.mean(axis=0)
     _, _, vt = np.linalg.svd(p - c, full_matrices=False)
     direction = vt[0] if (p[-1] - p[0]) @ vt[0] >= 0 else -vt[0]
+    if backwards:
+        direction = -direction
     if up_mocap is not None:
         # the body's mean pitch tilts its z axis along the path: keep only the part of the
         # attitude normal orthogonal to the (level) direction of travel
@@ -306,3 +313,50 @@ def sagittal_state(t_s: ArrayLike, p_world_m: ArrayLike, *, rate_hz: float = 100
         segment[k] = s_i
     return SagittalTrack(t_s=grid, state=state, segment=segment, raw_t_s=t,
                          raw_xz_m=p[:, [0, 2]], raw_segment=raw_segment)
+
+
+#: the rigid body's heading must point within this angle [deg] of against the travel (and
+#: every hip turn backwards) for a run to be read as walking backwards
+BACKWARDS_MAX_ANGLE_DEG = 60.0
+
+
+def walks_backwards(p_mocap_m: ArrayLike, quat_xyzw: ArrayLike, hip_net_rad: ArrayLike
+                    ) -> tuple[bool, float]:
+    """Whether a robot walks backwards: its body moves against its heading.
+
+    The heading is the rigid body's x axis (horizontal part, mean over the run), the motion
+    the COM path's end minus its start, and the hips' net rotation over the run
+    (``hip_net_rad``, last minus first unwrapped angle per hip) its proprioceptive sign: a
+    robot walking backwards turns every hip backwards (net below -pi) while its body moves
+    within :data:`BACKWARDS_MAX_ANGLE_DEG` of against its heading. Either sign alone is not
+    enough: a rigid body created facing backwards (any yaw is allowed) moves against its x
+    axis on a robot walking forward, and hips whose motors are mounted mirrored turn
+    backwards on one too.
+
+    Returns
+    -------
+    (bool, float)
+        Backwards or not, and the angle [deg] between the heading and the travel (NaN when
+        either is undefined).
+    """
+    p = np.asarray(p_mocap_m, dtype=float)
+    p = p[np.all(np.isfinite(p), axis=1)]
+    q = np.atleast_2d(np.asarray(quat_xyzw, dtype=float))
+    q = q[np.all(np.isfinite(q), axis=1)]
+    net = np.asarray(hip_net_rad, dtype=float)
+    net = net[np.isfinite(net)]
+    if len(p) < 2 or not len(q):
+        return False, float('nan')
+    travel = p[-1] - p[0]
+    travel[2] = 0.0
+    x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    head = np.column_stack([1 - 2 * (y * y + z * z), 2 * (x * y + z * w), 2 * (x * z - y * w)]
+                           ).mean(axis=0)
+    head[2] = 0.0
+    nt, nh = float(np.linalg.norm(travel)), float(np.linalg.norm(head))
+    if nt < 0.05 or nh < 0.5:   # no travel, or a rigid body's x axis far from horizontal
+        return False, float('nan')
+    angle = float(np.degrees(np.arccos(np.clip(travel @ head / (nt * nh), -1.0, 1.0))))
+    back = bool(net.size and np.all(net < -np.pi)
+                and angle > 180.0 - BACKWARDS_MAX_ANGLE_DEG)
+    return back, angle
