@@ -236,6 +236,10 @@ EDUBOT_EFFECTS: dict[str, EdubotEffect] = {e.name: e for e in (
                  'std of Gaussian noise per mocap position axis'),
     EdubotEffect('mocap_misalignment', 'deg', 3.0,
                  'tilt of the mocap xy-plane against the ground (plus seeded yaw and offset)'),
+    EdubotEffect('ground_slope', 'deg', 0.0,
+                 'the ground slopes down along the travel (negative: uphill); gravity has '
+                 'its along-ground part and the mocap frame is levelled to gravity (its z '
+                 'vertical, then tilted by mocap_misalignment)'),
 )}
 
 
@@ -256,6 +260,7 @@ def effect_ranges(params: EdubotParams = EdubotParams()) -> dict[str, tuple[floa
         'time_offset': (-1e5, 1e5, 'about a day: no clock offset of one recording'),
         'mocap_noise': (0.0, 0.1, 'a larger noise is no motion capture'),
         'mocap_misalignment': (0.0, 45.0, 'a tilt of the mocap plane against the ground'),
+        'ground_slope': (-10.0, 10.0, 'a steeper slope is no level-ground gait'),
     }
 
 
@@ -270,7 +275,8 @@ def resolve_effects(effects: Mapping[str, float] | None,
             raise EdubotSimError(
                 f'unknown EduBot effect {name!r}; expected one of {sorted(EDUBOT_EFFECTS)}')
         value = float(value)
-        if not math.isfinite(value) or (value < 0 and name != 'time_offset'):
+        if not math.isfinite(value) or (value < 0 and name not in ('time_offset',
+                                                                     'ground_slope')):
             raise EdubotSimError(f'effect {name!r} must be a finite value >= 0, got {value!r}')
         lo, hi, why = ranges.get(name, (-math.inf, math.inf, ''))
         if not lo <= value <= hi:
@@ -442,7 +448,7 @@ def _gains(name: str, clock: Any) -> tuple[float, float]:
 
 def _integrate(clock: Any, gains: tuple[float, float], p: EdubotParams, n_steps: int,
                damping: float, hip_torque: float, init_vx: float, ocv: float,
-               *, compiled: bool = True) -> dict[str, np.ndarray]:
+               *, compiled: bool = True, slope_deg: float = 0.0) -> dict[str, np.ndarray]:
     """Fixed-step semi-implicit Euler integration of one run; per-step arrays.
 
     The step loop (:func:`_kernel`) is compiled with numba when it is installed (and
@@ -467,11 +473,13 @@ def _integrate(clock: Any, gains: tuple[float, float], p: EdubotParams, n_steps:
         p.leg_radial_damping_n_s_m + damping / 3.0,             # per leg in contact
         p.motor_resistance_ohm * hip_torque / 3.0 / (k_out * p.gear_efficiency),
         p.gear_viscous_nm_s_rad, p.gear_coulomb_nm, p.motor_current_limit_a,
-        p.mass_kg, p.pitch_inertia_kgm2, p.hip_inertia_kgm2, p.hip_zero_rad, GRAVITY_M_S2,
+        p.mass_kg, p.pitch_inertia_kgm2, p.hip_inertia_kgm2, p.hip_zero_rad,
+        GRAVITY_M_S2 * math.cos(math.radians(slope_deg)),            # into the ground
         p.body_half_length_m, p.body_half_height_m, p.foot_friction,
         1.0 / p.foot_slide_stiffness_n_m, p.electronics_power_w, p.battery_resistance_ohm,
         p.initial_height_m, float(init_vx), float(ocv),
-        hip_torque / 3.0], dtype=float)                          # stance couple per leg
+        hip_torque / 3.0,                                        # stance couple per leg
+        GRAVITY_M_S2 * math.sin(math.radians(slope_deg))], dtype=float)  # along the ground
     out_state = np.empty((n_steps, 5))
     out_phi = np.empty((n_steps, 6))
     out_dphi = np.empty((n_steps, 6))
@@ -521,6 +529,7 @@ def _kernel(tgt: np.ndarray, tgt_v: np.ndarray, hxs: np.ndarray, c: np.ndarray,
     x, z, beta, vx, vz, wb = 0.0, c[27], 0.0, c[28], 0.0, 0.0
     ocv = c[29]
     ff_couple = c[30]
+    g_along = c[31]
     v_bat = ocv
     phi = np.empty(6)
     dphi = np.zeros(6)
@@ -696,7 +705,7 @@ def _kernel(tgt: np.ndarray, tgt_v: np.ndarray, hxs: np.ndarray, c: np.ndarray,
             out_gap[k, i] = gap[i]
         out_vi[k, 0] = v_bat
         out_vi[k, 1] = i_bat
-        vx += fx_sum / m * dt
+        vx += (fx_sum / m + g_along) * dt
         vz += (fz_sum / m - g) * dt
         wb += ab * dt
         x += vx * dt
@@ -785,7 +794,8 @@ def _mocap(p: EdubotParams, eff: dict[str, float], rng: np.random.Generator,
     tilt = math.radians(tilt_deg)
     # tilt about the horizontal axis (cos az, sin az, 0): Rz(az) Rx(tilt) Rz(-az)
     r_tilt = _rot('z', axis_az) @ _rot('x', tilt) @ _rot('z', -axis_az)
-    rot = r_tilt @ _rot('z', yaw)                     # mocap_from_ground
+    # a sloped ground under a mocap levelled to gravity: the ground turned about its y axis
+    rot = r_tilt @ _rot('z', yaw) @ _rot('y', math.radians(eff.get('ground_slope', 0.0)))
     (bx0, bx1), (by0, by1), _ = p.mocap_volume_m
     half_len = 0.5 * min((bx1 - bx0) / max(abs(math.cos(yaw)), 1e-9),
                          (by1 - by0) / max(abs(math.sin(yaw)), 1e-9))
@@ -882,7 +892,8 @@ def simulate_edubot_batch(gait: Any, *, duration_s: float,
     ocv = np.array([params.battery_ocv_v + 0.2 * r.uniform(-1, 1) for r in rngs])
     gains = _gains(name, clock)
     raws = [_integrate(clock, gains, params, n_steps, eff['leg_damping'], eff['hip_torque'],
-                       float(v0), float(e0)) for v0, e0 in zip(init_vx, ocv)]
+                       float(v0), float(e0), slope_deg=eff['ground_slope'])
+            for v0, e0 in zip(init_vx, ocv)]
     return [_assemble(name, clock, params, eff, seed, rng, raw)
             for raw, seed, rng in zip(raws, seeds, rngs)]
 

@@ -6,6 +6,9 @@ sample grid, accumulated on the fly (no trajectory stored). ``fit_many`` runs st
 parallel (``prange``). Without numba, :data:`HAVE_NUMBA` is False and the caller falls back to
 the lock-step numpy implementation in :mod:`slip_identification.fit`.
 
+Gravity: ``g`` [m/s^2] along -z (into the ground) and ``gx`` along +x (the along-ground part of
+gravity on a slope; 0 when gravity is normal to the ground).
+
 Parameter vector layout (normalised ``q`` and physical ``p``): ``k, l0, fx, c, tau`` where
 ``c`` (leg damping) and ``tau`` (hip torque) are present when ``ext_idx[0/1] >= 0``.
 """
@@ -27,21 +30,21 @@ except ImportError:  # pragma: no cover - exercised when numba is absent
 if HAVE_NUMBA:
 
     @njit(cache=True, inline='always')
-    def _acc(bx, vx, bz, vz, k, l0, fx, c, tau, inv_m, g):  # type: ignore[no-untyped-def]
+    def _acc(bx, vx, bz, vz, k, l0, fx, c, tau, inv_m, g, gx):  # type: ignore[no-untyped-def]
         dx = bx - fx
         r2 = dx * dx + bz * bz
         r = math.sqrt(r2)
         s = k * inv_m * (l0 / r - 1.0) - c * inv_m * (dx * vx + bz * vz) / r2
         t = tau * inv_m / r2
-        return s * dx + t * bz, s * bz - t * dx - g
+        return s * dx + t * bz + gx, s * bz - t * dx - g
 
     @njit(cache=True)
-    def _run(p, x0, xe, n, dt, stride, inv_m, g, out):  # type: ignore[no-untyped-def]
+    def _run(p, x0, xe, n, dt, stride, inv_m, g, gx, out):  # type: ignore[no-untyped-def]
         """Integrate; if ``xe`` has rows, return sum ||x - xe||, else fill ``out`` (n, 4)."""
         k, l0, fx, c, tau = p[0], p[1], p[2], p[3], p[4]
         h = stride * dt
         y0, y1, y2, y3 = x0[0], x0[1], x0[2], x0[3]
-        a0, a2 = _acc(y0, y1, y2, y3, k, l0, fx, c, tau, inv_m, g)
+        a0, a2 = _acc(y0, y1, y2, y3, k, l0, fx, c, tau, inv_m, g, gx)
         compare = xe.shape[0] > 0
         err = 0.0
         if not compare:
@@ -57,24 +60,24 @@ if HAVE_NUMBA:
             u1 = y1 + 0.5 * h * k1[1]
             u2 = y2 + 0.5 * h * k1[2]
             u3 = y3 + 0.5 * h * k1[3]
-            b0, b2 = _acc(u0, u1, u2, u3, k, l0, fx, c, tau, inv_m, g)
+            b0, b2 = _acc(u0, u1, u2, u3, k, l0, fx, c, tau, inv_m, g, gx)
             k2 = (u1, b0, u3, b2)
             u0 = y0 + 0.5 * h * k2[0]
             u1 = y1 + 0.5 * h * k2[1]
             u2 = y2 + 0.5 * h * k2[2]
             u3 = y3 + 0.5 * h * k2[3]
-            b0, b2 = _acc(u0, u1, u2, u3, k, l0, fx, c, tau, inv_m, g)
+            b0, b2 = _acc(u0, u1, u2, u3, k, l0, fx, c, tau, inv_m, g, gx)
             k3 = (u1, b0, u3, b2)
             u0 = y0 + h * k3[0]
             u1 = y1 + h * k3[1]
             u2 = y2 + h * k3[2]
             u3 = y3 + h * k3[3]
-            b0, b2 = _acc(u0, u1, u2, u3, k, l0, fx, c, tau, inv_m, g)
+            b0, b2 = _acc(u0, u1, u2, u3, k, l0, fx, c, tau, inv_m, g, gx)
             z0 = y0 + h / 6.0 * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + u1)
             z1 = y1 + h / 6.0 * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + b0)
             z2 = y2 + h / 6.0 * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + u3)
             z3 = y3 + h / 6.0 * (k1[3] + 2.0 * k2[3] + 2.0 * k3[3] + b2)
-            c0, c2 = _acc(z0, z1, z2, z3, k, l0, fx, c, tau, inv_m, g)
+            c0, c2 = _acc(z0, z1, z2, z3, k, l0, fx, c, tau, inv_m, g, gx)
             for j in range(1, stride + 1):
                 idx = i + j
                 if idx >= n:
@@ -107,7 +110,7 @@ if HAVE_NUMBA:
         return err
 
     @njit(cache=True)
-    def _nerr(q, x0, xe, n, den, fx0, dt, stride, inv_m, g, scales, ext_idx, dummy):  # type: ignore[no-untyped-def]  # noqa: E501
+    def _nerr(q, x0, xe, n, den, fx0, dt, stride, inv_m, g, gx, scales, ext_idx, dummy):  # type: ignore[no-untyped-def]  # noqa: E501
         if not (q[0] > 0.0 and q[1] > 0.0):
             return np.inf
         p = np.zeros(5)
@@ -117,7 +120,7 @@ if HAVE_NUMBA:
         for e in range(2):
             if ext_idx[e] >= 0:
                 p[3 + e] = (q[ext_idx[e]] - 1.0) * scales[ext_idx[e]]
-        err = _run(p, x0, xe, n, dt, stride, inv_m, g, dummy)
+        err = _run(p, x0, xe, n, dt, stride, inv_m, g, gx, dummy)
         if not math.isfinite(err):
             return np.inf
         return err / den
@@ -128,7 +131,7 @@ if HAVE_NUMBA:
         return sim[order].copy(), fsim[order].copy()
 
     @njit(cache=True)
-    def _nelder_mead(x0, xe, n, den, fx0, dt, stride, inv_m, g, scales, ext_idx, npar,
+    def _nelder_mead(x0, xe, n, den, fx0, dt, stride, inv_m, g, gx, scales, ext_idx, npar,
                      xatol, fatol, maxiter):  # type: ignore[no-untyped-def]
         dummy = np.zeros((0, 4))
         sim = np.ones((npar + 1, npar))
@@ -136,7 +139,7 @@ if HAVE_NUMBA:
             sim[k + 1, k] = 1.05
         fsim = np.empty(npar + 1)
         for k in range(npar + 1):
-            fsim[k] = _nerr(sim[k], x0, xe, n, den, fx0, dt, stride, inv_m, g, scales,
+            fsim[k] = _nerr(sim[k], x0, xe, n, den, fx0, dt, stride, inv_m, g, gx, scales,
                             ext_idx, dummy)
         fcalls = npar + 1
         sim, fsim = _sort(sim, fsim)
@@ -157,12 +160,13 @@ if HAVE_NUMBA:
                 xbar += sim[a]
             xbar /= npar
             xr = 2.0 * xbar - sim[-1]
-            fxr = _nerr(xr, x0, xe, n, den, fx0, dt, stride, inv_m, g, scales, ext_idx, dummy)
+            fxr = _nerr(xr, x0, xe, n, den, fx0, dt, stride, inv_m, g, gx, scales, ext_idx,
+                        dummy)
             fcalls += 1
             doshrink = False
             if fxr < fsim[0]:
                 xe2 = 3.0 * xbar - 2.0 * sim[-1]
-                fxe = _nerr(xe2, x0, xe, n, den, fx0, dt, stride, inv_m, g, scales, ext_idx,
+                fxe = _nerr(xe2, x0, xe, n, den, fx0, dt, stride, inv_m, g, gx, scales, ext_idx,
                             dummy)
                 fcalls += 1
                 if fxe < fxr:
@@ -177,7 +181,7 @@ if HAVE_NUMBA:
             else:
                 if fxr < fsim[-1]:
                     xc = 1.5 * xbar - 0.5 * sim[-1]
-                    fxc = _nerr(xc, x0, xe, n, den, fx0, dt, stride, inv_m, g, scales,
+                    fxc = _nerr(xc, x0, xe, n, den, fx0, dt, stride, inv_m, g, gx, scales,
                                 ext_idx, dummy)
                     fcalls += 1
                     if fxc <= fxr:
@@ -187,7 +191,7 @@ if HAVE_NUMBA:
                         doshrink = True
                 else:
                     xcc = 0.5 * xbar + 0.5 * sim[-1]
-                    fxcc = _nerr(xcc, x0, xe, n, den, fx0, dt, stride, inv_m, g, scales,
+                    fxcc = _nerr(xcc, x0, xe, n, den, fx0, dt, stride, inv_m, g, gx, scales,
                                  ext_idx, dummy)
                     fcalls += 1
                     if fxcc < fsim[-1]:
@@ -198,7 +202,7 @@ if HAVE_NUMBA:
                 if doshrink:
                     for a in range(1, npar + 1):
                         sim[a] = sim[0] + 0.5 * (sim[a] - sim[0])
-                        fsim[a] = _nerr(sim[a], x0, xe, n, den, fx0, dt, stride, inv_m, g,
+                        fsim[a] = _nerr(sim[a], x0, xe, n, den, fx0, dt, stride, inv_m, g, gx,
                                         scales, ext_idx, dummy)
                     fcalls += npar
             it += 1
@@ -209,7 +213,7 @@ if HAVE_NUMBA:
         loop = prange if parallel else range
 
         @njit(cache=True, parallel=parallel)
-        def fit_many_impl(x0s, xes, ns, dens, fx0s, dt, stride, inv_m, g, scales, ext_idx,
+        def fit_many_impl(x0s, xes, ns, dens, fx0s, dt, stride, inv_m, g, gx, scales, ext_idx,
                           npar, xatol, fatol, maxiter):  # type: ignore[no-untyped-def]
             b = x0s.shape[0]
             q = np.empty((b, npar))
@@ -219,7 +223,7 @@ if HAVE_NUMBA:
             calls = np.zeros(b, dtype=np.int64)
             for j in loop(b):
                 qj, fj, cj, ij, nj = _nelder_mead(x0s[j], xes[j], ns[j], dens[j], fx0s[j], dt,
-                                                  stride, inv_m, g, scales[j], ext_idx, npar,
+                                                  stride, inv_m, g, gx, scales[j], ext_idx, npar,
                                                   xatol, fatol, maxiter)
                 q[j] = qj
                 f[j] = fj
@@ -246,22 +250,22 @@ if HAVE_NUMBA:
         return _fit_many_serial(x0s, xes, *args)
 
     @njit(cache=True)
-    def trajectory(p, x0, n, dt, stride, inv_m, g):  # type: ignore[no-untyped-def]
+    def trajectory(p, x0, n, dt, stride, inv_m, g, gx):  # type: ignore[no-untyped-def]
         """States (n, 4) for physical ``p`` = (k, l0, fx, c, tau) from ``x0`` (4,)."""
         out = np.empty((n, 4))
-        _run(p, x0, np.zeros((0, 4)), n, dt, stride, inv_m, g, out)
+        _run(p, x0, np.zeros((0, 4)), n, dt, stride, inv_m, g, gx, out)
         return out
 
     def _make_trajectories(parallel):  # type: ignore[no-untyped-def]
         loop = prange if parallel else range
 
         @njit(cache=True, parallel=parallel)
-        def impl(p5s, x0s, n, dt, stride, inv_m, g):  # type: ignore[no-untyped-def]
+        def impl(p5s, x0s, n, dt, stride, inv_m, g, gx):  # type: ignore[no-untyped-def]
             m = p5s.shape[0]
             out = np.empty((m, n, 4))
             empty = np.zeros((0, 4))
             for j in loop(m):
-                _run(p5s[j], x0s[j], empty, n, dt, stride, inv_m, g, out[j])
+                _run(p5s[j], x0s[j], empty, n, dt, stride, inv_m, g, gx, out[j])
             return out
 
         return impl

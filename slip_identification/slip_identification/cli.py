@@ -69,7 +69,15 @@ the same, so that none is left beside the new result). Schema of ``slip.json``::
                           "speed_trend" (three whole cycles or more: the per-cycle speeds'
                           linear trend {"accel_mps2", "t_stat", "relative_change",
                           "cycles", "slope_equivalent_deg"}; over 0.15 m/s^2, t >= 4 and
-                          5 % a warning: gravity is taken normal to the ground),
+                          5 % a warning), "gravity" (ground|mocap, --gravity: gravity
+                          normal to the fitted ground, or along the mocap's -z),
+                          "gravity_ground_mps2" and "gravity_slope_deg" (mocap: gravity's
+                          [x, y, z] in the final frame, and the slope, positive downhill
+                          along x; the SLIP fits carry its x part),
+                          "walks_backwards" (every hip turns backwards and the body moves
+                          against the rigid body's x axis: x along that heading, the speed
+                          negative, a note), "heading_to_travel_deg" (the rigid body's
+                          x axis against the travel),
                           "edges_pooled"
                           (geometry edges pooled with the same leg's at other strides in
                           steady state: {"pooled_edges",
@@ -530,6 +538,7 @@ def options_from_args(args: argparse.Namespace) -> dict[str, Any]:
             'box_upper': args.box[3:] if args.box else None,
             'steady_only': args.steady_only, 'body_up': args.body_up,
             'pool_edges': not args.no_edge_pooling, 'starts': args.starts,
+            'gravity': args.gravity,
             'pitch_offset_rad': (None if args.pitch_offset == 'auto'
                                  else math.radians(float(args.pitch_offset)))}
 
@@ -585,7 +594,10 @@ def analyze_data(run: Any, options: dict[str, Any]) -> Analysis:
                       check_body_up=body_up == 'auto',
                       pitch_offset_rad=options.get('pitch_offset_rad'),
                       pool_edges=options.get('pool_edges', True),
-                      starts=options.get('starts', 'multi'))
+                      starts=options.get('starts', 'multi'),
+                      gravity=options.get('gravity', 'ground'))
+    if res.frame.get('gravity') == 'mocap':   # the model the stances were fitted with
+        model = model.with_gravity(res.frame['gravity_ground_mps2'])
     return Analysis(run, res, model, geometry, geometry_notes)
 
 
@@ -997,6 +1009,11 @@ def add_cli(subparsers: Any) -> None:
                         'starts, keeping the lowest residual sum of squares')
     p.add_argument('--no-position-fit', action='store_true',
                    help='skip the second estimator (initial state free)')
+    p.add_argument('--gravity', choices=('ground', 'mocap'), default='ground',
+                   help="gravity's direction for the SLIP fits: normal to the fitted ground "
+                        "(default: a level floor, whatever the mocap frame's tilt) or along "
+                        "the mocap frame's -z (a mocap levelled to gravity: a sloped ground's "
+                        'along-ground gravity is then in the model)')
     p.add_argument('--steady-only', action='store_true',
                    help="skip stances before the steady state (reason 'transient'; the body "
                         'pitch repeats from one clock period to the next)')

@@ -824,7 +824,8 @@ class SlipFitter:
                 np.ascontiguousarray(batch.xe.transpose(2, 0, 1)[rows]),
                 batch.mask.sum(axis=0).astype(np.int64)[rows], batch.den[rows],
                 batch.fx0[rows], batch.dt_s, self.stride, 1.0 / model.mass_kg,
-                model.gravity_mps2, scales, _ext_index(model), model.n_params, self.xatol,
+                model.gravity_mps2, model.gravity_x_mps2, scales, _ext_index(model),
+                model.n_params, self.xatol,
                 self.fatol, self.maxiter)
         else:
             q, f, conv, iters, calls = _batched_nelder_mead(
@@ -871,7 +872,8 @@ class SlipFitter:
         if _kernels.HAVE_NUMBA and self.compiled:
             traj = _kernels.trajectories(_physical5(flat, model), np.ascontiguousarray(x0),
                                          batch.n, batch.dt_s, self.stride,
-                                         1.0 / model.mass_kg, model.gravity_mps2)
+                                         1.0 / model.mass_kg, model.gravity_mps2,
+                                         model.gravity_x_mps2)
         else:
             traj = model.simulate_batch(x0, flat, batch.n, batch.dt_s,
                                         stride=self.stride).transpose(2, 0, 1)
@@ -1074,7 +1076,7 @@ class SlipPositionFitter:
         if _kernels.HAVE_NUMBA and self.compiled:
             return _kernels.trajectories(_physical5(p, model), np.ascontiguousarray(x0), n,
                                          dt_s, self.stride, 1.0 / model.mass_kg,
-                                         model.gravity_mps2)
+                                         model.gravity_mps2, model.gravity_x_mps2)
         return np.moveaxis(model.simulate_batch(x0, p, n, dt_s, stride=self.stride), 2, 0)
 
     def fit(self, stances: Sequence[Stance]) -> Self:

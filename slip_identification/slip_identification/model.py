@@ -3,7 +3,11 @@
 A point mass ``m`` rides on a massless spring leg of stiffness ``k`` and rest length ``l0``
 whose foot is pinned at ``(fx, 0)`` on the ground:
 
-    b'' = -(k / m) (||b - f|| - l0) (b - f) / ||b - f|| - g
+    b'' = -(k / m) (||b - f|| - l0) (b - f) / ||b - f|| + (g_x, -g_z)
+
+with gravity ``(g_x, -g_z)`` in the ground frame: ``g_z = gravity_mps2`` (9.81 m/s^2 on level
+ground) and ``g_x = gravity_x_mps2`` (0 unless gravity is taken from a motion-capture frame
+levelled to it on a slope: ``g sin(slope)`` downhill along the travel, ``g_z = g cos``).
 
 State order everywhere: ``[bx, bx', bz, bz']`` (m, m/s, m, m/s), sagittal world frame, z up.
 
@@ -62,11 +66,25 @@ class SlipModel:
         Gravitational acceleration [m/s^2].
     extensions : tuple of str
         Names from :data:`EXTENSIONS` (``'leg_damping'``, ``'hip_torque'``), in any order.
+    gravity_x_mps2 : float
+        Gravity's component along the ground frame's x (the travel) [m/s^2]; then
+        ``gravity_mps2`` is its component into the ground. 0 by default: gravity normal to
+        the ground (:meth:`with_gravity`).
     """
 
     mass_kg: float = EDUBOT_MASS_KG
     gravity_mps2: float = GRAVITY_MPS2
     extensions: tuple[str, ...] = ()
+    gravity_x_mps2: float = 0.0
+
+    def with_gravity(self, gravity_world: ArrayLike) -> SlipModel:
+        """This model with gravity ``(gx, gy, gz)`` [m/s^2] given in the ground frame (z up,
+        x along the travel; e.g. ``R @ (0, 0, -9.81)`` for a frame whose rows ``R`` are the
+        ground axes in a motion-capture frame levelled to gravity): its sagittal part
+        ``gx`` along x and ``-gz`` into the ground (the lateral part is outside the plane)."""
+        g = np.asarray(gravity_world, dtype=float)
+        return SlipModel(mass_kg=self.mass_kg, gravity_mps2=float(-g[2]),
+                         extensions=self.extensions, gravity_x_mps2=float(g[0]))
 
     def __post_init__(self) -> None:
         if not self.mass_kg > 0:
@@ -118,7 +136,7 @@ class SlipModel:
                 t = (p[j] * inv_m) / r2
                 ax_extra = ax_extra + t * bz
                 az_extra = az_extra - t * dx
-        ax = s * dx + ax_extra
+        ax = s * dx + ax_extra + self.gravity_x_mps2
         az = s * bz + az_extra - self.gravity_mps2
         return ax, az
 

@@ -866,7 +866,7 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                 geometry: LegGeometry | None = None, steady_only: bool = False,
                 check_body_up: bool = True,
                 pitch_offset_rad: float | None = None, pool_edges: bool = True,
-                starts: str = 'multi') -> RunResult:
+                starts: str = 'multi', gravity: str = 'ground') -> RunResult:
     """Preprocess one run, extract single-tripod stances, fit each (see module docs).
 
     ``starts``: the Nelder-Mead starts of the paper's estimator (:class:`.fit.SlipFitter`)
@@ -909,11 +909,20 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
     it the ground passes through the mocap origin; its slope along the path is fitted too and
     the frame turned by it (``RunResult.frame['ground_tilt_rad']``).
 
+    ``gravity``: ``'ground'`` (default) takes gravity normal to the fitted ground (a level
+    floor, whatever the motion capture's tilt); ``'mocap'`` takes it along the motion-capture
+    frame's -z (a mocap levelled to gravity): on a sloped ground the SLIP model then carries
+    gravity's along-ground part, ``model.with_gravity(R @ (0, 0, -g))`` for the final frame
+    ``R`` (``frame['gravity_ground_mps2']``, ``frame['gravity_slope_deg']``, positive
+    downhill along x).
+
     ``steady_only``: stances that begin before the steady state (:func:`.steady.steady_start_s`:
     the body pitch repeats from one clock period to the next; the period from the paper's
     touchdowns of one tripod) are skipped with reason ``'transient'``; the start is
     ``RunResult.frame['steady_start_s']`` (proprioception clock).
     """
+    if gravity not in ('ground', 'mocap'):
+        raise SlipDataError(f"gravity must be 'ground' or 'mocap', got {gravity!r}")
     if edges not in ('paper', 'effort', 'geometry', 'auto'):
         raise SlipDataError(f"edges must be 'paper', 'effort', 'geometry' or 'auto', "
                             f'got {edges!r}')
@@ -1146,6 +1155,15 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                                 if can_geo else 'Give the leg geometry') +
                  ', or the offset if it is known (--offset S)')
     res.edges = edges
+    res.frame['gravity'] = gravity
+    if gravity == 'mocap':
+        # the final frame's axes in the (levelled) motion-capture frame: gravity's components
+        g_world = np.asarray(frame.rotation, dtype=float) @ np.array(
+            [0.0, 0.0, -model.gravity_mps2])
+        model = model.with_gravity(g_world)
+        res.frame['gravity_ground_mps2'] = g_world.tolist()
+        res.frame['gravity_slope_deg'] = math.degrees(math.asin(
+            max(-1.0, min(1.0, float(g_world[0]) / float(np.linalg.norm(g_world))))))
     tm = tm - off
     track = sagittal_state(tm[inside], pw)
     # stance extraction: the paper's windows always (reported side by side)
@@ -1276,7 +1294,8 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
     res.sr = specific_resistance(res.power_w, model.mass_kg, abs(res.speed_mps))
     if res.frame.get('ground_source') == 'mocap_origin':
         _note_ground_from_origin(res, track.state[:, 2])
-    _note_gravity_normal_to_ground(res)
+    if gravity == 'ground':
+        _note_gravity_normal_to_ground(res)
     return res
 
 
@@ -1297,7 +1316,8 @@ def _note_gravity_normal_to_ground(res: RunResult) -> None:
         'from the motion capture\'s z axis: right for a level floor under a tilted mocap '
         'frame; if the mocap z is vertical (a ground plane calibrated level), the floor slopes '
         'and the stance fits leave the along-ground part of gravity to the spring (an outside '
-        'review\'s 2 deg slope read the paper estimator\'s stiffness +12 to +39 %)')
+        'review\'s 2 deg slope read the paper estimator\'s stiffness +12 to +39 %): then '
+        'take gravity along the mocap\'s z (--gravity mocap)')
 
 
 #: a whole cycle whose mean input power is this far from the run's median cycle is noted
@@ -1460,10 +1480,15 @@ def _check_speed_trend(res: RunResult, t_s: FloatArray, x_m: FloatArray,
     res.warn(
         f'the robot {how} steadily over its {v.size} whole cycles: {float(v[0]):.3f} -> '
         f'{float(v[-1]):.3f} m/s, {accel:+.2f} m/s^2 (t = {t_stat:.1f}), what the along-ground '
-        f'gravity of a {slope_deg:.1f} deg slope gives. The SLIP fits take gravity normal to '
-        'the fitted ground: on a slope, or with a motion-capture frame whose z is not '
-        'vertical, that part of gravity is left to the spring (an outside review\'s 2 deg '
-        'slope read the paper estimator\'s stiffness +12 to +39 %), and a start-up or speed '
+        f'gravity of a {slope_deg:.1f} deg slope gives. '
+        + ('The SLIP fits take gravity along the motion capture\'s z (--gravity mocap), '
+           'so a slope is in the model, but ' if res.frame.get('gravity') == 'mocap' else
+           'The SLIP fits take gravity normal to '
+           'the fitted ground: on a slope, or with a motion-capture frame whose z is not '
+           'vertical, that part of gravity is left to the spring (an outside review\'s 2 deg '
+           'slope read the paper estimator\'s stiffness +12 to +39 %; a mocap levelled to '
+           'gravity: --gravity mocap), and ')
+        + 'a start-up or speed '
         'change is no steady gait either; walk level ground at a steady speed, or read the '
         'stiffness of these stances with care')
 

@@ -73,7 +73,8 @@ def stance_trace(stance: Stance, fit: SlipFitResult, model: SlipModel) -> dict[s
                                                                          float),
             'params': [float(fit.params[n]) for n in model.param_names],
             'model': model.name, 'mass_kg': float(model.mass_kg),
-            'gravity_mps2': float(model.gravity_mps2)}
+            'gravity_mps2': float(model.gravity_mps2),
+            'gravity_x_mps2': float(model.gravity_x_mps2)}
 
 
 def trace_subset(nerrs: Sequence[float], cap: int = TRACE_CAP) -> set[int]:
@@ -99,7 +100,8 @@ def simulate_trace(trace: dict[str, Any]) -> FloatArray:
     model = SlipModel.from_name(str(trace['model']), mass_kg=float(trace['mass_kg']))
     if 'gravity_mps2' in trace:
         model = SlipModel(mass_kg=model.mass_kg, gravity_mps2=float(trace['gravity_mps2']),
-                          extensions=model.extensions)
+                          extensions=model.extensions,
+                          gravity_x_mps2=float(trace.get('gravity_x_mps2', 0.0)))
     t = np.asarray(trace['t_s'], dtype=float)
     xe = np.asarray(trace['state'], dtype=float)
     dt = float((t[-1] - t[0]) / (t.size - 1))
