@@ -1,6 +1,7 @@
 """Single servo leg on the MiMiC-Ant bench (Brodoline et al. 2024, Methods), simulated.
 
-Core module: numpy, pinocchio and ``hexapod_gait``; no ROS. The 3-DOF leg (DESIGN section 7) hangs
+Core module: numpy, pinocchio and ``hexapod_gait``; no ROS. The 3-DOF leg (AntBot's, DESIGN
+section 7, or a leg file's: ``BenchSimulator(leg=...)``, ``hexapod-sim bench --leg FILE``) hangs
 from a vertical stage that carries the load (0 to 515 g) and walks the gait's tip trajectory on
 a freewheel treadmill:
 
@@ -29,9 +30,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hexapod_gait.gait import make_gait
-from hexapod_gait.kinematics import ANTBOT_LEG, DHParameters
+from hexapod_gait.kinematics import DHParameters
+from hexapod_gait.leg_file import LegFile
 from hexapod_gait.legs import joint_names
-from hexapod_gait.trajectory import ANTBOT_NEUTRAL_TIP_M, LegTrajectory
+from hexapod_gait.trajectory import LegTrajectory
 
 from .effects import EffectSet
 from .servo_model import ServoModel, ServoParams
@@ -42,8 +44,10 @@ from .sim_core import (
     SimTrace,
     Supply,
     TraceBuilder,
+    leg_summary,
     powered_step,
     quantise_position,
+    resolve_leg,
 )
 
 __all__ = [
@@ -140,12 +144,20 @@ class _Segment:
 
 
 class BenchSimulator:
-    """The MiMiC-Ant bench with one servo leg; :meth:`run_plan` runs a whole plan."""
+    """The MiMiC-Ant bench with one servo leg; :meth:`run_plan` runs a whole plan.
+
+    ``leg`` (a :class:`~hexapod_gait.leg_file.LegFile`, ``hexapod-sim bench --leg FILE``) is
+    the leg on the bench: its links and masses (rods, :class:`~.sim_core.LegLoads`), its
+    neutral tip (the standing pose and the stance midpoint of the gait's tip path) and its
+    inverse kinematics for the joint commands; the servos stay ``config.servo``'s (AX-18A).
+    None: AntBot's leg (``dh`` alone: that DH table with AntBot's neutral tip).
+    """
 
     kind = 'bench'
 
     def __init__(self, config: BenchConfig | None = None, *, effects: EffectSet | None = None,
-                 seed: int = 0, dh: DHParameters = ANTBOT_LEG) -> None:
+                 seed: int = 0, dh: DHParameters | None = None,
+                 leg: LegFile | None = None) -> None:
         self.config = config or BenchConfig()
         self.effects = effects if effects is not None else EffectSet.defaults()
         cfg, eff = self.config, self.effects
@@ -157,9 +169,10 @@ class BenchSimulator:
             raise ValueError(f'BenchConfig.leg = {cfg.leg!r}: expected one of '
                              f'{self._gait_template.leg_names}')
         self.leg_index = self._gait_template.leg_names.index(cfg.leg)
-        self.loads = LegLoads(dh)
+        self.leg_file = resolve_leg(leg, dh)
+        self.loads = LegLoads(self.leg_file.dh)
         self.kinematics = self.loads.kinematics
-        self.neutral_tip = np.array(ANTBOT_NEUTRAL_TIP_M)
+        self.neutral_tip = np.array(self.leg_file.neutral_tip_m, dtype=float)
         self.neutral_q = self.kinematics.inverse(self.neutral_tip)[0]
         self.forward_axis = LegTrajectory(self._gait_template, self.leg_index).forward_axis
         self.stop_z = -self.neutral_tip[2] - cfg.stop_drop_m
@@ -202,7 +215,8 @@ class BenchSimulator:
                              step_length_m=session.step_length_m,
                              step_height_m=session.step_height_m)
         if gait is not None:
-            traj = LegTrajectory(gait, self.leg_index, kinematics=self.kinematics)
+            traj = LegTrajectory(gait, self.leg_index, kinematics=self.kinematics,
+                                 neutral_tip_m=self.neutral_tip)
             q, qd, _ = traj.joints(tg)
             tipv = traj.tip_velocity(tg)
             stance = gait.stance_mask(tg)[:, self.leg_index]
@@ -361,13 +375,16 @@ class BenchSimulator:
             battery_stamp_offset_s=float(self.effects.value('time_offset')),
             servo_stamp_offset_s=float(self.effects.value('sensor_latency')),
             effects_json=self.effects.to_json(),
-            config={'simulator': self.kind, **asdict(self.config), 'plan': asdict(plan)})
+            config={'simulator': self.kind, **asdict(self.config), 'plan': asdict(plan),
+                    'leg_description': leg_summary(self.leg_file)})
 
 
 def simulate_bench(plan: BenchPlan | None = None, config: BenchConfig | None = None, *,
                    effects: EffectSet | None = None, seed: int = 0,
-                   progress: Callable[[int], None] | None = None) -> SimTrace:
-    """Batch run of a bench plan into a :class:`SimTrace`."""
-    return BenchSimulator(config, effects=effects, seed=seed).run_plan(
+                   progress: Callable[[int], None] | None = None,
+                   leg: LegFile | None = None) -> SimTrace:
+    """Batch run of a bench plan into a :class:`SimTrace` (``leg``: the bench leg's file,
+    None: AntBot's)."""
+    return BenchSimulator(config, effects=effects, seed=seed, leg=leg).run_plan(
         plan or BenchPlan(), progress=progress)
 

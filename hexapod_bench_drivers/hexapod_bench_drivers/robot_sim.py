@@ -1,7 +1,8 @@
 """Servo hexapod simulator (AntBot defaults; 4, 6 or 8 legs), the embedded default hardware.
 
 Core module: numpy, pinocchio and ``hexapod_gait``; no ROS. Each leg is the 3-DOF DH leg of
-DESIGN section 7 driven by three servos (:mod:`servo_model`, AX-18A by default). Every output
+DESIGN section 7 (or a leg file's: ``RobotSimulator(leg=...)``, ``hexapod-sim robot --leg
+FILE``) driven by three servos (:mod:`servo_model`, AX-18A by default). Every output
 sample (100 Hz by default):
 
 1. the commanded joint angles (from the gait's tip trajectories in batch mode, or from
@@ -31,8 +32,9 @@ from numpy.typing import NDArray
 
 from hexapod_gait.gait import GaitPattern, carried_mass_per_leg_kg, make_gait
 from hexapod_gait.kinematics import ANTBOT_LEG, ANTBOT_MASS_KG, DHParameters
+from hexapod_gait.leg_file import LegFile
 from hexapod_gait.legs import joint_names
-from hexapod_gait.trajectory import ANTBOT_NEUTRAL_TIP_M, LegTrajectory
+from hexapod_gait.trajectory import LegTrajectory
 
 from .effects import EffectSet
 from .servo_model import ServoModel, ServoParams
@@ -42,12 +44,29 @@ from .sim_core import (
     SimTrace,
     Supply,
     TraceBuilder,
+    leg_summary,
     powered_step,
     quantise_position,
+    resolve_leg,
 )
 
-__all__ = ['RobotConfig', 'RobotSimulator', 'SampleInput', 'robot_mass_problem',
-           'simulate_robot']
+__all__ = ['ANTBOT_BODY_KG', 'RobotConfig', 'RobotSimulator', 'SampleInput',
+           'default_robot_mass_kg', 'robot_mass_problem', 'simulate_robot']
+
+#: AntBot's body without its six legs [kg]: 2.183 kg less 6 x 0.166 kg (DESIGN section 7)
+ANTBOT_BODY_KG = ANTBOT_MASS_KG - 6 * sum(ANTBOT_LEG.link_masses_kg)
+
+
+def default_robot_mass_kg(leg_count: int = 6, leg_mass_kg: float | None = None) -> float:
+    """The robot the simulators walk when no mass is given: AntBot's body with ``leg_count``
+    legs of ``leg_mass_kg`` each (payload excluded; None: AntBot's 0.166 kg leg). AntBot's
+    leg gives 2.183 kg on 6 legs, 1.851 kg on 4 and 2.515 kg on 8 (``M + (k - 6) m_leg``, the
+    leg-count sweep's rule); a leg file's leg, ``M + (k - 6) m_AntBot + k (m_leg -
+    m_AntBot)``: AntBot's 1.187 kg body plus the file's legs (a PhantomX-like 0.175 kg leg:
+    2.237 kg on 6 legs)."""
+    antbot_kg = sum(ANTBOT_LEG.link_masses_kg)
+    own_kg = antbot_kg if leg_mass_kg is None else float(leg_mass_kg)
+    return ANTBOT_MASS_KG + (leg_count - 6) * antbot_kg + leg_count * (own_kg - antbot_kg)
 
 FloatArray = NDArray[np.float64]
 
@@ -68,7 +87,9 @@ class RobotConfig:
         If > 0, the period is ``step_length / (duty_factor * speed)`` instead of ``period_s``.
     robot_mass_kg : float
         Robot mass without payload [kg] (legs included): finite, > 0, and more than the legs
-        (checked by :class:`RobotSimulator`, which knows the leg).
+        (checked by :class:`RobotSimulator`, which knows the leg). The default is AntBot's;
+        another leg count or leg: :func:`default_robot_mass_kg` (what ``hexapod-sim robot``
+        and ``sim_robot`` take when no mass is given).
     payload_kg : float
         Payload on the body [kg], finite and >= 0.
     supply : {'supply', 'battery'}
@@ -175,8 +196,14 @@ class RobotSimulator:
         Named effects (defaults: sensor noise on).
     seed : int
         Seed of the sensor noise (same seed, same data).
-    dh : DHParameters
-        Leg geometry and masses.
+    dh : DHParameters, optional
+        Leg geometry and masses, with AntBot's neutral tip (None: AntBot's leg).
+    leg : LegFile, optional
+        The robot's leg from a leg file (:func:`hexapod_gait.leg_file.read_leg_file`,
+        ``hexapod-sim robot --leg FILE``): links, masses (rods, :class:`~.sim_core.LegLoads`),
+        neutral tip (the standing pose, the stance midpoint of the tip paths) and inverse
+        kinematics of every leg; the servos stay ``config.servo``'s (AX-18A by default).
+        Not with ``dh``.
 
     Raises
     ------
@@ -187,7 +214,8 @@ class RobotSimulator:
     kind = 'robot'
 
     def __init__(self, config: RobotConfig | None = None, *, effects: EffectSet | None = None,
-                 seed: int = 0, dh: DHParameters = ANTBOT_LEG) -> None:
+                 seed: int = 0, dh: DHParameters | None = None,
+                 leg: LegFile | None = None) -> None:
         self.config = config or RobotConfig()
         self.effects = effects if effects is not None else EffectSet.defaults()
         self.rng = np.random.default_rng(seed)
@@ -198,16 +226,18 @@ class RobotSimulator:
         self.leg_names: tuple[str, ...] = legs_gait.leg_names
         self.joint_names: tuple[str, ...] = tuple(
             j for leg in self.leg_names for j in joint_names(leg))
-        self.loads = LegLoads(dh)
+        self.leg_file = resolve_leg(leg, dh)
+        self.loads = LegLoads(self.leg_file.dh)
         if reason := robot_mass_problem(cfg.robot_mass_kg, cfg.leg_count,
                                         self.loads.leg_mass_kg):
             raise ValueError(reason)
         self.kinematics = self.loads.kinematics
         n_legs = len(self.leg_names)
-        self.trajectories = [LegTrajectory(legs_gait, i, kinematics=self.kinematics)
+        tip = np.array(self.leg_file.neutral_tip_m, dtype=float)
+        self.trajectories = [LegTrajectory(legs_gait, i, kinematics=self.kinematics,
+                                           neutral_tip_m=tip)
                              for i in range(n_legs)]
-        self.neutral_q = np.tile(self.kinematics.inverse(np.array(ANTBOT_NEUTRAL_TIP_M))[0],
-                                 (n_legs, 1))
+        self.neutral_q = np.tile(self.kinematics.inverse(tip)[0], (n_legs, 1))
         self.servo_params = ServoParams.by_name(cfg.servo)
         eff = self.effects
         self.servos = ServoModel(
@@ -362,7 +392,8 @@ class RobotSimulator:
             battery_stamp_offset_s=float(self.effects.value('time_offset')),
             servo_stamp_offset_s=float(self.effects.value('sensor_latency')),
             effects_json=self.effects.to_json(),
-            config={'simulator': self.kind, **asdict(self.config)})
+            config={'simulator': self.kind, **asdict(self.config),
+                    'leg_description': leg_summary(self.leg_file)})
 
     def _record(self, tb: TraceBuilder, k: int, t: float, inp: SampleInput,
                 res: dict[str, Any]) -> None:
@@ -399,8 +430,11 @@ class RobotSimulator:
 
 def simulate_robot(duration_s: float, config: RobotConfig | None = None, *,
                    effects: EffectSet | None = None, seed: int = 0,
-                   progress: Callable[[int], None] | None = None) -> SimTrace:
-    """Batch run of the servo hexapod: ``duration_s`` seconds into a :class:`SimTrace`."""
+                   progress: Callable[[int], None] | None = None,
+                   leg: LegFile | None = None) -> SimTrace:
+    """Batch run of the servo hexapod: ``duration_s`` seconds into a :class:`SimTrace`
+    (``leg``: the robot's leg file, None: AntBot's leg)."""
     if not (math.isfinite(duration_s) and duration_s > 0.0):
         raise ValueError(f'duration_s = {duration_s!r}: expected a finite duration > 0 s')
-    return RobotSimulator(config, effects=effects, seed=seed).run(duration_s, progress=progress)
+    return RobotSimulator(config, effects=effects, seed=seed, leg=leg).run(
+        duration_s, progress=progress)

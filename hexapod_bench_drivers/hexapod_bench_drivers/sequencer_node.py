@@ -208,18 +208,19 @@ class BenchSequencerNode(Node):
                 raise PlanError(f'leg_file refused: {err}') from err
         # bench_plan.yaml: the package config
         plan = load_plan(config_file(p.plan_file), leg=leg)
-        if leg is not None and p.backend == 'sim':
-            self.get_logger().warning(
-                f"backend sim simulates AntBot's leg, not {leg.name!r} of {p.leg_file}: the "
-                'plan is checked on the leg file, the simulated sessions walk AntBot\'s leg')
         self.sim_run: Any = None
         if p.backend == 'sim':
             from hexapod_bench_drivers.bench_sim import BenchConfig
             from hexapod_bench_drivers.sequencer_sim import SimulatedBench, SimulatedBenchRun
 
+            # the simulated bench walks the leg file's leg (links, masses, neutral tip, inverse
+            # kinematics; AX-18A servos), the leg the plan is checked on
             bench = SimulatedBench(BenchConfig(
                 initial_temperature_c=p.sim_initial_temperature_c,
-                ambient_temperature_c=p.sim_ambient_temperature_c), seed=p.sim_seed)
+                ambient_temperature_c=p.sim_ambient_temperature_c), seed=p.sim_seed, leg=leg)
+            if leg is not None:
+                self.get_logger().info(f'backend sim: the simulated bench walks {leg.name!r} '
+                                       f'of {p.leg_file} (AX-18A servos)')
             self.sim_run = SimulatedBenchRun(plan, bench, state_file=p.state_file,
                                              output_dir=p.output_dir, step_s=p.sim_step_s,
                                              cool_step_s=p.sim_cool_step_s)

@@ -23,6 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+from hexapod_gait.leg_file import LegFile
+
 from .bench_sim import BenchConfig, BenchSimulator
 from .bench_sim import BenchPlan as SimBenchPlan
 from .bench_sim import BenchSession as SimBenchSession
@@ -52,11 +54,15 @@ class SimulatedBench:
         Noise seed.
     stand_s : float
         Powered standing before each measured walk, while the stop is set [s].
+    leg : LegFile, optional
+        The bench leg (``bench_sequencer -p leg_file``, the gait node's leg file): its links,
+        masses, neutral tip and inverse kinematics (:class:`~.bench_sim.BenchSimulator`);
+        None: AntBot's leg.
     """
 
     def __init__(self, config: BenchConfig | None = None, *, effects: EffectSet | None = None,
-                 seed: int = 0, stand_s: float = 1.0) -> None:
-        self.sim = BenchSimulator(config, effects=effects, seed=seed)
+                 seed: int = 0, stand_s: float = 1.0, leg: LegFile | None = None) -> None:
+        self.sim = BenchSimulator(config, effects=effects, seed=seed, leg=leg)
         self.stand_s = float(stand_s)
         self.load_kg = 0.0
         self._walk_origin_s: float | None = None

@@ -5,6 +5,7 @@ Examples::
     hexapod-sim robot --out run1 --duration 30 --speed 0.6 --effect basal_power=3
     hexapod-sim robot --out stand --duration 10 --period 0
     hexapod-sim robot --out fast --speed 0.9 --allow-infeasible   # beyond the servo limits
+    hexapod-sim robot --out px --speed 0.2 --leg phantomx.yaml    # another robot's leg
 
 ``robot`` refuses (exit 2) a gait the project calls infeasible: a phase shorter than AntBot's
 servo limits allow (swing 0.16 s, stance 0.15 s, 3 Hz; ``hexapod_gait.feasibility``; with
@@ -14,6 +15,17 @@ with a warning on stderr. ``bench`` refuses a step frequency far beyond them (ph
 half the limits, :data:`BENCH_LIMIT_MARGIN`; a test rig may walk past the robot's limits: the
 paper's plan goes to 3.3 Hz; ``--allow-infeasible`` simulates it anyway).
     hexapod-sim bench --out plan --loads 0,0.095,0.515 --frequencies 0,1,3 --duration 20
+    hexapod-sim bench --out px --loads 0,0.2 --frequencies 0,1,2 --leg phantomx.yaml
+
+``--leg FILE`` (a leg file, the one ``gait_scheduler -p leg_file`` and ``hexapod-analyze
+energy --leg`` read: DH table, link masses, ``neutral_tip_m``) walks that leg instead of
+AntBot's: its links, masses and rod inertias, its neutral tip (standing pose, stance midpoint)
+and its inverse kinematics for the joint commands; the servos stay the ``--servo`` preset's
+(AX-18A by default). The feasibility checks (reach, the servo limits scaled to the step's joint
+path) are the file's leg's, as the gait node's with ``-p leg_file``. ``robot`` without a mass
+simulates AntBot's 1.187 kg body with ``--legs`` of the file's legs
+(:func:`~.robot_sim.default_robot_mass_kg`). On ``bench``, ``--leg`` also names the bench leg's
+place (R2 by default, joint names ``R2_*``): ``--leg R2 --leg phantomx.yaml`` gives both.
 
 Values that cannot work are refused up front (exit 2, one line naming the option): besides
 the signs, a run of fewer than 2 or more than 2e6 samples (``--duration`` x ``--rate``), more
@@ -85,7 +97,13 @@ def build_parser() -> argparse.ArgumentParser:
     robot.add_argument('--step-height', type=float, default=0.04, help='[m]')
     robot.add_argument('--legs', type=int, default=6,
                        help='leg count, an even number >= 2 (default 6); the robot is '
-                       "AntBot's body with that many legs (1.851 kg on 4, 2.515 kg on 8)")
+                       "AntBot's body with that many legs (1.851 kg on 4, 2.515 kg on 8; "
+                       "with --leg FILE, AntBot's 1.187 kg body and that many of the "
+                       "file's legs)")
+    robot.add_argument('--leg', default=None, metavar='FILE',
+                       help="the robot's leg file (DH table, link masses, neutral_tip_m; "
+                       "gait_scheduler's -p leg_file, energy's --leg): every leg walks it "
+                       "with AX-18A (--servo) servos; default AntBot's leg")
     robot.add_argument('--payload', type=float, default=0.0, help='[kg]')
     robot.add_argument('--ambient-c', type=float, default=26.0,
                        help='air temperature around the servos [degC] (default 26)')
@@ -111,7 +129,11 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument('--duty-factor', type=float, default=0.5)
     bench.add_argument('--step-length', type=float, default=0.10, help='[m]')
     bench.add_argument('--step-height', type=float, default=0.04, help='[m]')
-    bench.add_argument('--leg', default='R2')
+    bench.add_argument('--leg', action='append', default=[], metavar='NAME|FILE',
+                       help="the bench leg: its place NAME (R2 by default, joints R2_*) and/or "
+                       "a leg FILE (DH table, link masses, neutral_tip_m, as energy's "
+                       "--leg) walked with AX-18A (--servo) servos; default AntBot's leg; "
+                       'may be given twice (--leg R1 --leg leg.yaml)')
     bench.add_argument('--max-cool', type=float, default=1800.0,
                        help='longest cooling between sessions [s]')
     bench.add_argument('--allow-infeasible', action='store_true',
@@ -185,11 +207,36 @@ def servo_limits(servo: str = 'ax18a') -> Any:
                           ANTBOT_LIMITS.max_step_frequency_hz / ratio)
 
 
-def _infeasible(gait: Any, servo: str = 'ax18a', *, support: bool = True) -> list[str]:
+def _leg_kw(leg: Any) -> dict[str, Any]:
+    """The ``kinematics`` and ``neutral_tip_m`` keywords of ``leg`` (a leg file) for the
+    ``hexapod_gait`` checks; empty for AntBot's leg (None)."""
+    if leg is None:
+        return {}
+    return {'kinematics': leg.kinematics(), 'neutral_tip_m': leg.neutral_tip_m}
+
+
+def _unreachable(gait: Any, leg: Any = None) -> str | None:
+    """Why the tip path of ``gait`` leaves the workspace of ``leg`` (a leg file; None:
+    AntBot's leg) from its neutral tip, else None (the gait node's reach check)."""
+    if gait is None:
+        return None
+    from hexapod_gait.config import check_reachable
+    from hexapod_gait.errors import UnreachableError
+
+    try:
+        check_reachable(gait, **_leg_kw(leg))
+    except UnreachableError as err:
+        return f'{err}' + (f' (leg {leg.name!r})' if leg is not None else '')
+    return None
+
+
+def _infeasible(gait: Any, servo: str = 'ax18a', *, support: bool = True,
+                leg: Any = None) -> list[str]:
     """Why the project calls ``gait`` infeasible: AntBot's servo limits
-    (``hexapod_gait.feasibility``) for the servo preset (:func:`servo_limits`) and, with
-    ``support``, phases with no leg on the ground (L(t) = 0); empty when it is not (or when
-    standing, ``gait`` None)."""
+    (``hexapod_gait.feasibility``) for the servo preset (:func:`servo_limits`), scaled to the
+    step's joint path on ``leg`` (a leg file, as ``gait_scheduler -p leg_file`` scales them;
+    None: AntBot's leg) and, with ``support``, phases with no leg on the ground (L(t) = 0);
+    empty when it is not (or when standing, ``gait`` None)."""
     if gait is None:
         return []
     import numpy as np
@@ -197,14 +244,17 @@ def _infeasible(gait: Any, servo: str = 'ax18a', *, support: bool = True) -> lis
     from hexapod_gait.step_limits import limits_for_gait
 
     lim = servo_limits(servo)
-    # the limits are phase durations on AntBot's 100 mm, 40 mm tip path: another step
-    # reaches the servos' top speed at other durations (the gait node's own scaling)
-    lim = limits_for_gait(gait, lim)
+    # the limits are phase durations on the 100 mm, 40 mm bench tip path: another step
+    # reaches the servos' top speed at other durations (the gait node's own scaling, on the
+    # leg it walks)
+    lim = limits_for_gait(gait, lim, **_leg_kw(leg))
     out = feasibility_violations(gait, lim)
     if out:
         whose = "AntBot's servo limits" if servo.lower() in ('ax18a', 'ax-18a') else \
             f"AntBot's servo limits for {servo} servos"
-        out[-1] += (f' ({whose} on this step\'s joint path: swing >= '
+        path = 'this step\'s joint path' if leg is None else \
+            f'this step\'s joint path on leg {leg.name!r}'
+        out[-1] += (f' ({whose} on {path}: swing >= '
                     f'{lim.min_swing_s:.3g} s, stance >= {lim.min_stance_s:.3g} s, <= '
                     f'{lim.max_step_frequency_hz:g} Hz)')
     if not support:
@@ -214,9 +264,9 @@ def _infeasible(gait: Any, servo: str = 'ax18a', *, support: bool = True) -> lis
     if airborne > 1e-9:
         out.append(f'no leg on the ground {100 * airborne:.0f} % of the cycle (L(t) = 0)')
     else:
-        # every leg of one side in swing at once (on 4 or more legs) (a wave at the default duty factor
-        # 0.5): gait_scheduler refuses it and energy calls the run infeasible; the simulator
-        # walked it silently
+        # every leg of one side in swing at once (on 4 or more legs) (a wave at the default
+        # duty factor 0.5): gait_scheduler refuses it and energy calls the run infeasible;
+        # the simulator walked it silently
         from hexapod_gait.config import check_static_support
         from hexapod_gait.errors import InfeasibleGaitError
 
@@ -227,13 +277,25 @@ def _infeasible(gait: Any, servo: str = 'ax18a', *, support: bool = True) -> lis
     return out
 
 
-def _run_robot(args: argparse.Namespace) -> int:
-    from .robot_sim import RobotConfig, RobotSimulator
-    from hexapod_gait.kinematics import ANTBOT_LEG
+def _read_leg(path: str | None) -> Any:
+    """The leg file at ``path`` (:func:`hexapod_gait.leg_file.read_leg_file`; its
+    ``LegFileError``, a ValueError, names the file and the problem), None for None."""
+    if path is None:
+        return None
+    from hexapod_gait.leg_file import read_leg_file
 
+    return read_leg_file(path)
+
+
+def _run_robot(args: argparse.Namespace) -> int:
+    from .robot_sim import RobotConfig, RobotSimulator, default_robot_mass_kg
+
+    leg = _read_leg(args.leg)
     # AntBot's body with this many legs (as sim_robot and the leg-count sweep: 1.851 kg on 4
-    # legs); the six-leg 2.183 kg was kept for any leg count (a review)
-    mass = float(RobotConfig.robot_mass_kg) + (args.legs - 6) * sum(ANTBOT_LEG.link_masses_kg)
+    # legs); the six-leg 2.183 kg was kept for any leg count (a review); with a leg file,
+    # AntBot's body and that many of the file's legs
+    mass = default_robot_mass_kg(args.legs, None if leg is None
+                                 else sum(leg.dh.link_masses_kg))
     if args.payload > MAX_PAYLOAD_RATIO * mass:
         print(f'hexapod-sim robot: error: --payload {args.payload:g} kg is more than '
               f'{MAX_PAYLOAD_RATIO:g} x the robot\'s mass ({mass:g} kg): at most '
@@ -252,7 +314,11 @@ def _run_robot(args: argparse.Namespace) -> int:
                          supply='battery' if args.battery else 'supply', servo=args.servo,
                          rate_hz=args.rate)
     gait = config.gait_pattern()
-    why = _infeasible(gait, args.servo)
+    far = _unreachable(gait, leg)
+    if far:
+        print(f'hexapod-sim robot: error: {far}', file=sys.stderr)
+        return 2
+    why = _infeasible(gait, args.servo, leg=leg)
     if why:
         what = (f'{gait.name} gait, duty factor {gait.duty_factor:g}, period '
                 f'{gait.period_s:.4g} s, {gait.leg_count} legs')
@@ -263,7 +329,7 @@ def _run_robot(args: argparse.Namespace) -> int:
         print(f'hexapod-sim robot: warning: simulating an infeasible {what} '
               '(--allow-infeasible): ' + '; '.join(why), file=sys.stderr)
     t0 = time.perf_counter()
-    sim = RobotSimulator(config, effects=effects, seed=args.seed)
+    sim = RobotSimulator(config, effects=effects, seed=args.seed, leg=leg)
     progress = _Progress(int(args.duration * args.rate), 'robot', not args.no_progress)
     try:
         trace = sim.run(args.duration, progress=progress)
@@ -278,7 +344,23 @@ def _run_robot(args: argparse.Namespace) -> int:
 BENCH_LIMIT_MARGIN = 2.0
 
 
-def _bench_infeasible(args: argparse.Namespace) -> list[str]:
+def _bench_leg(values: Sequence[str]) -> tuple[str, str | None]:
+    """The bench leg's place and leg file from the ``--leg`` values: a value with a path
+    separator, a ``.yaml``/``.yml``/``.json`` suffix or naming an existing file is a leg file,
+    any other a place (R2 by default); at most one of each (ValueError)."""
+    places, files = [], []
+    for v in values:
+        path = Path(v)
+        is_file = (any(sep in v for sep in ('/', '\\'))
+                   or path.suffix.lower() in ('.yaml', '.yml', '.json') or path.is_file())
+        (files if is_file else places).append(v)
+    if len(places) > 1 or len(files) > 1:
+        raise ValueError(f'--leg given {len(values)} times ({", ".join(values)}): at most one '
+                         'place (e.g. R2) and one leg file')
+    return (places[0] if places else 'R2'), (files[0] if files else None)
+
+
+def _bench_infeasible(args: argparse.Namespace, leg: Any = None) -> list[str]:
     """The step frequencies of ``args`` far beyond what the bench leg can walk: phases under
     1 / :data:`BENCH_LIMIT_MARGIN` of the servo limits (:func:`_infeasible` of the gait at
     that frequency over the margin; a single leg needs no support), each with why; empty
@@ -291,15 +373,26 @@ def _bench_infeasible(args: argparse.Namespace) -> list[str]:
         gait = make_gait('tripod', duty_factor=args.duty_factor,
                          period_s=BENCH_LIMIT_MARGIN / f,
                          step_length_m=args.step_length, step_height_m=args.step_height)
-        why = _infeasible(gait, args.servo, support=False)
+        why = _infeasible(gait, args.servo, support=False, leg=leg)
         if why:
             out.append(f'{f:g} Hz: phases under 1/{BENCH_LIMIT_MARGIN:g} of the servo limits')
     return out
 
 
 def _run_bench(args: argparse.Namespace) -> int:
+    from hexapod_gait.gait import make_gait
+
     from .bench_sim import BenchConfig, BenchPlan, BenchSimulator
-    why = _bench_infeasible(args)
+    place, leg_path = _bench_leg(args.leg)
+    leg = _read_leg(leg_path)
+    if any(f > 0 for f in args.frequencies):
+        far = _unreachable(make_gait('tripod', duty_factor=args.duty_factor,
+                                     step_length_m=args.step_length,
+                                     step_height_m=args.step_height), leg)
+        if far:
+            print(f'hexapod-sim bench: error: {far}', file=sys.stderr)
+            return 2
+    why = _bench_infeasible(args, leg)
     if why:
         if not args.allow_infeasible:
             print('hexapod-sim bench: error: --frequencies far beyond what the leg can walk: '
@@ -313,9 +406,9 @@ def _run_bench(args: argparse.Namespace) -> int:
                      walk_s=args.duration, duty_factor=args.duty_factor,
                      step_length_m=args.step_length, step_height_m=args.step_height,
                      max_cool_s=args.max_cool)
-    config = BenchConfig(leg=args.leg, servo=args.servo, rate_hz=args.rate)
+    config = BenchConfig(leg=place, servo=args.servo, rate_hz=args.rate)
     t0 = time.perf_counter()
-    sim = BenchSimulator(config, effects=effects, seed=args.seed)
+    sim = BenchSimulator(config, effects=effects, seed=args.seed, leg=leg)
     total = int(len(plan.sessions()) * args.duration * args.rate)
     progress = _Progress(total, 'bench', not args.no_progress)
     try:

@@ -15,10 +15,15 @@ import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
 from hexapod_gait.kinematics import ANTBOT_LEG, DHParameters, LegKinematics
+from hexapod_gait.leg_file import LegFile
+from hexapod_gait.trajectory import ANTBOT_NEUTRAL_TIP_M
 
 __all__ = [
     'G_MPS2',
     'LegLoads',
+    'antbot_leg',
+    'leg_summary',
+    'resolve_leg',
     'SessionRecord',
     'SimTrace',
     'Supply',
@@ -29,6 +34,36 @@ G_MPS2 = 9.81
 _AX_TICK_RAD = math.radians(300.0 / 1023.0)
 
 FloatArray = NDArray[np.float64]
+
+
+def antbot_leg() -> LegFile:
+    """AntBot's leg (DESIGN section 7: DH table, link masses, neutral tip), the simulators'
+    default."""
+    return LegFile(ANTBOT_LEG, tuple(ANTBOT_NEUTRAL_TIP_M), 'AntBot')  # type: ignore[arg-type]
+
+
+def resolve_leg(leg: LegFile | None = None, dh: DHParameters | None = None) -> LegFile:
+    """The leg a simulator walks: ``leg`` (a leg file, :func:`hexapod_gait.leg_file.
+    read_leg_file`: its DH table, link masses and neutral tip), else ``dh`` with AntBot's
+    neutral tip, else AntBot's leg. Both given is refused (ValueError)."""
+    if leg is not None and dh is not None:
+        raise ValueError('give the simulator a leg (leg file) or a DH table, not both')
+    if leg is not None:
+        return leg
+    if dh is None or dh == ANTBOT_LEG:
+        return antbot_leg()
+    return LegFile(dh, tuple(ANTBOT_NEUTRAL_TIP_M), 'DH table')  # type: ignore[arg-type]
+
+
+def leg_summary(leg: LegFile) -> dict[str, Any]:
+    """JSON-able description of the simulated leg (the bag's ``hexapod_sim.config``
+    ``leg_description``), the keys of a leg file."""
+    dh = leg.dh
+    return {'name': leg.name, 'a_m': list(dh.a_m), 'alpha_rad': list(dh.alpha_rad),
+            'd_m': list(dh.d_m), 'theta_offset_rad': list(dh.theta_offset_rad),
+            'link_masses_kg': list(dh.link_masses_kg),
+            'joint_limits_rad': [list(x) for x in dh.joint_limits_rad],
+            'neutral_tip_m': list(leg.neutral_tip_m)}
 
 
 def _rod(mass_kg: float, length_m: float, radius_m: float = 0.005) -> pin.Inertia:

@@ -12,6 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from hexapod_gait.leg_file import LegFile
+
 from .bench_sim import BenchConfig, BenchSimulator
 from .effects import EffectSet
 from .robot_sim import RobotConfig, RobotSimulator, SampleInput
@@ -166,12 +168,13 @@ class LiveRobot:
     """The servo hexapod stepped live from ``/joint_commands`` and ``/gait/phase``."""
 
     def __init__(self, config: RobotConfig | None = None, *,
-                 effects: EffectSet | None = None, seed: int = 0) -> None:
+                 effects: EffectSet | None = None, seed: int = 0,
+                 leg: LegFile | None = None) -> None:
         # The live robot is driven by the gait node, so its own gait is "standing".
         cfg = config or RobotConfig()
         self.sim = RobotSimulator(RobotConfig(**{**cfg.__dict__, 'period_s': 0.0,
                                                  'speed_mps': 0.0}),
-                                  effects=effects, seed=seed)
+                                  effects=effects, seed=seed, leg=leg)
         self.commands = _Commands(self.sim.joint_names, self.sim.neutral_q.ravel())
         n_legs = len(self.sim.leg_names)
         self.in_stance = np.ones(n_legs, dtype=bool)
@@ -250,8 +253,9 @@ class LiveBench:
     """The bench leg stepped live; the load on the stage is a setting."""
 
     def __init__(self, config: BenchConfig | None = None, *, load_kg: float = 0.0,
-                 effects: EffectSet | None = None, seed: int = 0) -> None:
-        self.sim = BenchSimulator(config, effects=effects, seed=seed)
+                 effects: EffectSet | None = None, seed: int = 0,
+                 leg: LegFile | None = None) -> None:
+        self.sim = BenchSimulator(config, effects=effects, seed=seed, leg=leg)
         self.load_kg = float(load_kg)
         self.commands = _Commands(self.sim.joint_names, self.sim.neutral_q)
         self.in_stance = True

@@ -10,6 +10,12 @@ Parameters configure the simulation when the node starts and are read only, exce
 ``status_every`` (applies at once). A robot not heavier than its legs (``robot_mass`` <=
 ``leg_count`` legs' mass) is refused at start-up.
 
+``leg_file`` (both nodes; the file ``gait_scheduler -p leg_file`` reads, so that the joint
+commands come from the same inverse kinematics) makes the simulated legs that file's: links,
+masses, rod inertias, neutral tip (standing pose); the servos stay the ``servo`` preset's
+(AX-18A). ``sim_robot`` without ``robot_mass`` then simulates AntBot's 1.187 kg body with
+``leg_count`` of the file's legs (``robot_sim.default_robot_mass_kg``).
+
 Joints on ``/joint_commands`` and legs on ``/gait/phase`` that the simulator does not have (a
 gait node walking 8 legs, ``<leg>_hip`` names) are ignored and reported once per distinct set
 as a warning naming them and the simulator's own; a message that matches none of its joints
@@ -51,12 +57,13 @@ from hexapod_common.node_utils import (
     run_node,
 )
 from hexapod_gait.kinematics import ANTBOT_LEG, ANTBOT_MASS_KG
+from hexapod_gait.leg_file import LegFile, LegFileError, read_leg_file
 from hexapod_interfaces.msg import BenchSession, GaitPhase, ServoStatus
 from sensor_msgs.msg import BatteryState, JointState
 
 from .bench_sim import BenchConfig
 from .effects import EffectError, parse_effects
-from .robot_sim import RobotConfig, robot_mass_problem
+from .robot_sim import RobotConfig, default_robot_mass_kg, robot_mass_problem
 from .sim_live import LiveBench, LiveRobot, LiveSample, NameMismatch
 
 __all__ = ['BenchNodeParams', 'RobotNodeParams', 'SimBenchNode', 'SimRobotNode', 'main_bench',
@@ -65,6 +72,27 @@ __all__ = ['BenchNodeParams', 'RobotNodeParams', 'SimBenchNode', 'SimRobotNode',
 
 def _positive(x: Any) -> str | None:
     return None if x > 0 else 'must be > 0'
+
+
+_LEG_FILE_HELP = ("the simulated leg's file (YAML/JSON: DH table, link masses, neutral_tip_m; "
+                  "gait_scheduler's -p leg_file): its links, masses and neutral tip, AX-18A "
+                  "servos; empty = AntBot's leg")
+
+
+def _leg(node: Node, path: str) -> LegFile | None:
+    """The leg file of parameter ``leg_file`` (None when empty), said at start-up; a file
+    that cannot be used is refused (ParameterError naming it and the problem)."""
+    if not path:
+        return None
+    try:
+        leg = read_leg_file(path)
+    except LegFileError as err:
+        raise ParameterError(f'leg_file refused: {err}') from err
+    node.get_logger().info(f'leg {leg.name!r} from {path}: link lengths '
+                           f'{[round(x, 4) for x in leg.dh.a_m]} m, masses '
+                           f'{[round(x, 4) for x in leg.dh.link_masses_kg]} kg, neutral tip '
+                           f'{[round(x, 4) for x in leg.neutral_tip_m]} m')
+    return leg
 
 
 def _effects_ok(items: Any) -> str | None:
@@ -80,7 +108,9 @@ class RobotNodeParams:
     leg_count: int = param(6, 'number of legs (even)', validate=lambda x: None
                            if x >= 2 and x % 2 == 0 else 'must be even and >= 2')
     payload: float = param(0.0, 'payload on the body [kg]')
-    robot_mass: float = param(ANTBOT_MASS_KG, 'robot mass without payload [kg]', validate=_positive)
+    robot_mass: float = param(ANTBOT_MASS_KG, 'robot mass without payload [kg] (not given: '
+                              "AntBot's body with leg_count legs of leg_file's leg)",
+                              validate=_positive)
     battery: bool = param(False, 'true: 3S LiPo; false: 11.9 V lab supply')
     servo: str = param('ax18a', 'servo preset: ax18a, ax12a, xl430, xm430')
     rate: float = param(100.0, 'publish rate [Hz]', validate=_positive)
@@ -89,6 +119,7 @@ class RobotNodeParams:
     effects: tuple[str, ...] = param(('sensor_noise=1',), 'named effects NAME=VALUE',
                                      validate=_effects_ok)
     seed: int = param(0, 'noise seed')
+    leg_file: str = param('', _LEG_FILE_HELP, read_only=True)
 
 
 @dataclass(frozen=True)
@@ -104,6 +135,7 @@ class BenchNodeParams:
                                      validate=_effects_ok)
     seed: int = param(0, 'noise seed')
     session_id: str = param('live', 'session id on /bench/session')
+    leg_file: str = param('', _LEG_FILE_HELP, read_only=True)
 
 
 class _SimNode(Node):
@@ -224,16 +256,19 @@ class SimRobotNode(_SimNode):
         super().__init__('sim_robot', context=context, parameter_overrides=parameter_overrides,
                          namespace=namespace, **kw)
         p = declare_params(self, RobotNodeParams)
-        leg_kg = sum(ANTBOT_LEG.link_masses_kg)
+        leg = _leg(self, p.leg_file)
+        leg_kg = sum((ANTBOT_LEG if leg is None else leg.dh).link_masses_kg)
         mass = p.robot_mass
-        if p.leg_count != 6 and not overridden(self, 'robot_mass'):
+        if (p.leg_count != 6 or leg is not None) and not overridden(self, 'robot_mass'):
             # AntBot's body with this many legs (the leg-count sweep's rule, M + (k - 6) m_leg:
             # 1.851 kg on 4 legs), not the 6-leg robot's 2.183 kg (kept silently before: an
-            # outside review)
-            mass = p.robot_mass + (p.leg_count - 6) * leg_kg
+            # outside review); with a leg file, that many of its legs
+            mass = default_robot_mass_kg(p.leg_count, leg_kg)
+            whose = '' if leg is None else f' (leg {leg.name!r})'
             self.get_logger().info(
                 f'robot_mass not given: AntBot\'s body with {p.leg_count} legs of '
-                f'{leg_kg:.3f} kg, {mass:.3f} kg (set -p robot_mass:= for another robot)')
+                f'{leg_kg:.3f} kg{whose}, {mass:.3f} kg (set -p robot_mass:= for another '
+                'robot)')
         if reason := robot_mass_problem(mass, p.leg_count, leg_kg):
             raise ParameterError(f'parameters robot_mass = {mass} and leg_count = '
                                  f'{p.leg_count} refused: {reason}')
@@ -241,7 +276,7 @@ class SimRobotNode(_SimNode):
                           supply='battery' if p.battery else 'supply', servo=p.servo,
                           rate_hz=p.rate)
         self.live = LiveRobot(cfg, effects=parse_effects(list(p.effects), defaults=False),
-                              seed=p.seed)
+                              seed=p.seed, leg=leg)
         owner = self.live.describe()
         self.command_check = NameMismatch('/joint_commands', self.live.joint_names, owner,
                                           'joints')
@@ -263,7 +298,7 @@ class SimBenchNode(_SimNode):
         self.live = LiveBench(BenchConfig(leg=p.leg, servo=p.servo, rate_hz=p.rate),
                               load_kg=p.load,
                               effects=parse_effects(list(p.effects), defaults=False),
-                              seed=p.seed)
+                              seed=p.seed, leg=_leg(self, p.leg_file))
         owner = f'bench leg {p.leg}'
         self.command_check = NameMismatch('/joint_commands', self.live.joint_names, owner,
                                           'joints', extra_ok=True)

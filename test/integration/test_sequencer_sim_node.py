@@ -75,8 +75,9 @@ def test_sim_backend_runs_the_plan_killed_and_resumed(tmp_path):
         assert samples[0].p_stance_w > 0.5
 
 
-def _run_sim_sequencer(tmp_path, plan_text: str, namespace: str):
-    """The bench_sequencer console script on the sim backend with ``plan_text``; its result."""
+def _run_sim_sequencer(tmp_path, plan_text: str, namespace: str, *extra: str):
+    """The bench_sequencer console script on the sim backend with ``plan_text`` (``extra``:
+    more ``-p`` arguments); its result."""
     import shutil
     import subprocess
     import sys
@@ -88,7 +89,8 @@ def _run_sim_sequencer(tmp_path, plan_text: str, namespace: str):
     return subprocess.run(
         [exe, '--ros-args', '-r', f'__ns:={namespace}', '-p', f'plan_file:={plan}',
          '-p', f'state_file:={tmp_path / "state.json"}', '-p', f'output_dir:={tmp_path / "bags"}',
-         '-p', 'backend:=sim', '-p', 'rate_hz:=500.0', '-p', 'sim_initial_temperature_c:=26.0'],
+         '-p', 'backend:=sim', '-p', 'rate_hz:=500.0', '-p', 'sim_initial_temperature_c:=26.0',
+         *extra],
         capture_output=True, text=True, timeout=100)
 
 
@@ -121,3 +123,28 @@ def test_a_basal_0_hz_session_is_planned_and_recorded(tmp_path):
     assert data.sessions and {round(float(s['frequency_hz']), 3) for s in data.sessions
                               if s.get('state', 'walking') == 'walking'} == {0.0}
     assert data.battery_t_s.size >= 40     # 1 s of the 50 Hz power monitor
+
+
+@pytest.mark.timeout(120)
+def test_backend_sim_walks_the_leg_file(tmp_path):
+    """With ``-p leg_file`` the sim backend warned that its sessions walked AntBot's leg (the
+    plan was checked on the file's); the simulated bench now walks the file's leg, said at
+    start-up, and its bags record it."""
+    import yaml
+
+    from hexapod_bench_drivers.sim_bag import CONFIG_KEY
+
+    leg = tmp_path / 'phantomx.yaml'
+    leg.write_text('name: PhantomX-like\na_m: [0.052, 0.066, 0.133]\n'
+                   'link_masses_kg: [0.060, 0.070, 0.045]\nneutral_tip_m: [0.14, 0.0, -0.10]\n')
+    proc = _run_sim_sequencer(
+        tmp_path, 'loads_kg: [0.0]\nfrequencies_hz: [2.0]\nwalk_duration_s: 1.0\n',
+        '/seqleg', '-p', f'leg_file:={leg}')
+    out = proc.stderr + proc.stdout
+    assert proc.returncode == 0, out[-2000:]
+    assert "AntBot's leg" not in out
+    assert "the simulated bench walks 'PhantomX-like'" in out
+    [bag] = sorted((tmp_path / 'bags').iterdir())
+    meta = yaml.safe_load((bag / 'metadata.yaml').read_text())
+    config = json.loads(meta['rosbag2_bagfile_information']['custom_data'][CONFIG_KEY])
+    assert config['leg_description']['a_m'] == [0.052, 0.066, 0.133]

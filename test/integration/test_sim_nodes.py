@@ -68,3 +68,34 @@ def test_sim_robot_refuses_run_time_changes_it_cannot_apply() -> None:
         assert [t.timer_period_ns for t in node.timers] == [10_000_000]
         [ok] = node.set_parameters([Parameter('status_every', value=5)])
         assert ok.successful and node.params.status_every == 5
+
+
+@pytest.mark.timeout(60)
+def test_sim_bench_walks_the_gait_nodes_leg_file(tmp_path) -> None:
+    """gait_scheduler and sim_bench with the same ``-p leg_file`` (a PhantomX-like leg): the
+    simulated leg follows the commands of the file's inverse kinematics (it stood at AntBot's
+    neutral pose, with AntBot's links and masses, before ``sim_bench`` took a leg file)."""
+    from hexapod_gait.leg_file import read_leg_file
+
+    leg = tmp_path / 'phantomx.yaml'
+    leg.write_text('name: PhantomX-like\na_m: [0.052, 0.066, 0.133]\n'
+                   'link_masses_kg: [0.060, 0.070, 0.045]\nneutral_tip_m: [0.14, 0.0, -0.10]\n')
+    kin = read_leg_file(leg).kinematics()
+    with_leg = Parameter('leg_file', value=str(leg))
+    with ros_env('simbenchleg') as env:
+        env.make(GaitSchedulerNode, parameter_overrides=[
+            Parameter('period', value=0.5), Parameter('startup_listen_s', value=0.0), with_leg])
+        env.make(SimBenchNode, parameter_overrides=[Parameter('load', value=0.2), with_leg])
+        force = Collector(env, WrenchStamped, 'bench/ground_force')
+        js = Collector(env, JointState, 'joint_states')
+        cmd = Collector(env, JointState, 'joint_commands')
+        force.wait_for(env, 100, timeout_s=40.0)
+    fz = np.array([m.wrench.force.z for m in force.messages])
+    assert np.median(fz[fz > 1.0]) == pytest.approx((0.175 + 0.2) * 9.81, rel=0.01)
+    last_cmd = dict(zip(cmd.messages[-1].name, cmd.messages[-1].position))
+    q = [[dict(zip(m.name, m.position))[f'R2_{j}'] for j in ('coxa', 'femur', 'tibia')]
+         for m in js.messages[20:]]
+    tips = kin.forward(np.array(q))
+    assert tips[:, 2].min() == pytest.approx(-0.10, abs=0.006)   # the file's ground height
+    last = js.messages[-1]
+    assert np.median([abs(p - last_cmd[n]) for n, p in zip(last.name, last.position)]) < 0.15

@@ -46,3 +46,34 @@ def test_plan_the_shorter_leg_cannot_walk_is_refused(tmp_path):
     assert load_plan(plan(0.16, 1.9)).sessions        # AntBot's leg: walkable
     with pytest.raises(PlanError, match='160 mm step needs'):
         load_plan(plan(0.16, 1.9), leg=leg(tmp_path, PHANTOMX))
+
+
+def test_the_simulated_bench_walks_the_leg_file(tmp_path):
+    """backend sim walked AntBot's leg whatever the leg file (a warning said so); the
+    simulated bench now walks the file's leg: its bags record it and its stance tip carries
+    the file's leg and the load."""
+    import json
+
+    import numpy as np
+    import yaml
+
+    from hexapod_bench_drivers.bench_sim import BenchConfig
+    from hexapod_bench_drivers.sequencer_sim import SimulatedBench, SimulatedBenchRun
+    from hexapod_bench_drivers.sim_bag import CONFIG_KEY
+    from hexapod_energy.bag_io import read_bench_bag
+
+    px = leg(tmp_path, PHANTOMX)
+    spec = {**plan(0.10, 2.0), 'loads_kg': [0.2], 'frequencies_hz': [2.0],
+            'walk_duration_s': 1.0}
+    bench = SimulatedBench(BenchConfig(), seed=1, leg=px)
+    np.testing.assert_allclose(bench.sim.kinematics.forward(bench.sim.neutral_q)[0],
+                               px.neutral_tip_m, atol=1e-12)
+    run = SimulatedBenchRun(load_plan(spec, leg=px), bench, output_dir=tmp_path / 'bags')
+    assert run.run(max_sim_s=5000.0).state == 'done'
+    [bag] = sorted((tmp_path / 'bags').iterdir())
+    meta = yaml.safe_load((bag / 'metadata.yaml').read_text())
+    config = json.loads(meta['rosbag2_bagfile_information']['custom_data'][CONFIG_KEY])
+    assert config['leg_description']['name'] == 'PhantomX-like'
+    assert config['leg_description']['a_m'] == [0.052, 0.066, 0.133]
+    force = read_bench_bag(bag).force_z_n
+    assert np.median(force[force > 1.0]) == pytest.approx((0.175 + 0.2) * 9.81, rel=0.01)
