@@ -31,7 +31,7 @@ echo "== unit tests"
 timed=(test/unit/test_dxl_bus.py test/unit/test_dxl_emulator.py test/unit/test_dxl_models.py
        test/unit/test_power_backends.py test/unit/test_force_backend.py
        test/unit/test_dxl_review_fixes.py test/unit/test_dxl_review_d.py
-       test/unit/test_dxl_review_hw.py)
+       test/unit/test_dxl_review_hw.py test/unit/test_dxl_xseries_current.py)
 if [ "$(nproc 2>/dev/null || echo 1)" -ge 2 ]; then
   ignore=(); for f in "${timed[@]}"; do ignore+=(--ignore "$f"); done
   python -m pytest -q -p no:cacheprovider -n 2 --dist loadfile "${ignore[@]}" test/unit "$@" 2>&1 | tee "$tmp/unit.log"

@@ -70,7 +70,7 @@ def warm() -> None:
     f = np.zeros(1)
     step_all(1e-3, 1, f, f.copy(), f.copy(), f.copy(), f.copy(), f.copy(), f.copy(), f.copy(),
              np.zeros(1, dtype=np.bool_), np.ones(1, dtype=np.bool_), f.copy(), f.copy(),
-             f.copy(), f.copy(), np.ones(1), np.ones(21), True, np.empty((10, 1)),
+             f.copy(), f.copy(), np.ones(1), np.ones(21), True, np.empty((11, 1)),
              np.empty((3, 1), dtype=np.int64), np.empty((9, 1)))
     _WARM.append(True)
 
@@ -89,9 +89,9 @@ def step_all(dt: float, n_sub: int, goal_in: Any, tau_ext: Any, volts: Any, defl
     1 - gear efficiency, friction smoothing, reflected inertia, standby current, ambient
     temperature, thermal drift, exp(-dt / tau_th), thermal resistance, minimum and maximum
     voltage. ``out`` rows: position, velocity, torque, current, temperature, load fraction,
-    power, mechanical power, winding loss, reported voltage; ``flags`` rows (int64): reported
-    temperature, error bits, drive; ``losses`` rows (``rec``): standby, extra, copper, Coulomb,
-    gear, viscous, kinetic, load, brake."""
+    power, mechanical power, winding loss, reported voltage, signed winding current;
+    ``flags`` rows (int64): reported temperature, error bits, drive; ``losses`` rows
+    (``rec``): standby, extra, copper, Coulomb, gear, viscous, kinetic, load, brake."""
     n = q.shape[0]
     h = dt / n_sub
     (t_limit, r_ref, cu, t_ref, ke0, mag, kp, margin, coulomb0, visc, w_eps, mu, w_s, refl,
@@ -127,7 +127,7 @@ def step_all(dt: float, n_sub: int, goal_in: Any, tau_ext: Any, volts: Any, defl
         limited = speed_limit[j] > 0.0
         q0, w0 = q[j], w[j]
         qj, wj, sp, uj = q0, w0, setpoint[j], 0.0
-        s_bridge = s_i2 = s_coulomb = s_gear = s_visc = s_brake = 0.0
+        s_bridge = s_i2 = s_i = s_coulomb = s_gear = s_visc = s_brake = 0.0
         for _ in range(n_sub):
             if any_limited:
                 step = speed_limit[j] * h
@@ -174,6 +174,7 @@ def step_all(dt: float, n_sub: int, goal_in: Any, tau_ext: Any, volts: Any, defl
             qj += h * wj
             s_bridge += _max(uj * i, 0.0)
             s_i2 += i * i
+            s_i += i
         load_j = inertia[j] - refl
         pmech = (-tau_ext[j] * (qj - q0) + 0.5 * load_j * (wj * wj - w0 * w0)) / h
         setpoint[j], q[j], w[j] = sp, qj, wj
@@ -202,6 +203,7 @@ def step_all(dt: float, n_sub: int, goal_in: Any, tau_ext: Any, volts: Any, defl
         out[7, j] = pmech / n_sub
         out[8, j] = winding_loss
         out[9, j] = np.rint(volts[j] * 10.0) / 10.0
+        out[10, j] = s_i / n_sub
         flags[0, j] = np.int64(np.rint(temp[j]))
         flags[1, j] = error
         if rec:

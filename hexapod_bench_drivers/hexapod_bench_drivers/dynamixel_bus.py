@@ -56,7 +56,14 @@ line was quiet after the failed READs (no late reply to blame).
 
 Effort is an estimate: load fraction (Present Load, or Present Current over stall current) times
 the datasheet stall torque at the rated voltage (12 V; 5 V for XL330); these servos measure no
-torque.
+torque. Present Current (X series, MX(2.0)) is the motor's current, so the effort is that
+current times the e-Manual's torque per ampere, stall torque / stall current (XM430-W350: 4.1 N m
+/ 2.3 A = 1.783 N m/A; the e-Manual prints this ratio as N m/A for the XM540, 1.659 and 2.409):
+a torque, signed as the torque the servo applies. One constant cannot carry the gear's losses:
+on the emulator's XM430 (gear efficiency 0.74 from the datasheet points) a servo lifting 1 N m
+at 1 rad/s reads 1.02 N m and lowering it 0.55 N m. Present Load (AX, RX, MX on Protocol 1.0,
+XL430, XC430, MX-28(2.0)) is inferred from the drive's output (e-Manual), a PWM duty whose
+back-EMF part follows the velocity: not a torque (``energy_monitor`` refuses such efforts).
 
 Models: each servo's control table comes from the model number it reports
 (:func:`hexapod_bench_drivers.control_tables.table_for_model`: AX, MX on Protocol 1.0, MX(2.0)

@@ -63,7 +63,16 @@ Models: every ControlTable of :mod:`hexapod_bench_drivers.control_tables` (AX-12
 MX-28/64/106 on Protocol 1.0; MX(2.0), XL430, XM430, XH430, XC430, XM540, XL330 on 2.0), mixed
 models on one bus allowed (:meth:`ServoBusEmulator.of_models`). Present Load or Present Current
 (and the Protocol 1.0 MX-64/106 Current register) follow the model's table; the emulator writes
-only power-on defaults to gain or compliance registers.
+only power-on defaults to gain or compliance registers. Present Load (AX, RX, MX, XL430, XC430,
+MX-28(2.0)) is the drive's PWM duty with the ServoModel physics, as the e-Manual says of it ("an
+inferred value based on the internal output value"): it carries the back-EMF, so it has the
+velocity's sign. Present Current (XM430, XH430, XM540, XL330, MX-64/106(2.0)) is "the current
+value flowing through the device's motor": the physics' signed winding current in the model's
+unit (2.69 mA, 3.36 mA, 1 mA), torque-like (positive driving the positive direction, negative
+while braking a load that back-drives the shaft), clipped to the e-Manual's range +-Current
+Limit (38) of the servo. Before, the PWM duty was written there too (X-series efforts followed
+the velocity's sign). Both are signed as the torque the servo applies: a load pulling the
+positive way reads negative (FirstOrderServo read it positive).
 
 Run standalone: ``python -m hexapod_bench_drivers.servo_bus_emulator --model ax18a --ids 1-18``
 (``--model MX-28``, ``--model xm430w210``, ...) prints the port name and serves until
@@ -271,12 +280,19 @@ class ServoPhysics(Protocol):
 
 @dataclass(frozen=True)
 class ServoStepOutput:
-    """The subset of the simulator's ServoOutput the emulator reads; arrays of shape (count,)."""
+    """The subset of the simulator's ServoOutput the emulator reads; arrays of shape (count,).
+
+    ``load_fraction``: what Present Load reports, a signed fraction of the stall torque, its
+    sign that of the torque the servo applies (ServoModel: the PWM duty, as AX/MX/XL430
+    firmware infers the load from its output). ``winding_current_a``: the signed motor current
+    [A] that Present Current (X series, MX(2.0)) and the MX-64/106 Current register report.
+    """
 
     position_rad: np.ndarray
     velocity_rad_s: np.ndarray
     load_fraction: np.ndarray
     temperature_c: np.ndarray
+    winding_current_a: np.ndarray
 
 
 class FirstOrderServo:
@@ -284,9 +300,13 @@ class FirstOrderServo:
 
     velocity = clip((goal - position) / time_constant_s, +-v_max) with v_max falling linearly with
     the external torque from the no-load speed to 0 at stall, and capped by
-    ``moving_speed_rad_s`` (0 = no cap); load = external torque / stall torque. Stall torque and
-    no-load speed scale with supply voltage / the table's rated voltage (12 V, or 5 V for XL330).
-    The temperature stays at its initial value. Same call shape as ServoModel.
+    ``moving_speed_rad_s`` (0 = no cap). The servo holds its load quasi-statically: it applies
+    minus the external torque, so load = -external torque / stall torque (torque-like, as the
+    simulator's ServoModel: a load pulling the positive way is held by a negative torque) and
+    the motor current is that torque over the datasheet's torque per ampere (stall torque /
+    stall current, the N m/A the e-Manual prints). Stall torque and no-load speed scale with
+    supply voltage / the table's rated voltage (12 V, or 5 V for XL330). The temperature stays
+    at its initial value. Same call shape as ServoModel.
     """
 
     def __init__(self, table: ControlTable, *, count: int = 1,
@@ -309,17 +329,19 @@ class FirstOrderServo:
         volts = np.broadcast_to(np.asarray(supply_voltage_v, float), (self.count,))
         scale = volts / self.table.rated_voltage_v
         stall = self.table.stall_torque_nm * scale
-        load = np.asarray(external_torque_nm, float) / stall
-        v_max = self.table.no_load_speed_rad_s * scale * np.maximum(0.0, 1.0 - abs(load))
+        torque = np.broadcast_to(np.asarray(external_torque_nm, float), (self.count,))
+        v_max = self.table.no_load_speed_rad_s * scale * np.maximum(0.0,
+                                                                    1.0 - abs(torque / stall))
         v_max = np.where(self.moving_speed_rad_s > 0,
                          np.minimum(v_max, self.moving_speed_rad_s), v_max)
         step = (goal - self.position_rad) * (1.0 - math.exp(-dt_s / self.time_constant_s))
         step = np.where(self.torque_enabled, np.clip(step, -v_max * dt_s, v_max * dt_s), 0.0)
         self.velocity_rad_s = step / dt_s
         self.position_rad = self.position_rad + step
-        load = np.where(self.torque_enabled, load, 0.0)
+        # the torque the servo applies, as a fraction of the (rated) stall torque
+        load = np.where(self.torque_enabled, -torque / self.table.stall_torque_nm, 0.0) + 0.0
         return ServoStepOutput(self.position_rad.copy(), self.velocity_rad_s.copy(), load,
-                               self.temperature_c.copy())
+                               self.temperature_c.copy(), load * self.table.stall_current_a)
 
 
 def make_physics(table: ControlTable, *, count: int, initial_position_rad: Any = 0.0,
@@ -476,6 +498,7 @@ class _Group:
         self.r_hw = r.get('hardware_error_status')
         self.r_mode = r.get('operating_mode')   # Protocol 2.0
         self.r_p1_current = r.get('current')   # MX-64/MX-106 on Protocol 1.0 (2048 = 0 A)
+        self.r_current_limit = r.get('current_limit')   # Protocol 2.0 with current sensing
         self.r_cw = r.get('cw_angle_limit')    # Protocol 1.0: both limits 0 is wheel mode
         self.r_ccw = r.get('ccw_angle_limit')
 
@@ -537,18 +560,24 @@ class _Group:
         vel = np.asarray(out.velocity_rad_s, dtype=float)
         vel_units = np.rint(np.abs(vel) / t.velocity_unit_rad_s).astype(int)
         load = np.asarray(out.load_fraction, dtype=float)
+        # Present Current (and the MX-64/106 Current register) report the motor's own current,
+        # torque-like (negative while it brakes a load that back-drives it), not the PWM duty
+        amps = getattr(out, 'winding_current_a', None)   # (a physics without it: the load)
+        amps = load * t.stall_current_a if amps is None else np.asarray(amps, dtype=float)
         if t.protocol == 1:
             vel_raw = (np.minimum(vel_units, 0x3FF) | np.where(vel < 0, 0x400, 0)).tolist()
             load_raw = (np.minimum(np.rint(np.abs(load) * 1000).astype(int), 0x3FF)
                         | np.where(load < 0, 0x400, 0)).tolist()
         else:
             vel_raw = (np.sign(vel).astype(int) * vel_units).tolist()
-            if 'present_current' in t.registers:
-                load_raw = np.clip(np.rint(load * t.stall_current_a / t.current_unit_a),
-                                   -32768, 32767).astype(int).tolist()
+            if self.r_current_limit is not None:
+                # e-Manual range of Present Current (as Goal Current's): +-Current Limit (38)
+                limit = np.array([_get(m, self.r_current_limit) for m in mems], dtype=float)
+                load_raw = np.clip(np.rint(amps / t.current_unit_a), -limit, limit).astype(
+                    int).tolist()
             else:
                 load_raw = np.clip(np.rint(load * 1000), -1000, 1000).astype(int).tolist()
-        p1_current = ([t.a_to_p1_current(f * t.stall_current_a) for f in load.tolist()]
+        p1_current = ([t.a_to_p1_current(a) for a in amps.tolist()]
                       if self.r_p1_current is not None else None)
         temp = np.clip(np.rint(np.asarray(out.temperature_c, dtype=float)), 0, 255).astype(
             int).tolist()

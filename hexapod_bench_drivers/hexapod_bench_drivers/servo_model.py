@@ -46,8 +46,11 @@ Physics, all quantities referred to the OUTPUT shaft (after the gearbox):
   et al. measured).
 
 * **Reporting as the servo does:** integer degC, the present load as the signed PWM fraction
-  (that is what AX/MX firmware reports), voltage in 0.1 V, no current sensing. The true supply
-  current is returned separately for the simulated power monitor.
+  (that is what AX/MX firmware reports), voltage in 0.1 V. The true supply current is returned
+  separately for the simulated power monitor, and the signed winding current ``i`` (the motor
+  current an X-series servo's current sensor reports in Present Current: positive when the motor
+  drives in the positive direction, negative while it brakes a load that back-drives it) as
+  ``winding_current_a``.
 
 * **Loss breakdown** (``record_losses=True``): every step also returns the power of each term
   (standby, copper, bridge braking, Coulomb, gear, viscous, rotor kinetic energy, load), which
@@ -347,6 +350,11 @@ class ServoOutput:
     reported_voltage_v : supply voltage with 0.1 V resolution
     error : Dynamixel error bits (uint8)
     torque_enabled : whether each servo drives its motor
+    winding_current_a : signed motor (winding) current ``i`` [A] (mean; 0 with torque off):
+        the torque-like current an X-series servo reports in Present Current, its sign that
+        of the motor's torque ``k_e i`` (positive driving the positive direction, negative
+        braking a load that back-drives the shaft the positive way), electronics excluded;
+        unlike ``load_fraction`` (the PWM duty), it carries no back-EMF term
     losses : power breakdown [W] (means over the step, shape ``(count,)``) when the model was
         built with ``record_losses=True``, else None. Keys: ``standby`` (electronics),
         ``extra`` (effects), ``copper`` (``i^2 R``), ``coulomb`` (``c |w|``), ``gear``
@@ -371,6 +379,7 @@ class ServoOutput:
     reported_voltage_v: FloatArray
     error: NDArray[np.uint8]
     torque_enabled: NDArray[np.bool_]
+    winding_current_a: FloatArray
     losses: dict[str, FloatArray] | None = None
 
 
@@ -532,7 +541,7 @@ class ServoModel:
         w = np.array(self.velocity_rad_s, dtype=float)
         temp = np.array(self.temperature_c, dtype=float)
         setpoint = np.array(self._setpoint_rad, dtype=float)
-        out = np.empty((10, n))
+        out = np.empty((11, n))
         flags = np.empty((3, n), dtype=np.int64)
         rec = self.record_losses
         losses = np.empty((9, n))
@@ -550,7 +559,7 @@ class ServoModel:
             temperature_c=out[4], load_fraction=out[5], power_w=out[6],
             mechanical_power_w=out[7], winding_loss_w=out[8],
             reported_temperature_c=flags[0].copy(), reported_voltage_v=out[9],
-            error=flags[1].astype(np.uint8), torque_enabled=drive,
+            error=flags[1].astype(np.uint8), torque_enabled=drive, winding_current_a=out[10],
             losses=dict(zip(('standby', 'extra', 'copper', 'coulomb', 'gear', 'viscous',
                              'kinetic', 'load', 'brake'), losses)) if rec else None)
 
@@ -622,6 +631,7 @@ class ServoModel:
         w = w0.copy()
         sum_bridge = np.zeros(n)
         sum_i2 = np.zeros(n)
+        sum_i = np.zeros(n)
         u = np.zeros(n)
         absolute, maximum, minimum, where, sign = (np.absolute, np.maximum, np.minimum,
                                                    np.where, np.sign)
@@ -670,6 +680,7 @@ class ServoModel:
             q += h * w
             sum_bridge += maximum(u * i, 0.0)
             sum_i2 += i * i
+            sum_i += i
         # Power into the load: work of the load torque plus the kinetic energy of any load
         # inertia carried on the output (the rotor's own kinetic energy stays in the servo).
         load_j = self.inertia_kgm2 - p.reflected_inertia_kgm2
@@ -724,5 +735,6 @@ class ServoModel:
             reported_voltage_v=np.round(volts * 10.0) / 10.0,
             error=error,
             torque_enabled=drive.copy(),
+            winding_current_a=sum_i / n_sub,
             losses=losses,
         )

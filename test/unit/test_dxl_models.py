@@ -212,12 +212,13 @@ def test_sdk_driver_reads_model_correctly(model, protocol, n, torque_nm):
                            < table.rad_per_tick / 2 and r.readings[0].velocity_rad_s == 0.0,
                            20000)
         r1 = done.readings[0]
-        # Load (Present Load 0.1 % or Present Current in the model's unit) -> effort.
+        # Load (Present Load 0.1 % or Present Current in the model's unit) -> effort: the
+        # torque the servo holds its load with, minus the external torque (it read +torque).
         load_step = (table.current_unit_a / table.stall_current_a if table.current_unit_a
                      else 1e-3)
-        expected = torque_nm / table.stall_torque_nm
+        expected = -torque_nm / table.stall_torque_nm
         assert_allclose(r1.load_fraction, expected, atol=load_step)
-        assert_allclose(r1.effort_nm, torque_nm, atol=load_step * table.stall_torque_nm)
+        assert_allclose(r1.effort_nm, -torque_nm, atol=load_step * table.stall_torque_nm)
         assert_allclose(emu.present_position_rad(1), r1.position_rad, atol=table.rad_per_tick)
         # The reversed joint j2 reports the servo's load with its sign flipped.
         assert_allclose(done.readings[1].load_fraction, -expected, atol=load_step)
@@ -228,7 +229,7 @@ def test_mx64_protocol1_current_register_follows_the_load():
     with ServoBusEmulator.of_model('MX-64', [1]) as emu, \
             DynamixelBus(emu.port_name, [JointConfig('a', 1)], timeout_margin_ms=10.0) as bus:
         bus.set_torque(True)
-        emu.servo(1).external_torque_nm = 1.5                   # 0.25 of 6.0 N m
+        emu.servo(1).external_torque_nm = -1.5    # 0.25 of 6.0 N m, held by +1.5 N m
         reading = _poll_until(bus, lambda r: r.readings[0].effort_nm > 1.0, 2000).readings[0]
         assert_allclose(reading.effort_nm, 1.5, atol=0.006)
         current = MX64.p1_current_to_a(emu.read_register(1, 'current'))
