@@ -164,7 +164,8 @@ def _float(data: Mapping[str, Any], key: str, default: float) -> float:
 def _check_gaits(sessions: Sequence[SessionSpec], limits: Any, leg: Any = None) -> None:
     """Refuse a session gait the gait node would refuse (actuator limits, leg reach) on
     ``leg`` (a :class:`hexapod_gait.leg_file.LegFile`, the gait node's ``-p leg_file``; None:
-    AntBot's leg)."""
+    AntBot's leg); ``limits`` (default AntBot's servo limits) carry the leg they were measured
+    on (``measured_on``), against whose bench path each step is scaled."""
     from hexapod_gait.config import build_gait
     from hexapod_gait.errors import HexapodGaitError
     from hexapod_gait.feasibility import ActuatorLimits

@@ -233,9 +233,9 @@ def _unreachable(gait: Any, leg: Any = None) -> str | None:
 def _infeasible(gait: Any, servo: str = 'ax18a', *, support: bool = True,
                 leg: Any = None) -> list[str]:
     """Why the project calls ``gait`` infeasible: AntBot's servo limits
-    (``hexapod_gait.feasibility``) for the servo preset (:func:`servo_limits`), scaled to the
-    step's joint path on ``leg`` (a leg file, as ``gait_scheduler -p leg_file`` scales them;
-    None: AntBot's leg) and, with ``support``, phases with no leg on the ground (L(t) = 0);
+    (``hexapod_gait.feasibility``) for the servo preset (:func:`servo_limits`; measured on
+    AntBot's leg), scaled to the step's joint path on ``leg`` against AntBot's 100 mm bench
+    path (a leg file, as ``gait_scheduler -p leg_file`` scales them; None: AntBot's leg) and, with ``support``, phases with no leg on the ground (L(t) = 0);
     empty when it is not (or when standing, ``gait`` None)."""
     if gait is None:
         return []

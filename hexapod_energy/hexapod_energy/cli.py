@@ -30,12 +30,15 @@ the sessions' phase powers (``bench.sessions``) and the refusal (``errors``), ex
 the robot bags' metadata (``robot_mass_kg``, as ``hexapod-sim robot`` records it; bags declaring
 different masses are refused), else AntBot's 2.183 kg with a warning), its leg (``--leg``), its
 leg count (``--legs N``, else the robot bags' gaits or joint names, else 6 with a warning) and
-its actuator limits (``--limits``, default AntBot's servo limits: swing >= 0.16 s, stance >=
-0.15 s, step frequency <= 3 Hz).  The duty-factor, step-length and gait-type sweeps use the
-robot's leg count, the leg-count sweep 4, 6 and 8 legs (Fig. 3D), the power map the robot's
-alternating gait (tripod for 6 legs), beta 0.5, 100 mm; ``sweep_settings`` records what was held
-fixed.  A curve the leg cannot walk (a step out of its reach) is skipped with a warning naming
-the sweep and the curve.  A robot not heavier than its legs (``M <= N m_leg``) is refused.
+its actuator limits (``--limits``, measured on the bench's step of the robot's leg; default
+AntBot's servo limits, measured on AntBot's leg at 100 mm: swing >= 0.16 s, stance >= 0.15 s,
+step frequency <= 3 Hz; each step is scaled by its joint path on the robot's leg against the
+path the limits were measured on, :mod:`hexapod_gait.step_limits`).  The duty-factor,
+step-length and gait-type sweeps use the robot's leg count, the leg-count sweep 4, 6 and 8 legs
+(Fig. 3D), the power map the robot's alternating gait (tripod for 6 legs), beta 0.5, 100 mm;
+``sweep_settings`` records what was held fixed.  A curve the leg cannot walk (a step out of its
+reach) is skipped with a warning naming the sweep and the curve.  A robot not heavier than its
+legs (``M <= N m_leg``) is refused.
 
 Without ``--bench`` (a robot but no single-leg bench) the robot runs get their measured
 descriptors only: ``bench`` and every ``predicted_power_in_w`` are null and
@@ -340,11 +343,12 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
                         'tips carry only m_c g')
     p.add_argument('--limits', type=float, nargs=3, default=None,
                    metavar=('MIN_SWING_S', 'MIN_STANCE_S', 'MAX_FREQ_HZ'),
-                   help='actuator limits: shortest swing [s], shortest stance [s] (on the '
-                        'bench\'s step; other steps scale with their joint path), highest step '
-                        'frequency [Hz] (default AntBot\'s servo limits 0.16 0.15 3); they set '
-                        'the sweeps\' maximum speeds, the gaits --recommend may choose, and '
-                        'the infeasible-schedule warning of robot runs')
+                   help='actuator limits: shortest swing [s], shortest stance [s] (measured '
+                        'on the bench\'s step of the robot\'s leg, --leg; other steps and legs '
+                        'scale with their joint path), highest step frequency [Hz] (default '
+                        'AntBot\'s servo limits 0.16 0.15 3, measured on AntBot\'s leg at '
+                        '100 mm); they set the sweeps\' maximum speeds, the gaits --recommend '
+                        'may choose, and the infeasible-schedule warning of robot runs')
     p.add_argument('--power-out', choices=('auto', 'effort', 'model'), default='auto',
                    help='P_out source: joint effort x velocity (positive part), the Eq. 6 '
                         'inverse-dynamics model, or auto (default: effort when the bag has '
@@ -481,7 +485,8 @@ def _checked_setup(args: argparse.Namespace) -> _Setup:
             raise EnergyError(f'{flag} {value:g} kg is over 10 times the robot\'s '
                               f'{args.robot_mass:g} kg: not a load its legs can carry')
     robot = RobotSpec(mass_kg=args.robot_mass, leg=leg.spec)
-    limits, limits_source = _actuator_limits(args)
+    limits, limits_source = _actuator_limits(
+        args, leg if getattr(args, 'leg', None) else None)
     if getattr(args, 'legs', None) is not None:
         if args.legs < 2 or args.legs % 2:
             raise EnergyError(f'--legs must be an even number >= 2, got {args.legs}')
@@ -685,6 +690,7 @@ def _fit_bench(args: argparse.Namespace, setup: _Setup, doc: dict[str, Any], out
               f'{", ".join(f"{m:g}" for m in model.basal_power_w_)} kg), not measured')
     if model is not None:
         model.bench_leg_ = leg   # the leg whose joint paths map other step geometries
+        _limits_on_bench(setup, model)
         if model.bench_step_ is None:
             doc.setdefault('warnings', []).append(
                 'the bench sessions record no step length and height (no /bench/session '
@@ -836,13 +842,11 @@ def _robot_run(args: argparse.Namespace, setup: _Setup, model: Any, opm: Any,
     if gait is not None:  # a schedule the robot cannot walk (--limits, L(t) = 0)
         from hexapod_energy.prediction import geometry_limits
         from hexapod_energy.recommend import infeasible_schedule
-        from hexapod_gait.step_limits import BENCH_STEP_M
 
-        # no bench (model None) or none that knows its step: the limits' own step, the
-        # 100 mm bench path, on the robot's leg (as the gait node and hexapod-sim check)
-        ref = model if getattr(model, 'bench_step_', None) is not None else \
-            types.SimpleNamespace(bench_step_=BENCH_STEP_M, bench_leg_=setup.leg)
-        bad = infeasible_schedule(gait, geometry_limits(ref, gait, setup.limits))
+        # the limits' own step and leg (AntBot's 100 mm path, or --limits on the robot's
+        # leg) against this step on the robot's leg (as the gait node and hexapod-sim check)
+        robot_leg = types.SimpleNamespace(bench_leg_=setup.leg)
+        bad = infeasible_schedule(gait, geometry_limits(robot_leg, gait, setup.limits))
         if bad:
             notes.insert(0, 'infeasible schedule, not a gait the robot can '
                             'walk: ' + '; '.join(bad))
@@ -1094,14 +1098,18 @@ def _recommendation(args: argparse.Namespace, doc: dict[str, Any], model: Any, o
             'before switching')
 
 
-def _actuator_limits(args: argparse.Namespace) -> tuple[Any, str]:
-    """The actuator limits of ``--sweep``/``--recommend`` and where they come from."""
+def _actuator_limits(args: argparse.Namespace, leg: Any = None) -> tuple[Any, str]:
+    """The actuator limits of ``--sweep``/``--recommend`` and where they come from: AntBot's
+    servo limits measured on AntBot's leg, or ``--limits`` measured on the robot's leg
+    (``leg``, ``--leg``'s; None: AntBot's) at the 100 mm, 40 mm bench step (the bench's own
+    step once the fit knows it: :func:`_limits_on_bench`)."""
     from hexapod_gait.feasibility import ANTBOT_LIMITS, ActuatorLimits
+    from hexapod_gait.step_limits import measured_on_leg
 
     given = getattr(args, 'limits', None)
     if given is None:
-        return ANTBOT_LIMITS, ("AntBot's servo limits (hexapod_gait ANTBOT_LIMITS; --limits "
-                               'for another robot)')
+        return ANTBOT_LIMITS, ("AntBot's servo limits (hexapod_gait ANTBOT_LIMITS, measured on "
+                               "AntBot's leg; --limits for another robot)")
     if not all(math.isfinite(float(x)) for x in given):
         raise EnergyError(f'--limits MIN_SWING_S MIN_STANCE_S MAX_FREQ_HZ must be finite, got '
                           f'{list(given)}')
@@ -1109,7 +1117,19 @@ def _actuator_limits(args: argparse.Namespace) -> tuple[Any, str]:
         lim = ActuatorLimits(*(float(x) for x in given))
     except ValueError as err:
         raise EnergyError(f'--limits MIN_SWING_S MIN_STANCE_S MAX_FREQ_HZ: {err}') from err
-    return lim, '--limits'
+    # limits measured on the user's bench are the user's leg's (a leg's joint speeds)
+    return measured_on_leg(lim, leg), '--limits'
+
+
+def _limits_on_bench(setup: _Setup, model: Any) -> None:
+    """``--limits`` were measured on the bench's step (``--limits``' help): once the fit
+    knows it (``model.bench_step_``), they are on that step of the robot's leg."""
+    step = getattr(model, 'bench_step_', None)
+    if setup.limits_source != '--limits' or step is None:
+        return
+    from hexapod_gait.step_limits import measured_on_leg
+
+    setup.limits = measured_on_leg(setup.limits, setup.leg, (float(step[0]), float(step[1])))
 
 
 def _power_trend(run_: Any) -> tuple[dict[str, Any] | None, dict[str, Any] | None]:

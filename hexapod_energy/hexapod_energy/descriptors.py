@@ -763,8 +763,9 @@ class DescriptorAccumulator:
         Settings of the joint-derived cycles.
     limits
         Actuator limits (``hexapod_gait.feasibility.ActuatorLimits``, phase durations on the
-        bench's 100 mm / 40 mm tip path, scaled to each schedule's step by
-        :func:`hexapod_energy.prediction.geometry_limits`); None: AntBot's. Every new schedule
+        100 mm / 40 mm tip path of the leg they were measured on, ``measured_on``, scaled to
+        each schedule's step on ``leg`` by :func:`hexapod_energy.prediction.geometry_limits`);
+        None: AntBot's. Every new schedule
         on ``/gait/phase`` is checked against them and against phases with no leg on the ground
         (:func:`hexapod_energy.recommend.infeasible_schedule`, as ``hexapod-analyze energy``
         checks a bag's): an infeasible one is noted once (``notes_``), its windows are still
@@ -1383,14 +1384,13 @@ class DescriptorAccumulator:
         from hexapod_energy.prediction import geometry_limits
         from hexapod_energy.recommend import infeasible_schedule
 
-        class _Bench:   # the limits' tip path: AntBot's bench, 100 mm steps, 40 mm lift
-            bench_step_ = (0.10, 0.04)
+        class _Robot:   # the robot's leg; the limits carry their own step and leg
             bench_leg_ = self.leg
 
         try:
             gait = gait_from_sample(sample)
             bad = infeasible_schedule(gait, geometry_limits(
-                _Bench(), gait, self.limits if self.limits is not None else ANTBOT_LIMITS))
+                _Robot(), gait, self.limits if self.limits is not None else ANTBOT_LIMITS))
         except (HexapodGaitError, ValueError) as err:
             self.notes_.append(f'gait schedule at {sample.t_s:.3f} s not checked against '
                                f'the actuator limits: {err}')

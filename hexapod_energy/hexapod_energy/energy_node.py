@@ -195,8 +195,9 @@ class EnergyParams:
         read_only=True)
     limits: list[float] = param(
         [0.16, 0.15, 3.0], "actuator limits MIN_SWING_S MIN_STANCE_S MAX_FREQ_HZ on the bench's "
-        "100 mm tip path (default AntBot's servos, as hexapod-analyze energy --limits): a "
-        'schedule on gait/phase beyond them (or with no leg on the ground) is warned about',
+        "100 mm tip path (default AntBot's servos on AntBot's leg; given with leg_file: measured "
+        "on that leg, as hexapod-analyze energy --limits --leg): a schedule on gait/phase "
+        'beyond them (or with no leg on the ground) is warned about',
         read_only=True,
         validate=lambda v: None if len(v) == 3 and all(x > 0 for x in v)
         else 'expected 3 values > 0 (min swing [s], min stance [s], max step frequency [Hz])')
@@ -276,7 +277,7 @@ class EnergyMonitorNode(Node):
                                           current_sign=p.current_sign, power_out_model=model,
                                           power_out_source=p.power_out_source,
                                           cycle_source=p.cycle_source, speed_mps=p.speed,
-                                          limits=ActuatorLimits(*p.limits), leg=leg)
+                                          limits=self._limits(p, leg), leg=leg)
         # several batteries on one topic are summed, or one kept (hexapod_common.battery)
         self.batteries = BatteryCombiner(select=p.battery_source or None)
         self._absent = AbsentBatteryFilter()   # present = false samples (no battery)
@@ -336,6 +337,17 @@ class EnergyMonitorNode(Node):
             self, {'battery_state': self._battery_sub, 'gait/phase': gait_sub,
                    'joint_states': joint_sub}, p.input_timeout_s,
             consequence='no descriptors can be computed')
+
+    def _limits(self, p: Any, leg: Any) -> ActuatorLimits:
+        """``-p limits``: AntBot's servo limits on AntBot's leg by default; given with
+        ``-p leg_file``, measured on that leg (its 100 mm, 40 mm bench step): each schedule's
+        step is scaled by its joint path on the robot's leg against that leg's bench path."""
+        limits = ActuatorLimits(*p.limits)
+        if not (p.leg_file and overridden(self, 'limits')):
+            return limits
+        from hexapod_gait.step_limits import measured_on_leg
+
+        return measured_on_leg(limits, leg)
 
     def get_logger(self) -> Any:
         """The node's logger; its messages name the topics as this node resolved them

@@ -330,24 +330,29 @@ def load_offset_problem(load_offset_kg: float, mass_kg: float, leg_mass_kg: floa
 
 
 def geometry_limits(model: Any, gait: Any, limits: Any) -> Any:
-    """Actuator limits for ``gait``'s step geometry: the minimal phase durations of
-    ``limits`` (``hexapod_gait.feasibility.ActuatorLimits``, measured on the bench's tip path,
-    e.g. the paper's 0.15 s stance and 0.16 s swing at 100 mm) are where the joints reach
-    their top speed, so a path ``1/k`` times as long needs ``1/k`` times as long
-    (:func:`phase_duration_scales`); the step-frequency limit is kept. ``limits`` unchanged
-    when the geometry is the bench's or unknown. (A 140 mm step on AntBot's leg: stance 0.22 s,
-    swing 0.19 s; the top speed at beta 0.5 0.63 m/s, not the 0.84 m/s that the unscaled
-    limits and the 3 Hz cap give, where the paper puts that step's best point.)"""
-    import dataclasses
+    """Actuator limits for ``gait``'s step geometry on the robot's leg (``model.bench_leg_``,
+    a :class:`~hexapod_energy.leg_description.LegDescription`; absent or None: AntBot's): the
+    minimal phase durations of ``limits`` (``hexapod_gait.feasibility.ActuatorLimits``,
+    measured on the tip path and leg of ``limits.measured_on``: the paper's 0.15 s stance and
+    0.16 s swing at 100 mm on AntBot's leg) are where the joints reach their top speed, so a
+    path ``1/k`` times as long needs ``1/k`` times as long; the step-frequency limit is kept
+    (:func:`hexapod_gait.step_limits.limits_for_gait`, the gait node's rule). ``limits``
+    unchanged on the reference step and leg, with no step, or for a leg the analytic
+    kinematics cannot take. (A 140 mm step on AntBot's leg: stance 0.22 s, swing 0.19 s; the
+    top speed at beta 0.5 0.63 m/s, not the 0.84 m/s that the unscaled limits and the 3 Hz
+    cap give, where the paper puts that step's best point. A PhantomX-like leg at 100 mm:
+    stance 0.168 s, swing 0.185 s, its joints covering 12 % and 15 % more than AntBot's.)
 
-    from hexapod_gait.step_limits import floor_scales
+    The bench model's own step (``bench_step_``) is not the limits' reference: the limits
+    carry theirs (AntBot's 100 mm, 40 mm step unless measured elsewhere,
+    :func:`hexapod_gait.step_limits.measured_on_leg`)."""
+    from hexapod_gait.step_limits import limits_for_gait
 
-    # a shorter path keeps the bench's limits (hexapod_gait.step_limits.floor_scales)
-    k_st, k_sw = floor_scales(*phase_duration_scales(model, gait))
-    if k_st == 1.0 and k_sw == 1.0:
+    try:
+        kw = _leg_kwargs(getattr(model, 'bench_leg_', None))
+    except ValueError:   # a leg the analytic kinematics cannot take: nothing to map
         return limits
-    return dataclasses.replace(limits, min_stance_s=limits.min_stance_s / k_st,
-                               min_swing_s=limits.min_swing_s / k_sw)
+    return limits_for_gait(gait, limits, **kw)
 
 
 def joint_paths(beta: float, length: float, height: float, leg: Any

@@ -340,9 +340,11 @@ def _rejections(why: dict[str, list[str]], gaits: Sequence[str], limits: Any) ->
         return f'no configuration was searched (gaits {tuple(gaits)})'
     kinds = {'invalid': 'are not gaits for this leg count',
              'limits': ('exceed the actuator limits (min swing {:g} s, min stance {:g} s on '
-                        "the bench's step, scaled to each step's joint path; max {:g} Hz)"
+                        "the {:.3g} mm bench step of {}, scaled to each step's joint path on "
+                        "the robot's leg; max {:g} Hz)"
                         ).format(limits.min_swing_s, limits.min_stance_s,
-                                 limits.max_step_frequency_hz),
+                                 1e3 * limits.measured_on.step_length_m,
+                                 limits.measured_on.name, limits.max_step_frequency_hz),
              'support': 'support the body on too few legs or lift a whole side',
              'unreachable': 'have a leg path out of reach'}
     parts = [f'{len(v)} {kinds[k]} (e.g. {v[0]})' for k, v in why.items()]

@@ -14,7 +14,7 @@ from .errors import InfeasibleGaitError, InvalidGaitError, UnreachableError
 from .feasibility import ActuatorLimits, period_for_speed
 from .gait import GaitPattern, make_gait
 from .kinematics import Branch, LegKinematics
-from .step_limits import BENCH_STEP_M, check_feasible_for_step, limits_for_step
+from .step_limits import check_feasible_for_step, limits_for_step, reference_note
 from .trajectory import ANTBOT_NEUTRAL_TIP_M, default_forward_axis, tip_path
 
 __all__ = ['SIDE_RULE_MIN_LEGS', 'build_gait', 'check_reachable', 'check_static_support',
@@ -160,9 +160,10 @@ def build_gait(
         Buehler clock only: a key of :data:`BUEHLER_PRESETS` (``running``, ``jogging``,
         ``pace``, ``walk``); when set, it gives period, duty cycle, sweep and offset.
     limits : ActuatorLimits or None
-        Limits for 3-DOF patterns at the bench step (None: no check); scaled to this step's
-        joint path (:func:`hexapod_gait.step_limits.limits_for_step`) for the speed's
-        period and the check.
+        Limits for 3-DOF patterns at the bench step of the leg they were measured on
+        (``limits.measured_on``; None: no check); scaled to this step's joint path on this
+        leg (:func:`hexapod_gait.step_limits.limits_for_step`) for the speed's period and the
+        check.
 
     Raises
     ------
@@ -196,8 +197,9 @@ def build_gait(
             raise InfeasibleGaitError(
                 f'{err} (the limits of a {1e3 * step_length_m:.3g} mm step: swing >= '
                 f'{step.min_swing_s:.3g} s, stance >= {step.min_stance_s:.3g} s; the '
-                f'{limits.min_swing_s:g} s and {limits.min_stance_s:g} s are for the '
-                f'{1e3 * BENCH_STEP_M[0]:g} mm bench step)') from err
+                f'{limits.min_swing_s:g} s and {limits.min_stance_s:g} s are for '
+                f'{reference_note(limits, kinematics=kinematics, neutral_tip_m=neutral_tip_m)}'
+                ')') from err
     elif speed_mps < 0.0:
         raise InfeasibleGaitError(f'speed must be >= 0 (0 = use the period), got {speed_mps!r}')
     pattern = make_gait(gait, leg_count=leg_count, duty_factor=duty_factor, period_s=period_s,

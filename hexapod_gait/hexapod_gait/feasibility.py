@@ -11,20 +11,25 @@ AntBot defaults (DESIGN section 7) reproduce the paper's maximum speeds: 0.60 m/
 0.42 at 0.6, 0.27 at 0.7 and 0.13 for the wave gait at 0.83 with 100 mm steps; 0.84 m/s with
 140 mm steps at beta 0.5 with these limits as they are. They are for the 100 mm bench step: a
 longer step needs longer phases (:mod:`hexapod_gait.step_limits`, what the gait node, the bench
-sequencer and the simulators check): 0.63 m/s with 140 mm steps.
+sequencer and the simulators check): 0.63 m/s with 140 mm steps. The limits belong to the leg
+they were measured on (:class:`LimitsReference`, ``ActuatorLimits.measured_on``; AntBot's leg
+by default): another leg's step is scaled by its own joint path against that leg's bench path.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 from .errors import InfeasibleGaitError, InvalidGaitError
 from .gait import GaitPattern
 
 __all__ = [
     'ActuatorLimits',
+    'ANTBOT_BENCH',
     'ANTBOT_LIMITS',
+    'LimitsReference',
     'InfeasibleGaitError',
     'check_feasible',
     'feasibility_violations',
@@ -39,6 +44,53 @@ _REL_TOL = 1e-9
 
 
 @dataclass(frozen=True)
+class LimitsReference:
+    """The leg and bench step on which phase-duration limits were measured: the durations in
+    which that leg's joints cover that step's path at the servos' top speed
+    (:mod:`hexapod_gait.step_limits` scales them to another step on another leg by the joint
+    paths). The default is AntBot's leg on its bench (Brodoline et al. 2024: 100 mm steps,
+    40 mm lift), where the AX-18A limits were measured.
+
+    Parameters
+    ----------
+    step_length_m, step_height_m : float
+        The bench step [m].
+    dh : hexapod_gait.kinematics.DHParameters or None
+        The leg's DH table; None: AntBot's (``hexapod_gait.kinematics.ANTBOT_LEG``).
+    neutral_tip_m : tuple of 3 floats or None
+        The leg's stance midpoint in its base frame [m]; None: AntBot's
+        (``hexapod_gait.trajectory.ANTBOT_NEUTRAL_TIP_M``).
+    name : str
+        The leg's name, for messages.
+    """
+
+    step_length_m: float = 0.10
+    step_height_m: float = 0.04
+    dh: Any = None
+    neutral_tip_m: tuple[float, float, float] | None = None
+    name: str = "AntBot's leg"
+
+    def __post_init__(self) -> None:
+        for name in ('step_length_m', 'step_height_m'):
+            value = float(getattr(self, name))
+            if not (math.isfinite(value) and value >= 0.0):
+                raise InvalidGaitError(f'LimitsReference.{name} must be >= 0, got {value!r}')
+            object.__setattr__(self, name, value)
+        if self.neutral_tip_m is not None:
+            object.__setattr__(self, 'neutral_tip_m',
+                               tuple(float(x) for x in self.neutral_tip_m))
+
+    @property
+    def step_m(self) -> tuple[float, float]:
+        """(step length, step height) [m]."""
+        return self.step_length_m, self.step_height_m
+
+
+#: AntBot's leg on its bench step (100 mm, 40 mm lift): where the AX-18A limits were measured
+ANTBOT_BENCH = LimitsReference()
+
+
+@dataclass(frozen=True)
 class ActuatorLimits:
     """Timing limits of a leg's actuators.
 
@@ -50,11 +102,16 @@ class ActuatorLimits:
         Shortest stance phase [s].
     max_step_frequency_hz : float
         Highest step frequency ``1 / T`` [Hz].
+    measured_on : LimitsReference
+        The leg and step the phase durations were measured on (default AntBot's leg at the
+        100 mm, 40 mm bench step); :mod:`hexapod_gait.step_limits` scales them to another
+        step of another leg by the joint paths.
     """
 
     min_swing_s: float = 0.16
     min_stance_s: float = 0.15
     max_step_frequency_hz: float = 3.0
+    measured_on: LimitsReference = ANTBOT_BENCH
 
     def __post_init__(self) -> None:
         for name in ('min_swing_s', 'min_stance_s', 'max_step_frequency_hz'):
@@ -62,6 +119,9 @@ class ActuatorLimits:
             if not (math.isfinite(value) and value > 0.0):
                 raise InvalidGaitError(f'ActuatorLimits.{name} must be > 0, got {value!r}')
             object.__setattr__(self, name, value)
+        if not isinstance(self.measured_on, LimitsReference):
+            raise InvalidGaitError('ActuatorLimits.measured_on must be a LimitsReference, got '
+                                   f'{self.measured_on!r}')
 
 
 ANTBOT_LIMITS = ActuatorLimits()

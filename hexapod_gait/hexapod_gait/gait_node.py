@@ -78,6 +78,7 @@ from hexapod_common.node_utils import (
     SENSOR_QOS,
     declare_params,
     on_stop_signals,
+    overridden,
     param,
     publisher_names,
     run_node,
@@ -94,7 +95,7 @@ from hexapod_gait.feasibility import ActuatorLimits, period_for_speed
 from hexapod_gait.leg_file import LegFile, LegFileError, read_leg_file
 from hexapod_gait.gait import GAIT_NAMES, GaitPattern
 from hexapod_gait.scheduler import MIN_TRANSITION_CYCLES, GaitScheduler, GaitState
-from hexapod_gait.step_limits import limits_for_step
+from hexapod_gait.step_limits import limits_for_step, measured_on_leg
 
 __all__ = ['EXIT_ANOTHER_GAIT', 'EXIT_NOT_STOOD', 'NEWCOMER_MARGIN_S', 'STARTUP_LISTEN_S', 'GaitParams',
            'GaitSchedulerNode', 'gait_state_to_msg',
@@ -201,10 +202,12 @@ class GaitParams:
         'gait/phase and joint_commands (discovery takes tens of ms; 0: walk at the first tick)',
         validate=lambda v: None if 0 <= v <= 10 else 'must be in [0, 10]', read_only=True)
     min_swing: float = param(0.16, 'actuator limit: shortest swing [s] on the 100 mm, 40 mm '
-                             'bench step (scaled by the joint path of other steps)',
+                             "bench step (scaled by the joint path of other steps); AntBot's "
+                             "AX-18A on AntBot's leg, or given with leg_file: on that leg",
                              validate=_positive, read_only=True)
     min_stance: float = param(0.15, 'actuator limit: shortest stance [s] on the 100 mm, 40 mm '
-                              'bench step (scaled by the joint path of other steps)',
+                              "bench step (scaled by the joint path of other steps); AntBot's "
+                              "AX-18A on AntBot's leg, or given with leg_file: on that leg",
                               validate=_positive, read_only=True)
     max_step_frequency: float = param(3.0, 'actuator limit: highest step frequency [Hz]',
                                       validate=_positive, read_only=True)
@@ -213,13 +216,16 @@ class GaitParams:
                           read_only=True)
 
 
-def _limits(p: GaitParams) -> ActuatorLimits:
-    return ActuatorLimits(min_swing_s=p.min_swing, min_stance_s=p.min_stance,
-                          max_step_frequency_hz=p.max_step_frequency)
+def _limits(p: GaitParams, measured_on: LegFile | None = None) -> ActuatorLimits:
+    """The actuator limits of the parameters, measured on ``measured_on``'s 100 mm, 40 mm
+    bench step (None: AntBot's leg, where the default AX-18A limits were measured)."""
+    lim = ActuatorLimits(min_swing_s=p.min_swing, min_stance_s=p.min_stance,
+                         max_step_frequency_hz=p.max_step_frequency)
+    return lim if measured_on is None else measured_on_leg(lim, measured_on)
 
 
-def gait_from_params(p: GaitParams, leg: LegFile | None = None
-                     ) -> GaitPattern | BuehlerClock:
+def gait_from_params(p: GaitParams, leg: LegFile | None = None, *,
+                     limits_on_leg: bool = False) -> GaitPattern | BuehlerClock:
     """The gait the parameters describe (raises a :class:`HexapodGaitError` with the reason).
 
     Standing (``stand``, or step length and height 0) keeps the walking gait's cycle clock: the
@@ -230,17 +236,22 @@ def gait_from_params(p: GaitParams, leg: LegFile | None = None
     3-DOF gait must keep a leg on the ground on each side (:func:`check_static_support`).
     The actuator limits are the bench step's, scaled to this step's joint path
     (:mod:`hexapod_gait.step_limits`): a 140 mm step needs swing >= 0.192 s, stance >= 0.221 s.
+    They were measured on AntBot's leg, or with ``limits_on_leg`` (``min_swing`` or
+    ``min_stance`` given with ``leg_file``) on ``leg``: another leg walks its own joint path
+    against that leg's bench path (a PhantomX-like leg at 100 mm, AntBot's limits: swing >=
+    0.185 s, stance >= 0.168 s).
     """
     standing = p.gait != 'buehler' and (p.stand or (p.step_length == 0.0
                                                      and p.step_height == 0.0))
     # the leg's joint paths (another robot's leg file): its reach and actuator limits
     on_leg: dict[str, Any] = {} if leg is None else {
         'kinematics': leg.kinematics(), 'neutral_tip_m': leg.neutral_tip_m}
+    limits = _limits(p, leg if limits_on_leg else None)
     period = p.period
     if standing and p.speed > 0.0 and p.step_length > 0.0:
         try:
             period = period_for_speed(p.speed, p.duty_factor, p.step_length, limits_for_step(
-                _limits(p), p.duty_factor, p.step_length, p.step_height, **on_leg))
+                limits, p.duty_factor, p.step_length, p.step_height, **on_leg))
         except HexapodGaitError:
             pass    # the walking gait is not reachable: the stand keeps ``period``
     gait = build_gait(p.gait, leg_count=p.leg_count, duty_factor=p.duty_factor,
@@ -248,7 +259,7 @@ def gait_from_params(p: GaitParams, leg: LegFile | None = None
                       step_height_m=0.0 if standing else p.step_height,
                       speed_mps=0.0 if standing else p.speed,
                       sweep_angle_rad=p.sweep_angle, leg_offset_rad=p.leg_offset,
-                      preset=p.preset, limits=None if standing else _limits(p), **on_leg)
+                      preset=p.preset, limits=None if standing else limits, **on_leg)
     if isinstance(gait, GaitPattern):
         check_static_support(gait)
     return gait
@@ -323,8 +334,21 @@ class GaitSchedulerNode(Node):
             self.get_logger().info(f'leg {self.leg.name!r} from {p.leg_file}: link lengths '
                                    f'{[round(x, 4) for x in self.leg.dh.a_m]} m, neutral tip '
                                    f'{[round(x, 4) for x in self.leg.neutral_tip_m]} m')
+        #: the actuator limits were measured on the leg file's leg (min_swing or min_stance
+        #: given with leg_file), else on AntBot's (the AX-18A defaults): another leg's step is
+        #: scaled against that leg's 100 mm bench path (it was against its own)
+        self.limits_on_leg = self.leg is not None and (
+            overridden(self, 'min_swing') or overridden(self, 'min_stance'))
+        if self.leg is not None:
+            whose = (f'given: measured on {self.leg.name!r}' if self.limits_on_leg else
+                     "AntBot's AX-18A, measured on AntBot's leg (give min_swing and "
+                     'min_stance measured on this leg otherwise)')
+            self.get_logger().info(
+                f'actuator limits swing >= {p.min_swing:g} s, stance >= {p.min_stance:g} s on '
+                f'the 100 mm, 40 mm bench step ({whose}); each step is scaled by its joint '
+                f'path on {self.leg.name!r}')
         try:
-            self._gait = gait_from_params(p, self.leg)
+            self._gait = gait_from_params(p, self.leg, limits_on_leg=self.limits_on_leg)
         except HexapodGaitError as err:
             raise ParameterError(f'gait parameters refused: {err}') from err
         self.phase_pub = self.create_publisher(GaitPhase, 'gait/phase', RELIABLE_QOS)
@@ -387,7 +411,7 @@ class GaitSchedulerNode(Node):
     def _on_change(self, new: GaitParams) -> str | None:
         """Validate a run-time change and start a transition; a returned string refuses it."""
         try:
-            gait = gait_from_params(new, self.leg)
+            gait = gait_from_params(new, self.leg, limits_on_leg=self.limits_on_leg)
             if self.scheduler is not None:
                 cycles = self.scheduler.transition_cycles
                 self.scheduler.transition_cycles = new.transition_cycles

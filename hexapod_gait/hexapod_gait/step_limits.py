@@ -12,6 +12,15 @@ stance >= 0.221 s (top speed 0.63 m/s), a 120 mm step 0.176 s and 0.185 s (0.65 
 step keeps the limits exactly. No step (length 0: a stand, or a lift in place) keeps them too,
 and so does a shorter path than the bench's (:func:`floor_scales`).
 
+The limits are joint-speed limits of the servos on the leg they were measured on
+(``ActuatorLimits.measured_on``, a :class:`~hexapod_gait.feasibility.LimitsReference`: AntBot's
+leg at the 100 mm, 40 mm step for the AX-18A limits and the servo presets scaled from them;
+:func:`measured_on_leg` for limits measured on another leg's bench). Another leg's step is
+scaled by its own joint path against the reference leg's bench path: a PhantomX-like leg
+(52/66/133 mm) moves its joints 12 % further in stance and 15 % further in swing than AntBot's
+at the 100 mm step, so it needs stance >= 0.168 s and swing >= 0.185 s there (before, the
+reference path was the walking leg's own 100 mm path, so every leg kept AntBot's limits there).
+
 Core module: no ROS.
 """
 
@@ -24,7 +33,13 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .errors import HexapodGaitError, InfeasibleGaitError
-from .feasibility import ActuatorLimits, feasibility_violations, min_period_s
+from .feasibility import (
+    ANTBOT_BENCH,
+    ActuatorLimits,
+    LimitsReference,
+    feasibility_violations,
+    min_period_s,
+)
 from .gait import GaitPattern
 from .kinematics import ANTBOT_LEG, LegKinematics
 from .trajectory import ANTBOT_NEUTRAL_TIP_M
@@ -37,7 +52,9 @@ __all__ = [
     'joint_paths',
     'limits_for_gait',
     'limits_for_step',
+    'measured_on_leg',
     'phase_duration_scales',
+    'reference_note',
     'step_violations',
 ]
 
@@ -80,30 +97,45 @@ def joint_paths(beta: float, length: float, height: float, *,
     return _JOINT_PATHS[key]
 
 
+def _leg(dh: Any, neutral_tip_m: ArrayLike | None) -> tuple[Any, tuple[float, ...]]:
+    """(DH table, neutral tip) of a leg, AntBot's for None."""
+    tip = ANTBOT_NEUTRAL_TIP_M if neutral_tip_m is None else neutral_tip_m
+    return (ANTBOT_LEG if dh is None else dh,
+            tuple(float(x) for x in np.asarray(tip, dtype=float).reshape(3)))
+
+
 def phase_duration_scales(
     duty_factor: float, step_length_m: float, step_height_m: float, *,
     bench_step_m: tuple[float, float] | None = BENCH_STEP_M,
     kinematics: LegKinematics | None = None,
     neutral_tip_m: ArrayLike = ANTBOT_NEUTRAL_TIP_M,
+    bench_leg: Any = None,
 ) -> tuple[float, float]:
     """Factors ``(k_stance, k_swing)``: the bench step's joint path over the phase divided by
-    this step's, both at ``duty_factor`` on this leg. ``(1, 1)`` when the bench step is
-    unknown (None), there is no step (length 0), the step is the bench's (within
-    :data:`STEP_GEOMETRY_TOLERANCE`) or a path the leg cannot reach (its reach check says
-    so where it matters)."""
+    this step's, both at ``duty_factor``; this step on this leg (``kinematics``,
+    ``neutral_tip_m``), the bench step on ``bench_leg`` (anything with ``dh`` and
+    ``neutral_tip_m``, None for either: AntBot's; a
+    :class:`~hexapod_gait.feasibility.LimitsReference`, a leg file) or, when ``bench_leg`` is
+    None, on this leg too. ``(1, 1)`` when the bench step is unknown (None), there is no step
+    (length 0), the step is the bench's (within :data:`STEP_GEOMETRY_TOLERANCE`) on the bench's
+    leg, or a path a leg cannot reach (its reach check says so where it matters)."""
     length = float(step_length_m or 0.0)
     height = float(step_height_m or 0.0)
     if bench_step_m is None or not length > 0 or not height >= 0:
         return 1.0, 1.0
     lb, hb = float(bench_step_m[0]), float(bench_step_m[1])
-    if abs(length - lb) <= STEP_GEOMETRY_TOLERANCE * lb and \
+    own_leg = _leg(kinematics.dh if kinematics is not None else None, neutral_tip_m)
+    ref_leg = own_leg if bench_leg is None else _leg(getattr(bench_leg, 'dh', None),
+                                                     getattr(bench_leg, 'neutral_tip_m', None))
+    if ref_leg == own_leg and abs(length - lb) <= STEP_GEOMETRY_TOLERANCE * lb and \
             abs(height - hb) <= STEP_GEOMETRY_TOLERANCE * max(hb, 1e-9):
         return 1.0, 1.0
     beta = float(duty_factor)
-    kw: dict[str, Any] = {'kinematics': kinematics, 'neutral_tip_m': neutral_tip_m}
     try:
-        bench = joint_paths(beta, lb, hb, **kw)
-        own = joint_paths(beta, length, height, **kw)
+        bench = joint_paths(beta, lb, hb, kinematics=LegKinematics(ref_leg[0]),
+                            neutral_tip_m=ref_leg[1])
+        own = joint_paths(beta, length, height, kinematics=LegKinematics(own_leg[0]),
+                          neutral_tip_m=own_leg[1])
     except HexapodGaitError:
         return 1.0, 1.0
     if not (own[0] > 0 and own[1] > 0 and bench[0] > 0 and bench[1] > 0):
@@ -115,18 +147,49 @@ def limits_for_step(
     limits: ActuatorLimits, duty_factor: float, step_length_m: float,
     step_height_m: float, **kw: Any,
 ) -> ActuatorLimits:
-    """``limits`` (for the bench step) for a step of this length and height: the minimal
-    phase durations divided by :func:`phase_duration_scales` (``kw``: its keywords), the
-    step-frequency cap kept; ``limits`` itself when the scales are 1. A shorter path never
-    lowers them (:func:`floor_scales`): the servos' acceleration and the command rate bound a
-    phase too (unfloored, a 20 mm step at beta 0.9 walked 33 ms swings, three commands: a
-    review)."""
-    k_st, k_sw = floor_scales(*phase_duration_scales(duty_factor, step_length_m,
-                                                     step_height_m, **kw))
+    """``limits`` (for the bench step of the leg they were measured on, ``limits.measured_on``)
+    for a step of this length and height on the leg ``kw`` gives (``kinematics``,
+    ``neutral_tip_m``; none: AntBot's): the minimal phase durations divided by
+    :func:`phase_duration_scales` (this step's joint path on this leg against the bench step's
+    on the reference leg), the step-frequency cap kept; ``limits`` itself when the scales are
+    1. A shorter path never lowers them (:func:`floor_scales`): the servos' acceleration and
+    the command rate bound a phase too (unfloored, a 20 mm step at beta 0.9 walked 33 ms
+    swings, three commands: a review)."""
+    ref = limits.measured_on
+    k_st, k_sw = floor_scales(*phase_duration_scales(
+        duty_factor, step_length_m, step_height_m, bench_step_m=ref.step_m, bench_leg=ref,
+        **kw))
     if k_st == 1.0 and k_sw == 1.0:
         return limits
     return dataclasses.replace(limits, min_stance_s=limits.min_stance_s / k_st,
                                min_swing_s=limits.min_swing_s / k_sw)
+
+
+def measured_on_leg(limits: ActuatorLimits, leg: Any,
+                    step_m: tuple[float, float] = BENCH_STEP_M) -> ActuatorLimits:
+    """``limits`` as measured on ``leg`` (a leg file or leg description: ``dh``,
+    ``neutral_tip_m``, ``name``; None: AntBot's leg) walking ``step_m`` (default the 100 mm,
+    40 mm bench step): limits a user measured on their own leg's bench."""
+    if leg is None:
+        ref = dataclasses.replace(ANTBOT_BENCH, step_length_m=float(step_m[0]),
+                                  step_height_m=float(step_m[1]))
+    else:
+        ref = LimitsReference(step_length_m=float(step_m[0]), step_height_m=float(step_m[1]),
+                              dh=leg.dh, neutral_tip_m=tuple(leg.neutral_tip_m),
+                              name=str(getattr(leg, 'name', '') or 'the given leg'))
+    return dataclasses.replace(limits, measured_on=ref)
+
+
+def reference_note(limits: ActuatorLimits, *, kinematics: LegKinematics | None = None,
+                   neutral_tip_m: ArrayLike = ANTBOT_NEUTRAL_TIP_M) -> str:
+    """Where ``limits`` were measured, for messages: ``the 100 mm bench step``, with ``of
+    <leg>`` when the walking leg (``kinematics``, ``neutral_tip_m``) is another."""
+    ref = limits.measured_on
+    own = _leg(kinematics.dh if kinematics is not None else None, neutral_tip_m)
+    lift = '' if abs(ref.step_height_m - BENCH_STEP_M[1]) <= 1e-9 else \
+        f' ({1e3 * ref.step_height_m:.3g} mm lift)'
+    leg = '' if _leg(ref.dh, ref.neutral_tip_m) == own else f' of {ref.name}'
+    return f'the {1e3 * ref.step_length_m:.3g} mm bench step{lift}{leg}'
 
 
 def floor_scales(k_stance: float, k_swing: float) -> tuple[float, float]:
@@ -169,8 +232,8 @@ def step_violations(gait: GaitPattern, limits: ActuatorLimits, **kw: Any) -> lis
         out[-1] += (f' (period {gait.period_s:.4g} s, duty factor {beta:.4g}; this step needs '
                     f'a period >= {t_min:.4g} s: top speed '
                     f'{gait.step_length_m / (beta * t_min):.3g} m/s; the {limits.min_swing_s:g} '
-                    f's swing and {limits.min_stance_s:g} s stance limits are for the '
-                    f'{1e3 * BENCH_STEP_M[0]:g} mm bench step)')
+                    f's swing and {limits.min_stance_s:g} s stance limits are for '
+                    f'{reference_note(limits, **kw)})')
     return out
 
 
