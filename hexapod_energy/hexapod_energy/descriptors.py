@@ -122,6 +122,7 @@ __all__ = [
     'CLOCK_MODEL_NOTE',
     'JOINT_WAIT_S',
     'is_clock_schedule',
+    'is_stand_schedule',
     'DescriptorAccumulator',
     'Descriptors',
     'descriptors_from_powers',
@@ -301,7 +302,7 @@ def model_power_out(output_power: Any, *, robot_mass_kg: float
                gait.duty_factor, gait.period_s, gait.step_length_m, gait.step_height_m,
                mass_kg)
         if key not in cache:
-            if gait.period_s <= 0 or not gait.leg_names:
+            if is_stand_schedule(gait) or not gait.leg_names:
                 cache[key] = 0.0
             else:
                 cache[key] = float(output_power.power_out_w(
@@ -328,8 +329,20 @@ def is_clock_schedule(sample: Any) -> bool:
     """Whether a /gait/phase sample is a clock-driven schedule of rotating legs (the Buehler
     clock of RHex-class robots: gait ``buehler``, or a walking period with no step length),
     as ``hexapod-analyze energy`` reads a bag's."""
-    return float(sample.period_s) > 0 and (sample.gait == 'buehler' or
-                                           not float(sample.step_length_m) > 0)
+    return float(sample.period_s) > 0 and not is_stand_schedule(sample) and (
+        sample.gait == 'buehler' or not float(sample.step_length_m) > 0)
+
+
+def is_stand_schedule(sample: Any) -> bool:
+    """Whether a /gait/phase sample is a stand of a stepping gait: period 0, or step length
+    and height 0 and no clock sweep (``gait_scheduler``'s stand keeps its period: it was read
+    live as a Buehler clock, P_out NaN with a note about rotating legs, where ``hexapod-analyze
+    energy`` reads the same bag's stand as P_out 0 W)."""
+    if not float(sample.period_s) > 0:
+        return True
+    return sample.gait != 'buehler' and not (
+        float(sample.step_length_m) > 0 or float(sample.step_height_m) > 0 or
+        float(getattr(sample, 'sweep_angle_rad', 0.0)) > 0)
 
 
 def implausible_effort_power(effort_w: float, power_in_w: float, net_w: float) -> str:
