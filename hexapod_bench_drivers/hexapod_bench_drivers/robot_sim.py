@@ -31,7 +31,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hexapod_gait.gait import GaitPattern, carried_mass_per_leg_kg, make_gait
-from hexapod_gait.kinematics import ANTBOT_LEG, ANTBOT_MASS_KG, DHParameters
+from hexapod_gait.kinematics import (ANTBOT_LEG, ANTBOT_MASS_KG, DHParameters,
+                                     default_robot_mass_kg)
 from hexapod_gait.leg_file import LegFile
 from hexapod_gait.legs import joint_names
 from hexapod_gait.trajectory import LegTrajectory
@@ -56,17 +57,6 @@ __all__ = ['ANTBOT_BODY_KG', 'RobotConfig', 'RobotSimulator', 'SampleInput',
 #: AntBot's body without its six legs [kg]: 2.183 kg less 6 x 0.166 kg (DESIGN section 7)
 ANTBOT_BODY_KG = ANTBOT_MASS_KG - 6 * sum(ANTBOT_LEG.link_masses_kg)
 
-
-def default_robot_mass_kg(leg_count: int = 6, leg_mass_kg: float | None = None) -> float:
-    """The robot the simulators walk when no mass is given: AntBot's body with ``leg_count``
-    legs of ``leg_mass_kg`` each (payload excluded; None: AntBot's 0.166 kg leg). AntBot's
-    leg gives 2.183 kg on 6 legs, 1.851 kg on 4 and 2.515 kg on 8 (``M + (k - 6) m_leg``, the
-    leg-count sweep's rule); a leg file's leg, ``M + (k - 6) m_AntBot + k (m_leg -
-    m_AntBot)``: AntBot's 1.187 kg body plus the file's legs (a PhantomX-like 0.175 kg leg:
-    2.237 kg on 6 legs)."""
-    antbot_kg = sum(ANTBOT_LEG.link_masses_kg)
-    own_kg = antbot_kg if leg_mass_kg is None else float(leg_mass_kg)
-    return ANTBOT_MASS_KG + (leg_count - 6) * antbot_kg + leg_count * (own_kg - antbot_kg)
 
 FloatArray = NDArray[np.float64]
 

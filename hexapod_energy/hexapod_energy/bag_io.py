@@ -2278,34 +2278,43 @@ class RobotMass:
     """The robot mass an analysis divides by (payload excluded), and where it came from."""
 
     kg: float
-    source: str      # '--robot-mass', "bags' metadata" or 'assumed (AntBot)'
+    source: str      # '--robot-mass', "bags' metadata" or 'assumed (AntBot...)'
     note: str = ''   # what the bags declared (:func:`declared_robot_mass`), else ''
 
     @property
     def assumed(self) -> bool:
-        """Neither given nor declared: AntBot's mass stands in."""
-        return self.source == ROBOT_MASS_ASSUMED
+        """Neither given nor declared: AntBot's mass (or its body with the leg file's legs)
+        stands in."""
+        return self.source in (ROBOT_MASS_ASSUMED, ROBOT_MASS_ASSUMED_LEG)
 
 
 #: :attr:`RobotMass.source` of a mass nobody gave (AntBot's)
 ROBOT_MASS_ASSUMED = 'assumed (AntBot)'
+#: ... with a leg file: AntBot's body and that many of the file's legs
+ROBOT_MASS_ASSUMED_LEG = "assumed (AntBot's body with the --leg file's legs)"
 
 
-def resolve_robot_mass(given_kg: float | None, robot_bags: Sequence[str | Path]) -> RobotMass:
+def resolve_robot_mass(given_kg: float | None, robot_bags: Sequence[str | Path], *,
+                       leg_mass_kg: float | None = None, leg_count: int = 6) -> RobotMass:
     """The robot mass of ``energy`` and ``residuals``: ``given_kg`` (``--robot-mass``), else
     the one the robot bags declare (:func:`declared_robot_mass`; different ones raise), else
-    AntBot's :data:`~hexapod_gait.kinematics.ANTBOT_MASS_KG`. Each caller words its own
-    warning for an assumed mass (what scales with it differs); the value is not checked here
-    (the callers refuse a non-positive one with their own error types)."""
+    AntBot's :data:`~hexapod_gait.kinematics.ANTBOT_MASS_KG`; with a leg file's leg mass
+    (``leg_mass_kg``, ``--leg``), AntBot's body with ``leg_count`` of those legs
+    (:func:`~hexapod_gait.kinematics.default_robot_mass_kg`, the simulators' rule: 2.237 kg
+    for six 0.175 kg legs, where 2.183 kg was assumed). Each caller words its own warning for
+    an assumed mass (what scales with it differs); the value is not checked here (the
+    callers refuse a non-positive one with their own error types)."""
     if given_kg is not None:
         return RobotMass(float(given_kg), '--robot-mass')
     if robot_bags:
         kg, note = declared_robot_mass(robot_bags)
         if kg is not None:
             return RobotMass(kg, 'bags\' metadata', note)
-    from hexapod_gait.kinematics import ANTBOT_MASS_KG
+    from hexapod_gait.kinematics import ANTBOT_MASS_KG, default_robot_mass_kg
 
-    return RobotMass(ANTBOT_MASS_KG, ROBOT_MASS_ASSUMED)
+    if leg_mass_kg is None:
+        return RobotMass(ANTBOT_MASS_KG, ROBOT_MASS_ASSUMED)
+    return RobotMass(default_robot_mass_kg(leg_count, leg_mass_kg), ROBOT_MASS_ASSUMED_LEG)
 
 
 def read_robot_segments(path: str | Path, **kw: Any) -> list[RobotRun]:

@@ -171,7 +171,8 @@ such fallback is listed in the run's ``notes``.
       "robot_mass": {"kg" (payload excluded: CoT, CoT/M, specific resistance, the Eq. 6
                   model and the sweeps use it), "source" (--robot-mass | bags' metadata
                   (robot_mass_kg in their custom data, as hexapod-sim records it) |
-                  assumed (AntBot), with a warning), "note" (with the bags' metadata)},
+                  assumed (AntBot) | assumed (AntBot's body with the --leg file's legs),
+                  with a warning), "note" (with the bags' metadata)},
       "warnings": [str],                                      # when any
       "errors": [str],     # the analysis refused after the bench's phase powers were
                            # written (the surface fit: too few walking sessions); exit 2
@@ -458,13 +459,23 @@ def _checked_setup(args: argparse.Namespace) -> _Setup:
     from hexapod_energy.bag_io import resolve_robot_mass
 
     # a simulated robot of another leg count records its mass: AntBot's was assumed
-    mass = resolve_robot_mass(args.robot_mass, args.robot or [])
+    # with --leg, AntBot's body with the file's legs (the simulators' rule: 2.183 kg was
+    # assumed for a robot of PhantomX-like legs that sim_robot walks as 2.237 kg)
+    leg_given = bool(getattr(args, 'leg', None))
+    legs_n = getattr(args, 'legs', None)
+    mass = resolve_robot_mass(
+        args.robot_mass, args.robot or [],
+        leg_mass_kg=leg.spec.leg_mass_kg if leg_given else None,
+        leg_count=legs_n if isinstance(legs_n, int) and legs_n >= 2 else 6)
     args.robot_mass, mass_source, mass_note = mass.kg, mass.source, mass.note
     # a declared mass is a given one (the bench's loads are checked against it)
     mass_given = not mass.assumed
     mass_warning = ''
     if mass.assumed and (args.robot or args.sweep or args.recommend):
-        mass_warning = (f'robot mass not given (--robot-mass): AntBot\'s {ANTBOT_MASS_KG} kg '
+        whose = (f"AntBot's {ANTBOT_MASS_KG} kg" if not leg_given else
+                 f"AntBot's body with the --leg file's {leg.spec.leg_mass_kg:.3f} kg legs, "
+                 f'{mass.kg:.3f} kg')
+        mass_warning = (f'robot mass not given (--robot-mass): {whose} '
                         'assumed; CoT, CoT/M and specific resistance scale with the mass')
     if not (math.isfinite(args.robot_mass) and args.robot_mass > 0):
         raise EnergyError(f'--robot-mass must be > 0 kg, got {args.robot_mass}')

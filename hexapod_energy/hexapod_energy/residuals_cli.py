@@ -37,7 +37,8 @@ stances are ``hexapod-analyze slip``'s (geometric single support, fitted mocap o
      (energy:) "mass_sensitivity": {"w_per_kg_mean", "uncentred_r_with_constant",
                  "near_constant"}, "payload_kg", "robot_mass": {"kg" (payload excluded),
                  "source" (--robot-mass | bags' metadata (robot_mass_kg, as hexapod-sim
-                 records it) | assumed (AntBot))}, "leg": {"name", "a_m", ...,
+                 records it) | assumed (AntBot) | assumed (AntBot's body with the --leg
+                 file's legs))}, "leg": {"name", "a_m", ...,
                  "link_masses_kg", "neutral_tip_m"} (--leg FILE, default AntBot's; as
                  energy.json "leg"),
      (energy:) "added_params": [{"name", "params", "stderr",
@@ -389,10 +390,21 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     # a simulated robot of another leg count records its mass; AntBot's was assumed
     # silently (the undeclared-mass effect then measured the difference)
     given = args.robot_mass is not None
-    mass = resolve_robot_mass(args.robot_mass, args.robot)
+    from hexapod_energy.leg_description import antbot_leg, load_leg_description
+
+    # with --leg, AntBot's body with the file's legs (the simulators' and energy's rule)
+    leg = load_leg_description(args.leg) if getattr(args, 'leg', None) else antbot_leg()
+    legs_n = getattr(args, 'legs', None)
+    mass = resolve_robot_mass(
+        args.robot_mass, args.robot,
+        leg_mass_kg=leg.spec.leg_mass_kg if getattr(args, 'leg', None) else None,
+        leg_count=legs_n if isinstance(legs_n, int) and legs_n >= 2 else 6)
     args.robot_mass, mass_source = mass.kg, mass.source
+    whose = (f"AntBot's {mass.kg} kg" if not getattr(args, 'leg', None) else
+             f"AntBot's body with the --leg file's {leg.spec.leg_mass_kg:.3f} kg legs, "
+             f'{mass.kg:.3f} kg')
     note = mass.note if not mass.assumed else (
-        f'warning: robot mass not given (--robot-mass): AntBot\'s {mass.kg} kg assumed; the '
+        f'warning: robot mass not given (--robot-mass): {whose} assumed; the '
         'undeclared-mass effect is measured against it')
     if not given:
         print(f'hexapod-analyze residuals: {note}', file=sys.stderr)
@@ -406,9 +418,6 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         raise InvalidInputError(f'--max-lag must be 0.01-5 s, got {max_lag}')
     if not math.isfinite(args.load_offset):
         raise InvalidInputError(f'--load-offset must be finite, got {args.load_offset}')
-    from hexapod_energy.leg_description import antbot_leg, load_leg_description
-
-    leg = load_leg_description(args.leg) if getattr(args, 'leg', None) else antbot_leg()
     legs = getattr(args, 'legs', None)
     if legs is not None:
         leg_kg = leg.spec.leg_mass_kg

@@ -32,6 +32,7 @@ __all__ = [
     'ANTBOT_MASS_KG',
     'UnreachableError',
     'LegKinematics',
+    'default_robot_mass_kg',
     'dh_transform',
 ]
 
@@ -91,6 +92,18 @@ ANTBOT_LEG = DHParameters()
 #: AntBot's mass without payload [kg] (Brodoline et al.; DESIGN §7): the default robot of
 #: the simulators and the analysis when a robot's mass is neither given nor declared
 ANTBOT_MASS_KG = 2.183
+
+
+def default_robot_mass_kg(leg_count: int = 6, leg_mass_kg: float | None = None) -> float:
+    """The robot assumed when no mass is given: AntBot's body with ``leg_count`` legs of
+    ``leg_mass_kg`` each (payload excluded; None: AntBot's 0.166 kg leg). AntBot's leg gives
+    2.183 kg on 6 legs, 1.851 kg on 4 and 2.515 kg on 8 (``M + (k - 6) m_leg``, the leg-count
+    sweep's rule); a leg file's leg, ``M + (k - 6) m_AntBot + k (m_leg - m_AntBot)``:
+    AntBot's 1.187 kg body plus the file's legs (a PhantomX-like 0.175 kg leg: 2.237 kg on 6
+    legs). One rule for the simulators, ``energy_monitor`` and ``hexapod-analyze``."""
+    antbot_kg = sum(ANTBOT_LEG.link_masses_kg)
+    own_kg = antbot_kg if leg_mass_kg is None else float(leg_mass_kg)
+    return ANTBOT_MASS_KG + (leg_count - 6) * antbot_kg + leg_count * (own_kg - antbot_kg)
 
 
 def dh_transform(theta: float, d: float, a: float, alpha: float) -> NDArray[np.float64]:
