@@ -157,3 +157,31 @@ def test_storage_that_ends_early_inside_is_refused(clean, tmp_path):
     with open_reader(bag) as reader, pytest.raises(BagError, match=r'the storage gave \d+ of'):
         for _ in iter_messages(reader):
             pass
+
+
+@pytest.mark.parametrize('topic, msgtype, says', [
+    ('/battery_state', 'std_msgs/msg/Float64',
+     "std_msgs/msg/Float64 is not a BatteryState (no field 'voltage')"),
+    ('/gait/phase', 'std_msgs/msg/String',
+     "std_msgs/msg/String is not a GaitPhase (no field 'period')"),
+])
+def test_a_contract_topic_of_another_type_is_input_refused(robot, tmp_path, capsys, topic,
+                                                           msgtype, says):
+    """A bag recording /battery_state as std_msgs/Float64 (or /gait/phase as a String) ended
+    in "failed: AttributeError ... please report it", exit 1; now the messages are dropped as
+    not of their type: no input power is refused (exit 2), a schedule falls back to the
+    joint positions with a note."""
+    from hexapod_common.bags import new_msg
+
+    with open_reader(robot) as reader, BagWriter(tmp_path / 'bad') as w:
+        for m in iter_messages(reader):
+            if m.topic == topic:
+                w.write(topic, msgtype, new_msg(msgtype, data=1.0 if 'Float' in msgtype
+                                                else 'tripod'), m.stamp_ns)
+            else:
+                w.write(m.topic, m.msgtype, m.data, m.stamp_ns)
+    rc = analyze(['energy', '--robot', str(tmp_path / 'bad'), '--out', str(tmp_path / 'o'),
+                  '--no-progress'])
+    err = capsys.readouterr().err
+    assert rc == (2 if topic == '/battery_state' else 0), err
+    assert says in err and 'please report' not in err
