@@ -211,17 +211,23 @@ class BatterySample:
     present: bool = True
 
 
+#: a current [A] at or above which a 0 V battery sample is a glitch, not a supply switched off
+#: (the simulated bench's supply reads 0 V and +-10 mA of noise while cooling: 0 W, kept)
+ZERO_VOLT_CURRENT_A = 0.1
+
+
 @_of_type('BatteryState')
 def battery_from_msg(msg: Any) -> BatterySample:
     """Convert a BatteryState; NaN voltage or current raise ValueError, and so does a voltage
-    no battery delivers power at: below 0 V, or 0 V while a current flows (a monitor's glitch
-    or a driver filling 0 for "unknown"; counted, one sample in 10 at -V read P_in -21 %, at
-    0 V -10 %, silently: an outside review). 0 V and 0 A together pass (an absent battery,
+    no battery delivers power at: below 0 V, or 0 V while a current of
+    :data:`ZERO_VOLT_CURRENT_A` or more flows (a monitor's glitch or a driver filling 0 for
+    "unknown"; counted, one sample in 10 at -V read P_in -21 %, at 0 V -10 %, silently: an
+    outside review). 0 V and 0 A together pass (an absent battery,
     :class:`hexapod_common.battery.AbsentBatteryFilter`)."""
     v, i = float(msg.voltage), float(msg.current)
     if not (math.isfinite(v) and math.isfinite(i)):
         raise ValueError(f'BatteryState without voltage/current (voltage={v}, current={i})')
-    if v < 0.0 or (v == 0.0 and i != 0.0):
+    if v < 0.0 or (v == 0.0 and abs(i) >= ZERO_VOLT_CURRENT_A):
         raise ValueError(f'BatteryState with voltage {v} V (current {i} A): not a battery '
                          'voltage (a pack delivers power above 0 V)')
     return BatterySample(stamp_to_s(msg.header.stamp), v, i, float(msg.temperature),

@@ -214,6 +214,12 @@ def bench_load_problem(loads: Sequence[tuple[str, float]], *,
     when given: a leg carries a share of it; ``robot_what`` names the mass)."""
     if not loads:
         return ''
+    for where, kg in loads:
+        # a negative load was fitted as given (surfaces over -0.515..0 kg, exit 0), a NaN
+        # one ended in numpy's "SVD did not converge" (an outside review)
+        if not (math.isfinite(kg) and kg >= 0.0):
+            return (f'bench load {kg:g} kg ({where}) is not a load: BenchSession load_mass '
+                    "and the sessions file's load_kg are the kilograms on the stage, >= 0")
     where, top = max(loads, key=lambda x: x[1])
     limit, what = BENCH_LOAD_MAX_KG, f'{BENCH_LOAD_MAX_KG:g} kg, more than any leg bench carries'
     if robot_mass_kg is not None and robot_mass_kg < limit:
@@ -512,8 +518,8 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
                                  duties=duties, steps=steps, warnings=warnings,
                                  gait_rows=gait_rows)
     elif ses and bat and frc and tip:
-        why = bench_load_problem([(f'/bench/session {s["session_id"]}', s['load_kg'])
-                                  for s in ses if math.isfinite(s['load_kg'])])
+        why = bench_load_problem([(f'/bench/session {s["session_id"]} {s["state"]}',
+                                   s['load_kg']) for s in ses])
         if why:
             raise BagContentError(f'bag {path}: {why}')
         ses.sort(key=lambda s: s['t_s'])
