@@ -333,8 +333,10 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
         for m in iter_messages(reader, ('/battery_state', '/gait/phase', '/servo_status',
                                         '/joint_states'), duplicates=dups):
             msg = reader.deserialize(m.data, m.msgtype)
-            if msg.header.stamp.sec or msg.header.stamp.nanosec:
-                clocks.observe(m.topic, stamp_to_s(msg.header.stamp), 1e-9 * m.stamp_ns)
+            # (a topic recorded as another type, without a header: its converter refuses it)
+            header = getattr(msg, 'header', None)
+            if header is not None and (header.stamp.sec or header.stamp.nanosec):
+                clocks.observe(m.topic, stamp_to_s(header.stamp), 1e-9 * m.stamp_ns)
             if m.topic in ('/battery_state', '/gait/phase'):
                 # a bad message (NaN voltage, NaN period) is dropped and counted, as live
                 try:
@@ -383,8 +385,10 @@ def read_residual_run(path: str | Path, *, current_sign: str = 'auto',
         raise BagContentError(f'robot bag {path}: {err}') from None
     battery_notes.extend(more)
     if len(bat) < 10:
-        raise BagContentError(f'robot bag {path}: /battery_state has {len(bat)} messages, '
-                              'need at least 10')
+        bad = dropped.get('/battery_state', [])
+        raise BagContentError(f'robot bag {path}: /battery_state has {len(bat)} usable '
+                              'messages, need at least 10' + (
+                                  f' ({len(bad)} dropped, e.g. {bad[0]})' if bad else ''))
     if len(gp) < 2 and not use_given:
         raise BagContentError(f'robot bag {path}: /gait/phase has {len(gp)} messages, need 2+')
     # (t, V, I) rows in the order of the tuples sorted

@@ -211,3 +211,26 @@ def test_a_bench_load_below_0_or_nan_is_refused(tmp_path, capsys, load):
     assert rc == 2, err
     assert f'bench load {load * 0.095:g} kg (/bench/session s' in err
     assert 'is not a load' in err and 'SVD' not in err
+
+
+def test_residuals_refuse_a_battery_topic_of_another_type(robot, tmp_path, capsys):
+    """residuals read each message's header before converting it: /battery_state as
+    std_msgs/Float64 ended in "failed: AttributeError ... 'header'", exit 1."""
+    from hexapod_common.bags import new_msg
+
+    with open_reader(robot) as reader, BagWriter(tmp_path / 'bad') as w:
+        for m in iter_messages(reader):
+            if m.topic == '/battery_state':
+                w.write(m.topic, 'std_msgs/msg/Float64',
+                        new_msg('std_msgs/msg/Float64', data=1.0), m.stamp_ns)
+            else:
+                w.write(m.topic, m.msgtype, m.data, m.stamp_ns)
+    from hexapod_bench_drivers.sim_cli import main as sim_main
+
+    assert sim_main(['bench', '--out', str(tmp_path / 'b'), '--loads', '0,0.095',
+                     '--frequencies', '0,1,2,3', '--duration', '3']) == 0
+    rc = analyze(['residuals', '--bench', str(tmp_path / 'b'), '--robot', str(tmp_path / 'bad'),
+                  '--out', str(tmp_path / 'o'), '--no-plots'])
+    err = capsys.readouterr().err
+    assert rc == 2, err
+    assert '/battery_state has 0 usable messages' in err and 'is not a BatteryState' in err
