@@ -150,6 +150,10 @@ __all__ = ['EnergyMonitorNode', 'EnergyParams', 'descriptors_to_msg', 'main']
 #: battery names whose publishers are told apart (:mod:`hexapod_common.publishers`); more
 #: (names that keep changing) forget the oldest
 MAX_BATTERY_NAMES = 16
+#: kinds of dropped message counted apart (further kinds are counted together)
+MAX_DROP_KINDS = 64
+#: the numbers in a drop's reason (voltage=nan, current=-1.85): one kind whatever they are
+_NUMBER = re.compile(r'[-+]?(?:\b(?:nan|inf)\b|\d+(?:\.\d*)?(?:e[-+]?\d+)?)', re.IGNORECASE)
 
 #: leading battery samples with V * I == 0 after which the node reports an unmeasured current
 ZERO_POWER_SAMPLES = 100
@@ -299,6 +303,8 @@ class EnergyMonitorNode(Node):
         self.pub = self.create_publisher(EnergeticDescriptors, 'energy/descriptors',
                                          RELIABLE_QOS)
         self.dropped = 0
+        #: dropped messages per kind (type, reason without its numbers): see _log_drop
+        self._drops: dict[tuple[str, str], int] = {}
         #: JointStates whose velocity or effort array was left out (another length)
         self.malformed_joint_states = 0
         self._duplicates_logged = 0
@@ -369,9 +375,22 @@ class EnergyMonitorNode(Node):
             return fn(msg)
         except (ValueError, IndexError) as err:
             self.dropped += 1
-            self.get_logger().warning(f'dropped a {what} message: {err}',
-                                      throttle_duration_sec=5.0)
+            self._log_drop(what, str(err))
             return None
+
+    def _log_drop(self, what: str, why: str) -> None:
+        """Log a dropped message: each kind (type and reason, its numbers aside) on its 1st,
+        10th, 100th, 1000th, then every 10,000th occurrence, with the count. One 5 s throttle
+        over every kind (an outside review) said one line per 5 s of a steady stream and hid
+        the other kinds behind it: NaN battery samples every 0.1 s kept a /gait/phase of
+        another duty factor than (0, 1), every message of it dropped, from ever being said."""
+        kind = (what, _NUMBER.sub('#', why)[:160])
+        if kind not in self._drops and len(self._drops) >= MAX_DROP_KINDS:
+            kind = (what, 'other reasons')
+        n = self._drops[kind] = self._drops.get(kind, 0) + 1
+        if n == 1 or n in (10, 100, 1000) or n % 10000 == 0:
+            self.get_logger().warning(f'dropped a {what} message: {why}'
+                                      + (f' [{n} such messages so far]' if n > 1 else ''))
 
     def _restamp(self, topic: str, sample: Any) -> Any:
         """``sample`` stamped with the node's clock when its header stamp is zero; a stamped

@@ -80,3 +80,32 @@ def test_gait_schedule_no_gait_has_publishes_nothing_wrong(robot, tmp_path, fiel
         for value_ in (m.speed, m.power_out, m.efficiency, m.specific_resistance):
             assert math.isnan(value_)
     assert any('dropped a GaitPhase message' in w for w in warnings)
+
+
+@pytest.mark.timeout(90)
+def test_each_kind_of_dropped_message_is_said(robot, tmp_path, capfd):
+    """One 5 s throttle over every dropped message: NaN battery samples hid a schedule whose
+    every message was dropped (duty factor 1.5), and a steady stream was said every 5 s. Now
+    each kind is said on its 1st, 10th, 100th ... occurrence, with the count."""
+    k = [0]
+
+    def edit(topic, msg):
+        if topic == '/gait/phase':
+            msg.duty_factor = 1.5
+        else:
+            k[0] += 1
+            if k[0] % 10 == 0:
+                msg.current = float('nan')
+
+    bad = rewrite_bag(robot, tmp_path / 'bad', edit, topics=['/battery_state', '/gait/phase'])
+    capfd.readouterr()
+    with ros_env('robust_drops') as env:
+        node = EnergyMonitorNode(context=env.context, parameter_overrides=[
+            Parameter('mass', value=2.183)])
+        env.nodes.append(node)
+        run_offline([node], str(bad))
+    err = capfd.readouterr().err.splitlines()
+    battery = [x for x in err if 'dropped a BatteryState message' in x]
+    gait = [x for x in err if 'dropped a GaitPhase message' in x]
+    assert len(battery) == 2 and '[10 such messages so far]' in battery[1], battery
+    assert len(gait) == 3 and '[100 such messages so far]' in gait[2], gait
