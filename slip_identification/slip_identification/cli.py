@@ -217,6 +217,8 @@ def read_run(path: str | Path) -> RunData:
     changes: list[tuple[float, str]] = []
     zero: dict[str, int] = {}
     dropped: dict[str, int] = {}
+    why: dict[str, str] = {}   # the first reason a topic's message was dropped
+    n_phase = 0   # usable /gait/phase messages
     dups: dict[str, int] = {}   # messages recorded twice (same topic, log time, bytes)
     clocks = ClockCheck()
     repeats = RepeatedStamps()   # new values under the previous stamp (a skipped bus read)
@@ -240,6 +242,7 @@ def read_run(path: str | Path) -> RunData:
             try:
                 if m.topic == '/gait/phase':
                     phase = gait_phase_from_msg(msg)
+                    n_phase += 1
                     name = _gait_name(phase)
                     if gait == 'unknown':
                         gait = name
@@ -247,8 +250,9 @@ def read_run(path: str | Path) -> RunData:
                         changes.append((phase.t_s or 1e-9 * m.stamp_ns, name))
                     continue
                 sample = streams[m.topic][1](msg)
-            except ValueError:
+            except ValueError as err:
                 dropped[m.topic] = dropped.get(m.topic, 0) + 1
+                why.setdefault(m.topic, str(err))
                 continue  # a bad message is dropped, as the nodes do
             if sample.t_s == 0.0:  # a driver that leaves header.stamp at 0
                 if m.stamp_ns != 0:  # (stamp 0 at bag time 0: a clock starting at 0)
@@ -276,8 +280,15 @@ def read_run(path: str | Path) -> RunData:
     # joints that are not a leg's beside the legs (a gripper): left out, noted
     js = _legs_only(js, '/joint_states', notes)
     jc = _legs_only(jc, '/joint_commands', notes)
-    notes += [f'{n} {t} message(s) dropped (bad or NaN fields)'
+    notes += [f'{n} {t} message(s) dropped (bad or NaN fields, e.g. {why[t]})'
               for t, n in sorted(dropped.items())]
+    if gait == 'unknown' and '/gait/phase' in present and not n_phase:
+        # recorded, but every message dropped (or none sent): not 'no /gait/phase in the bag'
+        n_bad = dropped.get('/gait/phase', 0)
+        notes.append('/gait/phase recorded but ' +
+                     (f'none of its {n_bad} message(s) usable (all dropped: '
+                      f'{why["/gait/phase"]})' if n_bad else 'without messages') +
+                     ': the gait name is unknown')
     try:
         bt, battery_notes = prepare_battery_columns(bt)
         notes.extend(battery_notes)
@@ -610,7 +621,8 @@ def analyze_bag(path: str, options: dict[str, Any]) -> dict[str, Any]:
     except (SlipError, HexapodError, ValueError, OSError) as err:  # a truncated bag too
         return {'bag': path, 'error': str(err)}
     notes = list(run.notes) + geometry_notes + list(res.notes)
-    if run.gait == 'unknown':
+    if run.gait == 'unknown' and not any(n.startswith('/gait/phase recorded but')
+                                         for n in run.notes):
         notes.append('no /gait/phase in the bag: the gait name is unknown')
     gaits = list(dict.fromkeys(g for _, g in run.gait_changes))
     if len(gaits) > 1:

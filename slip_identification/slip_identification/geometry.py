@@ -85,6 +85,7 @@ from scipy.signal import savgol_filter
 
 from ._geometry_kernels import HAVE_NUMBA, cost_mse, leg_gaps, simulate_windows
 from .errors import SlipDataError
+from .preprocess import max_mocap_gap_s
 from .stance import longest_free_segment
 from .steady import steady_start_s, white_noise_std
 
@@ -314,7 +315,7 @@ def stride_slope_rad(t_s: ArrayLike, height_m: ArrayLike, x_m: ArrayLike, pitch_
         return None
     # window means of the linear interpolant: differences of its running integral
     dt = float(np.median(np.diff(t)))
-    jump = np.diff(t) > 2.5 * dt
+    jump = np.diff(t) > max_mocap_gap_s(dt)
     a = np.arange(t0, t[-1] - period_s + 1e-9, step_s)
     crossed = (t[1:][jump][None, :] > a[:, None]) & (t[:-1][jump][None, :] < a[:, None] + period_s)
     a = a[~np.any(crossed, axis=1)]
@@ -513,7 +514,7 @@ def _windows(tm: FloatArray, window_s: float) -> list[NDArray[np.bool_]]:
     """
     dt = float(np.median(np.diff(tm)))
     window_s = max(window_s, 9.0 * dt)
-    breaks = np.flatnonzero(np.diff(tm) > 2.5 * dt)
+    breaks = np.flatnonzero(np.diff(tm) > max_mocap_gap_s(dt))
     starts = np.concatenate([[0], breaks + 1])
     ends = np.concatenate([breaks + 1, [tm.size]])
     out = []
@@ -544,7 +545,7 @@ def _flight_windows(body: _Body, t_lo: float, t_hi: float, offset_s: float, grou
     out = []
     for w0, w1 in zip(mids[:-1], mids[1:]):
         k = (body.tm >= w0) & (body.tm < w1)
-        if k.sum() >= 8 and not np.any(np.diff(body.tm[k]) > 2.5 * dt):
+        if k.sum() >= 8 and not np.any(np.diff(body.tm[k]) > max_mocap_gap_s(dt)):
             out.append(k)
     return out
 
@@ -1503,7 +1504,7 @@ def leg_contacts(geometry: LegGeometry, joint_names: tuple[str, ...], joint_t_s:
                             f'{max(t1 - t0, 0.0):.3f} s only')
     tf = np.arange(t0, t1, step_s)
     dt = float(np.median(np.diff(body.tm)))
-    gi = np.flatnonzero(np.diff(body.tm) > 2.5 * dt)
+    gi = np.flatnonzero(np.diff(body.tm) > max_mocap_gap_s(dt))
     unknown = [(-np.inf, float(tf[0]))] + [
         (float(body.tm[i] - offset_s), float(body.tm[i + 1] - offset_s)) for i in gi] + [
         (float(tf[-1]), np.inf)]

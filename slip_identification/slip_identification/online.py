@@ -75,6 +75,7 @@ from .preprocess import (
     WorldFrame,
     fit_world_frame,
     frozen_pose_mask,
+    max_mocap_gap_s,
     permissible_mask,
     sagittal_state,
 )
@@ -426,7 +427,7 @@ class OnlineSlip:
         if self.geometry is not None and len(self._mocap) >= 8:
             recent = self._mocap.t[-8:]
             dt = float(np.median(np.diff(recent)))
-            if t_s - recent[-1] > max(2.5 * dt, 0.02):
+            if t_s - recent[-1] > max_mocap_gap_s(dt):
                 # the stride of the fits before the gap (after it they straddle it)
                 self._mocap_gaps.append((float(recent[-1]), float(t_s), self._leg_period_s()))
                 del self._mocap_gaps[:-64]

@@ -46,6 +46,7 @@ from .preprocess import (
     estimate_offset,
     fit_world_frame,
     frozen_pose_mask,
+    max_mocap_gap_s,
     permissible_mask,
     sagittal_state,
     walks_backwards,
@@ -983,6 +984,7 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
     if inside.sum() < 10:
         raise SlipDataError(f'run {run.label!r}: {int(inside.sum())} mocap samples inside the '
                             'permissible box, need >= 10')
+    _note_mocap_gaps(tm[inside], res)
     _check_position_unit(tm[inside], pm[inside], run.label)
     quats = np.asarray(run.mocap_quat_xyzw, dtype=float)[inside]
     up = _up_from_quats(quats)
@@ -1279,6 +1281,13 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                             'touchdown': a, 'liftoff': b, 'reason': 'mocap_gap',
                             'edges': how})
         res.skipped_counts['mocap_gap'] += 1
+    n_gap = res.skipped_counts.get('mocap_gap', 0)
+    if n_gap:
+        gaps = res.frame.get('mocap_gaps') or {}
+        res.notes.append(
+            f'{n_gap} stance(s) left out (skipped mocap_gap): a motion-capture gap longer than '
+            f'the spline bridges ({1e3 * gaps.get("bridged_max_s", math.nan):.0f} ms) cuts or '
+            'hides them')
     if stances:
         res.fits = SlipFitter(model, starts=starts).fit(stances).results_  # type: ignore[arg-type]
         res.stances = list(stances)
@@ -1491,6 +1500,37 @@ def _check_speed_trend(res: RunResult, t_s: FloatArray, x_m: FloatArray,
         + 'a start-up or speed '
         'change is no steady gait either; walk level ground at a steady speed, or read the '
         'stiffness of these stances with care')
+
+
+def _note_mocap_gaps(t_s: FloatArray, res: RunResult) -> None:
+    """Say how many motion-capture samples are missing inside the tracked span (NaN poses,
+    poses never published, frozen ones: alike), how many gaps the spline bridges and how many
+    split the track (``frame['mocap_gaps']``); nothing when no sample is missing."""
+    t = np.sort(np.asarray(t_s, dtype=float)[np.isfinite(t_s)])
+    if t.size < 3:
+        return
+    dt = np.diff(t)
+    step = float(np.median(dt))
+    if not step > 0:
+        return
+    holes = dt > 1.5 * step
+    if not holes.any():
+        return
+    bridge = max_mocap_gap_s(step)
+    missing = np.maximum(np.rint(dt[holes] / step) - 1, 1)
+    long_ = dt[holes] > bridge
+    res.frame['mocap_gaps'] = {
+        'missing_samples': int(missing.sum()), 'gaps': int(holes.sum()),
+        'bridged': int((~long_).sum()), 'long': int(long_.sum()),
+        'bridged_max_s': bridge, 'longest_s': float(dt[holes].max())}
+    share = 100 * float(missing.sum()) / (t.size + float(missing.sum()))
+    res.notes.append(
+        f'{int(missing.sum())} motion-capture sample(s) missing inside the tracked span (NaN '
+        f'poses, poses not published or repeated; {share:.1f} %) in {int(holes.sum())} '
+        f'gap(s): {int((~long_).sum())} of at most '
+        f'{1e3 * bridge:.0f} ms bridged by the cubic spline, {int(long_.sum())} longer '
+        f'(up to {1e3 * float(dt[holes].max()):.0f} ms) split the track: a stance they touch '
+        'is left out (mocap_gap)')
 
 
 def _note_battery_gap(res: RunResult, t_s: FloatArray, a: float, b: float) -> None:

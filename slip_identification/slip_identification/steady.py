@@ -30,6 +30,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .errors import SlipDataError
+from .preprocess import max_mocap_gap_s
 
 __all__ = ['cycle_differences', 'steady_start_s', 'steady_windows', 'white_noise_std']
 
@@ -68,8 +69,8 @@ def cycle_differences(t_s: ArrayLike, signal: ArrayLike, period_s: float, *,
     if t.size < 10 or t[-1] - t[0] < 2 * period_s:
         return np.zeros(0), np.zeros(0)
     dt = float(np.median(np.diff(t)))
-    gap_starts = t[:-1][np.diff(t) > 2.5 * dt]
-    gap_ends = t[1:][np.diff(t) > 2.5 * dt]
+    gap_starts = t[:-1][np.diff(t) > max_mocap_gap_s(dt)]
+    gap_ends = t[1:][np.diff(t) > max_mocap_gap_s(dt)]
     starts = np.arange(t[0], t[-1] - 2 * period_s + 1e-9, step_frac * period_s)
     t0s, out = [], []
     u = np.linspace(0.0, period_s, n_grid, endpoint=False)
