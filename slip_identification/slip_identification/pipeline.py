@@ -1012,8 +1012,12 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
             return estimate_offset_contacts(td_all, tm[inside], pw[:, 2], stance_s=stance_s)[0]
         if name == 'joint':
             return estimate_offset_joint(touchdowns, tm[inside], pw[:, 2])[0]
-        vz = np.gradient(pm[:, 2], tm)
-        return estimate_offset(tj, speed['left'] - speed['right'], tm, vz, lag_s=offset_lag_s)
+        # differences over the finite samples only: a NaN pose took its neighbours' velocities
+        # with it (NaN and missing poses read offsets 46 ms apart on a simulated jogging run)
+        fin = np.isfinite(tm) & np.all(np.isfinite(pm), axis=1)
+        vz = np.gradient(pm[fin, 2], tm[fin])
+        return estimate_offset(tj, speed['left'] - speed['right'], tm[fin], vz,
+                               lag_s=offset_lag_s)
 
     if method in ('contact', 'joint') and effort is None:
         raise SlipDataError(f"offset {method!r} needs run.joint_effort")

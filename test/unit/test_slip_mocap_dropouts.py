@@ -113,6 +113,19 @@ def test_nan_and_missing_poses_agree(running) -> None:
         assert a.notes == b.notes
 
 
+def test_nan_and_missing_agree_on_the_cross_correlation_offset() -> None:
+    # without efforts or a leg geometry the offset is the cross-correlation of the body's
+    # vertical velocity: differences across a NaN pose lost its neighbours (offsets 46 ms
+    # apart, median stiffness 3870 against 2890 N/m on this jogging run)
+    sim = edubot_sim.simulate_edubot('jogging', duration_s=4.0, seed=1)
+    data = run_data_from_sim(sim, with_effort=False)
+    idx = _scattered(len(data.mocap_t_s), 100)
+    a = analyze_run(_nan(data, idx), offset_s='xcorr', position_fit=False)
+    b = analyze_run(_missing(data, idx), offset_s='xcorr', position_fit=False)
+    assert a.offset_s == b.offset_s
+    np.testing.assert_array_equal(_k(a), _k(b))
+
+
 def test_bursts_leave_their_stances_out_and_say_how_many(running) -> None:
     data, geo, clean = running
     res = _analyze(_nan(data, _bursts(len(data.mocap_t_s))), geo)
