@@ -31,7 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hexapod_gait.gait import GaitPattern, carried_mass_per_leg_kg, make_gait
-from hexapod_gait.kinematics import (ANTBOT_LEG, ANTBOT_MASS_KG, DHParameters,
+from hexapod_gait.kinematics import (ANTBOT_BODY_KG, ANTBOT_MASS_KG, DHParameters,
                                      default_robot_mass_kg)
 from hexapod_gait.leg_file import LegFile
 from hexapod_gait.legs import joint_names
@@ -54,8 +54,6 @@ from .sim_core import (
 __all__ = ['ANTBOT_BODY_KG', 'RobotConfig', 'RobotSimulator', 'SampleInput',
            'default_robot_mass_kg', 'robot_mass_problem', 'simulate_robot']
 
-#: AntBot's body without its six legs [kg]: 2.183 kg less 6 x 0.166 kg (DESIGN section 7)
-ANTBOT_BODY_KG = ANTBOT_MASS_KG - 6 * sum(ANTBOT_LEG.link_masses_kg)
 
 
 FloatArray = NDArray[np.float64]

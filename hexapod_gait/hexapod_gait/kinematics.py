@@ -30,6 +30,7 @@ __all__ = [
     'DHParameters',
     'ANTBOT_LEG',
     'ANTBOT_MASS_KG',
+    'ANTBOT_BODY_KG',
     'UnreachableError',
     'LegKinematics',
     'default_robot_mass_kg',
@@ -92,6 +93,8 @@ ANTBOT_LEG = DHParameters()
 #: AntBot's mass without payload [kg] (Brodoline et al.; DESIGN §7): the default robot of
 #: the simulators and the analysis when a robot's mass is neither given nor declared
 ANTBOT_MASS_KG = 2.183
+#: AntBot's body without its six legs [kg]: 2.183 kg less 6 x 0.166 kg (DESIGN section 7)
+ANTBOT_BODY_KG = ANTBOT_MASS_KG - 6 * sum(ANTBOT_LEG.link_masses_kg)
 
 
 def default_robot_mass_kg(leg_count: int = 6, leg_mass_kg: float | None = None) -> float:
@@ -101,9 +104,8 @@ def default_robot_mass_kg(leg_count: int = 6, leg_mass_kg: float | None = None) 
     sweep's rule); a leg file's leg, ``M + (k - 6) m_AntBot + k (m_leg - m_AntBot)``:
     AntBot's 1.187 kg body plus the file's legs (a PhantomX-like 0.175 kg leg: 2.237 kg on 6
     legs). One rule for the simulators, ``energy_monitor`` and ``hexapod-analyze``."""
-    antbot_kg = sum(ANTBOT_LEG.link_masses_kg)
-    own_kg = antbot_kg if leg_mass_kg is None else float(leg_mass_kg)
-    return ANTBOT_MASS_KG + (leg_count - 6) * antbot_kg + leg_count * (own_kg - antbot_kg)
+    leg_kg = sum(ANTBOT_LEG.link_masses_kg) if leg_mass_kg is None else float(leg_mass_kg)
+    return ANTBOT_BODY_KG + leg_count * leg_kg
 
 
 def dh_transform(theta: float, d: float, a: float, alpha: float) -> NDArray[np.float64]:
