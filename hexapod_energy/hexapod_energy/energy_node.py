@@ -104,7 +104,7 @@ from hexapod_common.battery import (
     BatteryCombiner,
     milli_factors,
 )
-from hexapod_common.clocks import LiveClockWatch, StreamLoss
+from hexapod_common.clocks import LiveClockWatch, StreamLoss, count_milestone
 from hexapod_common.conversions import (
     MOCAP_TYPES,
     battery_from_msg,
@@ -388,7 +388,7 @@ class EnergyMonitorNode(Node):
         if kind not in self._drops and len(self._drops) >= MAX_DROP_KINDS:
             kind = (what, 'other reasons')
         n = self._drops[kind] = self._drops.get(kind, 0) + 1
-        if n == 1 or n in (10, 100, 1000) or n % 10000 == 0:
+        if count_milestone(n):
             self.get_logger().warning(f'dropped a {what} message: {why}'
                                       + (f' [{n} such messages so far]' if n > 1 else ''))
 
@@ -446,7 +446,7 @@ class EnergyMonitorNode(Node):
                 # on its 1st, 10th, 100th ... window, not once per gait cycle
                 kind = warning_kind(warning)
                 n = self._warned[kind] = self._warned.get(kind, 0) + 1
-                if n == 1 or n in (10, 100, 1000) or n % 10000 == 0:
+                if count_milestone(n):
                     self.get_logger().warning(warning if n == 1 else
                                               f'{warning} [{n} windows so far]')
             if BATTERY_GAP_NOTE in d.warnings or JOINT_GAP_NOTE in d.warnings:
