@@ -107,6 +107,7 @@ __all__ = [
     'ERROR_INPUT_VOLTAGE',
     'ERROR_OVERHEATING',
     'ERROR_OVERLOAD',
+    'BACK_DRIVE_DEAD_BAND_RAD_S',
     'EXTENDED_POSITION_LIMIT',
     'GOAL_POSITION_MODES',
     'MULTI_TURN_MODES',
@@ -118,6 +119,14 @@ __all__ = [
 ]
 
 RPM_TO_RAD_S = 2.0 * math.pi / 60.0
+
+#: Present Current to torque (:meth:`ControlTable.current_to_torque_nm`): below this output
+#: speed a servo whose current opposes its velocity is taken as driving (no back-drive
+#: correction); the correction then grows linearly to its full ``1 / eta^2`` at twice this
+#: speed [rad/s]. About two Present Velocity units (0.024 rad/s), so a shaft at rest whose
+#: velocity reading flickers by a unit keeps the driving form, and a velocity that crosses
+#: the band changes the effort continuously (no jump of 1 / eta^2 = 1.8 at one speed).
+BACK_DRIVE_DEAD_BAND_RAD_S = 0.05
 
 
 class ControlTableError(ValueError):
@@ -354,6 +363,15 @@ class ControlTable:
         Protocol 1.0 MX-64/MX-106 Current (68) unit [A] (value 2048 = 0 A), else 0.
     page : str
         e-Manual page of the model (the source of every figure).
+    standby_current_a : float
+        The datasheet's standby current [A] (the electronics), which its stall current
+        includes and Present Current (the motor's current) does not: taken out of the stall
+        current in the torque per ampere. 0 where no figure is entered (every model without a
+        ServoModel preset).
+    gear_efficiency : float
+        Gear efficiency ``eta`` from the datasheet points (ServoModel preset's
+        ``gear_efficiency``: XM430-W350 0.739, XL430-W250 0.785); 1 (no back-drive correction)
+        for the models without a preset. Used only with Present Current.
     """
 
     model_name: str
@@ -372,6 +390,8 @@ class ControlTable:
     rated_voltage_v: float = 12.0
     p1_current_unit_a: float = 0.0
     page: str = ''
+    standby_current_a: float = 0.0
+    gear_efficiency: float = 1.0
 
     # --- registers -------------------------------------------------------------------------
     def reg(self, name: str) -> Register:
@@ -498,6 +518,41 @@ class ControlTable:
             return (-magnitude if raw & 0x400 else magnitude) / 1000.0
         return raw / 1000.0
 
+    @property
+    def torque_per_amp_nm_a(self) -> float:
+        """Output torque per ampere of Present Current while the motor drives [N m/A]: the
+        stall torque over the stall current less the standby current (XM430-W350: 4.1 / 2.26 =
+        1.814; without a standby figure the e-Manual's stall torque / stall current, the ratio
+        it prints as N m/A for the XM540: 1.659 and 2.409). The gear's losses when driving
+        are in it (the stall torque is measured at the output)."""
+        return self.stall_torque_nm / (self.stall_current_a - self.standby_current_a)
+
+    def current_to_torque_nm(self, current_a: float, velocity_rad_s: float, *,
+                             gear_efficiency: float | None = None,
+                             dead_band_rad_s: float = BACK_DRIVE_DEAD_BAND_RAD_S) -> float:
+        """Joint torque [N m] from the motor's current (Present Current, A) and the output
+        velocity (rad/s), both in the servo frame; signed as the torque the servo applies.
+
+        Driving (current and velocity of one sign, or the shaft within ``dead_band_rad_s``
+        of rest): ``current * torque_per_amp_nm_a``, the datasheet's N m/A, whose stall point
+        carries the gear efficiency ``eta`` of a motor driving its load. Back-driven (the
+        load drives the motor: current against the velocity, joint power negative), the gear's
+        losses are on the load's side: the output torque is the motor's torque divided by
+        ``eta``, ``current * torque_per_amp_nm_a / eta^2``. The correction is 0 up to
+        ``dead_band_rad_s`` and grows linearly to its full value at twice that speed (see
+        :data:`BACK_DRIVE_DEAD_BAND_RAD_S`). ``gear_efficiency`` (0, 1] overrides the table's
+        ``eta`` (1: no correction)."""
+        eta = self.gear_efficiency if gear_efficiency is None else float(gear_efficiency)
+        torque = current_a * self.torque_per_amp_nm_a
+        if eta >= 1.0 or current_a * velocity_rad_s >= 0.0:
+            return torque
+        speed = abs(velocity_rad_s)
+        if dead_band_rad_s > 0.0:
+            ramp = min(max(speed / dead_band_rad_s - 1.0, 0.0), 1.0)
+        else:
+            ramp = 1.0
+        return torque * (1.0 + ramp * (1.0 / (eta * eta) - 1.0))
+
     def fraction_to_load(self, fraction: float) -> int:
         """Signed fraction of stall torque -> raw Present Load/Current (emulator use)."""
         if 'present_current' in self.registers:
@@ -570,6 +625,7 @@ def _p1_table(name: str, number: int, stall_nm: float, stall_a: float, no_load_r
 def _p2_table(name: str, number: int, stall_nm: float, stall_a: float, no_load_rpm: float,
               temp_limit_c: int, current_sensing: bool, *, page: str,
               current_unit_a: float = 0.00269, rated_voltage_v: float = 12.0,
+              standby_current_a: float = 0.0, gear_efficiency: float = 1.0,
               **register_defaults: int) -> ControlTable:
     return ControlTable(
         model_name=name, model_number=number, protocol=2,
@@ -583,6 +639,7 @@ def _p2_table(name: str, number: int, stall_nm: float, stall_a: float, no_load_r
                     'present_velocity', 'present_position', 'present_input_voltage',
                     'present_temperature'),
         rated_voltage_v=rated_voltage_v, page=_EMANUAL + page,
+        standby_current_a=standby_current_a, gear_efficiency=gear_efficiency,
     )
 
 
@@ -615,10 +672,13 @@ MX64_2 = _p2_table('MX-64(2.0)', 311, 6.0, 4.1, 63.0, 80, True, page='mx/mx-64-2
 MX106_2 = _p2_table('MX-106(2.0)', 321, 8.4, 5.2, 45.0, 80, True, page='mx/mx-106-2/',
                     current_unit_a=0.00336, current_limit=2047, velocity_limit=360,
                     position_p_gain=850, **_X12V)
+# XL430-W250 and XM430-W350: standby current (e-Manual) and the gear efficiency of their
+# ServoModel presets (ServoParams.gear_efficiency, k_t / k_e from the datasheet points; a test
+# keeps them equal). The XL430 reports Present Load (a PWM duty): neither is used for it.
 XL430 = _p2_table('XL430-W250', 1060, 1.5, 1.4, 61.0, 72, current_sensing=False,
-                  page='x/xl430-w250/')
+                  page='x/xl430-w250/', standby_current_a=0.052, gear_efficiency=0.785)
 XM430 = _p2_table('XM430-W350', 1020, 4.1, 2.3, 46.0, 80, current_sensing=True,
-                  page='x/xm430-w350/')
+                  page='x/xm430-w350/', standby_current_a=0.04, gear_efficiency=0.739)
 XM430_W210 = _p2_table('XM430-W210', 1030, 3.0, 2.3, 77.0, 80, True, page='x/xm430-w210/',
                        current_limit=1193, velocity_limit=330, position_p_gain=800, **_X12V)
 XH430_W210 = _p2_table('XH430-W210', 1010, 2.5, 1.3, 50.0, 80, True, page='x/xh430-w210/',

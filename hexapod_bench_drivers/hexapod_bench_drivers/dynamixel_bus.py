@@ -54,16 +54,23 @@ reply is never taken as the answer to a later request:
 A servo that answers PING but no READ is taken to be at Status Return Level 0 only when the
 line was quiet after the failed READs (no late reply to blame).
 
-Effort is an estimate: load fraction (Present Load, or Present Current over stall current) times
-the datasheet stall torque at the rated voltage (12 V; 5 V for XL330); these servos measure no
-torque. Present Current (X series, MX(2.0)) is the motor's current, so the effort is that
-current times the e-Manual's torque per ampere, stall torque / stall current (XM430-W350: 4.1 N m
-/ 2.3 A = 1.783 N m/A; the e-Manual prints this ratio as N m/A for the XM540, 1.659 and 2.409):
-a torque, signed as the torque the servo applies. One constant cannot carry the gear's losses:
-on the emulator's XM430 (gear efficiency 0.74 from the datasheet points) a servo lifting 1 N m
-at 1 rad/s reads 1.02 N m and lowering it 0.55 N m. Present Load (AX, RX, MX on Protocol 1.0,
+Effort is an estimate; these servos measure no torque. Present Current (X series, MX(2.0)) is
+the motor's current, so the effort is a torque, signed as the torque the servo applies
+(:meth:`hexapod_bench_drivers.control_tables.ControlTable.current_to_torque_nm`): driving, the
+current times the datasheet's torque per ampere, stall torque / (stall current - standby
+current), whose stall point carries the gear efficiency ``eta`` (XM430-W350: 4.1 N m / (2.3 -
+0.04) A = 1.814 N m/A; without a standby figure stall torque / stall current, the N m/A the
+e-Manual prints for the XM540, 1.659 and 2.409); back-driven (the current against the
+velocity: the load drives the motor through the lossy gear) that torque divided by ``eta^2``,
+with a dead band about rest (:data:`~hexapod_bench_drivers.control_tables.
+BACK_DRIVE_DEAD_BAND_RAD_S`). ``eta`` is the model's (XM430-W350 0.739 from its ServoModel
+preset; 1, no correction, for the models without one), or the bus's ``gear_efficiency``. On
+the emulator's XM430 a servo lifting 1 N m at 1 rad/s reads 1.05 N m and lowering it 1.03 N m
+(one constant: 1.03 and 0.55); the excess is the gear's load-independent friction, which the
+current carries and the datasheet does not give. Present Load (AX, RX, MX on Protocol 1.0,
 XL430, XC430, MX-28(2.0)) is inferred from the drive's output (e-Manual), a PWM duty whose
-back-EMF part follows the velocity: not a torque (``energy_monitor`` refuses such efforts).
+back-EMF part follows the velocity: not a torque (``energy_monitor`` refuses such efforts); its
+effort stays load fraction times the datasheet stall torque at the rated voltage.
 
 Models: each servo's control table comes from the model number it reports
 (:func:`hexapod_bench_drivers.control_tables.table_for_model`: AX, MX on Protocol 1.0, MX(2.0)
@@ -169,6 +176,7 @@ from dynamixel_sdk.robotis_def import COMM_RX_CORRUPT, COMM_RX_TIMEOUT, COMM_SUC
 
 from hexapod_bench_drivers.control_tables import (
     ALL_MODELS,
+    BACK_DRIVE_DEAD_BAND_RAD_S,
     ERROR_OVERHEATING,
     EXTENDED_POSITION_LIMIT,
     GOAL_POSITION_MODES,
@@ -177,6 +185,7 @@ from hexapod_bench_drivers.control_tables import (
     P2_STATUS_ERRORS,
     ControlTable,
     ControlTableError,
+    PresentState,
     Register,
     decode_error_flags,
     table_for_model,
@@ -589,7 +598,8 @@ class ServoReading:
     """One servo's state in the joint frame; NaN fields when ``ok`` is False.
 
     position_rad, velocity_rad_s : joint angle and rate (direction and offset applied).
-    effort_nm : load fraction * stall torque * direction (an estimate, see module doc).
+    effort_nm : joint torque estimate [N m] (Present Current through the gear model, or
+        Present Load fraction * stall torque; times direction; see the module doc).
     error_flags : hardware flags (1.0 status error byte / 2.0 Hardware Error Status).
     """
 
@@ -728,6 +738,13 @@ class DynamixelBus:
     torque_check_interval_cycles : int
         Protocol 2.0 with Sync Read: every servo's Torque Enable is read every this many
         cycles (see the module doc, step 4).
+    gear_efficiency : float, optional
+        Gear efficiency ``eta`` in (0, 1] for the efforts from Present Current of every servo
+        (back-driven: torque / eta^2); None (default): each model's own
+        (``ControlTable.gear_efficiency``, 1 for the models without a figure).
+    back_drive_dead_band_rad_s : float
+        Speed below which a servo whose current opposes its velocity is still taken as driving
+        (full correction from twice it; see ``BACK_DRIVE_DEAD_BAND_RAD_S``) [rad/s].
     port_handler : PortHandler, optional
         Injected for tests; default FastPortHandler.
     """
@@ -737,11 +754,21 @@ class DynamixelBus:
                  silent_after: int = 3, probe_interval_cycles: int = 50,
                  temperature_limit_c: float = 70.0, rate_hz: float | None = None,
                  torque_check_interval_cycles: int = TORQUE_CHECK_INTERVAL_CYCLES,
+                 gear_efficiency: float | None = None,
+                 back_drive_dead_band_rad_s: float = BACK_DRIVE_DEAD_BAND_RAD_S,
                  port_handler: PortHandler | None = None) -> None:
         if protocol not in (1, 2):
             raise ValueError(f'protocol: expected 1 or 2, got {protocol!r}')
         if not joints:
             raise ValueError('joints: expected at least one JointConfig')
+        if gear_efficiency is not None and not 0.0 < gear_efficiency <= 1.0:
+            raise ValueError(f'gear_efficiency: expected a value in (0, 1] or None, got '
+                             f'{gear_efficiency!r}')
+        if not (math.isfinite(back_drive_dead_band_rad_s) and back_drive_dead_band_rad_s >= 0):
+            raise ValueError('back_drive_dead_band_rad_s: expected a finite value >= 0, got '
+                             f'{back_drive_dead_band_rad_s!r}')
+        self.gear_efficiency = None if gear_efficiency is None else float(gear_efficiency)
+        self.back_drive_dead_band_rad_s = float(back_drive_dead_band_rad_s)
         self.protocol = int(protocol)
         self.baud_rate = int(baud_rate)
         self.retries = max(0, int(retries))
@@ -1672,10 +1699,19 @@ class DynamixelBus:
                 name=j.name, servo_id=sid, ok=True,
                 position_rad=j.to_joint(st.position_rad) + 0.0,
                 velocity_rad_s=j.direction * st.velocity_rad_s + 0.0,
-                effort_nm=j.direction * st.load_fraction * s.table.stall_torque_nm + 0.0,
+                effort_nm=j.direction * self._effort_nm(s.table, st) + 0.0,
                 load_fraction=j.direction * st.load_fraction + 0.0,
                 voltage_v=st.voltage_v, temperature_c=st.temperature_c, error_flags=flags))
         return tuple(readings)
+
+    def _effort_nm(self, table: ControlTable, st: PresentState) -> float:
+        """The servo-frame torque estimate of one reading (see the module doc)."""
+        if 'present_current' not in table.registers:
+            return st.load_fraction * table.stall_torque_nm
+        return table.current_to_torque_nm(
+            st.load_fraction * table.stall_current_a, st.velocity_rad_s,
+            gear_efficiency=self.gear_efficiency,
+            dead_band_rad_s=self.back_drive_dead_band_rad_s)
 
     def _status_eligible(self, s: _Servo, raw: Mapping[int, Any]) -> bool:
         """``s`` answered this cycle, and the cycle before (not coming back: its model is

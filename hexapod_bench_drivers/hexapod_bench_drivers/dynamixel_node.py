@@ -2,8 +2,10 @@
 
 Topics (relative names, so a namespace applies):
 
-- publishes ``joint_states`` (sensor_msgs/JointState: rad, rad/s, effort N m estimated as load
-  fraction * stall torque) for the servos read this cycle; ``servo_status``
+- publishes ``joint_states`` (sensor_msgs/JointState: rad, rad/s, effort N m estimated from
+  Present Current through the gear model, back-driven divided by ``eta^2``, or as Present Load
+  fraction * stall torque; see :mod:`hexapod_bench_drivers.dynamixel_bus`) for the servos read
+  this cycle; ``servo_status``
   (hexapod_interfaces/ServoStatus) for every configured servo, NaN where a servo did not answer;
   ``/diagnostics`` (diagnostic_msgs/DiagnosticArray) every ``diagnostics_period_s`` and at once
   when the temperature abort fires.
@@ -61,6 +63,7 @@ from hexapod_common import stop_signals  # noqa: E402,I001
 
 stop_signals.catch_if_program('dynamixel_driver')
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -82,7 +85,7 @@ from rclpy.task import Future
 from sensor_msgs.msg import JointState
 from std_srvs.srv import SetBool
 
-from hexapod_bench_drivers.control_tables import decode_error_flags
+from hexapod_bench_drivers.control_tables import BACK_DRIVE_DEAD_BAND_RAD_S, decode_error_flags
 from hexapod_bench_drivers.dynamixel_bus import (
     DUPLICATE_HOLD_CYCLES,
     DynamixelBus,
@@ -158,6 +161,17 @@ class DynamixelDriverParams:
     frame_id: str = param('', 'header.frame_id of the published messages.')
     diagnostics_period_s: float = param(1.0, 'Period of /diagnostics [s].', validate=_positive,
                                         **_START)
+    gear_efficiency: float = param(
+        0.0, 'Gear efficiency eta in (0, 1] for the efforts from Present Current of every servo '
+        '(back-driven: torque / eta^2); 0: each model\'s own (XM430-W350 0.739, 1 = no '
+        'correction for the models without a figure).',
+        validate=lambda v: None if 0 <= v <= 1 else 'expected 0 (the model\'s) or (0, 1]',
+        **_START)
+    back_drive_dead_band_rad_s: float = param(
+        BACK_DRIVE_DEAD_BAND_RAD_S, 'Below this speed a servo whose Present Current opposes '
+        'its velocity is taken as driving; the back-drive correction is full from twice it '
+        '[rad/s].', validate=lambda v: None if math.isfinite(v) and v >= 0 else 'expected a '
+        'finite value >= 0', **_START)
 
 
 class DynamixelDriverNode(Node):
@@ -173,7 +187,9 @@ class DynamixelDriverNode(Node):
             timeout_margin_ms=p.timeout_margin_ms, retries=p.retries,
             silent_after=p.silent_after,
             probe_interval_cycles=max(1, int(round(p.probe_interval_s * p.rate_hz))),
-            temperature_limit_c=p.temperature_limit_c, rate_hz=p.rate_hz).open()
+            temperature_limit_c=p.temperature_limit_c, rate_hz=p.rate_hz,
+            gear_efficiency=p.gear_efficiency or None,
+            back_drive_dead_band_rad_s=p.back_drive_dead_band_rad_s).open()
         try:
             self._start()
         except BaseException as err:
