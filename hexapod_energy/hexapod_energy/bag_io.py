@@ -171,6 +171,11 @@ class BenchData:
     #: the leg whose schedule agrees with the measured contact (:func:`bench_phase_samples`)
     schedule_legs: tuple[str, ...] = ()
     bench_leg: str = ''
+    #: the bench leg's clock at each :attr:`schedule_t_s` (n, 3): its phase
+    #: ``(cycle_phase - theta) mod 1``, the period [s] and the duty factor (NaN: not given);
+    #: places the phase boundaries between the labels (:func:`bench_phase_samples`). Used only
+    #: with one row per label (a schedule replaced without it: the nearest label)
+    schedule_clock: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
 
 #: columns of :attr:`BenchData.gait_rows`
@@ -382,7 +387,7 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
     no_header: dict[str, int] = {}
     joint_rows: list[tuple[float, float, float, float]] = []
     tip_leg: list[str] = [bench_leg] if bench_leg else []
-    schedule: list[tuple[float, tuple[str, ...], tuple[bool, ...]]] = []
+    schedule: list[tuple[float, tuple[str, ...], tuple[bool, ...], tuple[float, ...]]] = []
     gait_rows: list[tuple[float, ...]] = []   # BenchData.gait_rows
     with open_reader(path) as reader:
         reader_notes = list(getattr(reader, 'notes', ()))  # metadata.yaml vs storage, ...
@@ -432,7 +437,8 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
                     steps.append(geo)
                 t_gait = stamped(stamp_to_s(msg.header.stamp), m)
                 stance_code = tuple(bool(x) for x in msg.in_stance)
-                schedule.append((t_gait, tuple(msg.leg_names), stance_code))
+                schedule.append((t_gait, tuple(msg.leg_names), stance_code,
+                                 _gait_clock(msg)))
                 gait_rows.append(_gait_row(t_gait, msg, stance_code))
                 continue
             if m.topic == '/battery_state':
@@ -479,7 +485,7 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
                 })
         js_legs: list[str] = []   # the legs /joint_states names (the bench leg when one)
         if (tip_topic != '/joint_states' and not tip_leg and '/joint_states' in present
-                and any(len(names) > 1 for _, names, _ in schedule)):
+                and any(len(row[1]) > 1 for row in schedule)):
             # a motion-capture tip and a several-leg /gait/phase (the project's gait_scheduler):
             # the bench leg from the joints the driver publishes (its joints file names one leg)
             js_legs = _joint_state_legs(reader, iter_messages, joint_state_from_msg)
@@ -502,7 +508,7 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
     notes_out.extend(clock_notes)
     if shifts:
         dt = shifts.get
-        sched = [(t + dt('/gait/phase', 0.0), v) for t, v in sched]
+        sched = [(t + dt('/gait/phase', 0.0), v, c) for t, v, c in sched]
         gait_rows = [(r[0] + dt('/gait/phase', 0.0), *r[1:]) for r in gait_rows]
         bat_samples = [dataclasses.replace(b, t_s=b.t_s + dt('/battery_state', 0.0))
                        for b in bat_samples]
@@ -550,27 +556,57 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
     sched.sort(key=lambda r: r[0])
     return BenchData(str(path), b_arr[:, 0], b_arr[:, 1], b_arr[:, 2], f_arr[:, 0],
                      f_arr[:, 1], t_arr[:, 0], t_arr[:, 1], ses, notes,
-                     np.array([t for t, _ in sched], dtype=float),
-                     np.array([v for _, v in sched], dtype=bool),
+                     np.array([t for t, _, _ in sched], dtype=float),
+                     np.array([v for _, v, _ in sched], dtype=bool),
                      np.array(sorted(gait_rows), dtype=float).reshape(-1, GAIT_COLUMNS),
                      warnings,
-                     next((tuple(n) for _, n, _ in schedule if len(n) > 1), ()),
-                     tip_leg[0] if tip_leg else next((n[0] for _, n, _ in schedule
-                                                      if len(n) == 1), ''))
+                     next((tuple(r[1]) for r in schedule if len(r[1]) > 1), ()),
+                     tip_leg[0] if tip_leg else next((r[1][0] for r in schedule
+                                                      if len(r[1]) == 1), ''),
+                     np.array([c for _, _, c in sched], dtype=float).reshape(-1, 3))
 
 
-def _bench_schedule(rows: list[tuple[float, tuple[str, ...], tuple[bool, ...]]],
+def _gait_clock(msg: Any) -> tuple[float, ...]:
+    """``(cycle_phase, period, duty_factor, *phase_offsets)`` of a ``/gait/phase`` message
+    (NaN for a field it lacks or leaves non-finite; a standing schedule's period is 0)."""
+    def num(x: Any) -> float:
+        try:
+            v = float(x)
+        except (TypeError, ValueError):
+            return math.nan
+        return v if math.isfinite(v) else math.nan
+
+    offsets = getattr(msg, 'phase_offsets', None)
+    return (num(getattr(msg, 'cycle_phase', math.nan)), num(getattr(msg, 'period', math.nan)),
+            num(getattr(msg, 'duty_factor', math.nan)),
+            *(num(x) for x in (offsets if offsets is not None else ())))
+
+
+def _leg_clock(clock: tuple[float, ...], k: int, legs: int) -> tuple[float, float, float]:
+    """Leg ``k``'s phase ``(cycle_phase - theta_k) mod 1``, the period and the duty factor of
+    a :func:`_gait_clock` (NaN phase without one offset per leg)."""
+    phase, period, duty = clock[:3]
+    offsets = clock[3:]
+    if len(offsets) != legs or not (math.isfinite(phase) and math.isfinite(offsets[k])):
+        return (math.nan, period, duty)
+    return ((phase - offsets[k]) % 1.0, period, duty)
+
+
+def _bench_schedule(rows: list[tuple[float, tuple[str, ...], tuple[bool, ...],
+                                     tuple[float, ...]]],
                     tip_leg: list[str], notes: list[str], warnings: list[str], *,
                     source: str = '', js_legs: Sequence[str] = ()
-                    ) -> list[tuple[float, bool]]:
-    """The bench leg's commanded stance from ``/gait/phase`` rows: its only leg, else the leg
+                    ) -> list[tuple[float, bool, tuple[float, float, float]]]:
+    """The bench leg's commanded stance from ``/gait/phase`` rows, with its clock (leg phase,
+    period, duty factor: :func:`_leg_clock`, which places the phase boundaries between the
+    messages: :func:`~hexapod_energy.single_leg.schedule_labels`): its only leg, else the leg
     ``tip_leg`` names (from ``source``: ``--bench-leg`` or ``/joint_states``, noted);
     otherwise none, a warning (the contact split is used: it moved the outside review's
     phase powers by +19..+37 % and -18..-42 %)."""
-    out: list[tuple[float, bool]] = []
+    out: list[tuple[float, bool, tuple[float, float, float]]] = []
     skipped = 0
     several: tuple[str, ...] = ()
-    for t, names, stance in rows:
+    for t, names, stance, clock in rows:
         if len(stance) != len(names) or not names:
             skipped += 1
             continue
@@ -594,7 +630,7 @@ def _bench_schedule(rows: list[tuple[float, tuple[str, ...], tuple[bool, ...]]],
                 '%, P_swing -18..-42 %); give --bench-leg NAME, or record the bench leg\'s '
                 'joints alone on /joint_states')
             return []
-        out.append((t, stance[k]))
+        out.append((t, stance[k], _leg_clock(clock, k, len(names))))
     if several:
         notes.append(f'bench leg {tip_leg[0]} (from {source or "/joint_states"}) of the '
                      f'{len(several)} legs on /gait/phase: its commanded stance splits the '
@@ -1121,7 +1157,12 @@ def merge_bench_data(datas: Sequence[BenchData], reasons: list[str] | None = Non
     bt, bv, ba = by_time(cat('battery_t_s'), cat('battery_v'), cat('battery_a'))
     ft, fz = by_time(cat('force_t_s'), cat('force_z_n'))
     tt, tz = by_time(cat('tip_t_s'), cat('tip_z_m'))
-    st, ss = by_time(cat('schedule_t_s'), cat('schedule_stance'))
+    def clock(d: BenchData) -> np.ndarray:   # a schedule replaced without its clock: none
+        n = d.schedule_t_s.size
+        return d.schedule_clock if d.schedule_clock.shape == (n, 3) else np.full((n, 3), np.nan)
+
+    st, ss, sc = by_time(cat('schedule_t_s'), cat('schedule_stance'),
+                         np.concatenate([clock(datas[i]) for i in order]).reshape(-1, 3))
     sessions = []
     for n, i in enumerate(order):
         nd = datas[order[n + 1]] if n + 1 < len(order) else None
@@ -1136,7 +1177,7 @@ def merge_bench_data(datas: Sequence[BenchData], reasons: list[str] | None = Non
                      [f'{Path(datas[i].path).name}: {w}' for i in order
                       for w in datas[i].warnings],
                      next((d.schedule_legs for d in datas if d.schedule_legs), ()),
-                     next((d.bench_leg for d in datas if d.bench_leg), ''))
+                     next((d.bench_leg for d in datas if d.bench_leg), ''), sc)
 
 
 def _walking_segments(sessions: list[dict[str, Any]], t_end_s: float
@@ -1216,7 +1257,9 @@ def bench_phase_samples(
 
     ``phase_split``: which samples are stance. ``contact`` is Brodoline et al.'s: the normal
     force above a threshold and the tip low (:func:`stance_mask`). ``schedule`` takes the
-    commanded stance of the bench leg from ``/gait/phase``, the timeline Eq. 1 composes the
+    commanded stance of the bench leg from ``/gait/phase`` (each boundary between two labels
+    where the messages' clock puts it: :attr:`BenchData.schedule_clock`,
+    :func:`~hexapod_energy.single_leg.schedule_labels`), the timeline Eq. 1 composes the
     phases on (the robot's ``L(t)`` is its commanded schedule too); ``auto`` (default) takes
     the schedule for every session it covers, else the contact. The sensed contact lasts
     longer than the commanded stance (the stage rides on the tip until it is lifted off its
@@ -1287,7 +1330,11 @@ def bench_phase_samples(
     offset = _force_offset_s(data, segments, notes, warnings)
     samples = []
     labelled: list[tuple[dict[str, Any], float, float, np.ndarray, np.ndarray, float,
-                         float | None]] = []
+                         float | None, np.ndarray | None]] = []
+    # the schedule's clock places each phase boundary between its labels (schedule split);
+    # a schedule replaced without it (one row per label) takes the nearest label
+    clock = data.schedule_clock if data.schedule_clock.shape == (data.schedule_t_s.size, 3) \
+        else None
     splits: dict[str, int] = {}
     guessed: list[float] = []
     force_gaps: set[str] = set()
@@ -1317,8 +1364,10 @@ def bench_phase_samples(
         covered = not why_not and phase_split != 'contact'
         if why_not and s['frequency_hz'] > 0 and phase_split != 'contact':
             uncovered.append(why_not)
+        label_clock = None
         if s['frequency_hz'] > 0 and covered:
             t_tip, st = data.schedule_t_s[sm], data.schedule_stance[sm]
+            label_clock = clock[sm] if clock is not None else None
             splits['schedule'] = splits.get('schedule', 0) + 1
             _schedule_contact_cycles(data, offset, a, t1, s['frequency_hz'], t_tip, st,
                                      agreement, force_threshold_n=force_threshold_n,
@@ -1353,14 +1402,14 @@ def bench_phase_samples(
             label_gap = max(LABEL_GAP_INTERVALS * float(np.median(np.diff(t_tip))), 0.05)
             if not np.all(np.diff(t_tip) <= label_gap):
                 label_gaps.add(s['session_id'])
-        labelled.append((s, a, t1, t_tip, st, duty, label_gap))
+        labelled.append((s, a, t1, t_tip, st, duty, label_gap, label_clock))
     _check_schedule_contact(data, agreement, phase_split)
     # the power monitor's clock against the labels' (tip or /gait/phase): a 0.2 s offset
     # swapped the phase powers in silence (3 Hz stance 5.21 -> 15.41 W; outside review A, F1)
     lag, lag_diag = _power_lag_s(data, power, labelled, notes, warnings)
     t_power = data.battery_t_s - lag
     changed = []
-    for s, a, t1, t_tip, st, duty, label_gap in labelled:
+    for s, a, t1, t_tip, st, duty, label_gap, label_clock in labelled:
         if lag:
             # the session stamps are on one of the two clocks: the window's last |lag| s may
             # be after the walk on the other (standing power read as stance: -3 % at 3 Hz)
@@ -1371,7 +1420,8 @@ def bench_phase_samples(
         if not pm.any():
             continue
         kw = dict(session_id=s['session_id'], load_kg=s['load_kg'],
-                  frequency_hz=s['frequency_hz'], duty_factor=duty, max_label_gap_s=label_gap)
+                  frequency_hz=s['frequency_hz'], duty_factor=duty, max_label_gap_s=label_gap,
+                  label_clock=label_clock)
         sample = phase_powers(t_power[pm], power[pm], t_tip, st, **kw)
         if s['session_id'] in label_gaps | force_gaps:
             plain = phase_powers(t_power[pm], power[pm], t_tip, st, gap_fill=False, **kw)
@@ -1567,7 +1617,7 @@ POWER_LAG_AGREE = 0.75
 
 def _power_lag_s(data: BenchData, power: np.ndarray,
                  labelled: list[tuple[dict[str, Any], float, float, np.ndarray, np.ndarray,
-                                      float, float | None]],
+                                      float, float | None, np.ndarray | None]],
                  notes: list[str], warnings: list[str]) -> tuple[float, dict[str, Any]]:
     """The lag of the power stream behind the phase labels to take out [s] (0 unless clear:
     :func:`power_label_lag_s` over the walking sessions; :data:`POWER_LAG_MIN_S` ..
@@ -1575,7 +1625,7 @@ def _power_lag_s(data: BenchData, power: np.ndarray,
     ``notes`` and ``warnings``. A lag within three standard errors of 0 is none; with one
     walking frequency nothing is estimated (noted)."""
     rows = []
-    for s, a, t1, t_tip, st, _duty, gap in labelled:
+    for s, a, t1, t_tip, st, _duty, gap, _clock in labelled:
         if s['frequency_hz'] <= 0 or len(t_tip) < 4 or st.all() or not st.any():
             continue
         pm = (data.battery_t_s >= a) & (data.battery_t_s < t1)
