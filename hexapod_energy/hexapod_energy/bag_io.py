@@ -529,11 +529,14 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
         if why:
             raise BagContentError(f'bag {path}: {why}')
         ses.sort(key=lambda s: s['t_s'])
+        b_rows = np.array(bat, dtype=float).reshape(-1, 3)   # the power, for lost 'cooling's
+        b_rows = b_rows[np.argsort(b_rows[:, 0], kind='stable')]
         ses = _repair_sessions(
             ses, tip, min(min(b[0] for b in bat), min(f[0] for f in frc),
                           min(p[0] for p in tip)),
             max(max(b[0] for b in bat), max(f[0] for f in frc), max(p[0] for p in tip)),
-            notes_out, warnings)
+            notes_out, warnings,
+            power=(b_rows[:, 0], np.abs(b_rows[:, 1] * b_rows[:, 2])))
     for name, rows in (('/battery_state', bat), ('/bench/ground_force', frc),
                        (tip_topic, tip), ('/bench/session', ses)):
         if not rows:
@@ -883,15 +886,25 @@ def _tip_steps_ends(t_s: np.ndarray, z_m: np.ndarray
     return rises[:n], falls[:n], (bool(up[0]), bool(up[-1]))
 
 
-def _tip_gaps(t_s: np.ndarray, t0: float, t1: float) -> np.ndarray:
+#: an interval between two leg tip samples shorter than this share of the typical lifted time
+#: of a step (lift-off to touchdown, :func:`_tip_steps`) cannot hide a step: the tip is seen
+#: in it however sparse the stream (the part above LIFT_FRACTION lasts about 0.8 of it)
+HIDDEN_STEP_LIFT_SHARE = 0.5
+
+
+def _tip_gaps(t_s: np.ndarray, t0: float, t1: float, min_gap_s: float = 0.0) -> np.ndarray:
     """(start, end) rows of the gaps in the sorted tip stamps ``t_s`` of ``[t0, t1)`` (an
     interval over :data:`LABEL_GAP_INTERVALS` times their median and 50 ms, the phase
-    split's label gaps), counting the span's ends: time the tip is not seen in."""
+    split's label gaps, and over ``min_gap_s``), counting the span's ends: time the tip is
+    not seen in. ``min_gap_s``: the longest interval in which a step could not hide
+    (:data:`HIDDEN_STEP_LIFT_SHARE`): a stream recorded sparser while the leg stands (the
+    simulated bench's 2 Hz while cooling) is seen standing when its samples cannot miss a
+    step, not unseen for being sparser than the walk's."""
     t = np.concatenate(([t0], t_s, [t1]))
     steps = np.diff(t)
     if t_s.size < 3:
         return np.array([[t0, t1]]) if t1 > t0 else np.zeros((0, 2))
-    limit = max(LABEL_GAP_INTERVALS * float(np.median(np.diff(t_s))), 0.05)
+    limit = max(LABEL_GAP_INTERVALS * float(np.median(np.diff(t_s))), 0.05, min_gap_s)
     k = np.flatnonzero(steps > limit)
     return np.column_stack((t[k], t[k + 1]))
 
@@ -908,6 +921,8 @@ class SteppingSpan:
     pauses: int                # stretches without steps inside the walk
     paused_s: float
     ground_s: float = 0.0      # the typical ground time between steps
+    last_touchdown_s: float = math.nan   # where a walk cut after its last step ends
+    cycle_s: float = math.nan            # the typical time from one lift-off to the next
 
 
 def stepping_span(t_s: np.ndarray, z_m: np.ndarray, t0: float, t1: float
@@ -925,7 +940,8 @@ def stepping_span(t_s: np.ndarray, z_m: np.ndarray, t0: float, t1: float
         return None
     # time without tip samples is not ground time: a marker dropout over a swing read as a
     # pause, or as standing before (after) the walk, a lost message (outside review D, D5)
-    gaps = _tip_gaps(t_s[m], t0, t1)
+    gaps = _tip_gaps(t_s[m], t0, t1,
+                     HIDDEN_STEP_LIFT_SHARE * float(np.median(falls - rises)))
     ground = rises[1:] - falls[:-1]
     seen = np.ones(ground.shape, bool)
     for g0, g1 in gaps:
@@ -941,10 +957,12 @@ def stepping_span(t_s: np.ndarray, z_m: np.ndarray, t0: float, t1: float
     start = float(rises[0]) if lead > limit else t0
     # just after the last touchdown's sample (spans are [start, end))
     dt = float(np.median(np.diff(t_s[m])))
-    end = min(t1, float(falls[-1]) + 0.5 * dt) if trail > limit else t1
+    last = min(t1, float(falls[-1]) + 0.5 * dt)
+    end = last if trail > limit else t1
     long = seen & (ground > PAUSE_GROUND * typical + STANDING_SLACK_S)
     return SteppingSpan(start, end, int(rises.size), start - t0, t1 - end, int(long.sum()),
-                        float(np.sum(ground[long])), typical)
+                        float(np.sum(ground[long])), typical, last,
+                        float(np.median(np.diff(rises))))
 
 
 #: bench data longer than this before the first ``/bench/session`` message is warned about
@@ -961,9 +979,65 @@ DONE_MARKER_S = 1.0
 WALK_LENGTH_SPREAD = 0.25
 
 
+#: a walk whose leg tip is not seen stepping after its last touchdown for this many of its
+#: cycles (and the standing limit) ends there when its power is at the bench's cooling level
+#: from a cycle after that touchdown on (:func:`_power_stop`)
+POWER_STOP_CYCLES = 3.0
+#: ... in at least this share of the power samples there
+POWER_STOP_SHARE = 0.9
+
+
+def _cooling_power(ses: list[dict[str, Any]], t_end_s: float, t_p: np.ndarray,
+                   p_w: np.ndarray) -> dict[float, list[tuple[float, float]]]:
+    """The power [W] of each labelled 'cooling' stretch of the stamp-ordered ``ses`` (from its
+    message to the next message, at least 3 samples): (median, robust standard deviation),
+    by load [kg]. ``t_p``: the power's stamps [s], sorted."""
+    out: dict[float, list[tuple[float, float]]] = {}
+    for k, s in enumerate(ses):
+        if s['state'] != 'cooling':
+            continue
+        end = ses[k + 1]['t_s'] if k + 1 < len(ses) else t_end_s
+        x = p_w[np.searchsorted(t_p, s['t_s']):np.searchsorted(t_p, end)]
+        if x.size >= 3:
+            mid = float(np.median(x))
+            out.setdefault(round(float(s['load_kg']), 6), []).append(
+                (mid, 1.4826 * float(np.median(np.abs(x - mid)))))
+    return out
+
+
+def _power_stop(t_p: np.ndarray, p_w: np.ndarray,
+                cooling: dict[float, list[tuple[float, float]]], load_kg: float, t0: float,
+                last_s: float, t1: float, cycle_s: float) -> str | None:
+    """Why the walk ``[t0, t1)`` stops at its last touchdown ``last_s`` by its power (None when
+    the power does not tell): from a cycle after it on, :data:`POWER_STOP_SHARE` of the power
+    samples are nearer the bench's cooling level (the highest labelled cooling stretch's median
+    power, of the same load when the bench cools at it) than the lowest the walk drew before
+    (its 5th percentile), which must stand out from that level by 3 of its robust standard
+    deviations. Physical evidence that outlives a lost 'cooling' message: a bench powered
+    off (the simulated one), or holding still, draws less than any phase of a walk."""
+    bands = cooling.get(round(float(load_kg), 6)) or [b for v in cooling.values() for b in v]
+    if not bands or not (cycle_s > 0):
+        return None
+    walk = p_w[(t_p >= t0) & (t_p < last_s)]
+    tail = p_w[(t_p >= last_s + cycle_s) & (t_p < t1)]
+    if walk.size < 10 or tail.size < 3:
+        return None
+    hi = max(m for m, _ in bands)
+    sigma = float(np.median([sd for _, sd in bands]))
+    low = float(np.percentile(walk, 5))
+    if low <= hi + 3.0 * sigma:
+        return None
+    if float(np.mean(tail < 0.5 * (hi + low))) < POWER_STOP_SHARE:
+        return None
+    return (f'median {np.median(tail):.2f} W, the bench\'s cooling {hi:.2f} W, the walk\'s '
+            f'lowest {low:.2f} W')
+
+
 def _repair_sessions(ses: list[dict[str, Any]], tip: list[tuple[float, float]],
                      t_first_s: float, t_end_s: float, notes: list[str],
-                     warnings: list[str]) -> list[dict[str, Any]]:
+                     warnings: list[str],
+                     power: tuple[np.ndarray, np.ndarray] | None = None
+                     ) -> list[dict[str, Any]]:
     """``/bench/session`` messages checked against the leg tip's steps
     (:func:`stepping_span`), for a lost message must not silently drop or corrupt a session
     (outside review: a lost 'cooling' ran a 1 Hz walk into 3 s of standing, P_swing -25 %; a
@@ -972,7 +1046,12 @@ def _repair_sessions(ses: list[dict[str, Any]], tip: list[tuple[float, float]],
 
     * A walking session whose tip makes no step over its end (start) beyond the typical
       ground time is ended (started) where stepping stops (starts): a 'cooling' ('walking')
-      message is put there; warned.
+      message is put there; warned. A tip not seen after its last step (a stream recorded
+      too sparsely there to show a step) ends the walk at that step when the power
+      (``power``: sorted stamps [s], watts) has dropped to the bench's cooling level for
+      :data:`POWER_STOP_CYCLES` cycles (:func:`_power_stop`; outside review: a lost 'cooling'
+      on the simulated bench, recorded at 2 Hz while cooling, ran a 2 Hz walk 120 s into
+      the cooling, P_stance +30 %, P_swing -11 %, no warning).
     * A session that never reports 'walking' but whose tip steps at its frequency gets its
       walk back from the steps; without steps (a 0 Hz session) it is left out; warned.
     * Data before the first message (over :data:`UNSESSIONED_LEAD_S`) is in no session;
@@ -985,6 +1064,8 @@ def _repair_sessions(ses: list[dict[str, Any]], tip: list[tuple[float, float]],
     arr = np.array(sorted(tip), dtype=float).reshape(-1, 2)
     t_tip, z_tip = arr[:, 0], arr[:, 1]
     out = [dict(s) for s in ses]
+    t_p, p_w = power if power is not None else (np.zeros(0), np.zeros(0))
+    cooling = _cooling_power(ses, t_end_s, t_p, p_w)
 
     def steps_in(t0: float, t1: float) -> int:
         m = (t_tip >= t0) & (t_tip < t1)
@@ -1043,6 +1124,15 @@ def _repair_sessions(ses: list[dict[str, Any]], tip: list[tuple[float, float]],
         if span is None:
             lengths.append((s['session_id'], t1 - t0))
             continue
+        stop = None
+        limit = STANDING_GROUND * span.ground_s + STANDING_SLACK_S
+        if span.standing_after_s == 0 and \
+                t1 - span.last_touchdown_s > max(limit, POWER_STOP_CYCLES * span.cycle_s):
+            stop = _power_stop(t_p, p_w, cooling, float(s.get('load_kg') or 0.0), t0,
+                               span.last_touchdown_s, t1, span.cycle_s)
+            if stop is not None:
+                span = dataclasses.replace(span, end_s=span.last_touchdown_s,
+                                           standing_after_s=t1 - span.last_touchdown_s)
         if span.standing_before_s > 0:
             # the walk's first message moves to the first step (same session, same values)
             for x in out:
@@ -1067,7 +1157,15 @@ def _repair_sessions(ses: list[dict[str, Any]], tip: list[tuple[float, float]],
                 f'after its \'walking\' message (a walk started late, or a lost /bench/session '
                 f'message?): the walk is taken from its first step '
                 f'({span.end_s - span.start_s:.1f} s of {t1 - t0:.1f} s)')
-        if span.standing_after_s > 0:
+        if stop is not None:
+            warnings.append(
+                f'session {s["session_id"]}: its leg tip is not seen stepping in the last '
+                f'{span.standing_after_s:.1f} s of its {t1 - t0:.1f} s in state walking, and '
+                f'its power is at the bench\'s cooling level there ({stop}; a lost '
+                f'/bench/session \'cooling\'?): the walk is taken to its last step, '
+                f'{span.end_s - t0:.1f} s after its \'walking\' message '
+                f'({span.end_s - span.start_s:.1f} s)')
+        elif span.standing_after_s > 0:
             warnings.append(
                 f'session {s["session_id"]}: its leg tip makes no step in the last '
                 f'{span.standing_after_s:.1f} s of its {t1 - t0:.1f} s in state walking (a '
