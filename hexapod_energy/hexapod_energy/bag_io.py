@@ -2355,9 +2355,10 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
                 ('the gait schedule\'s speed refused as not metres per second'
                  if too_fast else 'a stand or a clock-driven gait schedule, /gait/phase step '
                  'length 0') + ', and no /mocap/body, '
-                '/odom or given speed there): ' + ('speed, cost of transport and specific resistance null'
-                              if n_none == len(wins) else 'speed averaged over the others; '
-                              'cost of transport and specific resistance over those windows'))
+                '/odom or given speed there): '
+                + ('speed, cost of transport and specific resistance null'
+                   if n_none == len(wins) else 'speed averaged over the others; '
+                   'cost of transport and specific resistance over those windows'))
         return RobotRun(
             path=str(path), windows=len(wins), window_s=float(w.sum()),
             power_in_w=avg([d.power_in_w for d in wins]),
