@@ -297,8 +297,8 @@ def stride_slope_rad(t_s: ArrayLike, height_m: ArrayLike, x_m: ArrayLike, pitch_
     (:func:`.steady.steady_start_s`, from the pitch) are regressed on each other; a moving
     average over exactly one period removes the periodic motion whatever its phase. None when
     the steady part is shorter than :data:`STRIDE_SLOPE_MIN_PERIODS` periods, the body travels
-    less than :data:`STRIDE_SLOPE_MIN_TRAVEL_M` in it, or a motion-capture gap (over 2.5
-    sample steps) falls in every window.
+    less than :data:`STRIDE_SLOPE_MIN_TRAVEL_M` in it, or a motion-capture gap (over
+    :func:`.preprocess.max_mocap_gap_s`) falls in every window.
     """
     t = np.asarray(t_s, dtype=float)
     z = np.asarray(height_m, dtype=float)
@@ -493,15 +493,63 @@ def auto_pitch_smoothing(t_s: ArrayLike, pitch_rad: ArrayLike) -> int:
 
 
 def _smooth_segments(t: FloatArray, y: FloatArray, n: int) -> FloatArray:
-    """Local quadratic (Savitzky-Golay) over ``n`` samples within each gap-free segment
-    (segments shorter than ``n`` kept as they are)."""
+    """Local quadratic (Savitzky-Golay) over ``n`` samples within each segment of the track
+    (segments shorter than ``n`` kept as they are).
+
+    Segments split where the motion capture does (:func:`.preprocess.max_mocap_gap_s`: 30 ms,
+    two missing samples at 120 Hz, one at 60 Hz); samples missing inside a segment (a step
+    over 1.5 median ones) are left out of the local fits, each quadratic taken over the real
+    samples among the ``n`` nominal ones around it (:func:`_smooth_missing`). Before, a step
+    over 1.5 median ones split the smoothing: with 10 % of a simulated 120 Hz EduBot run's
+    poses missing in pairs, 8 % of its pitch samples lay in pieces shorter than the smoother
+    and stayed raw (pitch error 0.49 mrad rms against the clean run's 0.42; now 0.44).
+    """
     n = n + 1 - n % 2
     dt = float(np.median(np.diff(t)))
-    breaks = np.flatnonzero(np.diff(t) > 1.5 * dt) + 1
+    steps = np.diff(t)
+    breaks = np.flatnonzero(steps > max_mocap_gap_s(dt)) + 1
     out = y.copy()
     for a, b in zip(np.concatenate([[0], breaks]), np.concatenate([breaks, [t.size]])):
-        if b - a >= n:
-            out[a:b] = savgol_filter(y[a:b], n, 2, mode='interp')
+        holes = steps[a:b - 1] > 1.5 * dt
+        if not np.any(holes):
+            if b - a >= n:
+                out[a:b] = savgol_filter(y[a:b], n, 2, mode='interp')
+            continue
+        # each sample's place on the nominal grid (a hole of m intervals: m - 1 missing)
+        skip = np.where(holes, np.maximum(np.rint(steps[a:b - 1] / dt), 1.0), 1.0)
+        slot = np.concatenate([[0], np.cumsum(skip)]).astype(np.int64)
+        if slot[-1] + 1 >= n:
+            out[a:b] = _smooth_missing(slot, y[a:b], n)
+    return out
+
+
+def _smooth_missing(slot: NDArray[np.int64], y: FloatArray, n: int) -> FloatArray:
+    """Savitzky-Golay (quadratic over ``n`` nominal samples, ``mode='interp'``) of samples at
+    grid places ``slot`` (increasing, some places missing): each sample's quadratic is fitted
+    to the real samples of the ``n`` places centred on it (at the track's ends the first or
+    last ``n``). With no place missing this is :func:`scipy.signal.savgol_filter`'s result
+    (to rounding); a sample whose places hold fewer than four real ones is kept as it is."""
+    size = int(slot[-1]) + 1
+    h = n // 2
+    start = np.clip(slot - h, 0, size - n)                       # first place of each window
+    full = np.full(size, -1, dtype=np.int64)
+    full[slot] = np.arange(slot.size)
+    idx = full[start[:, None] + np.arange(n)[None, :]]           # (m, n), -1: missing
+    real = idx >= 0
+    u = np.where(real, (start[:, None] + np.arange(n)[None, :] - slot[:, None]) / h, 0.0)
+    v = np.where(real, y[np.maximum(idx, 0)], 0.0)
+    w = real.astype(float)
+    # weighted normal equations of c0 + c1 u + c2 u^2 per sample (u in half-windows), solved
+    # for c0, the value at the sample itself (u = 0)
+    m0, m1, m2 = w.sum(1), (w * u).sum(1), (w * u * u).sum(1)
+    m3, m4 = (w * u ** 3).sum(1), (w * u ** 4).sum(1)
+    a = np.stack([np.stack([m0, m1, m2], -1), np.stack([m1, m2, m3], -1),
+                  np.stack([m2, m3, m4], -1)], -2)
+    rhs = np.stack([(w * v).sum(1), (w * u * v).sum(1), (w * u * u * v).sum(1)], -1)
+    ok = real.sum(1) >= 4
+    out = y.copy()
+    if np.any(ok):
+        out[ok] = np.linalg.solve(a[ok], rhs[ok][..., None])[:, 0, 0]
     return out
 
 
@@ -832,6 +880,26 @@ class _OutputError:
         return out
 
 
+def _merge_groups(tm: FloatArray, masks: list[NDArray[np.bool_]], merge: int
+                  ) -> list[list[int]]:
+    """Consecutive windows (masks over ``tm``) joined in groups of up to ``merge``: a window
+    joins the group before it when its first sample follows that group's last one by no
+    more than :func:`.preprocess.max_mocap_gap_s` (the track's bridged gaps: windows either
+    side of two missing samples at 120 Hz are consecutive; they were not beyond 1.5 sample
+    intervals, so a dropout at a window's end left the windows after it paired differently
+    from the clean run's)."""
+    longest = max_mocap_gap_s(float(np.median(np.diff(tm))))
+    groups: list[list[int]] = []
+    for i, m in enumerate(masks):
+        if groups and len(groups[-1]) < merge:
+            prev = np.flatnonzero(masks[groups[-1][-1]])[-1]
+            if tm[np.flatnonzero(m)[0]] - tm[prev] <= longest:
+                groups[-1].append(i)
+                continue
+        groups.append([i])
+    return groups
+
+
 def _refine_output_error(body: _Body, masks: list[NDArray[np.bool_]], tf: FloatArray,
                          offset_s: float, ground_m: float, tilt_rad: float,
                          pitch0_rad: float, tau_s: float, k0: FloatArray,
@@ -855,16 +923,7 @@ def _refine_output_error(body: _Body, masks: list[NDArray[np.bool_]], tf: FloatA
     offset by more than ``margin_s``.
     """
     if merge > 1:
-        # consecutive gap-free windows joined in groups of ``merge`` (stiffness: their mean)
-        dt_m = float(np.median(np.diff(body.tm)))
-        groups: list[list[int]] = []
-        for i, m in enumerate(masks):
-            if groups and len(groups[-1]) < merge:
-                prev = np.flatnonzero(masks[groups[-1][-1]])[-1]
-                if body.tm[np.flatnonzero(m)[0]] - body.tm[prev] <= 1.5 * dt_m:
-                    groups[-1].append(i)
-                    continue
-            groups.append([i])
+        groups = _merge_groups(body.tm, masks, merge)
         masks = [np.logical_or.reduce([masks[i] for i in grp]) for grp in groups]
         k0 = np.array([float(np.mean(k0[grp])) for grp in groups])
     oe = _OutputError(body, masks, tf, tau_s, offset_s, margin_s)

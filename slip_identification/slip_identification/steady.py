@@ -43,7 +43,8 @@ def cycle_differences(t_s: ArrayLike, signal: ArrayLike, period_s: float, *,
     Parameters
     ----------
     t_s : array_like, shape (n,)
-        Sample times [s] (increasing; gaps longer than 2.5 median steps split the data).
+        Sample times [s] (increasing; gaps over :func:`.preprocess.max_mocap_gap_s` split
+        the data).
     signal : array_like, shape (n,)
         E.g. body pitch [rad].
     period_s : float
