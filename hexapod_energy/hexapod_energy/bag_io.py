@@ -1721,13 +1721,16 @@ def _power_lag_s(data: BenchData, power: np.ndarray,
     :func:`power_label_lag_s` over the walking sessions; :data:`POWER_LAG_MIN_S` ..
     :data:`POWER_LAG_AGREE`), and its diagnostics; applied or ambiguous lags are said in
     ``notes`` and ``warnings``. A lag within three standard errors of 0 is none; with one
-    walking frequency nothing is estimated (noted)."""
+    walking frequency nothing is estimated (noted). The labels are the schedule's timeline
+    where its clock is known (:func:`~hexapod_energy.single_leg.schedule_labels`), as in the
+    phase split."""
     rows = []
-    for s, a, t1, t_tip, st, _duty, gap, _clock in labelled:
+    for s, a, t1, t_tip, st, _duty, gap, clock in labelled:
         if s['frequency_hz'] <= 0 or len(t_tip) < 4 or st.all() or not st.any():
             continue
         pm = (data.battery_t_s >= a) & (data.battery_t_s < t1)
-        rows.append((data.battery_t_s[pm], power[pm], t_tip, st, gap, s['frequency_hz']))
+        rows.append((data.battery_t_s[pm], power[pm], t_tip, st, gap, s['frequency_hz'],
+                     clock))
     try:
         r = power_label_lag_s(rows)
     except ValueError:
@@ -1754,13 +1757,20 @@ def _power_lag_s(data: BenchData, power: np.ndarray,
     problems = []
     if not se <= POWER_LAG_SE_S:
         problems.append('its standard error is large')
-    if r['second'] >= POWER_LAG_SECOND and not abs(r['second_lag_s']) > abs(lag):
+    if r['second'] >= POWER_LAG_SECOND and (r['frequencies'] < 3 or
+                                            not abs(r['second_lag_s']) > abs(lag)):
         # a comparable peak at a smaller offset: ambiguous. One further out loses to the
         # smaller offset as the exact aliases do (review D: on the default plan, 0.5-3 Hz,
         # 0.05 and 0.1 s were found and not applied for their -0.45 / -0.4 s partial
-        # aliases, which only the 0.5 Hz sessions tell apart)
+        # aliases, which only the 0.5 Hz sessions tell apart). Not with two frequencies:
+        # they fix d and phi with nothing left over, and a broad waveform's split leaves
+        # peaks that no third frequency tells apart (simulated bench, 0.75 and 1.5 Hz, 5
+        # loads: a 0.3 s offset read -0.130 s, 0.12 s read 0.072 s, each peak beside one
+        # of 93-95 % further out)
         problems.append(f'another lag ({r["second_lag_s"]:+.3f} s) explains '
-                        f'{100 * r["second"]:.0f} % as much')
+                        f'{100 * r["second"]:.0f} % as much' +
+                        (' (two walking frequencies: no third tells the two apart)'
+                         if r['frequencies'] < 3 else ''))
     if r['agree'] < POWER_LAG_AGREE * r['sessions']:
         problems.append(f'only {r["agree"]} of {r["sessions"]} sessions peak there (a '
                         'phase-locked waveform, not a clock offset?)')

@@ -394,14 +394,16 @@ def schedule_labels(t_s: ArrayLike, t_label_s: ArrayLike, stance: ArrayLike,
 
 
 def _explained_curve(tp: np.ndarray, p: np.ndarray, tl: np.ndarray, st: np.ndarray,
-                     gap: float | None, lag_k: np.ndarray, dt_s: float) -> np.ndarray | None:
+                     gap: float | None, lag_k: np.ndarray, dt_s: float,
+                     clock: np.ndarray | None = None) -> np.ndarray | None:
     """Fraction of the power variance the stance/swing labels explain (the between-phase sum
-    of squares over the total) when each power sample ``t`` takes the label nearest
-    ``t - k dt_s``, for each ``k`` of ``lag_k``; None when too few samples stay inside the
-    labels at every lag."""
+    of squares over the total) when each power sample ``t`` takes the label of the labels'
+    timeline at ``t - k dt_s``, for each ``k`` of ``lag_k``; None when too few samples stay
+    inside the labels at every lag. The timeline: the nearest label, or with the schedule's
+    ``clock`` each phase boundary where the schedule puts it (:func:`schedule_labels`)."""
     grid = tl[0] + dt_s * np.arange(int((tl[-1] - tl[0]) / dt_s) + 1)
     near = _nearest_index(tl, grid)
-    lab_g = st[near]
+    lab_g = st[near] if clock is None else schedule_labels(grid, tl, st, clock)
     valid_g = np.abs(tl[near] - grid) <= gap if gap else np.ones(len(grid), bool)
     reach = dt_s * max(abs(int(lag_k[0])), abs(int(lag_k[-1])))
     keep = (tp >= tl[0] + reach) & (tp <= tl[-1] - reach)
@@ -424,8 +426,7 @@ def _explained_curve(tp: np.ndarray, p: np.ndarray, tl: np.ndarray, st: np.ndarr
 
 
 def power_label_lag_s(
-    sessions: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float | None,
-                             float]],
+    sessions: Sequence[tuple[Any, ...]],
     *,
     max_lag_s: float = MAX_POWER_LAG_S,
     dt_s: float = 0.002,
@@ -435,9 +436,15 @@ def power_label_lag_s(
     walking sessions at two or more frequencies.
 
     ``sessions``: ``(t_power_s, power_w, t_label_s, stance, max_label_gap_s, frequency_hz)``
-    each, the labels on their own clock. Each session's power is best split in two by the
-    labels shifted by some lag (each power sample ``t`` taking the label nearest ``t - lag``;
-    the fraction of its variance the split explains); that lag is a clock offset ``d``, the
+    each, the labels on their own clock, optionally with a seventh item, the schedule's clock
+    at each label (:func:`schedule_labels`; None: none). Each session's power is best split in
+    two by the labels shifted by some lag (each power sample ``t`` taking the label nearest
+    ``t - lag``, or with a clock the phase the schedule puts ``t - lag`` in; the fraction of
+    its variance the split explains). The nearest label moves every phase boundary between
+    two labels to their midpoint, up to half their spacing, by an amount that depends on which
+    labels were recorded: on the simulated bench (0.75 and 1.5 Hz, no clock offset) a
+    ``/gait/phase`` thinned to 50 Hz read -0.257 or -0.037 s (-0.011 s at 100 Hz), applied;
+    with the clock -0.034 s at either rate. That lag is a clock offset ``d``, the
     same at every frequency, plus the waveform's own delay, which is phase-locked (a servo's
     current follows the commanded cycle: on the simulated bench the best split trails the
     schedule by 0.11 of a cycle at 1, 2 and 3 Hz, 0.107, 0.057 and 0.037 s). The model
@@ -458,24 +465,27 @@ def power_label_lag_s(
     ``edge`` (the fit at the search's edge).
     """
     rows, freqs = [], []
-    for tp, p, tl, st, gap, f in sessions:
+    for tp, p, tl, st, gap, f, *more in sessions:
         tp, p, tl = np.asarray(tp, float), np.asarray(p, float), np.asarray(tl, float)
+        clock = np.asarray(more[0], float) if more and more[0] is not None else None
+        if clock is not None and clock.shape != (len(tl), 3):
+            clock = None
         if len(tl) >= 4 and len(tp) >= 10 and f > 0:
-            rows.append((tp, p, tl, np.asarray(st, bool), gap, float(f)))
+            rows.append((tp, p, tl, np.asarray(st, bool), gap, float(f), clock))
             freqs.append(float(f))
     if not rows:
         raise InvalidInputError('no session with power and labels to align')
-    span = min(min(tl[-1], tp[-1]) - max(tl[0], tp[0]) for tp, _p, tl, _st, _g, _f in rows)
+    span = min(min(tl[-1], tp[-1]) - max(tl[0], tp[0]) for tp, _p, tl, *_rest in rows)
     half_period = _common_period_s([2 * f for f in freqs])
     search = min(max_lag_s, span / 4, 0.5 * half_period)
     n_d = int(search / dt_s)
     d_k = np.arange(-n_d, n_d + 1)
     phis = np.arange(-0.25, 0.25, phase_step)
     curves, kept = [], []
-    for tp, p, tl, st, gap, f in rows:
+    for tp, p, tl, st, gap, f, clock in rows:
         n_phi = int(math.ceil(0.25 / f / dt_s)) + 1
         lag_k = np.arange(-n_d - n_phi, n_d + n_phi + 1)
-        c = _explained_curve(tp, p, tl, st, gap, lag_k, dt_s)
+        c = _explained_curve(tp, p, tl, st, gap, lag_k, dt_s, clock)
         if c is None:
             continue
         # (phi, d) -> the session's explained fraction at lag d + phi / f
