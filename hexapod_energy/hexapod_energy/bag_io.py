@@ -985,6 +985,9 @@ WALK_LENGTH_SPREAD = 0.25
 POWER_STOP_CYCLES = 3.0
 #: ... in at least this share of the power samples there
 POWER_STOP_SHARE = 0.9
+#: ... against the power of the walk's cycles (lift-off to lift-off) no longer than this many
+#: typical cycles (a cycle holding a pause, or the standing of a late start, is left out)
+POWER_STOP_CYCLE_SLACK = 1.5
 
 
 def _cooling_power(ses: list[dict[str, Any]], t_end_s: float, t_p: np.ndarray,
@@ -1006,31 +1009,45 @@ def _cooling_power(ses: list[dict[str, Any]], t_end_s: float, t_p: np.ndarray,
 
 
 def _power_stop(t_p: np.ndarray, p_w: np.ndarray,
-                cooling: dict[float, list[tuple[float, float]]], load_kg: float, t0: float,
-                last_s: float, t1: float, cycle_s: float) -> str | None:
-    """Why the walk ``[t0, t1)`` stops at its last touchdown ``last_s`` by its power (None when
-    the power does not tell): from a cycle after it on, :data:`POWER_STOP_SHARE` of the power
-    samples are nearer the bench's cooling level (the highest labelled cooling stretch's median
-    power, of the same load when the bench cools at it) than the lowest the walk drew before
-    (its 5th percentile), which must stand out from that level by 3 of its robust standard
-    deviations. Physical evidence that outlives a lost 'cooling' message: a bench powered
-    off (the simulated one), or holding still, draws less than any phase of a walk."""
+                cooling: dict[float, list[tuple[float, float]]], load_kg: float,
+                lift_offs: np.ndarray, last_s: float, t1: float, cycle_s: float
+                ) -> tuple[bool | None, str]:
+    """Whether the walk stops at its last touchdown ``last_s`` by its power, and why: True
+    when, from a cycle after it to ``t1`` on, :data:`POWER_STOP_SHARE` of the power samples
+    are nearer the bench's cooling level (the highest labelled cooling stretch's median power,
+    of the same load when the bench cools at it) than the lowest the walk drew while stepping
+    (the 5th percentile over its whole cycles, lift-off to lift-off ``lift_offs``, no longer
+    than :data:`POWER_STOP_CYCLE_SLACK` typical cycles ``cycle_s``: a start latency or a pause
+    inside the walk draws the standing power), which must stand out from that level by 3 of
+    its robust standard deviations; False when the power stays nearer the walk's; None when
+    the power cannot tell (no labelled cooling, too few samples, or a walk that draws no more
+    than the bench cools at). Physical evidence that outlives a lost 'cooling' message: a
+    bench powered off (the simulated one), or holding still, draws less than any phase of a
+    walk."""
     bands = cooling.get(round(float(load_kg), 6)) or [b for v in cooling.values() for b in v]
-    if not bands or not (cycle_s > 0):
-        return None
-    walk = p_w[(t_p >= t0) & (t_p < last_s)]
+    if not bands:
+        return None, 'no labelled \'cooling\' stretch to compare with'
+    if not (cycle_s > 0) or lift_offs.size < 2:
+        return None, 'no whole cycle'
+    r0, r1 = lift_offs[:-1], lift_offs[1:]
+    whole = (r1 - r0) <= POWER_STOP_CYCLE_SLACK * cycle_s
+    k = np.searchsorted(lift_offs, t_p, side='right') - 1
+    inside = (k >= 0) & (k < r0.size)
+    stepping = np.zeros(t_p.shape, bool)
+    stepping[inside] = whole[k[inside]]
+    walk = p_w[stepping & (t_p < last_s)]
     tail = p_w[(t_p >= last_s + cycle_s) & (t_p < t1)]
     if walk.size < 10 or tail.size < 3:
-        return None
+        return None, f'{walk.size} power samples in its whole cycles, {tail.size} after them'
     hi = max(m for m, _ in bands)
     sigma = float(np.median([sd for _, sd in bands]))
     low = float(np.percentile(walk, 5))
     if low <= hi + 3.0 * sigma:
-        return None
-    if float(np.mean(tail < 0.5 * (hi + low))) < POWER_STOP_SHARE:
-        return None
-    return (f'median {np.median(tail):.2f} W, the bench\'s cooling {hi:.2f} W, the walk\'s '
-            f'lowest {low:.2f} W')
+        return None, (f'the walk\'s lowest {low:.2f} W is not above the bench\'s cooling '
+                      f'{hi:.2f} W')
+    why = (f'median {np.median(tail):.2f} W, the bench\'s cooling {hi:.2f} W, the walk\'s '
+           f'lowest {low:.2f} W')
+    return float(np.mean(tail < 0.5 * (hi + low))) >= POWER_STOP_SHARE, why
 
 
 def _repair_sessions(ses: list[dict[str, Any]], tip: list[tuple[float, float]],
@@ -1124,15 +1141,20 @@ def _repair_sessions(ses: list[dict[str, Any]], tip: list[tuple[float, float]],
         if span is None:
             lengths.append((s['session_id'], t1 - t0))
             continue
-        stop = None
+        stop = unsure = None
         limit = STANDING_GROUND * span.ground_s + STANDING_SLACK_S
         if span.standing_after_s == 0 and \
                 t1 - span.last_touchdown_s > max(limit, POWER_STOP_CYCLES * span.cycle_s):
-            stop = _power_stop(t_p, p_w, cooling, float(s.get('load_kg') or 0.0), t0,
-                               span.last_touchdown_s, t1, span.cycle_s)
-            if stop is not None:
+            m = (t_tip >= t0) & (t_tip < t1)
+            lift_offs = _tip_steps_ends(t_tip[m], z_tip[m])[0]
+            stopped, why = _power_stop(t_p, p_w, cooling, float(s.get('load_kg') or 0.0),
+                                       lift_offs, span.last_touchdown_s, t1, span.cycle_s)
+            if stopped:
+                stop = why
                 span = dataclasses.replace(span, end_s=span.last_touchdown_s,
                                            standing_after_s=t1 - span.last_touchdown_s)
+            elif stopped is None:
+                unsure = why
         if span.standing_before_s > 0:
             # the walk's first message moves to the first step (same session, same values)
             for x in out:
@@ -1165,6 +1187,14 @@ def _repair_sessions(ses: list[dict[str, Any]], tip: list[tuple[float, float]],
                 f'/bench/session \'cooling\'?): the walk is taken to its last step, '
                 f'{span.end_s - t0:.1f} s after its \'walking\' message '
                 f'({span.end_s - span.start_s:.1f} s)')
+        elif unsure is not None:
+            warnings.append(
+                f'session {s["session_id"]}: its leg tip is not seen after its last step, in '
+                f'the last {t1 - span.last_touchdown_s:.1f} s of its {t1 - t0:.1f} s in state '
+                f'walking, and its power cannot tell whether it walked on ({unsure}): '
+                f'analysed as walking to its next /bench/session message; a lost \'cooling\' '
+                f'would put standing in its phase powers (record /bench/leg_tip while the '
+                f'leg stands as often as while it walks)')
         elif span.standing_after_s > 0:
             warnings.append(
                 f'session {s["session_id"]}: its leg tip makes no step in the last '
