@@ -108,6 +108,7 @@ __all__ = [
     'ERROR_OVERHEATING',
     'ERROR_OVERLOAD',
     'BACK_DRIVE_DEAD_BAND_RAD_S',
+    'GEAR_EFFICIENCY_MIN',
     'EXTENDED_POSITION_LIMIT',
     'GOAL_POSITION_MODES',
     'MULTI_TURN_MODES',
@@ -127,6 +128,12 @@ RPM_TO_RAD_S = 2.0 * math.pi / 60.0
 #: velocity reading flickers by a unit keeps the driving form, and a velocity that crosses
 #: the band changes the effort continuously (no jump of 1 / eta^2 = 1.8 at one speed).
 BACK_DRIVE_DEAD_BAND_RAD_S = 0.05
+
+#: The lowest gear efficiency a driver accepts as a parameter: a back-driven effort is the
+#: current's torque over ``eta^2``, 11x at 0.3. Servo spur gearboxes are about 0.5-0.9 (the
+#: XM430-W350's datasheet points give 0.739), so a lower figure is taken for a typo (0.07 for
+#: 0.7 would multiply every back-driven effort by 200) and refused.
+GEAR_EFFICIENCY_MIN = 0.3
 
 
 class ControlTableError(ValueError):

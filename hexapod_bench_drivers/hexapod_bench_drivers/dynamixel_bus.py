@@ -179,6 +179,7 @@ from hexapod_bench_drivers.control_tables import (
     BACK_DRIVE_DEAD_BAND_RAD_S,
     ERROR_OVERHEATING,
     EXTENDED_POSITION_LIMIT,
+    GEAR_EFFICIENCY_MIN,
     GOAL_POSITION_MODES,
     MULTI_TURN_MODES,
     OPERATING_MODES,
@@ -739,7 +740,7 @@ class DynamixelBus:
         Protocol 2.0 with Sync Read: every servo's Torque Enable is read every this many
         cycles (see the module doc, step 4).
     gear_efficiency : float, optional
-        Gear efficiency ``eta`` in (0, 1] for the efforts from Present Current of every servo
+        Gear efficiency ``eta`` in [GEAR_EFFICIENCY_MIN, 1] (0.3) for the efforts from Present Current of every servo
         (back-driven: torque / eta^2); None (default): each model's own
         (``ControlTable.gear_efficiency``, 1 for the models without a figure).
     back_drive_dead_band_rad_s : float
@@ -761,8 +762,9 @@ class DynamixelBus:
             raise ValueError(f'protocol: expected 1 or 2, got {protocol!r}')
         if not joints:
             raise ValueError('joints: expected at least one JointConfig')
-        if gear_efficiency is not None and not 0.0 < gear_efficiency <= 1.0:
-            raise ValueError(f'gear_efficiency: expected a value in (0, 1] or None, got '
+        if gear_efficiency is not None and not GEAR_EFFICIENCY_MIN <= gear_efficiency <= 1.0:
+            raise ValueError(f'gear_efficiency: expected a value in [{GEAR_EFFICIENCY_MIN}, 1] '
+                             f'(servo gears are about 0.5-0.9) or None, got '
                              f'{gear_efficiency!r}')
         if not (math.isfinite(back_drive_dead_band_rad_s) and back_drive_dead_band_rad_s >= 0):
             raise ValueError('back_drive_dead_band_rad_s: expected a finite value >= 0, got '

@@ -85,7 +85,11 @@ from rclpy.task import Future
 from sensor_msgs.msg import JointState
 from std_srvs.srv import SetBool
 
-from hexapod_bench_drivers.control_tables import BACK_DRIVE_DEAD_BAND_RAD_S, decode_error_flags
+from hexapod_bench_drivers.control_tables import (
+    BACK_DRIVE_DEAD_BAND_RAD_S,
+    GEAR_EFFICIENCY_MIN,
+    decode_error_flags,
+)
 from hexapod_bench_drivers.dynamixel_bus import (
     DUPLICATE_HOLD_CYCLES,
     DynamixelBus,
@@ -162,10 +166,12 @@ class DynamixelDriverParams:
     diagnostics_period_s: float = param(1.0, 'Period of /diagnostics [s].', validate=_positive,
                                         **_START)
     gear_efficiency: float = param(
-        0.0, 'Gear efficiency eta in (0, 1] for the efforts from Present Current of every servo '
-        '(back-driven: torque / eta^2); 0: each model\'s own (XM430-W350 0.739, 1 = no '
-        'correction for the models without a figure).',
-        validate=lambda v: None if 0 <= v <= 1 else 'expected 0 (the model\'s) or (0, 1]',
+        0.0, f'Gear efficiency eta in [{GEAR_EFFICIENCY_MIN}, 1] for the efforts from Present '
+        'Current of every servo (back-driven: torque / eta^2); 0: each model\'s own '
+        '(XM430-W350 0.739, 1 = no correction for the models without a figure).',
+        validate=lambda v: None if v == 0 or GEAR_EFFICIENCY_MIN <= v <= 1 else
+        f'expected 0 (the model\'s) or [{GEAR_EFFICIENCY_MIN}, 1] (servo gears are about '
+        '0.5-0.9; a lower figure looks like a typo)',
         **_START)
     back_drive_dead_band_rad_s: float = param(
         BACK_DRIVE_DEAD_BAND_RAD_S, 'Below this speed a servo whose Present Current opposes '

@@ -124,6 +124,7 @@ def test_the_driver_passes_its_gear_efficiency_to_the_bus(tmp_path):
         assert driver.bus.gear_efficiency == 0.9
         assert driver.bus.back_drive_dead_band_rad_s == 0.1
     for name, value in (('gear_efficiency', 1.5), ('gear_efficiency', -0.1),
+                        ('gear_efficiency', 0.07),
                         ('back_drive_dead_band_rad_s', -1.0),
                         ('back_drive_dead_band_rad_s', math.inf)):
         with pytest.raises(ParameterError, match=name):

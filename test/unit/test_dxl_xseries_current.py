@@ -222,6 +222,9 @@ def test_the_bus_gear_efficiency_overrides_the_model_s():
         assert_allclose(np.median(effort[down]), expected, rtol=0.02)
     with pytest.raises(ValueError, match='gear_efficiency'):
         DynamixelBus('/dev/null', [JointConfig('a', 1)], protocol=2, gear_efficiency=1.5)
+    for typo in (0.07, 0.0, float('nan')):  # 0.07 for 0.7: back-driven efforts x200
+        with pytest.raises(ValueError, match='gear_efficiency'):
+            DynamixelBus('/dev/null', [JointConfig('a', 1)], protocol=2, gear_efficiency=typo)
     with pytest.raises(ValueError, match='back_drive_dead_band_rad_s'):
         DynamixelBus('/dev/null', [JointConfig('a', 1)], protocol=2,
                      back_drive_dead_band_rad_s=-1.0)
