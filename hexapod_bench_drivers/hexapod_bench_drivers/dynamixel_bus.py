@@ -740,8 +740,9 @@ class DynamixelBus:
         Protocol 2.0 with Sync Read: every servo's Torque Enable is read every this many
         cycles (see the module doc, step 4).
     gear_efficiency : float, optional
-        Gear efficiency ``eta`` in [GEAR_EFFICIENCY_MIN, 1] (0.3) for the efforts from Present Current of every servo
-        (back-driven: torque / eta^2); None (default): each model's own
+        Gear efficiency ``eta`` in [GEAR_EFFICIENCY_MIN, 1] (0.3; lower is refused as a
+        typo) for the efforts from Present Current of every servo (back-driven: torque /
+        eta^2); None (default): each model's own
         (``ControlTable.gear_efficiency``, 1 for the models without a figure).
     back_drive_dead_band_rad_s : float
         Speed below which a servo whose current opposes its velocity is still taken as driving
