@@ -2063,7 +2063,6 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
         SLOW_BATTERY_NOTE,
         DescriptorAccumulator,
         resolve_current_sign,
-        velocity_units_note,
         velocityless_note,
     )
 
@@ -2292,11 +2291,12 @@ def _read_robot(path: str | Path, *, mass_kg: float, current_sign: str = 'auto',
         notes.append(f'negative mean input power in {n_neg} of {len(windows)} window(s) with '
                      f'the current sign {current_sign}: check the battery current sign '
                      '(--current-sign)')
-    # joint velocities against the positions' derivative over the whole bag (the windows'
-    # warnings say it as the samples came); deg/s velocities read P_out 57x (outside review B1)
-    units = velocity_units_note(acc.velocity_ratio())
-    if units:
-        notes.append(units)
+    # joint velocities against the positions' derivative at the bag's end (the windows took
+    # them as the samples came, as live): deg/s velocities read P_out 57x (outside review B1);
+    # a unit recognised is converted (said here once), a factor of no unit refused
+    units = acc.joint_units_()
+    if units.note and acc.joint_power_samples_:
+        notes.append(units.note)
     fast = sorted({w for d in windows for w in d.warnings if w.startswith(SCHEDULE_SPEED_NOTE)})
     if fast:
         notes.append(fast[0])

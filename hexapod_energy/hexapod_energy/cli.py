@@ -978,8 +978,9 @@ def _chosen_power_out(args: argparse.Namespace, setup: _Setup, run_: Any, p_mode
                                    math.nan if clock else _net_joint_power_w(run_))
     if math.isfinite(run_.power_out_w) and \
             any(n.startswith(VELOCITY_UNITS_NOTE) for n in notes):
-        # deg/s velocities: P_out 57x (21.5 W for 0.375 W passed every test); above P_in the
-        # refusal blamed the efforts (outside review B1, C3)
+        # velocities by a factor of no unit (a gear ratio: P_out 3.2x was taken) or joints in
+        # several units; above P_in the refusal blamed the efforts (outside review B1, C3). A
+        # unit recognised (deg/s, rpm, rev/s) was converted to rad/s in the windows
         why = (f'P_out from effort x velocity ({run_.power_out_w:.3g} W) is not the joints\' '
                'output: the joint velocities are not rad/s (see the note on them)')
     # why the joint efforts give no P_out, for the model's note

@@ -118,6 +118,14 @@ __all__ = [
     'G_MPS2',
     'EFFORT_MAX_NET_FRACTION',
     'POSITION_POWER_NOTE',
+    'POSITION_DEGREES_NOTE',
+    'VELOCITY_CONVERTED_NOTE',
+    'VELOCITY_UNITS',
+    'VELOCITY_UNITS_NOTE',
+    'JointUnits',
+    'VelocityScale',
+    'joint_units',
+    'velocity_scale',
     'velocityless_note',
     'CLOCK_MODEL_NOTE',
     'JOINT_WAIT_S',
@@ -171,33 +179,210 @@ def schedule_speed_note(gait: Any) -> str:
             'speed, cost of transport and specific resistance unknown')
 
 
-#: joint velocity against the position's derivative: the median ratio over moving samples
-#: (:meth:`DescriptorAccumulator.velocity_ratio`) within these bounds is deg/s against rad
-#: (57.3), or the inverse; samples moving slower than VELOCITY_CHECK_MIN_RAD_S by their
-#: positions, or over intervals longer than VELOCITY_CHECK_MAX_DT_S, are not compared
-VELOCITY_DEG_RATIO = (40.0, 80.0)
+#: joint velocity against the position's derivative (:func:`velocity_scale`): samples moving
+#: slower than VELOCITY_CHECK_MIN_RAD_S by their positions, or over intervals longer than
+#: VELOCITY_CHECK_MAX_DT_S, are not compared; a joint counts with VELOCITY_CHECK_MIN_JOINT_SAMPLES
+#: moving samples, the estimate with VELOCITY_CHECK_MIN_SAMPLES over its joints; the last
+#: VELOCITY_CHECK_KEEP samples of each joint are kept
 VELOCITY_CHECK_MIN_RAD_S = 0.05
 VELOCITY_CHECK_MAX_DT_S = 0.2
 VELOCITY_CHECK_MIN_SAMPLES = 50
-VELOCITY_CHECK_KEEP = 4000
-#: the start of the warning of joint velocities in deg/s
+VELOCITY_CHECK_MIN_JOINT_SAMPLES = 10
+VELOCITY_CHECK_KEEP = 400
+#: the velocity units recognised (:func:`joint_units`): name and the factor of a velocity in
+#: that unit over the same velocity in rad/s
+VELOCITY_UNITS: tuple[tuple[str, float], ...] = (
+    ('rad/s', 1.0), ('deg/s', 180.0 / math.pi), ('rpm', 30.0 / math.pi),
+    ('rev/s', 0.5 / math.pi))
+#: a measured factor within this ratio (either way) of a unit's is that unit: the units are at
+#: least 6x apart; the simulated robot's rad/s velocities are 0.92-0.95 of the positions'
+#: derivative (0.85 for one joint), its deg/s ones 53-56 times it
+VELOCITY_UNIT_TOLERANCE = 1.25
+#: the velocities say nothing of their unit when the joints' fits leave a median relative
+#: residual above this (velocities unrelated to the positions: a driver filling one of them
+#: from the commands), or when the pooled factor is not positive
+VELOCITY_CHECK_MAX_RESIDUAL = 0.5
+#: a joint whose factor is further than this ratio from the pooled one: the joints' velocities
+#: are not in one unit (P_out from effort x velocity refused)
+VELOCITY_JOINT_SPREAD = 2.0
+#: the start of the warning of joint velocities in no recognised unit (P_out from effort x
+#: velocity refused)
 VELOCITY_UNITS_NOTE = 'the joint velocities are not rad/s'
+#: the start of the note of joint velocities in a recognised unit, converted to rad/s
+VELOCITY_CONVERTED_NOTE = 'joint velocities converted to rad/s'
+#: the start of the note of joint positions in degrees
+POSITION_DEGREES_NOTE = 'the joint positions are not radians'
+#: a leg joint's swing between two turns of its motion (a turn: the position comes back by
+#: more than POSITION_TURN) above this [rad]: more than a revolution and back, no leg joint's
+#: in radians (a leg turning on, a Buehler clock's, makes no turns); the positions are
+#: degrees when at least POSITION_DEG_MIN_SWINGS swings, and a quarter of all, are that large
+#: (an encoder glitch is one or two)
+POSITION_DEG_SWING = 2.5 * math.pi
+POSITION_TURN = 0.2
+POSITION_DEG_MIN_SWINGS = 12
 
 
-def velocity_units_note(ratio: float) -> str:
-    """What a velocity / d(position)/dt ratio near 57.3 (or 1/57.3) says ('' otherwise)."""
-    lo, hi = VELOCITY_DEG_RATIO
-    if lo <= ratio <= hi:
-        return (f'{VELOCITY_UNITS_NOTE}: JointState.velocity is {ratio:.1f} times the '
-                'derivative of the positions (median over moving samples; 57.3 = deg/s '
-                'against rad): the velocities look like deg/s (the contract is rad/s, REP-103), '
-                'so effort x velocity is 57x the joint power')
-    if 1.0 / hi <= ratio <= 1.0 / lo:
-        return (f'the joint positions are not radians: the derivative of JointState.position '
-                f'is {1.0 / ratio:.1f} times the velocity (median over moving samples): the '
-                'positions look like degrees (the contract is rad, REP-103); P_out from effort '
-                'x velocity is kept, the joint cycles and motion checks read the positions')
-    return ''
+@dataclass(frozen=True)
+class VelocityScale:
+    """JointState.velocity over the derivative of JointState.position (:func:`velocity_scale`).
+
+    ``factor``: the pooled factor (the median of the joints'; NaN with too few moving
+    samples, or no joint whose fit leaves a median relative residual of at most
+    :data:`VELOCITY_CHECK_MAX_RESIDUAL`); ``joint_factors``: those joints' (a robust fit);
+    ``residual``: the median over all the joints with enough samples of their fits' median
+    relative residual; ``samples``: the moving samples compared."""
+
+    factor: float = math.nan
+    joint_factors: tuple[tuple[str, float], ...] = ()
+    residual: float = math.nan
+    samples: int = 0
+
+
+def velocity_scale(pairs: Any) -> VelocityScale:
+    """The factor between joint velocities and their positions' derivative: ``pairs`` maps each
+    joint name to its moving samples (velocity, position derivative; an (n, 2) array or pairs).
+    Per joint, the slope of the velocity against the derivative through the origin that
+    minimises the absolute residuals (the median of the ratios weighted by the derivative's
+    size: slow samples, whose derivative is mostly noise, count little, and outliers not at
+    all); pooled, the median of the slopes of the joints they fit (a joint whose velocity
+    does not follow its position, a passive one's, is left out)."""
+    groups: dict[int, list[tuple[str, np.ndarray]]] = {}
+    for name, rows in pairs.items():
+        a = (rows if isinstance(rows, np.ndarray) else
+             np.asarray(list(rows), dtype=float)).reshape(-1, 2)
+        if a.shape[0] >= VELOCITY_CHECK_MIN_JOINT_SAMPLES:
+            groups.setdefault(a.shape[0], []).append((str(name), a))
+    factors: list[tuple[str, float, float]] = []
+    n = 0
+    for size, items in groups.items():   # joints with as many samples at once (all, usually)
+        stack = np.stack([a for _, a in items])
+        v, rate = stack[..., 0], stack[..., 1]
+        ratio = v / rate
+        order = np.argsort(ratio, axis=1, kind='stable')
+        c = np.cumsum(np.take_along_axis(np.abs(rate), order, axis=1), axis=1)
+        pick = np.argmax(c >= 0.5 * c[:, -1:], axis=1)
+        k = np.take_along_axis(ratio, order, axis=1)[np.arange(len(items)), pick]
+        fit = k[:, None] * rate
+        scale = np.median(np.abs(fit), axis=1)
+        miss = np.median(np.abs(v - fit), axis=1)
+        residual = np.where(scale > 0, miss / np.where(scale > 0, scale, 1.0), math.inf)
+        factors.extend((name, float(kk), float(r))
+                       for (name, _), kk, r in zip(items, k, residual))
+        n += size * len(items)
+    if not factors or n < VELOCITY_CHECK_MIN_SAMPLES:
+        return VelocityScale(samples=n)
+    fitted = sorted((name, k) for name, k, r in factors if r <= VELOCITY_CHECK_MAX_RESIDUAL)
+    return VelocityScale(factor=float(np.median([k for _, k in fitted])) if fitted
+                         else math.nan, joint_factors=tuple(fitted),
+                         residual=float(np.median([r for *_, r in factors])), samples=n)
+
+
+class _PairRing:
+    """The last :data:`VELOCITY_CHECK_KEEP` (velocity, position derivative) pairs of a joint."""
+
+    __slots__ = ('_a', '_n')
+
+    def __init__(self) -> None:
+        self._a = np.empty((VELOCITY_CHECK_KEEP, 2))
+        self._n = 0
+
+    def append(self, v: float, rate: float) -> None:
+        self._a[self._n % VELOCITY_CHECK_KEEP] = (v, rate)
+        self._n += 1
+
+    def values(self) -> np.ndarray:
+        return self._a[:min(self._n, VELOCITY_CHECK_KEEP)]
+
+
+@dataclass(frozen=True)
+class JointUnits:
+    """The joint velocities' and positions' units as the samples say (:func:`joint_units`).
+
+    ``velocity_factor``: a velocity in ``velocity_unit`` over the same in rad/s (1 when
+    nothing was recognised); ``position_factor``: 180 / pi for positions in degrees, else 1;
+    ``refused``: the velocities follow the positions by a factor that is no unit (a gear
+    ratio?) or by several (joints in other units): effort x velocity is not the joint power;
+    ``note``: what to say ('' nothing)."""
+
+    velocity_unit: str = 'rad/s'
+    velocity_factor: float = 1.0
+    position_factor: float = 1.0
+    refused: bool = False
+    note: str = ''
+
+
+def _unit_of(factor: float) -> tuple[str, float] | None:
+    for name, nominal in VELOCITY_UNITS:
+        if factor > 0 and abs(math.log(factor / nominal)) <= math.log(VELOCITY_UNIT_TOLERANCE):
+            return name, nominal
+    return None
+
+
+def joint_units(scale: VelocityScale, *, degree_swings: int = 0,
+                largest_swing: float = math.nan) -> JointUnits:
+    """What ``scale`` (and the joints' swings: ``degree_swings`` at least
+    :data:`POSITION_DEG_MIN_SWINGS` swings above :data:`POSITION_DEG_SWING`, the largest
+    ``largest_swing``, say the positions are degrees) says of the joint units.
+
+    With positions in radians, a factor near a unit of :data:`VELOCITY_UNITS` (within
+    :data:`VELOCITY_UNIT_TOLERANCE`) is that unit, converted; near pi / 180, the positions
+    are degrees and the velocities rad/s. With positions in degrees (by their swings), the
+    velocities' unit is the factor times 180 / pi (deg/s velocities: 1). Another factor
+    consistent over the joints is refused (a gear ratio is not silently applied); velocities
+    that do not follow the positions say nothing."""
+    swing_deg = degree_swings >= POSITION_DEG_MIN_SWINGS
+    deg = 180.0 / math.pi
+    pos_factor = deg if swing_deg else 1.0
+    swing_txt = (f'the joints swing up to {largest_swing:.3g} units between turns, more than '
+                 'a revolution and back, which no leg joint does in radians')
+    k = scale.factor
+    fits = math.isfinite(k) and k > 0 and scale.residual <= VELOCITY_CHECK_MAX_RESIDUAL
+    per_joint = (f'a robust fit per joint, {len(scale.joint_factors)} joint(s) '
+                 f'{min(f for _, f in scale.joint_factors):.3g}..'
+                 f'{max(f for _, f in scale.joint_factors):.3g}, pooled over '
+                 f'{scale.samples} moving samples') if scale.joint_factors else ''
+    if not fits:
+        if swing_deg:
+            return JointUnits(position_factor=deg, note=(
+                f'{POSITION_DEGREES_NOTE}: {swing_txt}: the positions look like degrees (the '
+                'contract is rad, REP-103); P_out from position differences x pi / 180, the '
+                'motion checks in radians'))
+        return JointUnits()
+    if any(abs(math.log(f / k)) > math.log(VELOCITY_JOINT_SPREAD) if f > 0 else True
+           for _, f in scale.joint_factors):
+        return JointUnits(velocity_unit='', refused=True, note=(
+            f'{VELOCITY_UNITS_NOTE}: JointState.velocity over the derivative of the positions '
+            f'differs between the joints ({per_joint}; ' + ', '.join(
+                f'{n} {f:.3g}' for n, f in scale.joint_factors[:8]) +
+            (', ...' if len(scale.joint_factors) > 8 else '') + "): the joints' velocities "
+            'are not in one unit, so effort x velocity is not the joint power'))
+    unit = _unit_of(k * pos_factor)
+    if unit == ('rad/s', 1.0) and swing_deg or \
+            not swing_deg and _unit_of(k * deg) == ('rad/s', 1.0):
+        # positions in degrees, velocities in rad/s: P_out from effort x velocity stands
+        return JointUnits(position_factor=deg, note=(
+            f'{POSITION_DEGREES_NOTE}: the derivative of JointState.position is {1 / k:.3g} '
+            f'times the velocity ({per_joint}; 57.3 = degrees against rad/s)' +
+            (f'; {swing_txt}' if swing_deg else '') + ': the positions look like degrees '
+            '(the contract is rad, REP-103); P_out from effort x velocity is kept, the joint '
+            'cycles read the positions, the motion checks in radians'))
+    pos_txt = f', which are degrees ({swing_txt})' if swing_deg else ''
+    if unit is None:
+        return JointUnits(velocity_unit='', position_factor=pos_factor, refused=True, note=(
+            f'{VELOCITY_UNITS_NOTE}: JointState.velocity is {k:.3g} times the derivative of '
+            f'the positions ({per_joint}){pos_txt}, a factor of no unit recognised (' +
+            ', '.join(f'{n} {f:.3g}' for n, f in VELOCITY_UNITS) +
+            f', within {100 * (VELOCITY_UNIT_TOLERANCE - 1):.0f} %): a gear ratio or a '
+            'driver\'s scale? Not applied: effort x velocity is not taken as the joint power'))
+    name, nominal = unit
+    if nominal == 1.0:
+        return JointUnits()
+    return JointUnits(velocity_unit=name, velocity_factor=nominal, position_factor=pos_factor,
+                      note=(
+        f'{VELOCITY_CONVERTED_NOTE}: JointState.velocity is {k:.3g} times the derivative of '
+        f'the positions ({per_joint}){pos_txt}: the velocities are {name} (x {nominal:.4g} '
+        f'the rad/s; the contract is rad/s, REP-103), divided by {nominal:.4g}: P_out from '
+        'effort x velocity in rad/s'))
 
 
 #: said once when /mocap/body gives a pose with a non-finite position
@@ -870,9 +1055,19 @@ class DescriptorAccumulator:
     joint_power_samples_: int = field(default=0, init=False)
     #: of those, the samples whose efforts were all exactly 0.0 (:data:`ZERO_EFFORT_NOTE`)
     zero_effort_samples_: int = field(default=0, init=False)
-    #: velocity / d(position)/dt of the last VELOCITY_CHECK_KEEP moving joint samples
-    _velocity_ratios: deque[float] = field(
-        default_factory=lambda: deque(maxlen=VELOCITY_CHECK_KEEP), init=False)
+    #: per joint name: (velocity, d(position)/dt) of its last VELOCITY_CHECK_KEEP moving
+    #: samples (:meth:`joint_units_`)
+    _velocity_pairs: dict[str, _PairRing] = field(default_factory=dict, init=False)
+    #: per joint name: [last position, last turn, running extreme, direction] (the swings
+    #: between turns, :data:`POSITION_DEG_SWING`)
+    _swing: dict[str, list[float]] = field(default_factory=dict, init=False)
+    #: swings between turns seen, those above POSITION_DEG_SWING, and the largest [position
+    #: units]
+    swings_: int = field(default=0, init=False)
+    degree_swings_: int = field(default=0, init=False)
+    largest_swing_: float = field(default=0.0, init=False)
+    # the unit notes said once (notes_), live as offline
+    _units_said: set[str] = field(default_factory=set, init=False)
     _velocity_prev: dict[tuple[str, ...], tuple[float, np.ndarray, np.ndarray]] = field(
         default_factory=dict, init=False)
     #: per joint name: samples whose effort * velocity was finite / not finite (left out)
@@ -1131,6 +1326,9 @@ class DescriptorAccumulator:
             for name in [n for n in store if not is_leg(n)]:
                 del store[name]
         self.velocity_joints_ = {n for n in self.velocity_joints_ if is_leg(n)}
+        for units in (self._velocity_pairs, self._swing):
+            for name in [n for n in units if not is_leg(n)]:
+                del units[name]
         if self._tracker is not None:
             self._tracker = JointCycleTracker(self.cycle_settings)
 
@@ -1139,6 +1337,7 @@ class DescriptorAccumulator:
         if self.joint_cycles_:
             self._check_battery_quiet(sample.t_s)
         if sample.position.size == len(sample.names) and sample.position.size:
+            self._track_swings(sample)
             vel = np.abs(np.asarray(sample.velocity, dtype=float))
             vel = vel[np.isfinite(vel)]
             self._leg_pos.append((sample.t_s, tuple(sample.names),
@@ -1187,8 +1386,8 @@ class DescriptorAccumulator:
         return self._emit()
 
     def _compare_velocity(self, sample: JointStateSample) -> None:
-        """Each moving joint's velocity (mean of this and its previous sample's) over its
-        position's derivative between them, kept for :meth:`velocity_ratio` (deg/s velocities
+        """Each moving joint's velocity (mean of this and its previous sample's) and its
+        position's derivative between them, kept for :meth:`joint_units_` (deg/s velocities
         with rad positions read P_out 21.5 W for 0.375 W and passed every test: outside
         review, B1)."""
         names = tuple(sample.names)
@@ -1209,14 +1408,62 @@ class DescriptorAccumulator:
         mean_v = 0.5 * (v + prev[2])
         ok = np.isfinite(rate) & np.isfinite(mean_v) & \
             (np.abs(rate) > VELOCITY_CHECK_MIN_RAD_S) & (mean_v != 0.0)
-        self._velocity_ratios.extend((mean_v[ok] / rate[ok]).tolist())
+        for k in np.flatnonzero(ok):
+            pairs = self._velocity_pairs.get(names[k])
+            if pairs is None:
+                if len(self._velocity_pairs) >= 256:   # names that keep changing
+                    continue
+                pairs = self._velocity_pairs[names[k]] = _PairRing()
+            pairs.append(float(mean_v[k]), float(rate[k]))
+
+    def _track_swings(self, sample: JointStateSample) -> None:
+        """Each joint's swings between turns of its motion (a turn: its position back by more
+        than :data:`POSITION_TURN` from the extreme; steps unwrapped by whole turns of 2 pi,
+        so a leg turning on in radians never turns), for the positions-in-degrees check of
+        :func:`joint_units`."""
+        for name, q in zip(sample.names, np.asarray(sample.position, dtype=float)):
+            if not math.isfinite(q):
+                continue
+            st = self._swing.get(name)
+            if st is None:
+                if len(self._swing) < 256:
+                    self._swing[name] = [float(q), float(q), float(q), 0.0]
+                continue
+            q = st[0] + (unwrap_near(float(q), st[0]) - st[0])   # the unwrapped track
+            st[0] = q
+            direction = st[3]
+            if direction == 0.0:
+                if abs(q - st[1]) > POSITION_TURN:
+                    st[2], st[3] = q, math.copysign(1.0, q - st[1])
+                    st[1] = math.nan   # the start: no turn yet
+                continue
+            if direction * (q - st[2]) >= 0.0:
+                st[2] = q
+            elif direction * (st[2] - q) > POSITION_TURN:   # a turn at the extreme
+                if math.isfinite(st[1]):
+                    swing = abs(st[2] - st[1])
+                    self.swings_ += 1
+                    self.degree_swings_ += swing > POSITION_DEG_SWING
+                    self.largest_swing_ = max(self.largest_swing_, swing)
+                st[1], st[2], st[3] = st[2], q, -direction
+
+    def velocity_scale_(self) -> VelocityScale:
+        """The joint velocities against their positions' derivative (:func:`velocity_scale`)
+        over the kept moving samples."""
+        return velocity_scale({name: ring.values() for name, ring in
+                               self._velocity_pairs.items()})
 
     def velocity_ratio(self) -> float:
-        """Median of the joint velocity over its position's derivative (NaN with fewer than
+        """The pooled factor of :meth:`velocity_scale_` (NaN with fewer than
         :data:`VELOCITY_CHECK_MIN_SAMPLES` moving samples): 1 for consistent units."""
-        if len(self._velocity_ratios) < VELOCITY_CHECK_MIN_SAMPLES:
-            return math.nan
-        return float(np.median(np.fromiter(self._velocity_ratios, float)))
+        return self.velocity_scale_().factor
+
+    def joint_units_(self) -> JointUnits:
+        """The joint units the samples so far say (:func:`joint_units`): the velocities'
+        factor, and the joints' swings when a quarter of them are beyond a revolution."""
+        swings = self.degree_swings_ if 4 * self.degree_swings_ >= self.swings_ else 0
+        return joint_units(self.velocity_scale_(), degree_swings=swings,
+                           largest_swing=self.largest_swing_)
 
     def _duplicate_joint_state(self, sample: JointStateSample) -> bool:
         """Whether ``sample`` repeats one of the last :data:`DUPLICATE_MEMORY` joint states
@@ -1632,18 +1879,30 @@ class DescriptorAccumulator:
         use_model = self.power_out_source == 'model' or \
             (self.power_out_source == 'auto' and not joint)
         joint_path = self.joint_cycles_
+        # the joint units the samples so far say: velocities in a unit recognised (deg/s,
+        # rpm, rev/s) and positions in degrees are converted to rad/s and rad (P_out 57x from
+        # deg/s velocities, 8.5x from rpm); a factor of no unit (a gear ratio) is refused
+        units = self.joint_units_()
+        if joint and units.refused:
+            warnings.append(units.note)
+        elif joint and units.note:
+            key = f'{units.velocity_unit} {units.position_factor:g}'
+            if key not in self._units_said:   # said once (the node logs it), not per window
+                self._units_said.add(key)
+                self.notes_.append(units.note)
+        if joint and (units.velocity_factor != 1.0 or units.position_factor != 1.0):
+            joint = [(j[0], j[1], j[2] / (units.position_factor if j[3]
+                                          else units.velocity_factor), j[3], j[4])
+                     for j in joint]
         net = _mean_joint_power_w(joint, signed=True) if joint else math.nan
         from_model = False
-        units = velocity_units_note(self.velocity_ratio()) if joint else ''
-        if units:
-            warnings.append(units)
         if joint and self.power_out_source != 'model':
             power_out = _mean_joint_power_w(joint)
             if any(j[3] for j in joint):
                 warnings.append(POSITION_POWER_NOTE)
             why = ('' if self.power_out_source != 'auto' else
                    'P_out from effort x velocity refused (velocities not rad/s)'
-                   if units.startswith(VELOCITY_UNITS_NOTE) else
+                   if units.refused else
                    implausible_effort_power(power_out, power_in, math.nan if clock else net))
             if why:
                 warnings.append(why + ('; P_out from the Eq. 6 model' if has_model else
@@ -1679,6 +1938,8 @@ class DescriptorAccumulator:
             gait.step_length_m > 0 or gait.step_height_m > 0 or gait.sweep_angle_rad > 0)
         if gait is not None and (gait.step_length_m > 0 or clock) and not stand:
             moved = self._joint_motion_rad(t0, t1, float(gait.period_s))
+            if moved is not None:   # positions in degrees: their range in radians
+                moved /= units.position_factor
             if moved is not None and moved < STILL_JOINTS_RAD:
                 # the schedule's speed and the Eq. 6 model are a walking robot's: a robot
                 # standing still read 0.15 m/s, specific resistance 2.85 for 6.93 walking

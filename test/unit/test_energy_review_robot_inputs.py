@@ -94,42 +94,69 @@ def test_a_schedule_speed_in_millimetres_is_refused_as_a_speed(src, tmp_path):
     assert 0 < ref.speed_mps < MAX_SPEED_MPS and SCHEDULE_SPEED_NOTE not in _notes(ref)
 
 
-def _consistent_joints(src, dst, *, deg=False):
-    """``src`` with positions that integrate the velocities (rad), the velocities in deg/s
-    when ``deg``."""
+def _consistent_joints(src, dst, *, factor=1.0):
+    """``src`` with positions that integrate the velocities (rad), the velocities times
+    ``factor`` (180 / pi: deg/s; 30 / pi: rpm; 3.2: a gear ratio)."""
     from hexapod_common.testbags import PERIOD_S
 
     def edit(msg):
         t = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
         phase = 2 * np.pi * (t / PERIOD_S + np.arange(len(msg.name)) / 7)
         msg.position = 0.6 * PERIOD_S / (2 * np.pi) * np.sin(phase)
-        msg.velocity = 0.6 * np.cos(phase) * (180 / np.pi if deg else 1.0)
+        msg.velocity = 0.6 * np.cos(phase) * factor
 
     return _rewrite(src, dst, '/joint_states', edit)
 
 
-def test_velocities_in_degrees_per_second_are_not_taken_as_joint_power(src, tmp_path):
-    from hexapod_energy.descriptors import VELOCITY_UNITS_NOTE
+def test_velocities_in_degrees_per_second_are_converted_to_joint_power(src, tmp_path):
+    """B1 gave deg/s velocities the model's P_out; now the unit is recognised from the
+    positions' derivative and converted, P_out from the efforts as with rad/s (a known gap)."""
+    from hexapod_energy.descriptors import VELOCITY_CONVERTED_NOTE, VELOCITY_UNITS_NOTE
     from test_energy_review_zero_effort import _live
 
     ok = _consistent_joints(src / 'src', tmp_path / 'rad')
-    deg = _consistent_joints(src / 'src', tmp_path / 'deg', deg=True)
     ref = read_robot_bag(ok, mass_kg=MASS)
-    run = read_robot_bag(deg, mass_kg=MASS)
-    assert VELOCITY_UNITS_NOTE not in _notes(ref)
-    assert run.power_out_w == pytest.approx(ref.power_out_w * 180 / np.pi, rel=1e-6)
-    assert VELOCITY_UNITS_NOTE in _notes(run) and '57.3 times' in _notes(run)
     _, r_ok = _cli(ok, tmp_path / 'o_rad')
-    doc, r = _cli(deg, tmp_path / 'o_deg')
     assert r_ok['power_out_source'] == 'effort'
-    assert r['power_out_source'] == 'model' and r['power_out_w'] < run.power_out_w / 10
+    assert VELOCITY_UNITS_NOTE not in _notes(ref) and VELOCITY_CONVERTED_NOTE not in _notes(ref)
+    live_ok = _live(ok)
+    for name, factor in (('deg/s', 180 / np.pi), ('rpm', 30 / np.pi)):
+        bag = _consistent_joints(src / 'src', tmp_path / name.replace('/', '_'),
+                                 factor=factor)
+        run = read_robot_bag(bag, mass_kg=MASS)
+        assert run.power_out_w == pytest.approx(ref.power_out_w, rel=1e-9)
+        said = [n for n in run.extra['notes'] if n.startswith(VELOCITY_CONVERTED_NOTE)]
+        assert len(said) == 1 and f'velocities are {name}' in said[0], said
+        assert VELOCITY_UNITS_NOTE not in _notes(run)
+        doc, r = _cli(bag, tmp_path / f'o_{name.replace("/", "_")}')
+        assert r['power_out_source'] == 'effort'
+        assert r['power_out_w'] == pytest.approx(r_ok['power_out_w'], rel=1e-9)
+        assert r['efficiency'] == pytest.approx(r_ok['efficiency'], rel=1e-9)
+        assert 'not rad/s' not in ' '.join(doc['warnings'])
+        # live: the same windows, P_out from the efforts, nothing said per window
+        live = _live(bag)
+        assert len(live) == len(live_ok) > 0
+        for a, b in zip(live, live_ok):
+            assert a.power_out_w == pytest.approx(b.power_out_w, rel=1e-9)
+            assert a.warnings == b.warnings
+
+
+def test_a_gear_ratio_is_not_applied_to_the_joint_power(src, tmp_path):
+    """A factor of no unit (a gear ratio, 3.2) is not silently applied: refused, the model's
+    P_out, a note giving the factor measured (before: P_out 3.2x, accepted)."""
+    from hexapod_energy.descriptors import VELOCITY_UNITS_NOTE
+    from test_energy_review_zero_effort import _live
+
+    ref = read_robot_bag(_consistent_joints(src / 'src', tmp_path / 'rad'), mass_kg=MASS)
+    bag = _consistent_joints(src / 'src', tmp_path / 'gear', factor=3.2)
+    run = read_robot_bag(bag, mass_kg=MASS)
+    assert run.power_out_w == pytest.approx(ref.power_out_w * 3.2, rel=1e-6)
+    assert VELOCITY_UNITS_NOTE in _notes(run) and '3.2 times' in _notes(run)
+    doc, r = _cli(bag, tmp_path / 'o_gear')
+    assert r['power_out_source'] == 'model' and r['power_out_w'] < ref.power_out_w
     text = ' '.join(doc['warnings'])
-    # the refusal names the velocities, not the efforts (C3)
     assert 'not rad/s' in text and 'the efforts are not joint torques' not in text
-    # live: the windows say it and take the model
-    live = _live(deg)
+    live = _live(bag)
     assert live and all(any(w.startswith(VELOCITY_UNITS_NOTE) for w in d.warnings)
                         for d in live)
-    assert all(d.power_out_w < run.power_out_w / 10 for d in live)
-    assert not any(any(w.startswith(VELOCITY_UNITS_NOTE) for w in d.warnings)
-                   for d in _live(ok))
+    assert all(d.power_out_w < ref.power_out_w for d in live)
