@@ -17,13 +17,17 @@ minimise the residual sum of squares on a coarse grid and then a fine one around
 Two passes: the fit interval of a stance runs from the previous lift-off to the next touchdown
 (first pass: from the clock touchdown minus ``lead_s``).
 
-Core module: numpy only.
+Windows bridge motion-capture gaps up to :func:`.preprocess.max_mocap_gap_s` (the SLIP
+track's rule: 30 ms, two missing samples at 120 Hz); a longer gap leaves the stance's edges as
+they were. Core module: numpy (and the shared gap rule).
 """
 
 from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+from .preprocess import max_mocap_gap_s
 
 __all__ = ['GRAVITY_M_S2', 'refine_contact_edges']
 
@@ -121,7 +125,7 @@ def refine_contact_edges(t_s: ArrayLike, z_m: ArrayLike, windows: ArrayLike, *,
     -------
     refined : ndarray, shape (m, 2)
         Refined windows [s]; a window that cannot be refined (too few samples around it, a
-        gap) keeps its initial edges.
+        gap over :func:`.preprocess.max_mocap_gap_s`) keeps its initial edges.
     rms_m : ndarray, shape (m,)
         RMS residual of each fit [m] (NaN where not refined).
     """
@@ -136,6 +140,7 @@ def refine_contact_edges(t_s: ArrayLike, z_m: ArrayLike, windows: ArrayLike, *,
     if t.size < 10 or w.shape[0] == 0:
         return w0.copy(), np.full(w0.shape[0], np.nan)
     init = w.copy()
+    longest = max_mocap_gap_s(float(np.median(np.diff(t))))
     for p in range(passes):
         prev = w.copy()
         for j in range(w.shape[0]):
@@ -147,9 +152,10 @@ def refine_contact_edges(t_s: ArrayLike, z_m: ArrayLike, windows: ArrayLike, *,
                 b = prev[j + 1, 0] - 1e-3 if j + 1 < w.shape[0] else prev[j, 1] + 2 * lead_s
             a = max(a, prev[j, 0] - search_s)
             b = min(b, prev[j, 1] + 2 * search_s)
-            # no refinement across a motion-capture gap
+            # no refinement across a motion-capture gap the track does not bridge (was 2.5
+            # sample intervals: two missing samples at 120 Hz lost the stance)
             k = (t >= a) & (t <= b)
-            if k.sum() < degree + 6 or np.any(np.diff(t[k]) > 2.5 * np.median(np.diff(t))):
+            if k.sum() < degree + 6 or np.any(np.diff(t[k]) > longest):
                 continue
             td, lo, r = _refine_one(t, z, prev[j, 0], prev[j, 1], a, b,
                                     search_s=search_s if p == 0 else 0.5 * search_s,

@@ -34,6 +34,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .contact import GRAVITY_M_S2, _sse, refine_contact_edges
 from .errors import SlipDataError
+from .preprocess import max_mocap_gap_s
 
 __all__ = [
     'effort_onsets',
@@ -222,14 +223,15 @@ def _joint_cost(tm: FloatArray, z: FloatArray, td: FloatArray, d_grid: FloatArra
     """
     tot = np.zeros(d_grid.size)
     used = 0
-    dt = float(np.median(np.diff(tm)))
+    # a stance across a gap the SLIP track does not bridge is left out (was 2.5 intervals)
+    longest = max_mocap_gap_s(float(np.median(np.diff(tm))))
     for i in range(td.size - 1):
         a = td[i] + d_centre - pre_s
         b = td[i] + d_centre + post_frac * (td[i + 1] - td[i])
         if a < tm[0] or b > tm[-1] or td[i + 1] - td[i] > 0.5:
             continue
         k = (tm >= a) & (tm <= b)
-        if k.sum() < degree + 10 or np.any(np.diff(tm[k]) > 2.5 * dt):
+        if k.sum() < degree + 10 or np.any(np.diff(tm[k]) > longest):
             continue
         tdc, loc = (x.ravel() for x in np.meshgrid(td[i] + d_grid, td[i] + d_centre + lo_grid_s,
                                                    indexing='ij'))

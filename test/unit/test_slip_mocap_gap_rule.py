@@ -1,11 +1,13 @@
-"""One rule for motion-capture gaps: the pitch smoother and the output-error fit's window
-pairs bridge what the SLIP track bridges (``preprocess.max_mocap_gap_s``: 30 ms, two missing
-samples at 120 Hz, one at 60 Hz) and split at longer gaps only.
+"""One rule for motion-capture gaps: the pitch smoother, the contact and joint-offset windows
+and the output-error fit's window pairs bridge what the SLIP track bridges
+(``preprocess.max_mocap_gap_s``: 30 ms, two missing samples at 120 Hz, one at 60 Hz) and
+split at longer gaps only.
 
 Before, each had its own rule: the pitch smoother split at a step over 1.5 sample intervals
 (a piece shorter than its 9 samples stayed raw: 8 % of the pitch samples of a simulated 120 Hz
-EduBot run with 10 % of its poses missing in pairs), and the output-error fit paired 0.1 s
-windows only 1.5 sample intervals apart.
+EduBot run with 10 % of its poses missing in pairs), the contact and joint-offset fits dropped
+a window with a step over 2.5 intervals (two missing samples at 120 Hz: 25 ms), and the
+output-error fit paired 0.1 s windows only 1.5 intervals apart.
 """
 
 from __future__ import annotations
@@ -14,7 +16,11 @@ import numpy as np
 import pytest
 from scipy.signal import savgol_filter
 
+from slip_identification.contact import refine_contact_edges
 from slip_identification.geometry import _merge_groups, _smooth_segments
+from slip_identification.proprio_edges import _joint_cost
+
+edubot_sim = pytest.importorskip('hexapod_bench_drivers.edubot_sim')
 
 NOISE_RAD = 6e-4
 
@@ -70,6 +76,59 @@ def test_pitch_smoother_splits_at_a_longer_gap_and_keeps_clean_data_as_it_was() 
     got = _smooth_segments(t[keep], y[keep], n)
     np.testing.assert_array_equal(got[:150], savgol_filter(y[:150], n, 2, mode='interp'))
     np.testing.assert_array_equal(got[150:], savgol_filter(y[154:], n, 2, mode='interp'))
+
+
+@pytest.fixture(scope='module')
+def running_120hz():
+    """A noise-free simulated running run's COM height at 120 Hz and its stances."""
+    run = edubot_sim.simulate_edubot('running', duration_s=3.0, seed=1,
+                                     effects={'mocap_noise': 0.0})
+    t = np.arange(0.5, 2.95, 1 / 120.0)
+    z = np.interp(t, run.fine_t_s, run.fine_state[:, 2])
+    c = np.concatenate([np.array(run.truth['tripod_contact'][tp]) for tp in ('left', 'right')])
+    c = c[np.argsort(c[:, 0])]
+    c = c[(c[:, 0] > 1.6) & (c[:, 1] < 2.8)]
+    return t, z, c
+
+
+def test_contact_edges_refined_across_two_missing_samples(running_120hz) -> None:
+    t, z, c = running_120hz
+    start = c + np.random.default_rng(0).uniform(-0.01, 0.01, c.shape)
+    clean, rms0 = refine_contact_edges(t, z, start)
+    assert np.all(np.isfinite(rms0))
+    # two samples (25 ms step) missing in the middle of every stance
+    keep = np.ones(t.size, dtype=bool)
+    for a, b in c:
+        i = int(np.searchsorted(t, 0.5 * (a + b)))
+        keep[i:i + 2] = False
+    got, rms = refine_contact_edges(t[keep], z[keep], start)
+    assert np.all(np.isfinite(rms))                 # was NaN: every stance kept its start
+    assert np.max(np.abs(got - clean)) < 1e-3
+    # three missing (33 ms): over the rule, the stance keeps its initial edges
+    for a, b in c:
+        i = int(np.searchsorted(t, 0.5 * (a + b)))
+        keep[i + 2] = False
+    got, rms = refine_contact_edges(t[keep], z[keep], start)
+    assert np.all(np.isnan(rms))
+    np.testing.assert_array_equal(got, start)
+
+
+def test_joint_offset_keeps_the_stances_across_two_missing_samples(running_120hz) -> None:
+    t, z, c = running_120hz
+    td = c[:, 0]
+    grid = np.arange(-0.003, 0.0031, 5e-4)
+    lo_grid = np.arange(0.05, 0.1205, 1e-3)
+    kw = dict(pre_s=0.03, post_frac=0.8, lo_grid_s=lo_grid, degree=3)
+    cost0, used0 = _joint_cost(t, z, td, grid, 0.0, **kw)
+    assert used0 >= 4
+    keep = np.ones(t.size, dtype=bool)
+    for a, b in c:
+        i = int(np.searchsorted(t, 0.5 * (a + b)))
+        keep[i:i + 2] = False
+    cost, used = _joint_cost(t[keep], z[keep], td, grid, 0.0, **kw)
+    assert used == used0                            # was 0
+    # the same minimum (the true touchdowns: offset 0) within a grid step
+    assert abs(grid[np.argmin(cost)] - grid[np.argmin(cost0)]) <= 5e-4
 
 
 def test_output_error_windows_pair_across_a_bridged_gap_only() -> None:
