@@ -258,8 +258,12 @@ class GeometryFit:
     pitch_offset_rad``; ``pitch_offset_rad``: the motion-capture rigid body's pitch zero
     against the hip line (its pitch while the hips are level), the prior or, when
     ``pitch_offset_fitted``, fitted (standard error ``pitch_offset_se_rad``, from the
-    Jacobian: autocorrelated residuals make it optimistic).
-    """
+    Jacobian: autocorrelated residuals make it optimistic); ``unrefined``: the output-error
+    refinement was asked for (``refine='output'``) and failed, so ``rms_m`` is the
+    equation-error fit's, over shorter windows with three free parameters each (0.1 s without
+    flight phases: about 12 samples), below a refined fit's at the same offset and not
+    comparable with it (a simulated walk half a stride off: 0.164 against 0.206 mm refined).
+"""
 
     offset_s: float
     ground_m: float
@@ -278,6 +282,7 @@ class GeometryFit:
     stiffness_per_kg: float = math.nan
     samples: int = 0
     flight: bool = False
+    unrefined: bool = False
 
 
 #: the ground's slope from whole strides needs this many gait periods of steady state
@@ -1454,7 +1459,8 @@ def fit_ground_offset(geometry: LegGeometry, joint_names: tuple[str, ...], joint
                        pitch_offset_fitted=pitch_fitted,
                        pitch_offset_se_rad=st.p0_se if pitch_fitted else math.nan,
                        tilt_source=tilt_source, stiffness_per_kg=st.k_per_kg,
-                       samples=st.n_samples, flight=flight)
+                       samples=st.n_samples, flight=flight,
+                       unrefined=refine == 'output' and not st.refined)
 
 
 def offset_ground_grid(geometry: LegGeometry, joint_names: tuple[str, ...],

@@ -541,7 +541,8 @@ def _stride_period_s(tj: FloatArray, speed: dict[str, FloatArray]) -> float:
 
 def _half_stride_check(gfit: Any, geo_inputs: tuple[Any, ...], geo_x: FloatArray,
                        speed: dict[str, FloatArray], tj: FloatArray, off_range: float,
-                       res: RunResult, p0_kw: dict[str, Any] | None = None) -> Any:
+                       res: RunResult, p0_kw: dict[str, Any] | None = None, *,
+                       with_efforts: bool = False) -> Any:
     """The cross-correlation's offset against starts half a stride either side.
 
     In the sagittal plane the two tripods (front and rear legs of one side with the other
@@ -549,7 +550,11 @@ def _half_stride_check(gfit: Any, geo_inputs: tuple[Any, ...], geo_x: FloatArray
     angles just as well, with the tripods' stances swapped. Without hip efforts nothing in the
     geometric fit tells them apart, so the cross-correlation's sign decides. A start half a
     stride away is taken only when it fits clearly better (an asymmetric robot); when it fits
-    as well the ambiguity is said (res.notes, res.frame['offset_half_stride']).
+    as well the ambiguity is said (res.notes, res.frame['offset_half_stride']). A start whose
+    output-error refinement failed (``GeometryFit.unrefined``) does not beat a refined fit.
+    ``with_efforts``: the run has hip efforts, but their offset estimates refused it (a gait
+    without an aerial phase): starts that fit alike are decided by those estimators'
+    assumption, clocks within a quarter stride (the one nearest zero is kept, noted).
     """
     period = _stride_period_s(tj, speed)
     if not math.isfinite(period):
@@ -574,20 +579,36 @@ def _half_stride_check(gfit: Any, geo_inputs: tuple[Any, ...], geo_x: FloatArray
         except SlipDataError:
             continue
         alt.append(f)
-        if f.rms_m < best.rms_m * (1 - HALF_STRIDE_BETTER):
+        # a start whose output-error refinement failed has the equation-error fit's residual,
+        # below a refined fit's at any offset: not comparable (a simulated walk's start half a
+        # stride off, 0.164 against 0.202 mm, was taken: 524 ms off)
+        if f.rms_m < best.rms_m * (1 - HALF_STRIDE_BETTER) and \
+                not (f.unrefined and not best.unrefined):
             best = f
     if not alt:
         return free_fit
     rms = [f.rms_m for f in alt]
-    res.frame['offset_half_stride'] = {
-        'stride_s': period, 'xcorr_offset_s': gfit.offset_s, 'xcorr_rms_m': gfit.rms_m,
-        'alias_offsets_s': [f.offset_s for f in alt], 'alias_rms_m': rms,
-        'chosen_offset_s': best.offset_s}
+    # the starts that fit alike (comparable residuals within HALF_STRIDE_BETTER)
+    ties = [f for f in alt if f.rms_m < gfit.rms_m * (1 + HALF_STRIDE_BETTER)
+            and not (f.unrefined and not gfit.unrefined)]
     if best is not gfit:
         res.notes.append(
             f'the cross-correlation\'s offset {gfit.offset_s:+.4f} s was half a stride off: '
             f'the start {best.offset_s:+.4f} s fits the body height clearly better (rms '
             f'{1e3 * best.rms_m:.3f} mm against {1e3 * gfit.rms_m:.3f} mm)')
+    elif with_efforts and ties:
+        # hip efforts recorded, their estimates refused the run (no aerial phase): those
+        # estimators assume clocks within a quarter stride (they iterate from 0), which is
+        # what chose between the aliases while they still accepted such runs
+        best = min([gfit] + ties, key=lambda f: abs(f.offset_s))
+        res.notes.append(
+            f'offset ambiguous by half a stride ({half:.3f} s): the geometric fit cannot tell '
+            f'the tripods apart (they mirror each other in the sagittal plane; body-height '
+            f'rms {1e3 * gfit.rms_m:.3f} mm at {gfit.offset_s:+.4f} s, ' + ', '.join(
+                f'{1e3 * f.rms_m:.3f} mm at {f.offset_s:+.4f} s' for f in alt) +
+            f'); the one nearest zero, {best.offset_s:+.4f} s, is kept: the hip-effort '
+            f'estimates (which refused the run) assume clocks within a quarter stride '
+            f'({0.5 * half:.3f} s). If they differ by more, give --offset')
     elif min(rms) < gfit.rms_m * (1 + HALF_STRIDE_BETTER):
         # a warning: the tripods' labels (and every per-tripod figure) may be swapped
         res.warn(
@@ -600,6 +621,10 @@ def _half_stride_check(gfit: Any, geo_inputs: tuple[Any, ...], geo_x: FloatArray
             'that left the body height unexplained), so the tripods\' labels and their '
             'figures may be swapped. If the stances look swapped (foot positions a step '
             'off), give --offset, or record hip efforts')
+    res.frame['offset_half_stride'] = {
+        'stride_s': period, 'xcorr_offset_s': gfit.offset_s, 'xcorr_rms_m': gfit.rms_m,
+        'alias_offsets_s': [f.offset_s for f in alt], 'alias_rms_m': rms,
+        'chosen_offset_s': best.offset_s}
     if best is gfit:
         return free_fit
     try:
@@ -1031,14 +1056,21 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
         # first estimate: the proprioceptive ones when efforts exist, else the
         # cross-correlation; an estimator that refuses the run hands over to the next
         chain = (['contact', 'joint'] if effort is not None else []) + ['xcorr']
+        refused: list[str] = []
         for i, name in enumerate(chain):
             try:
                 off = estimate(name)
                 init = name
                 break
-            except SlipDataError:
+            except SlipDataError as err:
                 if i == len(chain) - 1:
                     raise
+                refused.append(f'{name}: {err}')
+        if refused and init == 'xcorr':
+            # e.g. a gait without an aerial phase: the body height shows no touchdowns
+            res.notes.append('the hip-effort offset estimates refused the run (' +
+                             '; '.join(refused) + "): the first offset estimate is the "
+                             "cross-correlation ('xcorr')")
         if method == 'auto':
             method = init
         res.frame['offset_initial'] = init
@@ -1113,7 +1145,7 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                                                           off, off_range, model.mass_kg, res)
         if init == 'xcorr' and method == 'geometry':
             gfit = _half_stride_check(gfit, geo_inputs, geo_x, speed, tj, off_range, res,
-                                      p0_kw)
+                                      p0_kw, with_efforts=effort is not None)
         if pitch_offset_rad is not None:
             _check_given_pitch_offset(gfit, geo_inputs, geo_x, off, off_range,
                                       method == 'geometry', float(pitch_offset_rad), res)
@@ -1151,13 +1183,14 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
         # without the leg geometry's fit the first estimates stand alone: good on aerial
         # gaits, far off on gaits with double support (an outside audit, simulated EduBot:
         # contact +4 ms running and jogging, +22 / -25 / -8.5 ms pace, +65 ms walk; xcorr
-        # +15 to -99 ms), silently
+        # +15 to -99 ms), silently; 'contact' and 'joint' now refuse gaits without flight
         why = ('the one chosen (--offset ' + method + '), kept fixed in the leg-geometry fit'
                if can_geo else 'alone (no leg-geometry fit: --geometry none, or no hip angles)')
         res.warn(f'the stream offset {1e3 * off:+.1f} ms rests on the {method!r} estimate '
                  f'{why}: on simulated EduBot runs it is within 4 ms on running and jogging '
-                 'but 8-65 ms off on pace and walk (xcorr 15-99 ms); stances and fits move '
-                 'with it. ' + ('The default (--offset auto) fits it with the geometry'
+                 "('contact' and 'joint' refuse gaits without an aerial phase, pace and walk, "
+                 'where they were 8-65 ms off; xcorr 15-99 ms off there); stances and fits '
+                 'move with it. ' + ('The default (--offset auto) fits it with the geometry'
                                 if can_geo else 'Give the leg geometry') +
                  ', or the offset if it is known (--offset S)')
     res.edges = edges

@@ -15,7 +15,12 @@ clocks, proprioception (effort onset) and motion capture (body height leaves its
 parabola, :func:`slip_identification.contact.refine_contact_edges`); the offset is the median
 difference, iterated from 0 (so it must be below about a quarter of the gait period in
 magnitude: touchdowns recur every half period). Accuracy is limited by the body-height edges
-(0.2 mm noise: a few ms per stance), see the report figures in the tests.
+(0.2 mm noise: a few ms per stance), see the report figures in the tests. The body-height edges
+need an aerial phase between stances; a run where the body does not fall freely there (gravity
+fitted free around the refined stances, :func:`slip_identification.contact.free_fall_gravity`,
+below half of g in the median: simulated EduBot walk and pace) is refused, and with it the
+joint offset started from it (on a walk the estimate was 63-75 ms off, clean, drifting by about
+the search width with each iteration).
 
 Joint offset (:func:`estimate_offset_joint`, offset method ``'joint'``): one offset for all
 stances at once, see its docstring. On simulated RHex-class runs it is not yet within the
@@ -32,7 +37,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .contact import GRAVITY_M_S2, _sse, refine_contact_edges
+from .contact import GRAVITY_M_S2, _sse, free_fall_gravity, refine_contact_edges
 from .errors import SlipDataError
 from .preprocess import max_mocap_gap_s
 
@@ -138,8 +143,8 @@ def refine_touchdowns(windows: ArrayLike, touchdowns_s: ArrayLike, *, max_move_s
 
 def estimate_offset_contacts(touchdowns_s: ArrayLike, mocap_t_s: ArrayLike, height_m: ArrayLike,
                              *, stance_s: float = 0.12, search_s: float = 0.04,
-                             iterations: int = 3, min_stances: int = 4
-                             ) -> tuple[float, FloatArray]:
+                             iterations: int = 3, min_stances: int = 4,
+                             min_free_fall: float = 0.5) -> tuple[float, FloatArray]:
     """Mocap clock minus proprioception clock from touchdowns seen in both streams.
 
     Parameters
@@ -152,6 +157,11 @@ def estimate_offset_contacts(touchdowns_s: ArrayLike, mocap_t_s: ArrayLike, heig
         World-frame COM height at ``mocap_t_s`` [m].
     stance_s : float
         Nominal stance duration used as the initial lift-off [s].
+    min_free_fall : float
+        The run is refused (:class:`SlipDataError`) when the median downward acceleration
+        fitted free around the refined stances (:func:`.contact.free_fall_gravity`) is below
+        this fraction of g: no ballistic flight between stances, the model's assumption
+        (simulated EduBot running and jogging 0.96-1.0, pace 0.15-0.27, walk 0.05).
 
     Returns
     -------
@@ -182,12 +192,21 @@ def estimate_offset_contacts(touchdowns_s: ArrayLike, mocap_t_s: ArrayLike, heig
                                 f'need >= {min_stances}')
         diffs = got[good, 0] - sel[good]
         d = float(np.median(diffs))
+    # the edges are breaks of a ballistic flight: without one they drift with the search
+    fall = free_fall_gravity(tm, z, got, search_s=search_s)[good]
+    fall = fall[np.isfinite(fall)]
+    if fall.size == 0 or np.median(fall) < min_free_fall * GRAVITY_M_S2:
+        seen = (f'{np.median(fall):.2f} m/s^2 in the median of {fall.size} stances' if fall.size
+                else 'not measurable on any stance')
+        raise SlipDataError(
+            f'offset from contacts: the body does not fall freely between stances (its '
+            f'vertical acceleration there, fitted free, {seen}; g = {GRAVITY_M_S2} m/s^2): '
+            'a gait without an aerial phase, whose touchdowns the body height does not show')
     return d, diffs
 
 
-
-
-def alternating_touchdowns(touchdowns: dict[str, ArrayLike]) -> tuple[FloatArray, NDArray[np.int_]]:
+def alternating_touchdowns(touchdowns: dict[str, ArrayLike]
+                           ) -> tuple[FloatArray, NDArray[np.int_]]:
     """Merge per-tripod touchdowns, keeping the first of consecutive same-tripod onsets.
 
     Tripods alternate, so a second onset of a tripod before the other tripod's next one is a

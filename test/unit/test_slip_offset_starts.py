@@ -52,10 +52,12 @@ def test_a_far_first_estimate_hands_over_to_the_other_one(no_grid):
     assert res.frame['geometry_residual_ratio'] < GEOMETRY_RESIDUAL_HIGH
 
 
-@pytest.mark.parametrize('seed', [1, 3])
+@pytest.mark.parametrize('seed', [1, 2])
 def test_a_fit_left_above_the_noise_is_searched_again_from_a_grid(seed):
-    """Seed 3 has no joint estimate to hand over to: it stayed 80 ms off (said); seed 1 was
-    found from the joint estimate. The grid finds both, within 0.2 ms."""
+    """Seed 2 has no joint estimate to hand over to: it stayed 159 ms off (said); seed 1 was
+    found from the joint estimate. The grid finds both, within 0.3 ms. (Seed 3, the case
+    here before, has no aerial phase by its body height: 'contact' refuses it and the fit
+    from the cross-correlation is within 0.2 ms without the grid, test_slip_contact_flight.)"""
     run = edubot_sim.simulate_edubot(CLOCK, duration_s=6.0, seed=seed)
     res = _analyze(run)
     truth = run.truth['clock_offset_s']
@@ -67,7 +69,7 @@ def test_a_fit_left_above_the_noise_is_searched_again_from_a_grid(seed):
 
 
 def test_a_fit_left_above_the_noise_is_said(no_grid):
-    run = edubot_sim.simulate_edubot(CLOCK, duration_s=6.0, seed=3)
+    run = edubot_sim.simulate_edubot(CLOCK, duration_s=6.0, seed=2)
     res = _analyze(run)
     # no joint estimate on this run: nothing to hand over to; the residual says so
     assert abs(res.offset_s - run.truth['clock_offset_s']) > 0.05
