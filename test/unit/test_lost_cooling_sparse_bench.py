@@ -132,9 +132,9 @@ def test_sparse_tip_without_a_loss_is_unchanged(tmp_path):
     assert diag['warnings'] == []
 
 
-def test_walk_that_goes_on_unseen_is_not_cut_by_its_power(tmp_path):
-    """The tip lost for the last 5 s of an 8 s walk that goes on (its power stays the walk's):
-    not cut."""
+def _tip_lost_while_walking(tmp_path):
+    """A lab bench (dense tip) whose 1 Hz, 0 kg walk of 8 s loses its tip for its last 5 s
+    while it goes on walking: (bag, plan, the walk's end)."""
     dense, cut = tmp_path / 'dense', tmp_path / 'cut'
     plan = write_lab_bench_bag(dense, [(0.0, 0.0), (0.0, 1.0), (0.2, 1.0)], walk_s=8.0)
     end = plan[1]['walk_end_s']
@@ -144,6 +144,13 @@ def test_walk_that_goes_on_unseen_is_not_cut_by_its_power(tmp_path):
         return not end - 5.0 <= t < end
 
     rewrite_bag(dense, cut, edit, topics={'/bench/leg_tip'})
+    return cut, plan, end
+
+
+def test_walk_that_goes_on_unseen_is_not_cut_by_its_power(tmp_path):
+    """The tip lost for the last 5 s of an 8 s walk that goes on (its power stays the walk's):
+    not cut."""
+    cut, plan, end = _tip_lost_while_walking(tmp_path)
     data = read_bench_bag(cut)
     walk = [x for x in data.sessions if x['session_id'] == plan[1]['session_id']]
     assert [x['state'] for x in walk] == ['heating', 'walking', 'cooling']
@@ -215,15 +222,7 @@ def test_a_lost_cooling_the_power_cannot_tell_is_warned(tmp_path):
 def test_no_power_warning_where_the_walk_is_seen_or_goes_on(tmp_path):
     """The clean sparse bench and a walk whose tip is lost while it goes on (its power the
     walk's) are not warned as undecided."""
-    dense, cut = tmp_path / 'dense', tmp_path / 'cut'
-    plan = write_lab_bench_bag(dense, [(0.0, 0.0), (0.0, 1.0), (0.2, 1.0)], walk_s=8.0)
-    end = plan[1]['walk_end_s']
-
-    def edit(topic, msg):
-        t = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
-        return not end - 5.0 <= t < end
-
-    rewrite_bag(dense, cut, edit, topics={'/bench/leg_tip'})
+    cut, plan, end = _tip_lost_while_walking(tmp_path)
     assert not any('cannot tell' in w for w in read_bench_bag(cut).warnings)
     _, diag = _sparse_tip_bench(tmp_path / 'clean', 2, plan=PLAN3, cool_s=4.0)
     assert diag['warnings'] == []
