@@ -222,7 +222,7 @@ def test_a_lost_cooling_the_power_cannot_tell_is_warned(tmp_path):
 def test_no_power_warning_where_the_walk_is_seen_or_goes_on(tmp_path):
     """The clean sparse bench and a walk whose tip is lost while it goes on (its power the
     walk's) are not warned as undecided."""
-    cut, plan, end = _tip_lost_while_walking(tmp_path)
+    cut = _tip_lost_while_walking(tmp_path)[0]
     assert not any('cannot tell' in w for w in read_bench_bag(cut).warnings)
     _, diag = _sparse_tip_bench(tmp_path / 'clean', 2, plan=PLAN3, cool_s=4.0)
     assert diag['warnings'] == []
