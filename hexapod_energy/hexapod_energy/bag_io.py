@@ -909,6 +909,47 @@ def _tip_gaps(t_s: np.ndarray, t0: float, t1: float, min_gap_s: float = 0.0) -> 
     return np.column_stack((t[k], t[k + 1]))
 
 
+#: a ground time between two steps longer than this many typical ground times (plus
+#: STANDING_SLACK_S) inside a walk split by contact is a pause: the leg stands, it does not
+#: step. Taken as walking, a 1 s pause inside a 6 s walk at 1 Hz read P_stance +4 % and
+#: P_swing -21 % (the pause's ground time, 1.6 s, under the PAUSE_GROUND warning's 1.65 s)
+PAUSE_SPLIT_GROUND = 1.5
+
+
+def _tip_pauses(t_s: np.ndarray, z_m: np.ndarray, t0: float, t1: float, frequency_hz: float
+                ) -> np.ndarray:
+    """(start, end) rows [s] of the pauses of the walk ``[t0, t1)`` at ``frequency_hz``
+    (whose cycles start at ``t0``, stance first): ground times between two steps longer than
+    :data:`PAUSE_SPLIT_GROUND` typical ones (+ :data:`STANDING_SLACK_S`), time the tip is not
+    seen in left out. A pause is taken to start at the end of the cycle its touchdown ends and
+    to end at the start of the cycle its lift-off begins: each edge is placed from its step's
+    detected edge by that edge's median offset within the cycle on the walk's other steps."""
+    m = (t_s >= t0) & (t_s < t1)
+    rises, falls = _tip_steps(t_s[m], z_m[m])
+    none = np.zeros((0, 2))
+    if rises.size < 3 or not frequency_hz > 0:
+        return none
+    gaps = _tip_gaps(t_s[m], t0, t1, HIDDEN_STEP_LIFT_SHARE * float(np.median(falls - rises)))
+    ground = rises[1:] - falls[:-1]
+    seen = np.ones(ground.shape, bool)
+    for g0, g1 in gaps:
+        seen &= ~((falls[:-1] <= g0) & (g1 <= rises[1:]))
+    typical = float(np.median(ground[seen] if seen.any() else ground))
+    long = seen & (ground > PAUSE_SPLIT_GROUND * typical + STANDING_SLACK_S)
+    if not long.any():
+        return none
+    period = 1.0 / frequency_hz
+    k = np.flatnonzero(long)
+    # the lift-off's offset in its cycle on the steps before the first pause (a detected
+    # lift-off comes a little after mid-cycle), and the lifted time of a step
+    r_off = float(np.median((rises[:k[0] + 1] - t0) % period))
+    lift = float(np.median(falls - rises))
+    start = falls[k] + (period - r_off - lift)
+    end = rises[k + 1] - r_off
+    rows = np.column_stack((start, end))
+    return rows[rows[:, 1] > rows[:, 0]]
+
+
 @dataclass(frozen=True)
 class SteppingSpan:
     """Where the leg tip steps in a session's time span (:func:`stepping_span`)."""
@@ -1468,6 +1509,7 @@ def bench_phase_samples(
     force_gaps: set[str] = set()
     label_gaps: set[str] = set()
     uncovered: list[str] = []   # why the schedule did not cover a walking session
+    paused: dict[str, np.ndarray] = {}   # pauses left out of the phase split
     agreement: dict[str, list[float]] = {}   # per leg: each cycle's schedule-contact agreement
     for s, t0, t1 in segments:
         a = t0 + settle_s if t1 - t0 > 2 * settle_s else t0
@@ -1493,6 +1535,7 @@ def bench_phase_samples(
         if why_not and s['frequency_hz'] > 0 and phase_split != 'contact':
             uncovered.append(why_not)
         label_clock = None
+        by_contact = False
         if s['frequency_hz'] > 0 and covered:
             t_tip, st = data.schedule_t_s[sm], data.schedule_stance[sm]
             label_clock = clock[sm] if clock is not None else None
@@ -1514,6 +1557,7 @@ def bench_phase_samples(
             st = stance_mask(fz, z_tip, force_threshold_n=force_threshold_n,
                              height_margin_m=height_margin_m)
             splits['contact'] = splits.get('contact', 0) + 1
+            by_contact = True
         else:
             t_tip, st = np.empty(0), np.empty(0, bool)
         duty = s['duty_factor']
@@ -1530,6 +1574,34 @@ def bench_phase_samples(
             label_gap = max(LABEL_GAP_INTERVALS * float(np.median(np.diff(t_tip))), 0.05)
             if not np.all(np.diff(t_tip) <= label_gap):
                 label_gaps.add(s['session_id'])
+        if by_contact and t_tip.size:
+            # a pause inside the walk (the leg stands, then walks on) is standing: its samples
+            # are in neither phase, and the walk after it is taken in whole cycles from its end
+            rows = _tip_pauses(data.tip_t_s, data.tip_z_m, t0, t1, s['frequency_hz'])
+            rows = rows[(rows[:, 1] > a) & (rows[:, 0] < t1)]
+            if rows.size:
+                keep = np.ones(t_tip.shape, bool)
+                for p0, p1 in rows:
+                    keep &= ~((t_tip >= p0) & (t_tip < p1))
+                resume = float(rows[-1, 1])
+                if resume > a:
+                    f = s['frequency_hz']
+                    t1 = resume + math.floor((t1 - resume) * f + CYCLE_TOLERANCE) / f
+                keep &= t_tip < t1
+                t_tip, st = t_tip[keep], st[keep]
+                paused[s['session_id']] = rows
+                # read_bench_bag's warning of the same pause (over PAUSE_GROUND) says it is
+                # analysed as walking: no longer so
+                warnings = [w for w in warnings if not (
+                    w.startswith(f'session {s["session_id"]}: its leg tip makes no step for ')
+                    and w.endswith('the standing there is analysed as walking'))]
+                warnings.append(
+                    f'session {s["session_id"]}: its leg tip makes no step for '
+                    f'{float(np.sum(rows[:, 1] - rows[:, 0])):.1f} s in {len(rows)} pause(s) '
+                    'inside its walk (' + ', '.join(f'{p0 - t0:.1f}-{p1 - t0:.1f} s'
+                                                   for p0, p1 in rows[:3]) +
+                    (' ...' if len(rows) > 3 else '') + ' after its \'walking\' message): '
+                    'the standing there is left out of both phases')
         labelled.append((s, a, t1, t_tip, st, duty, label_gap, label_clock))
     _check_schedule_contact(data, agreement, phase_split)
     # the power monitor's clock against the labels' (tip or /gait/phase): a 0.2 s offset
@@ -1542,9 +1614,13 @@ def bench_phase_samples(
             # the session stamps are on one of the two clocks: the window's last |lag| s may
             # be after the walk on the other (standing power read as stance: -3 % at 3 Hz)
             f = s['frequency_hz']
+            # whole cycles from the walk's last resumption after a pause (else its start)
+            base = max([a] + [float(p1) for _, p1 in paused.get(s['session_id'], ())])
             t1 = t1 - abs(lag) if f <= 0 or (t1 - a) * f < 2 else \
-                a + math.floor((t1 - abs(lag) - a) * f + CYCLE_TOLERANCE) / f
+                base + math.floor((t1 - abs(lag) - base) * f + CYCLE_TOLERANCE) / f
         pm = (t_power >= a) & (t_power < t1)
+        for p0, p1 in paused.get(s['session_id'], ()):
+            pm &= ~((t_power >= p0) & (t_power < p1))
         if not pm.any():
             continue
         kw = dict(session_id=s['session_id'], load_kg=s['load_kg'],
