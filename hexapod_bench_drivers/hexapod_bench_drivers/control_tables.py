@@ -45,6 +45,22 @@ XL330-M288   2  1200    4096/360   2048    0.229  0.52   1.47  103    5   1.0   
     data); its Temperature Limit default is 70. MX Present Speed reads 'about 0.11 rpm' on the
     page, with the example 300 -> 34.33 rpm (0.1144 rpm): the Moving Speed unit 0.114 is used.
 
+Standby current (``standby_current_a``, the Specifications' "Standby Current": the electronics'
+draw, which the stall current includes and Present Current, the motor's current, does not; it
+is taken out of the stall current in the torque per ampere): 40 mA for the XM430-W350/W210,
+XH430-W210/W350 and XM540-W150/W270, 17 mA for the XL330-M077/M288, 100 mA for the MX(2.0)
+(the MX pages' common figure); the pages render it from the e-Manual's source data
+(github.com/ROBOTIS-GIT/emanual, ``_data/dxl_x_info.yml`` and ``_data/dxl_mx_info.yml``). It is
+used for Present Current only; the Present Load models keep 0 (XL430-W250: 52 mA, entered, as
+its ServoModel preset's). No page gives a gear efficiency: the XM430-W350's 0.739
+(``gear_efficiency``) is its ServoModel preset's calibration (k_t / k_e from the datasheet
+points and the model's gear friction). The other Present Current models have none (1: no
+back-drive correction; ``dynamixel_bus`` notes it and takes the driver's ``gear_efficiency``):
+k_t / k_e from the datasheet points alone reads 0.73 for the XM430-W350 but 0.89 for the
+XM430-W210 (the same stall current, another gear), 0.64-0.87 for the others and 1.19 for the
+XL330-M077 (above 1: its stall and no-load points are not those of one linear motor), so it is
+no default.
+
 Protocol 1.0 MX servos use the AX addresses for everything the driver touches (Torque Enable 24,
 Goal Position 30, Moving Speed 32, the present block 36..43), but addresses 26-28 are D/I/P gains
 (not compliance margins/slopes), positions span 4096 ticks over 360 deg about 2048, and speeds
@@ -373,12 +389,14 @@ class ControlTable:
     standby_current_a : float
         The datasheet's standby current [A] (the electronics), which its stall current
         includes and Present Current (the motor's current) does not: taken out of the stall
-        current in the torque per ampere. 0 where no figure is entered (every model without a
-        ServoModel preset).
+        current in the torque per ampere. Entered for every Present Current model (and the
+        XL430-W250, whose preset has it); 0 for the other Present Load models.
     gear_efficiency : float
-        Gear efficiency ``eta`` from the datasheet points (ServoModel preset's
-        ``gear_efficiency``: XM430-W350 0.739, XL430-W250 0.785); 1 (no back-drive correction)
-        for the models without a preset. Used only with Present Current.
+        Gear efficiency ``eta`` of the model's ServoModel preset (its ``gear_efficiency``,
+        from the datasheet points and the model's friction: XM430-W350 0.739, XL430-W250
+        0.785); 1 (no back-drive correction) for the models without a preset, whose efforts
+        take the driver's ``gear_efficiency`` when one is given. Used only with Present
+        Current.
     """
 
     model_name: str
@@ -529,9 +547,9 @@ class ControlTable:
     def torque_per_amp_nm_a(self) -> float:
         """Output torque per ampere of Present Current while the motor drives [N m/A]: the
         stall torque over the stall current less the standby current (XM430-W350: 4.1 / 2.26 =
-        1.814; without a standby figure the e-Manual's stall torque / stall current, the ratio
-        it prints as N m/A for the XM540: 1.659 and 2.409). The gear's losses when driving
-        are in it (the stall torque is measured at the output)."""
+        1.814; XM540-W150 7.3 / 4.36 = 1.674, where the e-Manual prints stall torque / stall
+        current, 1.659; MX-64(2.0) 6.0 / 4.0 = 1.500 for its printed 1.463). The gear's losses
+        when driving are in it (the stall torque is measured at the output)."""
         return self.stall_torque_nm / (self.stall_current_a - self.standby_current_a)
 
     def current_to_torque_nm(self, current_a: float, velocity_rad_s: float, *,
@@ -652,7 +670,9 @@ def _p2_table(name: str, number: int, stall_nm: float, stall_a: float, no_load_r
 
 # Datasheet figures (e-Manual, see the module table): stall torque [N m], stall current [A] and
 # no-load speed [rpm] at the rated voltage, Temperature Limit default [degC]; register defaults
-# (voltage, current and velocity limits) from each model's control table.
+# (voltage, current and velocity limits) from each model's control table. Present Current
+# models: the standby current of the page's Specifications (``standby_current_a``, see the
+# module doc); a gear efficiency only where a ServoModel preset derives one (XM430-W350).
 _X12V = dict(max_voltage_limit=160, min_voltage_limit=95)
 AX12A = _p1_table('AX-12A', 12, 1.5, 1.5, 59.0, 70, page='ax/ax-12a/')
 AX18A = _p1_table('AX-18A', 18, 1.8, 2.2, 97.0, 75, page='ax/ax-18a/')
@@ -674,11 +694,11 @@ MX106 = _p1_table('MX-106', 320, 8.4, 5.2, 45.0, 80, page='mx/mx-106/', mx=True,
 MX28_2 = _p2_table('MX-28(2.0)', 30, 2.5, 1.4, 55.0, 80, False, page='mx/mx-28-2/',
                    velocity_limit=380, position_p_gain=850, **_X12V)
 MX64_2 = _p2_table('MX-64(2.0)', 311, 6.0, 4.1, 63.0, 80, True, page='mx/mx-64-2/',
-                   current_unit_a=0.00336, current_limit=1941, velocity_limit=435,
-                   position_p_gain=850, **_X12V)
+                   current_unit_a=0.00336, standby_current_a=0.1, current_limit=1941,
+                   velocity_limit=435, position_p_gain=850, **_X12V)
 MX106_2 = _p2_table('MX-106(2.0)', 321, 8.4, 5.2, 45.0, 80, True, page='mx/mx-106-2/',
-                    current_unit_a=0.00336, current_limit=2047, velocity_limit=360,
-                    position_p_gain=850, **_X12V)
+                    current_unit_a=0.00336, standby_current_a=0.1, current_limit=2047,
+                    velocity_limit=360, position_p_gain=850, **_X12V)
 # XL430-W250 and XM430-W350: standby current (e-Manual) and the gear efficiency of their
 # ServoModel presets (ServoParams.gear_efficiency, k_t / k_e from the datasheet points; a test
 # keeps them equal). The XL430 reports Present Load (a PWM duty): neither is used for it.
@@ -687,11 +707,14 @@ XL430 = _p2_table('XL430-W250', 1060, 1.5, 1.4, 61.0, 72, current_sensing=False,
 XM430 = _p2_table('XM430-W350', 1020, 4.1, 2.3, 46.0, 80, current_sensing=True,
                   page='x/xm430-w350/', standby_current_a=0.04, gear_efficiency=0.739)
 XM430_W210 = _p2_table('XM430-W210', 1030, 3.0, 2.3, 77.0, 80, True, page='x/xm430-w210/',
-                       current_limit=1193, velocity_limit=330, position_p_gain=800, **_X12V)
+                       standby_current_a=0.04, current_limit=1193, velocity_limit=330,
+                       position_p_gain=800, **_X12V)
 XH430_W210 = _p2_table('XH430-W210', 1010, 2.5, 1.3, 50.0, 80, True, page='x/xh430-w210/',
-                       current_limit=648, velocity_limit=360, position_p_gain=900, **_X12V)
+                       standby_current_a=0.04, current_limit=648, velocity_limit=360,
+                       position_p_gain=900, **_X12V)
 XH430_W350 = _p2_table('XH430-W350', 1000, 3.4, 1.3, 30.0, 80, True, page='x/xh430-w350/',
-                       current_limit=648, velocity_limit=130, position_p_gain=900, **_X12V)
+                       standby_current_a=0.04, current_limit=648, velocity_limit=130,
+                       position_p_gain=900, **_X12V)
 XC430_W150 = _p2_table('XC430-W150', 1070, 1.6, 1.4, 106.0, 80, False, page='x/xc430-w150/',
                        max_voltage_limit=160, min_voltage_limit=60, velocity_limit=460,
                        position_p_gain=460)
@@ -699,17 +722,19 @@ XC430_W240 = _p2_table('XC430-W240', 1080, 1.9, 1.4, 70.0, 80, False, page='x/xc
                        max_voltage_limit=160, min_voltage_limit=60, velocity_limit=306,
                        position_p_gain=700)
 XM540_W150 = _p2_table('XM540-W150', 1130, 7.3, 4.4, 53.0, 80, True, page='x/xm540-w150/',
-                       current_limit=2047, velocity_limit=230, position_p_gain=800, **_X12V)
+                       standby_current_a=0.04, current_limit=2047, velocity_limit=230,
+                       position_p_gain=800, **_X12V)
 XM540_W270 = _p2_table('XM540-W270', 1120, 10.6, 4.4, 30.0, 80, True, page='x/xm540-w270/',
-                       current_limit=2047, velocity_limit=128, position_p_gain=800, **_X12V)
+                       standby_current_a=0.04, current_limit=2047, velocity_limit=128,
+                       position_p_gain=800, **_X12V)
 XL330_M077 = _p2_table('XL330-M077', 1190, 0.215, 1.47, 383.0, 70, True, page='x/xl330-m077/',
-                       current_unit_a=0.001, rated_voltage_v=5.0, max_voltage_limit=70,
-                       min_voltage_limit=35, current_limit=1750, velocity_limit=1620,
-                       shutdown=53, position_p_gain=400)
+                       current_unit_a=0.001, rated_voltage_v=5.0, standby_current_a=0.017,
+                       max_voltage_limit=70, min_voltage_limit=35, current_limit=1750,
+                       velocity_limit=1620, shutdown=53, position_p_gain=400)
 XL330_M288 = _p2_table('XL330-M288', 1200, 0.52, 1.47, 103.0, 70, True, page='x/xl330-m288/',
-                       current_unit_a=0.001, rated_voltage_v=5.0, max_voltage_limit=70,
-                       min_voltage_limit=35, current_limit=1750, velocity_limit=445,
-                       shutdown=53, position_p_gain=400)
+                       current_unit_a=0.001, rated_voltage_v=5.0, standby_current_a=0.017,
+                       max_voltage_limit=70, min_voltage_limit=35, current_limit=1750,
+                       velocity_limit=445, shutdown=53, position_p_gain=400)
 
 ALL_MODELS: tuple[ControlTable, ...] = (
     AX12A, AX18A, AX12W, RX24F, RX28, RX64, MX28, MX64, MX106, MX28_2, MX64_2, MX106_2, XL430,

@@ -54,23 +54,25 @@ reply is never taken as the answer to a later request:
 A servo that answers PING but no READ is taken to be at Status Return Level 0 only when the
 line was quiet after the failed READs (no late reply to blame).
 
-Effort is an estimate; these servos measure no torque. Present Current (X series, MX(2.0)) is
-the motor's current, so the effort is a torque, signed as the torque the servo applies
+Effort is an estimate; these servos measure no torque. Present Current (X series, MX(2.0)) is the
+motor's current, so the effort is a torque, signed as the torque the servo applies
 (:meth:`hexapod_bench_drivers.control_tables.ControlTable.current_to_torque_nm`): driving, the
-current times the datasheet's torque per ampere, stall torque / (stall current - standby
-current), whose stall point carries the gear efficiency ``eta`` (XM430-W350: 4.1 N m / (2.3 -
-0.04) A = 1.814 N m/A; without a standby figure stall torque / stall current, the N m/A the
-e-Manual prints for the XM540, 1.659 and 2.409); back-driven (the current against the
-velocity: the load drives the motor through the lossy gear) that torque divided by ``eta^2``,
-with a dead band about rest (:data:`~hexapod_bench_drivers.control_tables.
-BACK_DRIVE_DEAD_BAND_RAD_S`). ``eta`` is the model's (XM430-W350 0.739 from its ServoModel
-preset; 1, no correction, for the models without one), or the bus's ``gear_efficiency``. On
-the emulator's XM430 a servo lifting 1 N m at 1 rad/s reads 1.05 N m and lowering it 1.03 N m
-(one constant: 1.03 and 0.55); the excess is the gear's load-independent friction, which the
-current carries and the datasheet does not give. Present Load (AX, RX, MX on Protocol 1.0,
-XL430, XC430, MX-28(2.0)) is inferred from the drive's output (e-Manual), a PWM duty whose
-back-EMF part follows the velocity: not a torque (``energy_monitor`` refuses such efforts); its
-effort stays load fraction times the datasheet stall torque at the rated voltage.
+current times the datasheet's torque per ampere, stall torque / (stall current - standby current),
+whose stall point carries the gear efficiency ``eta`` (XM430-W350: 4.1 N m / (2.3 - 0.04) A = 1.814
+N m/A; every Present Current model has its e-Manual standby current, so the XM540-W150 reads 1.674
+where the e-Manual prints stall torque / stall current, 1.659); back-driven (the current against
+the velocity: the load drives the motor through the lossy gear) that torque divided by ``eta^2``,
+with a dead band about rest
+(:data:`~hexapod_bench_drivers.control_tables.BACK_DRIVE_DEAD_BAND_RAD_S`). ``eta`` is the model's
+(XM430-W350 0.739 from its ServoModel preset; 1, no correction, for the models without one: the
+XM430-W210, XH430, XM540, XL330 and MX(2.0), noted at open with their IDs), or the bus's
+``gear_efficiency`` for every servo. On the emulator's XM430 a servo lifting 1 N m at 1 rad/s reads
+1.05 N m and lowering it 1.03 N m (one constant: 1.03 and 0.55); the excess is the gear's
+load-independent friction, which the current carries and the datasheet does not give. Present Load
+(AX, RX, MX on Protocol 1.0, XL430, XC430, MX-28(2.0)) is inferred from the drive's output
+(e-Manual), a PWM duty whose back-EMF part follows the velocity: not a torque (``energy_monitor``
+refuses such efforts); its effort stays load fraction times the datasheet stall torque at the rated
+voltage.
 
 Models: each servo's control table comes from the model number it reports
 (:func:`hexapod_bench_drivers.control_tables.table_for_model`: AX, MX on Protocol 1.0, MX(2.0)
@@ -742,8 +744,8 @@ class DynamixelBus:
     gear_efficiency : float, optional
         Gear efficiency ``eta`` in [GEAR_EFFICIENCY_MIN, 1] (0.3; lower is refused as a
         typo) for the efforts from Present Current of every servo (back-driven: torque /
-        eta^2); None (default): each model's own
-        (``ControlTable.gear_efficiency``, 1 for the models without a figure).
+        eta^2); None (default): each model's own (``ControlTable.gear_efficiency``, 1 for
+        the models without a figure: noted, see :meth:`take_notes`).
     back_drive_dead_band_rad_s : float
         Speed below which a servo whose current opposes its velocity is still taken as driving
         (full correction from twice it; see ``BACK_DRIVE_DEAD_BAND_RAD_S``) [rad/s].
@@ -824,6 +826,9 @@ class DynamixelBus:
         #: index in ``servos`` of the last servo whose READ started at Torque Enable (single
         #: READs: one servo a cycle in turn, see :meth:`_torque_turn`)
         self._round_robin = -1
+        #: Present Current models already noted for their lack of a gear efficiency
+        #: (:meth:`_note_back_drive`)
+        self._back_drive_noted: set[str] = set()
 
     # --- lifecycle -------------------------------------------------------------------------
     def open(self) -> DynamixelBus:
@@ -851,6 +856,7 @@ class DynamixelBus:
             self._measuring_round_trip = False
             self._set_port_margin(self._margin_ms)
         self._settle_margin()
+        self._note_back_drive()
         if not any(s.table is not None for s in self.servos):
             self.close()
             refused = [f'id {s.joint.servo_id}: {s.refusal}' for s in self.servos if s.refusal]
@@ -1202,6 +1208,8 @@ class DynamixelBus:
                 s.refusal = unknown
                 return False
             s.table = table
+            if not self._measuring_round_trip:   # (the pings at open: noted together after)
+                self._note_back_drive()
             garbled = s.health.streak_garbled
             if not self._read_status_return_level(s, garbled):
                 return False
@@ -1895,6 +1903,33 @@ class DynamixelBus:
             self.notes.append(
                 f'no servo answered Sync Read in {SYNC_READ_GIVE_UP} cycles in a row while '
                 'single READs were answered: reading the servos one by one from now on')
+
+    def _note_back_drive(self) -> None:
+        """Note the Present Current models on the bus that have no gear efficiency (their
+        table's is 1) when the bus was given none: a servo its load back-drives reads the
+        motor's torque, eta^2 of the joint's (see the module doc). Each model once, with its
+        IDs: at open, and for a servo identified later."""
+        if self.gear_efficiency is not None:
+            return
+        ids: dict[str, list[int]] = {}
+        for s in self.servos:
+            t = s.table
+            if (t is not None and 'present_current' in t.registers and t.gear_efficiency >= 1.0
+                    and t.model_name not in self._back_drive_noted):
+                ids.setdefault(t.model_name, []).append(s.joint.servo_id)
+        if not ids:
+            return
+        self._back_drive_noted.update(ids)
+        which = ', '.join(f'{m} (id{"s" if len(v) > 1 else ""} {", ".join(map(str, v))})'
+                          for m, v in ids.items())
+        self.notes.append(
+            f'{which}: no gear efficiency is known for '
+            f'{"this model" if len(ids) == 1 else "these models"}, so the efforts from Present '
+            'Current get no back-drive correction: a joint its load back-drives (a leg lowering '
+            "its weight) reads the motor's torque, eta^2 of the joint's (0.55 at eta 0.74); "
+            "give the driver your servos' gear_efficiency (-p gear_efficiency:=ETA; the "
+            "XM430-W350's servo model has 0.739) to divide every servo's back-driven effort by "
+            'ETA^2')
 
     def take_notes(self) -> list[str]:
         """The bus events noted since the last call (each returned once)."""

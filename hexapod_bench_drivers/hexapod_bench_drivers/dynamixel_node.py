@@ -168,7 +168,8 @@ class DynamixelDriverParams:
     gear_efficiency: float = param(
         0.0, f'Gear efficiency eta in [{GEAR_EFFICIENCY_MIN}, 1] for the efforts from Present '
         'Current of every servo (back-driven: torque / eta^2); 0: each model\'s own '
-        '(XM430-W350 0.739, 1 = no correction for the models without a figure).',
+        '(XM430-W350 0.739; 1 = no correction for the other Present Current models, which the '
+        'start-up log names).',
         validate=lambda v: None if v == 0 or GEAR_EFFICIENCY_MIN <= v <= 1 else
         f'expected 0 (the model\'s) or [{GEAR_EFFICIENCY_MIN}, 1] (servo gears are about '
         '0.5-0.9; a lower figure looks like a typo)',

@@ -304,7 +304,8 @@ class FirstOrderServo:
     minus the external torque, so load = -external torque / stall torque (torque-like, as the
     simulator's ServoModel: a load pulling the positive way is held by a negative torque) and
     the motor current is that torque over the datasheet's torque per ampere (stall torque /
-    stall current, the N m/A the e-Manual prints). Stall torque and no-load speed scale with
+    (stall current - standby current), ``ControlTable.torque_per_amp_nm_a``: the driver's
+    reading of it is the torque). Stall torque and no-load speed scale with
     supply voltage / the table's rated voltage (12 V, or 5 V for XL330). The temperature stays
     at its initial value. Same call shape as ServoModel.
     """
@@ -340,8 +341,9 @@ class FirstOrderServo:
         self.position_rad = self.position_rad + step
         # the torque the servo applies, as a fraction of the (rated) stall torque
         load = np.where(self.torque_enabled, -torque / self.table.stall_torque_nm, 0.0) + 0.0
+        amps = load * self.table.stall_torque_nm / self.table.torque_per_amp_nm_a
         return ServoStepOutput(self.position_rad.copy(), self.velocity_rad_s.copy(), load,
-                               self.temperature_c.copy(), load * self.table.stall_current_a)
+                               self.temperature_c.copy(), amps)
 
 
 def make_physics(table: ControlTable, *, count: int, initial_position_rad: Any = 0.0,

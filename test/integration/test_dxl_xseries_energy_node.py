@@ -130,3 +130,35 @@ def test_the_driver_passes_its_gear_efficiency_to_the_bus(tmp_path):
         with pytest.raises(ParameterError, match=name):
             params_from_overrides(DynamixelDriverParams, [
                 Parameter('joints_file', value='j.yaml'), Parameter(name, value=value)])
+
+
+@pytest.mark.timeout(60)
+def test_the_driver_warns_at_start_of_models_without_a_gear_efficiency(tmp_path):
+    """An XH430-W350 (no gear efficiency known) and an XM430-W350 (its preset's 0.739): the
+    start-up log warns, naming the XH430 and its ID, that its back-driven efforts are not
+    corrected and how to give the driver a gear efficiency; with ``gear_efficiency`` 0.7 it
+    says nothing of it. Before, nothing was said."""
+    joints = tmp_path / 'joints.yaml'
+    joints.write_text('joints:\n  a: {id: 1}\n  b: {id: 2}\n')
+
+    class Captured(DynamixelDriverNode):
+        def get_logger(self):
+            log = super().get_logger()
+            log.warning = lambda msg, **kw: lines.append(msg)
+            return log
+
+    for eta, expected in ((0.0, 1), (0.7, 0)):
+        lines: list[str] = []
+        with ServoBusEmulator.of_models([(1, 'XH430-W350'), (2, 'XM430-W350')]) as emu, \
+                ros_env('xwarn') as env:
+            env.make(Captured, parameter_overrides=[
+                Parameter('port', value=emu.port_name), Parameter('protocol', value=2),
+                Parameter('joints_file', value=str(joints)),
+                Parameter('torque_on_start', value=False),
+                Parameter('gear_efficiency', value=eta)])
+        said = [w for w in lines if 'back-drive correction' in w]
+        assert len(said) == expected, lines
+        if said:
+            assert said[0].startswith('XH430-W350 (id 1): no gear efficiency is known for this '
+                                      'model'), said
+            assert 'gear_efficiency' in said[0] and 'XM430-W350 (' not in said[0]

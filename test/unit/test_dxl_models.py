@@ -214,9 +214,13 @@ def test_sdk_driver_reads_model_correctly(model, protocol, n, torque_nm):
         r1 = done.readings[0]
         # Load (Present Load 0.1 % or Present Current in the model's unit) -> effort: the
         # torque the servo holds its load with, minus the external torque (it read +torque).
+        # Present Current: load is the current over the stall current, the effort the current
+        # times the table's N m/A (the standby current out of the stall current).
         load_step = (table.current_unit_a / table.stall_current_a if table.current_unit_a
                      else 1e-3)
         expected = -torque_nm / table.stall_torque_nm
+        if table.current_unit_a:
+            expected = -torque_nm / table.torque_per_amp_nm_a / table.stall_current_a
         assert_allclose(r1.load_fraction, expected, atol=load_step)
         assert_allclose(r1.effort_nm, -torque_nm, atol=load_step * table.stall_torque_nm)
         assert_allclose(emu.present_position_rad(1), r1.position_rad, atol=table.rad_per_tick)

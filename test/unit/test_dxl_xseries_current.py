@@ -55,14 +55,24 @@ def _poll_until(bus, predicate, max_cycles=20000):
     raise AssertionError('condition not reached')
 
 
-@pytest.mark.parametrize('model,nm_per_a', [('XM540-W150', 1.659), ('XM540-W270', 2.409),
-                                             ('XM430-W350', 4.1 / 2.26)])
+#: the e-Manual's standby current of every Present Current model [A] (Specifications, rendered
+#: from github.com/ROBOTIS-GIT/emanual _data/dxl_x_info.yml and _data/dxl_mx_info.yml)
+STANDBY_A = {'XM430-W350': 0.04, 'XM430-W210': 0.04, 'XH430-W210': 0.04, 'XH430-W350': 0.04,
+             'XM540-W150': 0.04, 'XM540-W270': 0.04, 'XL330-M077': 0.017, 'XL330-M288': 0.017,
+             'MX-64(2.0)': 0.1, 'MX-106(2.0)': 0.1}
+
+
+@pytest.mark.parametrize('model,nm_per_a', [
+    ('XM540-W150', 7.3 / 4.36), ('XM540-W270', 10.6 / 4.36), ('XM430-W350', 4.1 / 2.26),
+    ('XH430-W350', 3.4 / 1.26), ('MX-64(2.0)', 6.0 / 4.0), ('XL330-M288', 0.52 / 1.453)])
 def test_present_current_to_torque_is_the_datasheet_torque_per_ampere(model, nm_per_a):
     """The driver's effort from Present Current while driving: the current times stall torque
-    / stall current at the rated voltage, the N m/A the e-Manual prints beside the XM540's
-    stall torque (12 V), with the standby current taken out of the stall current where the
-    datasheet gives one (XM430-W350: 40 mA; it was 4.1 / 2.3, 1.7 % low). The stall torque is
-    at the output, so the gear's losses when driving are in it."""
+    / (stall current - standby current) at the rated voltage. The e-Manual prints stall torque
+    / stall current beside the XM540's and MX(2.0)'s stall torques (1.659 N m/A for the
+    XM540-W150, 1.463 for the MX-64(2.0)), but the standby current is the electronics', not
+    in Present Current. Only the XM430-W350 had it taken out (the others were 0.9-3.2 % low:
+    XH430 2.615 for 2.698 N m/A). The stall torque is at the output, so the gear's losses when
+    driving are in it."""
     table = table_by_name(model)
     raw = 1000
     effort = table.current_to_torque_nm(raw * table.current_unit_a, 1.0)
@@ -71,13 +81,20 @@ def test_present_current_to_torque_is_the_datasheet_torque_per_ampere(model, nm_
 
 
 def test_standby_current_and_gear_efficiency_are_the_servo_model_presets():
-    """The two figures the driver takes from the XM430-W350 and XL430-W250 presets; every
-    other model has none (standby 0, eta 1: no correction)."""
+    """The XM430-W350 and XL430-W250 take both figures from their ServoModel presets; every
+    other Present Current model has the e-Manual's standby current (it had 0) and no gear
+    efficiency (1: no back-drive correction; no page gives one), the other Present Load models
+    neither."""
     for table, params in ((XM430, ServoParams.xm430()), (XL430, ServoParams.xl430())):
         assert table.standby_current_a == params.standby_current_a
         assert_allclose(table.gear_efficiency, params.gear_efficiency, atol=1e-3)
+    current = [t for t in ALL_MODELS if 'present_current' in t.registers]
+    assert sorted(t.model_name for t in current) == sorted(STANDBY_A)
+    for table in current:
+        assert table.standby_current_a == STANDBY_A[table.model_name], table.model_name
+        assert table.gear_efficiency == (1.0 if table is not XM430 else ETA)
     for table in ALL_MODELS:
-        if table not in (XM430, XL430):
+        if table not in current and table is not XL430:
             assert (table.standby_current_a, table.gear_efficiency) == (0.0, 1.0), table
     assert_allclose(XM430.torque_per_amp_nm_a, ServoParams.xm430().torque_constant_nm_a)
 
@@ -108,7 +125,9 @@ def test_back_driven_current_is_divided_by_eta_squared_beyond_a_dead_band():
     assert_allclose(XM430.current_to_torque_nm(i, -band * 1.01, dead_band_rad_s=0.0),
                     drive / ETA ** 2)
     xm540 = table_by_name('XM540-W150')                    # no preset: no correction
-    assert xm540.current_to_torque_nm(i, -1.0) == i * 7.3 / 4.4
+    assert_allclose(xm540.current_to_torque_nm(i, -1.0), i * 7.3 / 4.36)
+    assert_allclose(xm540.current_to_torque_nm(i, -1.0, gear_efficiency=0.7),
+                    i * 7.3 / 4.36 / 0.49)
 
 
 def test_servo_model_reports_its_signed_winding_current():
@@ -228,6 +247,75 @@ def test_the_bus_gear_efficiency_overrides_the_model_s():
     with pytest.raises(ValueError, match='back_drive_dead_band_rad_s'):
         DynamixelBus('/dev/null', [JointConfig('a', 1)], protocol=2,
                      back_drive_dead_band_rad_s=-1.0)
+
+
+def _back_drive_notes(bus):
+    return [n for n in bus.take_notes() if 'back-drive correction' in n]
+
+
+def test_models_without_a_gear_efficiency_are_noted_at_open_with_their_ids():
+    """A bus of Present Current servos whose model has no gear efficiency (XH430-W350, MX-64
+    (2.0), XM540-W150) and none given to the bus: one note at open names them with their IDs,
+    says their back-driven efforts are not corrected and how to give one (the driver logs the
+    notes as warnings); the XM430-W350 (its preset's 0.739) and the XL430 (Present Load) are
+    not named. A servo silent at open is named when it answers. With the bus's
+    ``gear_efficiency``, no note. Before, nothing said which servos went uncorrected."""
+    models = [(1, 'XH430-W350'), (2, 'XH430-W350'), (3, 'MX-64(2.0)'), (4, 'XM430-W350'),
+              (5, 'XL430-W250'), (6, 'XM540-W150')]
+    joints = [JointConfig(f'j{k}', k) for k, _ in models]
+    with ServoBusEmulator.of_models(models) as emu:
+        emu.inject(6, 'no_answer')
+        bus = DynamixelBus(emu.port_name, joints, protocol=2, timeout_margin_ms=10.0,
+                           silent_after=1, probe_interval_cycles=1)
+        with bus:
+            (note,) = _back_drive_notes(bus)
+            assert note.startswith('XH430-W350 (ids 1, 2), MX-64(2.0) (id 3): no gear '
+                                   'efficiency is known for these models')
+            assert 'XM430-W350 (' not in note and 'XL430' not in note and 'XM540' not in note
+            assert '-p gear_efficiency:=' in note
+            emu.clear_faults(6)
+            for _ in range(20):
+                if bus.poll().readings[5].ok:
+                    break
+            assert bus.poll().readings[5].ok
+            (late,) = _back_drive_notes(bus)
+            assert late.startswith('XM540-W150 (id 6): no gear efficiency is known for this '
+                                   'model')
+            for _ in range(5):
+                bus.poll()
+            assert _back_drive_notes(bus) == []                  # each model once
+        with DynamixelBus(emu.port_name, joints, protocol=2, timeout_margin_ms=10.0,
+                          gear_efficiency=0.7) as bus:
+            assert _back_drive_notes(bus) == []
+
+
+@pytest.mark.parametrize('model', ['XH430-W350', 'MX-64(2.0)', 'XL330-M288'])
+def test_the_driver_s_gear_efficiency_corrects_models_without_one(model):
+    """A servo of a model without a gear efficiency raising a joint against a load that pulls
+    it the same way (the load back-drives it: current against the velocity) reads the load's
+    torque (the emulator's stand-in physics holds it exactly, its current over the table's
+    N m/A) without correction, and that torque over 0.7^2 with the bus's gear_efficiency 0.7:
+    the driver's parameter applies to every Present Current model."""
+    table = table_by_name(model)
+    torque = 0.25 * table.stall_torque_nm     # pulls the positive way: held by -torque
+    unit = table.current_unit_a * table.torque_per_amp_nm_a
+    for eta in (None, 0.7):
+        now = [0.0]
+        with ServoBusEmulator.of_model(table, [1], clock=lambda: now[0]) as emu, \
+                DynamixelBus(emu.port_name, [JointConfig('a', 1)], protocol=2,
+                             timeout_margin_ms=10.0, gear_efficiency=eta) as bus:
+            emu.servo(1).external_torque_nm = torque
+            assert all(bus.set_torque(True).values())
+            bus.write_goals({'a': 0.5}, {'a': 1.0})
+            for _ in range(400):
+                now[0] += 0.005
+                r = bus.poll().readings[0]
+                if r.ok and r.velocity_rad_s > 0.5 and r.position_rad > 0.1:
+                    break
+            else:
+                raise AssertionError('the servo did not move')
+            assert r.velocity_rad_s * r.effort_nm < 0            # back-driven
+            assert_allclose(r.effort_nm, -torque / (eta or 1.0) ** 2, atol=unit / 0.49)
 
 
 def test_present_current_saturates_at_the_current_limit():
