@@ -44,6 +44,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from hexapod_common.conversions import LegJointFilter, MOCAP_TF_ENV
+from hexapod_common.series import robust_sigma
 from hexapod_energy.errors import BagContentError
 from hexapod_energy.single_leg import (MAX_POWER_LAG_S, PhaseSample, align_offset_sessions_s,
                                        phase_powers, power_label_lag_s, stance_mask)
@@ -1045,7 +1046,7 @@ def _cooling_power(ses: list[dict[str, Any]], t_end_s: float, t_p: np.ndarray,
         if x.size >= 3:
             mid = float(np.median(x))
             out.setdefault(round(float(s['load_kg']), 6), []).append(
-                (mid, 1.4826 * float(np.median(np.abs(x - mid)))))
+                (mid, robust_sigma(x, mid)))
     return out
 
 
@@ -1299,7 +1300,7 @@ def merge_bench_data(datas: Sequence[BenchData], reasons: list[str] | None = Non
             return 0.0
         dt = np.diff(t)
         mid = float(np.median(dt))
-        return mid + 3.0 * 1.4826 * float(np.median(np.abs(dt - mid)))
+        return mid + 3.0 * robust_sigma(dt, mid)
 
     order = sorted(range(len(datas)), key=lambda i: first(datas[i]))
     for i, j in zip(order, order[1:]):

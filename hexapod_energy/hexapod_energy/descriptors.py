@@ -98,7 +98,7 @@ from hexapod_common.conversions import (
     PoseSample,
     current_sign_factor,
 )
-from hexapod_common.series import span_mean
+from hexapod_common.series import robust_sigma, span_mean
 from hexapod_energy import metrics
 from hexapod_energy.cycles import CycleSettings, JointCycleTracker, unwrap_near
 from hexapod_energy.metrics import G_MPS2
@@ -576,7 +576,7 @@ def battery_glitches(power_w: Any) -> np.ndarray:
     if p.size < 8 or not np.all(np.isfinite(p)):
         return out
     dev = p - median_filter(p, size=7, mode='nearest')
-    sigma = 1.4826 * float(np.median(np.abs(dev)))
+    sigma = robust_sigma(dev, 0.0)
     far = np.abs(dev) > max(GLITCH_SIGMAS * sigma, float(np.median(np.abs(p))), 1e-9)
     edges = np.flatnonzero(np.diff(np.concatenate(([0], far.astype(np.int8), [0]))))
     for a, b in zip(edges[::2], edges[1::2]):

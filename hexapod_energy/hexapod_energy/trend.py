@@ -27,6 +27,8 @@ from typing import Any
 
 import numpy as np
 
+from hexapod_common.series import robust_sigma
+
 __all__ = ['TREND_BINS', 'TREND_MIN_SPAN_S', 'TREND_MIN_WINDOWS', 'TREND_NOTE_FRACTION',
            'TREND_NOTE_SIGMAS', 'power_in_trend', 'trend_note']
 
@@ -93,7 +95,7 @@ def power_in_trend(t_end_s: Sequence[float], window_s: Sequence[float],
     # window-to-window noise from successive differences: a slow trend adds only its (tiny)
     # per-window step, an isolated glitch only two outlying differences
     d = np.diff(p)
-    sigma_w = 1.4826 * float(np.median(np.abs(d - np.median(d)))) / math.sqrt(2.0)
+    sigma_w = robust_sigma(d) / math.sqrt(2.0)
     # a median's standard error is about 1.2533 sigma / sqrt(n); two bins' difference
     n_small = min(len(bins[0]), len(bins[-1]))
     sigma_change = math.sqrt(2.0) * 1.2533 * sigma_w / math.sqrt(n_small)

@@ -42,6 +42,8 @@ from typing import Any
 
 import numpy as np
 
+from hexapod_common.series import robust_sigma
+
 __all__ = ['PATTERNS', 'isolated_windows', 'noise_floor_w', 'unexplained_residual',
            'unexplained_text']
 
@@ -70,7 +72,7 @@ def noise_floor_w(run: np.ndarray, t_s: np.ndarray, residual_w: np.ndarray) -> f
     d = np.concatenate(diffs)
     if d.size < 3:
         return math.nan
-    return float(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(6.0))
+    return robust_sigma(d) / math.sqrt(6.0)
 
 
 def isolated_windows(run: np.ndarray, t_s: np.ndarray, residual_w: np.ndarray,

@@ -83,6 +83,8 @@ from scipy.interpolate import CubicHermiteSpline, CubicSpline, PPoly
 from scipy.optimize import least_squares, minimize, minimize_scalar
 from scipy.signal import savgol_filter
 
+from hexapod_common.series import robust_sigma
+
 from ._geometry_kernels import HAVE_NUMBA, cost_mse, leg_gaps, simulate_windows
 from .errors import SlipDataError
 from .preprocess import max_mocap_gap_s
@@ -1689,7 +1691,7 @@ def _pool_edges(body: _Body, tf: FloatArray, gaps: FloatArray, known: NDArray[np
             y = t[idx] - t[idx[0]]
             y = y - period_j * np.round(y / period_j)
             centre = float(np.median(y))
-            spread = 1.4826 * float(np.median(np.abs(y - centre)))
+            spread = robust_sigma(y, centre)
             tau2 = max(spread ** 2 - sigma ** 2, POOL_MIN_SCATTER_S ** 2)
             shrink = sigma ** 2 / (sigma ** 2 + tau2)
             for m, ym in zip(idx, y):

@@ -37,6 +37,8 @@ from typing import Any
 
 import numpy as np
 
+from hexapod_common.series import robust_sigma
+
 from .errors import SlipDataError
 from .fit import SlipFitResult, SlipFitter, Stance
 from .model import EXTENSIONS, SlipModel
@@ -272,7 +274,7 @@ def nerr_time_pattern(run: Sequence[str], t_s: np.ndarray, nerr: np.ndarray, *,
         # a run needs min_side stances for its median and spread to say what is usual (of 3,
         # the spread was 0 and any stance at twice the median stood apart)
         med = float(np.median(y_all[idx]))
-        mad = 1.4826 * float(np.median(np.abs(y_all[idx] - med)))
+        mad = robust_sigma(y_all[idx], med)
         apart = (y_all[idx] - med >= math.log(isolated_ratio)) & \
             (y_all[idx] - med > isolated_z * mad) & (idx.size >= min_side)
         isolated += [{'run': name, 'at_s': float(t[i]), 'nerr': float(math.exp(y_all[i])),

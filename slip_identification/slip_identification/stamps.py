@@ -34,6 +34,8 @@ from typing import Any
 
 import numpy as np
 
+from hexapod_common.series import robust_sigma
+
 __all__ = ['LIVE_WINDOW', 'LiveRepeatedStamps', 'MAX_SPREAD_STEPS', 'MIN_SAMPLES', 'RECENT_STAMPS',
            'RepeatedStamps', 'StampMemory', 'repeat_note', 'same_values']
 
@@ -261,7 +263,7 @@ def _offset(st: _Stream) -> tuple[float | None, str]:
     if not steps.size:
         return None, 'no stamp step to judge the receive times by'
     step = float(np.median(steps))
-    spread = 1.4826 * float(np.median(np.abs(off - med)))
+    spread = robust_sigma(off, med)
     if spread > MAX_SPREAD_STEPS * step:
         return None, (f'receive times too irregular to place them: stamp - receive spread '
                       f'{1e3 * spread:.2f} ms against a {1e3 * step:.2f} ms stamp step')

@@ -29,6 +29,8 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike
 
+from hexapod_common.series import robust_sigma
+
 from .errors import SlipDataError
 from .preprocess import max_mocap_gap_s
 
@@ -95,7 +97,7 @@ def white_noise_std(signal: ArrayLike) -> float:
     if b.size < 10:
         return 0.0
     d4 = np.diff(b, 4)
-    return float(1.4826 * np.median(np.abs(d4 - np.median(d4))) / math.sqrt(70.0))
+    return robust_sigma(d4) / math.sqrt(70.0)
 
 
 def steady_windows(t_s: ArrayLike, pitch_rad: ArrayLike, period_s: float, *,
