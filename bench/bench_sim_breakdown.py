@@ -32,8 +32,8 @@ duration at which the gait's peak joint speed reaches the no-load speed, and bet
 
 ``--candidates`` (about 10 s) prints both findings and every whole-robot band of the issue
 (standing, 0.6 m/s power and efficiency, efficiency at 0.1 m/s, CoT/M at 0.84 m/s, 500 g load
-sensitivity) for the calibrated servo and five physical variants (dither, datasheet no-load
-current, coreless rotor inertia, softer compliance slope).
+sensitivity) for the calibrated servo and six physical variants (dither, gear stiction,
+datasheet no-load current, coreless rotor inertia, softer compliance slope).
 
 ``--servo`` replaces AX-18A constants for a what-if (for example
 ``--servo friction_smoothing_rad_s=0.2 --servo coulomb_friction_nm=0.1``).
@@ -201,6 +201,7 @@ def run_grid() -> None:
 CANDIDATES: tuple[tuple[str, dict[str, float]], ...] = (
     ('calibrated (defaults)', {}),
     ('dither 1 rad/s', dict(friction_smoothing_rad_s=1.0)),
+    ('stiction 1.5', dict(static_friction_ratio=1.5)),
     ('datasheet no-load 0.2 A', dict(coulomb_friction_nm=0.07, viscous_friction_nm_s=0.01)),
     ('no-load 0.2 A + dither', dict(coulomb_friction_nm=0.07, viscous_friction_nm_s=0.01,
                                     friction_smoothing_rad_s=1.0)),

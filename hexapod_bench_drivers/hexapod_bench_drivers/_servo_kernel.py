@@ -70,7 +70,7 @@ def warm() -> None:
     f = np.zeros(1)
     step_all(1e-3, 1, f, f.copy(), f.copy(), f.copy(), f.copy(), f.copy(), f.copy(), f.copy(),
              np.zeros(1, dtype=np.bool_), np.ones(1, dtype=np.bool_), f.copy(), f.copy(),
-             f.copy(), f.copy(), np.ones(1), np.ones(21), True, np.empty((11, 1)),
+             f.copy(), f.copy(), np.ones(1), np.ones(22), True, np.empty((11, 1)),
              np.empty((3, 1), dtype=np.int64), np.empty((9, 1)))
     _WARM.append(True)
 
@@ -88,17 +88,18 @@ def step_all(dt: float, n_sub: int, goal_in: Any, tau_ext: Any, volts: Any, defl
     coefficient, compliance slope's inverse, margin, Coulomb and viscous friction, stick speed,
     1 - gear efficiency, friction smoothing, reflected inertia, standby current, ambient
     temperature, thermal drift, exp(-dt / tau_th), thermal resistance, minimum and maximum
-    voltage. ``out`` rows: position, velocity, torque, current, temperature, load fraction,
-    power, mechanical power, winding loss, reported voltage, signed winding current;
+    voltage, static friction ratio. ``out`` rows: position, velocity, torque, current,
+    temperature, load fraction, power, mechanical power, winding loss, reported voltage, signed
+    winding current;
     ``flags`` rows (int64): reported temperature, error bits, drive; ``losses`` rows
     (``rec``): standby, extra, copper, Coulomb, gear, viscous, kinetic, load, brake."""
     n = q.shape[0]
     h = dt / n_sub
     (t_limit, r_ref, cu, t_ref, ke0, mag, kp, margin, coulomb0, visc, w_eps, mu, w_s, refl,
-     standby, ambient, drift, decay, r_th, v_min, v_max) = (
+     standby, ambient, drift, decay, r_th, v_min, v_max, ratio_s) = (
         prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6], prm[7], prm[8], prm[9],
         prm[10], prm[11], prm[12], prm[13], prm[14], prm[15], prm[16], prm[17], prm[18],
-        prm[19], prm[20])
+        prm[19], prm[20], prm[21])
     drive_all = True
     any_limited = False
     for j in range(n):
@@ -162,7 +163,8 @@ def step_all(dt: float, n_sub: int, goal_in: Any, tau_ext: Any, volts: Any, defl
                 moving = abs(wj) > w_eps
                 direction = _sign(wj if moving else tau_free)
                 w_new = wj + h_inv_j * (tau_free - f_max * direction)
-                stick = (w_new * wj < 0.0) if moving else (abs(tau_free) <= f_max)
+                f_static = f_max if ratio_s == 1.0 else ratio_s * f_max
+                stick = (w_new * wj < 0.0) if moving else (abs(tau_free) <= f_static)
             if rec:
                 w_abs = abs(0.0 if stick else w_new)
                 f_frac = _min(w_abs / w_s, 1.0) if w_s > 0.0 else 1.0

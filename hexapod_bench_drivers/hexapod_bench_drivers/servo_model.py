@@ -34,7 +34,8 @@ Physics, all quantities referred to the OUTPUT shaft (after the gearbox):
 
 * **Mechanics.** ``J w' = k_e i + tau_ext - (c + (1 - eta) |k_e i|) sgn(w) - b w`` with ``J``
   the rotor inertia times the gear ratio squared plus any load inertia; Karnopp stick-slip
-  friction (the shaft sticks while the static torque stays inside the friction band), or,
+  friction (the shaft sticks while the static torque stays inside the friction band, or inside
+  ``static_friction_ratio`` times it: stiction, 1 by default), or,
   with ``friction_smoothing_rad_s > 0``, a dithered friction that grows linearly with speed
   below that speed (no sticking: a static load is then held by the motor alone);
   semi-implicit Euler in sub-steps.
@@ -141,6 +142,12 @@ class ServoParams:
         friction: the vibration of a walking robot and the PWM ripple keep a loaded joint
         creeping until the motor carries the whole static load). Implicit in the linear
         region, so any value is stable.
+    static_friction_ratio : float
+        Breakaway over sliding friction of the gear, >= 1 (1, the default: one level). With
+        Karnopp friction (``friction_smoothing_rad_s = 0``) a shaft at rest stays stuck while
+        its static torque stays inside ``ratio (c + (1 - eta) |k_e i|)`` and slides against the
+        sliding band ``c + (1 - eta) |k_e i|`` once it breaks away (stiction; ignored with
+        friction smoothing). A what-if, not calibrated: docs/servo_model_notes.md.
     compliance_slope_rad, compliance_margin_rad : float
         P controller: full PWM at ``slope`` beyond the dead band ``margin`` [rad].
     structural_stiffness_nm_rad : float
@@ -184,6 +191,7 @@ class ServoParams:
     viscous_friction_nm_s: float = 0.02
     stick_speed_rad_s: float = 1e-3
     friction_smoothing_rad_s: float = 0.0
+    static_friction_ratio: float = 1.0
     compliance_slope_rad: float = 32 * 0.29 * _DEG
     compliance_margin_rad: float = 1 * 0.29 * _DEG
     structural_stiffness_nm_rad: float = 60.0
@@ -216,6 +224,10 @@ class ServoParams:
             if not (math.isfinite(value) and value >= 0.0):
                 raise ServoParamsError(f'ServoParams.{name} = {value!r}: expected a finite '
                                        'value >= 0')
+        if not (math.isfinite(self.static_friction_ratio) and self.static_friction_ratio >= 1.0):
+            raise ServoParamsError(
+                f'ServoParams.static_friction_ratio = {self.static_friction_ratio!r}: expected a '
+                'finite value >= 1')
         if self.standby_current_a >= self.stall_current_a:
             raise ServoParamsError(
                 f'ServoParams.standby_current_a = {self.standby_current_a!r}: expected less '
@@ -535,7 +547,7 @@ class ServoModel:
             1.0 - self._eta, p.friction_smoothing_rad_s, p.reflected_inertia_kgm2,
             p.standby_current_a, self.ambient_temperature_c, self.thermal_drift_w_k,
             math.exp(-dt_s / p.thermal_time_constant_s), p.thermal_resistance_k_w,
-            p.min_voltage_v, p.max_voltage_v], dtype=float)
+            p.min_voltage_v, p.max_voltage_v, p.static_friction_ratio], dtype=float)
         deflection = _floats(self._deflection(tau_ext), n)
         q = np.array(self.motor_position_rad, dtype=float)
         w = np.array(self.velocity_rad_s, dtype=float)
@@ -614,6 +626,7 @@ class ServoModel:
         coulomb = p.coulomb_friction_nm + self.extra_friction_nm
         visc, w_eps, mu = p.viscous_friction_nm_s, p.stick_speed_rad_s, 1.0 - self._eta
         w_s = p.friction_smoothing_rad_s
+        ratio_s = p.static_friction_ratio
         no_stick = np.zeros(n, dtype=bool)
         h_inv_j = h / self.inertia_kgm2
         # Plain ufuncs only in the sub-step loop: it is the simulators' hot path.
@@ -667,7 +680,8 @@ class ServoModel:
                 direction = sign(where(moving, w, tau_free))
                 w_new = w + h_inv_j * (tau_free - f_max * direction)
                 # stick: at rest inside the friction band, or crossing zero speed in this step
-                stick = where(moving, w_new * w < 0.0, absolute(tau_free) <= f_max)
+                f_static = f_max if ratio_s == 1.0 else ratio_s * f_max
+                stick = where(moving, w_new * w < 0.0, absolute(tau_free) <= f_static)
             if rec:
                 # the sub-step's displacement is h * w_new (semi-implicit Euler)
                 w_abs = absolute(where(stick, 0.0, w_new))

@@ -1,7 +1,8 @@
 """The servo model's compiled step (numba) against its numpy code: the same numbers to the bit,
-step after step, on every branch (Karnopp stick-slip and dithered friction, speed limits,
-torque off, unpowered and overheated servos, torque limits, backlash, extra power and thermal
-drift, heating and cooling, the loss breakdown), and on a whole simulated robot run."""
+step after step, on every branch (Karnopp stick-slip with and without stiction and dithered
+friction, speed limits, torque off, unpowered and overheated servos, torque limits, backlash,
+extra power and thermal drift, heating and cooling, the loss breakdown), and on a whole
+simulated robot run."""
 
 from __future__ import annotations
 
@@ -27,10 +28,11 @@ def _outputs_equal(a, b) -> None:
             np.testing.assert_array_equal(x, y, err_msg=f.name)
 
 
-@pytest.mark.parametrize('smoothing', [0.0, 1.0])
+@pytest.mark.parametrize('smoothing, stiction', [(0.0, 1.0), (1.0, 1.0), (0.0, 1.6)])
 @pytest.mark.parametrize('params', ['ax18a', 'xm430'])
-def test_compiled_loop_equals_the_numpy_loop(params, smoothing):
+def test_compiled_loop_equals_the_numpy_loop(params, smoothing, stiction):
     p = ServoParams.by_name(params).with_changes(friction_smoothing_rad_s=smoothing,
+                                                 static_friction_ratio=stiction,
                                                  backlash_rad=0.01)
     n = 12
     start = np.random.default_rng(7).uniform(-1, 1, n)

@@ -271,3 +271,51 @@ def test_gear_loss_follows_the_direction_of_power_flow(changes) -> None:
         assert_allclose(np.mean(gear), (1 - eta) * motor_nm[speed], rtol=0.02)
     assert_allclose(motor_nm[1.0], (0.5 + c + b) / eta, rtol=0.02)
     assert_allclose(motor_nm[-1.0], (0.5 - c - b) / (2 - eta), rtol=0.02)
+
+
+@pytest.mark.parametrize('compiled', [True, False])
+def test_static_friction_ratio_raises_the_breakaway_band_only(compiled) -> None:
+    """Stiction (``static_friction_ratio``): a limp shaft at rest under a load between the
+    sliding friction ``c`` and ``ratio c`` stays put, but once moving it slides against ``c``
+    alone. A servo holding its goal unloaded, then loaded with 0.5 N m: with one friction level
+    the shaft gives way until the motor holds ``(T - c) / (2 - eta)``; with a breakaway band
+    wider than the load the motor side stays put and the gear holds nearly all of it. (A shaft
+    that comes to rest while sliding stops at the sliding band's edge either way.) Ratios below
+    1 are refused."""
+    base = ServoParams.ax18a()
+    c = base.coulomb_friction_nm
+    stiff = base.with_changes(static_friction_ratio=2.0)
+    moved = {}
+    for name, p in (('one level', base), ('stiction', stiff)):
+        model = ServoModel(p, count=2, torque_enabled=False, max_substep_s=1e-4)
+        model.compiled = compiled
+        model.velocity_rad_s[1] = -0.5       # the second one already sliding the load's way
+        out = run(model, 0.2, 0.0, tau=-1.5 * c)
+        moved[name] = out.velocity_rad_s
+    assert moved['one level'][0] < -0.1      # breaks away at once: 1.5 c > c
+    assert moved['stiction'][0] == 0.0       # held: 1.5 c < 2 c
+    # sliding, the band is the sliding one: the load 1.5 c keeps accelerating it
+    assert moved['stiction'][1] < -0.5 and moved['one level'][1] < -0.5
+    mu = 1.0 - base.gear_efficiency
+    held = {}
+    for ratio in (1.0, 2.2):
+        p = base.with_changes(static_friction_ratio=ratio)
+        model = ServoModel(p, count=1, initial_position_rad=0.3)
+        model.compiled = compiled
+        run(model, 0.5, 0.3, volts=11.9)               # at its goal, unloaded
+        start = model.output_position_rad(np.zeros(1))[0]
+        out = run(model, 2.0, 0.3, tau=-0.5, volts=11.9)
+        assert abs(out.velocity_rad_s[0]) < 1e-3
+        ke = p.back_emf_constant_v_s * (1.0 + p.magnet_temp_coeff_per_k
+                                        * (26.0 - p.reference_temperature_c))
+        held[ratio] = (float(out.load_fraction[0] * 11.9 / model.winding_resistance_ohm()[0]
+                             * ke), model.motor_position_rad[0] - start)
+    assert_allclose(held[1.0][0], (0.5 - c) / (1.0 + mu), rtol=0.05)
+    assert held[1.0][1] < -0.01                         # gave way under the load
+    # the gear holds it: the motor side does not move, and the motor carries only what the
+    # horn's deflection under the load (compliance and backlash, 0.7 degrees) asks of the P
+    # controller, 0.08 N m
+    assert held[2.2][1] == 0.0 and 0.0 < held[2.2][0] < 0.1
+    for bad in (0.99, float('nan'), float('inf')):
+        with pytest.raises(ServoParamsError, match='static_friction_ratio'):
+            base.with_changes(static_friction_ratio=bad)
