@@ -157,7 +157,9 @@ def run_offline(nodes: Sequence[Any], bag: str | Sequence[str], *,
     timestamps and no publication sequence number: a bag does not keep them). Before each
     message the nodes' ROS clocks are set to its bag time, as ``/clock``
     would. Publishers on ``capture`` topics (default: every publisher of the nodes) are
-    wrapped so the published messages are returned per topic, in order.
+    wrapped so the published messages are returned per topic, in order. After the bag, a
+    node's ``finish_offline()`` is called when it has one (``slip_fitter``: its
+    self-calibration, which works on a thread, is waited for and its fits published).
     """
     from rclpy.serialization import deserialize_message
 
@@ -201,6 +203,10 @@ def run_offline(nodes: Sequence[Any], bag: str | Sequence[str], *,
                     sub.callback(data, _bag_message_info(item.stamp_ns))
                 else:
                     sub.callback(data)
+    for node in nodes:
+        finish = getattr(node, 'finish_offline', None)
+        if callable(finish):
+            finish()
     return captured
 
 

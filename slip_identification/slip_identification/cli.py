@@ -167,7 +167,12 @@ from .energetics import data_source, gait_table, plot_figures
 from .errors import MissingTopicError, SlipDataError, SlipError
 from .model import EDUBOT_MASS_KG, SlipModel
 from .geometry import LegGeometry
-from .joints import assemble_joint_frames, note_out_of_order, rotation_signs
+from .joints import (
+    assemble_joint_frames,
+    command_columns,
+    rotation_signs,
+    stamp_order as _stamp_order,
+)
 from .pipeline import RunData, analyze_run, rotate_body
 from .preprocess import Box, walks_backwards
 from .stamps import RepeatedStamps
@@ -334,24 +339,10 @@ def read_run(path: str | Path) -> RunData:
                          'motors mounted mirrored on a robot walking forward. A robot walking '
                          'backwards is read as such when its body moves against the rigid '
                          'body\'s x axis (runs[].frame.walks_backwards)')
-    if not len(jc):
-        command_t_s, command_velocity = np.zeros(0), np.zeros((0, len(names)))
-        notes.append('no usable /joint_commands (the Buehler clock\'s target speeds): the '
-                     "paper's shifted-clock edges are not available, stance edges from the "
-                     'leg geometry only')
-    elif all(len(g) == len(names) and set(g) == set(names) for g in jc.distinct('names')):
-        # drivers need not keep one name order: every sample is put in the joints' order
-        command_t_s, command_velocity = _commands_in_order(jc, names)
-    elif len(jc):  # commands split over several messages too
-        try:
-            cmd = assemble_joint_frames(jc, required=names, topic='/joint_commands')
-        except SlipDataError as err:
-            raise MissingTopicError(f'bag {path}: /joint_commands: {err}') from err
-        command_t_s = cmd.t_s
-        command_velocity = cmd.velocity[:, [cmd.names.index(n) for n in names]]
-        notes.append(f'/joint_commands: {cmd.note}')
-        if cmd.repeat_note:
-            notes.append(cmd.repeat_note)
+    try:
+        command_t_s, command_velocity = command_columns(jc, names, notes)
+    except SlipDataError as err:
+        raise MissingTopicError(f'bag {path}: /joint_commands: {err}') from err
     if (signs < 0).any() and command_velocity.size:
         command_velocity = command_velocity * signs
     for topic, n in (('/joint_states', joints.t_s.size), ('/mocap/body', len(mo))):
@@ -398,19 +389,6 @@ def _legs_only(samples: Any, topic: str, notes: list[str]) -> Any:
     return out
 
 
-def _stamp_order(topic: str, notes: list[str], t_s: np.ndarray,
-                 *rows: np.ndarray) -> tuple[np.ndarray, ...]:
-    """``t_s`` and ``rows`` in stamp order (stable), with a note when samples came out of it
-    (another lab's recorder: 20 % of /joint_states received 15 ms late were re-stamped as
-    repeats, then used in arrival order; an outside review)."""
-    t = np.asarray(t_s, dtype=float)
-    if t.size < 2 or not bool(np.any(t[1:] < t[:-1])):
-        return (t, *rows)
-    note_out_of_order(topic, t, notes)
-    o = np.argsort(t, kind='stable')
-    return (t[o], *(np.asarray(r)[o] for r in rows))
-
-
 def _stream_group(sample: Any) -> Any:
     """What tells streams of one topic apart: a joint state's names (messages split over
     name groups share stamps), a battery's source (several batteries on one topic)."""
@@ -445,37 +423,6 @@ def _rows(samples: Any, name: str) -> np.ndarray:
         if isinstance(column, np.ndarray):
             return np.array(column)
     return np.array([getattr(s, name) for s in samples])
-
-
-def _commands_in_order(samples: Any, names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
-    """Stamps and commanded velocities of the ``/joint_commands`` samples (each naming the
-    joints of ``names`` in some order) in the order of ``names``; samples without a velocity
-    per joint are left out."""
-    t_s: list[float] = []
-    velocity = np.empty((len(samples), len(names)))
-    for s in samples:
-        r = _in_order(s, names)
-        if r.velocity.size == len(names):
-            velocity[len(t_s)] = r.velocity
-            t_s.append(r.t_s)
-    if not t_s:
-        return np.array([]), np.array([])
-    return np.array(t_s), velocity[:len(t_s)].copy()
-
-
-def _in_order(sample: Any, names: tuple[str, ...]) -> Any:
-    """``sample`` (a JointStateSample) with its arrays in the order of ``names``; a sample
-    whose names are not a permutation of ``names`` comes back with empty velocities (dropped
-    by the caller)."""
-    if sample.names == names:
-        return sample
-    if len(sample.names) != len(names) or set(sample.names) != set(names):
-        return dataclasses.replace(sample, velocity=np.zeros(0))
-    idx = [sample.names.index(n) for n in names]
-    return dataclasses.replace(
-        sample, names=names,
-        **{f: getattr(sample, f)[idx] if getattr(sample, f).size == len(names)
-           else getattr(sample, f) for f in ('position', 'velocity', 'effort')})
 
 
 def _gait_name(phase: Any) -> str:

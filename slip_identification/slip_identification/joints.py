@@ -78,10 +78,14 @@ __all__ = [
     'JointFrame',
     'JointFrameAssembler',
     'assemble_joint_frames',
+    'command_columns',
+    'commands_in_order',
     'derive_velocity',
+    'in_order',
     'missing_joints',
     'note_out_of_order',
     'rotation_signs',
+    'stamp_order',
     'unwrap_positions',
     'wrap_note',
 ]
@@ -537,6 +541,75 @@ def assemble_joint_frames(samples: Sequence[Any], *, required: Sequence[str] = (
                            notes=tuple(notes), wraps=wraps, derived=derive, repeats=repeats,
                            repeat_note=rnote)
 
+
+
+def stamp_order(topic: str, notes: list[str], t_s: np.ndarray,
+                 *rows: np.ndarray) -> tuple[np.ndarray, ...]:
+    """``t_s`` and ``rows`` in stamp order (stable), with a note when samples came out of it
+    (another lab's recorder: 20 % of /joint_states received 15 ms late were re-stamped as
+    repeats, then used in arrival order; an outside review)."""
+    t = np.asarray(t_s, dtype=float)
+    if t.size < 2 or not bool(np.any(t[1:] < t[:-1])):
+        return (t, *rows)
+    note_out_of_order(topic, t, notes)
+    o = np.argsort(t, kind='stable')
+    return (t[o], *(np.asarray(r)[o] for r in rows))
+
+
+def commands_in_order(samples: Any, names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """Stamps and commanded velocities of the ``/joint_commands`` samples (each naming the
+    joints of ``names`` in some order) in the order of ``names``; samples without a velocity
+    per joint are left out."""
+    t_s: list[float] = []
+    velocity = np.empty((len(samples), len(names)))
+    for s in samples:
+        r = in_order(s, names)
+        if r.velocity.size == len(names):
+            velocity[len(t_s)] = r.velocity
+            t_s.append(r.t_s)
+    if not t_s:
+        return np.array([]), np.array([])
+    return np.array(t_s), velocity[:len(t_s)].copy()
+
+
+def in_order(sample: Any, names: tuple[str, ...]) -> Any:
+    """``sample`` (a JointStateSample) with its arrays in the order of ``names``; a sample
+    whose names are not a permutation of ``names`` comes back with empty velocities (dropped
+    by the caller)."""
+    if sample.names == names:
+        return sample
+    if len(sample.names) != len(names) or set(sample.names) != set(names):
+        return dataclasses.replace(sample, velocity=np.zeros(0))
+    idx = [sample.names.index(n) for n in names]
+    return dataclasses.replace(
+        sample, names=names,
+        **{f: getattr(sample, f)[idx] if getattr(sample, f).size == len(names)
+           else getattr(sample, f) for f in ('position', 'velocity', 'effort')})
+
+
+def command_columns(samples: Any, names: tuple[str, ...], notes: list[str]
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Stamps and commanded velocities (in the order of ``names``) of ``/joint_commands``
+    samples (JointStateSample-like, in arrival order; ``distinct('names')`` used when the
+    container has it): each naming every joint in some order, or split over several messages
+    (assembled). Lines for ``RunData.notes`` are appended to ``notes``. Used by the offline
+    reader and by the live node's self-calibration (:mod:`.calibration`). Raises
+    SlipDataError when split commands cannot be assembled."""
+    if not len(samples):
+        notes.append('no usable /joint_commands (the Buehler clock\'s target speeds): the '
+                     "paper's shifted-clock edges are not available, stance edges from the "
+                     'leg geometry only')
+        return np.zeros(0), np.zeros((0, len(names)))
+    sets = (samples.distinct('names') if hasattr(samples, 'distinct')
+            else list(dict.fromkeys(s.names for s in samples)))
+    if all(len(g) == len(names) and set(g) == set(names) for g in sets):
+        # drivers need not keep one name order: every sample is put in the joints' order
+        return commands_in_order(samples, names)
+    cmd = assemble_joint_frames(samples, required=names, topic='/joint_commands')
+    notes.append(f'/joint_commands: {cmd.note}')
+    if cmd.repeat_note:
+        notes.append(cmd.repeat_note)
+    return cmd.t_s, cmd.velocity[:, [cmd.names.index(n) for n in names]]
 
 @dataclass(frozen=True)
 class JointFrame:

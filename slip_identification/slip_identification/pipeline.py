@@ -892,8 +892,14 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                 geometry: LegGeometry | None = None, steady_only: bool = False,
                 check_body_up: bool = True,
                 pitch_offset_rad: float | None = None, pool_edges: bool = True,
-                starts: str = 'multi', gravity: str = 'ground') -> RunResult:
+                starts: str = 'multi', gravity: str = 'ground',
+                calibration_only: bool = False) -> RunResult:
     """Preprocess one run, extract single-tripod stances, fit each (see module docs).
+
+    ``calibration_only``: stop once the world frame, stream offset, ground height and pitch
+    zero are found (``offset_s``, ``offset_method``, ``ground_m``, ``frame``, ``notes``,
+    ``warnings`` set; no stances, fits or energetics): the live ``slip_fitter``'s
+    self-calibration (:mod:`.calibration`), the same values as the whole analysis.
 
     ``starts``: the Nelder-Mead starts of the paper's estimator (:class:`.fit.SlipFitter`)
     and the least-squares starts of the position fit (:class:`.fit.SlipPositionFitter`).
@@ -1194,6 +1200,8 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                                 if can_geo else 'Give the leg geometry') +
                  ', or the offset if it is known (--offset S)')
     res.edges = edges
+    if calibration_only:
+        return res
     res.frame['gravity'] = gravity
     if gravity == 'mocap':
         # the final frame's axes in the (levelled) motion-capture frame: gravity's components

@@ -59,6 +59,7 @@ from hexapod_common.node_utils import (
 )
 from hexapod_interfaces.msg import SlipFit
 
+from .calibration import CALIBRATION_STRIDES, Calibration, SelfCalibration, calibrate
 from .errors import SlipError
 from .fit import SlipFitResult
 from .geometry import LegGeometry
@@ -68,7 +69,8 @@ from .stamps import LiveRepeatedStamps, repeat_note
 from .pipeline import rotate_body
 from .preprocess import Box
 
-__all__ = ['SlipFitterNode', 'SlipParams', 'main', 'result_to_msg', 'startup_notes']
+__all__ = ['SlipFitterNode', 'SlipParams', 'clock_edges_warning', 'main', 'result_to_msg',
+           'startup_notes']
 
 #: leg joint states without any ``<leg>_hip`` joint after which that is warned (once)
 HIPLESS_MESSAGES = 50
@@ -123,8 +125,11 @@ class SlipParams:
                         "stance's own scales, the lowest nerr kept) or paper (its start alone)",
                         validate=lambda v: None if v in ('multi', 'paper')
                         else "expected 'multi' or 'paper'", read_only=True)
-    mocap_offset: float = param(0.0, 'seconds subtracted from mocap stamps (stream offset)',
-                                read_only=True)
+    mocap_offset: float = param(math.nan, 'seconds subtracted from mocap stamps (stream '
+                                'offset); NaN (default): self-calibrated without ground, else 0',
+                                read_only=True, finite=False,
+                                validate=lambda v: None if not math.isinf(v)
+                                else 'expected seconds or NaN')
     margin: float = param(0.0, 'mocap needed after lift-off before fitting [s] (0: the '
                           'first sample after lift-off); a run-time change applies at once',
                           validate=_non_negative)
@@ -133,13 +138,21 @@ class SlipParams:
                              validate=_box, read_only=True)
     ground: float = param(math.nan, 'ground height in the world frame [m] (e.g. an offline '
                           "analysis' ground_m); finite: geometric stance edges from the "
-                          "half-circle legs, NaN: the paper's clock edges", read_only=True,
-                          finite=False)
-    pitch_offset: float = param(0.0, "the motion-capture rigid body's pitch zero against the "
-                                'hip line [deg] (an offline slip analysis\' '
-                                'runs[].frame.pitch_offset_deg; geometric edges)', read_only=True,
-                                validate=lambda v: None if abs(v) <= 45.0
-                                else 'expected a value within +-45 deg')
+                          'half-circle legs, NaN: self-calibrated (calibration_strides), or '
+                          "the paper's clock edges", read_only=True, finite=False)
+    pitch_offset: float = param(math.nan, "the motion-capture rigid body's pitch zero against "
+                                'the hip line [deg] (an offline slip analysis\' '
+                                'runs[].frame.pitch_offset_deg; geometric edges); NaN (default): '
+                                'self-calibrated without ground, else 0', read_only=True,
+                                finite=False,
+                                validate=lambda v: None if math.isnan(v) or abs(v) <= 45.0
+                                else 'expected a value within +-45 deg (or NaN)')
+    calibration_strides: float = param(
+        CALIBRATION_STRIDES, 'without ground: strides of motion capture in the box buffered '
+        'before the ground, stream offset and pitch zero are estimated from them by '
+        "`hexapod-analyze slip`'s estimators (the buffered stances then fitted and published); "
+        "0: no self-calibration (the paper's clock edges)", read_only=True,
+        validate=lambda v: None if v >= 0 else 'must be >= 0')
     leg_radius: float = param(LegGeometry.leg_radius_m, 'arc radius R of the half-circle '
                               'leg [m] (geometric edges)', validate=_positive, read_only=True)
     hip_x: list[float] = param(list(LegGeometry.hip_x_m), 'hip x front, middle, rear from '
@@ -175,27 +188,44 @@ REMEDY = ('record a few seconds of the gait, run `hexapod-analyze slip BAG --out
           '-p mocap_offset:=S -p pitch_offset:=DEG')
 
 
+def clock_edges_warning(p: SlipParams) -> str:
+    """The warning of a node without ground and without self-calibration: its fits differ
+    from the offline analysis', and how to get the parameters."""
+    offset = ('there is no stream offset (mocap_offset 0 s; the node does not estimate '
+              'it)' if not math.isfinite(p.mocap_offset) or p.mocap_offset == 0.0
+              else f'the stream offset is the given {p.mocap_offset:g} s')
+    return ("the stance edges are the paper's shifted clock edges, not the legs' geometric "
+            'contacts `hexapod-analyze slip` uses, and ' + offset + '; on a simulated EduBot '
+            'run this made the fitted stiffness 35-71 % low and the rest length 25 % long '
+            'against the offline analysis. For fits that agree with it, ' + REMEDY)
+
+
 def startup_notes(p: SlipParams) -> list[tuple[str, str]]:
-    """``(log level, text)`` said once at startup about the parameters: without ``ground``
-    the stance edges are the paper's clock edges and the stream offset is not estimated
-    online (an outside review replaying a simulated EduBot running bag: stiffness 35-71 %
-    low, median 3989 against 11084 N/m offline, rest length 0.131 against 0.105 m, nerr 0.127
-    against 0.059; with the offline ground, offset and pitch 12 of 12 stances within 2 ms and
-    k 10815 N/m). It had been said only in the README."""
+    """``(log level, text)`` said once at startup about the parameters. Without ``ground``
+    the node calibrates itself (:mod:`.calibration`; said as info), or, with
+    ``calibration_strides`` 0, its stance edges are the paper's clock edges and the stream
+    offset is not estimated (a warning: an outside review replaying a simulated EduBot
+    running bag: stiffness 35-71 % low, median 3989 against 11084 N/m offline, rest length
+    0.131 against 0.105 m, nerr 0.127 against 0.059; with the offline ground, offset and
+    pitch 12 of 12 stances within 2 ms and k 10815 N/m). It had been said only in the
+    README."""
     if not math.isfinite(p.ground):
-        offset = ('there is no stream offset (mocap_offset 0 s; the node does not estimate '
-                  'it)' if p.mocap_offset == 0.0
-                  else f'the stream offset is the given {p.mocap_offset:g} s')
-        return [('warning', 'no ground given (parameter ground): the stance edges are the '
-                 "paper's shifted clock edges, not the legs' geometric contacts "
-                 '`hexapod-analyze slip` uses, and ' + offset + '; on a simulated EduBot run '
-                 'this made the '
-                 'fitted stiffness 35-71 % low and the rest length 25 % long against the '
-                 'offline analysis. For fits that agree with it, ' + REMEDY)]
-    if p.mocap_offset == 0.0:
+        if p.calibration_strides > 0:
+            kept = [n for n, v in (('mocap_offset', p.mocap_offset),
+                                   ('pitch_offset', p.pitch_offset)) if math.isfinite(v)]
+            return [('info', f'no ground given (parameter ground): the first '
+                     f'{p.calibration_strides:g} strides of motion capture in the box are '
+                     'buffered and the ground, stream offset and pitch zero estimated from '
+                     "them by `hexapod-analyze slip`'s estimators"
+                     + (f' ({", ".join(kept)} as given)' if kept else '')
+                     + '; their stances are fitted and published once that is done, later '
+                     'ones as they come (calibration_strides:=0 turns it off)')]
+        return [('warning', 'no ground given (parameter ground) and no self-calibration '
+                 '(calibration_strides 0): ' + clock_edges_warning(p))]
+    if not math.isfinite(p.mocap_offset) or p.mocap_offset == 0.0:
         return [('info', 'mocap_offset is 0 s: the motion capture is taken as stamped on the '
-                 'joint states\' clock (the node does not estimate the stream offset); '
-                 'otherwise ' + REMEDY)]
+                 'joint states\' clock (the node does not estimate the stream offset when '
+                 'ground is given); otherwise ' + REMEDY)]
     return []
 
 
@@ -229,21 +259,28 @@ class SlipFitterNode(Node):
         super().__init__('slip_fitter', context=context,
                          parameter_overrides=parameter_overrides, namespace=namespace, **kw)
         p = declare_params(self, SlipParams, on_change=self._on_change)
+        self._p = p
         b = list(p.box)
-        geo = None
-        if math.isfinite(p.ground):
-            geo = LegGeometry(hip_x_m=tuple(float(v) for v in p.hip_x),  # type: ignore[arg-type]
-                              leg_radius_m=p.leg_radius)
-        self.core = OnlineSlip(SlipModel.from_name(p.model, mass_kg=p.mass),
-                               box=Box(tuple(b[:3]), tuple(b[3:])),
-                               mocap_offset_s=p.mocap_offset, margin_s=p.margin,
-                               geometry=geo, ground_m=p.ground if geo is not None else None,
-                               pitch_offset_rad=math.radians(p.pitch_offset),
-                               starts=p.starts)
+        self._box = Box(tuple(b[:3]), tuple(b[3:]))
+        self._geometry = LegGeometry(
+            hip_x_m=tuple(float(v) for v in p.hip_x),  # type: ignore[arg-type]
+            leg_radius_m=p.leg_radius)
+        self.core = self._new_core(p.ground if math.isfinite(p.ground) else None,
+                                   p.mocap_offset, p.pitch_offset)
         for level, text in startup_notes(p):
             getattr(self.get_logger(), level)(text)
+        #: the self-calibration without ground (None: off, or ground given); ``core`` is
+        #: the clock-edge core until it hands over (:meth:`_take_calibration`)
+        self.calibration: SelfCalibration | None = None
+        self._calibration_warned = 0
+        if not math.isfinite(p.ground) and p.calibration_strides > 0:
+            self._calibration_ready = self.create_guard_condition(self._take_calibration)
+            self.calibration = SelfCalibration(
+                p.calibration_strides, self._calibrate_run, self._calibrated_core,
+                box=self._box, on_ready=self._calibration_ready.trigger)
         # the compiled fit loaded now, not in the first stance's publish latency
-        warm_s = self.core.warm_up()
+        warm_s = (self._new_core(0.0, 0.0, 0.0) if self.calibration is not None
+                  else self.core).warm_up()
         self.get_logger().debug(f'fit kernels loaded in {warm_s:.2f} s')
         self.pub = self.create_publisher(SlipFit, 'slip/fit', RELIABLE_QOS)
         js_sub = self.create_subscription(JointState, 'joint_states', self._on_js, SENSOR_QOS)
@@ -279,6 +316,112 @@ class SlipFitterNode(Node):
         #: leg joint states seen without any ``<leg>_hip`` joint (None once a hip came)
         self._hipless: int | None = 0
         self._joint_names: set[str] = set()
+
+    def _new_core(self, ground_m: float | None, offset_s: float,
+                  pitch_offset_deg: float) -> OnlineSlip:
+        """A core with this node's model, box, margin and starts; geometric edges when
+        ``ground_m`` is given (NaN offsets and pitch zero: 0)."""
+        p = self._p
+        core = getattr(self, 'core', None)   # the current model and margin (run-time set)
+        return OnlineSlip(core.model if core is not None else
+                          SlipModel.from_name(p.model, mass_kg=p.mass),
+                          box=self._box,
+                          mocap_offset_s=offset_s if math.isfinite(offset_s) else 0.0,
+                          margin_s=core.margin_s if core is not None else p.margin,
+                          geometry=self._geometry if ground_m is not None else None,
+                          ground_m=ground_m,
+                          pitch_offset_rad=math.radians(pitch_offset_deg)
+                          if math.isfinite(pitch_offset_deg) else 0.0,
+                          starts=p.starts)
+
+    def _calibrate_run(self, run: Any) -> Calibration:
+        """The self-calibration's estimators on the buffered run (worker thread): those of
+        ``hexapod-analyze slip`` with its defaults, this node's legs (another robot's legs
+        with the EduBot damping time assumed and checked, as the command does), box and
+        model; a given ``mocap_offset`` or ``pitch_offset`` kept."""
+        p = self._p
+        geo = self._geometry
+        if geo.leg_radius_m != LegGeometry.leg_radius_m or \
+                tuple(geo.hip_x_m) != tuple(LegGeometry.hip_x_m):
+            geo = dataclasses.replace(geo, damping_assumed=True, damping_stiffness_n_m=None)
+        else:
+            geo = LegGeometry()
+        return calibrate(run, geometry=geo, box=self._box, model=self.core.model,
+                         offset_s=p.mocap_offset if math.isfinite(p.mocap_offset) else None,
+                         pitch_offset_deg=(p.pitch_offset if math.isfinite(p.pitch_offset)
+                                           else None),
+                         check_body_up=p.body_up == 'z', starts=p.starts)
+
+    def _calibrated_core(self, cal: Calibration) -> OnlineSlip:
+        """The core the buffer is replayed into: geometric edges with the calibration, or
+        today's clock edges when it was refused."""
+        if cal.ok:
+            return self._new_core(cal.ground_m, cal.offset_s, cal.pitch_offset_deg)
+        return self._new_core(None, self._p.mocap_offset, self._p.pitch_offset)
+
+    def _take_calibration(self) -> None:
+        """The hand-over (this node's thread): once the worker is done, the calibrated core
+        replaces the waiting one, the calibration is logged once, and the buffered stances'
+        fits are published, before any later message is taken."""
+        cal = self.calibration
+        if cal is None or cal.state != 'ready':
+            return
+        got = cal.take()
+        if got is None:
+            return
+        core, result, fits = got
+        old = self.core
+        if core.model.mass_kg != old.model.mass_kg:   # a run-time change meanwhile
+            core.set_model(old.model)
+        core.margin_s = old.margin_s
+        self.core = core
+        self._warnings_logged = self._notes_logged = self._skips_logged = 0
+        log = self.get_logger()
+        if result.ok:
+            log.info(f'{result.line()}; worker {cal.replay_s:.2f} s with the replay of '
+                     f'{cal.buffered} buffered messages ({cal.replayed_on_take} more taken '
+                     'over here)')
+            for w in result.warnings:
+                log.warning(f'self-calibration: {w}')
+        else:
+            log.warning(f'{result.line()}: ' + clock_edges_warning(self._p))
+        for err in cal.dropped:
+            self.dropped += 1
+            self._log_drop(f'dropped a buffered message: {err}')
+        for r in fits:
+            self.pub.publish(result_to_msg(r))
+            self.published += 1
+        self._log_core()
+
+    def finish_offline(self, timeout_s: float | None = None) -> None:
+        """Wait for a running self-calibration and hand it over (for
+        :func:`hexapod_common.replay.run_offline`, which calls it after the bag: the
+        buffered stances' fits are then published)."""
+        if self.calibration is not None and self.calibration.wait(timeout_s):
+            self._take_calibration()
+
+    def _log_core(self) -> None:
+        """The core's new warnings (once each), input notes and skipped stances."""
+        warnings = self.core.warnings
+        while self._warnings_logged < len(warnings):   # time jumps: once each
+            self.get_logger().warning(warnings[self._warnings_logged])
+            self._warnings_logged += 1
+        notes = self.core.notes
+        while self._notes_logged < len(notes):  # each input fallback logged once
+            self.get_logger().info(notes[self._notes_logged])
+            self._notes_logged += 1
+        self._log_skips()
+
+    def _calibrating(self, kind: str, *args: Any) -> bool:
+        """Whether the self-calibration took the sample (it is buffering, or working)."""
+        self._take_calibration()
+        cal = self.calibration
+        if cal is None or not cal.offer(kind, *args):
+            return False
+        while self._calibration_warned < len(cal.warnings):   # time jumps: once each
+            self.get_logger().warning(cal.warnings[self._calibration_warned])
+            self._calibration_warned += 1
+        return True
 
     def _check_hips(self, names: Any) -> None:
         """Warn once when :data:`HIPLESS_MESSAGES` leg joint states came and none named a
@@ -394,6 +537,8 @@ class SlipFitterNode(Node):
                 return
         self._check_clock('joint_states', s.t_s)
         self._count_loss('joint_states', tuple(s.names), s.t_s)
+        if self._calibrating('js', s):
+            return
         self.core.add_joint_state(s.t_s, s.names, s.velocity, s.position)
         notes = self.core.notes
         while self._notes_logged < len(notes):  # each input fallback logged once
@@ -405,7 +550,7 @@ class SlipFitterNode(Node):
 
     def _command(self, msg: JointState) -> None:
         s = self._legs_only('joint_commands', self._signed(joint_state_from_msg(msg)))
-        if s is not None:
+        if s is not None and not self._calibrating('cmd', s):
             self.core.add_command(s.t_s, s.names, s.velocity)
 
     def _on_mocap(self, msg: PoseStamped) -> None:
@@ -422,6 +567,8 @@ class SlipFitterNode(Node):
         self._count_loss('mocap/body', None, s.t_s)
         q = s.orientation_xyzw if self._body_up == 'z' else \
             rotate_body(s.orientation_xyzw, self._body_up)[0]
+        if self._calibrating('mocap', s.t_s, s.position_m, q):
+            return
         self.core.add_mocap(s.t_s, s.position_m, q)
         for r in self.core.step():
             self.pub.publish(result_to_msg(r))

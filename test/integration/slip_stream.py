@@ -88,7 +88,9 @@ def node_fits(prefix: str, msgs: list[tuple[str, Any]], offset_s: float, n_expec
     collect ``n_expected`` fits; returns the node's counters and the fits."""
     with ros_env(prefix) as env:
         node = env.make(SlipFitterNode, parameter_overrides=[
-            Parameter('mocap_offset', value=offset_s), Parameter('box', value=BOX), *params])
+            Parameter('mocap_offset', value=offset_s), Parameter('box', value=BOX),
+            # the clock edges' core, as core_fits: no self-calibration
+            Parameter('calibration_strides', value=0.0), *params])
         fits = Collector(env, SlipFit, 'slip/fit')
         src = env.add(rclpy.create_node(f'{prefix}_src', context=env.context,
                                         namespace=env.namespace))

@@ -61,7 +61,8 @@ def test_slip_fitter_publishes_core_fits_for_a_simulated_run():
 
     with ros_env('slipflow') as env:
         node = env.make(SlipFitterNode, parameter_overrides=[
-            Parameter('mocap_offset', value=off), Parameter('box', value=BOX)])
+            Parameter('mocap_offset', value=off), Parameter('box', value=BOX),
+            Parameter('calibration_strides', value=0.0)])   # the clock edges, as the core
         fits = Collector(env, SlipFit, 'slip/fit')
         src = env.add(rclpy.create_node('slip_src', context=env.context,
                                         namespace=env.namespace))

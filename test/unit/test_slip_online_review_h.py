@@ -160,7 +160,7 @@ def test_default_parameters_warn_at_startup_with_the_remedy():
     from slip_identification.cli import live_params_line
     from slip_identification.slip_node import SlipParams, startup_notes
 
-    (level, text), = startup_notes(SlipParams())
+    (level, text), = startup_notes(dataclasses.replace(SlipParams(), calibration_strides=0.0))
     assert level == 'warning'
     for word in ('clock edges', 'no stream offset', '35-71 %', 'hexapod-analyze slip',
                  '-p ground:=', '-p mocap_offset:=', '-p pitch_offset:='):
