@@ -95,6 +95,10 @@ class BenchPlan:
         Walking starts at this winding temperature (the paper's 26 +/- 1 degC gate).
     max_cool_s : float
         Longest cooling [s] (the paper: about 30 min).
+    pause_s : (float, float), optional
+        (start, length) [s from the walk's start]: every walk pauses that long inside its
+        ``walk_s`` (the gait clock stops and the leg holds where it is, then walks on from
+        there), as an operator pausing the gait; None (default): no pause.
     """
 
     loads_kg: tuple[float, ...] = BENCH_LOADS_KG
@@ -106,6 +110,7 @@ class BenchPlan:
     duty_factor: float = 0.5
     step_length_m: float = 0.10
     step_height_m: float = 0.04
+    pause_s: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         if not self.loads_kg or not self.frequencies_hz:
@@ -115,6 +120,9 @@ class BenchPlan:
                              f'{self.frequencies_hz} Hz must be >= 0')
         if not self.walk_s > 0:
             raise ValueError(f'BenchPlan.walk_s = {self.walk_s!r}: expected > 0 s')
+        if self.pause_s is not None and not (self.pause_s[0] >= 0 and self.pause_s[1] > 0):
+            raise ValueError(f'BenchPlan.pause_s = {self.pause_s!r}: expected (start >= 0 s, '
+                             'length > 0 s)')
 
     def sessions(self) -> list[BenchSession]:
         return [BenchSession(m, f, self.duty_factor, self.step_length_m, self.step_height_m)
@@ -199,15 +207,22 @@ class BenchSimulator:
 
     # ----------------------------------------------------------------------------------------
     def _segment(self, n: int, dt: float, session: BenchSession, *, walking: bool,
-                 powered: bool, origin_s: float | None = None) -> TraceBuilder:
+                 powered: bool, origin_s: float | None = None,
+                 pause_s: tuple[float, float] | None = None) -> TraceBuilder:
         """Simulate ``n`` samples of ``dt`` seconds in one state.
 
         ``origin_s`` is the time the walk started (gait phase 0), so that a long walk split
-        into chunks stays phase-continuous.
+        into chunks stays phase-continuous. ``pause_s`` (start, length) [s from
+        ``origin_s``]: the gait clock stands still that long (the leg holds its pose).
         """
         cfg, eff = self.config, self.effects
         t = self.t_s + dt * np.arange(1, n + 1)
         tg = t - (self.t_s if origin_s is None else origin_s)
+        held = np.zeros(n, dtype=bool)
+        if pause_s is not None:
+            p0, length = pause_s
+            held = (tg >= p0) & (tg < p0 + length)
+            tg = np.where(tg < p0, tg, np.where(held, p0, tg - length))
         gait = None
         if walking and session.frequency_hz > 0.0:
             gait = make_gait('tripod', duty_factor=session.duty_factor,
@@ -219,6 +234,8 @@ class BenchSimulator:
                                  neutral_tip_m=self.neutral_tip)
             q, qd, _ = traj.joints(tg)
             tipv = traj.tip_velocity(tg)
+            qd[held] = 0.0
+            tipv[held] = 0.0
             stance = gait.stance_mask(tg)[:, self.leg_index]
             phase = gait.cycle_phase(tg)
             speed = gait.speed_mps
@@ -341,7 +358,7 @@ class BenchSimulator:
             while done < walk_n:
                 m = min(chunk, walk_n - done)
                 parts.append(self._segment(m, dt, session, walking=True, powered=True,
-                                           origin_s=origin))
+                                           origin_s=origin, pause_s=plan.pause_s))
                 done += m
                 if progress is not None:
                     progress(m)
