@@ -177,6 +177,12 @@ class BenchData:
     #: places the phase boundaries between the labels (:func:`bench_phase_samples`). Used only
     #: with one row per label (a schedule replaced without it: the nearest label)
     schedule_clock: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    #: the bench leg's measured coxa, femur and tibia angles from ``/joint_states`` of a bag
+    #: without ``/gait/phase`` (stamps [s], (n, 3) [rad]; empty without them, or with several
+    #: legs' and no bench leg named): a leg whose joints stop moving pauses
+    #: (:func:`_joint_pauses`; or the tip's joints, without ``/bench/leg_tip``)
+    joint_t_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    joint_q_rad: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
 
 #: columns of :attr:`BenchData.gait_rows`
@@ -388,6 +394,7 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
     no_header: dict[str, int] = {}
     joint_rows: list[tuple[float, float, float, float]] = []
     tip_leg: list[str] = [bench_leg] if bench_leg else []
+    pause_leg: list[str] = [bench_leg] if bench_leg else []   # whose joints show a pause
     schedule: list[tuple[float, tuple[str, ...], tuple[bool, ...], tuple[float, ...]]] = []
     gait_rows: list[tuple[float, ...]] = []   # BenchData.gait_rows
     with open_reader(path) as reader:
@@ -415,15 +422,31 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
                     'too: give it with --bench alone (its own sessions) or drop its '
                     '/bench/session')
             topics = needed[:3] + (('/gait/phase',) if with_schedule else ())
+        # split by contact (no /gait/phase), the joints show a leg that stops: a pause (with a
+        # motion-capture tip too; not read beside /gait/phase, +30 % reading time)
+        joints_apart = (tip_topic != '/joint_states' and '/joint_states' in present and
+                        not with_schedule)
+        if joints_apart:
+            topics += ('/joint_states',)
         for m in iter_messages(reader, topics, duplicates=dups):
             msg = reader.deserialize(m.data, m.msgtype)
             if m.topic == '/joint_states':
                 try:
                     js = joint_state_from_msg(msg)
                 except ValueError as err:
-                    dropped.setdefault(m.topic, []).append(str(err))
+                    if not joints_apart:
+                        dropped.setdefault(m.topic, []).append(str(err))
                     continue
-                row = _leg_joint_row(path, js, tip_leg)
+                if joints_apart:
+                    if len(pause_leg) > 1:
+                        continue   # several legs' joints and none named: not used
+                    try:
+                        row = _leg_joint_row(path, js, pause_leg)
+                    except BagContentError:
+                        pause_leg.extend(('', ''))
+                        continue
+                else:
+                    row = _leg_joint_row(path, js, tip_leg)
                 if row is not None:
                     joint_rows.append((stamped(js.t_s, m), *row))
                 continue
@@ -493,6 +516,8 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
             if len(js_legs) == 1:
                 tip_leg.append(js_legs[0])
     notes_out: list[str] = []
+    if joints_apart and len(pause_leg) != 1:
+        joint_rows = []   # several legs' joints: which one is on the bench?
     if tip_topic == '/joint_states':
         tip = _tip_rows_from_joints(joint_rows, leg_dh)
         if tip:
@@ -515,6 +540,7 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
                        for b in bat_samples]
         frc = shift_rows(frc, dt('/bench/ground_force', 0.0))
         tip = shift_rows(tip, dt(tip_topic, 0.0))
+        joint_rows = [(r[0] + dt('/joint_states', 0.0), *r[1:]) for r in joint_rows]
         for row in ses:
             row['t_s'] += dt('/bench/session', 0.0)
     combined = _prepare_batteries(path, [(b.t_s, k, '/battery_state', b)
@@ -567,7 +593,16 @@ def read_bench_bag(path: str | Path, session: BenchSessionSpec | None = None, *,
                      next((tuple(r[1]) for r in schedule if len(r[1]) > 1), ()),
                      tip_leg[0] if tip_leg else next((r[1][0] for r in schedule
                                                       if len(r[1]) == 1), ''),
-                     np.array([c for _, _, c in sched], dtype=float).reshape(-1, 3))
+                     np.array([c for _, _, c in sched], dtype=float).reshape(-1, 3),
+                     *_joint_columns(joint_rows))
+
+
+def _joint_columns(rows: list[tuple[float, float, float, float]]
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """:attr:`BenchData.joint_t_s` and :attr:`BenchData.joint_q_rad` of (t, q1, q2, q3) rows,
+    in stamp order."""
+    arr = np.array(sorted(rows), dtype=float).reshape(-1, 4)
+    return arr[:, 0], arr[:, 1:]
 
 
 def _gait_clock(msg: Any) -> tuple[float, ...]:
@@ -738,7 +773,10 @@ def _session_from_spec(path: str | Path, spec: BenchSessionSpec,
     walk, that end of the walk is the schedule's (:func:`_schedule_walk_span`): the tip
     cannot tell standing from the last stance under 1.25 ground times, and 0.5-1.5 s of
     standing after the last step was analysed as walking (outside review, A1: P_stance
-    -16.7 % at 0.75 Hz with a 1.0 s tail, silently)."""
+    -16.7 % at 0.75 Hz with a 1.0 s tail, silently). Without ``/gait/phase`` (split by
+    contact) ground time over :data:`EDGE_GROUND` typical ones before the first lift-off
+    (after the last touchdown) holds standing: the walk is taken from that lift-off (to that
+    touchdown), whole cycles between."""
     if not (bat and frc and tip):
         return []   # the caller names the empty topic
     if spec.frequency_hz is not None:
@@ -775,6 +813,20 @@ def _session_from_spec(path: str | Path, spec: BenchSessionSpec,
         part = (f'its walking part ({t_end - t0:.1f} s of {whole}, where /gait/phase walks: '
                 f'{before:.1f} s before and {after:.1f} s after left out as standing) is one '
                 'session')
+    elif span is not None and not gait_rows and (
+            max(span.lead_s, span.trail_s) > (limit := _edge_ground_limit(span, tip))):
+        # split by contact, ground time before the first lift-off (after the last touchdown)
+        # longer than a stance holds standing: the walk is taken from that lift-off (to that
+        # touchdown), whole cycles between. Cut only beyond 1.25 ground times + 0.1 s, a bag
+        # recorded past its last step read P_stance -10 % at 0.75 Hz with a 1.0 s tail and
+        # -15 % at 1.5 Hz with 0.5 s, silently
+        start = span.first_liftoff_s if span.lead_s > limit else t0
+        end = span.last_touchdown_s if span.trail_s > limit else t_end
+        before, after = start - t0, t_end - end
+        t0, t_end = start, end
+        part = (f'its walking part ({t_end - t0:.1f} s of {whole}, where the leg tip steps: '
+                f'{before:.1f} s before and {after:.1f} s after left out as standing) is one '
+                'session')
     elif span is not None and (span.standing_before_s > 0 or span.standing_after_s > 0):
         t0, t_end = span.start_s, span.end_s
         part = (f'its walking part ({t_end - t0:.1f} s of {whole}, where the leg tip steps: '
@@ -797,6 +849,19 @@ def _session_from_spec(path: str | Path, spec: BenchSessionSpec,
              'step_height_m': spec.step_height_m or (
                  float(np.median([g[1] for g in steps])) if steps else 0.0)},
             {'t_s': t_end, 'session_id': Path(path).name, 'state': 'end'}]
+
+
+#: ground time before the first lift-off (after the last touchdown) of a bag split by
+#: contact over this many typical ground times (+ 2 leg tip samples) holds standing: a walk
+#: cut by the recording has at most a stance there (:func:`_session_from_spec`)
+EDGE_GROUND = 1.1
+
+
+def _edge_ground_limit(span: SteppingSpan, tip: list[tuple[float, float]]) -> float:
+    """The longest ground time at a walk's end that is a stance (:data:`EDGE_GROUND`)."""
+    t = np.sort(np.array([p[0] for p in tip], dtype=float))
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    return EDGE_GROUND * span.ground_s + 2.0 * dt
 
 
 def _schedule_walk_span(gait_rows: Sequence[tuple[float, ...]], t0: float, t1: float
@@ -919,36 +984,140 @@ PAUSE_SPLIT_GROUND = 1.5
 
 def _tip_pauses(t_s: np.ndarray, z_m: np.ndarray, t0: float, t1: float, frequency_hz: float
                 ) -> np.ndarray:
-    """(start, end) rows [s] of the pauses of the walk ``[t0, t1)`` at ``frequency_hz``
-    (whose cycles start at ``t0``, stance first): ground times between two steps longer than
-    :data:`PAUSE_SPLIT_GROUND` typical ones (+ :data:`STANDING_SLACK_S`), time the tip is not
-    seen in left out. A pause is taken to start at the end of the cycle its touchdown ends and
-    to end at the start of the cycle its lift-off begins: each edge is placed from its step's
-    detected edge by that edge's median offset within the cycle on the walk's other steps."""
+    """(start, end, left-out start, left-out end) rows [s] of the pauses of the walk
+    ``[t0, t1)`` at ``frequency_hz`` (whose cycles start at ``t0``, stance first) by its leg
+    tip: ground times between two steps longer than :data:`PAUSE_SPLIT_GROUND` typical ones,
+    or than a cycle (a walking leg's ground time is shorter: this needs two steps, not three),
+    + :data:`STANDING_SLACK_S`, time the tip is not seen in left out. A pause is taken to start
+    at the end of the cycle its touchdown ends and to end at the start of the cycle its
+    lift-off begins: each edge is placed from its step's detected edge by that edge's median
+    offset within the cycle on the walk's other steps. The tip cannot see where in that
+    cycle's stance the leg walked on (a pause begun mid-stance goes on from there), so that
+    cycle is left out too (the fourth column: the next cycle's start)."""
     m = (t_s >= t0) & (t_s < t1)
     rises, falls = _tip_steps(t_s[m], z_m[m])
-    none = np.zeros((0, 2))
-    if rises.size < 3 or not frequency_hz > 0:
+    none = np.zeros((0, 4))
+    if rises.size < 2 or not frequency_hz > 0:
         return none
-    gaps = _tip_gaps(t_s[m], t0, t1, HIDDEN_STEP_LIFT_SHARE * float(np.median(falls - rises)))
+    period = 1.0 / frequency_hz
+    lift = float(np.median(falls - rises))
+    if rises.size < 3 and not lift < period:
+        return none
+    gaps = _tip_gaps(t_s[m], t0, t1, HIDDEN_STEP_LIFT_SHARE * lift)
     ground = rises[1:] - falls[:-1]
     seen = np.ones(ground.shape, bool)
     for g0, g1 in gaps:
         seen &= ~((falls[:-1] <= g0) & (g1 <= rises[1:]))
-    typical = float(np.median(ground[seen] if seen.any() else ground))
-    long = seen & (ground > PAUSE_SPLIT_GROUND * typical + STANDING_SLACK_S)
+    limit = period + STANDING_SLACK_S
+    if ground.size >= 2:
+        typical = float(np.median(ground[seen] if seen.any() else ground))
+        limit = min(limit, PAUSE_SPLIT_GROUND * typical + STANDING_SLACK_S)
+    long = seen & (ground > limit)
     if not long.any():
         return none
-    period = 1.0 / frequency_hz
     k = np.flatnonzero(long)
     # the lift-off's offset in its cycle on the steps before the first pause (a detected
     # lift-off comes a little after mid-cycle), and the lifted time of a step
     r_off = float(np.median((rises[:k[0] + 1] - t0) % period))
-    lift = float(np.median(falls - rises))
     start = falls[k] + (period - r_off - lift)
     end = rises[k + 1] - r_off
-    rows = np.column_stack((start, end))
+    rows = np.column_stack((start, end, start, end + period))
     return rows[rows[:, 1] > rows[:, 0]]
+
+
+#: a bench leg whose joints (``/joint_states``) all stay within JOINT_STILL_SHARE of the
+#: walk's largest joint range (1st to 99th percentile) for JOINT_STILL_CYCLES of its cycles
+#: or longer stands still: a pause (:func:`_joint_pauses`). On the simulated AntBot bench
+#: (AX-18A, 5 mrad steps) a walking leg's joints move 0.1 rad or more in every quarter
+#: cycle at 0.25-3 Hz; 3 % of its 0.78 rad coxa range is 23 mrad
+JOINT_STILL_SHARE = 0.03
+JOINT_STILL_CYCLES = 0.25
+#: joints that move less than this over the whole walk do not show it [rad]
+JOINT_WALK_MIN_RAD = 0.05
+
+
+def _still_stretches(t_s: np.ndarray, q: np.ndarray, t0: float, t1: float,
+                     frequency_hz: float) -> np.ndarray | None:
+    """(start, end) rows [s] of the stretches of ``[t0, t1)`` over which every joint of ``q``
+    ((n, 3), stamps ``t_s``) stays within :data:`JOINT_STILL_SHARE` of the walk's largest
+    joint range for at least :data:`JOINT_STILL_CYCLES` cycles; time without samples (an
+    interval over 5 median ones and a third of that) is not still. None when the joints do
+    not show a walk (too few samples, or under :data:`JOINT_WALK_MIN_RAD` of motion)."""
+    from scipy.ndimage import maximum_filter1d, minimum_filter1d
+
+    m = (t_s >= t0) & (t_s < t1)
+    t, x = t_s[m], q[m]
+    if t.size < 20 or not frequency_hz > 0:
+        return None
+    reach = np.percentile(x, 99, axis=0) - np.percentile(x, 1, axis=0)
+    if not float(reach.max()) >= JOINT_WALK_MIN_RAD:
+        return None
+    dt = float(np.median(np.diff(t)))
+    window = JOINT_STILL_CYCLES / frequency_hz
+    k = max(3, int(math.ceil(window / dt)) + 1)
+    if k > t.size:
+        return np.zeros((0, 2))
+    spread = (maximum_filter1d(x, k, axis=0, origin=-(k // 2)) -
+              minimum_filter1d(x, k, axis=0, origin=-(k // 2))).max(axis=1)
+    # window i holds samples i .. i+k-1 (the filters' forward window)
+    n = t.size - k + 1
+    span = t[k - 1:] - t[:n]
+    gap = np.diff(t) > max(5.0 * dt, window / 3.0)
+    gapped = np.convolve(gap.astype(float), np.ones(k - 1), 'valid')[:n] > 0
+    still = (spread[:n] <= JOINT_STILL_SHARE * float(reach.max())) & ~gapped & \
+        (span <= 1.5 * window + 2 * dt)
+    if not still.any():
+        return np.zeros((0, 2))
+    d = np.zeros(t.size + 1, int)
+    np.add.at(d, np.flatnonzero(still), 1)
+    np.add.at(d, np.flatnonzero(still) + k, -1)
+    cover = np.cumsum(d)[:t.size] > 0
+    edge = np.diff(np.concatenate(([0], cover.astype(np.int8), [0])))
+    a, b = np.flatnonzero(edge == 1), np.flatnonzero(edge == -1) - 1
+    return np.column_stack((t[a], t[b]))
+
+
+def _joint_pauses(data: BenchData, t0: float, t1: float, frequency_hz: float,
+                  duty_factor: float) -> np.ndarray | None:
+    """:func:`_tip_pauses` from the bench leg's joints (:attr:`BenchData.joint_t_s`): a pause
+    is where the joints stand still (:func:`_still_stretches`) inside the walk, from the
+    moment the leg stops to the moment it moves again, with one or two steps around it as
+    with many. The rows' last two columns are what the phase split leaves out: from the start
+    of the cycle the leg stops in (cycles from ``t0``) to the end of the cycle it walks on in
+    (placed by its next lift-off and the lift-offs' median offset in their cycles before the
+    first pause, else the duty factor), whole cycles on either side. None when the joints
+    cannot tell (none recorded, no motion, or still while the tip lifts off: not the bench
+    leg's)."""
+    rows = _still_stretches(data.joint_t_s, data.joint_q_rad, t0, t1, frequency_hz)
+    if rows is None:
+        return None
+    m = (data.tip_t_s >= t0) & (data.tip_t_s < t1)
+    rises, _ = _tip_steps(data.tip_t_s[m], data.tip_z_m[m])
+    if any(np.any((rises > a) & (rises < b)) for a, b in rows):
+        return None
+    period = 1.0 / frequency_hz
+    dt = float(np.median(np.diff(data.joint_t_s))) if data.joint_t_s.size > 1 else 0.0
+    # inside the walk: standing that reaches its ends is not a pause inside it
+    rows = rows[(rows[:, 0] > t0 + 2 * dt) & (rows[:, 1] < t1 - 2 * dt)]
+    if not rows.size:
+        return np.zeros((0, 4))
+    before = rises[rises < rows[0, 0]]
+    r_off = float(np.median((before - t0) % period)) if before.size else \
+        (duty_factor if 0 < duty_factor < 1 else 0.5) * period
+    tol = 0.05 * period + 2 * dt
+    out = []
+    grid = t0
+    for stop, resume in rows:
+        left0 = grid + math.floor((stop - grid) / period) * period
+        nxt = rises[rises > resume]
+        if nxt.size:
+            c = float(nxt[0]) - r_off
+            left1 = c + math.ceil((resume - tol - c) / period) * period
+        else:
+            left1 = t1
+        out.append((stop, resume, max(left0, t0), left1))
+        grid = left1
+    return np.array(out, dtype=float)
 
 
 @dataclass(frozen=True)
@@ -965,6 +1134,9 @@ class SteppingSpan:
     ground_s: float = 0.0      # the typical ground time between steps
     last_touchdown_s: float = math.nan   # where a walk cut after its last step ends
     cycle_s: float = math.nan            # the typical time from one lift-off to the next
+    first_liftoff_s: float = math.nan    # where a walk cut before its first step starts
+    lead_s: float = 0.0    # ground time before the first lift-off (0: lifted at the start)
+    trail_s: float = 0.0   # ground time after the last touchdown (0: lifted at the end)
 
 
 def stepping_span(t_s: np.ndarray, z_m: np.ndarray, t0: float, t1: float
@@ -1004,7 +1176,7 @@ def stepping_span(t_s: np.ndarray, z_m: np.ndarray, t0: float, t1: float
     long = seen & (ground > PAUSE_GROUND * typical + STANDING_SLACK_S)
     return SteppingSpan(start, end, int(rises.size), start - t0, t1 - end, int(long.sum()),
                         float(np.sum(ground[long])), typical, last,
-                        float(np.median(np.diff(rises))))
+                        float(np.median(np.diff(rises))), float(rises[0]), lead, trail)
 
 
 #: bench data longer than this before the first ``/bench/session`` message is warned about
@@ -1347,7 +1519,9 @@ def merge_bench_data(datas: Sequence[BenchData], reasons: list[str] | None = Non
                      [f'{Path(datas[i].path).name}: {w}' for i in order
                       for w in datas[i].warnings],
                      next((d.schedule_legs for d in datas if d.schedule_legs), ()),
-                     next((d.bench_leg for d in datas if d.bench_leg), ''), sc)
+                     next((d.bench_leg for d in datas if d.bench_leg), ''), sc,
+                     *by_time(cat('joint_t_s'), np.concatenate(
+                         [datas[i].joint_q_rad for i in order]).reshape(-1, 3)))
 
 
 def _walking_segments(sessions: list[dict[str, Any]], t_end_s: float
@@ -1578,19 +1752,22 @@ def bench_phase_samples(
         if by_contact and t_tip.size:
             # a pause inside the walk (the leg stands, then walks on) is standing: its samples
             # are in neither phase, and the walk after it is taken in whole cycles from its end
-            rows = _tip_pauses(data.tip_t_s, data.tip_z_m, t0, t1, s['frequency_hz'])
-            rows = rows[(rows[:, 1] > a) & (rows[:, 0] < t1)]
+            # (the joints show where the leg stops and walks on; else the tip's ground times)
+            rows = _joint_pauses(data, t0, t1, s['frequency_hz'], duty)
+            if rows is None:
+                rows = _tip_pauses(data.tip_t_s, data.tip_z_m, t0, t1, s['frequency_hz'])
+            rows = rows[(rows[:, 3] > a) & (rows[:, 2] < t1)]
             if rows.size:
                 keep = np.ones(t_tip.shape, bool)
-                for p0, p1 in rows:
+                for p0, p1 in rows[:, 2:]:
                     keep &= ~((t_tip >= p0) & (t_tip < p1))
-                resume = float(rows[-1, 1])
+                resume = float(rows[-1, 3])
                 if resume > a:
                     f = s['frequency_hz']
-                    t1 = resume + math.floor((t1 - resume) * f + CYCLE_TOLERANCE) / f
+                    t1 = resume + math.floor(max(t1 - resume, 0.0) * f + CYCLE_TOLERANCE) / f
                 keep &= t_tip < t1
                 t_tip, st = t_tip[keep], st[keep]
-                paused[s['session_id']] = rows
+                paused[s['session_id']] = rows[:, 2:]
                 # read_bench_bag's warning of the same pause (over PAUSE_GROUND) says it is
                 # analysed as walking: no longer so
                 warnings = [w for w in warnings if not (
@@ -1600,7 +1777,7 @@ def bench_phase_samples(
                     f'session {s["session_id"]}: its leg tip makes no step for '
                     f'{float(np.sum(rows[:, 1] - rows[:, 0])):.1f} s in {len(rows)} pause(s) '
                     'inside its walk (' + ', '.join(f'{p0 - t0:.1f}-{p1 - t0:.1f} s'
-                                                   for p0, p1 in rows[:3]) +
+                                                   for p0, p1 in rows[:3, :2]) +
                     (' ...' if len(rows) > 3 else '') + ' after its \'walking\' message): '
                     'the standing there is left out of both phases')
         labelled.append((s, a, t1, t_tip, st, duty, label_gap, label_clock))
