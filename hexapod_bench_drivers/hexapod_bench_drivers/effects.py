@@ -30,6 +30,16 @@ speed_friction      N s/m    viscous friction of the ground (robot) or treadmill
 leg_anomaly         leg:W    one leg draws extra power while it is in stance (a stiff or
                              rubbing joint loaded by the body): ``LEG:W`` such as ``L2:1.5``;
                              ``P_in += W * in_stance(LEG)``.
+stance_preload      N        robot only: legs fighting each other in an over-constrained
+                             stance. With ``L > 3`` legs on the ground a position-controlled
+                             robot's small kinematic mismatches (leg zero offsets, uneven
+                             ground, body flex) make its stance legs push against each other:
+                             vertical tip forces ``f`` of norm ``value * sqrt(L - 3)`` are
+                             added to the weight's, internal (``sum f = 0`` and no roll or
+                             pitch moment on a nominal footprint: each of the ``L - 3``
+                             redundant supports carries ``value``), through each stance leg's
+                             Jacobian, so the servos pay for them (copper and gear losses of
+                             the servo model, no flat watts). Regressor: ``max(L - 3, 0)``.
 time_offset         s        clock offset of the power monitor: ``/battery_state`` stamps are
                              ``t_true + value`` (the other streams keep the true time).
 sensor_noise        x        scale of the sensors' white noise (1 = default, on): battery
@@ -97,6 +107,10 @@ _SPECS = (
                'viscous ground/treadmill friction on the stance tips (F = c v)'),
     EffectSpec('leg_anomaly', 'leg:W', None, False,
                'one leg draws W extra while in stance (LEG:W, e.g. L2:1.5)', kind='leg_watts'),
+    EffectSpec('stance_preload', 'N', 0.0, False,
+               'legs fighting each other: an internal vertical preload per stance leg beyond '
+               'three (no net force or moment), paid by the servos',
+               simulators=frozenset({'robot'})),
     EffectSpec('time_offset', 's', 0.0, False,
                'clock offset of /battery_state stamps'),
     EffectSpec('sensor_noise', 'x', 1.0, True,
@@ -140,8 +154,8 @@ def _parse_value(spec: EffectSpec, text: str) -> Any:
             from None
     if not math.isfinite(value):
         raise EffectError(f'effect {spec.name}={text!r}: expected a finite number')
-    if spec.name in ('supply_resistance', 'speed_friction', 'sensor_noise', 'sensor_latency') \
-            and value < 0.0:
+    if spec.name in ('supply_resistance', 'speed_friction', 'sensor_noise', 'sensor_latency',
+                     'stance_preload') and value < 0.0:
         raise EffectError(f'effect {spec.name}={text!r}: expected a value >= 0 {spec.unit}')
     if spec.name in _MAX_ABS and abs(value) > _MAX_ABS[spec.name][0]:
         limit, why = _MAX_ABS[spec.name]

@@ -18,6 +18,9 @@ sample (100 Hz by default):
    the effects' extra power; the power monitor measures voltage and current (ROS sign).
 
 Standing still (``period_s = 0``) holds every leg on the ground at its neutral pose.
+
+``stance_preload`` (:func:`stance_preload_forces_n`) adds the internal forces of an
+over-constrained stance to step 1's ground forces: more than three legs on the ground.
 """
 
 from __future__ import annotations
@@ -34,7 +37,7 @@ from hexapod_gait.gait import GaitPattern, carried_mass_per_leg_kg, make_gait
 from hexapod_gait.kinematics import (ANTBOT_BODY_KG, ANTBOT_MASS_KG, DHParameters,
                                      default_robot_mass_kg)
 from hexapod_gait.leg_file import LegFile
-from hexapod_gait.legs import joint_names
+from hexapod_gait.legs import joint_names, leg_rank, leg_side
 from hexapod_gait.trajectory import LegTrajectory
 
 from .effects import EffectSet
@@ -52,7 +55,8 @@ from .sim_core import (
 )
 
 __all__ = ['ANTBOT_BODY_KG', 'RobotConfig', 'RobotSimulator', 'SampleInput',
-           'default_robot_mass_kg', 'robot_mass_problem', 'simulate_robot']
+           'default_robot_mass_kg', 'robot_mass_problem', 'simulate_robot',
+           'stance_preload_forces_n']
 
 
 
@@ -174,6 +178,82 @@ def robot_mass_problem(robot_mass_kg: float, leg_count: int, leg_mass_kg: float)
             f'{leg_mass_kg:.4g} kg = {legs_kg:.4g} kg: the legs alone outweigh the robot')
 
 
+#: The tips' height mismatches that set the direction of ``stance_preload``'s internal forces
+#: (uneven ground, leg zero offsets): ``cos(golden angle x k)``, ``k`` numbering every footfall
+#: of every leg, an irregular sequence whose projection on the internal forces is not zero
+#: for any stance of four or more legs; each touchdown lands at a new height, so no one leg
+#: carries the preload run after run
+_GOLDEN_ANGLE = math.pi * (3.0 - math.sqrt(5.0))
+
+
+def footfall_counts(stance: NDArray[np.bool_], previous: NDArray[np.bool_],
+                    counts: NDArray[np.int64]) -> NDArray[np.int64]:
+    """Each leg's touchdowns so far at every sample, (n, legs), from ``stance`` (n, legs), the
+    stance before the first sample ``previous`` (legs,) and the counts then ``counts``."""
+    st = np.asarray(stance, dtype=bool)
+    before = np.vstack([np.asarray(previous, dtype=bool)[None, :], st[:-1]])
+    return np.asarray(counts)[None, :] + np.cumsum(st & ~before, axis=0)
+
+
+def _footprint(leg_names: tuple[str, ...]) -> FloatArray:
+    """Nominal (x, y) of each leg's stance tip on the body, (legs, 2): the legs equally spaced
+    along each side (1 apart, front positive), the two sides 2 apart (a hexapod's front and
+    rear tips as far apart as its left and right ones)."""
+    ranks = np.array([leg_rank(n) for n in leg_names], dtype=float)
+    side = np.array([1.0 if leg_side(n) == 'left' else -1.0 for n in leg_names])
+    per_side = float(np.max(ranks)) if ranks.size else 0.0
+    return np.column_stack([(per_side + 1.0) / 2.0 - ranks, side])
+
+
+def stance_preload_forces_n(stance: NDArray[np.bool_], leg_names: tuple[str, ...],
+                            preload_n: float, footfalls: NDArray[np.int64] | None = None
+                            ) -> FloatArray:
+    """Vertical tip forces of an over-constrained stance (effect ``stance_preload``), (n, legs)
+    [N] for ``stance`` (n, legs) or (legs,) (then (legs,)); ``footfalls`` (same shape) each
+    leg's touchdown count (:func:`footfall_counts`; None: 0, the first footfall).
+
+    Three tips fix a body's height, roll and pitch; every further stance leg is a redundant
+    support, and a position-controlled robot's small mismatches (leg zero offsets, uneven
+    ground, body flex) load it against the others. With ``L`` legs on the ground the forces
+    lie in the ``L - 3``-dimensional space of vertical tip forces with no net force and no
+    roll or pitch moment on the nominal footprint (:func:`_footprint`): the tips' height
+    mismatches (new at every footfall) less the plane the body settles in, scaled to the norm
+    ``preload_n sqrt(L - 3)`` (each redundant support carries ``preload_n``; the forces'
+    squares, the servos' copper loss to first order, grow as ``L - 3``). Zero with three or
+    fewer legs on the ground. The body's weight is not changed: the forces add to it.
+    """
+    st = np.asarray(stance, dtype=bool)
+    single = st.ndim == 1
+    st2 = np.atleast_2d(st)
+    out = np.zeros(st2.shape)
+    if preload_n == 0.0 or st2.size == 0:
+        return out[0] if single else out
+    xy = _footprint(leg_names)
+    n_legs = st2.shape[1]
+    falls = np.zeros(st2.shape, dtype=np.int64) if footfalls is None else \
+        np.atleast_2d(np.asarray(footfalls, dtype=np.int64))
+    # every footfall of every leg its own index of the mismatch sequence
+    index = 1 + np.arange(n_legs)[None, :] + n_legs * falls
+    key = np.where(st2, index, 0)
+    patterns, inv = np.unique(key, axis=0, return_inverse=True)
+    inv = np.asarray(inv).reshape(-1)
+    for k, pat in enumerate(patterns):
+        legs = np.flatnonzero(pat)
+        if legs.size <= 3:
+            continue
+        a = np.column_stack([np.ones(legs.size), xy[legs]])
+        e = np.cos(_GOLDEN_ANGLE * pat[legs].astype(float))
+        r = e - a @ np.linalg.lstsq(a, e, rcond=None)[0]
+        norm = float(np.linalg.norm(r))
+        if norm < 1e-9:          # not for any stance of 4-8 legs; kept for other layouts
+            r = np.linalg.svd(a.T)[2][-1]
+            norm = float(np.linalg.norm(r))
+        f = np.zeros(st2.shape[1])
+        f[legs] = preload_n * math.sqrt(legs.size - 3) * r / norm
+        out[inv == k] = f
+    return out[0] if single else out
+
+
 class RobotSimulator:
     """Stateful servo hexapod; :meth:`step` advances one sample, :meth:`run` a whole batch.
 
@@ -246,6 +326,10 @@ class RobotSimulator:
                                  f'{anomaly[0]!r} is not one of {self.leg_names}')
             self.anomaly_leg = self.leg_names.index(anomaly[0])
             self.anomaly_w = float(anomaly[1])
+        self.preload_n = float(eff.value('stance_preload'))
+        # each leg's touchdowns so far and the stance of the last sample (stance_preload)
+        self._footfalls = np.zeros(n_legs, dtype=np.int64)
+        self._last_stance = np.ones(n_legs, dtype=bool)
         self.noise = float(eff.value('sensor_noise'))
         self.powered = True
         self.t_s = 0.0
@@ -264,6 +348,10 @@ class RobotSimulator:
         supporting = int(stance.sum())
         forces = np.zeros((len(self.leg_names), 3))
         forces[stance, 2] = (self.carried_mass_kg(supporting) + self.loads.leg_mass_kg) * G_MPS2
+        if self.preload_n:
+            falls = footfall_counts(stance[None, :], self._last_stance, self._footfalls)[0]
+            forces[:, 2] += stance_preload_forces_n(stance, self.leg_names, self.preload_n,
+                                                    falls)
         c = float(self.effects.value('speed_friction'))
         if c > 0.0 and supporting > 0 and inp.tip_velocity_mps is not None:
             # Ground drag c v on the body, shared by the stance legs: it pushes on each stance
@@ -282,6 +370,10 @@ class RobotSimulator:
             tau_req = self.loads.static_torques(inp.q, self.tip_forces_n(inp))
         else:
             tau_req = tau_required_nm
+        if self.preload_n:
+            stance = np.asarray(inp.in_stance, dtype=bool)
+            self._footfalls = self._footfalls + (stance & ~self._last_stance)
+            self._last_stance = stance.copy()
         goal = inp.q
         k_err = float(eff.value('kinematic_error'))
         if k_err and inp.step_frequency_hz > 0.0:
@@ -338,6 +430,10 @@ class RobotSimulator:
         # each stance tip carries its share of the body and its own leg: M g over the L tips
         forces[..., 2] = np.where(stance, (carried[:, None] + self.loads.leg_mass_kg) * G_MPS2,
                                   0.0)
+        if self.preload_n:
+            falls = footfall_counts(stance, self._last_stance, self._footfalls)
+            forces[..., 2] += stance_preload_forces_n(stance, self.leg_names, self.preload_n,
+                                                      falls)
         c = float(self.effects.value('speed_friction'))
         if c > 0.0:
             share = np.where(stance, c / np.maximum(supporting, 1)[:, None], 0.0)

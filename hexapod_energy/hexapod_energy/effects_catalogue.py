@@ -28,6 +28,8 @@ cable_resistance    I^2 [A^2], a resistance after the monitor       ``resistance
                     (its own R I^2 is measured)
 speed_friction      DRIVE_LOSS_FACTOR * v^2 [m^2/s^2]              ``c_n_s_per_m`` [N s/m]
 leg_anomaly         fraction of the window leg j is in stance     ``power_w`` [W], ``leg``
+stance_preload      max(L - 3, 0), L the legs in stance from       ``w_per_leg`` [W per extra
+                    /gait/phase (an over-constrained stance)      stance leg]
 carried_mass        dP_pred/dM, the bench model's mass            ``mass_kg`` [kg]
                     sensitivity (undeclared payload)
 swing_reversal      swings per second x (stance tip speed - the   ``j_per_mps`` [J s/m]
@@ -74,7 +76,9 @@ __all__ = [
     'LegAnomaly',
     'ModelOffset',
     'PowerGain',
+    'STATICALLY_DETERMINATE_LEGS',
     'SpeedFriction',
+    'StancePreload',
     'StandingHold',
     'SupplyResistance',
     'SwingReversal',
@@ -597,6 +601,68 @@ class LegAnomaly(EnergyEffect):
                 {'power_w': float(stderr[0])})
 
 
+#: Legs on the ground that fix a body's height, roll and pitch: every further stance leg is a
+#: redundant support (:class:`StancePreload`)
+STATICALLY_DETERMINATE_LEGS = 3
+
+
+class StancePreload(EnergyEffect):
+    """Legs fighting each other: ``P += w_per_leg * max(L - 3, 0)`` [W per extra stance leg],
+    ``L`` the legs in stance (from ``/gait/phase``, window mean ``extra['extra_stance_legs']``).
+
+    Three legs on the ground fix the body; with more, a position-controlled robot's stance is
+    over-constrained, and small kinematic mismatches (leg zero offsets, uneven ground, body
+    flex) make the stance legs push against each other. The servos carry internal forces the
+    body does not need, paid as copper and gear losses, more the more redundant supports
+    stand: a tripod's window mean is ``6 (beta - 0.5)`` for ``beta >= 0.5`` (0 at the bench's
+    0.5), a wave at 5/6 has 2 always, a tetrapod at 2/3 1, standing 3. A single-leg bench
+    has one leg and cannot see it. The simulated robot's ``stance_preload`` effect [N] makes
+    it physically (internal vertical tip forces through each stance leg's Jacobian); its cost
+    is not exactly linear in ``L - 3``: a preload's gear friction holds part of a leg's
+    deflection after the other legs lift off (see the README's residual loop section).
+
+    A candidate only where the walking windows' column spans :attr:`MIN_SPREAD` (runs of one
+    gait and duty factor give a constant, a basal power's shape; a standing run beside
+    tripods at 0.5 alone, ``standing_hold``'s) and the walking runs stand on more than three
+    legs at :attr:`MIN_LEVELS` different levels at least: ``swing_reversal``, whose scale is
+    free too, also grows with the duty factor, and two levels are fitted by any pair of the
+    two (clean runs of tripods at 0.5, a wave at 5/6 and a tetrapod at 2/3 read a spurious
+    0.35 W per leg beside it, ``swing_reversal`` 1.55 J s/m for 1.07)."""
+
+    name, unit = 'stance_preload', 'W/leg'
+    #: the walking windows' spread of the column [legs] below which it is not a candidate
+    MIN_SPREAD = 0.2
+    #: the distinct run means of the column above 0 (0.1 apart) it needs over walking runs
+    MIN_LEVELS = 3
+
+    def _x(self, table: WindowTable) -> np.ndarray | None:
+        x = table.extra.get('extra_stance_legs')
+        if x is None:
+            return None
+        x = np.asarray(x, dtype=float)
+        ok = x.shape == table.t_s.shape and bool(np.all(np.isfinite(x)))
+        return x if ok else None
+
+    def applicable(self, table: WindowTable) -> bool:
+        x = self._x(table)
+        walking = np.asarray(table.step_frequency_hz, dtype=float) > 0
+        if x is None or not np.any(walking) or not np.ptp(x[walking]) > self.MIN_SPREAD:
+            return False
+        means = [float(np.mean(x[walking & (table.run == k)]))
+                 for k in np.unique(table.run[walking])]
+        levels = {round(m, 1) for m in means if m > 0.05}
+        return len(levels) >= self.MIN_LEVELS
+
+    def columns(self, table: WindowTable) -> np.ndarray:
+        x = self._x(table)
+        return (np.zeros(table.t_s.shape[0]) if x is None else x)[:, None]
+
+    def params(self, coef, stderr, table):  # type: ignore[no-untyped-def]
+        return ({'w_per_leg': float(coef[0]),
+                 'regressor': 'max(L - 3, 0), L the legs in stance (window mean)'},
+                {'w_per_leg': float(stderr[0])})
+
+
 #: legs whose in-stance fractions follow each other this closely within runs (correlation of
 #: the window columns, each run's mean removed) are named as the same stance timing: the
 #: half-cycle windows cannot tell them apart
@@ -869,7 +935,8 @@ def default_catalogue(leg_names: tuple[str, ...] = ()) -> list[EnergyEffect]:
     effects: list[EnergyEffect] = [BasalPower(), ThermalDrift(), ThermalDriftTime(),
                                    HotWindings(), KinematicError(), SupplyResistance(),
                                    CableResistance(), SpeedFriction(), CarriedMass(),
-                                   SwingReversal(), StandingHold(), PowerGain()]
+                                   SwingReversal(), StandingHold(), StancePreload(),
+                                   PowerGain()]
     effects += [LegAnomaly(leg_index=j, leg=n) for j, n in enumerate(leg_names)]
     effects.append(TimeOffset())
     return effects

@@ -46,7 +46,8 @@ from scipy.optimize import lsq_linear
 
 from hexapod_common.jsondoc import json_safe
 from hexapod_common.series import span_mean
-from hexapod_energy.effects_catalogue import EnergyEffect, WindowTable, default_catalogue
+from hexapod_energy.effects_catalogue import (STATICALLY_DETERMINATE_LEGS, EnergyEffect,
+                                              WindowTable, default_catalogue)
 from hexapod_energy.errors import BagContentError, InvalidInputError
 from hexapod_energy.unexplained import unexplained_residual, unexplained_text
 from hexapod_gait.kinematics import ANTBOT_MASS_KG
@@ -942,7 +943,10 @@ def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = Non
     voltage sag ``V - V_s`` [V] and ``supply_sat_v2`` the saturated drives' ``n_sat (V^2 -
     V_s^2)`` [V^2] (see :class:`SupplyResistanceDrive`); ``temp_excess_mean_k`` the mean servo
     temperature above ``temp_ref_c`` [K] and ``winding_excess_w`` its product with the
-    predicted power [K W] (:class:`~hexapod_energy.effects_catalogue.HotWindings`)."""
+    predicted power [K W] (:class:`~hexapod_energy.effects_catalogue.HotWindings`);
+    ``extra_stance_legs`` the mean of ``max(L - 3, 0)``, ``L`` the legs in stance (by
+    ``/gait/phase``), over each window's samples
+    (:class:`~hexapod_energy.effects_catalogue.StancePreload`)."""
     cols: dict[str, list[Any]] = {k: [] for k in (
         'run', 't_s', 'duration_s', 'measured_w', 'predicted_w', 'step_frequency_hz',
         'speed_mps', 'current_sq_a2', 'temp_excess_k', 'stance_fraction')}
@@ -957,6 +961,8 @@ def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = Non
     if with_slope:
         extra['mass_slope_w_per_kg'] = []
     per_cycle: list[int] = []
+    # the window mean of max(L - 3, 0), L the legs in stance (StancePreload's regressor)
+    extra_legs: list[float] = []
     with_hold = all(r.standing_holding_w is not None for r in runs)
     if with_hold:
         extra['standing_holding_w'] = []
@@ -1076,6 +1082,8 @@ def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = Non
                 for k, arr in extra_kept.items():
                     extra[k].append(span_mean(ts, arr[lo:hi], ta, tb))
             cols['stance_fraction'].append(stance_kept[idx].mean(axis=0))
+            extra_legs.append(float(np.mean(np.maximum(
+                np.sum(stance_kept[idx], axis=1) - STATICALLY_DETERMINATE_LEGS, 0))))
     if not cols['run']:
         raise ResidualDataError('robot bags give no complete gait-phase window after the '
                                 f'first {settle_s} s; record longer runs')
@@ -1090,6 +1098,7 @@ def build_windows(runs: Sequence[ResidualRun], *, temp_ref_c: float | None = Non
     return WindowTable(**arrays, leg_names=runs[0].leg_names, supply_slope_ohm=slope,
                        supply_slope_stderr_ohm=se,
                        extra={**{k: np.array(v) for k, v in extra.items()},
+                              'extra_stance_legs': np.array(extra_legs),
                               'windows_per_cycle': tuple(per_cycle), **temps})
 
 

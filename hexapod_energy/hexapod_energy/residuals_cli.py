@@ -110,7 +110,10 @@ servo temperatures, or without ``/servo_status`` on the energy drawn since the r
 ``hot_windings`` (servos warmer than the bench's: the predicted power times their mean excess
 temperature, ``per_k`` [1/K]), ``kinematic_error``, ``supply_resistance``,
 ``speed_friction``, ``carried_mass`` (an undeclared payload, in kg, from the bench model's own
-mass sensitivity), ``leg_anomaly`` (per leg),
+mass sensitivity), ``leg_anomaly`` (per leg), ``stance_preload`` (legs fighting each other in
+an over-constrained stance: ``w_per_leg`` [W] per stance leg beyond three, on the window mean
+of ``max(L - 3, 0)`` from ``/gait/phase``; a candidate where the walking windows' mean spans
+0.2 legs),
 ``swing_reversal`` (a swing after a slower stance than the bench's costs less, ``j_per_mps``
 [J s/m]: the bench's transfer error at other duty factors), ``standing_hold`` (a standing
 robot's holding power against the bench's 0 Hz sessions, ``holding_change`` -1 to +1) and

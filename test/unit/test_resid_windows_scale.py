@@ -33,9 +33,13 @@ def test_windows_equal_the_per_window_baseline():
                                          'temp_bench_c')}
     # so are the step geometry's phase-duration factors and the in-run battery voltage
     # (outside review G): 1 without a model's factors, the window means of |V|
-    newer = {k: new.extra.pop(k) for k in ('stance_scale', 'swing_scale', 'voltage_v')}
+    newer = {k: new.extra.pop(k) for k in ('stance_scale', 'swing_scale', 'voltage_v',
+                                           'extra_stance_legs')}
     assert np.all(newer['stance_scale'] == 1.0) and np.all(newer['swing_scale'] == 1.0)
     assert np.all(newer['voltage_v'] > 0)
+    # and the legs in stance beyond three (stance_preload): never negative, at most L - 3
+    assert np.all(newer['extra_stance_legs'] >= 0)
+    assert np.all(newer['extra_stance_legs'] <= runs[0].in_stance.shape[1] - 3)
     assert bench.max_difference(new, old) <= 1e-12
     assert ref['temp_bench_c'] == 29.0
     np.testing.assert_allclose(ref['temp_sum_c'] - ref['servo_count'] * 29.0,
