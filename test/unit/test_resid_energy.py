@@ -400,7 +400,8 @@ def test_cli_writes_the_schema_and_plots(bench, effect_bags, tmp_path, capsys):
     assert names == {'basal_power', 'thermal_drift', 'hot_windings', 'kinematic_error',
                      'supply_resistance', 'speed_friction', 'leg_anomaly', 'time_offset',
                      'carried_mass', 'power_gain', 'swing_reversal',
-                     'standing_hold', 'cable_resistance'}   # a cable after the monitor: review K
+                     'standing_hold', 'cable_resistance',   # a cable after the monitor: review K
+                     'stance_preload'}                       # legs fighting each other
     assert doc['effects_added'][0] == 'supply_resistance'
     assert 'reduced held-out error from' in doc['summary']
     for p in doc['plots']:
