@@ -27,6 +27,7 @@ from .geometry import (
     fit_ground_offset,
     offset_ground_grid,
     leg_contacts,
+    prefer_fit,
     white_noise_std,
     single_support,
 )
@@ -262,7 +263,8 @@ def _damping_tradeoff(gfit: Any, geometry: LegGeometry, geo_inputs: tuple[Any, .
 
     The damper advances the leg force like a clock shift, so the damping time and the offset
     trade off and the free fit can settle on either (undamped legs of another lab fitted 3.4
-    ms and an offset 7.4 ms late). The lower body-height RMS is kept and both are reported.
+    ms and an offset 7.4 ms late). The better fit of the body height is kept
+    (:func:`~slip_identification.geometry.prefer_fit`) and both are reported.
 
     ``given``: the offset is given (``--offset``), and these are the first fit's pitch-zero
     arguments; the undamped fit keeps the offset and gets the same pitch-zero freedom. Before,
@@ -285,12 +287,12 @@ def _damping_tradeoff(gfit: Any, geometry: LegGeometry, geo_inputs: tuple[Any, .
         'damping': how,
         'fitted_damping_time_s': gfit.damping_ratio_s, 'fitted_offset_s': gfit.offset_s,
         'fitted_rms_m': gfit.rms_m, 'undamped_offset_s': f0.offset_s, 'undamped_rms_m': f0.rms_m}
-    take0 = f0.rms_m < gfit.rms_m
+    take0 = prefer_fit(f0, gfit)
     res.notes.append(
         f'leg damping time unknown: {how} {1e3 * gfit.damping_ratio_s:.2f} ms gives the '
         f'offset {gfit.offset_s:+.4f} s (body-height rms {1e3 * gfit.rms_m:.3f} mm), undamped '
         f'legs {f0.offset_s:+.4f} s ({1e3 * f0.rms_m:.3f} mm); the damping time and the offset '
-        f'trade off, the ' + ('undamped' if take0 else how) + ' fit is kept (lower rms)')
+        f'trade off, the ' + ('undamped' if take0 else how) + ' fit is kept (it fits better)')
     if take0:
         return f0, undamped, inputs0
     return gfit, geometry, geo_inputs
@@ -309,7 +311,8 @@ def _stiffness_check(gfit: Any, geometry: LegGeometry, geo_inputs: tuple[Any, ..
     (EduBot simulated runs 3480-3930 N/m; the review's 2000 and 7000 N/m legs 2095 and 6034).
     A stiffness more than :data:`DAMPING_STIFFNESS_TOLERANCE` off EduBot's says the legs are
     not EduBot's: the damping time is then fitted (started from EduBot's damper on the fitted
-    spring) and kept unless it fits the body height clearly worse; a warning either way.
+    spring) and kept unless it fits the body height clearly worse (:func:`~slip_identification.
+    geometry.prefer_fit`); a warning either way.
     """
     ref = geometry.damping_stiffness_n_m
     k_leg = float(gfit.stiffness_per_kg) * float(mass_kg)
@@ -336,7 +339,7 @@ def _stiffness_check(gfit: Any, geometry: LegGeometry, geo_inputs: tuple[Any, ..
                  f'offset {gfit.offset_s:+.4f} s and the edges may be off by several ms; give '
                  f'--leg-damping-time SECONDS (or check --mass)')
         return gfit, geometry, geo_inputs
-    take = f1.rms_m <= 1.01 * gfit.rms_m
+    take = prefer_fit(f1, gfit, 1.01)
     res.frame['damping_stiffness_check'] = {
         'leg_stiffness_n_m': k_leg, 'default_damping_time_s': tau0,
         'default_offset_s': gfit.offset_s, 'default_rms_m': gfit.rms_m,
@@ -429,7 +432,8 @@ def _other_starts(gfit: Any, geo_inputs: tuple[Any, ...], geo_x: FloatArray, fir
     settled 118 ms off (body-height rms 0.342 mm against 0.232 mm of noise) while the joint
     estimate was 0.2 ms off. Another estimate is tried when it lies outside the first's
     search range; it is fitted as the first was (the same pitch-zero handling), and kept
-    when its rms is 5 % lower and its offset more than :data:`OTHER_START_MIN_MOVE_S` away
+    when its rms is 5 % lower (:func:`~slip_identification.geometry.prefer_fit`) and its
+    offset more than :data:`OTHER_START_MIN_MOVE_S` away
     (a fit over other windows that lands on the first offset again is no evidence;
     ``frame['offset_other_starts']``).
     """
@@ -444,7 +448,7 @@ def _other_starts(gfit: Any, geo_inputs: tuple[Any, ...], geo_x: FloatArray, fir
         except SlipDataError:
             continue
         tried[name] = {'start_s': start, 'offset_s': f.offset_s, 'rms_m': f.rms_m}
-        if f.rms_m < best.rms_m * (1 - HALF_STRIDE_BETTER) and \
+        if prefer_fit(f, best, 1 - HALF_STRIDE_BETTER) and \
                 abs(f.offset_s - gfit.offset_s) > OTHER_START_MIN_MOVE_S:
             best = f
     if not tried:
@@ -480,10 +484,13 @@ def _grid_start(gfit: Any, geo_inputs: tuple[Any, ...], geo_x: FloatArray, start
     only. The grid (:func:`~slip_identification.geometry.offset_ground_grid`, +-0.2 s, or twice
     the first search's range, by +-25 cm) gives up to :data:`GRID_CANDIDATES` starts (the
     best ground at each offset, its local minima, the lowest first); one is kept when it
-    lowers the body-height residual by :data:`HALF_STRIDE_BETTER` (``frame['offset_grid']``).
+    lowers the body-height residual by :data:`HALF_STRIDE_BETTER` (``frame['offset_grid']``;
+    residuals compared by :func:`~slip_identification.geometry.prefer_fit`). A first fit
+    whose output-error refinement failed (``unrefined``) is searched from the grid whatever
+    its residual, which reads low (the equation-error fit's).
     """
     noise = white_noise_std(geo_inputs[6])
-    if gfit.rms_m <= GEOMETRY_RESIDUAL_HIGH * max(noise, 1e-4):
+    if gfit.rms_m <= GEOMETRY_RESIDUAL_HIGH * max(noise, 1e-4) and not gfit.unrefined:
         return None
     half = max(2.0 * off_range, 0.2)
     try:
@@ -512,7 +519,7 @@ def _grid_start(gfit: Any, geo_inputs: tuple[Any, ...], geo_x: FloatArray, start
             continue
         tried.append({'start_s': d, 'start_ground_m': g, 'offset_s': f.offset_s,
                       'ground_m': f.ground_m, 'rms_m': f.rms_m})
-        if f.rms_m < best.rms_m * (1 - HALF_STRIDE_BETTER):
+        if prefer_fit(f, best, 1 - HALF_STRIDE_BETTER):
             best = f
     res.frame['offset_grid'] = {'first_offset_s': gfit.offset_s, 'first_ground_m': gfit.ground_m,
                                 'first_rms_m': gfit.rms_m, 'range_s': half, 'tried': tried,
@@ -551,7 +558,8 @@ def _half_stride_check(gfit: Any, geo_inputs: tuple[Any, ...], geo_x: FloatArray
     geometric fit tells them apart, so the cross-correlation's sign decides. A start half a
     stride away is taken only when it fits clearly better (an asymmetric robot); when it fits
     as well the ambiguity is said (res.notes, res.frame['offset_half_stride']). A start whose
-    output-error refinement failed (``GeometryFit.unrefined``) does not beat a refined fit.
+    output-error refinement failed (``GeometryFit.unrefined``) is compared with a refined fit
+    by the equation-error residuals (:func:`~slip_identification.geometry.prefer_fit`).
     ``with_efforts``: the run has hip efforts, but their offset estimates refused it (a gait
     without an aerial phase): starts that fit alike are decided by those estimators'
     assumption, clocks within a quarter stride (the one nearest zero is kept, noted).
@@ -581,16 +589,14 @@ def _half_stride_check(gfit: Any, geo_inputs: tuple[Any, ...], geo_x: FloatArray
         alt.append(f)
         # a start whose output-error refinement failed has the equation-error fit's residual,
         # below a refined fit's at any offset: not comparable (a simulated walk's start half a
-        # stride off, 0.164 against 0.202 mm, was taken: 524 ms off)
-        if f.rms_m < best.rms_m * (1 - HALF_STRIDE_BETTER) and \
-                not (f.unrefined and not best.unrefined):
+        # stride off, 0.164 against 0.202 mm, was taken: 524 ms off; prefer_fit)
+        if prefer_fit(f, best, 1 - HALF_STRIDE_BETTER):
             best = f
     if not alt:
         return free_fit
     rms = [f.rms_m for f in alt]
     # the starts that fit alike (comparable residuals within HALF_STRIDE_BETTER)
-    ties = [f for f in alt if f.rms_m < gfit.rms_m * (1 + HALF_STRIDE_BETTER)
-            and not (f.unrefined and not gfit.unrefined)]
+    ties = [f for f in alt if prefer_fit(f, gfit, 1 + HALF_STRIDE_BETTER)]
     if best is not gfit:
         res.notes.append(
             f'the cross-correlation\'s offset {gfit.offset_s:+.4f} s was half a stride off: '
@@ -609,7 +615,7 @@ def _half_stride_check(gfit: Any, geo_inputs: tuple[Any, ...], geo_x: FloatArray
             f'); the one nearest zero, {best.offset_s:+.4f} s, is kept: the hip-effort '
             f'estimates (which refused the run) assume clocks within a quarter stride '
             f'({0.5 * half:.3f} s). If they differ by more, give --offset')
-    elif min(rms) < gfit.rms_m * (1 + HALF_STRIDE_BETTER):
+    elif ties:
         # a warning: the tripods' labels (and every per-tripod figure) may be swapped
         res.warn(
             f'offset ambiguous by half a stride ({half:.3f} s): without hip efforts the '
@@ -1110,16 +1116,21 @@ def analyze_run(run: RunData, *, model: SlipModel | None = None, box: Box | None
                                  fix_offset=method != 'geometry', x_m=geo_x, **p0_kw)
         at_edge = (gfit.windows == 0 or abs(gfit.ground_m) > 0.04 or
                    (method == 'geometry' and abs(gfit.offset_s - off) > 0.8 * off_range))
-        if at_edge:
+        if at_edge or gfit.unrefined:
             # another lab's mocap origin need not be on the floor: the fit ran into the edge
             # of its +-5 cm ground grid (or its offset range); search +-25 cm and keep the
-            # better fit
+            # better fit. A first fit whose output-error refinement failed too: with the
+            # origin 12 cm above the floor the grid held a ground where the legs never touch
+            # (ballistic windows fit the body height; the refinement fails), simulated
+            # jogging 27-58 ms and 133 mm off without a note
             wide = fit_ground_offset(*geo_inputs, initial_offset_s=off,
                                      offset_range_s=off_range, ground_range_m=(-0.25, 0.25),
                                      fix_offset=method != 'geometry', x_m=geo_x, **p0_kw)
-            if wide.rms_m < gfit.rms_m:
+            if prefer_fit(wide, gfit):
+                why = ('reached the edge of its +-5 cm range' if at_edge else
+                       'was not refined (the output-error fit failed)')
                 res.notes.append(
-                    f'the ground fit reached the edge of its +-5 cm range (ground '
+                    f'the ground fit {why} (ground '
                     f'{gfit.ground_m:+.3f} m, offset {gfit.offset_s:+.3f} s, rms '
                     f'{1e3 * gfit.rms_m:.2f} mm); searched +-25 cm: ground '
                     f'{wide.ground_m:+.3f} m, offset {wide.offset_s:+.3f} s, rms '
