@@ -51,7 +51,9 @@ the same, so that none is left beside the new result). Schema of ``slip.json``::
                           differences), "geometry_residual_ratio" (rms over that noise,
                           at least 0.1 mm; over 1.3 a note: the offset may sit in a local
                           minimum), "geometry_fit_poor" (ratio over 3: offset, ground and
-                          edges unreliable, with a note), "offset_other_starts" (the
+                          edges unreliable, with a note), "geometry_unrefined" (its
+                          output-error refinement failed: equation-error residual, 20-23 %
+                          low without flight, with a note), "offset_other_starts" (the
                           proprioceptive estimates disagree: the fit from each,
                           {"first_start_s", "first_offset_s", "first_rms_m",
                            <estimator>: {"start_s", "offset_s", "rms_m"}}),
