@@ -245,6 +245,7 @@ class SelfCalibration:
         self._replayed = 0
         self._window = _Window()
         self._first_inside_s: float | None = None   # mocap clock
+        self._closed = False
         self._last: dict[str, float] = {}
         self._checked_s = -math.inf
         self._thread: threading.Thread | None = None
@@ -364,27 +365,35 @@ class SelfCalibration:
         except Exception as err:   # noqa: BLE001 - any failure falls back, with its reason
             cal = Calibration(refused=f'{type(err).__name__}: {err}')
         cal = Calibration(**{**cal.__dict__, 'stride_s': stride})
+        if self._closed:
+            return
         core = self._make_core(cal)
         fits: list[SlipFitResult] = []
         done = 0
         while True:
             with self._lock:
+                if self._closed:   # the node is gone: no hand-over, no on_ready
+                    return
                 new = self._events[done:]
                 if not new:
                     self._core, self._fits, self.result = core, fits, cal
                     self._replayed = done
                     self.state = 'ready'
-                    break
+                    self.replay_s = time.perf_counter() - t0
+                    # under the lock: close() returns only once this is done, so the node
+                    # never destroys what on_ready touches (its guard condition) under it
+                    if self.on_ready is not None:
+                        self.on_ready()
+                    return
             fits.extend(self._replay(core, new))
             done += len(new)
-        self.replay_s = time.perf_counter() - t0
-        if self.on_ready is not None:
-            self.on_ready()
 
     def _replay(self, core: OnlineSlip, events: Sequence[tuple[Any, ...]]
                 ) -> list[SlipFitResult]:
         out: list[SlipFitResult] = []
         for e in events:
+            if self._closed:
+                break
             try:
                 if e[0] == 'js':
                     s = e[1]
@@ -414,6 +423,15 @@ class SelfCalibration:
         self.replayed_on_take = len(rest)
         fits = fits + self._replay(core, rest)
         return core, cal, fits
+
+    def close(self) -> bool:
+        """Stop (the node is being destroyed): a running worker stops at its next sample and
+        never calls ``on_ready`` (it had called it on the destroyed node's guard condition,
+        a traceback, after running on for seconds); True when the result is ready to be
+        taken (:meth:`take` still gives it: the fits already computed, to publish)."""
+        with self._lock:
+            self._closed = True
+            return self.state == 'ready'
 
     def wait(self, timeout_s: float | None = None) -> bool:
         """Wait for the worker (offline tools, tests); True when it is done or none runs."""
