@@ -183,8 +183,9 @@ def test_run_node_debug_shows_the_traceback(monkeypatch):
     ('slip_identification.slip_node', ['ground:=0.0', 'hip_x:=[1.0]'], "'hip_x'"),
     ('slip_identification.slip_node', ['hip_x:=[1.0]'], "'hip_x'"),
     ('slip_identification.slip_node', ['box:=[1.0]'], "'box'"),
-    ('slip_identification.slip_node', ['mocap_offset:=.nan'], "'mocap_offset'"),
+    ('slip_identification.slip_node', ['mocap_offset:=.inf'], "'mocap_offset'"),
 ])
+@pytest.mark.timeout(60)
 def test_console_scripts_refuse_bad_start_up_values_in_one_line(module, args, expected, capsys,
                                                                 monkeypatch):
     import importlib
