@@ -346,6 +346,27 @@ class SelfCalibration:
         stride = 2.0 * math.pi / w if w > 0 else math.inf
         return covered >= 0.5 and t_s - self._first_inside_s >= self.strides * stride
 
+    def pending(self) -> str:
+        """Why no fit came yet, when the window is still collecting ('' otherwise): the
+        motion capture in the box so far against the strides it waits for (the node says it
+        when it stops, or when a replayed bag ends, before the calibration was due; it had
+        said nothing)."""
+        with self._lock:
+            if self.state != 'collecting' or not self._events:
+                return ''   # (nothing came: the node's input watch says so)
+            if self._first_inside_s is None:
+                return (f'the self-calibration never started: no motion capture inside the box '
+                        f'(it waits for {self.strides:g} strides of it); no stance was fitted')
+            w, _ = self._window.speed()
+            mocap = self._last.get('mocap', self._first_inside_s)
+            tracked = max(mocap - self._first_inside_s, 0.0)
+            stride = (f'{tracked * w / (2.0 * math.pi):.1f} strides'
+                      if w >= MIN_HIP_SPEED_RAD_S else 'the hips not turning')
+            return (f'the self-calibration was not due: its window spans {tracked:.2f} s of '
+                    f'motion capture since the robot entered the box ({stride}) of the '
+                    f'{self.strides:g} strides it waits for; no stance was fitted. Give ground, '
+                    f'mocap_offset and pitch_offset, or lower calibration_strides')
+
     # -- the worker ------------------------------------------------------------------------
     def _split(self, events: Sequence[tuple[Any, ...]]) -> RunData:
         js = [e[1] for e in events if e[0] == 'js']

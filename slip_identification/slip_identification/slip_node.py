@@ -277,6 +277,7 @@ class SlipFitterNode(Node):
         self.calibration: SelfCalibration | None = None
         self._calibration_warned = 0
         self._handed_over = 0   # fits the hand-over gave
+        self._pending_said = ''   # the self-calibration not due, said at the end
         if not math.isfinite(p.ground) and p.calibration_strides > 0:
             self._calibration_ready = self.create_guard_condition(self._take_calibration)
             self.calibration = SelfCalibration(
@@ -403,6 +404,9 @@ class SlipFitterNode(Node):
         wakes the node) and publish the fits it had already computed, when it can (not once
         a stop signal has shut the context down: then how many were lost is logged)."""
         cal = self.calibration
+        why = cal.pending() if cal is not None else ''
+        if why and why != self._pending_said:
+            self.get_logger().warning(why)
         if cal is not None and cal.close():
             before = self.published
             try:
@@ -418,7 +422,13 @@ class SlipFitterNode(Node):
         """Wait for a running self-calibration and hand it over (for
         :func:`hexapod_common.replay.run_offline`, which calls it after the bag: the
         buffered stances' fits are then published)."""
-        if self.calibration is not None and self.calibration.wait(timeout_s):
+        cal = self.calibration
+        why = cal.pending() if cal is not None else ''
+        if why:
+            if why != self._pending_said:   # said once (destroy_node would say it again)
+                self.get_logger().warning(why)
+                self._pending_said = why
+        elif cal is not None and cal.wait(timeout_s):
             self._take_calibration()
 
     def _log_core(self) -> None:

@@ -181,3 +181,28 @@ def test_a_standing_start_is_not_calibrated_on(running):
                          default_options(position_fit=False)).result
     assert abs(sc.result.offset_s - whole.offset_s) < 1e-3
     assert abs(sc.result.ground_m - whole.ground_m) < 1e-3
+
+
+def test_a_run_that_ends_before_the_window_is_due_says_why(running):
+    """A run shorter than the window (here its first second) published nothing and said
+    nothing; ``pending`` now gives the motion capture tracked against the strides awaited
+    (the node logs it when it stops, or when a replayed bag ends)."""
+    sc, seen = _self_calibration()
+    events = _events(running)
+    t_end = running.mocap_t_s[0] + 1.0
+    short = [e for e in events if (e[1].t_s if e[0] != 'mocap' else e[1]) < t_end]
+    _feed(sc, short)
+    assert sc.state == 'collecting' and not seen
+    why = sc.pending()
+    assert why.startswith('the self-calibration was not due') and 'of the 6 strides' in why
+    tracked = float(why.split('spans ')[1].split(' s')[0])
+    assert 0.9 < tracked <= 1.0
+    strides = float(why.split('(')[1].split(' strides')[0])
+    assert strides == pytest.approx(tracked / running.clock.period_s, abs=0.2)
+    empty, _ = _self_calibration()
+    assert empty.pending() == ''   # nothing came at all: the node's input watch says that
+    outside, _ = _self_calibration()
+    _feed(outside, [e for e in short if e[0] != 'mocap'])
+    assert 'never started' in outside.pending()
+    _feed(sc, events)
+    assert sc.pending() == ''   # due: nothing pending
