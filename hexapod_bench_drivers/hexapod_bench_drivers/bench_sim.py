@@ -99,6 +99,10 @@ class BenchPlan:
         (start, length) [s from the walk's start]: every walk pauses that long inside its
         ``walk_s`` (the gait clock stops and the leg holds where it is, then walks on from
         there), as an operator pausing the gait; None (default): no pause.
+    hold : (float, float), optional
+        (leg phase, share): the leg's trajectory holds still at that phase of its cycle (0 =
+        touchdown) for that share of every cycle, the cycle's length kept (a gait that dwells
+        by design: the rest of the cycle is walked faster); None (default): no hold.
     """
 
     loads_kg: tuple[float, ...] = BENCH_LOADS_KG
@@ -111,6 +115,7 @@ class BenchPlan:
     step_length_m: float = 0.10
     step_height_m: float = 0.04
     pause_s: tuple[float, float] | None = None
+    hold: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         if not self.loads_kg or not self.frequencies_hz:
@@ -123,6 +128,9 @@ class BenchPlan:
         if self.pause_s is not None and not (self.pause_s[0] >= 0 and self.pause_s[1] > 0):
             raise ValueError(f'BenchPlan.pause_s = {self.pause_s!r}: expected (start >= 0 s, '
                              'length > 0 s)')
+        if self.hold is not None and not (0 <= self.hold[0] < 1 and 0 < self.hold[1] < 1):
+            raise ValueError(f'BenchPlan.hold = {self.hold!r}: expected (leg phase in [0, 1), '
+                             'share in (0, 1))')
 
     def sessions(self) -> list[BenchSession]:
         return [BenchSession(m, f, self.duty_factor, self.step_length_m, self.step_height_m)
@@ -149,6 +157,19 @@ class BenchConfig:
 class _Segment:
     builder: TraceBuilder
     sessions: list[SessionRecord] = field(default_factory=list)
+
+
+def _hold_clock(tg: FloatArray, period_s: float, offset: float, at: float, share: float
+                ) -> tuple[FloatArray, FloatArray]:
+    """The gait clock of a leg that holds at leg phase ``at`` for ``share`` of every cycle
+    (the leg's phase offset ``offset``), and its rate against time (0 where it holds)."""
+    cycles = tg / period_s - offset
+    lp = cycles % 1.0
+    a = at * (1.0 - share)
+    m = np.where(lp < a, lp / (1.0 - share),
+                 np.where(lp < a + share, at, (lp - share) / (1.0 - share)))
+    still = (lp >= a) & (lp < a + share)
+    return tg + (m - lp) * period_s, np.where(still, 0.0, 1.0 / (1.0 - share))
 
 
 class BenchSimulator:
@@ -208,12 +229,15 @@ class BenchSimulator:
     # ----------------------------------------------------------------------------------------
     def _segment(self, n: int, dt: float, session: BenchSession, *, walking: bool,
                  powered: bool, origin_s: float | None = None,
-                 pause_s: tuple[float, float] | None = None) -> TraceBuilder:
+                 pause_s: tuple[float, float] | None = None,
+                 hold: tuple[float, float] | None = None) -> TraceBuilder:
         """Simulate ``n`` samples of ``dt`` seconds in one state.
 
         ``origin_s`` is the time the walk started (gait phase 0), so that a long walk split
         into chunks stays phase-continuous. ``pause_s`` (start, length) [s from
         ``origin_s``]: the gait clock stands still that long (the leg holds its pose).
+        ``hold`` (leg phase, share): the leg holds at that phase for that share of every cycle
+        (:attr:`BenchPlan.hold`).
         """
         cfg, eff = self.config, self.effects
         t = self.t_s + dt * np.arange(1, n + 1)
@@ -232,8 +256,14 @@ class BenchSimulator:
         if gait is not None:
             traj = LegTrajectory(gait, self.leg_index, kinematics=self.kinematics,
                                  neutral_tip_m=self.neutral_tip)
+            rate = np.ones(n)
+            if hold is not None:
+                tg, rate = _hold_clock(tg, gait.period_s,
+                                       float(gait.phase_offsets[self.leg_index]), *hold)
             q, qd, _ = traj.joints(tg)
             tipv = traj.tip_velocity(tg)
+            qd *= rate[:, None]
+            tipv *= rate[:, None]
             qd[held] = 0.0
             tipv[held] = 0.0
             stance = gait.stance_mask(tg)[:, self.leg_index]
@@ -358,7 +388,8 @@ class BenchSimulator:
             while done < walk_n:
                 m = min(chunk, walk_n - done)
                 parts.append(self._segment(m, dt, session, walking=True, powered=True,
-                                           origin_s=origin, pause_s=plan.pause_s))
+                                           origin_s=origin, pause_s=plan.pause_s,
+                                           hold=plan.hold))
                 done += m
                 if progress is not None:
                     progress(m)
