@@ -1077,6 +1077,37 @@ def _still_stretches(t_s: np.ndarray, q: np.ndarray, t0: float, t1: float,
     return np.column_stack((t[a], t[b]))
 
 
+#: a still stretch of the joints between two lift-offs no further apart than a cycle and
+#: JOINT_HOLD_SLACK of one (+ 2 leg tip samples) is a hold of the gait, not a pause: a pause
+#: stops the gait clock and puts the next lift-off that much later. A leg whose trajectory
+#: dwells for 0.3 of every cycle (in its stance or mid-swing) had every cycle taken as a pause
+#: and its walking sessions dropped (outside review)
+JOINT_HOLD_SLACK = 0.1
+
+
+def _without_holds(rows: np.ndarray, rises: np.ndarray, period: float, tip_dt: float
+                   ) -> np.ndarray:
+    """The still stretches ``rows`` ((start, end) [s]) that are not holds of the gait
+    (:data:`JOINT_HOLD_SLACK`). A stretch without a lift-off on one side (at the walk's start
+    or end), or with another between the same two lift-offs (a hold, then a pause), is a hold
+    when the walk has holds and it is no longer than the longest of them (+ the slack)."""
+    if not rows.size:
+        return rows
+    slack = JOINT_HOLD_SLACK * period + 2.0 * tip_dt
+    hold = np.zeros(len(rows), bool)
+    known = np.zeros(len(rows), bool)
+    step = np.searchsorted(rises, rows[:, 0])   # the lift-off interval each stretch is in
+    for i, (a, b) in enumerate(rows):
+        prev, nxt = rises[rises <= a], rises[rises >= b]
+        if prev.size and nxt.size and np.sum(step == step[i]) == 1:
+            known[i] = True
+            hold[i] = float(nxt[0] - prev[-1]) <= period + slack
+    if hold.any():
+        longest = float(np.max(rows[hold, 1] - rows[hold, 0]))
+        hold |= ~known & (rows[:, 1] - rows[:, 0] <= longest + slack)
+    return rows[~hold]
+
+
 def _joint_pauses(data: BenchData, t0: float, t1: float, frequency_hz: float,
                   duty_factor: float) -> np.ndarray | None:
     """:func:`_tip_pauses` from the bench leg's joints (:attr:`BenchData.joint_t_s`): a pause
@@ -1085,9 +1116,9 @@ def _joint_pauses(data: BenchData, t0: float, t1: float, frequency_hz: float,
     with many. The rows' last two columns are what the phase split leaves out: from the start
     of the cycle the leg stops in (cycles from ``t0``) to the end of the cycle it walks on in
     (placed by its next lift-off and the lift-offs' median offset in their cycles before the
-    first pause, else the duty factor), whole cycles on either side. None when the joints
-    cannot tell (none recorded, no motion, or still while the tip lifts off: not the bench
-    leg's)."""
+    first pause, else the duty factor), whole cycles on either side; stretches the gait holds
+    every cycle are left in (:func:`_without_holds`). None when the joints cannot tell (none
+    recorded, no motion, or still while the tip lifts off: not the bench leg's)."""
     rows = _still_stretches(data.joint_t_s, data.joint_q_rad, t0, t1, frequency_hz)
     if rows is None:
         return None
@@ -1099,6 +1130,8 @@ def _joint_pauses(data: BenchData, t0: float, t1: float, frequency_hz: float,
     dt = float(np.median(np.diff(data.joint_t_s))) if data.joint_t_s.size > 1 else 0.0
     # inside the walk: standing that reaches its ends is not a pause inside it
     rows = rows[(rows[:, 0] > t0 + 2 * dt) & (rows[:, 1] < t1 - 2 * dt)]
+    tip_dt = float(np.median(np.diff(data.tip_t_s[m]))) if m.sum() > 1 else 0.0
+    rows = _without_holds(rows, rises, period, tip_dt)
     if not rows.size:
         return np.zeros((0, 4))
     before = rises[rises < rows[0, 0]]
@@ -1118,6 +1151,17 @@ def _joint_pauses(data: BenchData, t0: float, t1: float, frequency_hz: float,
         out.append((stop, resume, max(left0, t0), left1))
         grid = left1
     return np.array(out, dtype=float)
+
+
+def _add_pauses(joints: np.ndarray | None, tip: np.ndarray) -> np.ndarray:
+    """The pause rows of :func:`_joint_pauses` (None: the joints cannot tell) with those of
+    :func:`_tip_pauses` whose left-out span meets none of theirs, in time order."""
+    if joints is None:
+        return tip
+    apart = [r for r in tip
+             if not np.any((joints[:, 2] < r[3]) & (r[2] < joints[:, 3]))]
+    rows = np.vstack([joints] + [np.reshape(r, (1, 4)) for r in apart])
+    return rows[np.argsort(rows[:, 2], kind='stable')]
 
 
 @dataclass(frozen=True)
@@ -1752,16 +1796,18 @@ def bench_phase_samples(
         if by_contact and t_tip.size:
             # a pause inside the walk (the leg stands, then walks on) is standing: its samples
             # are in neither phase, and the walk after it is taken in whole cycles from its end
-            # (the joints show where the leg stops and walks on; else the tip's ground times)
-            rows = _joint_pauses(data, t0, t1, s['frequency_hz'], duty)
-            if rows is None:
-                rows = _tip_pauses(data.tip_t_s, data.tip_z_m, t0, t1, s['frequency_hz'])
+            # (the joints show where the leg stops and walks on; else the tip's ground times,
+            # which also add the pauses joints did not see: a servo hunting by 1 deg while
+            # paused, 2 s at 0.5 Hz, read P_stance +9.7 %, P_swing -33 % without a warning)
+            rows = _add_pauses(_joint_pauses(data, t0, t1, s['frequency_hz'], duty),
+                               _tip_pauses(data.tip_t_s, data.tip_z_m, t0, t1,
+                                           s['frequency_hz']))
             rows = rows[(rows[:, 3] > a) & (rows[:, 2] < t1)]
             if rows.size:
                 keep = np.ones(t_tip.shape, bool)
                 for p0, p1 in rows[:, 2:]:
                     keep &= ~((t_tip >= p0) & (t_tip < p1))
-                resume = float(rows[-1, 3])
+                resume = float(np.max(rows[:, 3]))
                 if resume > a:
                     f = s['frequency_hz']
                     t1 = resume + math.floor(max(t1 - resume, 0.0) * f + CYCLE_TOLERANCE) / f
