@@ -109,3 +109,40 @@ def test_bench_plan_hold_is_checked():
 
     with pytest.raises(ValueError, match='hold'):
         BenchPlan(hold=(0.5, 1.0))
+
+
+@pytest.mark.parametrize('names, bench_leg, note', [
+    (('hip', 'knee', 'ankle'), None, "has no one leg's _coxa, _femur, _tibia (hip, knee"),
+    (('hip', 'knee', 'ankle'), 'R2', 'has no R2_coxa, _femur, _tibia (hip, knee, ankle)'),
+    ('others', None, "several legs ['L1', 'L2', 'L3', 'R1', 'R2', 'R3']: give --bench-leg"),
+    ('others', 'R2', None),
+    (None, None, None),
+])
+def test_joints_not_used_for_pauses_are_noted(root, names, bench_leg, note):
+    """A bench whose joints are named otherwise, or a whole robot's joints without
+    --bench-leg: the pauses come from the tip alone (a pause mid-swing is not seen), noted
+    (old: silently)."""
+    src, _ = _source(root, 1.0, 6.0, None, None)
+
+    def edit(topic, msg):
+        if topic == '/gait/phase':
+            return False
+        if names == 'others':
+            extra = [f'{leg}_{j}' for leg in ('L1', 'L2', 'L3', 'R1', 'R3')
+                     for j in ('coxa', 'femur', 'tibia')]
+            msg.name = list(msg.name) + extra
+            for field in ('position', 'velocity', 'effort'):
+                setattr(msg, field, np.concatenate((getattr(msg, field), np.zeros(15))))
+        elif names is not None:
+            msg.name = list(names)
+        return None
+
+    dst = f'{src}_names_{names}_{bench_leg}'
+    rewrite_bag(src, dst, edit, topics={'/gait/phase', '/joint_states'})
+    notes = [n for n in read_bench_bag(dst, bench_leg=bench_leg).notes
+             if n.startswith('/joint_states ')]
+    if note is None:
+        assert notes == []
+    else:
+        [n] = notes
+        assert note in n and n.endswith('(a pause mid-swing, the tip held up, is not seen)'), n
