@@ -41,21 +41,25 @@ def _source(root: str, freq: float, walk_s: float, pause: tuple[float, float] | 
 
 
 def _run(root, freq, walk_s, pause=None, hold=None, joints='keep'):
-    """Phase powers and warnings with /gait/phase dropped; ``joints``: 'keep', 'drop', or
-    (amplitude [rad], 'tremor') on every joint while paused (4 Hz)."""
+    """Phase powers and warnings with /gait/phase dropped; ``joints``: 'keep', 'drop',
+    (amplitude [rad], 'tremor') on every joint while paused (4 Hz), or (sigma [rad],
+    'noise') white noise on every joint throughout."""
     src, walk = _source(root, freq, walk_s, pause, hold)
+    rng = np.random.default_rng(0)
 
     def edit(topic, msg):
         if topic == '/gait/phase' or joints == 'drop':
             return False
-        if isinstance(joints, tuple) and pause is not None:
+        if isinstance(joints, tuple) and joints[1] == 'noise':
+            msg.position = np.asarray(msg.position) + rng.normal(0.0, joints[0], 3)
+        elif isinstance(joints, tuple) and pause is not None:
             t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9 - START_S - walk
             if pause[0] <= t < pause[0] + pause[1]:
                 w = 2.0 * math.pi * 4.0 * (t - pause[0])
                 msg.position = np.asarray(msg.position) + joints[0] * np.sin(w + np.arange(3))
         return None
 
-    dst = f'{src}_{joints}'
+    dst = f'{src}_{joints[1] if isinstance(joints, tuple) else joints}'
     rewrite_bag(src, dst, edit, topics={'/gait/phase', '/joint_states'})
     samples, diag = bench_phase_samples(read_bench_bag(dst))
     return ({s.session_id: (s.p_stance_w, s.p_swing_w) for s in samples if s.frequency_hz},
@@ -102,6 +106,19 @@ def test_a_pause_the_joints_hide_is_found_by_the_tip(root, freq, walk_s, pause):
         np.testing.assert_allclose(got[sid], ref[sid], rtol=0.005, err_msg=sid)
     [w] = warnings
     assert 'in 1 pause(s)' in w and w.endswith('left out of both phases'), w
+
+
+def test_a_pause_mid_swing_under_joint_noise(root):
+    """White noise of 0.5 deg on the joints (the spread of a quarter cycle of raw samples
+    over 3 % of the range) hid a 1 s pause mid-swing, where the tip is held up: P_stance
+    -10.5 %, P_swing +6.2 %, no warning. The joints are averaged over a fifth of the still
+    window first."""
+    ref, _ = _run(root, 0.75, 8.0)
+    got, warnings = _run(root, 0.75, 8.0, pause=(1.0, 1.0), joints=(math.radians(0.5), 'noise'))
+    for sid in ref:
+        np.testing.assert_allclose(got[sid], ref[sid], rtol=0.003, err_msg=sid)
+    [w] = warnings
+    assert 'in 1 pause(s)' in w and '(1.0-2.0 s after' in w, w
 
 
 def test_bench_plan_hold_is_checked():
