@@ -1081,23 +1081,31 @@ def _still_stretches(t_s: np.ndarray, q: np.ndarray, t0: float, t1: float,
     k = max(3, int(math.ceil(window / dt)) + 1)
     if k > t.size:
         return np.zeros((0, 2))
+    # averaged over `smooth` samples, a window of kw of them spans k raw ones: samples
+    # i - lo .. i + kw - 1 + hi of the raw stream (a raw still stretch of k samples is still)
     smooth = int(JOINT_SMOOTH_SHARE * k)
+    kw, lo, hi = k, 0, 0
     if smooth > 1:
         x = uniform_filter1d(x, smooth, axis=0, mode='nearest')
-    spread = (maximum_filter1d(x, k, axis=0, origin=-(k // 2)) -
-              minimum_filter1d(x, k, axis=0, origin=-(k // 2))).max(axis=1)
-    # window i holds samples i .. i+k-1 (the filters' forward window)
-    n = t.size - k + 1
-    span = t[k - 1:] - t[:n]
+        kw, lo = max(3, k - smooth + 1), smooth // 2
+        hi = k - kw - lo
+    spread = (maximum_filter1d(x, kw, axis=0, origin=-(kw // 2)) -
+              minimum_filter1d(x, kw, axis=0, origin=-(kw // 2))).max(axis=1)
+    # window i holds samples i .. i+kw-1 (the filters' forward window)
+    n = t.size - kw + 1
+    cs = np.clip(np.arange(n) - lo, 0, t.size - 1)
+    ce = np.clip(np.arange(n) + kw - 1 + hi, 0, t.size - 1)
+    span = t[ce] - t[cs]
     gap = np.diff(t) > max(5.0 * dt, window / 3.0)
-    gapped = np.convolve(gap.astype(float), np.ones(k - 1), 'valid')[:n] > 0
+    gaps = np.concatenate(([0], np.cumsum(gap)))
+    gapped = gaps[ce] - gaps[cs] > 0
     still = (spread[:n] <= JOINT_STILL_SHARE * float(reach.max())) & ~gapped & \
         (span <= 1.5 * window + 2 * dt)
     if not still.any():
         return np.zeros((0, 2))
     d = np.zeros(t.size + 1, int)
-    np.add.at(d, np.flatnonzero(still), 1)
-    np.add.at(d, np.flatnonzero(still) + k, -1)
+    np.add.at(d, cs[still], 1)
+    np.add.at(d, ce[still] + 1, -1)
     cover = np.cumsum(d)[:t.size] > 0
     edge = np.diff(np.concatenate(([0], cover.astype(np.int8), [0])))
     a, b = np.flatnonzero(edge == 1), np.flatnonzero(edge == -1) - 1

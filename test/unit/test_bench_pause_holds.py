@@ -40,6 +40,7 @@ def _source(root: str, freq: float, walk_s: float, pause: tuple[float, float] | 
     return name, walk
 
 
+@lru_cache(maxsize=None)
 def _run(root, freq, walk_s, pause=None, hold=None, joints='keep'):
     """Phase powers and warnings with /gait/phase dropped; ``joints``: 'keep', 'drop',
     (amplitude [rad], 'tremor') on every joint while paused (4 Hz), or (sigma [rad],
@@ -119,6 +120,22 @@ def test_a_pause_mid_swing_under_joint_noise(root):
         np.testing.assert_allclose(got[sid], ref[sid], rtol=0.003, err_msg=sid)
     [w] = warnings
     assert 'in 1 pause(s)' in w and '(1.0-2.0 s after' in w, w
+
+
+@pytest.mark.parametrize('freq, walk_s, pause', [
+    (1.0, 8.0, (2.8, 0.25)),   # mid-swing: old P_stance -1.1 %, P_swing -2.6 %, no warning
+    (0.5, 10.0, (5.6, 0.5)),   # mid-swing: old -2.2 %, -1.5 %
+    (1.0, 8.0, (2.3, 0.25)),   # mid-stance (missed when averaged without a shorter window)
+])
+def test_a_quarter_cycle_pause(root, freq, walk_s, pause):
+    """A pause of a quarter cycle: the averaged joints are still over a window shorter by
+    the average's length (the raw samples' quarter cycle)."""
+    ref, _ = _run(root, freq, walk_s)
+    got, warnings = _run(root, freq, walk_s, pause=pause)
+    for sid in ref:
+        np.testing.assert_allclose(got[sid], ref[sid], rtol=0.003, err_msg=sid)
+    [w] = warnings
+    assert 'in 1 pause(s)' in w and f'({pause[0]:.1f}-' in w, w
 
 
 def test_bench_plan_hold_is_checked():

@@ -60,7 +60,9 @@ def root(tmp_path_factory):
 
 
 @pytest.mark.parametrize('freq, walk_s, pause, tol, where', [
-    (0.5, 8.0, (2.0, 2.0), 0.005, '4.0 s'),      # 2 steps around it (old +9.7 %, -33 %)
+    # 2 steps around it (old +9.7 %, -33 %); it ends at 4.0 s, the joints' average reads
+    # the walk-on's slow start still
+    (0.5, 8.0, (2.0, 2.0), 0.005, '4.1 s'),
     (1.0, 6.0, (1.3, 1.0), 0.005, '1.3-2.3 s'),  # mid-stance (old P_stance -3.0 %)
     (0.75, 8.0, (1.0, 1.0), 0.01, '-2.0 s'),     # mid-swing, tip held up (old -10.5 %, +6.2 %)
 ])
