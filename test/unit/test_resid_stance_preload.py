@@ -107,13 +107,19 @@ def test_the_windows_carry_the_mean_of_the_extra_stance_legs():
     assert not StancePreload().applicable(one)        # one gait: a basal power's shape
 
 
-def test_a_hidden_preload_is_named_and_transfers(bench, tmp_path):
-    doc = loop(bench, _bags(tmp_path, [f'stance_preload={PRELOAD_N}']))
+def _said(doc):
+    """The added effect's parameters and the runs-left-out figures, printed."""
     p = added(doc, 'stance_preload')['params']
     lo = doc['leave_one_run_out']
     print(f"\nadded {doc['effects_added']}: {p['w_per_leg']:.2f} W per extra stance leg; "
           f"held-out {doc['heldout']['rmse_before']:.2f} -> {doc['heldout']['rmse_after']:.2f}"
           f" W, runs left out {lo['rmse_before']:.2f} -> {lo['rmse_after']:.2f} W")
+    return p, lo
+
+
+def test_a_hidden_preload_is_named(bench, tmp_path):
+    doc = loop(bench, _bags(tmp_path, [f'stance_preload={PRELOAD_N}']))
+    p, lo = _said(doc)
     assert doc['effects_added'][0] == 'stance_preload'
     assert not {'leg_anomaly', 'basal_power', 'carried_mass'} & set(doc['effects_added'])
     assert 1.0 < p['w_per_leg'] < 1.8
@@ -139,11 +145,7 @@ def test_a_draw_of_the_duty_factor_alone_is_a_preload(bench, clean_runs):
         r.power_w = r.power_w + draw
         r.current_a = r.current_a + draw / r.voltage_v
     doc = R.energy_loop_from_runs(bench['model'], runs, None, temp_ref_c=bench['temp_ref_c'])
-    p = added(doc, 'stance_preload')['params']
-    lo = doc['leave_one_run_out']
-    print(f"\nadded {doc['effects_added']}: {p['w_per_leg']:.2f} W per extra stance leg; "
-          f"held-out {doc['heldout']['rmse_before']:.2f} -> {doc['heldout']['rmse_after']:.2f}"
-          f" W, runs left out {lo['rmse_before']:.2f} -> {lo['rmse_after']:.2f} W")
+    p, lo = _said(doc)
     assert doc['effects_added'][0] == 'stance_preload'
     assert not {'leg_anomaly', 'basal_power', 'thermal_drift'} & set(doc['effects_added'])
     assert p['w_per_leg'] == pytest.approx(1.5, rel=0.25)
